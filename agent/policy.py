@@ -1,0 +1,358 @@
+"""The search policy (paper §5.1): rooms in order, static objects in planned order, look or open.
+
+Every step is appended to the event log through a :class:`Recorder`, which also feeds the
+projections, so the scene graph the next plan uses is always the fold of what was written.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import random
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from objsearch.agent.categories import Vocabulary
+from objsearch.agent.geometry import Point, Pose, heading, wrap_angle
+from objsearch.agent.home import Vec3
+from objsearch.agent.navmap import NavigationMap
+from objsearch.agent.planner import Ordering, relation_order, wpl_plan
+from objsearch.agent.scene_graph import EventLike, SceneGraphProjection
+from objsearch.agent.semmap import MappedStatic, SemanticMap
+from objsearch.agent.world import Detection, Navigation, World
+
+LOOK_OFFSETS = (0.0, math.pi / 4, -math.pi / 4)  # θ_s and ±45° (paper §5.1)
+
+
+class Method(enum.Enum):
+    WPL = "wpl"  # the paper's method: rooms by Σ Rel, objects by minimum WPL (α = 10)
+    RVP = "rvp"  # relation value priority: rooms by Σ Rel, objects by Rel
+    SDP = "sdp"  # shortest distance priority: random rooms, objects by WPL with α = 0
+
+
+@dataclass(frozen=True)
+class SearchConfig:
+    method: Method = Method.WPL
+    alpha: float = 10.0
+    support_radius: float = 0.5  # an object this close to a static's box is "at" it (Eq. 4)
+    seed: int = 0
+
+    @property
+    def effective_alpha(self) -> float:
+        return 0.0 if self.method is Method.SDP else self.alpha
+
+
+class EventSink(Protocol):
+    def append(
+        self, type: str, payload: Mapping[str, Any], *, time_ns: int, task_id: str | None = None
+    ) -> EventLike: ...
+
+
+class Projection(Protocol):
+    def apply(self, event: EventLike) -> None: ...
+
+
+@dataclass
+class Recorder:
+    """Appends events and folds each one into the live projections."""
+
+    sink: EventSink
+    projections: Sequence[Projection]
+
+    def record(
+        self, type: str, payload: Mapping[str, Any], *, time_ns: int, task_id: str | None = None
+    ) -> EventLike:
+        event = self.sink.append(type, payload, time_ns=time_ns, task_id=task_id)
+        for projection in self.projections:
+            projection.apply(event)
+        return event
+
+
+@dataclass(frozen=True, slots=True)
+class Stop:
+    """Where the robot goes to check static objects: one viewpoint, one class, ≥ 1 instances."""
+
+    statics: tuple[MappedStatic, ...]
+    rel: float
+
+    @property
+    def key(self) -> str:
+        return self.statics[0].id
+
+    @property
+    def cls(self) -> str:
+        return self.statics[0].cls
+
+    @property
+    def viewpoint(self) -> Point:
+        return self.statics[0].viewpoint
+
+
+@dataclass
+class SearchResult:
+    task_id: str
+    target: str
+    start: str
+    success: bool
+    path_length: float
+    route: list[Point] = field(default_factory=list)
+    found_instance: str | None = None
+    plans: list[tuple[str, tuple[str, ...]]] = field(default_factory=list)
+
+
+@dataclass
+class _Found:
+    instance_id: str
+    position: Vec3
+
+
+def _round_vec(v: Sequence[float]) -> list[float]:
+    return [round(float(c), 4) for c in v]
+
+
+class SearchAgent:
+    """Runs one search task after another in a world, recording every step."""
+
+    def __init__(
+        self,
+        navmap: NavigationMap,
+        semmap: SemanticMap,
+        vocabulary: Vocabulary,
+        graph: SceneGraphProjection,
+        recorder: Recorder,
+        config: SearchConfig,
+    ) -> None:
+        self.navmap = navmap
+        self.semmap = semmap
+        self.vocabulary = vocabulary
+        self.graph = graph
+        self.recorder = recorder
+        self.config = config
+        self.rooms = tuple(navmap.doors)
+
+    # -- planning -----------------------------------------------------------------------------
+
+    def stops(self, room: str, target: str) -> list[Stop]:
+        """Static objects related to the target (Rel > 0), grouped by (viewpoint, class)."""
+        groups: dict[tuple[Point, str], list[MappedStatic]] = {}
+        for s in self.semmap.in_room(room):
+            if self.graph.rel(target, s.cls) > 0:
+                groups.setdefault((s.viewpoint, s.cls), []).append(s)
+        stops = [
+            Stop(tuple(sorted(g, key=lambda s: s.id)), self.graph.rel(target, cls))
+            for (_, cls), g in groups.items()
+        ]
+        return sorted(stops, key=lambda st: st.key)
+
+    def room_relation(self, room: str, target: str) -> float:
+        """Rel(target, R): the sum of Rel over the static classes present in the room."""
+        classes = {s.cls for s in self.semmap.in_room(room)}
+        return math.fsum(self.graph.rel(target, c) for c in sorted(classes))
+
+    def room_order(self, start_room: str, target: str, task_id: str) -> list[str]:
+        rest = [r for r in self.rooms if r != start_room]
+        if self.config.method is Method.SDP:
+            random.Random(f"{self.config.seed}:{task_id}").shuffle(rest)
+        else:
+            rest.sort(key=lambda r: (-self.room_relation(r, target), self.rooms.index(r)))
+        return [start_room, *rest]
+
+    def order_stops(self, here: Point, stops: Sequence[Stop]) -> Ordering:
+        n = len(stops)
+        start = np.array([self.navmap.distance(here, s.viewpoint) for s in stops], dtype=float)
+        dist = np.zeros((n, n))
+        for i, a in enumerate(stops):
+            for j, b in enumerate(stops):
+                if i != j:
+                    dist[i, j] = self.navmap.distance(a.viewpoint, b.viewpoint)
+        rel = np.array([s.rel for s in stops], dtype=float)
+        if self.config.method is Method.RVP:
+            return relation_order(start, dist, rel, self.config.alpha)
+        return wpl_plan(start, dist, rel, self.config.effective_alpha)
+
+    # -- acting -------------------------------------------------------------------------------
+
+    def search(
+        self, world: World, target: str, start: str, *, scene: int | None = None
+    ) -> SearchResult:
+        task_id = f"task-{self.graph.tasks_folded + 1:05d}"
+        run = _Task(self, world, task_id, target)
+        result = SearchResult(task_id=task_id, target=target, start=start, success=False, path_length=0.0)
+        pose = world.pose()
+        result.route.append(pose.point)
+        run.emit(
+            "task_started",
+            {"target": target, "start": start, "pose": pose.as_dict(), "scene": scene},
+        )
+        start_room = self.navmap.room_at(pose.x, pose.y)
+        rooms = self.room_order(start_room, target, task_id)
+        found: _Found | None = None
+        for i, room in enumerate(rooms):
+            stops = self.stops(room, target)
+            here = world.pose().point
+            ordering = self.order_stops(here, stops)
+            ordered = [stops[k] for k in ordering.order]
+            run.emit("plan_computed", self._plan_payload(room, rooms[i:], stops, ordering))
+            result.plans.append((room, tuple(s.key for s in ordered)))
+            for stop in ordered:
+                found = run.go(stop.viewpoint, result) or run.inspect(stop)
+                if found:
+                    break
+            if found:
+                break
+        if found is None:
+            run.emit("search_failed", {"reason": f"{target} not found in any room"})
+        else:
+            here = world.pose()
+            room = self.navmap.room_at(here.x, here.y)
+            goal = self.navmap.nearest_viewpoint(found.position[0], found.position[1], room)
+            run.go(goal, result, watch=False, final_yaw=heading(goal, Point(*found.position[:2])))
+            run.emit(
+                "target_found",
+                {
+                    "instance_id": found.instance_id,
+                    "position": _round_vec(found.position),
+                    "approach": world.pose().as_dict(),
+                },
+            )
+            result.success = True
+            result.found_instance = found.instance_id
+        run.emit(
+            "task_ended",
+            {"target": target, "success": result.success, "path_length": round(result.path_length, 4)},
+        )
+        return result
+
+    def _plan_payload(
+        self, room: str, room_order: Sequence[str], stops: Sequence[Stop], ordering: Ordering
+    ) -> dict[str, Any]:
+        objective = self.config.method.value + ("" if ordering.exact else "-truncated")
+        return {
+            "room": room,
+            "room_order": list(room_order),
+            "objective": objective,
+            "alpha": self.config.effective_alpha,
+            "candidates": [
+                {
+                    "static_id": s.key,
+                    "static_class": s.cls,
+                    "viewpoint": _round_vec(s.viewpoint),
+                    "rel": round(s.rel, 12),
+                }
+                for s in stops
+            ],
+            "order": [stops[k].key for k in ordering.order],
+            "terms": [round(t, 6) for t in ordering.terms],
+            "value": round(ordering.value, 6),
+        }
+
+
+class _Task:
+    """The acting half of one search: moves, views and detections, each recorded as an event."""
+
+    def __init__(self, agent: SearchAgent, world: World, task_id: str, target: str) -> None:
+        self.agent = agent
+        self.world = world
+        self.task_id = task_id
+        self.target = target
+
+    def emit(self, type: str, payload: Mapping[str, Any]) -> None:
+        self.agent.recorder.record(type, payload, time_ns=self.world.now_ns(), task_id=self.task_id)
+
+    def detection(self, det: Detection, room: str) -> bool:
+        """Record one detection; True if it is the target and passes its class's threshold."""
+        oc = self.agent.vocabulary.classes.get(det.object_class)
+        accepted = oc is not None and det.mask_area >= oc.min_mask_area_px
+        nearest = self.agent.semmap.nearest(det.position, room)
+        at_static = nearest is not None and nearest[1] <= self.agent.config.support_radius
+        self.emit(
+            "detection",
+            {
+                "object_class": det.object_class,
+                "instance_id": det.instance_id,
+                "mask_area": round(det.mask_area, 2),
+                "position": _round_vec(det.position),
+                "accepted": accepted,
+                "nearest_static_id": nearest[0].id if nearest else None,
+                "nearest_static_class": nearest[0].cls if nearest else None,
+                "at_static": at_static,
+            },
+        )
+        return accepted and det.object_class == self.target
+
+    def go(
+        self,
+        goal: Point,
+        result: SearchResult,
+        *,
+        watch: bool = True,
+        final_yaw: float | None = None,
+    ) -> _Found | None:
+        """Drive to a viewpoint; with ``watch``, stop as soon as the target is seen on the way."""
+        start = self.world.pose()
+        if start.point == goal and (final_yaw is None or abs(wrap_angle(start.yaw - final_yaw)) < 1e-9):
+            return None
+        seen: set[str] = set()
+        found: list[_Found] = []
+
+        def on_detection(det: Detection, pose: Pose) -> bool:
+            if det.instance_id in seen:
+                return False
+            seen.add(det.instance_id)
+            hit = self.detection(det, self.agent.navmap.room_at(pose.x, pose.y))
+            if hit and watch:
+                found.append(_Found(det.instance_id, det.position))
+                return True
+            return False
+
+        nav: Navigation = self.world.navigate(goal, on_detection=on_detection, final_yaw=final_yaw)
+        result.path_length += nav.metres
+        result.route.extend(nav.path[1:])
+        self.emit(
+            "moved",
+            {
+                "start": start.as_dict(),
+                "end": nav.end.as_dict(),
+                "metres": round(nav.metres, 4),
+                "rooms": list(nav.rooms),
+                "interrupted": nav.interrupted,
+            },
+        )
+        return found[0] if found else None
+
+    def inspect(self, stop: Stop) -> _Found | None:
+        """Open each container of the stop and look in; look at the others from θ_s and ±45°."""
+        room = stop.statics[0].room
+        yaws_done: list[float] = []
+        for s in stop.statics:
+            if s.container:
+                dets = self.world.open(s.id)
+                pose = self.world.pose()
+                self.emit("container_opened", {"static_id": s.id, "pose": pose.as_dict()})
+                hit = self._view(pose, s.id, "inside", dets, room)
+                if hit:
+                    return hit
+                continue
+            for offset in LOOK_OFFSETS:
+                yaw = wrap_angle(s.view_yaw + offset)
+                if any(abs(wrap_angle(yaw - y)) < 1e-3 for y in yaws_done):
+                    continue
+                yaws_done.append(yaw)
+                dets = self.world.look(yaw)
+                hit = self._view(self.world.pose(), s.id, "look", dets, room)
+                if hit:
+                    return hit
+        return None
+
+    def _view(
+        self, pose: Pose, static_id: str, reason: str, dets: Sequence[Detection], room: str
+    ) -> _Found | None:
+        self.emit("view_taken", {"pose": pose.as_dict(), "static_id": static_id, "reason": reason})
+        found: _Found | None = None
+        for det in dets:
+            if self.detection(det, room) and found is None:
+                found = _Found(det.instance_id, det.position)
+        return found

@@ -1,0 +1,126 @@
+"""The scene graph: Rel(o_d, o_s) in [0, 1], seeded by Eq. 2 and updated by Eq. 4.
+
+The graph is a projection of the event log. The agent never stores it: it folds ``scene_graph_seeded``
+(the prior values), ``run_started`` (the update mode), ``task_started``, accepted ``detection`` events
+(the experience pool) and ``task_ended`` (the moment Eq. 4 applies). Folding a whole log from scratch
+and folding it event by event as it is written give identical values, because they are the same
+operations in the same order.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from objsearch.agent.categories import Category, Vocabulary
+
+Pair = tuple[str, str]  # (semi-dynamic class, static class)
+
+
+class EventLike(Protocol):
+    @property
+    def seq(self) -> int: ...
+    @property
+    def type(self) -> str: ...
+    @property
+    def payload(self) -> Mapping[str, Any]: ...
+
+
+class UpdateMode(enum.Enum):
+    """Which experience Eq. 4 folds in at the end of a task (paper §6.1.2)."""
+
+    NONE = "none"  # never update: the prior stays
+    TARGETS = "targets"  # only pairs of the task's target
+    ALL = "all"  # every semi-dynamic object seen during the task
+
+
+def seed_relations(prior: Mapping[str, Any], vocabulary: Vocabulary) -> dict[Pair, float]:
+    """Eq. 2: Rel(d, s) = C(d, s) / C(d) for every semi-dynamic d and static s of the vocabulary.
+
+    Alias-merged counts are sums, which can over-count images showing two aliases; the ratio is
+    clipped to 1 so Rel stays a value in [0, 1]. A class never seen (C(d) = 0) relates to nothing.
+    """
+    image_counts = prior["image_counts"]
+    pair_counts = prior["pair_counts"]
+    relations: dict[Pair, float] = {}
+    for d in vocabulary.names(Category.SEMI_DYNAMIC):
+        total = float(image_counts.get(d, 0))
+        for s in vocabulary.names(Category.STATIC):
+            both = float(pair_counts.get(d, {}).get(s, 0))
+            relations[(d, s)] = min(1.0, both / total) if total > 0 else 0.0
+    return relations
+
+
+def apply_eq4(
+    relations: Mapping[Pair, float], seen_at: Mapping[str, Iterable[str]]
+) -> dict[Pair, float]:
+    """Eq. 4 for every semi-dynamic class in ``seen_at`` (class → static classes it was seen at).
+
+    Rel/2 + 1/2 where o_d was seen at o_s, Rel/2 where o_d was seen but not at o_s, unchanged for
+    classes not seen.
+    """
+    updated = dict(relations)
+    for d, statics in seen_at.items():
+        at = set(statics)
+        for pair, value in relations.items():
+            if pair[0] == d:
+                updated[pair] = value / 2 + (0.5 if pair[1] in at else 0.0)
+    return updated
+
+
+@dataclass
+class SceneGraphProjection:
+    """Fold of the log into the scene graph (and the experience pool of the task in progress)."""
+
+    relations: dict[Pair, float] = field(default_factory=dict)
+    update_mode: UpdateMode = UpdateMode.ALL
+    last_seq: int = 0
+    tasks_folded: int = 0
+    _target: str | None = None
+    _experience: dict[str, set[str]] = field(default_factory=dict)
+
+    def apply(self, event: EventLike) -> None:
+        kind, payload = event.type, event.payload
+        if kind == "run_started":
+            self.update_mode = UpdateMode(payload["update_mode"])
+        elif kind == "scene_graph_seeded":
+            self.relations = {(v["dynamic"], v["static"]): float(v["rel"]) for v in payload["values"]}
+        elif kind == "task_started":
+            self._target = payload["target"]
+            self._experience = {}
+        elif kind == "detection" and payload["accepted"]:
+            statics = self._experience.setdefault(payload["object_class"], set())
+            if payload["at_static"] and payload["nearest_static_class"] is not None:
+                statics.add(payload["nearest_static_class"])
+        elif kind == "task_ended":
+            self._end_task()
+        self.last_seq = event.seq
+
+    def _end_task(self) -> None:
+        known = {d for d, _ in self.relations}
+        if self.update_mode is UpdateMode.ALL:
+            chosen = {d: s for d, s in self._experience.items() if d in known}
+        elif self.update_mode is UpdateMode.TARGETS and self._target in self._experience:
+            chosen = {self._target: self._experience[self._target]}
+        else:
+            chosen = {}
+        self.relations = apply_eq4(self.relations, chosen)
+        self._target = None
+        self._experience = {}
+        self.tasks_folded += 1
+
+    @property
+    def experience(self) -> dict[str, frozenset[str]]:
+        """The experience pool of the task in progress: class → static classes it was seen at."""
+        return {d: frozenset(s) for d, s in self._experience.items()}
+
+    def rel(self, dynamic: str, static: str) -> float:
+        return self.relations.get((dynamic, static), 0.0)
+
+    def as_table(self) -> dict[str, dict[str, float]]:
+        table: dict[str, dict[str, float]] = {}
+        for (d, s), value in sorted(self.relations.items()):
+            table.setdefault(d, {})[s] = value
+        return table

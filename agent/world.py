@@ -1,0 +1,59 @@
+"""The seam between the agent and a robot: what the agent may ask of the world it searches.
+
+The simulator (``objsearch.sim``) implements it from home data; a ROS adapter implements it on a
+real robot. The agent never reads the world's ground truth, only what these calls return.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+from objsearch.agent.geometry import Point, Pose
+from objsearch.agent.home import Vec3
+
+
+@dataclass(frozen=True, slots=True)
+class Detection:
+    """One object in one camera view, as a detector and a depth camera report it."""
+
+    object_class: str
+    instance_id: str
+    mask_area: float  # pixels
+    position: Vec3  # object position reconstructed from depth, map frame
+
+
+@dataclass(frozen=True, slots=True)
+class Navigation:
+    """The outcome of one navigation goal."""
+
+    path: tuple[Point, ...]  # viewpoints passed, first = where the robot started
+    metres: float  # walked (teleports between room entries cost nothing)
+    end: Pose
+    rooms: tuple[str, ...]  # rooms passed through, in order
+    interrupted: bool  # stopped early because the agent asked to
+
+
+#: Called for each detection while the robot drives; returning True stops the robot there.
+DetectionHandler = Callable[[Detection, Pose], bool]
+
+
+class World(Protocol):
+    def pose(self) -> Pose: ...
+
+    def now_ns(self) -> int:
+        """The robot clock (simulated time in the simulator), nanoseconds."""
+        ...
+
+    def navigate(
+        self, goal: Point, *, on_detection: DetectionHandler | None = None, final_yaw: float | None = None
+    ) -> Navigation: ...
+
+    def look(self, yaw: float) -> tuple[Detection, ...]:
+        """Turn in place to ``yaw`` and take one camera view."""
+        ...
+
+    def open(self, static_id: str) -> tuple[Detection, ...]:
+        """Open a container the robot stands at and look inside."""
+        ...

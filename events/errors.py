@@ -1,0 +1,69 @@
+"""Errors and warnings of the event store.
+
+Every error derives from :class:`EventStoreError`, so a caller can catch the store's failures in
+one place; several also derive from the built-in they refine (``ValueError``,
+``FileNotFoundError``) so generic handlers keep working.
+"""
+
+from __future__ import annotations
+
+
+class EventStoreError(Exception):
+    """Base class of every error raised by ``objsearch.events``."""
+
+
+class InvalidEventError(EventStoreError, ValueError):
+    """An event (envelope or payload) does not match its schema; nothing was written.
+
+    ``event_type``, ``version``, ``path`` (e.g. ``"payload.values[2].rel"``) and ``reason`` are
+    kept apart from the message so callers and tests need not parse it.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        event_type: str | None = None,
+        version: int | None = None,
+        path: str | None = None,
+        reason: str | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.event_type = event_type
+        self.version = version
+        self.path = path
+        self.reason = reason
+
+
+class CorruptLogError(EventStoreError):
+    """A record that is not a torn tail is damaged; the log needs a human, not a heuristic."""
+
+    def __init__(self, message: str, *, path: str, line: int, offset: int) -> None:
+        super().__init__(message)
+        self.path = path
+        self.line = line
+        self.offset = offset
+
+
+class LogNotFoundError(EventStoreError, FileNotFoundError):
+    """There is no event log where one was expected."""
+
+
+class LogLockedError(EventStoreError):
+    """Another writer holds the log's lock; a stream has exactly one writer."""
+
+
+class LogClosedError(EventStoreError, ValueError):
+    """The writer was closed, or disabled after a failed write or fsync."""
+
+
+class StreamMismatchError(EventStoreError, ValueError):
+    """The log belongs to another stream than the one asked for."""
+
+
+class ProjectionError(EventStoreError):
+    """Events reached a projection out of order, or the projection did not advance."""
+
+
+class TornTailWarning(UserWarning):
+    """An interrupted, never-acknowledged append at the end of a log was cut (or skipped)."""

@@ -1,0 +1,74 @@
+"""Projection plumbing: derived state is a fold of a stream's events in seq order.
+
+The domain projections (scene graph, maps, experience) live with the domain; this module only
+fixes the contract and the loop, including the checks that make a fold trustworthy: no event
+is skipped, none is applied twice, and the projection really records how far it got.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any, Protocol, TypeVar
+
+from .envelope import Event
+from .errors import ProjectionError
+
+S_co = TypeVar("S_co", covariant=True)
+
+
+class Projection(Protocol[S_co]):
+    """State built by applying one stream's events in seq order."""
+
+    @property
+    def last_seq(self) -> int:
+        """Seq of the last event applied; 0 before any (or the seq a snapshot was taken at)."""
+        ...
+
+    @property
+    def state(self) -> S_co:
+        """The derived state (what the domain reads)."""
+        ...
+
+    def apply(self, event: Event) -> None:
+        """Apply the next event (seq ``last_seq + 1``) and advance ``last_seq`` to its seq."""
+        ...
+
+
+P = TypeVar("P", bound=Projection[Any])
+
+
+def fold(events: Iterable[Event], projection: P, *, until_seq: int | None = None) -> P:
+    """Apply ``events`` to ``projection`` in order and return it (the same object).
+
+    Events the projection already has (``seq <= last_seq``) are skipped, so a projection restored
+    from a snapshot can be folded over the whole log; a gap raises :class:`ProjectionError`.
+    With ``until_seq`` the fold stops once that seq is applied, without consuming further events
+    from an iterator, which gives the state "as of" any point in the stream.
+    """
+    if until_seq is not None and projection.last_seq > until_seq:
+        raise ProjectionError(
+            f"{type(projection).__name__} is already at seq {projection.last_seq}; "
+            f"it cannot be folded back to seq {until_seq}"
+        )
+    if until_seq is not None and projection.last_seq == until_seq:
+        return projection
+    for event in events:
+        if until_seq is not None and event.seq > until_seq:
+            break
+        expected = projection.last_seq + 1
+        if event.seq < expected:
+            continue
+        if event.seq != expected:
+            raise ProjectionError(
+                f"{type(projection).__name__} is at seq {projection.last_seq} and cannot apply "
+                f"seq {event.seq} ({event.type}): events {expected}..{event.seq - 1} are missing"
+            )
+        projection.apply(event)
+        if projection.last_seq != event.seq:
+            raise ProjectionError(
+                f"{type(projection).__name__}.apply(seq {event.seq}) left last_seq at "
+                f"{projection.last_seq}; apply must advance last_seq to the event's seq"
+            )
+        if until_seq is not None and event.seq >= until_seq:
+            break
+    return projection

@@ -1,0 +1,166 @@
+"""Payload schemas: one JSON Schema (draft 2020-12) per event type and version.
+
+The files live in ``events/schema/<type>.v<version>.json``. A released version is frozen: a
+change of meaning gets a new file (``.v2``), so every event on disk keeps the schema it was
+validated against. Each file is self-contained (shared shapes like ``pose`` are copied into its
+own ``$defs``) so that editing one schema can never change the meaning of another.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import json
+import re
+from collections.abc import Iterable, Mapping
+from importlib import resources
+from importlib.resources.abc import Traversable
+from pathlib import Path
+from typing import Any, Final
+
+from jsonschema import Draft202012Validator
+from jsonschema.exceptions import SchemaError, ValidationError, best_match
+
+from .envelope import Event
+from .errors import EventStoreError, InvalidEventError
+
+_FILE_NAME: Final = re.compile(r"^(?P<type>[a-z][a-z0-9_]*)\.v(?P<version>[1-9][0-9]*)\.json$")
+_PACKAGE: Final = __name__.rpartition(".")[0]
+
+
+def schema_id(event_type: str, version: int) -> str:
+    """The ``$id`` a schema file must declare; checked so a copied file can't lie about itself."""
+    return f"urn:objsearch:events:{event_type}:v{version}"
+
+
+class SchemaRegistry:
+    """All known (type, version) schemas, with compiled validators."""
+
+    def __init__(self, schemas: Mapping[tuple[str, int], Mapping[str, Any]]) -> None:
+        self._schemas: dict[tuple[str, int], dict[str, Any]] = {}
+        self._validators: dict[tuple[str, int], Draft202012Validator] = {}
+        self._latest: dict[str, int] = {}
+        for (event_type, version), schema in sorted(schemas.items()):
+            where = f"schema {event_type} v{version}"
+            if schema.get("$id") != schema_id(event_type, version):
+                raise EventStoreError(
+                    f"{where}: $id is {schema.get('$id')!r}, expected "
+                    f"{schema_id(event_type, version)!r}"
+                )
+            try:
+                Draft202012Validator.check_schema(schema)
+            except SchemaError as exc:
+                raise EventStoreError(f"{where} is not a valid JSON Schema: {exc.message}") from exc
+            if schema.get("type") != "object":
+                raise EventStoreError(f"{where}: a payload schema must have type 'object'")
+            owned = copy.deepcopy(dict(schema))
+            self._schemas[event_type, version] = owned
+            self._validators[event_type, version] = Draft202012Validator(owned)
+            self._latest[event_type] = max(version, self._latest.get(event_type, 0))
+
+    @classmethod
+    def from_directory(cls, directory: Path | Traversable) -> SchemaRegistry:
+        """Load each ``<type>.v<version>.json`` file; other ``*.json`` names are errors."""
+        schemas: dict[tuple[str, int], dict[str, Any]] = {}
+        for entry in sorted(directory.iterdir(), key=lambda e: e.name):
+            if not entry.name.endswith(".json"):
+                continue
+            match = _FILE_NAME.match(entry.name)
+            if match is None:
+                raise EventStoreError(
+                    f"schema file {entry.name!r} in {directory} is not named "
+                    "<type>.v<version>.json (lower-case type, version >= 1)"
+                )
+            try:
+                schema = json.loads(entry.read_text(encoding="utf-8"))
+            except ValueError as exc:
+                raise EventStoreError(
+                    f"schema file {entry.name!r} is not valid JSON: {exc}"
+                ) from exc
+            if not isinstance(schema, dict):
+                raise EventStoreError(f"schema file {entry.name!r} is not a JSON object")
+            schemas[match["type"], int(match["version"])] = schema
+        return cls(schemas)
+
+    @classmethod
+    def from_package(cls) -> SchemaRegistry:
+        """The schemas shipped in ``objsearch.events/schema/``."""
+        return cls.from_directory(resources.files(_PACKAGE).joinpath("schema"))
+
+    @property
+    def types(self) -> tuple[str, ...]:
+        return tuple(sorted(self._latest))
+
+    def versions(self, event_type: str) -> tuple[int, ...]:
+        self._require_type(event_type)
+        return tuple(sorted(v for t, v in self._schemas if t == event_type))
+
+    def latest_version(self, event_type: str) -> int:
+        self._require_type(event_type)
+        return self._latest[event_type]
+
+    def schema(self, event_type: str, version: int) -> dict[str, Any]:
+        """A copy of the schema (callers may not change the registry's)."""
+        return copy.deepcopy(self._schemas[self._require(event_type, version)])
+
+    def validate(self, event_type: str, version: int, payload: Mapping[str, Any]) -> None:
+        """Raise :class:`InvalidEventError` unless ``payload`` matches the schema.
+
+        ``payload`` must hold plain JSON types (as :class:`Event` normalises them to): jsonschema
+        does not count a tuple as an array.
+        """
+        validator = self._validators[self._require(event_type, version)]
+        instance = payload if isinstance(payload, dict) else dict(payload)
+        errors: list[ValidationError] = list(validator.iter_errors(instance))
+        if not errors:
+            return
+        error = best_match(errors)
+        path = _json_path("payload", error.absolute_path)
+        more = f" (and {len(errors) - 1} more problem(s))" if len(errors) > 1 else ""
+        raise InvalidEventError(
+            f"invalid {event_type} v{version} event: {path}: {error.message}{more}",
+            event_type=event_type,
+            version=version,
+            path=path,
+            reason=error.message,
+        )
+
+    def validate_event(self, event: Event) -> None:
+        """Validate an event's payload (its envelope was checked when it was built)."""
+        self.validate(event.type, event.version, event.payload)
+
+    def _require_type(self, event_type: str) -> None:
+        if event_type not in self._latest:
+            known = ", ".join(self.types) or "(none)"
+            raise InvalidEventError(
+                f"unknown event type {event_type!r}; known types: {known}",
+                event_type=event_type,
+                reason="unknown type",
+            )
+
+    def _require(self, event_type: str, version: int) -> tuple[str, int]:
+        self._require_type(event_type)
+        key = (event_type, version)
+        if key not in self._schemas:
+            known = ", ".join(map(str, self.versions(event_type)))
+            raise InvalidEventError(
+                f"unknown version {version!r} of event type {event_type!r}; "
+                f"known versions: {known}",
+                event_type=event_type,
+                version=version if isinstance(version, int) else None,
+                reason="unknown version",
+            )
+        return key
+
+
+@functools.cache
+def default_registry() -> SchemaRegistry:
+    """The package's schemas, loaded once per process."""
+    return SchemaRegistry.from_package()
+
+
+def _json_path(root: str, parts: Iterable[str | int]) -> str:
+    path = root
+    for part in parts:
+        path += f"[{part}]" if isinstance(part, int) else f".{part}"
+    return path

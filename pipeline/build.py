@@ -1,0 +1,146 @@
+"""Public entry point of the data converter: ``build_data`` derives every file of ``data/``.
+
+Everything is computed in memory first and written only when all of it succeeded, each file
+atomically, so a failed build leaves the previous files untouched.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from . import jsonio
+from .errors import HomeSpecError, SourceDataError
+from .home import Home, build_home, normalise_floorplan
+from .provenance import provenance_md, sha256
+from .scenario import table1
+from .schedule import table2
+from .sources import VG_MATRIX, load_cooccurrence
+from .vg_prior import vg_prior_json
+from .vocabulary import vocabulary_json
+
+PAPER_HOME: tuple[str, str, str, str] = (
+    "FloorPlan2",
+    "FloorPlan201",
+    "FloorPlan303",
+    "FloorPlan401",
+)
+"""The paper's home: kitchen, living room, bedroom, bathroom."""
+
+PAPER_HOME_NAME = "paper"
+
+
+@dataclass(frozen=True)
+class BuildReport:
+    files: tuple[Path, ...]
+    notes: tuple[str, ...]
+
+
+def parse_home_arg(text: str) -> tuple[str, tuple[str, ...]]:
+    """``"name=FloorPlan2,FloorPlan201,FloorPlan303,FloorPlan401"`` (or bare numbers) -> parts."""
+    name, sep, scenes = text.partition("=")
+    if not sep or not name.strip():
+        raise HomeSpecError(f"--home expects NAME=KITCHEN,LIVING,BEDROOM,BATHROOM, got {text!r}")
+    return name.strip(), tuple(normalise_floorplan(s) for s in scenes.split(","))
+
+
+def _room_notes(home: Home) -> list[str]:
+    notes = []
+    for r in home.rooms:
+        grid_points = len(r.viewpoints) + r.removed_viewpoints
+        obstacles = Counter(
+            label.split("/", 1)[1].split("|")[0] for _, label in r.removed_inside_furniture
+        )
+        statics = Counter(s.cls for s in r.statics)
+        objects = Counter(o.cls for o in r.objects)
+        matched = sum(p.static_id is not None for p in r.alfred_poses)
+        off = sum(not p.on_viewpoint for p in r.alfred_poses)
+        notes.append(
+            f"{home.name}/{r.name} ({r.source_scene}): {grid_points} ALFRED grid points -> "
+            f"{len(r.viewpoints)} viewpoints ({len(r.removed_inside_furniture)} inside furniture"
+            + (
+                f" [{', '.join(f'{k} {v}' for k, v in sorted(obstacles.items()))}]"
+                if obstacles
+                else ""
+            )
+            + f", {r.removed_disconnected} disconnected); "
+            f"statics: {', '.join(f'{k} {v}' for k, v in sorted(statics.items())) or 'none'}; "
+            f"objects: {', '.join(f'{k} {v}' for k, v in sorted(objects.items())) or 'none'}; "
+            f"ALFRED poses {len(r.alfred_poses)} ({matched} matched to a static, {off} off the "
+            f"viewpoints); merged fixtures {len(r.merged_statics)}"
+        )
+        if r.walkable_components != 1:
+            notes.append(
+                f"{home.name}/{r.name}: warning: the viewpoints are 8-connected but fall into "
+                f"{r.walkable_components} pieces when diagonal steps must not cut corners"
+            )
+    return notes
+
+
+def build_data(
+    source: Path,
+    out: Path,
+    *,
+    homes: Mapping[str, Sequence[str]] | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> BuildReport:
+    """Derive ``vocabulary.json``, ``priors/``, ``homes/``, ``scenarios/``, ``schedules/`` and
+    ``PROVENANCE.md`` under ``out`` from the raw public data under ``source``.
+
+    ``homes`` maps a home name to four iTHOR scenes (kitchen, living room, bedroom, bathroom);
+    default ``{"paper": PAPER_HOME}``. The Table I scenario and Table II schedule are derived for
+    the home named ``paper`` when there is one.
+    """
+    say = progress or (lambda _msg: None)
+    source, out = Path(source), Path(out)
+    default = {PAPER_HOME_NAME: PAPER_HOME}
+    wanted = dict(homes) if homes is not None else default
+    if not wanted:
+        raise HomeSpecError("no home to build")
+    if not source.is_dir():
+        raise SourceDataError(source, "every derived file", "source folder not found")
+
+    outputs: dict[str, str] = {}
+    notes: list[str] = []
+
+    say("vocabulary")
+    outputs["vocabulary.json"] = jsonio.dumps(vocabulary_json())
+
+    say("Visual Genome prior")
+    matrix = load_cooccurrence(source, "the Visual Genome prior (priors/visual_genome.json)")
+    outputs["priors/visual_genome.json"] = jsonio.dumps(
+        vg_prior_json(matrix, sha256(source / VG_MATRIX))
+    )
+
+    built: dict[str, Home] = {}
+    for name, scenes in wanted.items():
+        home = build_home(source, name, scenes, say)
+        built[name] = home
+        outputs[f"homes/{name}.json"] = jsonio.dumps(home.to_json())
+        notes += _room_notes(home)
+
+    paper = built.get(PAPER_HOME_NAME)
+    if paper is None:
+        notes.append(f"no home named {PAPER_HOME_NAME!r}: Table I / Table II files not derived")
+    else:
+        say("Table I scenario and Table II schedule")
+        scenario = table1(paper)
+        outputs["scenarios/table1.json"] = jsonio.dumps(scenario.to_json())
+        outputs["schedules/table2.json"] = jsonio.dumps(table2(paper, scenario))
+        notes.append(
+            f"table1: removed {len(scenario.removed)} instances; targets: "
+            + ", ".join(f"{c} {i}" for c, i in scenario.targets.items())
+        )
+
+    normalised = {n: tuple(normalise_floorplan(s) for s in v) for n, v in wanted.items()}
+    outputs["PROVENANCE.md"] = provenance_md(source, normalised, default, sorted(outputs))
+
+    written = []
+    for rel, text in outputs.items():
+        path = out / rel
+        say(f"write {path}")
+        jsonio.write_atomic(path, text.encode("utf-8"))
+        written.append(path)
+    return BuildReport(files=tuple(written), notes=tuple(notes))

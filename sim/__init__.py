@@ -1,0 +1,1 @@
+"""objsearch.sim"""

@@ -1,0 +1,44 @@
+"""What the simulated camera sees: field of view, same room, mask area, closed containers.
+
+A pinhole camera with Kinect-like intrinsics (640×480, 90° horizontal FOV, so f = 320 px) at the
+robot's pose. An object is in view when its centre lies within the horizontal FOV and in the robot's
+room; its mask area is approximated by the projected size of its bounding box; objects inside a
+closed container are hidden unless the robot opened that container for this view. Furniture does
+not occlude (the paper's simulator reports detections "even far away"; the mask-area threshold is
+what limits range).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from objsearch.agent.geometry import Pose, wrap_angle
+from objsearch.agent.home import Box
+
+IMAGE_WIDTH = 640
+IMAGE_HEIGHT = 480
+
+
+@dataclass(frozen=True, slots=True)
+class Camera:
+    hfov: float = math.pi / 2
+    height: float = 1.0  # metres above the floor
+
+    @property
+    def focal_px(self) -> float:
+        return (IMAGE_WIDTH / 2) / math.tan(self.hfov / 2)
+
+    def in_view(self, pose: Pose, box: Box) -> bool:
+        bearing = math.atan2(box.center[1] - pose.y, box.center[0] - pose.x)
+        return abs(wrap_angle(bearing - pose.yaw)) <= self.hfov / 2 + 1e-9
+
+    def mask_area(self, pose: Pose, box: Box) -> float:
+        """Projected area of the box in pixels (its widest horizontal side × its height)."""
+        dx, dy = box.center[0] - pose.x, box.center[1] - pose.y
+        dz = box.center[2] - self.height
+        dist = max(math.sqrt(dx * dx + dy * dy + dz * dz), 0.1)
+        f = self.focal_px
+        width_px = min(f * max(box.size[0], box.size[1]) / dist, IMAGE_WIDTH)
+        height_px = min(f * box.size[2] / dist, IMAGE_HEIGHT)
+        return width_px * height_px

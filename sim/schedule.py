@@ -1,0 +1,73 @@
+"""Where semi-dynamic objects are: the home's own placements and placement schedules over time."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from objsearch.agent.categories import read_json
+from objsearch.agent.errors import DataFileError
+from objsearch.agent.home import Box, Home
+from objsearch.paths import data_dir
+from objsearch.sim.world import Placement
+
+Placements = Mapping[str, Placement]
+
+
+def base_placements(home: Home, removed: frozenset[str] = frozenset()) -> dict[str, Placement]:
+    """The objects as the source scenes place them, minus ``removed`` instances."""
+    return {
+        o.id: Placement(o.id, o.cls, o.box, o.room, o.support, o.inside)
+        for o in home.objects.values()
+        if o.id not in removed
+    }
+
+
+def table1_removals(home: Home, path: Path | None = None) -> frozenset[str]:
+    """The paper's Table I removals (one instance per target), checked against the home."""
+    path = path or data_dir() / "scenarios" / "table1.json"
+    doc = read_json(path, "the Table I scenario")
+    removed = frozenset(doc["removed"])
+    unknown = removed - set(home.objects)
+    if unknown:
+        raise DataFileError(f"{path}: removes objects not in home {home.name!r}: {sorted(unknown)}")
+    return removed
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """Placements per scene (paper Table II): scene number → class → placement."""
+
+    name: str
+    home: str
+    scenes: Mapping[int, Placements]
+
+    @classmethod
+    def load(cls, home: Home, name: str = "table2", path: Path | None = None) -> Schedule:
+        path = path or data_dir() / "schedules" / f"{name}.json"
+        doc = read_json(path, f"the placement schedule {name!r}")
+        if doc["home"] != home.name:
+            raise DataFileError(f"{path} is a schedule for home {doc['home']!r}, not {home.name!r}")
+        base = base_placements(home, table1_removals(home))
+        instance_of = {p.cls: p for p in base.values()}
+        statics = home.statics
+        scenes: dict[int, Placements] = {}
+        for scene in doc["scenes"]:
+            placed: dict[str, Placement] = {}
+            for cls_name, spec in scene["placements"].items():
+                obj = instance_of.get(cls_name)
+                support = statics.get(spec["support"])
+                if obj is None or support is None:
+                    raise DataFileError(
+                        f"{path}: scene {scene['scene']} places {cls_name!r} on {spec['support']!r}, "
+                        f"which home {home.name!r} does not have"
+                    )
+                center: Any = spec["center"]
+                box = Box((float(center[0]), float(center[1]), float(center[2])), obj.box.size)
+                placed[obj.instance_id] = Placement(
+                    obj.instance_id, cls_name, box, support.room, support.id, bool(spec["inside"])
+                )
+            scenes[int(scene["scene"])] = placed
+        return cls(name=name, home=home.name, scenes=scenes)

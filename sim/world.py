@@ -1,0 +1,146 @@
+"""A simulated home the agent can search: motion on the viewpoint graph, a camera, containers."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from objsearch.agent.geometry import Point, Pose, distance, heading
+from objsearch.agent.home import Box, Home
+from objsearch.agent.navmap import NavigationMap
+from objsearch.agent.world import Detection, DetectionHandler, Navigation
+from objsearch.sim.perception import Camera
+
+SPEED_M_PER_S = 0.5
+LOOK_S = 1.0
+OPEN_S = 3.0
+REACH_M = 1.5  # a container can be opened from this close
+
+
+@dataclass(frozen=True, slots=True)
+class Placement:
+    """Where one semi-dynamic object is for one task."""
+
+    instance_id: str
+    cls: str
+    box: Box
+    room: str
+    support: str | None
+    inside: bool
+
+
+class SimClock:
+    """Simulated time, shared by successive tasks so a log's clock never runs backwards."""
+
+    def __init__(self, start_ns: int = 0) -> None:
+        self.ns = start_ns
+
+    def advance(self, seconds: float) -> None:
+        self.ns += round(seconds * 1e9)
+
+
+class SimWorld:
+    """Implements :class:`objsearch.agent.world.World` from home data."""
+
+    def __init__(
+        self,
+        home: Home,
+        navmap: NavigationMap,
+        placements: Mapping[str, Placement],
+        start: Pose,
+        *,
+        clock: SimClock | None = None,
+        camera: Camera | None = None,
+    ) -> None:
+        self.home = home
+        self.navmap = navmap
+        self.placements = dict(placements)
+        self.clock = clock or SimClock()
+        self.camera = camera or Camera()
+        self._statics = home.statics
+        self._pose = start
+        if start.point not in navmap.room_of:
+            raise ValueError(f"start {start} is not a viewpoint of home {home.name!r}")
+
+    def pose(self) -> Pose:
+        return self._pose
+
+    def now_ns(self) -> int:
+        return self.clock.ns
+
+    def _view(self, pose: Pose, opened: str | None = None) -> tuple[Detection, ...]:
+        room = self.navmap.room_at(pose.x, pose.y)
+        seen = []
+        for p in sorted(self.placements.values(), key=lambda p: p.instance_id):
+            if p.room != room or not self.camera.in_view(pose, p.box):
+                continue
+            if p.inside and p.support != opened:
+                continue
+            seen.append(
+                Detection(p.cls, p.instance_id, self.camera.mask_area(pose, p.box), p.box.center)
+            )
+        return tuple(seen)
+
+    def navigate(
+        self,
+        goal: Point,
+        *,
+        on_detection: DetectionHandler | None = None,
+        final_yaw: float | None = None,
+    ) -> Navigation:
+        here = self._pose
+        path = self.navmap.path(here.point, goal)
+        walked: list[Point] = [path[0]]
+        rooms = [self.navmap.room_of[path[0]]]
+        metres = 0.0
+        yaw = here.yaw
+        interrupted = False
+        for a, b in zip(path, path[1:]):
+            step = self.navmap.graph.edges[a, b]["weight"]
+            if self.navmap.is_teleport(a, b):
+                rooms.append(self.navmap.room_of[b])
+            else:
+                yaw = heading(a, b)
+                metres += step
+                self.clock.advance(step / SPEED_M_PER_S)
+            walked.append(b)
+            self._pose = Pose(b.x, b.y, yaw)
+            if on_detection is not None:
+                # Every detection of the view reaches the agent, even after one asked to stop.
+                stops = [on_detection(det, self._pose) for det in self._view(self._pose)]
+                if any(stops):
+                    interrupted = True
+                    break
+        if final_yaw is not None and not interrupted:
+            self._pose = Pose(self._pose.x, self._pose.y, final_yaw)
+        return Navigation(tuple(walked), metres, self._pose, tuple(rooms), interrupted)
+
+    def oracle_length(self, cls: str) -> float:
+        """Shortest walk from here to the nearest viewpoint of the closest ``cls`` object: the
+        path length of a robot that knew where it was (the limit for any search strategy)."""
+        lengths = [
+            self.navmap.distance(
+                self._pose.point, self.navmap.nearest_viewpoint(p.box.center[0], p.box.center[1], p.room)
+            )
+            for p in self.placements.values()
+            if p.cls == cls
+        ]
+        if not lengths:
+            raise ValueError(f"no {cls} is placed in this world")
+        return min(lengths)
+
+    def look(self, yaw: float) -> tuple[Detection, ...]:
+        self._pose = Pose(self._pose.x, self._pose.y, yaw)
+        self.clock.advance(LOOK_S)
+        return self._view(self._pose)
+
+    def open(self, static_id: str) -> tuple[Detection, ...]:
+        container = self._statics.get(static_id)
+        if container is None or not container.container:
+            raise ValueError(f"{static_id!r} is not a container of home {self.home.name!r}")
+        target = Point(container.box.center[0], container.box.center[1])
+        if distance(self._pose, target) - max(container.box.size[:2]) / 2 > REACH_M:
+            raise ValueError(f"robot at {self._pose} is too far to open {static_id!r}")
+        self._pose = Pose(self._pose.x, self._pose.y, heading(self._pose, target))
+        self.clock.advance(OPEN_S)
+        return self._view(self._pose, opened=static_id)

@@ -1,0 +1,62 @@
+"""One valid payload per event type (version 1), shared by the events tests."""
+
+from __future__ import annotations
+
+from typing import Any
+
+POSE = {"x": 1.0, "y": -2.5, "yaw": 1.5707963}
+
+EXAMPLES: dict[str, dict[str, Any]] = {
+    "run_started": {
+        "home": "paper-4room",
+        "home_digest": "sha256:0123abcd",
+        "method": "wpl",
+        "alpha": 10.0,
+        "update_mode": "targets",
+        "seed": 7,
+        "params": {"fov_deg": 90, "nested": {"ok": [1, 2]}},
+    },
+    "scene_graph_seeded": {
+        "source": "data/priors/visual_genome.json",
+        "values": [
+            {"dynamic": "Cup", "static": "Table", "rel": 0.42},
+            {"dynamic": "Cup", "static": "Sink", "rel": 0.0},
+        ],
+    },
+    "task_started": {"target": "Cup", "start": "kitchen", "pose": POSE, "scene": 3},
+    "plan_computed": {
+        "room": "kitchen",
+        "room_order": ["kitchen", "living_room"],
+        "objective": "wpl",
+        "alpha": 10.0,
+        "candidates": [
+            {"static_id": "Table|1", "static_class": "Table", "viewpoint": [1.0, 2.0], "rel": 0.4},
+            {"static_id": "Sink|1", "static_class": "Sink", "viewpoint": [3.0, 0.5], "rel": 1},
+        ],
+        "order": ["Table|1", "Sink|1"],
+        "terms": [0.31, 0.12],
+        "value": 0.43,
+    },
+    "moved": {
+        "start": POSE,
+        "end": {"x": 2.0, "y": 0.0, "yaw": 0.0},
+        "metres": 3.2,
+        "rooms": ["kitchen", "living_room"],
+        "interrupted": False,
+    },
+    "view_taken": {"pose": POSE, "static_id": None, "reason": "on_the_way"},
+    "container_opened": {"static_id": "Fridge|1", "pose": POSE},
+    "detection": {
+        "object_class": "Cup",
+        "instance_id": "Cup|3",
+        "mask_area": 812.0,
+        "position": [1.0, 2.0, 0.9],
+        "accepted": True,
+        "nearest_static_id": "Table|1",
+        "nearest_static_class": "Table",
+        "at_static": True,
+    },
+    "target_found": {"instance_id": "Cup|3", "position": [1.0, 2.0, 0.9], "approach": POSE},
+    "search_failed": {"reason": "all candidates visited"},
+    "task_ended": {"target": "Cup", "success": True, "path_length": 12.5},
+}

@@ -1,0 +1,175 @@
+from __future__ import annotations
+
+import dataclasses
+import enum
+import json
+import uuid
+from typing import Any
+
+import numpy as np
+import pytest
+
+from objsearch.events import EVENT_ID_NAMESPACE, Event, InvalidEventError, deterministic_event_id
+
+
+def make_event(**overrides: Any) -> Event:
+    fields: dict[str, Any] = {
+        "event_id": deterministic_event_id("run-1", 1),
+        "stream": "run-1",
+        "seq": 1,
+        "time_ns": 1_000,
+        "recorded_at_ns": 2_000,
+        "type": "search_failed",
+        "version": 1,
+        "task_id": "task-1",
+        "payload": {"reason": "nothing left", "nested": {"list": [1, 2.5, None, True]}},
+    }
+    fields.update(overrides)
+    return Event(**fields)
+
+
+class Colour(enum.StrEnum):
+    RED = "red"
+
+
+# --- deterministic ids -------------------------------------------------------------------------
+
+
+def test_deterministic_event_id_is_stable_across_processes_and_versions() -> None:
+    # A golden value: if this changes, every id already written without an explicit id changes.
+    assert deterministic_event_id("run-1", 1) == str(
+        uuid.uuid5(uuid.UUID("d5d2c2b6-eb95-54bd-bb91-8142ed50e621"), "run-1/1")
+    )
+    assert EVENT_ID_NAMESPACE == uuid.uuid5(uuid.NAMESPACE_URL, "urn:objsearch:events")
+
+
+def test_deterministic_event_id_depends_on_stream_and_seq_only() -> None:
+    assert deterministic_event_id("a", 1) == deterministic_event_id("a", 1)
+    ids = {deterministic_event_id(s, q) for s in ("a", "b") for q in (1, 2)}
+    assert len(ids) == 4
+    assert uuid.UUID(deterministic_event_id("a", 1)).version == 5
+
+
+# --- construction and immutability ------------------------------------------------------------
+
+
+def test_json_round_trip_gives_an_equal_event() -> None:
+    event = make_event()
+    d = event.to_json_dict()
+    assert json.loads(json.dumps(d)) == d
+    assert Event.from_json_dict(json.loads(json.dumps(d))) == event
+
+
+def test_event_is_frozen() -> None:
+    event = make_event()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        event.seq = 2  # type: ignore[misc]
+
+
+def test_payload_is_a_read_only_deep_copy() -> None:
+    payload: dict[str, Any] = {"reason": "x", "nested": {"list": [1, 2]}}
+    event = make_event(payload=payload)
+    payload["reason"] = "changed"
+    payload["nested"]["list"].append(3)
+    assert event.payload == {"reason": "x", "nested": {"list": [1, 2]}}
+    with pytest.raises(TypeError):
+        event.payload["reason"] = "y"  # type: ignore[index]
+
+
+def test_to_json_dict_returns_a_copy_the_caller_may_change() -> None:
+    event = make_event()
+    d = event.to_json_dict()
+    d["payload"]["nested"]["list"].clear()
+    assert event.payload["nested"]["list"] == [1, 2.5, None, True]
+
+
+def test_payload_is_normalised_to_json_types() -> None:
+    event = make_event(
+        payload={
+            "point": (1.0, 2.0),
+            "f": np.float64(0.5),
+            "i": np.int64(3),
+            "colour": Colour.RED,
+            "proxy": {"inner": (1,)},
+        }
+    )
+    assert event.payload == {
+        "point": [1.0, 2.0],
+        "f": 0.5,
+        "i": 3,
+        "colour": "red",
+        "proxy": {"inner": [1]},
+    }
+    assert type(event.payload["i"]) is int
+    assert type(event.payload["f"]) is float
+    assert type(event.payload["colour"]) is str
+
+
+@pytest.mark.parametrize(
+    ("payload", "path"),
+    [
+        ({"x": float("nan")}, "payload.x"),
+        ({"x": [1, float("inf")]}, "payload.x[1]"),
+        ({"x": {1, 2}}, "payload.x"),
+        ({"x": {1: "a"}}, "payload.x"),
+        ({"x": np.zeros(2)}, "payload.x"),
+        ({"x": b"bytes"}, "payload.x"),
+    ],
+)
+def test_non_json_payload_values_are_refused_with_their_path(payload: Any, path: str) -> None:
+    with pytest.raises(InvalidEventError, match=r"invalid search_failed v1 event: ") as info:
+        make_event(payload=payload)
+    assert info.value.path == path
+    assert path in str(info.value)
+
+
+def test_payload_must_be_a_mapping() -> None:
+    with pytest.raises(InvalidEventError, match="payload: list is not a JSON object"):
+        make_event(payload=[1, 2])
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("event_id", "not-a-uuid"),
+        ("event_id", str(uuid.uuid4()).upper()),
+        ("event_id", 5),
+        ("stream", ""),
+        ("stream", None),
+        ("seq", 0),
+        ("seq", True),
+        ("seq", "1"),
+        ("seq", 1.0),
+        ("time_ns", -1),
+        ("time_ns", 1.5),
+        ("recorded_at_ns", None),
+        ("type", ""),
+        ("version", 0),
+        ("task_id", ""),
+        ("task_id", 3),
+    ],
+)
+def test_bad_envelope_fields_are_refused_by_name(field: str, value: Any) -> None:
+    with pytest.raises(InvalidEventError, match=rf"invalid event envelope: {field}: ") as info:
+        make_event(**{field: value})
+    assert info.value.path == field
+
+
+def test_task_id_may_be_none() -> None:
+    assert make_event(task_id=None).task_id is None
+
+
+def test_from_json_dict_requires_exactly_the_envelope_fields() -> None:
+    d = make_event().to_json_dict()
+    del d["seq"]
+    d["extra"] = 1
+    with pytest.raises(InvalidEventError, match=r"missing field\(s\) 'seq'; unknown field\(s\)"):
+        Event.from_json_dict(d)
+
+
+def test_equal_events_hash_equal() -> None:
+    a, b = make_event(), make_event()
+    assert a == b
+    assert hash(a) == hash(b)
+    assert len({a, b}) == 1
+    assert make_event(seq=2) != a

@@ -1,0 +1,467 @@
+from __future__ import annotations
+
+import json
+import logging
+import os
+import re
+import warnings
+import zlib
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from objsearch.events import (
+    CorruptLogError,
+    Event,
+    EventLog,
+    EventStoreError,
+    InvalidEventError,
+    LogClosedError,
+    LogLockedError,
+    LogNotFoundError,
+    StreamMismatchError,
+    TornTailWarning,
+    deterministic_event_id,
+    read_log,
+)
+
+from .payloads import EXAMPLES
+
+STREAM = "run-1"
+LINE = re.compile(rb"^(\{[^\t\n]*\})\t([0-9a-f]{8})\n$")
+
+
+def open_log(directory: Path, stream: str = STREAM, **kwargs: Any) -> EventLog:
+    kwargs.setdefault("wall_clock", lambda: 42)
+    return EventLog.open(directory, stream, **kwargs)
+
+
+def write_events(directory: Path, n: int, stream: str = STREAM) -> list[Event]:
+    with open_log(directory, stream) as log:
+        return [log.append("search_failed", {"reason": f"r{i}"}, time_ns=i) for i in range(n)]
+
+
+def lines(directory: Path) -> list[bytes]:
+    return (directory / "events.log").read_bytes().splitlines(keepends=True)
+
+
+def record_line(envelope: dict[str, Any]) -> bytes:
+    """A well-formed line with a correct checksum, whatever the envelope says."""
+    body = json.dumps(envelope, sort_keys=True, separators=(",", ":")).encode()
+    return body + b"\t%08x\n" % zlib.crc32(body)
+
+
+# --- round trip, format, sequence ---------------------------------------------------------------
+
+
+def test_append_then_read_round_trips_every_event_type(tmp_path: Path) -> None:
+    with open_log(tmp_path / "log") as log:
+        written = [
+            log.append(t, p, time_ns=10 * i, task_id="t1")
+            for i, (t, p) in enumerate(EXAMPLES.items())
+        ]
+        assert log.last_seq == len(EXAMPLES)
+    read = list(read_log(tmp_path / "log"))
+    assert read == written
+    assert [e.seq for e in read] == list(range(1, len(EXAMPLES) + 1))
+    assert read[0].event_id == deterministic_event_id(STREAM, 1)
+    assert read[0].recorded_at_ns == 42
+
+
+def test_records_are_compact_sorted_json_with_a_crc(tmp_path: Path) -> None:
+    write_events(tmp_path, 3)
+    for raw in lines(tmp_path):
+        match = LINE.match(raw)
+        assert match is not None, raw
+        body, crc = match.groups()
+        assert int(crc, 16) == zlib.crc32(body)
+        envelope = json.loads(body)
+        assert body == json.dumps(envelope, sort_keys=True, separators=(",", ":")).encode()
+    meta = json.loads((tmp_path / "meta.json").read_text())
+    assert meta == {"format": "objsearch.events/1", "stream": STREAM}
+
+
+def test_unicode_line_separators_in_payloads_do_not_split_records(tmp_path: Path) -> None:
+    reason = "caf\u00e9 \u2028 line\u2029 sep \t tab \n newline"
+    with open_log(tmp_path) as log:
+        log.append("search_failed", {"reason": reason}, time_ns=1)
+        log.append("search_failed", {"reason": "next"}, time_ns=2)
+    assert [e.payload["reason"] for e in read_log(tmp_path)] == [reason, "next"]
+    assert len(lines(tmp_path)) == 2
+    assert "café".encode() in lines(tmp_path)[0]  # UTF-8, not \\u escapes
+
+
+def test_reopening_continues_the_sequence(tmp_path: Path) -> None:
+    write_events(tmp_path, 3)
+    with open_log(tmp_path) as log:
+        assert log.last_seq == 3
+        event = log.append("search_failed", {"reason": "again"}, time_ns=9)
+    assert event.seq == 4
+    assert event.event_id == deterministic_event_id(STREAM, 4)
+    assert [e.seq for e in read_log(tmp_path)] == [1, 2, 3, 4]
+
+
+def test_same_inputs_give_byte_identical_logs(tmp_path: Path) -> None:
+    for name in ("a", "b"):
+        with open_log(tmp_path / name) as log:
+            for i, (t, p) in enumerate(EXAMPLES.items()):
+                log.append(t, p, time_ns=i)
+    assert (tmp_path / "a" / "events.log").read_bytes() == (
+        tmp_path / "b" / "events.log"
+    ).read_bytes()
+
+
+def test_explicit_event_id_and_version_are_kept(tmp_path: Path) -> None:
+    event_id = "00000000-0000-4000-8000-000000000001"
+    with open_log(tmp_path) as log:
+        event = log.append("search_failed", {"reason": "x"}, time_ns=1, version=1, event_id=event_id)
+    assert event.event_id == event_id
+    assert next(read_log(tmp_path)).event_id == event_id
+
+
+def test_read_range(tmp_path: Path) -> None:
+    write_events(tmp_path, 6)
+    assert [e.seq for e in read_log(tmp_path, from_seq=3)] == [3, 4, 5, 6]
+    assert [e.seq for e in read_log(tmp_path, from_seq=2, to_seq=4)] == [2, 3, 4]
+    assert list(read_log(tmp_path, from_seq=5, to_seq=4)) == []
+    assert list(read_log(tmp_path, from_seq=9)) == []
+    with pytest.raises(ValueError, match="from_seq must be an integer >= 1"):
+        read_log(tmp_path, from_seq=0)
+
+
+def test_a_new_log_is_empty(tmp_path: Path) -> None:
+    with open_log(tmp_path / "new") as log:
+        assert log.last_seq == 0
+    assert list(read_log(tmp_path / "new")) == []
+    # A crash between writing meta.json and creating events.log leaves an empty log, not an error.
+    (tmp_path / "new" / "events.log").unlink()
+    assert list(read_log(tmp_path / "new")) == []
+    with open_log(tmp_path / "new", create=False) as log:
+        assert log.append("search_failed", {"reason": "x"}, time_ns=0).seq == 1
+
+
+# --- validation before writing ----------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("event_type", "payload", "kwargs", "message"),
+    [
+        ("task_started", dict(EXAMPLES["task_started"], target=3), {},
+         "invalid task_started v1 event: payload.target: 3 is not of type 'string'"),
+        ("teleported", {}, {}, "unknown event type 'teleported'; known types: container_opened"),
+        ("moved", EXAMPLES["moved"], {"version": 9}, "unknown version 9 of event type 'moved'"),
+        ("search_failed", {"reason": float("nan")}, {}, "payload.reason: nan"),
+        ("search_failed", {"reason": "\ud800"}, {}, "cannot be stored as UTF-8 JSON"),
+        ("search_failed", {"reason": "x"}, {"event_id": "nope"}, "event_id: 'nope'"),
+        ("search_failed", {"reason": "x"}, {"time_ns": -5}, "time_ns: -5"),
+        ("search_failed", {"reason": "x"}, {"task_id": ""}, "task_id: ''"),
+    ],
+)
+def test_invalid_events_are_refused_and_nothing_is_written(
+    tmp_path: Path, event_type: str, payload: Any, kwargs: dict[str, Any], message: str
+) -> None:
+    write_events(tmp_path, 2)
+    before = (tmp_path / "events.log").read_bytes()
+    with open_log(tmp_path) as log:
+        kwargs.setdefault("time_ns", 7)
+        with pytest.raises(InvalidEventError, match=re.escape(message)):
+            log.append(event_type, payload, **kwargs)
+        assert (tmp_path / "events.log").read_bytes() == before
+        assert log.last_seq == 2
+        assert log.append("search_failed", {"reason": "ok"}, time_ns=8).seq == 3
+
+
+# --- torn tails --------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("keep", [1, 10, 0.5, -2, -1], ids=lambda k: f"keep={k}")
+def test_torn_last_record_is_cut_on_open_with_a_warning(
+    tmp_path: Path, keep: float, caplog: pytest.LogCaptureFixture
+) -> None:
+    write_events(tmp_path, 3)
+    data = (tmp_path / "events.log").read_bytes()
+    last_start = len(data) - len(lines(tmp_path)[-1])
+    last_len = len(data) - last_start
+    cut_at = last_start + (int(last_len * keep) if isinstance(keep, float) else keep % last_len)
+    assert last_start < cut_at < len(data)
+    (tmp_path / "events.log").write_bytes(data[:cut_at])
+
+    with caplog.at_level(logging.WARNING, logger="objsearch.events.log"):
+        with pytest.warns(TornTailWarning) as record:
+            log = open_log(tmp_path)
+    message = str(record[0].message)
+    assert str(tmp_path / "events.log") in message
+    assert f"cut {cut_at - last_start} byte(s) at byte offset {last_start}" in message
+    assert message in caplog.text
+    with log:
+        assert log.last_seq == 2
+        assert log.torn_tail is not None and log.torn_tail.offset == last_start
+        assert (tmp_path / "events.log").read_bytes() == data[:last_start]
+        assert log.append("search_failed", {"reason": "after"}, time_ns=5).seq == 3
+    assert [e.payload["reason"] for e in read_log(tmp_path)] == ["r0", "r1", "after"]
+
+
+@pytest.mark.parametrize(
+    "garbage",
+    [b"garbage without newline", b"\x00" * 300, b'{"half": "a rec', b"bad\tffffffff\n", b"x\ny"],
+)
+def test_garbage_after_the_last_record_is_a_torn_tail(tmp_path: Path, garbage: bytes) -> None:
+    write_events(tmp_path, 2)
+    good = (tmp_path / "events.log").read_bytes()
+    (tmp_path / "events.log").write_bytes(good + garbage)
+    with pytest.warns(TornTailWarning, match=f"cut {len(garbage)} byte"), open_log(tmp_path) as log:
+        assert log.last_seq == 2
+        log.append("search_failed", {"reason": "ok"}, time_ns=3)
+    assert [e.seq for e in read_log(tmp_path)] == [1, 2, 3]
+
+
+def test_a_damaged_complete_last_line_is_a_torn_tail(tmp_path: Path) -> None:
+    write_events(tmp_path, 3)
+    raw = lines(tmp_path)
+    damaged = raw[-1].replace(b'"r2"', b'"r9"')  # same length, checksum no longer matches
+    (tmp_path / "events.log").write_bytes(b"".join(raw[:-1]) + damaged)
+    with pytest.warns(TornTailWarning, match="checksum mismatch"), open_log(tmp_path) as log:
+        assert log.last_seq == 2
+
+
+def test_reader_skips_a_torn_tail_with_a_warning_and_changes_nothing(tmp_path: Path) -> None:
+    write_events(tmp_path, 3)
+    torn = (tmp_path / "events.log").read_bytes()[:-7]
+    (tmp_path / "events.log").write_bytes(torn)
+    with pytest.warns(TornTailWarning, match="skipping .* the file was not changed"):
+        events = list(read_log(tmp_path))
+    assert [e.seq for e in events] == [1, 2]
+    assert (tmp_path / "events.log").read_bytes() == torn
+
+
+def test_reader_is_silent_about_an_append_in_progress(tmp_path: Path) -> None:
+    write_events(tmp_path, 2)
+    with open_log(tmp_path):
+        # What a reader can see while the writer's write() is half done.
+        with (tmp_path / "events.log").open("ab") as f:
+            f.write(b'{"event_id":"partial')
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert [e.seq for e in read_log(tmp_path)] == [1, 2]
+
+
+# --- corruption in the middle ------------------------------------------------------------------
+
+
+def _assert_corrupt(tmp_path: Path, line: int, match: str) -> None:
+    before = (tmp_path / "events.log").read_bytes()
+    offset = sum(len(x) for x in lines(tmp_path)[: line - 1])
+    with pytest.raises(CorruptLogError, match=match) as info:
+        list(read_log(tmp_path))
+    assert f"line {line} (byte offset {offset})" in str(info.value)
+    assert (info.value.line, info.value.offset) == (line, offset)
+    assert str(tmp_path / "events.log") in str(info.value)
+    with pytest.raises(CorruptLogError, match=match):
+        open_log(tmp_path)
+    assert (tmp_path / "events.log").read_bytes() == before
+    with pytest.raises(CorruptLogError):  # not LogLockedError: the failed open let go of the lock
+        open_log(tmp_path)
+
+
+def test_bad_checksum_in_the_middle_is_corruption_not_a_torn_tail(tmp_path: Path) -> None:
+    write_events(tmp_path, 5)
+    raw = lines(tmp_path)
+    raw[2] = raw[2].replace(b'"r2"', b'"rX"')
+    (tmp_path / "events.log").write_bytes(b"".join(raw))
+    _assert_corrupt(tmp_path, 3, "checksum mismatch.*a valid record follows at line 4")
+
+
+def test_missing_newline_in_the_middle_is_corruption(tmp_path: Path) -> None:
+    write_events(tmp_path, 4)
+    raw = lines(tmp_path)
+    raw[1] = raw[1][:-1]  # lines 2 and 3 merge into one damaged line
+    (tmp_path / "events.log").write_bytes(b"".join(raw))
+    _assert_corrupt(tmp_path, 2, "valid record follows at line 3")
+
+
+def test_seq_gap_is_corruption(tmp_path: Path) -> None:
+    events = write_events(tmp_path, 3)
+    raw = lines(tmp_path)
+    skipped = dict(events[2].to_json_dict(), seq=5)
+    (tmp_path / "events.log").write_bytes(b"".join(raw[:2]) + record_line(skipped))
+    _assert_corrupt(tmp_path, 3, "expected seq 3, found seq 5")
+
+
+def test_checksummed_but_invalid_record_is_corruption_even_at_the_end(tmp_path: Path) -> None:
+    write_events(tmp_path, 2)
+    body = b'{"not": "an envelope"'
+    bad = body + b"\t%08x\n" % zlib.crc32(body)
+    with (tmp_path / "events.log").open("ab") as f:
+        f.write(bad)
+    _assert_corrupt(tmp_path, 3, "checksum matches but the JSON is invalid")
+
+
+def test_record_of_another_stream_is_corruption(tmp_path: Path) -> None:
+    events = write_events(tmp_path, 2)
+    foreign = dict(events[1].to_json_dict(), seq=3, stream="other")
+    with (tmp_path / "events.log").open("ab") as f:
+        f.write(record_line(foreign))
+    _assert_corrupt(tmp_path, 3, "record of stream 'other' in the log of stream 'run-1'")
+
+
+def test_record_missing_envelope_fields_is_corruption(tmp_path: Path) -> None:
+    events = write_events(tmp_path, 1)
+    partial = events[0].to_json_dict()
+    partial["seq"] = 2
+    del partial["time_ns"]
+    with (tmp_path / "events.log").open("ab") as f:
+        f.write(record_line(partial))
+    _assert_corrupt(tmp_path, 2, "missing field\\(s\\) 'time_ns'")
+
+
+# --- opening: lock, stream, missing logs -------------------------------------------------------
+
+
+def test_second_writer_is_locked_out_until_the_first_closes(tmp_path: Path) -> None:
+    first = open_log(tmp_path)
+    with pytest.raises(LogLockedError, match=f"already open for writing .*pid {os.getpid()}"):
+        open_log(tmp_path)
+    first.close()
+    with open_log(tmp_path) as second:
+        assert second.append("search_failed", {"reason": "x"}, time_ns=0).seq == 1
+
+
+def test_stream_mismatch_is_refused(tmp_path: Path) -> None:
+    write_events(tmp_path, 1)
+    with pytest.raises(StreamMismatchError, match="belongs to stream 'run-1', not 'run-2'"):
+        open_log(tmp_path, "run-2")
+    open_log(tmp_path / "empty").close()
+    with pytest.raises(StreamMismatchError):
+        open_log(tmp_path / "empty", "run-2")  # meta.json binds even an empty log
+
+
+def test_missing_logs_raise_log_not_found(tmp_path: Path) -> None:
+    missing = tmp_path / "missing"
+    with pytest.raises(LogNotFoundError, match="no event log at .*missing.*does not exist"):
+        open_log(missing, create=False)
+    assert not missing.exists()
+    with pytest.raises(FileNotFoundError):
+        read_log(missing)  # raised at call time, not at the first next()
+    missing.mkdir()
+    with pytest.raises(LogNotFoundError, match="meta.json is missing"):
+        open_log(missing, create=False)
+    assert list(missing.iterdir()) == []  # no LOCK left behind
+    with pytest.raises(LogNotFoundError, match="meta.json is missing"):
+        read_log(missing)
+
+
+def test_events_log_without_meta_is_not_adopted(tmp_path: Path) -> None:
+    write_events(tmp_path, 1)
+    (tmp_path / "meta.json").unlink()
+    with pytest.raises(LogNotFoundError, match=r"meta.json is missing \(but events.log exists\)"):
+        open_log(tmp_path)
+
+
+def test_unknown_format_is_refused(tmp_path: Path) -> None:
+    write_events(tmp_path, 1)
+    (tmp_path / "meta.json").write_text('{"format": "objsearch.events/2", "stream": "run-1"}')
+    with pytest.raises(EventStoreError, match="unsupported log format 'objsearch.events/2'"):
+        read_log(tmp_path)
+
+
+def test_creates_missing_parent_directories(tmp_path: Path) -> None:
+    write_events(tmp_path / "a" / "b" / "c", 1)
+    assert [e.seq for e in read_log(tmp_path / "a" / "b" / "c")] == [1]
+
+
+# --- durability: fsync, batches, failures ------------------------------------------------------
+
+
+class FsyncCounter:
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.calls = 0
+        self._real = os.fsync
+        monkeypatch.setattr(os, "fsync", self)
+
+    def __call__(self, fd: int) -> None:
+        self.calls += 1
+        self._real(fd)
+
+
+def test_each_append_is_fsynced_before_it_returns(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    with open_log(tmp_path) as log:
+        counter = FsyncCounter(monkeypatch)
+        for i in range(3):
+            log.append("search_failed", {"reason": "x"}, time_ns=i)
+            assert counter.calls == i + 1
+
+
+def test_batch_fsyncs_once_at_exit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    with open_log(tmp_path) as log:
+        counter = FsyncCounter(monkeypatch)
+        with log.batch():
+            for i in range(10):
+                log.append("search_failed", {"reason": "x"}, time_ns=i)
+            with log.batch():  # nested: still one fsync, at the outermost exit
+                log.append("search_failed", {"reason": "y"}, time_ns=10)
+            assert counter.calls == 0
+        assert counter.calls == 1
+        with log.batch():
+            pass
+        assert counter.calls == 1  # nothing to sync
+    assert len(list(read_log(tmp_path))) == 11
+
+
+def test_batch_is_not_a_transaction(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    with open_log(tmp_path) as log:
+        counter = FsyncCounter(monkeypatch)
+        with pytest.raises(InvalidEventError), log.batch():
+            log.append("search_failed", {"reason": "kept"}, time_ns=0)
+            log.append("search_failed", {}, time_ns=1)
+        assert counter.calls == 1
+        assert log.last_seq == 1
+    assert [e.payload["reason"] for e in read_log(tmp_path)] == ["kept"]
+
+
+def test_failed_write_is_undone(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    write_events(tmp_path, 1)
+    before = (tmp_path / "events.log").read_bytes()
+    with open_log(tmp_path) as log:
+        real_write = os.write
+
+        def half_then_fail(fd: int, data: Any) -> int:
+            monkeypatch.setattr(os, "write", real_write)
+            real_write(fd, bytes(data)[: len(data) // 2])
+            raise OSError(28, "No space left on device")
+
+        monkeypatch.setattr(os, "write", half_then_fail)
+        with pytest.raises(OSError, match="No space left"):
+            log.append("search_failed", {"reason": "lost"}, time_ns=1)
+        assert (tmp_path / "events.log").read_bytes() == before
+        assert log.last_seq == 1
+        assert log.append("search_failed", {"reason": "ok"}, time_ns=2).seq == 2
+    assert [e.seq for e in read_log(tmp_path)] == [1, 2]
+
+
+def test_failed_fsync_stops_the_writer(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    log = open_log(tmp_path)
+
+    def broken_fsync(fd: int) -> None:
+        raise OSError(5, "Input/output error")
+
+    monkeypatch.setattr(os, "fsync", broken_fsync)
+    with pytest.raises(OSError, match="Input/output error"):
+        log.append("search_failed", {"reason": "x"}, time_ns=0)
+    with pytest.raises(LogClosedError, match="refuses appends after a failed write.*reopen"):
+        log.append("search_failed", {"reason": "y"}, time_ns=1)
+    log.close()
+    monkeypatch.undo()
+    with open_log(tmp_path) as log:
+        assert log.last_seq == 1  # what reached the file is still judged by its checksum
+
+
+def test_closed_log_refuses_appends(tmp_path: Path) -> None:
+    log = open_log(tmp_path)
+    log.close()
+    log.close()
+    assert log.closed
+    with pytest.raises(LogClosedError, match="is closed"):
+        log.append("search_failed", {"reason": "x"}, time_ns=0)
