@@ -24,8 +24,14 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 
+# The editable install maps objsearch.agent -> agent/ through an import hook mypy cannot follow,
+# so mypy reads the package through a tree of symlinks laid out the way it is installed.
+TYPECHECK := $(VENV)/typecheck
 typecheck: $(STAMP)
-	$(BIN)/mypy objsearch agent events sim replay pipeline
+	rm -rf $(TYPECHECK) && mkdir -p $(TYPECHECK)/objsearch
+	ln -s $(CURDIR)/objsearch/*.py $(CURDIR)/objsearch/py.typed $(TYPECHECK)/objsearch/
+	for d in agent events sim replay pipeline; do ln -s $(CURDIR)/$$d $(TYPECHECK)/objsearch/$$d; done
+	MYPYPATH=$(TYPECHECK) $(BIN)/mypy -p objsearch
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/planner.py

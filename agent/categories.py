@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.errors import DataFileError, NotATargetError, UnknownObjectClassError
+
 from objsearch.paths import data_dir
 
 

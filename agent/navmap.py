@@ -8,12 +8,12 @@ at no cost (paper §6.1), modelled as zero-length edges between doors.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import networkx as nx
-
 from objsearch.agent.geometry import Point
 from objsearch.agent.home import Home
 
@@ -43,8 +43,13 @@ class NavigationMap:
                     q = _snap(p.x + dx * g, p.y + dy * g)
                     if q not in pts:
                         continue
-                    if dx and dy and (
-                        _snap(p.x + dx * g, p.y) not in pts or _snap(p.x, p.y + dy * g) not in pts
+                    if (
+                        dx
+                        and dy
+                        and (
+                            _snap(p.x + dx * g, p.y) not in pts
+                            or _snap(p.x, p.y + dy * g) not in pts
+                        )
                     ):
                         continue
                     graph.add_edge(p, q, weight=g * math.hypot(dx, dy), teleport=False)
@@ -89,7 +94,7 @@ class NavigationMap:
         return self._paths[a][b]
 
     def path_length(self, path: Sequence[Point]) -> float:
-        return math.fsum(self.graph.edges[u, v]["weight"] for u, v in zip(path, path[1:]))
+        return math.fsum(self.graph.edges[u, v]["weight"] for u, v in itertools.pairwise(path))
 
     def is_teleport(self, a: Point, b: Point) -> bool:
         return bool(self.graph.edges[a, b]["teleport"])

@@ -140,9 +140,7 @@ def wpl_plan(start: FloatArray, dist: FloatArray, rel: FloatArray, alpha: float)
     return Ordering(tuple(order), wpl_terms(order, start, dist, rel, alpha), exact=False)
 
 
-def relation_order(
-    start: FloatArray, dist: FloatArray, rel: FloatArray, alpha: float
-) -> Ordering:
+def relation_order(start: FloatArray, dist: FloatArray, rel: FloatArray, alpha: float) -> Ordering:
     """RVP: highest relation value first; ties (instances of one class) nearest-first, greedily.
 
     The terms reported are Eq. 3's with the given α, so plans of all methods compare on one scale.

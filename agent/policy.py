@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
-
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.geometry import Point, Pose, heading, wrap_angle
 from objsearch.agent.home import Vec3
@@ -180,7 +179,9 @@ class SearchAgent:
     ) -> SearchResult:
         task_id = f"task-{self.graph.tasks_folded + 1:05d}"
         run = _Task(self, world, task_id, target)
-        result = SearchResult(task_id=task_id, target=target, start=start, success=False, path_length=0.0)
+        result = SearchResult(
+            task_id=task_id, target=target, start=start, success=False, path_length=0.0
+        )
         pose = world.pose()
         result.route.append(pose.point)
         run.emit(
@@ -206,8 +207,8 @@ class SearchAgent:
         if found is None:
             run.emit("search_failed", {"reason": f"{target} not found in any room"})
         else:
-            here = world.pose()
-            room = self.navmap.room_at(here.x, here.y)
+            arrived = world.pose()
+            room = self.navmap.room_at(arrived.x, arrived.y)
             goal = self.navmap.nearest_viewpoint(found.position[0], found.position[1], room)
             run.go(goal, result, watch=False, final_yaw=heading(goal, Point(*found.position[:2])))
             run.emit(
@@ -222,7 +223,11 @@ class SearchAgent:
             result.found_instance = found.instance_id
         run.emit(
             "task_ended",
-            {"target": target, "success": result.success, "path_length": round(result.path_length, 4)},
+            {
+                "target": target,
+                "success": result.success,
+                "path_length": round(result.path_length, 4),
+            },
         )
         return result
 
@@ -293,7 +298,9 @@ class _Task:
     ) -> _Found | None:
         """Drive to a viewpoint; with ``watch``, stop as soon as the target is seen on the way."""
         start = self.world.pose()
-        if start.point == goal and (final_yaw is None or abs(wrap_angle(start.yaw - final_yaw)) < 1e-9):
+        if start.point == goal and (
+            final_yaw is None or abs(wrap_angle(start.yaw - final_yaw)) < 1e-9
+        ):
             return None
         seen: set[str] = set()
         found: list[_Found] = []

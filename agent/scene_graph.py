@@ -12,6 +12,7 @@ from __future__ import annotations
 import enum
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, Protocol
 
 from objsearch.agent.categories import Category, Vocabulary
@@ -86,7 +87,9 @@ class SceneGraphProjection:
         if kind == "run_started":
             self.update_mode = UpdateMode(payload["update_mode"])
         elif kind == "scene_graph_seeded":
-            self.relations = {(v["dynamic"], v["static"]): float(v["rel"]) for v in payload["values"]}
+            self.relations = {
+                (v["dynamic"], v["static"]): float(v["rel"]) for v in payload["values"]
+            }
         elif kind == "task_started":
             self._target = payload["target"]
             self._experience = {}
@@ -110,6 +113,11 @@ class SceneGraphProjection:
         self._target = None
         self._experience = {}
         self.tasks_folded += 1
+
+    @property
+    def state(self) -> Mapping[Pair, float]:
+        """Rel per (dynamic, static) class pair, read-only (the ``Projection`` protocol's state)."""
+        return MappingProxyType(self.relations)
 
     @property
     def experience(self) -> dict[str, frozenset[str]]:

@@ -98,7 +98,9 @@ class AlfredAgreement:
         }
 
 
-def compare_with_alfred(home: Home, semmap: SemanticMap, *, match_radius: float = 0.5) -> AlfredAgreement:
+def compare_with_alfred(
+    home: Home, semmap: SemanticMap, *, match_radius: float = 0.5
+) -> AlfredAgreement:
     """Match ALFRED poses to our statics (same AI2-THOR type, nearest centre within match_radius)."""
     thor_type = {s.id: s.thor_type for s in (x for r in home.rooms for x in r.statics)}
     by_room = {room.name: semmap.in_room(room.name) for room in home.rooms}

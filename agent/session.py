@@ -17,6 +17,7 @@ from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode, seed_r
 from objsearch.agent.semmap import SemanticMap
 from objsearch.agent.world import World
 from objsearch.events import EventLog, read_log
+
 from objsearch.paths import data_dir
 
 PRIOR_FILE = "priors/visual_genome.json"
@@ -87,13 +88,17 @@ class Session:
         if not self.graph.relations:
             source, values = prior_values(ctx.vocabulary)
             self.recorder.record(
-                "scene_graph_seeded", {"source": source, "values": values}, time_ns=self.resume_time_ns
+                "scene_graph_seeded",
+                {"source": source, "values": values},
+                time_ns=self.resume_time_ns,
             )
         self.agent = SearchAgent(
             ctx.navmap, ctx.semmap, ctx.vocabulary, self.graph, self.recorder, config
         )
 
-    def search(self, world: World, target: str, start: str, *, scene: int | None = None) -> SearchResult:
+    def search(
+        self, world: World, target: str, start: str, *, scene: int | None = None
+    ) -> SearchResult:
         """One task; its events become durable together when it ends (one fsync per task)."""
         with self.log.batch():
             return self.agent.search(world, target, start, scene=scene)

@@ -47,7 +47,11 @@ class World(Protocol):
         ...
 
     def navigate(
-        self, goal: Point, *, on_detection: DetectionHandler | None = None, final_yaw: float | None = None
+        self,
+        goal: Point,
+        *,
+        on_detection: DetectionHandler | None = None,
+        final_yaw: float | None = None,
     ) -> Navigation: ...
 
     def look(self, yaw: float) -> tuple[Detection, ...]:

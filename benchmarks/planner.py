@@ -14,7 +14,6 @@ import statistics
 import time
 
 import numpy as np
-
 from objsearch.agent.planner import wpl_enumerate, wpl_exact
 
 

@@ -154,7 +154,8 @@ class EventLog:
     """The single writer of one stream's log. Use :meth:`open`; close it (or use ``with``).
 
     Every append is validated before a byte is written, and is on disk (written and fsync'ed)
-    before it returns, except inside :meth:`batch`, which fsyncs once at its end.
+    before it returns, except inside :meth:`batch`, which fsyncs once at its end. Not
+    thread-safe: the lock makes this the stream's only writer, so give it one thread too.
     """
 
     def __init__(

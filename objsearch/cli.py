@@ -7,11 +7,14 @@ import json
 import shutil
 import sys
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from objsearch.agent.errors import ObjsearchError
+
+if TYPE_CHECKING:
+    from objsearch.sim.world import Placement
 
 EXIT_USAGE = 2
 
@@ -25,22 +28,19 @@ def _fail(message: str) -> int:
 
 
 def cmd_data_build(args: argparse.Namespace) -> int:
-    from objsearch.pipeline.build import build_data
+    from objsearch.pipeline.build import build_data, parse_home_arg
+    from objsearch.pipeline.errors import BuildError
 
-    homes: dict[str, list[str]] | None = None
-    if args.home:
-        homes = {}
-        for spec in args.home:
-            name, _, scenes = spec.partition("=")
-            if not scenes:
-                return _fail(f"--home wants NAME=KITCHEN,LIVING,BEDROOM,BATHROOM, got {spec!r}")
-            homes[name] = scenes.split(",")
-    report = build_data(
-        Path(args.source),
-        Path(args.out),
-        homes=homes,
-        progress=lambda line: print(line, file=sys.stderr),
-    )
+    try:
+        homes = dict(parse_home_arg(spec) for spec in args.home) if args.home else None
+        report = build_data(
+            Path(args.source),
+            Path(args.out),
+            homes=homes,
+            progress=lambda line: print(line, file=sys.stderr),
+        )
+    except BuildError as exc:
+        return _fail(str(exc))
     for note in report.notes:
         print(note)
     for path in report.files:
@@ -66,12 +66,15 @@ def cmd_search(args: argparse.Namespace) -> int:
     ctx = load_context(args.home)
     target = ctx.vocabulary.resolve_target(args.target).name
     pose = ctx.home.start(args.start)
+    placements: Mapping[str, Placement]
     if args.scene is None:
         placements = base_placements(ctx.home, table1_removals(ctx.home))
     else:
         schedule = Schedule.load(ctx.home, args.schedule)
         if args.scene not in schedule.scenes:
-            return _fail(f"schedule {args.schedule!r} has scenes {sorted(schedule.scenes)}, not {args.scene}")
+            return _fail(
+                f"schedule {args.schedule!r} has scenes {sorted(schedule.scenes)}, not {args.scene}"
+            )
         placements = schedule.scenes[args.scene]
     tmp = None if args.log else tempfile.mkdtemp(prefix="objsearch-search-")
     log_dir = Path(args.log or tmp or ".")
@@ -104,9 +107,14 @@ def cmd_search(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0
-    print(f"{'found' if result.success else 'NOT found'}: {target} from {args.start} ({args.method})")
+    print(
+        f"{'found' if result.success else 'NOT found'}: {target} from {args.start} ({args.method})"
+    )
     for room, order in result.plans:
-        print(f"  {room}: plan " + (" → ".join(s.split("/", 1)[1] for s in order) or "(nothing related)"))
+        print(
+            f"  {room}: plan "
+            + (" → ".join(s.split("/", 1)[1] for s in order) or "(nothing related)")
+        )
     print("  route: " + " ".join(f"({p.x:.2f},{p.y:.2f})" for p in result.route))
     print(f"  path length {result.path_length:.2f} m (oracle {oracle:.2f} m)")
     if args.log:
@@ -217,13 +225,17 @@ def build_parser() -> argparse.ArgumentParser:
     search.add_argument("--start", required=True, help="start point, e.g. kitchen-1")
     _search_options(search)
     search.add_argument(
-        "--scene", type=int, help="place objects as in this scene of the schedule "
-        "(default: the home's own placements, with the paper's Table I removals)"
+        "--scene",
+        type=int,
+        help="place objects as in this scene of the schedule "
+        "(default: the home's own placements, with the paper's Table I removals)",
     )
     search.add_argument("--schedule", default="table2", help="placement schedule (table2)")
     search.add_argument("--log", help="event log folder to append to (default: a temporary one)")
     search.add_argument(
-        "--update-mode", default="all", choices=["none", "targets", "all"],
+        "--update-mode",
+        default="all",
+        choices=["none", "targets", "all"],
         help="which experience Eq. 4 folds in at the end of the task (all)",
     )
     search.add_argument("--json", action="store_true", help="print a JSON summary")
@@ -236,9 +248,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--home", default="paper")
     demo.add_argument("--force", action="store_true", help="replace an earlier demo in --out")
     demo.add_argument("--no-progress", action="store_true", help="no progress bar")
-    demo.add_argument(
-        "--no-baseline", action="store_true", help="skip the no-update baseline run"
-    )
+    demo.add_argument("--no-baseline", action="store_true", help="skip the no-update baseline run")
     demo.set_defaults(func=cmd_demo)
 
     graph = sub.add_parser("graph", help="print the scene graph projection of a log")

@@ -10,14 +10,8 @@ from typing import Any
 
 from .errors import HomeSpecError
 from .navgrid import GRID_M
-from .rooms import (
-    ROOM_SLOTS,
-    PlacedObject,
-    Room,
-    RoomSource,
-    Static,
-    build_room,
-)
+from .room_objects import PlacedObject, Static
+from .rooms import ROOM_SLOTS, Room, RoomSource, build_room
 from .sources import load_layout, load_openable, load_scene, scene_path
 
 ROOM_GAP_M = 1.0

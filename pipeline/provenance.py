@@ -7,13 +7,8 @@ import hashlib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from .rooms import (
-    FLOOR_CONTACT_M,
-    NOT_OBSTACLES,
-    OPENABLE_NOT_CONTAINER,
-    PREFERRED_PART,
-    SUPPORT_RADIUS_M,
-)
+from .room_objects import OPENABLE_NOT_CONTAINER, PREFERRED_PART, SUPPORT_RADIUS_M
+from .rooms import FLOOR_CONTACT_M, NOT_OBSTACLES
 from .sourceinfo import ALL_SOURCES, SourceInfo
 from .sources import VG_MATRIX, layout_path, openable_path, scene_path
 

@@ -1,9 +1,9 @@
-"""One iTHOR room converted to the home map: viewpoints, door, starts, statics, objects, poses."""
+"""One iTHOR room converted to the home map: viewpoints, door, starts, and what it contains."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -11,12 +11,12 @@ import numpy as np
 import numpy.typing as npt
 
 from . import navgrid
+from .alfred_poses import AlfredPose, alfred_poses
 from .errors import SourceDataError
-from .frames import Vec3
-from .geometry import Box, RoomFrame
+from .geometry import RoomFrame
 from .navgrid import GRID_M, Cell, Footprint
+from .room_objects import PlacedObject, Static, objects_of, statics_of
 from .sources import ThorObject, ThorScene, layout_path, openable_path
-from .vocabulary import SEMI_DYNAMIC_BY_THOR_TYPE, STATIC_BY_THOR_TYPE
 
 # Things that are not obstacles although they sit low or report the floor as their parent: the
 # floor itself, and objects fixed to walls or hanging (their aabb reaches down but the robot
@@ -45,17 +45,6 @@ NOT_OBSTACLES: frozenset[str] = frozenset(
 # An object whose box starts less than this above the floor stands on the floor (a cabinet, a
 # sofa); one that starts higher is on something else (a microwave on a counter).
 FLOOR_CONTACT_M = 0.3
-# A semi-dynamic object whose parent is not one of our statics still "rests on" the nearest
-# static if it is this close to its box (a cup in a cabinet above a counter is not on the counter).
-SUPPORT_RADIUS_M = 0.5
-# AI2-THOR models a sink and a bathtub twice: the whole fixture and its basin, at nearly the same
-# place. Keep the basin (where objects go) and drop the fixture whose footprint contains it.
-PREFERRED_PART: dict[str, str] = {"Sink": "SinkBasin", "Bathtub": "BathtubBasin"}
-# Openable in AI2-THOR, but the opening is a lid, not storage: nothing placed "at" a toilet is
-# inside it, and a closed toilet must not hide the toilet paper on it.
-OPENABLE_NOT_CONTAINER: frozenset[str] = frozenset({"Toilet"})
-# Where an ALFRED receptacle id matches one of our statics (same type, id positions this close).
-ALFRED_MATCH_M = 0.5
 
 
 @dataclass(frozen=True)
@@ -70,77 +59,6 @@ ROOM_SLOTS: tuple[RoomSlot, ...] = (
     RoomSlot("bedroom", "Bedroom"),
     RoomSlot("bathroom", "Bathroom"),
 )
-
-
-@dataclass(frozen=True)
-class Static:
-    id: str
-    thor_type: str
-    cls: str
-    box: Box
-    openable: bool
-    container: bool
-    # Where AI2-THOR rests pickupable objects on/in this static: (x, y, height of the surface),
-    # i.e. each such object's box bottom-centre. Real surface points, unlike the box centre, which
-    # for an L-shaped counter lies over the floor and for a sofa at backrest height.
-    rest_points: tuple[Vec3, ...] = ()
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "id": self.id,
-            "thor_type": self.thor_type,
-            "cls": self.cls,
-            "center": self.box.center,
-            "size": self.box.size,
-            "container": self.container,
-            "openable": self.openable,
-            "rest_points": self.rest_points,
-        }
-
-
-@dataclass(frozen=True)
-class PlacedObject:
-    id: str
-    thor_type: str
-    cls: str
-    box: Box
-    support: str | None
-    support_rule: str | None  # "parent" (parentReceptacles) or "nearest"; None without support
-    inside: bool
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "id": self.id,
-            "thor_type": self.thor_type,
-            "cls": self.cls,
-            "center": self.box.center,
-            "size": self.box.size,
-            "support": self.support,
-            "support_rule": self.support_rule,
-            "inside": self.inside,
-        }
-
-
-@dataclass(frozen=True)
-class AlfredPose:
-    object_id: str
-    thor_type: str
-    center: Vec3
-    pose: tuple[float, float, float]
-    horizon_deg: float
-    static_id: str | None
-    on_viewpoint: bool
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "object_id": self.object_id,
-            "thor_type": self.thor_type,
-            "center": self.center,
-            "pose": self.pose,
-            "horizon_deg": self.horizon_deg,
-            "static_id": self.static_id,
-            "on_viewpoint": self.on_viewpoint,
-        }
 
 
 @dataclass(frozen=True)
@@ -232,168 +150,6 @@ def obstacle_footprints(scene: ThorScene, frame: RoomFrame) -> list[Footprint]:
     return prints
 
 
-def _statics(
-    scene: ThorScene, room: str, frame: RoomFrame
-) -> tuple[tuple[Static, ...], dict[str, str]]:
-    """Statics sorted by id, and dropped fixture thor id -> kept basin static id."""
-    candidates = [o for o in scene.objects if o.object_type in STATIC_BY_THOR_TYPE]
-    boxes = {o.object_id: frame.box(o.aabb_center, o.aabb_size) for o in candidates}
-    merged: dict[str, str] = {}
-    for whole in candidates:
-        part_type = PREFERRED_PART.get(whole.object_type)
-        if part_type is None:
-            continue
-        wbox = boxes[whole.object_id]
-        parts = [
-            p
-            for p in candidates
-            if p.object_type == part_type
-            and wbox.footprint_contains(boxes[p.object_id].center[0], boxes[p.object_id].center[1])
-        ]
-        if parts:
-            nearest = min(
-                parts,
-                key=lambda p: (
-                    math.dist(boxes[p.object_id].center, wbox.center),
-                    p.object_id,
-                ),
-            )
-            merged[whole.object_id] = f"{room}/{nearest.object_id}"
-    statics = [
-        Static(
-            id=f"{room}/{o.object_id}",
-            thor_type=o.object_type,
-            cls=STATIC_BY_THOR_TYPE[o.object_type].name,
-            box=boxes[o.object_id],
-            openable=o.openable,
-            container=o.openable and o.object_type not in OPENABLE_NOT_CONTAINER,
-        )
-        for o in candidates
-        if o.object_id not in merged
-    ]
-    ids = {s.id for s in statics}
-    rest: dict[str, list[Vec3]] = {s.id: [] for s in statics}
-    for obj in scene.objects:
-        sid = _parent_static(obj, room, ids, merged) if obj.pickupable else None
-        if sid is not None:
-            box = frame.box(obj.aabb_center, obj.aabb_size)
-            rest[sid].append((box.center[0], box.center[1], box.lo[2]))
-    placed = (replace(s, rest_points=tuple(sorted(rest[s.id]))) for s in statics)
-    return tuple(sorted(placed, key=lambda s: s.id)), merged
-
-
-def _parent_static(obj: ThorObject, room: str, ids: set[str], merged: dict[str, str]) -> str | None:
-    """The first of the object's parentReceptacles that is one of our statics (after merging)."""
-    for parent in obj.parents:
-        sid = merged.get(parent, f"{room}/{parent}")
-        if sid in ids:
-            return sid
-    return None
-
-
-def _support(
-    obj: ThorObject,
-    center: Vec3,
-    room: str,
-    statics: tuple[Static, ...],
-    merged: dict[str, str],
-) -> tuple[Static | None, str | None]:
-    by_id = {s.id: s for s in statics}
-    sid = _parent_static(obj, room, set(by_id), merged)
-    if sid is not None:
-        return by_id[sid], "parent"
-    near = [(s.box.distance_to(center), s.id, s) for s in statics]
-    near = [n for n in near if n[0] <= SUPPORT_RADIUS_M]
-    if not near:
-        return None, None
-    return min(near, key=lambda n: (n[0], n[1]))[2], "nearest"
-
-
-def _objects(
-    scene: ThorScene,
-    room: str,
-    frame: RoomFrame,
-    statics: tuple[Static, ...],
-    merged: dict[str, str],
-) -> tuple[PlacedObject, ...]:
-    placed = []
-    for obj in scene.objects:
-        cls = SEMI_DYNAMIC_BY_THOR_TYPE.get(obj.object_type)
-        if cls is None:
-            continue
-        box = frame.box(obj.aabb_center, obj.aabb_size)
-        support, rule = _support(obj, box.center, room, statics, merged)
-        placed.append(
-            PlacedObject(
-                id=f"{room}/{obj.object_id}",
-                thor_type=obj.object_type,
-                cls=cls.name,
-                box=box,
-                support=support.id if support else None,
-                support_rule=rule,
-                inside=bool(support and support.container),
-            )
-        )
-    return tuple(sorted(placed, key=lambda o: o.id))
-
-
-def _id_position(object_id: str) -> Vec3 | None:
-    """The Unity position an AI2-THOR id carries: ``Type|x|y|z`` (``|Part`` may follow)."""
-    parts = object_id.split("|")
-    if len(parts) not in (4, 5):
-        return None
-    try:
-        return (float(parts[1]), float(parts[2]), float(parts[3]))
-    except ValueError:
-        return None
-
-
-def _id_type(object_id: str) -> str:
-    """``Sink|...|SinkBasin`` names the basin, a part of the sink: the last field is its type."""
-    parts = object_id.split("|")
-    return parts[4] if len(parts) == 5 else parts[0]
-
-
-def _alfred_poses(
-    src: RoomSource,
-    room: str,
-    frame: RoomFrame,
-    statics: tuple[Static, ...],
-    viewpoints: frozenset[Cell],
-) -> tuple[AlfredPose, ...]:
-    path = openable_path(src.source, src.scene.name)
-    static_positions = [(s, _id_position(s.id.split("/", 1)[1])) for s in statics]
-    poses = []
-    for object_id, (x, z, yaw_deg, horizon) in sorted(src.openable.items()):
-        unity_pos = _id_position(object_id)
-        if unity_pos is None:
-            raise SourceDataError(
-                path,
-                f"ALFRED poses of {src.scene.name}",
-                f"object id {object_id!r} has no position",
-            )
-        thor_type = _id_type(object_id)
-        matches = [
-            (math.dist(unity_pos, pos), s.id)
-            for s, pos in static_positions
-            if pos is not None and s.thor_type == thor_type
-        ]
-        matches = [m for m in matches if m[0] <= ALFRED_MATCH_M]
-        px, py = frame.floor_point(x, z)
-        poses.append(
-            AlfredPose(
-                object_id=f"{room}/{object_id}",
-                thor_type=thor_type,
-                center=frame.point(unity_pos),
-                pose=(px, py, frame.yaw(yaw_deg)),
-                horizon_deg=horizon,
-                static_id=min(matches)[1] if matches else None,
-                on_viewpoint=navgrid.to_cell(px, py) in viewpoints,
-            )
-        )
-    return tuple(poses)
-
-
 def _grid_cells(src: RoomSource) -> set[Cell]:
     cells = set()
     for ux, uz in src.layout.tolist():
@@ -429,7 +185,7 @@ def build_room(src: RoomSource, slot: RoomSlot, min_x: float) -> Room:
         )
     main = pieces[0]
 
-    local_statics, _ = _statics(scene, slot.name, local)
+    local_statics, _ = statics_of(scene, slot.name, local)
     floor = local.box(scene.floor_center, scene.floor_size)
     xs = [floor.lo[0], floor.hi[0]] + [c[0] * GRID_M for c in main]
     ys = [floor.lo[1], floor.hi[1]] + [c[1] * GRID_M for c in main]
@@ -441,7 +197,7 @@ def build_room(src: RoomSource, slot: RoomSlot, min_x: float) -> Room:
 
     frame = RoomFrame(dx, dy)
     viewpoints = frozenset((i + di, j + dj) for i, j in main)
-    statics, merged = _statics(scene, slot.name, frame)
+    statics, merged = statics_of(scene, slot.name, frame)
     first, second, _ = navgrid.farthest_pair(viewpoints)
     cx = sum(c[0] for c in viewpoints) * GRID_M / len(viewpoints)
     cy = sum(c[1] for c in viewpoints) * GRID_M / len(viewpoints)
@@ -466,6 +222,13 @@ def build_room(src: RoomSource, slot: RoomSlot, min_x: float) -> Room:
         starts=(starts[0], starts[1]),
         statics=statics,
         merged_statics=tuple(sorted((f"{slot.name}/{k}", v) for k, v in merged.items())),
-        objects=_objects(scene, slot.name, frame, statics, merged),
-        alfred_poses=_alfred_poses(src, slot.name, frame, statics, viewpoints),
+        objects=objects_of(scene, slot.name, frame, statics, merged),
+        alfred_poses=alfred_poses(
+            src.openable,
+            openable_path(src.source, scene.name),
+            slot.name,
+            frame,
+            statics,
+            viewpoints,
+        ),
     )

@@ -9,7 +9,7 @@ from typing import Any
 from .errors import BuildError
 from .frames import Vec3
 from .home import Home
-from .rooms import Static
+from .room_objects import Static
 from .scenario import Scenario
 from .vocabulary import SEMI_DYNAMIC_NAMES, STATIC_NAMES
 

@@ -10,19 +10,23 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from tqdm import tqdm
-
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.policy import Method, SearchConfig
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule
+from tqdm import tqdm
 
 SCENES = 10
 STARTS = 8
 
 
 def run_demo(
-    *, out: Path, home: str = "paper", force: bool = False, progress: bool = True, baseline: bool = True
+    *,
+    out: Path,
+    home: str = "paper",
+    force: bool = False,
+    progress: bool = True,
+    baseline: bool = True,
 ) -> int:
     modes = [UpdateMode.ALL, UpdateMode.NONE] if baseline else [UpdateMode.ALL]
     if out.exists() and any(out.iterdir()):
@@ -82,13 +86,30 @@ def write_csv(path: Path, results: dict[UpdateMode, list[Trial]]) -> None:
     with path.open("w", newline="", encoding="utf-8") as fh:
         writer = csv.writer(fh)
         writer.writerow(
-            ["update_mode", "scene", "target", "start", "success", "path_length", "oracle_length", "task_id"]
+            [
+                "update_mode",
+                "scene",
+                "target",
+                "start",
+                "success",
+                "path_length",
+                "oracle_length",
+                "task_id",
+            ]
         )
         for mode, trials in results.items():
             for t in trials:
                 writer.writerow(
-                    [mode.value, t.scene, t.target, t.start, t.success,
-                     f"{t.path_length:.4f}", f"{t.oracle_length:.4f}", t.task_id]
+                    [
+                        mode.value,
+                        t.scene,
+                        t.target,
+                        t.start,
+                        t.success,
+                        f"{t.path_length:.4f}",
+                        f"{t.oracle_length:.4f}",
+                        t.task_id,
+                    ]
                 )
 
 
@@ -103,15 +124,19 @@ def plot(path: Path, results: dict[UpdateMode, list[Trial]]) -> None:
     for mode, trials in results.items():
         scenes = sorted({t.scene for t in trials})
         ax.plot(
-            scenes, [_mean([t for t in trials if t.scene == s]) for s in scenes],
-            marker="o", label=labels.get(mode, mode.value),
+            scenes,
+            [_mean([t for t in trials if t.scene == s]) for s in scenes],
+            marker="o",
+            label=labels.get(mode, mode.value),
         )
     oracle = results[UpdateMode.ALL]
     scenes = sorted({t.scene for t in oracle})
     ax.plot(
         scenes,
         [statistics.fmean(t.oracle_length for t in oracle if t.scene == s) for s in scenes],
-        linestyle="--", color="grey", label="oracle",
+        linestyle="--",
+        color="grey",
+        label="oracle",
     )
     ax.set_xlabel("scene (Table II)")
     ax.set_ylabel("mean path length (m)")

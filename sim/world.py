@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -95,7 +96,7 @@ class SimWorld:
         metres = 0.0
         yaw = here.yaw
         interrupted = False
-        for a, b in zip(path, path[1:]):
+        for a, b in itertools.pairwise(path):
             step = self.navmap.graph.edges[a, b]["weight"]
             if self.navmap.is_teleport(a, b):
                 rooms.append(self.navmap.room_of[b])
@@ -120,7 +121,8 @@ class SimWorld:
         path length of a robot that knew where it was (the limit for any search strategy)."""
         lengths = [
             self.navmap.distance(
-                self._pose.point, self.navmap.nearest_viewpoint(p.box.center[0], p.box.center[1], p.room)
+                self._pose.point,
+                self.navmap.nearest_viewpoint(p.box.center[0], p.box.center[1], p.room),
             )
             for p in self.placements.values()
             if p.cls == cls

@@ -6,9 +6,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import pytest
-
 from objsearch.agent.categories import Vocabulary
-from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode, apply_eq4, seed_relations
+from objsearch.agent.scene_graph import SceneGraphProjection, apply_eq4, seed_relations
 
 VOCAB = Vocabulary.from_dict(
     {

@@ -15,7 +15,6 @@ import warnings
 from pathlib import Path
 
 import pytest
-
 from objsearch.events import EventLog, LogLockedError, TornTailWarning, read_log
 
 WRITER = r"""
@@ -36,7 +35,10 @@ with EventLog.open(directory, "crash") as log:
         else:
             events = [log.append("search_failed", {"reason": f"r{i}"}, time_ns=i)]
         for event in events:  # acknowledged: append (or the batch) has returned
-            print(event.seq, event.event_id, event.payload["reason"], flush=True)
+            # One write per line: print() may emit its arguments in separate writes, and a kill
+            # between them would leave half an ack.
+            sys.stdout.write(f"{event.seq} {event.event_id} {event.payload['reason']}\n")
+            sys.stdout.flush()
         i += 1
 """
 
@@ -62,7 +64,8 @@ def test_every_acknowledged_event_survives_sigkill(tmp_path: Path, batch: int) -
         finally:
             os.kill(proc.pid, signal.SIGKILL)
             rest, _ = proc.communicate()
-        for line in rest.splitlines():  # acks printed before the kill landed
+        # Acks printed before the kill landed; a last fragment without "\n" is no ack.
+        for line in rest.split("\n")[:-1]:
             seq, event_id, reason = line.split()
             acked[int(seq)] = (event_id, reason)
         assert proc.returncode == -signal.SIGKILL

@@ -8,7 +8,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-
 from objsearch.events import EVENT_ID_NAMESPACE, Event, InvalidEventError, deterministic_event_id
 
 
@@ -40,7 +39,7 @@ def test_deterministic_event_id_is_stable_across_processes_and_versions() -> Non
     assert deterministic_event_id("run-1", 1) == str(
         uuid.uuid5(uuid.UUID("d5d2c2b6-eb95-54bd-bb91-8142ed50e621"), "run-1/1")
     )
-    assert EVENT_ID_NAMESPACE == uuid.uuid5(uuid.NAMESPACE_URL, "urn:objsearch:events")
+    assert uuid.uuid5(uuid.NAMESPACE_URL, "urn:objsearch:events") == EVENT_ID_NAMESPACE
 
 
 def test_deterministic_event_id_depends_on_stream_and_seq_only() -> None:
@@ -63,7 +62,7 @@ def test_json_round_trip_gives_an_equal_event() -> None:
 def test_event_is_frozen() -> None:
     event = make_event()
     with pytest.raises(dataclasses.FrozenInstanceError):
-        event.seq = 2  # type: ignore[misc]
+        event.seq = 2  # type: ignore[misc, unused-ignore]
 
 
 def test_payload_is_a_read_only_deep_copy() -> None:
@@ -73,7 +72,7 @@ def test_payload_is_a_read_only_deep_copy() -> None:
     payload["nested"]["list"].append(3)
     assert event.payload == {"reason": "x", "nested": {"list": [1, 2]}}
     with pytest.raises(TypeError):
-        event.payload["reason"] = "y"  # type: ignore[index]
+        event.payload["reason"] = "y"  # type: ignore[index, unused-ignore]
 
 
 def test_to_json_dict_returns_a_copy_the_caller_may_change() -> None:

@@ -10,7 +10,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
 from objsearch.events import (
     CorruptLogError,
     Event,
@@ -115,7 +114,9 @@ def test_same_inputs_give_byte_identical_logs(tmp_path: Path) -> None:
 def test_explicit_event_id_and_version_are_kept(tmp_path: Path) -> None:
     event_id = "00000000-0000-4000-8000-000000000001"
     with open_log(tmp_path) as log:
-        event = log.append("search_failed", {"reason": "x"}, time_ns=1, version=1, event_id=event_id)
+        event = log.append(
+            "search_failed", {"reason": "x"}, time_ns=1, version=1, event_id=event_id
+        )
     assert event.event_id == event_id
     assert next(read_log(tmp_path)).event_id == event_id
 
@@ -147,8 +148,12 @@ def test_a_new_log_is_empty(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("event_type", "payload", "kwargs", "message"),
     [
-        ("task_started", dict(EXAMPLES["task_started"], target=3), {},
-         "invalid task_started v1 event: payload.target: 3 is not of type 'string'"),
+        (
+            "task_started",
+            dict(EXAMPLES["task_started"], target=3),
+            {},
+            "invalid task_started v1 event: payload.target: 3 is not of type 'string'",
+        ),
         ("teleported", {}, {}, "unknown event type 'teleported'; known types: container_opened"),
         ("moved", EXAMPLES["moved"], {"version": 9}, "unknown version 9 of event type 'moved'"),
         ("search_failed", {"reason": float("nan")}, {}, "payload.reason: nan"),
@@ -187,9 +192,11 @@ def test_torn_last_record_is_cut_on_open_with_a_warning(
     assert last_start < cut_at < len(data)
     (tmp_path / "events.log").write_bytes(data[:cut_at])
 
-    with caplog.at_level(logging.WARNING, logger="objsearch.events.log"):
-        with pytest.warns(TornTailWarning) as record:
-            log = open_log(tmp_path)
+    with (
+        caplog.at_level(logging.WARNING, logger="objsearch.events.log"),
+        pytest.warns(TornTailWarning) as record,
+    ):
+        log = open_log(tmp_path)
     message = str(record[0].message)
     assert str(tmp_path / "events.log") in message
     assert f"cut {cut_at - last_start} byte(s) at byte offset {last_start}" in message
@@ -338,16 +345,16 @@ def test_stream_mismatch_is_refused(tmp_path: Path) -> None:
 
 def test_missing_logs_raise_log_not_found(tmp_path: Path) -> None:
     missing = tmp_path / "missing"
-    with pytest.raises(LogNotFoundError, match="no event log at .*missing.*does not exist"):
+    with pytest.raises(LogNotFoundError, match=r"no event log at .*missing.*does not exist"):
         open_log(missing, create=False)
     assert not missing.exists()
     with pytest.raises(FileNotFoundError):
         read_log(missing)  # raised at call time, not at the first next()
     missing.mkdir()
-    with pytest.raises(LogNotFoundError, match="meta.json is missing"):
+    with pytest.raises(LogNotFoundError, match=r"meta\.json is missing"):
         open_log(missing, create=False)
     assert list(missing.iterdir()) == []  # no LOCK left behind
-    with pytest.raises(LogNotFoundError, match="meta.json is missing"):
+    with pytest.raises(LogNotFoundError, match=r"meta\.json is missing"):
         read_log(missing)
 
 
@@ -361,7 +368,7 @@ def test_events_log_without_meta_is_not_adopted(tmp_path: Path) -> None:
 def test_unknown_format_is_refused(tmp_path: Path) -> None:
     write_events(tmp_path, 1)
     (tmp_path / "meta.json").write_text('{"format": "objsearch.events/2", "stream": "run-1"}')
-    with pytest.raises(EventStoreError, match="unsupported log format 'objsearch.events/2'"):
+    with pytest.raises(EventStoreError, match=r"unsupported log format 'objsearch\.events/2'"):
         read_log(tmp_path)
 
 
@@ -450,7 +457,7 @@ def test_failed_fsync_stops_the_writer(tmp_path: Path, monkeypatch: pytest.Monke
     monkeypatch.setattr(os, "fsync", broken_fsync)
     with pytest.raises(OSError, match="Input/output error"):
         log.append("search_failed", {"reason": "x"}, time_ns=0)
-    with pytest.raises(LogClosedError, match="refuses appends after a failed write.*reopen"):
+    with pytest.raises(LogClosedError, match=r"refuses appends after a failed write.*reopen"):
         log.append("search_failed", {"reason": "y"}, time_ns=1)
     log.close()
     monkeypatch.undo()

@@ -9,7 +9,6 @@ from typing import Any
 
 import pytest
 from jsonschema import Draft202012Validator
-
 from objsearch.events import EventStoreError, InvalidEventError, SchemaRegistry, default_registry
 from objsearch.events.schemas import schema_id
 
@@ -59,8 +58,12 @@ def test_message_names_type_version_path_and_reason(registry: SchemaRegistry) ->
     ("event_type", "change", "path", "reason"),
     [
         ("scene_graph_seeded", ("values", 1, "rel", 1.5), "payload.values[1].rel", "maximum of 1"),
-        ("plan_computed", ("candidates", 0, "viewpoint", [1.0]), "payload.candidates[0].viewpoint",
-         "too short"),
+        (
+            "plan_computed",
+            ("candidates", 0, "viewpoint", [1.0]),
+            "payload.candidates[0].viewpoint",
+            "too short",
+        ),
         ("moved", ("end", "yaw", "north"), "payload.end.yaw", "not of type 'number'"),
         ("moved", ("metres", -0.1), "payload.metres", "less than the minimum of 0"),
         ("run_started", ("method", "greedy"), "payload.method", "is not one of"),
@@ -211,5 +214,5 @@ def test_broken_schema_folders_are_refused(
 
 def test_invalid_json_schema_file_is_refused(tmp_path: Path) -> None:
     (tmp_path / "ping.v1.json").write_text("{not json")
-    with pytest.raises(EventStoreError, match="'ping.v1.json' is not valid JSON"):
+    with pytest.raises(EventStoreError, match=r"'ping\.v1\.json' is not valid JSON"):
         SchemaRegistry.from_directory(tmp_path)
