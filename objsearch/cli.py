@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import shutil
 import sys
@@ -198,6 +199,10 @@ def cmd_map(args: argparse.Namespace) -> int:
 
 # -- parser -----------------------------------------------------------------------------------
 
+#: Modules that add subcommands: each has ``register(sub)`` taking the subparsers action and keeps
+#: its heavy imports inside the command functions, so ``objsearch --help`` stays fast.
+COMMAND_MODULES: tuple[str, ...] = ()
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -261,6 +266,9 @@ def build_parser() -> argparse.ArgumentParser:
     smap.add_argument("--home", default="paper")
     smap.add_argument("--json", action="store_true")
     smap.set_defaults(func=cmd_map)
+
+    for module in COMMAND_MODULES:
+        importlib.import_module(module).register(sub)
     return parser
 
 
