@@ -71,6 +71,9 @@ class Session:
         for event in read_log(log_dir):
             self.graph.apply(event)
             self.resume_time_ns = event.time_ns
+        # Everything that can fail on bad data is read before the first append: a run that
+        # cannot start leaves the log as it was.
+        prior = None if self.graph.relations else prior_values(ctx.vocabulary)
         self.recorder = Recorder(self.log, [self.graph])
         self.recorder.record(
             "run_started",
@@ -85,8 +88,8 @@ class Session:
             },
             time_ns=self.resume_time_ns,
         )
-        if not self.graph.relations:
-            source, values = prior_values(ctx.vocabulary)
+        if prior is not None:
+            source, values = prior
             self.recorder.record(
                 "scene_graph_seeded",
                 {"source": source, "values": values},

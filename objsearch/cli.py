@@ -5,9 +5,12 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import logging
+import os
 import shutil
 import sys
 import tempfile
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -116,7 +119,11 @@ def cmd_search(args: argparse.Namespace) -> int:
             f"  {room}: plan "
             + (" → ".join(s.split("/", 1)[1] for s in order) or "(nothing related)")
         )
-    print("  route: " + " ".join(f"({p.x:.2f},{p.y:.2f})" for p in result.route))
+    first, last = result.route[0], result.route[-1]
+    print(
+        f"  route: {len(result.route)} viewpoints from ({first.x:.2f},{first.y:.2f}) "
+        f"to ({last.x:.2f},{last.y:.2f}); --json lists them all"
+    )
     print(f"  path length {result.path_length:.2f} m (oracle {oracle:.2f} m)")
     if args.log:
         print(f"  events appended to {args.log} ({result.task_id})")
@@ -155,9 +162,10 @@ def cmd_graph(args: argparse.Namespace) -> int:
         return 0
     statics = sorted({s for row in table.values() for s in row})
     print(f"scene graph at seq {graph.last_seq} ({graph.tasks_folded} tasks folded)")
-    print(f"{'':12}" + "".join(f"{s[:10]:>11}" for s in statics))
+    width = max(8, *(len(s) + 1 for s in statics))
+    print(f"{'':12}" + "".join(f"{s:>{width}}" for s in statics))
     for d, row in table.items():
-        print(f"{d:12}" + "".join(f"{row.get(s, 0.0):11.4f}" for s in statics))
+        print(f"{d:12}" + "".join(f"{row.get(s, 0.0):{width}.4f}" for s in statics))
     return 0
 
 
@@ -286,8 +294,12 @@ def _default_data_dir() -> Path:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from objsearch.events import EventStoreError
+    from objsearch.events import EventStoreError, TornTailWarning
 
+    # The event store reports a cut torn tail through logging (for the robot's journal) and as a
+    # warning (for library users); on the command line the log line alone is enough.
+    logging.basicConfig(format="objsearch: %(levelname)s: %(message)s", level=logging.WARNING)
+    warnings.filterwarnings("ignore", category=TornTailWarning)
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -296,6 +308,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _fail(str(exc))
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:
+        # Output piped into `head` and the like: stop quietly, as Unix tools do.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     return code
 
 

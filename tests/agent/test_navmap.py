@@ -1,0 +1,75 @@
+"""The navigation map of the paper home: grid edges, doors, shortest paths."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import networkx as nx
+import pytest
+from objsearch.agent.geometry import Point
+from objsearch.agent.navmap import NavigationMap
+from objsearch.agent.session import load_context
+
+
+@pytest.fixture(scope="module")
+def navmap() -> NavigationMap:
+    return load_context("paper").navmap
+
+
+def test_grid_edges_are_quarter_metre_steps_that_never_cut_a_corner(navmap: NavigationMap) -> None:
+    g = navmap.grid
+    for a, b, data in navmap.graph.edges(data=True):
+        if data["teleport"]:
+            continue
+        assert navmap.room_of[a] == navmap.room_of[b]
+        assert data["weight"] == pytest.approx(math.hypot(a.x - b.x, a.y - b.y))
+        assert data["weight"] in (pytest.approx(g), pytest.approx(g * math.sqrt(2)))
+        if a.x != b.x and a.y != b.y:  # a diagonal: both orthogonal neighbours are free
+            assert Point(a.x, b.y) in navmap.room_of
+            assert Point(b.x, a.y) in navmap.room_of
+
+
+def test_rooms_meet_only_at_their_doors_at_no_cost(navmap: NavigationMap) -> None:
+    teleports = [(a, b) for a, b, d in navmap.graph.edges(data=True) if d["teleport"]]
+    doors = set(navmap.doors.values())
+    assert len(teleports) == math.comb(len(doors), 2)
+    assert all(a in doors and b in doors for a, b in teleports)
+    for a, b in itertools.combinations(sorted(doors), 2):
+        assert navmap.distance(a, b) == 0.0
+
+
+def test_every_viewpoint_reaches_every_other(navmap: NavigationMap) -> None:
+    assert nx.is_connected(navmap.graph)
+
+
+def test_shortest_paths_are_symmetric_and_obey_the_triangle_inequality(
+    navmap: NavigationMap,
+) -> None:
+    pts = sorted(navmap.room_of)[::97]
+    for a, b, c in itertools.combinations(pts, 3):
+        assert navmap.distance(a, b) == pytest.approx(navmap.distance(b, a))
+        assert navmap.distance(a, c) <= navmap.distance(a, b) + navmap.distance(b, c) + 1e-9
+        path = navmap.path(a, c)
+        assert path[0] == a and path[-1] == c
+        assert navmap.path_length(path) == pytest.approx(navmap.distance(a, c))
+
+
+def test_within_a_room_the_path_is_at_least_the_straight_line(navmap: NavigationMap) -> None:
+    for room in navmap.doors:
+        pts = navmap.viewpoints(room)
+        a, b = pts[0], pts[-1]
+        assert navmap.distance(a, b) >= math.hypot(a.x - b.x, a.y - b.y) - 1e-9
+
+
+def test_nearest_viewpoint_and_room_lookup(navmap: NavigationMap) -> None:
+    for room in navmap.doors:
+        for p in navmap.viewpoints(room)[::11]:
+            assert navmap.room_at(p.x, p.y) == room
+            assert navmap.nearest_viewpoint(p.x + 0.05, p.y - 0.05, room) == p
+
+
+def test_unknown_viewpoint_is_a_clear_error(navmap: NavigationMap) -> None:
+    inside = next(iter(navmap.room_of))
+    with pytest.raises(ValueError, match="not reachable"):
+        navmap.distance(inside, Point(-100.0, -100.0))

@@ -1,0 +1,113 @@
+"""The simulated world: motion, the camera model and closed containers."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from objsearch.agent.geometry import Pose
+from objsearch.agent.home import Box
+from objsearch.agent.session import load_context
+from objsearch.sim.perception import Camera
+from objsearch.sim.schedule import Schedule, base_placements
+from objsearch.sim.world import OPEN_S, SPEED_M_PER_S, Placement, SimClock, SimWorld
+
+
+def _world(start: str = "kitchen-1", placements: dict[str, Placement] | None = None) -> SimWorld:
+    ctx = load_context("paper")
+    return SimWorld(
+        ctx.home,
+        ctx.navmap,
+        base_placements(ctx.home) if placements is None else placements,
+        ctx.home.start(start),
+    )
+
+
+def test_navigation_walks_the_shortest_path_and_takes_time() -> None:
+    world = _world()
+    ctx = load_context("paper")
+    goal = ctx.navmap.viewpoints("kitchen")[-1]
+    expected = ctx.navmap.distance(world.pose().point, goal)
+    nav = world.navigate(goal)
+    assert nav.metres == pytest.approx(expected)
+    assert world.pose().point == goal
+    assert world.now_ns() == pytest.approx(expected / SPEED_M_PER_S * 1e9, abs=10)
+
+
+def test_room_changes_teleport_at_the_doors_without_metres() -> None:
+    world = _world("kitchen-1")
+    ctx = load_context("paper")
+    door_k, door_b = ctx.navmap.doors["kitchen"], ctx.navmap.doors["bathroom"]
+    nav = world.navigate(door_b)
+    assert nav.rooms == ("kitchen", "bathroom")
+    assert nav.metres == pytest.approx(
+        ctx.navmap.distance(ctx.home.start("kitchen-1").point, door_k)
+    )
+
+
+def test_camera_sees_only_within_its_field_of_view() -> None:
+    cam = Camera()
+    box = Box((2.0, 0.0, 1.0), (0.2, 0.2, 0.2))
+    assert cam.in_view(Pose(0.0, 0.0, 0.0), box)
+    assert cam.in_view(Pose(0.0, 0.0, math.radians(44)), box)
+    assert not cam.in_view(Pose(0.0, 0.0, math.radians(46)), box)
+    assert not cam.in_view(Pose(0.0, 0.0, math.pi), box)
+    # The 0.2 m cube at 2 m, seen with f = 320 px: 32 × 32 px.
+    assert cam.mask_area(Pose(0.0, 0.0, 0.0), box) == pytest.approx(32 * 32)
+    assert cam.mask_area(Pose(1.0, 0.0, 0.0), box) == pytest.approx(64 * 64)
+
+
+def test_a_closed_container_hides_its_contents_until_opened() -> None:
+    ctx = load_context("paper")
+    schedule = Schedule.load(ctx.home, "table2")
+    scene, placed = next(
+        (n, p)
+        for n, placements in sorted(schedule.scenes.items())
+        for p in placements.values()
+        if p.inside and p.support is not None and ctx.home.statics[p.support].cls == "Fridge"
+    )
+    fridge = next(s for s in ctx.semmap.statics if s.id == placed.support)
+    world = SimWorld(
+        ctx.home,
+        ctx.navmap,
+        schedule.scenes[scene],
+        Pose(fridge.viewpoint.x, fridge.viewpoint.y, 0.0),
+        clock=SimClock(),
+    )
+    seen_closed = {d.instance_id for d in world.look(fridge.view_yaw)}
+    assert placed.instance_id not in seen_closed
+    before = world.now_ns()
+    seen_open = {d.instance_id for d in world.open(fridge.id)}
+    assert placed.instance_id in seen_open
+    assert world.now_ns() - before == pytest.approx(OPEN_S * 1e9)
+
+
+def test_opening_what_is_not_a_container_is_refused() -> None:
+    ctx = load_context("paper")
+    world = _world()
+    sink = next(s for s in ctx.semmap.statics if s.cls == "Sink")
+    with pytest.raises(ValueError, match="not a container"):
+        world.open(sink.id)
+
+
+def test_oracle_is_the_walk_to_the_nearest_instance() -> None:
+    world = _world("bedroom-1")
+    ctx = load_context("paper")
+    pillows = [p for p in world.placements.values() if p.cls == "Pillow"]
+    assert pillows
+    expected = min(
+        ctx.navmap.distance(
+            world.pose().point,
+            ctx.navmap.nearest_viewpoint(p.box.center[0], p.box.center[1], p.room),
+        )
+        for p in pillows
+    )
+    assert world.oracle_length("Pillow") == expected
+    with pytest.raises(ValueError, match="no Spoon"):
+        world.oracle_length("Spoon")
+
+
+def test_a_start_off_the_grid_is_refused() -> None:
+    ctx = load_context("paper")
+    with pytest.raises(ValueError, match="not a viewpoint"):
+        SimWorld(ctx.home, ctx.navmap, {}, Pose(-50.0, -50.0, 0.0))

@@ -1,0 +1,158 @@
+"""The command line: what a user sees for good and bad input."""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from objsearch.events import read_log
+
+from objsearch.cli import main
+from objsearch.paths import data_dir
+
+
+def _run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "objsearch.cli", *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=False,
+    )
+
+
+def test_search_prints_the_route_and_writes_the_log(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = tmp_path / "log"
+    code = main(["search", "--target", "phone", "--start", "living-1", "--log", str(log), "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert out["target"] == "Phone"  # the alias resolved
+    assert out["success"] is True
+    assert out["path_length_m"] >= out["oracle_length_m"] > 0
+    assert out["route"][0] != out["route"][-1]
+    events = list(read_log(log))
+    assert events[-1].type == "task_ended"
+    assert events[-1].payload["path_length"] == pytest.approx(out["path_length_m"], abs=1e-3)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--target", "Spaceship", "--start", "kitchen-1"], "unknown object class 'Spaceship'"),
+        (["--target", "Fridge", "--start", "kitchen-1"], "static object and cannot be a search"),
+        (["--target", "Apple", "--start", "garage-3"], "unknown start point 'garage-3'"),
+        (["--target", "Apple", "--start", "kitchen-1", "--home", "castle"], "no home 'castle'"),
+        (["--target", "Apple", "--start", "kitchen-1", "--scene", "99"], "not 99"),
+    ],
+)
+def test_bad_search_input_is_a_clear_error_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    log = tmp_path / "log"
+    assert main(["search", *args, "--log", str(log)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("objsearch: error: ")
+    assert message in err
+    assert not log.exists()
+
+
+def _data_copy(tmp_path: Path, *, drop: str) -> dict[str, str]:
+    copy = tmp_path / "data"
+    shutil.copytree(data_dir(), copy)
+    (copy / drop).unlink()
+    return {**os.environ, "OBJSEARCH_DATA": str(copy)}
+
+
+@pytest.mark.parametrize(
+    "missing", ["priors/visual_genome.json", "vocabulary.json", "homes/paper.json"]
+)
+def test_a_missing_data_file_is_named_and_nothing_is_written(tmp_path: Path, missing: str) -> None:
+    env = _data_copy(tmp_path, drop=missing)
+    log = tmp_path / "log"
+    proc = _run("search", "--target", "Apple", "--start", "kitchen-1", "--log", str(log), env=env)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("objsearch: error: ")
+    assert Path(missing).stem in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert not (log / "events.log").exists() or not list(read_log(log))
+
+
+def _logged_search(log: Path, target: str = "Apple") -> None:
+    assert main(["search", "--target", target, "--start", "kitchen-1", "--log", str(log)]) == 0
+
+
+def test_a_corrupted_log_is_refused_with_its_position_and_left_as_it_was(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = tmp_path / "log"
+    _logged_search(log)
+    path = log / "events.log"
+    data = bytearray(path.read_bytes())
+    at = data.index(b"task_started")
+    data[at] ^= 0x20  # flip one bit of a record in the middle
+    path.write_bytes(bytes(data))
+    capsys.readouterr()
+
+    assert main(["search", "--target", "Cup", "--start", "kitchen-1", "--log", str(log)]) == 2
+    err = capsys.readouterr().err
+    assert "corrupt event log" in err and "line 3" in err and "byte offset" in err
+    assert path.read_bytes() == bytes(data)
+    assert main(["graph", "--log", str(log)]) == 2
+    assert path.read_bytes() == bytes(data)
+
+
+def test_a_torn_tail_is_cut_with_a_warning_and_acknowledged_events_survive(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    log = tmp_path / "log"
+    _logged_search(log)
+    acknowledged = list(read_log(log))
+    path = log / "events.log"
+    with path.open("ab") as f:  # an append interrupted half way through its line
+        f.write(b'{"event_id": "x", "stream": "robot", "seq": ')
+    capsys.readouterr()
+
+    with caplog.at_level(logging.WARNING):
+        _logged_search(log, "Cup")
+    assert "torn tail" in caplog.text and "cut 44 byte(s)" in caplog.text
+    events = list(read_log(log))
+    assert events[: len(acknowledged)] == acknowledged
+    assert [e.seq for e in events] == list(range(1, len(events) + 1))
+
+
+def test_graph_at_seq(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "log"
+    _logged_search(log)
+    last = list(read_log(log))[-1].seq
+    capsys.readouterr()
+    assert main(["graph", "--log", str(log), "--at", "2", "--json"]) == 0
+    at2 = json.loads(capsys.readouterr().out)
+    assert main(["graph", "--log", str(log), "--json"]) == 0
+    now = json.loads(capsys.readouterr().out)
+    assert (at2["seq"], at2["tasks"], now["seq"], now["tasks"]) == (2, 0, last, 1)
+    assert at2["relations"]["Apple"] != now["relations"]["Apple"]
+    assert main(["graph", "--log", str(log), "--at", str(last + 1)]) == 2
+    assert f"ends at seq {last}" in capsys.readouterr().err
+
+
+def test_graph_of_a_missing_log_is_a_clear_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["graph", "--log", str(tmp_path / "nowhere")]) == 2
+    assert "objsearch: error:" in capsys.readouterr().err
+    assert not (tmp_path / "nowhere").exists()
+
+
+def test_help_works_everywhere() -> None:
+    for args in (["--help"], ["search", "--help"], ["demo", "--help"], ["graph", "--help"]):
+        proc = _run(*args)
+        assert proc.returncode == 0, proc.stderr
+        assert "usage: objsearch" in proc.stdout
