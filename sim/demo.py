@@ -37,7 +37,11 @@ def run_demo(
     config = SearchConfig(method=Method.WPL, alpha=10.0, seed=0)
     results: dict[UpdateMode, list[Trial]] = {}
     total = SCENES * len(TARGET_ORDER) * STARTS * len(modes)
-    with tqdm(total=total, disable=not progress, file=sys.stderr, unit="search") as bar:
+    # Redrawn at most every 2 s when stderr is a file or a CI log, not a terminal.
+    interval = 0.1 if sys.stderr.isatty() else 2.0
+    with tqdm(
+        total=total, disable=not progress, file=sys.stderr, unit="search", mininterval=interval
+    ) as bar:
         for mode in modes:
             bar.set_description(f"updates={mode.value}")
             results[mode] = run_schedule(
@@ -60,16 +64,16 @@ def render(results: dict[UpdateMode, list[Trial]]) -> str:
     scenes = sorted({t.scene for t in updates})
     lines = [
         "Mean path length (m) over 8 starts, paper's method (WPL, α = 10) with updates of all pairs",
-        f"{'target':12}" + "".join(f"{s:>7}" for s in scenes) + f"{'avg':>8}",
+        f"{'target':18}" + "".join(f"{s:>7}" for s in scenes) + f"{'avg':>8}",
     ]
     for target in TARGET_ORDER:
         row = [t for t in updates if t.target == target]
         cells = [_mean([t for t in row if t.scene == s]) for s in scenes]
-        lines.append(f"{target:12}" + "".join(f"{c:7.2f}" for c in cells) + f"{_mean(row):8.2f}")
+        lines.append(f"{target:18}" + "".join(f"{c:7.2f}" for c in cells) + f"{_mean(row):8.2f}")
     for mode, trials in results.items():
         cells = [_mean([t for t in trials if t.scene == s]) for s in scenes]
-        label = f"all/{mode.value}"
-        lines.append(f"{label:12}" + "".join(f"{c:7.2f}" for c in cells) + f"{_mean(trials):8.2f}")
+        label = "mean, " + ("updates" if mode is UpdateMode.ALL else "no update")
+        lines.append(f"{label:18}" + "".join(f"{c:7.2f}" for c in cells) + f"{_mean(trials):8.2f}")
     success = sum(t.success for t in updates) / len(updates)
     oracle = statistics.fmean(t.oracle_length for t in updates)
     lines.append(f"success rate {success:.1%}; mean oracle path length {oracle:.2f} m")
