@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SHARED ?= ../shared/data
 
-.PHONY: demo test lint typecheck bench data clean
+.PHONY: demo test lint typecheck bench data bless clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -38,6 +38,10 @@ bench: $(STAMP)
 
 data: $(STAMP)
 	$(BIN)/objsearch data build --source $(SHARED)
+
+# Re-record the golden logs after a change that is meant to alter decisions (tests/replay).
+bless: $(STAMP)
+	$(BIN)/python -m objsearch.replay.golden
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache

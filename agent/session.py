@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -62,9 +62,16 @@ class Session:
         *,
         stream: str = "robot",
         params: dict[str, Any] | None = None,
+        wall_clock: Callable[[], int] | None = None,
     ) -> None:
         self.ctx = ctx
-        self.log = EventLog.open(log_dir, stream)  # first: the writer's lock guards the fold too
+        # First: the writer's lock guards the fold too. A fixed wall clock gives byte-identical
+        # logs (golden logs); by default recorded_at_ns is the real time of each append.
+        self.log = (
+            EventLog.open(log_dir, stream)
+            if wall_clock is None
+            else EventLog.open(log_dir, stream, wall_clock=wall_clock)
+        )
         self.graph = SceneGraphProjection()
         #: The log's clock so far; a continued log must not run backwards.
         self.resume_time_ns = 0

@@ -1,0 +1,409 @@
+"""Audit a log task by task: what the robot saw, learned and decided, and what looks wrong.
+
+Anomalies flagged (each with the event sequence numbers that show it):
+
+- ``target-not-acted-on``: an accepted detection of the target, after which the robot went on
+  planning, looking or failed instead of approaching it;
+- ``stale-plan``: a plan whose relation values are not the scene graph's at that point of the log;
+- ``far-above-oracle``: path length above ``ORACLE_RATIO`` × and ``ORACLE_EXCESS_M`` more than the
+  walk straight from the start to the found object's nearest viewpoint;
+- ``out-of-order``: time running backwards, a task event outside a task, a task that never ended,
+  a ``task_ended`` path length that is not the sum of the task's ``moved`` metres.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from objsearch.agent.geometry import Point
+from objsearch.agent.session import load_context
+from objsearch.replay.state import ReplayState
+
+ORACLE_RATIO = 5.0
+ORACLE_EXCESS_M = 10.0
+REL_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True, slots=True)
+class Anomaly:
+    kind: str
+    seq: int
+    message: str
+
+
+@dataclass
+class TaskAudit:
+    """One task as the log tells it."""
+
+    task_id: str
+    target: str = ""
+    start: str = ""
+    home: str = ""
+    first_seq: int = 0
+    last_seq: int = 0
+    success: bool | None = None
+    path_length: float | None = None
+    oracle_length: float | None = None
+    route: list[Point] = field(default_factory=list)  # start, then where each move ended
+    found_at: Point | None = None
+    timeline: list[str] = field(default_factory=list)
+    plans: list[dict[str, Any]] = field(default_factory=list)
+    learned: dict[str, list[str]] = field(default_factory=dict)
+    updates: list[str] = field(default_factory=list)
+    anomalies: list[Anomaly] = field(default_factory=list)
+    _moved_metres: float = 0.0
+    _target_seen_at: int | None = None
+
+    def flag(self, kind: str, seq: int, message: str) -> None:
+        self.anomalies.append(Anomaly(kind, seq, message))
+
+
+class Auditor:
+    """Folds a log and builds a :class:`TaskAudit` per task."""
+
+    def __init__(
+        self, *, oracle_ratio: float = ORACLE_RATIO, oracle_excess_m: float = ORACLE_EXCESS_M
+    ) -> None:
+        self.oracle_ratio = oracle_ratio
+        self.oracle_excess_m = oracle_excess_m
+        self.state = ReplayState()
+        self.tasks: list[TaskAudit] = []
+        self.log_anomalies: list[Anomaly] = []
+        self._current: TaskAudit | None = None
+        self._last_time = -1
+
+    def feed(self, events: Iterable[Any]) -> None:
+        for event in events:
+            self._before(event)
+            self.state.apply(event)
+            self._after(event)
+        if self._current is not None:
+            self._current.flag(
+                "out-of-order", self._current.last_seq, "the task never ended (log stops here)"
+            )
+            self._finish(self._current)
+
+    def _before(self, event: Any) -> None:
+        if event.time_ns < self._last_time:
+            self._where(event).flag(
+                "out-of-order", event.seq, f"time runs backwards ({event.time_ns} ns)"
+            )
+        self._last_time = event.time_ns
+        task = self._current
+        if event.type == "plan_computed" and task is not None:
+            self._check_plan(task, event)
+
+    def _where(self, event: Any) -> TaskAudit:
+        if self._current is not None:
+            return self._current
+        holder = TaskAudit(task_id="(outside any task)")
+        self.tasks.append(holder)
+        return holder
+
+    def _check_plan(self, task: TaskAudit, event: Any) -> None:
+        graph = self.state.graph
+        p = event.payload
+        stale = [
+            f"{c['static_class']}: logged {float(c['rel']):.4f}, graph "
+            f"{graph.rel(task.target, c['static_class']):.4f}"
+            for c in p["candidates"]
+            if abs(float(c["rel"]) - graph.rel(task.target, c["static_class"])) > REL_TOLERANCE
+        ]
+        if stale:
+            task.flag(
+                "stale-plan",
+                event.seq,
+                f"plan for {p['room']} used relation values the scene graph no longer had: "
+                + "; ".join(stale),
+            )
+        if task._target_seen_at is not None:
+            self._not_acted_on(task, event.seq, "planned another room")
+
+    def _not_acted_on(self, task: TaskAudit, seq: int, what: str) -> None:
+        seen = task._target_seen_at
+        task.flag(
+            "target-not-acted-on",
+            seq,
+            f"the target {task.target} was detected at seq {seen} but the robot {what}",
+        )
+        task._target_seen_at = None
+
+    def _after(self, event: Any) -> None:
+        kind, p = event.type, event.payload
+        if kind == "task_started":
+            if self._current is not None:
+                self._current.flag("out-of-order", event.seq, "a new task started before it ended")
+                self._finish(self._current)
+            run = self.state.run
+            self._current = TaskAudit(
+                task_id=str(event.task_id),
+                target=p["target"],
+                start=p["start"],
+                home=run.home if run else "",
+                first_seq=event.seq,
+            )
+            pose = self.state.pose
+            if pose is not None:
+                self._current.route.append(pose.point)
+            self._current.timeline.append(
+                f"{event.seq}: task started — find {p['target']} from {p['start']}"
+            )
+            return
+        task = self._current
+        if task is None:
+            if event.task_id is not None:
+                self._where(event).flag(
+                    "out-of-order", event.seq, f"{kind} of {event.task_id} outside a task"
+                )
+            return
+        task.last_seq = event.seq
+        if kind == "plan_computed":
+            task.plans.append(dict(p, seq=event.seq))
+            order = " → ".join(k.split("/", 1)[1].split("|")[0] for k in p["order"]) or "nothing"
+            task.timeline.append(f"{event.seq}: plan {p['room']} ({p['objective']}): {order}")
+        elif kind == "moved":
+            task._moved_metres += float(p["metres"])
+            task.route.append(Point(float(p["end"]["x"]), float(p["end"]["y"])))
+            task.timeline.append(
+                f"{event.seq}: moved {float(p['metres']):.2f} m"
+                + (" (stopped: target seen)" if p["interrupted"] else "")
+            )
+        elif kind in ("view_taken", "container_opened"):
+            # A view's event precedes its detections, so a view after the sighting is a new one.
+            if task._target_seen_at is not None:
+                self._not_acted_on(task, event.seq, f"went on to {kind.replace('_', ' ')}")
+            what = "opened" if kind == "container_opened" else f"looked ({p['reason']}) at"
+            task.timeline.append(f"{event.seq}: {what} {p['static_id'].split('/', 1)[1]}")
+        elif kind == "detection":
+            if p["accepted"]:
+                where = p["nearest_static_class"] if p["at_static"] else "no static object"
+                task.timeline.append(f"{event.seq}: saw {p['object_class']} at {where}")
+                if p["at_static"]:
+                    learned = task.learned.setdefault(p["object_class"], [])
+                    if p["nearest_static_class"] not in learned:
+                        learned.append(p["nearest_static_class"])
+                if p["object_class"] == task.target and task._target_seen_at is None:
+                    task._target_seen_at = event.seq
+        elif kind == "target_found":
+            task._target_seen_at = None
+            task.found_at = Point(float(p["position"][0]), float(p["position"][1]))
+            task.timeline.append(f"{event.seq}: found {p['instance_id']}")
+        elif kind == "search_failed":
+            if task._target_seen_at is not None:
+                self._not_acted_on(task, event.seq, "reported the search failed")
+            task.timeline.append(f"{event.seq}: search failed — {p['reason']}")
+        elif kind == "task_ended":
+            task.success = bool(p["success"])
+            task.path_length = float(p["path_length"])
+            if abs(task._moved_metres - task.path_length) > 1e-3:
+                task.flag(
+                    "out-of-order",
+                    event.seq,
+                    f"task_ended says {task.path_length:.3f} m but its moves add up to "
+                    f"{task._moved_metres:.3f} m (a moved event is missing?)",
+                )
+            mode = self.state.graph.update_mode.value
+            task.updates.append(
+                f"Eq. 4 at seq {event.seq} (update mode {mode}): "
+                + (
+                    "; ".join(f"{d} seen at {', '.join(s)}" for d, s in task.learned.items())
+                    or "nothing seen at a static object"
+                )
+            )
+            task.timeline.append(
+                f"{event.seq}: task ended — {'found' if task.success else 'not found'}, "
+                f"{task.path_length:.2f} m"
+            )
+            self._finish(task)
+            self._current = None
+
+    def _finish(self, task: TaskAudit) -> None:
+        self.tasks.append(task)
+        if task.found_at is None or not task.home or not task.route:
+            return
+        ctx = load_context(task.home)
+        room = ctx.navmap.room_at(task.found_at.x, task.found_at.y)
+        goal = ctx.navmap.nearest_viewpoint(task.found_at.x, task.found_at.y, room)
+        task.oracle_length = ctx.navmap.distance(task.route[0], goal)
+        if (
+            task.path_length is not None
+            and task.path_length > self.oracle_ratio * task.oracle_length
+            and task.path_length - task.oracle_length > self.oracle_excess_m
+        ):
+            task.flag(
+                "far-above-oracle",
+                task.last_seq,
+                f"walked {task.path_length:.2f} m; straight to the object: "
+                f"{task.oracle_length:.2f} m",
+            )
+
+
+def audit(events: Iterable[Any], **thresholds: float) -> Auditor:
+    auditor = Auditor(**thresholds)
+    auditor.feed(events)
+    return auditor
+
+
+def write_report(
+    auditor: Auditor,
+    out: Path,
+    *,
+    plots: str = "flagged",
+    max_plots: int | None = 25,
+    title: str = "audit",
+) -> list[Path]:
+    """Markdown per task, an index, and route PNGs (``plots``: all, flagged or none; at most
+    ``max_plots`` of them, in log order, since each takes a noticeable fraction of a second)."""
+    out.mkdir(parents=True, exist_ok=True)
+    for stale in [*out.glob("task-*.md"), *out.glob("task-*.png"), out / "index.md"]:
+        stale.unlink(missing_ok=True)  # an earlier report's pages must not mix with this one
+    written: list[Path] = []
+    rows = []
+    plotted = 0
+    for task in auditor.tasks:
+        name = task.task_id.replace("(", "").replace(")", "").replace(" ", "-")
+        png = None
+        wanted = plots == "all" or (plots == "flagged" and bool(task.anomalies))
+        if wanted and (max_plots is None or plotted < max_plots):
+            plotted += 1
+            png = out / f"{name}.png"
+            if _plot_route(task, png):
+                written.append(png)
+            else:
+                png = None
+        md = out / f"{name}.md"
+        md.write_text(_task_markdown(task, png))
+        written.append(md)
+        flags = ", ".join(sorted({a.kind for a in task.anomalies})) or "—"
+        result = "found" if task.success else ("not found" if task.success is False else "?")
+        ratio = (
+            f"{task.path_length / task.oracle_length:.2f}"
+            if task.path_length is not None and task.oracle_length
+            else "—"
+        )
+        length = f"{task.path_length:.2f}" if task.path_length is not None else "—"
+        rows.append(
+            f"| [{task.task_id}]({md.name}) | {task.target} | {task.start} | {result} | "
+            f"{length} | {ratio} | {flags} |"
+        )
+    counts = anomaly_counts(auditor.tasks)
+    index = [
+        f"# {title}",
+        "",
+        f"{len(auditor.tasks)} tasks; anomalies: "
+        + (", ".join(f"{k} {v}" for k, v in sorted(counts.items())) or "none"),
+        "",
+        "| task | target | start | result | path (m) | ÷ oracle | anomalies |",
+        "|---|---|---|---|---|---|---|",
+        *rows,
+        "",
+    ]
+    (out / "index.md").write_text("\n".join(index))
+    written.append(out / "index.md")
+    return written
+
+
+def _task_markdown(task: TaskAudit, png: Path | None) -> str:
+    lines = [f"# {task.task_id}: find {task.target} from {task.start}", ""]
+    if task.path_length is not None:
+        oracle = f"{task.oracle_length:.2f} m" if task.oracle_length is not None else "—"
+        lines += [f"Path length {task.path_length:.2f} m; oracle {oracle}.", ""]
+    if task.anomalies:
+        lines += ["## Anomalies", ""]
+        lines += [f"- **{a.kind}** (seq {a.seq}): {a.message}" for a in task.anomalies]
+        lines.append("")
+    if png is not None:
+        lines += [f"![route]({png.name})", ""]
+    lines += ["## Relation values behind each plan", ""]
+    for plan in task.plans:
+        lines.append(
+            f"- seq {plan['seq']}, {plan['room']} (rooms left: {', '.join(plan['room_order'])}; "
+            f"objective {plan['value']})"
+        )
+        for c in plan["candidates"]:
+            rank = plan["order"].index(c["static_id"]) + 1
+            name = c["static_id"].split("/", 1)[1]
+            lines.append(f"  - #{rank} {name}: Rel = {float(c['rel']):.4f}")
+    lines += ["", "## Experience and the update", ""]
+    lines += [f"- {u}" for u in task.updates] or ["- (the task did not end)"]
+    lines += ["", "## Timeline", "", *[f"- {t}" for t in task.timeline], ""]
+    return "\n".join(lines)
+
+
+def _plot_route(task: TaskAudit, path: Path) -> bool:
+    if not task.home or len(task.route) < 2:
+        return False
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+
+    ctx = load_context(task.home)
+    fig, ax = plt.subplots(figsize=(12, 4), dpi=90)
+    vps = list(ctx.navmap.room_of)
+    ax.scatter([p.x for p in vps], [p.y for p in vps], s=2, c="#cccccc", zorder=1)
+    for s in ctx.semmap.statics:
+        (cx, cy, _), (sx, sy, _) = s.box.center, s.box.size
+        ax.add_patch(
+            Rectangle(
+                (cx - sx / 2, cy - sy / 2),
+                sx,
+                sy,
+                fill=False,
+                ec="#1f77b4" if s.container else "#888888",
+                lw=0.8,
+                zorder=2,
+            )
+        )
+    # Each move is redrawn along the map's shortest path (what the robot walked, unless the
+    # map changed since); a teleport between doors starts a new line.
+    segments: list[list[Point]] = []
+    current: list[Point] = []
+    for a, b in itertools.pairwise(task.route):
+        try:
+            walk = ctx.navmap.path(a, b)
+        except (ValueError, KeyError):
+            walk = [a, b]
+        for u, v in itertools.pairwise(walk):
+            teleport = _is_teleport(ctx.navmap, u, v)
+            if teleport or (current and current[-1] != u):
+                if len(current) > 1:
+                    segments.append(current)
+                current = [v] if teleport else [u, v]
+            else:
+                current = [*current, v] if current else [u, v]
+    if len(current) > 1:
+        segments.append(current)
+    for seg in segments:
+        ax.plot([p.x for p in seg], [p.y for p in seg], c="#d62728", lw=1.5, zorder=3)
+    start = task.route[0]
+    ax.scatter([start.x], [start.y], marker="o", s=40, c="green", zorder=4, label="start")
+    if task.found_at is not None:
+        ax.scatter(
+            [task.found_at.x], [task.found_at.y], marker="*", s=120, c="gold", ec="k", zorder=4
+        )
+    ax.set_aspect("equal")
+    ax.set_title(f"{task.task_id}: {task.target} from {task.start}")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return True
+
+
+def _is_teleport(navmap: Any, a: Point, b: Point) -> bool:
+    return bool(navmap.graph.has_edge(a, b) and navmap.is_teleport(a, b))
+
+
+def anomaly_counts(tasks: Sequence[TaskAudit]) -> dict[str, int]:
+    counts: dict[str, int] = {}
+    for t in tasks:
+        for a in t.anomalies:
+            counts[a.kind] = counts.get(a.kind, 0) + 1
+    return counts

@@ -1,0 +1,242 @@
+"""Re-run every recorded planning decision with today's code on the inputs the robot had.
+
+For each ``plan_computed`` event the log is folded up to the event before it: the scene graph, the
+run's settings, the task and the robot's pose are exactly what the agent planned with. Today's
+planner then plans again from there, and the two plans are compared: the room order, the order of
+static objects, the objective of both under today's parameters, and — where they differ — which
+inputs changed (relation values, candidates, viewpoints, α, the method, the home's map).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from objsearch.agent.errors import ObjsearchError
+from objsearch.agent.geometry import Point
+from objsearch.agent.planner import wpl_terms
+from objsearch.agent.policy import Method, Recorder, SearchAgent, SearchConfig, Stop
+from objsearch.agent.session import HomeContext, load_context
+from objsearch.replay.state import ReplayState, RunSettings, TaskState
+
+REL_TOLERANCE = 1e-9
+VALUE_TOLERANCE = 1e-6
+
+
+@dataclass(frozen=True, slots=True)
+class Overrides:
+    """Planner parameters to change on replay (None: keep what the run recorded)."""
+
+    method: str | None = None
+    alpha: float | None = None
+
+    def config(self, run: RunSettings) -> SearchConfig:
+        return SearchConfig(
+            method=Method(self.method or run.method),
+            alpha=run.alpha if self.alpha is None else self.alpha,
+            support_radius=float(run.params.get("support_radius", 0.5)),
+            seed=run.seed,
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class DecisionReplay:
+    """One recorded plan next to today's plan from the same inputs."""
+
+    seq: int
+    task_id: str
+    target: str
+    room: str
+    recorded_rooms: tuple[str, ...]
+    replayed_rooms: tuple[str, ...]
+    recorded_order: tuple[str, ...]
+    replayed_order: tuple[str, ...]
+    recorded_value: float  # the objective as recorded
+    recorded_value_today: float  # the recorded order under today's objective and inputs
+    replayed_value: float  # today's plan under today's objective
+    reasons: tuple[str, ...] = field(default=())
+
+    @property
+    def same_rooms(self) -> bool:
+        return self.recorded_rooms == self.replayed_rooms
+
+    @property
+    def same_order(self) -> bool:
+        return self.recorded_order == self.replayed_order
+
+    @property
+    def same(self) -> bool:
+        return self.same_rooms and self.same_order
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "seq": self.seq,
+            "task_id": self.task_id,
+            "target": self.target,
+            "room": self.room,
+            "same_room_order": self.same_rooms,
+            "same_object_order": self.same_order,
+            "recorded_rooms": list(self.recorded_rooms),
+            "replayed_rooms": list(self.replayed_rooms),
+            "recorded_order": list(self.recorded_order),
+            "replayed_order": list(self.replayed_order),
+            "recorded_value": self.recorded_value,
+            "recorded_value_today": round(self.recorded_value_today, 6),
+            "replayed_value": round(self.replayed_value, 6),
+            "reasons": list(self.reasons),
+        }
+
+
+class _NoSink:
+    """Replay plans; it never acts, so nothing may be appended."""
+
+    def append(self, *args: Any, **kwargs: Any) -> Any:
+        raise RuntimeError("replay must not append events")
+
+
+class Replayer:
+    """Folds a log event by event and re-plans at every ``plan_computed``."""
+
+    def __init__(self, overrides: Overrides = Overrides()) -> None:
+        self.overrides = overrides
+        self.state = ReplayState()
+        self.decisions: list[DecisionReplay] = []
+        self.notes: list[str] = []
+        self._room_orders: dict[str, list[str]] = {}
+
+    def feed(self, events: Iterable[Any], *, until_seq: int | None = None) -> Iterator[Any]:
+        """Apply ``events`` (yielding each after it is applied), re-planning at each plan."""
+        for event in events:
+            if until_seq is not None and event.seq > until_seq:
+                return
+            if event.type == "plan_computed":
+                self.decisions.append(self._replay(event))
+            self.state.apply(event)
+            yield event
+
+    def _context(self, run: RunSettings) -> HomeContext:
+        ctx = load_context(run.home)
+        if ctx.home.digest != run.home_digest:
+            note = (
+                f"home {run.home!r} changed since the run (digest {run.home_digest} → "
+                f"{ctx.home.digest}); plans use today's map"
+            )
+            if note not in self.notes:
+                self.notes.append(note)
+        return ctx
+
+    def _replay(self, event: Any) -> DecisionReplay:
+        st = self.state
+        if st.run is None or st.task is None or st.pose is None:
+            raise ObjsearchError(
+                f"plan_computed at seq {event.seq} comes before its run_started/task_started; "
+                "the log is incomplete"
+            )
+        run, task = st.run, st.task
+        ctx = self._context(run)
+        config = self.overrides.config(run)
+        agent = SearchAgent(
+            ctx.navmap, ctx.semmap, ctx.vocabulary, st.graph, Recorder(_NoSink(), ()), config
+        )
+        rooms = self._room_orders.get(task.task_id)
+        if rooms is None:
+            start_room = ctx.navmap.room_at(task.start_pose.x, task.start_pose.y)
+            rooms = agent.room_order(start_room, task.target, task.task_id)
+            self._room_orders = {task.task_id: rooms}
+        p = event.payload
+        here = st.pose.point
+        stops = agent.stops(p["room"], task.target)
+        ordering = agent.order_stops(here, stops)
+        replayed_order = tuple(stops[k].key for k in ordering.order)
+        recorded_order = tuple(p["order"])
+        today = _value_of(agent, config, here, stops, recorded_order)
+        decision = DecisionReplay(
+            seq=event.seq,
+            task_id=task.task_id,
+            target=task.target,
+            room=p["room"],
+            recorded_rooms=tuple(p["room_order"]),
+            replayed_rooms=tuple(rooms[task.plans_so_far :]),
+            recorded_order=recorded_order,
+            replayed_order=replayed_order,
+            recorded_value=float(p["value"]),
+            recorded_value_today=today,
+            replayed_value=ordering.value,
+        )
+        if decision.same:
+            return decision
+        reasons = tuple(_reasons(p, run, config, stops, task)) or (
+            "same inputs; today's planner prefers another order "
+            f"(recorded order scores {today:.4f} today, the new one {ordering.value:.4f})",
+        )
+        return replace(decision, reasons=reasons)
+
+
+def _value_of(
+    agent: SearchAgent,
+    config: SearchConfig,
+    here: Point,
+    stops: Sequence[Stop],
+    order: Sequence[str],
+) -> float:
+    """Today's objective for a recorded order (NaN when it names stops today's plan lacks)."""
+    index = {s.key: i for i, s in enumerate(stops)}
+    if any(key not in index for key in order) or len(order) != len(stops):
+        return math.nan
+    nav = agent.navmap
+    start = np.array([nav.distance(here, s.viewpoint) for s in stops], dtype=float)
+    dist = np.array(
+        [[nav.distance(a.viewpoint, b.viewpoint) for b in stops] for a in stops], dtype=float
+    )
+    rel = np.array([s.rel for s in stops], dtype=float)
+    alpha = config.alpha if config.method is Method.RVP else config.effective_alpha
+    return math.fsum(wpl_terms([index[k] for k in order], start, dist, rel, alpha))
+
+
+def _reasons(
+    payload: Mapping[str, Any],
+    run: RunSettings,
+    config: SearchConfig,
+    stops: Sequence[Stop],
+    task: TaskState,
+) -> Iterator[str]:
+    if config.method.value != run.method:
+        yield f"method {run.method} → {config.method.value}"
+    if config.effective_alpha != float(payload["alpha"]):
+        yield f"α {payload['alpha']} → {config.effective_alpha}"
+    recorded = {c["static_id"]: c for c in payload["candidates"]}
+    today = {s.key: s for s in stops}
+    for key in sorted(recorded.keys() - today.keys()):
+        yield f"candidate {key} dropped (Rel({task.target}, {recorded[key]['static_class']}) is 0)"
+    for key in sorted(today.keys() - recorded.keys()):
+        yield f"candidate {key} added (Rel({task.target}, {today[key].cls}) = {today[key].rel:.4f})"
+    for key in sorted(recorded.keys() & today.keys()):
+        before, now = float(recorded[key]["rel"]), today[key].rel
+        if abs(before - now) > REL_TOLERANCE:
+            yield f"Rel({task.target}, {today[key].cls}) at {key}: {before:.4f} → {now:.4f}"
+        vp = [float(v) for v in recorded[key]["viewpoint"]]
+        now_vp = today[key].viewpoint
+        if abs(vp[0] - now_vp.x) > 1e-6 or abs(vp[1] - now_vp.y) > 1e-6:
+            yield f"viewpoint of {key}: ({vp[0]}, {vp[1]}) → ({now_vp.x}, {now_vp.y})"
+
+
+def replay(
+    events: Iterable[Any], *, overrides: Overrides = Overrides(), until_seq: int | None = None
+) -> Replayer:
+    """Replay a whole stream of events; the result holds every decision and note."""
+    replayer = Replayer(overrides)
+    for _ in replayer.feed(events, until_seq=until_seq):
+        pass
+    return replayer
+
+
+def summarise(decisions: Sequence[DecisionReplay]) -> dict[str, int]:
+    return {
+        "decisions": len(decisions),
+        "same": sum(d.same for d in decisions),
+        "different_room_order": sum(not d.same_rooms for d in decisions),
+        "different_object_order": sum(not d.same_order for d in decisions),
+    }

@@ -1,0 +1,111 @@
+"""Golden logs: small recorded runs whose decisions today's code must still make.
+
+``python -m objsearch.replay.golden [DIR]`` (or ``make bless``) re-records them after an intended
+change; ``tests/replay/test_golden.py`` replays them and fails with the decisions that changed.
+Each golden is a simulated run of the paper home with a fixed seed and a fixed wall clock, so
+re-blessing unchanged code rewrites the same bytes.
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from objsearch.agent.policy import Method, SearchConfig
+from objsearch.agent.scene_graph import UpdateMode
+from objsearch.agent.session import Session, load_context
+from objsearch.sim.schedule import Schedule
+from objsearch.sim.world import SimClock, SimWorld
+
+DEFAULT_DIR = Path(__file__).resolve().parent.parent / "tests" / "replay" / "golden"
+PAUSE_BETWEEN_TASKS_S = 60.0
+FIXED_WALL_CLOCK_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00:00Z
+
+
+@dataclass(frozen=True, slots=True)
+class GoldenRun:
+    name: str
+    method: Method
+    update_mode: UpdateMode
+    scenes: tuple[int, ...]
+    targets: tuple[str, ...]
+    starts: tuple[str, ...]
+
+
+GOLDEN_RUNS = (
+    GoldenRun(
+        "sim-wpl-updates",
+        Method.WPL,
+        UpdateMode.ALL,
+        scenes=(1, 2),
+        targets=("Apple", "Vase"),
+        starts=("kitchen-1", "bedroom-2"),
+    ),
+    GoldenRun(
+        "sim-rvp-targets",
+        Method.RVP,
+        UpdateMode.TARGETS,
+        scenes=(3,),
+        targets=("Cup", "Laptop"),
+        starts=("living-1", "bathroom-2"),
+    ),
+)
+
+
+def record(run: GoldenRun, log_dir: Path, *, home: str = "paper") -> None:
+    """Run the golden's searches into ``log_dir`` (which must not exist yet)."""
+    ctx = load_context(home)
+    schedule = Schedule.load(ctx.home, "table2")
+    session = Session(
+        ctx,
+        log_dir,
+        SearchConfig(method=run.method),
+        run.update_mode,
+        params={"golden": run.name},
+        wall_clock=lambda: FIXED_WALL_CLOCK_NS,
+    )
+    try:
+        clock = SimClock(session.resume_time_ns)
+        for scene in run.scenes:
+            for target in run.targets:
+                for start in run.starts:
+                    clock.advance(PAUSE_BETWEEN_TASKS_S)
+                    world = SimWorld(
+                        ctx.home,
+                        ctx.navmap,
+                        schedule.scenes[scene],
+                        ctx.home.start(start),
+                        clock=clock,
+                    )
+                    session.search(world, target, start, scene=scene)
+    finally:
+        session.close()
+
+
+def bless(directory: Path = DEFAULT_DIR) -> list[Path]:
+    """Re-record every golden log under ``directory``; returns the log folders written."""
+    written = []
+    for run in GOLDEN_RUNS:
+        target = directory / run.name
+        tmp = directory / f".{run.name}.tmp"
+        shutil.rmtree(tmp, ignore_errors=True)
+        record(run, tmp)
+        (tmp / "LOCK").unlink(missing_ok=True)
+        shutil.rmtree(target, ignore_errors=True)
+        tmp.rename(target)
+        written.append(target)
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    directory = Path(args[0]) if args else DEFAULT_DIR
+    for path in bless(directory):
+        print(f"blessed {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

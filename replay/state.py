@@ -1,0 +1,100 @@
+"""Projections replay needs besides the scene graph: the run's settings, the task, the robot's pose.
+
+Each is a fold of the same log the agent wrote, so a replay sees exactly what the robot knew at any
+event: the scene graph (``agent.scene_graph``), the run's method and α, the task in progress with its
+start room, and the robot's last known pose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from objsearch.agent.geometry import Pose
+from objsearch.agent.scene_graph import EventLike, SceneGraphProjection
+
+
+@dataclass(frozen=True, slots=True)
+class RunSettings:
+    """What ``run_started`` recorded: the home and the planner's parameters."""
+
+    home: str
+    home_digest: str
+    method: str
+    alpha: float
+    update_mode: str
+    seed: int
+    params: dict[str, Any]
+
+
+@dataclass(frozen=True, slots=True)
+class TaskState:
+    task_id: str
+    target: str
+    start: str
+    start_pose: Pose
+    scene: int | None
+    plans_so_far: int = 0
+
+
+def _pose(doc: Any) -> Pose:
+    return Pose(float(doc["x"]), float(doc["y"]), float(doc["yaw"]))
+
+
+@dataclass
+class ReplayState:
+    """Every projection replay uses, advanced together one event at a time."""
+
+    graph: SceneGraphProjection = field(default_factory=SceneGraphProjection)
+    run: RunSettings | None = None
+    task: TaskState | None = None
+    pose: Pose | None = None
+    last_seq: int = 0
+    last_time_ns: int = 0
+
+    @property
+    def state(self) -> ReplayState:
+        return self
+
+    def apply(self, event: EventLike) -> None:
+        """Fold one event; the scene graph last, so a plan sees the graph as it was before it."""
+        kind, p = event.type, event.payload
+        if kind == "run_started":
+            self.run = RunSettings(
+                home=p["home"],
+                home_digest=p["home_digest"],
+                method=p["method"],
+                alpha=float(p["alpha"]),
+                update_mode=p["update_mode"],
+                seed=int(p["seed"]),
+                params=dict(p["params"]),
+            )
+        elif kind == "task_started":
+            self.pose = _pose(p["pose"])
+            self.task = TaskState(
+                task_id=str(getattr(event, "task_id", None) or ""),
+                target=p["target"],
+                start=p["start"],
+                start_pose=self.pose,
+                scene=p["scene"],
+            )
+        elif kind == "moved":
+            self.pose = _pose(p["end"])
+        elif kind in ("view_taken", "container_opened"):
+            self.pose = _pose(p["pose"])
+        elif kind == "target_found":
+            self.pose = _pose(p["approach"])
+        elif kind == "plan_computed" and self.task is not None:
+            self.task = TaskState(
+                self.task.task_id,
+                self.task.target,
+                self.task.start,
+                self.task.start_pose,
+                self.task.scene,
+                self.task.plans_so_far + 1,
+            )
+        elif kind == "task_ended":
+            self.task = None
+        self.graph.apply(event)
+        self.last_seq = event.seq
+        self.last_time_ns = int(getattr(event, "time_ns", self.last_time_ns))

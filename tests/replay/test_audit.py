@@ -1,0 +1,142 @@
+"""Audit flags what went wrong in a task, and nothing in a clean run."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+import pytest
+from objsearch.events import Event, EventLog, read_log
+from objsearch.replay.audit import audit
+from objsearch.replay.golden import DEFAULT_DIR
+
+from objsearch.cli import main
+
+LOG = DEFAULT_DIR / "sim-wpl-updates"
+
+
+def _rewrite(events: Iterable[Event], out: Path) -> Path:
+    """Write events (payloads possibly edited) as a fresh, valid log."""
+    log = EventLog.open(out, "robot")
+    try:
+        for e in events:
+            log.append(e.type, e.payload, time_ns=e.time_ns, task_id=e.task_id)
+    finally:
+        log.close()
+    return out
+
+
+def _kinds(log: Path) -> dict[str, set[str]]:
+    found: dict[str, set[str]] = {}
+    for task in audit(read_log(log)).tasks:
+        for a in task.anomalies:
+            found.setdefault(a.kind, set()).add(task.task_id)
+    return found
+
+
+def test_a_clean_run_has_no_integrity_anomalies() -> None:
+    kinds = _kinds(LOG)
+    assert not kinds.keys() & {"target-not-acted-on", "stale-plan", "out-of-order"}
+    tasks = audit(read_log(LOG)).tasks
+    assert len(tasks) == 8
+    assert all(t.success and t.oracle_length is not None for t in tasks)
+    assert all(t.path_length is not None and t.path_length >= t.oracle_length - 1e-9 for t in tasks)
+
+
+def _task_found_by_looking() -> tuple[str, str, int]:
+    """A task whose target turned up in a view, with the seq of an earlier view in that task."""
+    events = list(read_log(LOG))
+    for i, e in enumerate(events):
+        if e.type != "target_found":
+            continue
+        views = [v for v in events[:i] if v.task_id == e.task_id and v.type == "view_taken"]
+        if len(views) >= 2:
+            target = next(x for x in events if x.task_id == e.task_id).payload["target"]
+            return str(e.task_id), target, views[0].seq
+    raise AssertionError("no task found its target after two views")
+
+
+def _edited(log: Path, out: Path, edit: Callable[[Event], list[Event]]) -> Path:
+    return _rewrite([x for e in read_log(log) for x in edit(e)], out)
+
+
+def test_a_detection_the_robot_ignored_is_flagged(tmp_path: Path) -> None:
+    task_id, target, view_seq = _task_found_by_looking()
+
+    def inject(e: Event) -> list[Event]:
+        if e.seq != view_seq:
+            return [e]
+        missed: dict[str, Any] = {
+            "object_class": target,
+            "instance_id": f"{target}|missed",
+            "mask_area": 5000.0,
+            "position": [0.0, 0.0, 0.0],
+            "accepted": True,
+            "nearest_static_id": None,
+            "nearest_static_class": None,
+            "at_static": False,
+        }
+        return [e, dataclasses.replace(e, type="detection", payload=missed)]
+
+    kinds = _kinds(_edited(LOG, tmp_path / "log", inject))
+    assert kinds.get("target-not-acted-on") == {task_id}
+
+
+def test_a_plan_from_a_stale_scene_graph_is_flagged(tmp_path: Path) -> None:
+    plans = [e for e in read_log(LOG) if e.type == "plan_computed"]
+    victim = plans[len(plans) // 2]
+
+    def stale(e: Event) -> list[Event]:
+        if e.seq != victim.seq:
+            return [e]
+        cands = [dict(c) for c in e.payload["candidates"]]
+        cands[0]["rel"] = min(1.0, float(cands[0]["rel"]) + 0.25)
+        return [dataclasses.replace(e, payload={**e.payload, "candidates": cands})]
+
+    kinds = _kinds(_edited(LOG, tmp_path / "log", stale))
+    assert kinds.get("stale-plan") == {victim.task_id}
+
+
+def test_a_missing_move_is_flagged(tmp_path: Path) -> None:
+    moves = [e for e in read_log(LOG) if e.type == "moved" and e.payload["metres"] > 0]
+    victim = moves[3]
+    kinds = _kinds(_edited(LOG, tmp_path / "log", lambda e: [] if e.seq == victim.seq else [e]))
+    assert kinds.get("out-of-order") == {victim.task_id}
+
+
+def test_a_task_that_never_ended_is_flagged(tmp_path: Path) -> None:
+    events = list(read_log(LOG))
+    last_end = max(e.seq for e in events if e.type == "task_ended")
+    log = _rewrite([e for e in events if e.seq < last_end], tmp_path / "log")
+    tasks = audit(read_log(log)).tasks
+    assert any(a.message.startswith("the task never ended") for a in tasks[-1].anomalies)
+
+
+def test_far_above_oracle_uses_the_thresholds() -> None:
+    strict = audit(read_log(LOG), oracle_ratio=1.0, oracle_excess_m=0.0).tasks
+    lenient = audit(read_log(LOG), oracle_ratio=1e6, oracle_excess_m=1e6).tasks
+    far = {t.task_id for t in strict if any(a.kind == "far-above-oracle" for a in t.anomalies)}
+    assert far == {
+        t.task_id
+        for t in strict
+        if t.path_length is not None
+        and t.oracle_length is not None
+        and t.path_length > t.oracle_length
+    }
+    assert not any(a.kind == "far-above-oracle" for t in lenient for a in t.anomalies)
+
+
+def test_audit_writes_the_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "report"
+    (out / "task-09999.md").parent.mkdir(parents=True)
+    (out / "task-09999.md").write_text("stale page from an earlier report")
+    assert main(["audit", str(LOG), "--out", str(out), "--plots", "all", "--max-plots", "2"]) == 0
+    assert "8 tasks audited" in capsys.readouterr().out
+    index = (out / "index.md").read_text()
+    assert index.count("| [task-0") == 8
+    assert len(list(out.glob("task-*.md"))) == 8
+    assert len(list(out.glob("task-*.png"))) == 2
+    page = (out / "task-00001.md").read_text()
+    assert "## Relation values behind each plan" in page and "Eq. 4 at seq" in page
