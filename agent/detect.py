@@ -99,7 +99,9 @@ class TorchScriptDetector:
         if not path.is_file():
             raise DetectorError(f"no detector model at {path}")
         try:
-            self.model = torch.jit.load(str(path), map_location=self.device).eval()
+            self.model = torch.jit.load(  # type: ignore[no-untyped-call]
+                str(path), map_location=self.device
+            ).eval()
         except (RuntimeError, ValueError) as exc:
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             raise DetectorError(f"{path} is not a TorchScript model: {first}") from None

@@ -133,8 +133,8 @@ def backproject(frame: RGBDFrame, mask: BoolArray | None = None) -> FloatArray:
     cam = frame.intrinsics.rays()[valid] * frame.depth[valid][:, None]
     rot = frame.T_map_camera[:3, :3].astype(np.float32)
     trans = frame.T_map_camera[:3, 3].astype(np.float32)
-    out: FloatArray = cam @ rot.T + trans
-    return out
+    out = cam @ rot.T + trans
+    return out.astype(np.float32, copy=False)
 
 
 def project(

@@ -163,7 +163,8 @@ class GridSpec:
 
     def centre(self, index: npt.NDArray[np.int64]) -> npt.NDArray[np.float64]:
         """Map-frame centres of voxels given as (N, 3) integer indices."""
-        return np.asarray(self.origin) + (index + 0.5) * self.voxel
+        out: npt.NDArray[np.float64] = np.asarray(self.origin) + (index + 0.5) * self.voxel
+        return out
 
 
 class VoxelGrid:

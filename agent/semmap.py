@@ -73,11 +73,11 @@ class SemanticMap:
                     "id": s.id,
                     "class": s.cls,
                     "room": s.room,
-                    "loc": [round(s.loc.x, 4), round(s.loc.y, 4)],
+                    "loc": [s.loc.x, s.loc.y],
                     "box": {"center": list(s.box.center), "size": list(s.box.size)},
                     "container": s.container,
                     "viewpoint": [s.viewpoint.x, s.viewpoint.y],
-                    "view_yaw": round(s.view_yaw, 6),
+                    "view_yaw": s.view_yaw,
                 }
                 for s in self.statics
             ],

@@ -15,7 +15,7 @@ from objsearch.agent.geometry import Point, Pose, distance, heading, wrap_angle
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.policy import SearchConfig
 from objsearch.agent.scene_graph import UpdateMode
-from objsearch.agent.semmap import SemanticMap
+from objsearch.agent.semmap import MappedStatic, SemanticMap
 from objsearch.agent.session import HomeContext, Session
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
 from objsearch.sim.world import REACH_M, Placement, SimWorld
@@ -78,32 +78,31 @@ def compare(
 ) -> MapAccuracy:
     """Each true static is found by the nearest built instance of its class and room whose box
     contains its centre on the floor, or whose loc_s lies within ``radius`` of it."""
+
+    def near(s: MappedStatic, b: MappedStatic) -> float | None:
+        if b.cls != s.cls:
+            return None
+        d = distance(s.loc, b.loc)
+        return d if d <= radius or b.box.contains_xy(s.loc) else None
+
     matches = []
-    used: set[str] = set()
     for s in truth.statics:
-        best: tuple[float, str] | None = None
+        best: tuple[float, str, MappedStatic] | None = None
         for b in built.in_room(s.room):
-            if b.cls != s.cls:
-                continue
-            d = distance(s.loc, b.loc)
-            if (d <= radius or b.box.contains_xy(s.loc)) and (best is None or (d, b.id) < best):
-                best = (d, b.id)
+            d = near(s, b)
+            if d is not None and (best is None or (d, b.id) < best[:2]):
+                best = (d, b.id, b)
         if best is None:
             matches.append(InstanceMatch(s.id, s.cls, None, None, False, None))
             continue
-        b = next(x for x in built.statics if x.id == best[1])
-        used.add(b.id)
-        matches.append(
-            InstanceMatch(
-                s.id,
-                s.cls,
-                b.id,
-                best[0],
-                b.viewpoint == s.viewpoint,
-                abs(wrap_angle(b.view_yaw - s.view_yaw)),
-            )
-        )
-    spurious = tuple(b.id for b in built.statics if b.id not in used)
+        d, _, b = best
+        yaw_error = abs(wrap_angle(b.view_yaw - s.view_yaw))
+        matches.append(InstanceMatch(s.id, s.cls, b.id, d, b.viewpoint == s.viewpoint, yaw_error))
+    spurious = tuple(
+        b.id
+        for b in built.statics
+        if not any(near(s, b) is not None for s in truth.in_room(b.room))
+    )
     return MapAccuracy(tuple(matches), len(built.statics), spurious)
 
 

@@ -122,7 +122,7 @@ def render(
     axis = np.where(exits[2] == depth, 2, np.where(exits[1] == depth, 1, 0)).astype(np.int8)
     instance = np.where(axis == 2, np.where(d[2] < 0, FLOOR, CEILING), WALL).astype(np.int32)
 
-    inv_t = np.linalg.inv(T_map_camera)
+    inv_t: Float64Array = np.linalg.inv(T_map_camera).astype(np.float64)
     for k, obj in enumerate(scene.objects):
         window = _window(obj.box, inv_t, intrinsics)
         if window is None:
