@@ -4,7 +4,8 @@
   hands over "the object category and mask", §6.1);
 - :class:`TorchScriptDetector` runs a scripted or traced model (the robot's Mask R-CNN, §4.3).
 
-Masks become detections the agent accepts only when their area reaches the class's
+A detection is located by back-projecting its mask (:func:`locate`), and approached from its
+nearest viewpoint (:func:`approach`). Masks become detections the agent accepts only when their area reaches the class's
 ``min_mask_area_px`` (paper §5.2, ``data/vocabulary.json``): :func:`accepted`.
 """
 
@@ -18,6 +19,8 @@ import numpy as np
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.errors import ObjsearchError, UnknownObjectClassError
 from objsearch.agent.frames import BoolArray, RGBDFrame
+from objsearch.agent.geometry import Point, Pose, heading
+from objsearch.agent.navmap import NavigationMap
 
 if TYPE_CHECKING:
     import torch
@@ -173,3 +176,21 @@ def _attr_names(model: torch.jit.ScriptModule) -> list[str] | None:
     if isinstance(names, list | tuple) and all(isinstance(n, str) for n in names):
         return [str(n) for n in names]
     return None
+
+
+def locate(frame: RGBDFrame, det: MaskDetection) -> tuple[float, float, float] | None:
+    """Local 3-D reconstruction of one detection (§5.1): the centre of mass of its mask's
+    back-projected depth, map frame; None when no pixel of the mask has depth."""
+    from objsearch.agent.frames import backproject
+
+    points = backproject(frame, det.mask)
+    if len(points) == 0:
+        return None
+    c = points.astype(np.float64).mean(axis=0)
+    return (float(c[0]), float(c[1]), float(c[2]))
+
+
+def approach(navmap: NavigationMap, room: str, position: tuple[float, float, float]) -> Pose:
+    """Where to stand to face a located object: its nearest viewpoint, heading towards it."""
+    vp = navmap.nearest_viewpoint(position[0], position[1], room)
+    return Pose(vp.x, vp.y, heading(vp, Point(position[0], position[1])))

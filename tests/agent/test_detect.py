@@ -139,3 +139,41 @@ def test_ground_truth_detector_reads_the_simulators_masks() -> None:
     assert [d.cls for d in only] == ["Apple"]
     with pytest.raises(DetectorError, match="no ground truth"):
         GroundTruthDetector().detect(frame(rgb))
+
+
+def test_a_rendered_target_is_located_and_approached() -> None:
+    from objsearch.agent.detect import approach, locate
+    from objsearch.agent.session import load_context
+    from objsearch.sim.render import SimulatedCamera
+    from objsearch.sim.schedule import base_placements, table1_removals
+
+    ctx = load_context("paper")
+    placements = base_placements(ctx.home, table1_removals(ctx.home))
+    laptop = next(p for p in placements.values() if p.cls == "Laptop")
+    truth_vp = ctx.navmap.nearest_viewpoint(laptop.box.center[0], laptop.box.center[1], "bedroom")
+    camera = SimulatedCamera(ctx.home, placements)
+    cx, cy = laptop.box.center[0], laptop.box.center[1]
+    # From the nearest viewpoint a level camera 1 m up looks over the laptop; step back until
+    # the laptop is in view with a mask above the threshold.
+    det = None
+    for vp in sorted(
+        ctx.navmap.viewpoints("bedroom"), key=lambda v: (math.hypot(v.x - cx, v.y - cy), v)
+    ):
+        frame_ = camera.frame(Pose(vp.x, vp.y, math.atan2(cy - vp.y, cx - vp.x)), "bedroom")
+        det = next((d for d in GroundTruthDetector().detect(frame_) if d.cls == "Laptop"), None)
+        if det is not None and det.area >= 100:
+            break
+    assert det is not None
+    where = locate(frame_, det)
+    assert where is not None
+    # The seen surface's centre of mass lies within the laptop's box (inflated by a few mm).
+    box = laptop.box
+    assert all(
+        abs(w - c) <= s / 2 + 5e-3 for w, c, s in zip(where, box.center, box.size, strict=True)
+    )
+    pose = approach(ctx.navmap, "bedroom", where)
+    assert (
+        math.hypot(pose.x - truth_vp.x, pose.y - truth_vp.y) <= 0.36
+    )  # the same or next viewpoint
+    empty = MaskDetection("Laptop", np.zeros(frame_.intrinsics.shape, bool), 1.0)
+    assert locate(frame_, empty) is None
