@@ -1,8 +1,8 @@
 """The semantic map: each static object's position loc_s, nearest viewpoint N_s and view angle θ_s.
 
 Paper §5.1: loc_s is the object's centre; N_s the navigable viewpoint closest to it; θ_s the heading
-from N_s to loc_s. Here the map is built from the home's ground truth (the perception issue builds it
-from RGB-D).
+from N_s to loc_s. ``SemanticMap.from_home`` builds it from the home's ground truth;
+``objsearch.agent.mapping`` builds it from RGB-D frames and instance masks.
 """
 
 from __future__ import annotations
@@ -12,9 +12,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from objsearch.agent.errors import DataFileError
 from objsearch.agent.geometry import Point, heading, wrap_angle
 from objsearch.agent.home import Box, Home, Vec3
 from objsearch.agent.navmap import NavigationMap
+
+SEMMAP_FORMAT = "objsearch.semmap/1"
 
 
 @dataclass(frozen=True, slots=True)
@@ -26,9 +29,14 @@ class MappedStatic:
     container: bool
     viewpoint: Point  # N_s
     view_yaw: float  # θ_s
+    #: loc_s when it is not the box centre: a map built from RGB-D uses the centre of mass of the
+    #: object's point cloud (§5.1 (a)), which lies toward the faces the camera saw.
+    centroid: Point | None = None
 
     @property
     def loc(self) -> Point:
+        if self.centroid is not None:
+            return self.centroid
         return Point(self.box.center[0], self.box.center[1])
 
 
@@ -55,6 +63,53 @@ class SemanticMap:
                     )
                 )
         return cls(tuple(mapped))
+
+    def to_json(self) -> dict[str, Any]:
+        """The map as ``objsearch.semmap/1`` JSON (see docs/perception.md)."""
+        return {
+            "format": SEMMAP_FORMAT,
+            "statics": [
+                {
+                    "id": s.id,
+                    "class": s.cls,
+                    "room": s.room,
+                    "loc": [s.loc.x, s.loc.y],
+                    "box": {"center": list(s.box.center), "size": list(s.box.size)},
+                    "container": s.container,
+                    "viewpoint": [s.viewpoint.x, s.viewpoint.y],
+                    "view_yaw": s.view_yaw,
+                }
+                for s in self.statics
+            ],
+        }
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> SemanticMap:
+        if doc.get("format") != SEMMAP_FORMAT:
+            raise DataFileError(
+                f"not a semantic map (format {doc.get('format')!r}, expected {SEMMAP_FORMAT!r})"
+            )
+        try:
+            return cls(
+                tuple(
+                    MappedStatic(
+                        id=str(s["id"]),
+                        cls=str(s["class"]),
+                        room=str(s["room"]),
+                        box=Box(
+                            tuple(float(v) for v in s["box"]["center"]),  # type: ignore[arg-type]
+                            tuple(float(v) for v in s["box"]["size"]),  # type: ignore[arg-type]
+                        ),
+                        container=bool(s["container"]),
+                        viewpoint=Point(float(s["viewpoint"][0]), float(s["viewpoint"][1])),
+                        view_yaw=float(s["view_yaw"]),
+                        centroid=Point(float(s["loc"][0]), float(s["loc"][1])),
+                    )
+                    for s in doc["statics"]
+                )
+            )
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise DataFileError(f"semantic map is malformed: {exc!r}") from None
 
     def in_room(self, room: str) -> tuple[MappedStatic, ...]:
         return tuple(s for s in self.statics if s.room == room)

@@ -169,47 +169,11 @@ def cmd_graph(args: argparse.Namespace) -> int:
     return 0
 
 
-# -- map --------------------------------------------------------------------------------------
-
-
-def cmd_map(args: argparse.Namespace) -> int:
-    import math
-
-    from objsearch.agent.semmap import compare_with_alfred
-    from objsearch.agent.session import load_context
-
-    ctx = load_context(args.home)
-    agreement = compare_with_alfred(ctx.home, ctx.semmap)
-    if args.json:
-        rows = [
-            {
-                "id": s.id,
-                "class": s.cls,
-                "room": s.room,
-                "loc": [round(s.loc.x, 3), round(s.loc.y, 3)],
-                "viewpoint": [s.viewpoint.x, s.viewpoint.y],
-                "view_yaw": round(s.view_yaw, 4),
-                "container": s.container,
-            }
-            for s in ctx.semmap.statics
-        ]
-        print(json.dumps({"statics": rows, "alfred_agreement": agreement.summary()}, indent=2))
-        return 0
-    print(f"{'static object':58} {'loc_s':>15} {'N_s':>15} {'θ_s°':>6}")
-    for s in ctx.semmap.statics:
-        print(
-            f"{s.id:58} ({s.loc.x:5.2f},{s.loc.y:5.2f}) ({s.viewpoint.x:5.2f},{s.viewpoint.y:5.2f})"
-            f" {math.degrees(s.view_yaw):6.0f}" + ("  container" if s.container else "")
-        )
-    print("agreement with ALFRED interaction poses:", json.dumps(agreement.summary()))
-    return 0
-
-
 # -- parser -----------------------------------------------------------------------------------
 
 #: Modules that add subcommands: each has ``register(sub)`` taking the subparsers action and keeps
 #: its heavy imports inside the command functions, so ``objsearch --help`` stays fast.
-COMMAND_MODULES: tuple[str, ...] = ("objsearch.cli_replay",)
+COMMAND_MODULES: tuple[str, ...] = ("objsearch.cli_map", "objsearch.cli_replay")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -269,11 +233,6 @@ def build_parser() -> argparse.ArgumentParser:
     graph.add_argument("--at", type=int, help="as it was right after this sequence number")
     graph.add_argument("--json", action="store_true")
     graph.set_defaults(func=cmd_graph)
-
-    smap = sub.add_parser("map", help="print the semantic map and its agreement with ALFRED")
-    smap.add_argument("--home", default="paper")
-    smap.add_argument("--json", action="store_true")
-    smap.set_defaults(func=cmd_map)
 
     for module in COMMAND_MODULES:
         importlib.import_module(module).register(sub)
