@@ -94,9 +94,11 @@ class SceneGraphProjection:
             self._target = payload["target"]
             self._experience = {}
         elif kind == "detection" and payload["accepted"]:
+            # detection v2; older versions are upcast by read_log before they get here.
             statics = self._experience.setdefault(payload["object_class"], set())
-            if payload["at_static"] and payload["nearest_static_class"] is not None:
-                statics.add(payload["nearest_static_class"])
+            support = payload["support"]
+            if support is not None and support["at"]:
+                statics.add(support["static_class"])
         elif kind == "task_ended":
             self._end_task()
         self.last_seq = event.seq
