@@ -95,16 +95,20 @@ WITH limits AS (
     SELECT robot, run, seq, target, true AS is_start FROM task_started
     UNION ALL
     SELECT robot, run, seq, NULL AS target, false AS is_start FROM task_ended
-), ends AS (  -- each task end within the limit and after the seed, with its task's target
+), all_ends AS (  -- each task end with its task's target (the ASOF joins come first: fast)
     SELECT e.robot, e.run, e.seq AS end_seq, CASE WHEN b.is_start THEN b.target END AS target
     FROM task_ended e
-    JOIN seeds s ON e.robot = s.robot AND e.run = s.run AND e.seq > s.seed_seq
-    JOIN limits l ON e.robot = l.robot AND e.run = l.run AND e.seq <= l.upto
     ASOF LEFT JOIN bounds b ON e.robot = b.robot AND e.run = b.run AND e.seq > b.seq
-), moded AS (
+), all_moded AS (
     SELECT e.*, coalesce(r.update_mode, 'all') AS mode
-    FROM ends e
+    FROM all_ends e
     ASOF LEFT JOIN run_started r ON e.robot = r.robot AND e.run = r.run AND e.end_seq > r.seq
+), moded AS (  -- ... then only those after the seed and within the limit
+    SELECT m.*
+    FROM all_moded m
+    JOIN seeds s ON m.robot = s.robot AND m.run = s.run
+    JOIN limits l ON m.robot = l.robot AND m.run = l.run
+    WHERE m.end_seq > s.seed_seq AND m.end_seq <= l.upto
 ), seen AS (  -- accepted detections, each attributed to the next boundary if it is a task end
     SELECT d.robot, d.run, b.seq AS end_seq, d.object_class AS dynamic,
            CASE WHEN d.support."at" THEN d.support.static_class END AS static
