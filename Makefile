@@ -35,6 +35,7 @@ typecheck: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/planner.py
+	$(BIN)/python benchmarks/events.py $(BENCH_ARGS)
 
 data: $(STAMP)
 	$(BIN)/objsearch data build --source $(SHARED)
