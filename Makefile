@@ -36,6 +36,7 @@ typecheck: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/planner.py
 	$(BIN)/python benchmarks/mapping.py
+	$(BIN)/python benchmarks/events.py $(BENCH_ARGS)
 
 data: $(STAMP)
 	$(BIN)/objsearch data build --source $(SHARED)

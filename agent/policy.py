@@ -281,9 +281,11 @@ class _Task:
                 "mask_area": round(det.mask_area, 2),
                 "position": _round_vec(det.position),
                 "accepted": accepted,
-                "nearest_static_id": nearest[0].id if nearest else None,
-                "nearest_static_class": nearest[0].cls if nearest else None,
-                "at_static": at_static,
+                "support": (
+                    {"static_id": nearest[0].id, "static_class": nearest[0].cls, "at": at_static}
+                    if nearest
+                    else None
+                ),
             },
         )
         return accepted and det.object_class == self.target

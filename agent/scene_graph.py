@@ -13,7 +13,7 @@ import enum
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 from objsearch.agent.categories import Category, Vocabulary
 
@@ -94,9 +94,11 @@ class SceneGraphProjection:
             self._target = payload["target"]
             self._experience = {}
         elif kind == "detection" and payload["accepted"]:
+            # detection v2; older versions are upcast by read_log before they get here.
             statics = self._experience.setdefault(payload["object_class"], set())
-            if payload["at_static"] and payload["nearest_static_class"] is not None:
-                statics.add(payload["nearest_static_class"])
+            support = payload["support"]
+            if support is not None and support["at"]:
+                statics.add(support["static_class"])
         elif kind == "task_ended":
             self._end_task()
         self.last_seq = event.seq
@@ -113,6 +115,31 @@ class SceneGraphProjection:
         self._target = None
         self._experience = {}
         self.tasks_folded += 1
+
+    #: Snapshots (objsearch.events.snapshot) of another version are rebuilt, not trusted: bump
+    #: this whenever apply() or the fields below change meaning.
+    snapshot_name: ClassVar[str] = "scene_graph"
+    snapshot_version: ClassVar[int] = 1
+
+    def to_snapshot(self) -> dict[str, Any]:
+        return {
+            "relations": [[d, s, v] for (d, s), v in sorted(self.relations.items())],
+            "update_mode": self.update_mode.value,
+            "tasks_folded": self.tasks_folded,
+            "target": self._target,
+            "experience": {d: sorted(s) for d, s in sorted(self._experience.items())},
+        }
+
+    @classmethod
+    def from_snapshot(cls, state: Mapping[str, Any], last_seq: int) -> SceneGraphProjection:
+        return cls(
+            relations={(d, s): float(v) for d, s, v in state["relations"]},
+            update_mode=UpdateMode(state["update_mode"]),
+            last_seq=last_seq,
+            tasks_folded=int(state["tasks_folded"]),
+            _target=state["target"],
+            _experience={d: set(s) for d, s in state["experience"].items()},
+        )
 
     @property
     def state(self) -> Mapping[Pair, float]:

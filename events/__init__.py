@@ -7,6 +7,7 @@ See ``docs/events.md`` for the on-disk format and the guarantees.
 from .envelope import EVENT_ID_NAMESPACE, Event, deterministic_event_id
 from .errors import (
     CorruptLogError,
+    DuplicateEventError,
     EventStoreError,
     InvalidEventError,
     LogClosedError,
@@ -15,14 +16,17 @@ from .errors import (
     ProjectionError,
     StreamMismatchError,
     TornTailWarning,
+    WrongExpectedSeqError,
 )
-from .log import EventLog, TornTail, read_log
+from .log import EventLog, TornTail, follow_log, read_log
 from .projection import Projection, fold
 from .schemas import SchemaRegistry, default_registry
+from .upcast import Upcaster, default_upcaster
 
 __all__ = [
     "EVENT_ID_NAMESPACE",
     "CorruptLogError",
+    "DuplicateEventError",
     "Event",
     "EventLog",
     "EventStoreError",
@@ -36,8 +40,12 @@ __all__ = [
     "StreamMismatchError",
     "TornTail",
     "TornTailWarning",
+    "Upcaster",
+    "WrongExpectedSeqError",
     "default_registry",
+    "default_upcaster",
     "deterministic_event_id",
     "fold",
+    "follow_log",
     "read_log",
 ]

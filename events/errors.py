@@ -61,6 +61,14 @@ class StreamMismatchError(EventStoreError, ValueError):
     """The log belongs to another stream than the one asked for."""
 
 
+class DuplicateEventError(EventStoreError, ValueError):
+    """An append reuses an event id already in the stream for a different fact."""
+
+
+class WrongExpectedSeqError(EventStoreError):
+    """An append's ``expected_last_seq`` is not where the log ends (someone else appended)."""
+
+
 class ProjectionError(EventStoreError):
     """Events reached a projection out of order, or the projection did not advance."""
 

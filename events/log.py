@@ -29,15 +29,18 @@ from . import _fs
 from .envelope import Event, deterministic_event_id
 from .errors import (
     CorruptLogError,
+    DuplicateEventError,
     EventStoreError,
     LogClosedError,
     LogLockedError,
     LogNotFoundError,
     StreamMismatchError,
     TornTailWarning,
+    WrongExpectedSeqError,
 )
 from .record import RecordError, checksum_ok, decode_record, encode_record
 from .schemas import SchemaRegistry, default_registry
+from .upcast import default_upcaster
 
 LOG_FORMAT: Final = "objsearch.events/1"
 LOG_FILE: Final = "events.log"
@@ -69,13 +72,24 @@ class _Scan:
     ``last_seq`` describe what was found.
     """
 
-    def __init__(self, path: Path, stream: str, *, stop_after: int | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        stream: str,
+        *,
+        stop_after: int | None = None,
+        start: tuple[int, int, int] = (0, 0, 0),
+        ids: dict[str, int] | None = None,
+    ) -> None:
         self.path = path
         self.stream = stream
         self.stop_after = stop_after
         self.torn_tail: TornTail | None = None
-        self.end_offset = 0
-        self.last_seq = 0
+        # (byte offset, line number, seq) of the end of the last good record: where a resumed
+        # scan (a tailing reader) starts, having checked everything before it.
+        self.end_offset, self.end_line, self.last_seq = start
+        #: when given, filled with event id → byte offset of its record (for idempotent appends)
+        self.ids = ids
 
     def __iter__(self) -> Iterator[Event]:
         try:
@@ -83,11 +97,13 @@ class _Scan:
         except FileNotFoundError:
             return  # meta.json written, crash before events.log existed: an empty log
         with f:
+            if self.end_offset:
+                f.seek(self.end_offset)
             yield from self._lines(f)
 
     def _lines(self, f: IO[bytes]) -> Iterator[Event]:
-        offset = 0
-        line_no = 0
+        offset = self.end_offset
+        line_no = self.end_line
         damage: tuple[int, int, str] | None = None  # (line, offset, reason) of the first bad line
         complete = True
         for line in f:
@@ -126,6 +142,9 @@ class _Scan:
                 )
             self.last_seq = event.seq
             self.end_offset = offset
+            self.end_line = line_no
+            if self.ids is not None:
+                self.ids[event.event_id] = start
             yield event
             if self.stop_after is not None and event.seq >= self.stop_after:
                 return
@@ -170,6 +189,7 @@ class EventLog:
         torn_tail: TornTail | None,
         registry: SchemaRegistry,
         wall_clock: Callable[[], int],
+        ids: dict[str, int],
     ) -> None:
         # Private: only open() knows how to reach a consistent state (lock, meta, recovery).
         self._directory = directory
@@ -181,6 +201,7 @@ class EventLog:
         self._torn_tail = torn_tail
         self._registry = registry
         self._wall_clock = wall_clock
+        self._ids = ids  # event id → byte offset of its record: what makes appends idempotent
         self._batch_depth = 0
         self._unsynced = False
         self._closed = False
@@ -255,7 +276,7 @@ class EventLog:
         try:
             if created:
                 _fs.fsync_dir(directory)
-            scan = _Scan(log_path, stream)
+            scan = _Scan(log_path, stream, ids={})
             for _ in scan:
                 pass
             if scan.torn_tail is not None:
@@ -273,6 +294,7 @@ class EventLog:
             torn_tail=scan.torn_tail,
             registry=registry if registry is not None else default_registry(),
             wall_clock=wall_clock,
+            ids=scan.ids if scan.ids is not None else {},
         )
 
     @property
@@ -306,18 +328,40 @@ class EventLog:
         task_id: str | None = None,
         version: int | None = None,
         event_id: str | None = None,
+        expected_last_seq: int | None = None,
     ) -> Event:
         """Validate, write and (outside a batch) fsync one event; return it as stored.
 
         ``version`` defaults to the type's latest schema version, ``event_id`` to
         :func:`deterministic_event_id`. Raises :class:`InvalidEventError` with the file unchanged.
+
+        Idempotent by event id: if the stream already holds ``event_id`` with the same type,
+        version, task, time and payload, nothing is written and the stored event is returned
+        (re-running an import never duplicates); the same id with other content raises
+        :class:`DuplicateEventError`. With ``expected_last_seq``, the append is refused with
+        :class:`WrongExpectedSeqError` unless the log ends at that seq (optimistic concurrency,
+        like an expected version); the duplicate check comes first, so a retry still succeeds.
         """
         self._check_usable()
         if version is None:
             version = self._registry.latest_version(type)
         seq = self._last_seq + 1
+        if event_id is not None and event_id in self._ids:
+            return self._existing(event_id, type, version, payload, time_ns, task_id)
+        if expected_last_seq is not None and expected_last_seq != self._last_seq:
+            raise WrongExpectedSeqError(
+                f"event log {self._directory} ends at seq {self._last_seq}, "
+                f"not at the expected seq {expected_last_seq}; nothing was written"
+            )
+        if event_id is None:
+            event_id = deterministic_event_id(self._stream, seq)
+            if event_id in self._ids:
+                raise DuplicateEventError(
+                    f"the default id {event_id} of seq {seq} is already used by an earlier "
+                    f"event in {self._directory} (an explicit id copied from this stream?)"
+                )
         event = Event(
-            event_id=deterministic_event_id(self._stream, seq) if event_id is None else event_id,
+            event_id=event_id,
             stream=self._stream,
             seq=seq,
             time_ns=time_ns,
@@ -328,13 +372,51 @@ class EventLog:
             payload=payload,
         )
         self._registry.validate_event(event)
+        offset = self._size
         self._write(encode_record(event))
+        self._ids[event.event_id] = offset
         self._last_seq = seq
         if self._batch_depth:
             self._unsynced = True
         else:
             self._sync()
         return event
+
+    def _existing(
+        self,
+        event_id: str,
+        type: str,
+        version: int,
+        payload: Mapping[str, Any],
+        time_ns: int,
+        task_id: str | None,
+    ) -> Event:
+        """The stored event with ``event_id``, if the new append asks for the same fact."""
+        with (self._directory / LOG_FILE).open("rb") as f:
+            f.seek(self._ids[event_id])
+            stored = decode_record(f.readline()[:-1])
+        wanted = Event(
+            event_id=event_id,
+            stream=self._stream,
+            seq=stored.seq,
+            time_ns=time_ns,
+            recorded_at_ns=stored.recorded_at_ns,
+            type=type,
+            version=version,
+            task_id=task_id,
+            payload=payload,
+        )
+        if wanted != stored:
+            differ = [
+                name
+                for name in ("type", "version", "task_id", "time_ns", "payload")
+                if getattr(wanted, name) != getattr(stored, name)
+            ]
+            raise DuplicateEventError(
+                f"event id {event_id} is already in {self._directory} at seq {stored.seq} with "
+                f"a different {', '.join(differ)}; an id names one fact, nothing was written"
+            )
+        return stored
 
     @contextlib.contextmanager
     def batch(self) -> Iterator[None]:
@@ -415,7 +497,11 @@ class EventLog:
 
 
 def read_log(
-    directory: Path | str, *, from_seq: int = 1, to_seq: int | None = None
+    directory: Path | str,
+    *,
+    from_seq: int = 1,
+    to_seq: int | None = None,
+    upcast: bool = True,
 ) -> Iterator[Event]:
     """Yield the events of a log with ``from_seq <= seq <= to_seq``, in order. Never writes.
 
@@ -423,15 +509,69 @@ def read_log(
     raises :class:`CorruptLogError` rather than skip anything), but not payload schemas: those
     were checked at append. A torn tail is skipped with a :class:`TornTailWarning`, except an
     unterminated last line while a writer holds the lock: that is an append in progress.
-    Raises :class:`LogNotFoundError` at call time if there is no log.
+    Events of an old schema version are upcast to their type's latest (``upcast=False`` gives
+    them exactly as stored). Raises :class:`LogNotFoundError` at call time if there is no log.
     """
     directory = Path(directory)
+    _check_seq_range(from_seq, to_seq)
+    stream = _read_meta(directory)
+    events = _read(directory, stream, from_seq, to_seq)
+    return _upcast_all(events) if upcast else events
+
+
+def follow_log(
+    directory: Path | str,
+    *,
+    from_seq: int = 1,
+    poll_interval: float = 0.05,
+    idle_timeout: float | None = None,
+    upcast: bool = True,
+) -> Iterator[Event]:
+    """Yield a log's events from ``from_seq`` on, waiting for new ones as a writer appends them.
+
+    A reader that tails a live log: it takes no lock, reads only complete, checksum-valid
+    records and checks them like :func:`read_log` (a damaged line followed by a valid record is
+    a :class:`CorruptLogError`); an unfinished or damaged last line is waited on, since the
+    writer may still be writing it or a restarted writer may cut it. Stops after
+    ``idle_timeout`` seconds without a new event (never, if None).
+    """
+    directory = Path(directory)
+    _check_seq_range(from_seq, None)
+    if poll_interval <= 0:
+        raise ValueError(f"poll_interval must be > 0, got {poll_interval!r}")
+    stream = _read_meta(directory)
+    events = _follow(directory / LOG_FILE, stream, from_seq, poll_interval, idle_timeout)
+    return _upcast_all(events) if upcast else events
+
+
+def _follow(
+    path: Path, stream: str, from_seq: int, poll_interval: float, idle_timeout: float | None
+) -> Iterator[Event]:
+    position = (0, 0, 0)
+    idle_since = time.monotonic()
+    while True:
+        scan = _Scan(path, stream, start=position)
+        for event in scan:
+            idle_since = time.monotonic()
+            if event.seq >= from_seq:
+                yield event
+        position = (scan.end_offset, scan.end_line, scan.last_seq)
+        if idle_timeout is not None and time.monotonic() - idle_since >= idle_timeout:
+            return
+        time.sleep(poll_interval)
+
+
+def _upcast_all(events: Iterator[Event]) -> Iterator[Event]:
+    upcast = default_upcaster().upcast
+    for event in events:
+        yield upcast(event)
+
+
+def _check_seq_range(from_seq: object, to_seq: object) -> None:
     if isinstance(from_seq, bool) or not isinstance(from_seq, int) or from_seq < 1:
         raise ValueError(f"from_seq must be an integer >= 1, got {from_seq!r}")
     if to_seq is not None and (isinstance(to_seq, bool) or not isinstance(to_seq, int)):
         raise ValueError(f"to_seq must be an integer or None, got {to_seq!r}")
-    stream = _read_meta(directory)
-    return _read(directory, stream, from_seq, to_seq)
 
 
 def _read(directory: Path, stream: str, from_seq: int, to_seq: int | None) -> Iterator[Event]:
@@ -450,7 +590,7 @@ def _read(directory: Path, stream: str, from_seq: int, to_seq: int | None) -> It
     _report(
         f"torn tail in {tail.path}: skipping {tail.length} byte(s) at byte offset {tail.offset} "
         f"(line {tail.line}; {tail.reason}); the file was not changed",
-        stacklevel=3,
+        stacklevel=4,
     )
 
 

@@ -180,12 +180,14 @@ class Auditor:
             task.timeline.append(f"{event.seq}: {what} {p['static_id'].split('/', 1)[1]}")
         elif kind == "detection":
             if p["accepted"]:
-                where = p["nearest_static_class"] if p["at_static"] else "no static object"
+                support = p["support"]
+                at = support is not None and support["at"]
+                where = support["static_class"] if at else "no static object"
                 task.timeline.append(f"{event.seq}: saw {p['object_class']} at {where}")
-                if p["at_static"]:
+                if at:
                     learned = task.learned.setdefault(p["object_class"], [])
-                    if p["nearest_static_class"] not in learned:
-                        learned.append(p["nearest_static_class"])
+                    if support["static_class"] not in learned:
+                        learned.append(support["static_class"])
                 if p["object_class"] == task.target and task._target_seen_at is None:
                     task._target_seen_at = event.seq
         elif kind == "target_found":

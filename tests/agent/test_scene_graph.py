@@ -69,8 +69,9 @@ def detection(seq: int, cls: str, static: str | None, *, accepted: bool = True) 
         {
             "object_class": cls,
             "accepted": accepted,
-            "at_static": static is not None,
-            "nearest_static_class": static,
+            "support": None
+            if static is None
+            else {"static_id": f"{static}|1", "static_class": static, "at": True},
         },
     )
 

@@ -1,4 +1,5 @@
-"""One valid payload per event type (version 1), shared by the events tests."""
+"""One valid payload per event type at its latest version (and the older versions' examples),
+shared by the events tests."""
 
 from __future__ import annotations
 
@@ -52,11 +53,26 @@ EXAMPLES: dict[str, dict[str, Any]] = {
         "mask_area": 812.0,
         "position": [1.0, 2.0, 0.9],
         "accepted": True,
-        "nearest_static_id": "Table|1",
-        "nearest_static_class": "Table",
-        "at_static": True,
+        "support": {"static_id": "Table|1", "static_class": "Table", "at": True},
     },
     "target_found": {"instance_id": "Cup|3", "position": [1.0, 2.0, 0.9], "approach": POSE},
     "search_failed": {"reason": "all candidates visited"},
     "task_ended": {"target": "Cup", "success": True, "path_length": 12.5},
 }
+
+#: Payloads of superseded versions, keyed (type, version); the upcast of each must equal
+#: ``EXAMPLES[type]`` where noted in the tests.
+OLD_EXAMPLES: dict[tuple[str, int], dict[str, Any]] = {
+    ("detection", 1): {
+        "object_class": "Cup",
+        "instance_id": "Cup|3",
+        "mask_area": 812.0,
+        "position": [1.0, 2.0, 0.9],
+        "accepted": True,
+        "nearest_static_id": "Table|1",
+        "nearest_static_class": "Table",
+        "at_static": True,
+    },
+}
+
+LATEST: dict[str, int] = {t: 1 for t in EXAMPLES} | {"detection": 2}

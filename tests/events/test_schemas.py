@@ -12,7 +12,7 @@ from jsonschema import Draft202012Validator
 from objsearch.events import EventStoreError, InvalidEventError, SchemaRegistry, default_registry
 from objsearch.events.schemas import schema_id
 
-from .payloads import EXAMPLES
+from .payloads import EXAMPLES, LATEST, OLD_EXAMPLES
 
 REPO = Path(__file__).resolve().parents[2]
 SCHEMA_DIR = REPO / "events" / "schema"
@@ -25,13 +25,24 @@ def registry() -> SchemaRegistry:
 
 def test_registry_knows_every_documented_type(registry: SchemaRegistry) -> None:
     assert set(registry.types) == set(EXAMPLES)
-    assert all(registry.latest_version(t) == 1 for t in registry.types)
+    assert {t: registry.latest_version(t) for t in registry.types} == LATEST
     assert registry.versions("moved") == (1,)
+    assert registry.versions("detection") == (1, 2)
 
 
 @pytest.mark.parametrize("event_type", sorted(EXAMPLES))
 def test_example_payloads_are_valid(registry: SchemaRegistry, event_type: str) -> None:
-    registry.validate(event_type, 1, EXAMPLES[event_type])
+    registry.validate(event_type, LATEST[event_type], EXAMPLES[event_type])
+
+
+@pytest.mark.parametrize("key", sorted(OLD_EXAMPLES))
+def test_old_example_payloads_are_valid_for_their_version_only(
+    registry: SchemaRegistry, key: tuple[str, int]
+) -> None:
+    event_type, version = key
+    registry.validate(event_type, version, OLD_EXAMPLES[key])
+    with pytest.raises(InvalidEventError):
+        registry.validate(event_type, LATEST[event_type], OLD_EXAMPLES[key])
 
 
 @pytest.mark.parametrize("event_type", sorted(EXAMPLES))
@@ -39,7 +50,7 @@ def test_every_required_field_is_enforced(registry: SchemaRegistry, event_type: 
     for field in EXAMPLES[event_type]:
         payload = {k: v for k, v in EXAMPLES[event_type].items() if k != field}
         with pytest.raises(InvalidEventError, match=f"'{field}' is a required property"):
-            registry.validate(event_type, 1, payload)
+            registry.validate(event_type, LATEST[event_type], payload)
 
 
 def test_message_names_type_version_path_and_reason(registry: SchemaRegistry) -> None:
@@ -83,7 +94,7 @@ def test_nested_errors_point_at_the_field(
         target = target[key]
     target[last] = value
     with pytest.raises(InvalidEventError, match=re.escape(f"event: {path}: ")) as info:
-        registry.validate(event_type, 1, payload)
+        registry.validate(event_type, LATEST[event_type], payload)
     assert info.value.path == path
     assert reason in str(info.value)
 

@@ -74,9 +74,7 @@ def test_a_detection_the_robot_ignored_is_flagged(tmp_path: Path) -> None:
             "mask_area": 5000.0,
             "position": [0.0, 0.0, 0.0],
             "accepted": True,
-            "nearest_static_id": None,
-            "nearest_static_class": None,
-            "at_static": False,
+            "support": None,
         }
         return [e, dataclasses.replace(e, type="detection", payload=missed)]
 

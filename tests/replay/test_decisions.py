@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from objsearch.agent.errors import ObjsearchError
@@ -85,3 +87,11 @@ def test_a_log_with_plans_but_no_run_is_refused() -> None:
     events = [e for e in read_log(LOG) if e.type != "run_started"]
     with pytest.raises(ObjsearchError, match="incomplete"):
         replay(events)
+
+
+def test_a_log_of_an_older_schema_version_replays_through_the_upcasters() -> None:
+    old = Path(__file__).parent.parent / "events" / "fixtures" / "v1-log"
+    assert any(e.version == 1 for e in read_log(old, upcast=False) if e.type == "detection")
+    replayer = replay(read_log(old))
+    assert replayer.decisions
+    assert all(d.same for d in replayer.decisions)

@@ -1,0 +1,230 @@
+"""Event store and analytics benchmarks, each against a baseline measured in the same run.
+
+    python benchmarks/events.py                      # the issue's sizes: 1 M fold, 10 M lake
+    python benchmarks/events.py --quick              # 100× smaller, for a smoke run
+    python benchmarks/events.py --kills 1000         # plus a longer crash test
+
+1. append: durable per-event appends and batched appends vs writing the same rows with pyarrow
+   (IPC file + one fsync): events/s and the ratio.
+2. projection: the scene graph of a synthetic run of --fold-events events (a realistic mix of
+   tasks, detections and moves), folded in Python (events in memory; and read_log + fold, as a
+   rate) vs the SQL closed form over the lake; the two must agree.
+3. query: every query of docs/analytics.md over a lake of --lake-events events (the synthetic run
+   committed --lake-events / --fold-events times under different run names) vs a full scan
+   (SELECT count(*) FROM events) as the baseline.
+
+Times are medians of --reps runs (the machine is shared); the ratio says how many times slower
+than its baseline. Targets (issue 4): fold ≤ 1 s at 1 M events; aggregates ≤ 1 s at 10 M.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import re
+import shutil
+import statistics
+import tempfile
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+from objsearch.agent.scene_graph import SceneGraphProjection
+from objsearch.events import Event, EventLog, fold, read_log
+from objsearch.events.arrow import events_to_tables
+from objsearch.events.crashtest import run_crash_test
+from objsearch.events.lake import Lake
+from objsearch.replay.analytics import open_analytics
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "analytics.md"
+DYNAMIC = ("Apple", "Cup", "Bowl", "Phone", "Laptop", "Vase", "Pillow", "ToiletPaper")
+STATIC = ("Sink", "Table", "Microwave", "Fridge", "Shelf", "Sofa", "Bed", "Toilet", "Bathtub",
+          "StoveBurner", "Desk")  # fmt: skip
+POSE = {"x": 1.0, "y": 2.0, "yaw": 0.0}
+
+
+def median_time(fn: Callable[[], Any], reps: int) -> tuple[float, Any]:
+    times, out = [], None
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), out
+
+
+def synthetic_run(n: int, seed: int = 0, stream: str = "bench") -> list[Event]:
+    """About ``n`` valid events: a run start, the prior, then tasks of detections and moves."""
+    rng = random.Random(seed)
+    events: list[Event] = []
+
+    def add(type_: str, payload: dict[str, Any], task: str | None) -> None:
+        seq = len(events) + 1
+        events.append(
+            Event(
+                event_id=f"00000000-0000-4000-8000-{seq:012x}",
+                stream=stream,
+                seq=seq,
+                time_ns=seq * 1_000_000,
+                recorded_at_ns=1_700_000_000_000_000_000 + seq,
+                type=type_,
+                version=2 if type_ == "detection" else 1,
+                task_id=task,
+                payload=payload,
+            )
+        )
+
+    add("run_started", {"home": "paper", "home_digest": "x", "method": "wpl", "alpha": 10.0,
+                        "update_mode": "all", "seed": seed, "params": {}}, None)  # fmt: skip
+    values = [{"dynamic": d, "static": s, "rel": rng.random()} for d in DYNAMIC for s in STATIC]
+    add("scene_graph_seeded", {"source": "synthetic", "values": values}, None)
+    task = 0
+    while len(events) < n:
+        task += 1
+        tid = f"task-{task:07d}"
+        target = rng.choice(DYNAMIC)
+        add("task_started", {"target": target, "start": "kitchen", "pose": POSE, "scene": 1}, tid)
+        for _ in range(rng.randint(4, 30)):
+            if rng.random() < 0.3:
+                add("moved", {"start": POSE, "end": POSE, "metres": rng.random() * 5,
+                              "rooms": ["kitchen"], "interrupted": False}, tid)  # fmt: skip
+            else:
+                static = rng.choice(STATIC)
+                add("detection", {
+                    "object_class": rng.choice(DYNAMIC), "instance_id": "i", "mask_area": 900.0,
+                    "position": [1.0, 2.0, 0.5], "accepted": rng.random() < 0.8,
+                    "support": {"static_id": f"{static}|1", "static_class": static,
+                                "at": rng.random() < 0.5},
+                }, tid)  # fmt: skip
+        add("task_ended", {"target": target, "success": True, "path_length": 10.0}, tid)
+    return events
+
+
+def bench_append(n_each: int, reps: int, root: Path) -> None:
+    print(f"\n## append ({n_each} events per durable run, {n_each * 10} batched; median of {reps})")
+    payload = {"reason": "all candidates visited in every room of the home"}
+
+    def durable() -> None:
+        d = Path(tempfile.mkdtemp(dir=root))
+        with EventLog.open(d, "a") as log:
+            for i in range(n_each):
+                log.append("search_failed", payload, time_ns=i)
+
+    def batched() -> Path:
+        d = Path(tempfile.mkdtemp(dir=root))
+        with EventLog.open(d, "a") as log:
+            for start in range(0, n_each * 10, 500):
+                with log.batch():
+                    for i in range(start, min(start + 500, n_each * 10)):
+                        log.append("search_failed", payload, time_ns=i)
+        return d
+
+    t_durable, _ = median_time(durable, reps)
+    t_batched, log_dir = median_time(batched, reps)
+    table = events_to_tables(read_log(log_dir))["search_failed"]
+
+    def ipc() -> None:
+        path = Path(tempfile.mkdtemp(dir=root)) / "rows.arrow"
+        with pa.OSFile(str(path), "wb") as sink, pa.ipc.new_file(sink, table.schema) as writer:
+            writer.write_table(table)
+        fd = os.open(path, os.O_RDONLY)
+        os.fsync(fd)
+        os.close(fd)
+
+    t_ipc, _ = median_time(ipc, reps)
+    rate = {
+        "durable per event": n_each / t_durable,
+        "batched (500/fsync)": n_each * 10 / t_batched,
+        "pyarrow IPC (baseline)": table.num_rows / t_ipc,
+    }
+    base = rate["pyarrow IPC (baseline)"]
+    print(f"{'writer':24} {'events/s':>12} {'baseline / this':>16}")
+    for name, r in rate.items():
+        print(f"{name:24} {r:12,.0f} {base / r:16.1f}")
+    t_read, _ = median_time(lambda: fold(read_log(log_dir), SceneGraphProjection()), reps)
+    print(f"read_log + fold of the batched log: {n_each * 10 / t_read:,.0f} events/s")
+
+
+def bench_projection(n: int, reps: int, root: Path) -> list[Event]:
+    print(f"\n## projection: scene graph of {n:,} events (median of {reps})")
+    t0 = time.perf_counter()
+    events = synthetic_run(n)
+    print(f"(generated {len(events):,} events in {time.perf_counter() - t0:.1f} s)")
+    t_py, graph = median_time(lambda: fold(iter(events), SceneGraphProjection()), reps)
+    lake = Lake(root / "fold-lake")
+    t0 = time.perf_counter()
+    lake.commit_tables(events_to_tables(events), robot="bench", run="r0000", date="2024-01-01")
+    print(f"(committed to the lake in {time.perf_counter() - t0:.1f} s)")
+    con = open_analytics(lake.root)
+    t_sql, rows = median_time(
+        lambda: con.execute("SELECT dynamic, static, rel FROM scene_graph").fetchall(), reps
+    )
+    sql = {(d, s): r for d, s, r in rows}
+    diff = max(abs(sql[k] - v) for k, v in graph.relations.items())
+    print(f"{'method':34} {'median s':>9} {'ratio':>7}")
+    print(f"{'Python fold (events in memory)':34} {t_py:9.3f} {1.0:7.2f}")
+    print(f"{'SQL closed form (DuckDB, Parquet)':34} {t_sql:9.3f} {t_sql / t_py:7.2f}")
+    print(f"max |SQL − fold| = {diff:.2e} over {len(sql)} pairs, {graph.tasks_folded:,} tasks")
+    return events
+
+
+def bench_queries(events: list[Event], copies: int, reps: int, root: Path) -> None:
+    lake = Lake(root / "query-lake")
+    tables = events_to_tables(events)
+    t0 = time.perf_counter()
+    for i in range(copies):
+        lake.commit_tables(tables, robot="bench", run=f"r{i:04d}", date="2024-01-01")
+    total = len(events) * copies
+    print(f"\n## queries over {total:,} events ({copies} runs; median of {reps})")
+    print(f"(lake written in {time.perf_counter() - t0:.1f} s)")
+    con = open_analytics(lake.root)
+    t_base, _ = median_time(lambda: con.execute("SELECT count(*) FROM events").fetchall(), reps)
+    print(f"{'query':44} {'median s':>9} {'÷ scan':>7}")
+    print(f"{'baseline: SELECT count(*) FROM events':44} {t_base:9.3f} {1.0:7.1f}")
+    for number, title, sql in re.findall(
+        r"### (\d+)\. ([^\n]*)\n.*?```sql\n(.*?)```", DOC.read_text(), re.S
+    ):
+        t, _ = median_time(lambda sql=sql: con.execute(sql).fetchall(), reps)
+        print(f"{'Q' + number + ' ' + title[:40]:44} {t:9.3f} {t / t_base:7.1f}")
+    t, _ = median_time(lambda: con.execute("SELECT * FROM scene_graph").fetchall(), reps)
+    print(f"{'scene_graph (closed form, every run)':44} {t:9.3f} {t / t_base:7.1f}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--append-events", type=int, default=2000)
+    ap.add_argument("--fold-events", type=int, default=1_000_000)
+    ap.add_argument("--lake-events", type=int, default=10_000_000)
+    ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--kills", type=int, default=0, help="also run the crash test this many times")
+    ap.add_argument("--quick", action="store_true", help="all sizes ÷ 100")
+    ap.add_argument("--only", choices=["append", "projection", "query", "crash"])
+    args = ap.parse_args()
+    if args.quick:
+        args.append_events //= 10
+        args.fold_events //= 100
+        args.lake_events //= 100
+    root = Path(tempfile.mkdtemp(prefix="objsearch-bench-"))
+    try:
+        if args.only in (None, "append"):
+            bench_append(args.append_events, args.reps, root)
+        if args.only in (None, "projection", "query"):
+            events = bench_projection(args.fold_events, args.reps, root)
+            if args.only != "projection":
+                copies = max(1, args.lake_events // len(events))
+                bench_queries(events, copies, args.reps, root)
+        if args.kills and args.only in (None, "crash"):
+            print(f"\n## crash test: {args.kills} SIGKILLs")
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                report = run_crash_test(root / "crash", kills=args.kills, seed=7)
+            print(report)
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

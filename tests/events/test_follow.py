@@ -1,0 +1,68 @@
+"""Readers may tail a log while its writer appends (follow_log)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from objsearch.events import CorruptLogError, EventLog, follow_log, read_log
+
+WRITER = r"""
+import sys, time
+from objsearch.events import EventLog
+
+with EventLog.open(sys.argv[1], "live") as log:
+    for i in range(int(sys.argv[2])):
+        if i % 10 == 0:
+            with log.batch():
+                for k in range(5):
+                    log.append("search_failed", {"reason": f"b{i}.{k}"}, time_ns=i)
+        else:
+            log.append("search_failed", {"reason": "x" * (i * 97 % 5000)}, time_ns=i)
+        time.sleep(0.001)
+"""
+
+
+def test_a_reader_follows_a_writer_in_another_process(tmp_path: Path) -> None:
+    with EventLog.open(tmp_path, "live"):
+        pass  # the log exists before the reader starts
+    proc = subprocess.Popen([sys.executable, "-c", WRITER, str(tmp_path), "120"])
+    try:
+        seen = [e.seq for e in follow_log(tmp_path, poll_interval=0.005, idle_timeout=2.0)]
+    finally:
+        proc.wait(timeout=30)
+    assert proc.returncode == 0
+    assert seen == list(range(1, len(seen) + 1))
+    assert seen[-1] == 12 * 5 + 108 == len(list(read_log(tmp_path)))
+
+
+def test_follow_waits_for_an_unfinished_line_then_reads_it(tmp_path: Path) -> None:
+    with EventLog.open(tmp_path, "s") as log:
+        log.append("search_failed", {"reason": "a"}, time_ns=0)
+    with EventLog.open(tmp_path / "other", "s") as donor:
+        donor.append("search_failed", {"reason": "a"}, time_ns=0)
+        donor.append("search_failed", {"reason": "b"}, time_ns=0)
+    line2 = (tmp_path / "other" / "events.log").read_bytes().splitlines(keepends=True)[1]
+    follower = follow_log(tmp_path, poll_interval=0.001, idle_timeout=0.05)
+    assert next(follower).seq == 1
+    with (tmp_path / "events.log").open("ab") as f:
+        f.write(line2[:20])  # half a record: not yet an event
+        f.flush()
+        assert [e.seq for e in follow_log(tmp_path, from_seq=2, idle_timeout=0.02)] == []
+        f.write(line2[20:])
+    assert [e.seq for e in follower] == [2]
+
+
+def test_follow_reports_mid_file_corruption_with_its_position(tmp_path: Path) -> None:
+    with EventLog.open(tmp_path, "s") as log:
+        for i in range(3):
+            log.append("search_failed", {"reason": f"r{i}"}, time_ns=0)
+    data = bytearray((tmp_path / "events.log").read_bytes())
+    second = data.index(b"\n") + 1
+    data[second + 5] ^= 0x01
+    (tmp_path / "events.log").write_bytes(bytes(data))
+    with pytest.raises(CorruptLogError) as info:
+        list(follow_log(tmp_path, idle_timeout=0.01))
+    assert (info.value.line, info.value.offset) == (2, second)

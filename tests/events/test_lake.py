@@ -1,0 +1,185 @@
+"""The Parquet lake: typed columns from the schemas, atomic and idempotent commits, any reader."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import duckdb
+import polars as pl
+import pyarrow as pa
+import pyarrow.dataset as ds
+import pytest
+from objsearch.events import EventLog, default_registry, read_log
+from objsearch.events.arrow import event_schema, events_to_tables
+from objsearch.events.lake import Lake, LakeError, compact_log
+from objsearch.events.sql import connect
+
+from .payloads import EXAMPLES, OLD_EXAMPLES
+
+V1_LOG = Path(__file__).parent / "fixtures" / "v1-log"
+
+
+def small_log(directory: Path, *, stream: str = "run-a", n: int = 3) -> Path:
+    with EventLog.open(directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000) as log:
+        for i, (event_type, payload) in enumerate(EXAMPLES.items()):
+            log.append(event_type, payload, time_ns=i, task_id="t1")
+        log.append("detection", OLD_EXAMPLES["detection", 1], time_ns=99, version=1)
+        for i in range(n):
+            log.append("search_failed", {"reason": f"r{i}"}, time_ns=100 + i)
+    return directory
+
+
+def test_every_type_has_typed_columns_and_no_json_text_but_params() -> None:
+    for event_type in default_registry().types:
+        schema = event_schema(event_type)
+        assert schema.names[:7] == [
+            "event_id",
+            "stream",
+            "seq",
+            "time_ns",
+            "recorded_at_ns",
+            "version",
+            "task_id",
+        ]
+        for field in schema:
+            if pa.types.is_string(field.type) and (event_type, field.name) == (
+                "run_started",
+                "params",
+            ):
+                continue
+            assert set(EXAMPLES[event_type]) | set(schema.names[:7]) >= {field.name}
+    detection = event_schema("detection")
+    assert detection.field("support").type == pa.struct(
+        [("static_id", pa.string()), ("static_class", pa.string()), ("at", pa.bool_())]
+    )
+    assert detection.field("position").type == pa.list_(pa.float64())
+    assert event_schema("moved").field("start").type == pa.struct(
+        [("x", pa.float64()), ("y", pa.float64()), ("yaw", pa.float64())]
+    )
+    assert event_schema("task_started").field("scene").type == pa.int64()
+
+
+def test_tables_hold_every_event_upcast(tmp_path: Path) -> None:
+    tables = events_to_tables(read_log(small_log(tmp_path)))
+    assert sum(t.num_rows for t in tables.values()) == len(EXAMPLES) + 4
+    detections = tables["detection"].to_pylist()
+    assert [d["version"] for d in detections] == [2, 2]
+    assert detections[1]["support"] == EXAMPLES["detection"]["support"]
+    assert tables["run_started"].column("params").to_pylist() == [
+        '{"fov_deg":90,"nested":{"ok":[1,2]}}'
+    ]
+
+
+def test_compact_commits_a_run_any_parquet_reader_can_read(tmp_path: Path) -> None:
+    lake = Lake(tmp_path / "lake")
+    info = compact_log(small_log(tmp_path / "log"), lake, robot="r2d2")
+    assert (info.robot, info.date, info.run) == ("r2d2", "2023-11-14", "run-a")
+    assert info.path == tmp_path / "lake" / "robot=r2d2" / "date=2023-11-14" / "run=run-a"
+    assert info.rows["search_failed"] == 4 and info.events == len(EXAMPLES) + 4
+    assert lake.runs() == [info]
+    assert not list((tmp_path / "lake" / ".staging").iterdir())
+
+    frame = pl.scan_parquet(
+        str(tmp_path / "lake" / "**" / "search_failed.parquet"), hive_partitioning=True
+    ).collect()
+    assert frame["reason"].to_list() == ["all candidates visited", "r0", "r1", "r2"]
+    assert set(frame["robot"].to_list()) == {"r2d2"}
+    dataset = ds.dataset(info.path / "detection.parquet")
+    assert dataset.to_table().column("support").type.num_fields == 3
+    con = connect(lake)
+    assert con.execute("SELECT count(*) FROM events").fetchone() == (len(EXAMPLES) + 4,)
+    assert con.execute("SELECT robot, date::VARCHAR, run FROM task_ended").fetchall() == [
+        ("r2d2", "2023-11-14", "run-a")
+    ]
+
+
+def test_views_exist_for_types_that_never_occurred(tmp_path: Path) -> None:
+    with EventLog.open(tmp_path / "log", "only", wall_clock=lambda: 0) as log:
+        log.append("search_failed", {"reason": "x"}, time_ns=0)
+    lake = Lake(tmp_path / "lake")
+    compact_log(tmp_path / "log", lake, robot="r")
+    con = connect(lake)
+    assert con.execute("SELECT count(*) FROM detection").fetchone() == (0,)
+    columns = {c[0]: c[1] for c in con.execute("DESCRIBE detection").fetchall()}
+    assert columns["support"].startswith("STRUCT(") and columns["run"] == "VARCHAR"
+    assert con.execute("SELECT count(*) FROM events").fetchone() == (1,)
+
+
+def test_recommitting_the_same_run_is_a_no_op(tmp_path: Path) -> None:
+    lake = Lake(tmp_path / "lake")
+    first = compact_log(V1_LOG, lake, robot="sim")
+    mtime = (first.path / "detection.parquet").stat().st_mtime_ns
+    assert compact_log(V1_LOG, lake, robot="sim") == first
+    assert (first.path / "detection.parquet").stat().st_mtime_ns == mtime
+
+
+def test_other_content_for_a_run_needs_replace(tmp_path: Path) -> None:
+    lake = Lake(tmp_path / "lake")
+    log = small_log(tmp_path / "log")
+    compact_log(log, lake, robot="r")
+    with EventLog.open(log, "run-a") as writer:
+        writer.append("search_failed", {"reason": "later"}, time_ns=1000)
+    with pytest.raises(LakeError, match=r"already holds run 'run-a'.*replace=True"):
+        compact_log(log, lake, robot="r")
+    info = compact_log(log, lake, robot="r", replace=True)
+    assert info.rows["search_failed"] == 5
+    assert len(lake.runs()) == 1
+
+
+def test_a_log_being_written_is_not_compacted(tmp_path: Path) -> None:
+    log = small_log(tmp_path / "log")
+    with EventLog.open(log, "run-a"), pytest.raises(LakeError, match="being written"):
+        compact_log(log, Lake(tmp_path / "lake"), robot="r")
+
+
+def test_a_failed_commit_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from objsearch.events import lake as lake_module
+
+    real = lake_module._write_parquet
+    calls = []
+
+    def failing(path: Path, table: pa.Table) -> None:
+        calls.append(path)
+        if len(calls) == 3:
+            raise OSError(28, "No space left on device")
+        real(path, table)
+
+    monkeypatch.setattr(lake_module, "_write_parquet", failing)
+    lake = Lake(tmp_path / "lake")
+    with pytest.raises(OSError, match="No space"):
+        compact_log(small_log(tmp_path / "log"), lake, robot="r")
+    assert lake.runs() == []
+    assert not list((tmp_path / "lake").glob("robot=*/date=*/run=*"))
+    assert not list((tmp_path / "lake" / ".staging").iterdir())
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"robot": "../x"}, "robot name '../x'"),
+        ({"robot": "r", "run": "a b"}, "run name 'a b'"),
+        ({"robot": "r", "date": "yesterday"}, "not an ISO date"),
+    ],
+)
+def test_bad_partition_values_are_refused(
+    tmp_path: Path, kwargs: dict[str, str], message: str
+) -> None:
+    with pytest.raises(LakeError, match=message):
+        compact_log(small_log(tmp_path / "log"), Lake(tmp_path / "lake"), **kwargs)
+
+
+def test_a_table_that_does_not_fit_its_schema_is_refused(tmp_path: Path) -> None:
+    table = pa.table({"event_id": ["x"], "stream": ["s"]})
+    with pytest.raises(LakeError, match="missing"):
+        Lake(tmp_path).commit_tables({"moved": table}, robot="r", run="a", date="2024-01-01")
+
+
+def test_duckdb_reads_the_files_without_objsearch(tmp_path: Path) -> None:
+    info = compact_log(V1_LOG, Lake(tmp_path), robot="sim")
+    rows = (
+        duckdb.connect()
+        .execute(f"SELECT count(*), sum(support.at::INT) FROM '{info.path}/detection.parquet'")
+        .fetchone()
+    )
+    raw = [e for e in read_log(V1_LOG, upcast=False) if e.type == "detection"]
+    assert rows == (len(raw), sum(e.payload["at_static"] for e in raw))
