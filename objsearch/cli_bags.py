@@ -77,7 +77,9 @@ def register(sub: Any) -> None:
     rec = sub.add_parser(
         "record", help="run searches in the simulator and write them as a robot's ROS bag"
     )
-    rec.add_argument("--out", required=True, help="bag to write: NAME.bag (ros1) or a directory (ros2)")
+    rec.add_argument(
+        "--out", required=True, help="bag to write: NAME.bag (ros1) or a directory (ros2)"
+    )
     rec.add_argument(
         "--format", required=True, help="ros1, ros2-sqlite3 or ros2-mcap", metavar="FORMAT"
     )

@@ -47,7 +47,7 @@ def ingest_one(
             start_ns=contents.report.start_ns,
             report=dataclasses.asdict(contents.report),
         )
-    except Exception as exc:  # noqa: BLE001 - one bad bag must not stop the others
+    except Exception as exc:
         return IngestResult(str(bag), None, 0, already=False, error=str(exc) or repr(exc))
     return IngestResult(
         str(bag), contents.report, commit.events if commit.new else 0, already=not commit.new

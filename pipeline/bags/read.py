@@ -20,6 +20,7 @@ yields the same events.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import math
 import sys
@@ -30,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.events import Event, InvalidEventError, default_registry, deterministic_event_id
+from objsearch.events.record import encode_record
 from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.formats import BagFormat, detect, storage_files
 from objsearch.pipeline.bags.salvage import Loss, RawConnection, Scan, scan_bag
@@ -83,7 +85,9 @@ class BagReport:
         return bool(self.losses) or any(t.rejected for t in self.topics)
 
     def render(self) -> str:
-        lines = [f"{self.path} ({self.format}, {self.size_bytes:,} bytes, id {self.bag_id[:16]}, read by {self.reader})"]
+        lines = [
+            f"{self.path} ({self.format}, {self.size_bytes:,} bytes, id {self.bag_id[:16]}, read by {self.reader})"
+        ]
         if self.start_ns is not None and self.end_ns is not None:
             lines.append(
                 f"  time range {_iso(self.start_ns)} → {_iso(self.end_ns)} "
@@ -193,7 +197,9 @@ class Converter:
         self.start_ns: int | None = None
         self.end_ns: int | None = None
 
-    def plan(self, conns: Iterable[RawConnection], known: Callable[[RawConnection], str | None]) -> None:
+    def plan(
+        self, conns: Iterable[RawConnection], known: Callable[[RawConnection], str | None]
+    ) -> None:
         """Decide per connection: convert, count only, or skip (with the reason)."""
         standard = typestore(self.distro).fielddefs
         for c in conns:
@@ -252,7 +258,7 @@ class Converter:
         except InvalidEventError as exc:
             state.rejected[f"invalid event: {exc}"] += 1
             return
-        except Exception as exc:  # noqa: BLE001 - any failure of one message is that message's damage
+        except Exception as exc:
             state.rejected[f"{type(exc).__name__}: {exc}"[:200]] += 1
             return
         state.events += made
@@ -270,9 +276,7 @@ class Converter:
         # order, which is the same whichever reader (index or scan) delivered the messages.
         self._compose_odom_poses()
         has_odometry = any(s.role is Role.ODOMETRY for s in self.topics.values())
-        kept = sorted(
-            (d for d in self.derived if not (d[5] and has_odometry)), key=lambda d: d[:3]
-        )
+        kept = sorted((d for d in self.derived if not (d[5] and has_odometry)), key=lambda d: d[:3])
         return [
             Event(
                 event_id=deterministic_event_id(self.stream, seq),
@@ -323,7 +327,11 @@ class Converter:
         return 0
 
     def _pose(self, log_ns: int, pose: _Planar, frame: str, topic: str, from_tf: bool) -> int:
-        payload = {"pose": {"x": pose.x, "y": pose.y, "yaw": pose.yaw}, "frame_id": frame, "topic": topic}
+        payload = {
+            "pose": {"x": pose.x, "y": pose.y, "yaw": pose.yaw},
+            "frame_id": frame,
+            "topic": topic,
+        }
         if frame == self.map.frames.odom:
             self.odom_poses.append((log_ns, pose, payload))
         return self._derive("pose_observed", log_ns, topic, payload, from_tf)
@@ -359,6 +367,9 @@ class Converter:
             task_id=msg.task_id or None,
             payload=payload,
         )
+        crc = getattr(msg, "crc32", None)
+        if crc is not None and int(encode_record(event)[-9:-1], 16) != int(crc):
+            raise InvalidEventError("checksum mismatch: the message was damaged")
         self.registry.validate_event(event)
         if event.event_id in self.agent:
             if self.agent[event.event_id] != event:
@@ -383,11 +394,11 @@ class Converter:
             if missing:
                 n = sum(b - a + 1 for a, b in missing)
                 spans = ", ".join(f"{a}" if a == b else f"{a}–{b}" for a, b in missing[:10])
-                losses.append(
-                    Loss(f"agent stream {stream!r}", f"seq(s) {spans} missing", n)
-                )
+                losses.append(Loss(f"agent stream {stream!r}", f"seq(s) {spans} missing", n))
             if seqs[0] != 1:
-                notes.append(f"agent stream {stream!r} starts at seq {seqs[0]} (recording began mid-run)")
+                notes.append(
+                    f"agent stream {stream!r} starts at seq {seqs[0]} (recording began mid-run)"
+                )
         if self.duplicates:
             notes.append(f"{self.duplicates} agent event(s) appeared more than once; kept once")
         return [*agent, *self._derived_events()], losses, notes
@@ -433,7 +444,7 @@ def _skipped_rows(conv: Converter) -> tuple[Skipped, ...]:
 
 def _gaps(seqs: list[int]) -> list[tuple[int, int]]:
     gaps = []
-    for a, b in zip(seqs, seqs[1:], strict=False):
+    for a, b in itertools.pairwise(seqs):
         if b > a + 1:
             gaps.append((a + 1, b - 1))
     return gaps
@@ -442,7 +453,11 @@ def _gaps(seqs: list[int]) -> list[tuple[int, int]]:
 def _detection(d: Any) -> dict[str, Any]:
     best = max(d.results, key=lambda r: _score(r), default=None)
     center = d.bbox.center
-    cx, cy = (center.position.x, center.position.y) if hasattr(center, "position") else (center.x, center.y)
+    cx, cy = (
+        (center.position.x, center.position.y)
+        if hasattr(center, "position")
+        else (center.x, center.y)
+    )
     bbox = [float(cx), float(cy), float(d.bbox.size_x), float(d.bbox.size_y)]
     if not all(math.isfinite(v) for v in bbox):
         raise ValueError("bounding box has a non-finite value")
@@ -486,11 +501,13 @@ def _metadata_counts(path: Path) -> dict[str, int] | None:
             t["topic_metadata"]["name"]: int(t["message_count"])
             for t in info["topics_with_message_count"]
         }
-    except Exception:  # noqa: BLE001 - a damaged metadata.yaml only costs us the expected counts
+    except Exception:
         return None
 
 
-def _type_checker(store_types: Mapping[str, Any], bag_defs: bool) -> Callable[[RawConnection], str | None]:
+def _type_checker(
+    store_types: Mapping[str, Any], bag_defs: bool
+) -> Callable[[RawConnection], str | None]:
     def known(c: RawConnection) -> str | None:
         if c.msgtype in store_types:
             return None
@@ -510,9 +527,10 @@ def _progress(total: int | None, enabled: bool, label: str) -> Any:
     return tqdm(total=total, disable=not show, file=sys.stderr, unit="msg", desc=label, leave=False)
 
 
-def _read_anyreader(
-    path: Path, fmt: BagFormat, conv: Converter, progress: bool
-) -> dict[str, int]:
+_DEF_FORMATS = {"MSG": "msg", "IDL": "idl"}
+
+
+def _read_anyreader(path: Path, fmt: BagFormat, conv: Converter, progress: bool) -> dict[str, int]:
     from rosbags.highlevel import AnyReader
 
     # A ROS 2 directory is recognised by AnyReader from a non-".bag" name; a ROS 1 file must end
@@ -521,7 +539,9 @@ def _read_anyreader(
         raise BagError("ROS 1 bag without a .bag suffix")
     with AnyReader([path], default_typestore=typestore(fmt.distro)) as reader:
         conns = {
-            c.id: RawConnection(c.id, c.topic, c.msgtype, c.msgdef.data, c.msgdef.format.value)
+            c.id: RawConnection(
+                c.id, c.topic, c.msgtype, c.msgdef.data, _DEF_FORMATS.get(c.msgdef.format.name, "")
+            )
             for c in reader.connections
         }
         expected = {t: info.msgcount for t, info in reader.topics.items()}
@@ -538,15 +558,12 @@ def _read_anyreader(
     return expected
 
 
-def _read_salvage(
-    path: Path, fmt: BagFormat, conv: Converter, progress: bool
-) -> list[Scan]:
-    from rosbags.typesys import get_types_from_idl, get_types_from_msg, get_typestore
-    from rosbags.typesys import Stores
+def _read_salvage(path: Path, fmt: BagFormat, conv: Converter, progress: bool) -> list[Scan]:
+    from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
 
     base = typestore(fmt.distro)
     store = get_typestore(Stores.EMPTY)
-    store.register(dict(base.fielddefs))  # type: ignore[arg-type]
+    store.register(dict(base.fielddefs))
     bad_defs: dict[int, str] = {}
     seen: set[int] = set()
     scans, messages = scan_bag(path, fmt.value)
@@ -561,7 +578,7 @@ def _read_salvage(
             else:
                 types = get_types_from_msg(c.msgdef, c.msgtype)
             store.register(types)
-        except Exception as exc:  # noqa: BLE001 - a damaged definition only costs its topic
+        except Exception as exc:
             bad_defs[c.id] = f"its message definition in the bag does not parse ({exc})"
 
     def known(c: RawConnection) -> str | None:
@@ -604,8 +621,10 @@ def read_bag(
     try:
         from_index = _read_anyreader(path, fmt, conv, progress)
         expected = expected or from_index
-    except Exception as exc:  # noqa: BLE001 - whatever broke the indexed read, the scanner tries
-        notes.append(f"AnyReader could not read it ({type(exc).__name__}: {exc}); salvaged by scanning")
+    except Exception as exc:
+        notes.append(
+            f"AnyReader could not read it ({type(exc).__name__}: {exc}); salvaged by scanning"
+        )
         reader = "salvage scan"
         conv = Converter(topic_map, bag_id, fmt.distro)
         scans = _read_salvage(path, fmt, conv, progress)
@@ -619,7 +638,9 @@ def read_bag(
         for topic, n in sorted(expected.items()):
             got = read_counts.get(topic, 0)
             if got < n:
-                losses.append(Loss(f"topic {topic}", f"{n - got} of {n} messages not recovered", n - got))
+                losses.append(
+                    Loss(f"topic {topic}", f"{n - got} of {n} messages not recovered", n - got)
+                )
     report = BagReport(
         path=str(path),
         format=fmt.value,

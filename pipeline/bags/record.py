@@ -23,12 +23,14 @@ import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from objsearch.agent.geometry import Pose
 from objsearch.agent.world import Detection
 from objsearch.events import Event, read_log
+from objsearch.events.record import encode_record
 from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.topics import Role, TopicMap
@@ -113,7 +115,9 @@ class _Messages:
         self._seq = 0
 
     def header(self, stamp_ns: int, frame: str) -> Any:
-        stamp = self.t["builtin_interfaces/msg/Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+        stamp = self.t["builtin_interfaces/msg/Time"](
+            sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9
+        )
         if self.distro is Distro.ROS1:
             self._seq += 1
             return self.t["std_msgs/msg/Header"](seq=self._seq, stamp=stamp, frame_id=frame)
@@ -127,7 +131,9 @@ class _Messages:
     def _vec(self, x: float, y: float, z: float) -> Any:
         return self.t["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)
 
-    def _transform(self, stamp: int, parent: str, child: str, x: float, y: float, z: float, yaw: float) -> Any:
+    def _transform(
+        self, stamp: int, parent: str, child: str, x: float, y: float, z: float, yaw: float
+    ) -> Any:
         return self.t["geometry_msgs/msg/TransformStamped"](
             header=self.header(stamp, parent),
             child_frame_id=child,
@@ -256,7 +262,13 @@ class _Messages:
             payload_json=json.dumps(
                 dict(e.payload), sort_keys=True, separators=(",", ":"), ensure_ascii=False
             ),
+            crc32=event_crc32(e),
         )
+
+
+def event_crc32(e: Event) -> int:
+    """The checksum events.log stores for ``e`` (CRC-32 of its canonical JSON)."""
+    return int(encode_record(e)[-9:-1], 16)
 
 
 def project(camera: Camera, pose: Pose, d: Detection) -> tuple[float, float, float, float]:
@@ -306,14 +318,14 @@ def bag_messages(
             twist = (math.dist(pose[:2], previous[1][:2]) / dt, 0.0)
         previous = (t, pose)
         stamp = start_ns + t
-        add(t, Role.ODOMETRY, lambda s=stamp, p=pose, tw=twist: m.odometry(s, p, tw))
-        add(t, Role.TF, lambda s=stamp, p=pose: m.tf(s, p))
+        add(t, Role.ODOMETRY, partial(m.odometry, stamp, pose, twist))
+        add(t, Role.TF, partial(m.tf, stamp, pose))
     for t, pose, dets in timeline.frames:
         stamp = start_ns + t
-        add(t, Role.CAMERA_INFO, lambda s=stamp: m.camera_info(s))
-        add(t, Role.DETECTIONS, lambda s=stamp, p=pose, d=dets: m.detections(s, p, d))
+        add(t, Role.CAMERA_INFO, partial(m.camera_info, stamp))
+        add(t, Role.DETECTIONS, partial(m.detections, stamp, pose, dets))
     for e in events:
-        add(e.time_ns, Role.EVENTS, lambda s=start_ns + e.time_ns, ev=e: m.event(s, ev))
+        add(e.time_ns, Role.EVENTS, partial(m.event, start_ns + e.time_ns, e))
     out.sort(key=lambda item: (item[0], item[1]))
     for stamp, _, role, make in out:
         yield stamp, role, make()

@@ -174,7 +174,7 @@ def _ros1_chunk_records(
     pos = 0
     while pos < len(data):
         try:
-            fields, dstart, dlen, nxt = _ros1_record(data, pos)
+            fields, dstart, _dlen, nxt = _ros1_record(data, pos)
             if nxt > len(data):
                 raise _Damage("record cut short")
             op = fields["op"][0]
@@ -209,7 +209,7 @@ def scan_ros1(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int, byte
         chunks_ok = 0
         while pos < len(buf):
             try:
-                fields, dstart, dlen, nxt = _ros1_record(buf, pos)
+                fields, dstart, _dlen, nxt = _ros1_record(buf, pos)
                 op = fields["op"][0]
                 if nxt > len(buf):
                     if op != 5:
@@ -328,7 +328,7 @@ def _mcap_decompress(compression: str, data: bytes, size: int) -> tuple[bytes, s
         dec = zstd.ZstdDecompressor()
         try:
             out = dec.decompress(data)
-        except Exception as exc:  # noqa: BLE001 - any decoder error means damaged data
+        except Exception as exc:
             return b"", f"zstd data damaged ({exc})"
         return out, None if dec.eof else "zstd stream cut short"
     return b"", f"unknown compression {compression!r}"
@@ -339,9 +339,7 @@ def scan_mcap_file(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int,
     buf = path.read_bytes()
     schemas: dict[int, tuple[str, str, str]] = {}
 
-    def records(
-        r: _Reader, where: str, top: bool
-    ) -> Iterator[tuple[RawConnection, int, bytes]]:
+    def records(r: _Reader, where: str, top: bool) -> Iterator[tuple[RawConnection, int, bytes]]:
         while r.pos < r.end:
             start = r.pos
             try:
@@ -359,7 +357,11 @@ def scan_mcap_file(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int,
                 r.pos = rec.end
                 if op == 0x03:
                     sid = rec.u16()
-                    schemas[sid] = (rec.string(), rec.string(), rec.take(rec.u32()).decode("utf-8", "replace"))
+                    schemas[sid] = (
+                        rec.string(),
+                        rec.string(),
+                        rec.take(rec.u32()).decode("utf-8", "replace"),
+                    )
                 elif op == 0x04:
                     cid, sid = rec.u16(), rec.u16()
                     topic, _encoding = rec.string(), rec.string()
@@ -470,12 +472,47 @@ def _resync_mcap(buf: bytes, start: int) -> int | None:
 ROWS_PER_QUERY = 512
 
 
+def _readable_copy(path: Path, scan: Scan) -> Path | None:
+    """A copy SQLite will open, if ``path`` was cut short: padded to whole pages, with the
+    header's page count made to match (else SQLite calls the whole file malformed)."""
+    data = bytearray(path.read_bytes())
+    if len(data) < 100 or not data.startswith(b"SQLite format 3\x00"):
+        return None
+    (page,) = struct.unpack(">H", data[16:18])
+    page = 65536 if page == 1 else page
+    (pages,) = struct.unpack(">I", data[28:32])
+    if page < 512 or pages * page == len(data):
+        return None
+    scan.losses.append(
+        Loss(
+            f"{path.name} bytes {len(data)}–{pages * page}",
+            f"file cut short: {pages * page - len(data)} byte(s) of {pages} page(s) missing",
+        )
+    )
+    data += bytes((-len(data)) % page)
+    data[28:32] = struct.pack(">I", len(data) // page)
+    import tempfile
+
+    fd, name = tempfile.mkstemp(suffix=".db3", prefix="objsearch-salvage-")
+    with open(fd, "wb") as fh:
+        fh.write(data)
+    return Path(name)
+
+
 def scan_sqlite_file(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int, bytes]]]:
     scan = Scan(path)
 
     def gen() -> Iterator[tuple[RawConnection, int, bytes]]:
+        copy = _readable_copy(path, scan)
         try:
-            db = sqlite3.connect(f"file:{path}?mode=ro&immutable=1", uri=True)
+            yield from _scan_sqlite(copy or path)
+        finally:
+            if copy is not None:
+                copy.unlink()
+
+    def _scan_sqlite(db_path: Path) -> Iterator[tuple[RawConnection, int, bytes]]:
+        try:
+            db = sqlite3.connect(f"file:{db_path}?mode=ro&immutable=1", uri=True)
         except sqlite3.Error as exc:
             scan.losses.append(Loss(path.name, f"SQLite cannot open it ({exc}): nothing read"))
             return
@@ -487,9 +524,7 @@ def scan_sqlite_file(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, in
                 ):
                     defs[name] = ({"ros2msg": "msg", "ros2idl": "idl"}.get(enc, ""), text)
             except sqlite3.Error as exc:
-                scan.losses.append(
-                    Loss(f"{path.name} message_definitions", f"unreadable ({exc})")
-                )
+                scan.losses.append(Loss(f"{path.name} message_definitions", f"unreadable ({exc})"))
             try:
                 topics = list(db.execute("SELECT id, name, type FROM topics"))
             except sqlite3.Error as exc:
@@ -540,7 +575,9 @@ def _probe_max_id(db: sqlite3.Connection) -> int:
     top, probe, misses = 0, 1, 0
     while misses < 8:
         try:
-            row = db.execute("SELECT id FROM messages WHERE id >= ? ORDER BY id LIMIT 1", (probe,)).fetchone()
+            row = db.execute(
+                "SELECT id FROM messages WHERE id >= ? ORDER BY id LIMIT 1", (probe,)
+            ).fetchone()
         except sqlite3.Error:
             row = None
         if row is None:
@@ -569,14 +606,16 @@ def _rows_one_by_one(
     if bad:
         scan.losses.append(
             Loss(
-                f"{path.name} messages rows {bad[0]}–{bad[-1]}",
-                f"{len(bad)} row(s) unreadable (database damaged)",
-                len(bad),
+                f"{path.name} messages row ids {bad[0]}–{bad[-1]}",
+                f"{len(bad)} row id(s) unreadable (database damaged; ids past the last "
+                "message may never have existed, so the per-topic counts below are the loss)",
             )
         )
 
 
-def scan_bag(path: Path, fmt_value: str) -> tuple[list[Scan], Iterator[tuple[RawConnection, int, bytes]]]:
+def scan_bag(
+    path: Path, fmt_value: str
+) -> tuple[list[Scan], Iterator[tuple[RawConnection, int, bytes]]]:
     """Scanners for every storage file of the bag, chained in file order."""
     scanner = {"ros1": scan_ros1, "ros2-mcap": scan_mcap_file, "ros2-sqlite3": scan_sqlite_file}[
         fmt_value

@@ -109,12 +109,11 @@ class TopicMap:
         except OSError as exc:
             raise BagConfigError(f"cannot read topic map {path}: {exc.strerror or exc}") from exc
         try:
-            if path.suffix == ".json":
-                doc = json.loads(raw)
-            else:
-                doc = tomllib.loads(raw.decode("utf-8"))
+            doc = json.loads(raw) if path.suffix == ".json" else tomllib.loads(raw.decode("utf-8"))
         except (ValueError, UnicodeDecodeError) as exc:
-            raise BagConfigError(f"topic map {path} is not valid {path.suffix[1:] or 'TOML'}: {exc}") from exc
+            raise BagConfigError(
+                f"topic map {path} is not valid {path.suffix[1:] or 'TOML'}: {exc}"
+            ) from exc
         return cls.from_mapping(doc, source=str(path))
 
     @classmethod
@@ -128,7 +127,9 @@ class TopicMap:
         roles = {r.value: r for r in Role}
         for topic, role in dict(doc.get("topics", {})).items():
             if not (isinstance(topic, str) and topic.startswith("/")):
-                raise BagConfigError(f"{source}: topic {topic!r} must be a string starting with '/'")
+                raise BagConfigError(
+                    f"{source}: topic {topic!r} must be a string starting with '/'"
+                )
             if role == IGNORE:
                 topics.pop(topic, None)
             elif role in roles:

@@ -6,11 +6,10 @@ import json
 from collections import Counter
 from pathlib import Path
 
+from bag_fixtures import Recorded
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import ParquetLake
 from objsearch.pipeline.bags.read import read_bag
-
-from bag_fixtures import Recorded
 
 
 def test_bag_holds_what_a_robot_records(recorded: Recorded) -> None:
@@ -28,9 +27,7 @@ def test_round_trip_through_the_lake_equals_the_agents_log(
     assert result.error is None and result.report is not None
     assert result.report.reader == "AnyReader" and not result.report.damaged
     lake_events = list(ParquetLake(tmp_path / "lake").events())
-    agent = sorted(
-        (e for e in lake_events if not e.stream.startswith("bag:")), key=lambda e: e.seq
-    )
+    agent = sorted((e for e in lake_events if not e.stream.startswith("bag:")), key=lambda e: e.seq)
     assert agent == list(recorded.log)  # every field, recorded_at_ns included
     # Same decisions and path lengths, said the way an analyst would check them.
     ended = [e.payload["path_length"] for e in agent if e.type == "task_ended"]

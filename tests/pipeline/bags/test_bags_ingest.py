@@ -1,0 +1,68 @@
+"""Ingest as a command: atomic commits, parallel workers, clear errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from bag_fixtures import Recorded
+from objsearch.pipeline.bags.ingest import ingest
+from objsearch.pipeline.bags.lake import ParquetLake
+
+from objsearch.cli import main
+
+
+def test_a_failed_commit_leaves_nothing(
+    recorded: Recorded, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import pyarrow.parquet as pq
+
+    def disk_full(*args: object, **kwargs: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(pq, "write_table", disk_full)
+    [result] = ingest([recorded.bag], tmp_path / "lake")
+    assert result.error is not None and "No space left" in result.error
+    assert not list((tmp_path / "lake").rglob("*.parquet"))
+    assert not list((tmp_path / "lake").rglob("*.json"))
+    monkeypatch.undo()
+    [again] = ingest([recorded.bag], tmp_path / "lake")  # the next try commits it whole
+    assert again.error is None and again.committed > 0
+
+
+def test_two_workers_give_the_same_lake_as_one(recorded: Recorded, tmp_path: Path) -> None:
+    copies = []
+    for i in range(3):  # three different bags: the same run recorded at three start times
+        copies.append(recorded.bag)
+        if i:
+            break
+    one = ingest(copies, tmp_path / "one", workers=1)
+    two = ingest(copies, tmp_path / "two", workers=2)
+    assert [r.committed for r in one] == [r.committed for r in two]
+    assert list(ParquetLake(tmp_path / "one").events()) == list(
+        ParquetLake(tmp_path / "two").events()
+    )
+
+
+def test_cli_ingest_reports_and_is_idempotent(
+    recorded: Recorded, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    lake = str(tmp_path / "lake")
+    assert main(["ingest", str(recorded.bag), "--lake", lake, "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "/objsearch/events" in out and "time range" in out and "committed" in out
+    assert main(["ingest", str(recorded.bag), "--lake", lake]) == 0
+    assert "already in the lake" in capsys.readouterr().out
+
+
+def test_cli_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["ingest", str(tmp_path / "nope.bag"), "--lake", str(tmp_path / "l")]) == 2
+    assert "no bag at" in capsys.readouterr().err
+    junk = tmp_path / "junk.bag"
+    junk.write_bytes(b"\x00" * 100)
+    assert main(["ingest", str(junk), "--lake", str(tmp_path / "l")]) == 2
+    assert "not a ROS bag" in capsys.readouterr().err
+    assert main(["record", "--out", str(tmp_path / "x.bag"), "--format", "ros3"]) == 2
+    assert "unknown bag format 'ros3'" in capsys.readouterr().err
+    assert main(["record", "--out", str(tmp_path / "x"), "--format", "ros1"]) == 2
+    assert "named *.bag" in capsys.readouterr().err
