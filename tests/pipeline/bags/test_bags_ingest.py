@@ -31,14 +31,25 @@ def test_a_failed_commit_leaves_nothing(
 
 
 def test_two_workers_give_the_same_lake_as_one(recorded: Recorded, tmp_path: Path) -> None:
-    copies = []
-    for i in range(3):  # three different bags: the same run recorded at three start times
-        copies.append(recorded.bag)
-        if i:
-            break
-    one = ingest(copies, tmp_path / "one", workers=1)
-    two = ingest(copies, tmp_path / "two", workers=2)
+    import shutil
+
+    from objsearch.pipeline.bags.formats import storage_files
+
+    # A second, different bag: the same recording cut at 80 % (read by the salvage scanner).
+    cut = tmp_path / ("cut.bag" if recorded.bag.is_file() else "cut")
+    if recorded.bag.is_dir():
+        shutil.copytree(recorded.bag, cut)
+    else:
+        shutil.copy(recorded.bag, cut)
+    data = storage_files(cut)[0]
+    with data.open("r+b") as fh:
+        fh.truncate(int(data.stat().st_size * 0.8))
+    bags = [recorded.bag, cut]
+    one = ingest(bags, tmp_path / "one", workers=1)
+    two = ingest(bags, tmp_path / "two", workers=2)
+    assert all(r.error is None and r.committed > 0 for r in two)
     assert [r.committed for r in one] == [r.committed for r in two]
+    assert [r.report for r in one] == [r.report for r in two]
     assert list(ParquetLake(tmp_path / "one").events()) == list(
         ParquetLake(tmp_path / "two").events()
     )
