@@ -37,6 +37,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/planner.py
 	$(BIN)/python benchmarks/mapping.py
 	$(BIN)/python benchmarks/events.py $(BENCH_ARGS)
+	$(BIN)/python benchmarks/ingest.py
 
 data: $(STAMP)
 	$(BIN)/objsearch data build --source $(SHARED)

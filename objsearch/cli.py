@@ -174,6 +174,7 @@ def cmd_graph(args: argparse.Namespace) -> int:
 #: Modules that add subcommands: each has ``register(sub)`` taking the subparsers action and keeps
 #: its heavy imports inside the command functions, so ``objsearch --help`` stays fast.
 COMMAND_MODULES: tuple[str, ...] = (
+    "objsearch.cli_bags",
     "objsearch.cli_map",
     "objsearch.cli_query",
     "objsearch.cli_replay",

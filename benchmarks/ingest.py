@@ -1,0 +1,93 @@
+"""Bag ingest against plain AnyReader iteration with deserialisation, over the same bags.
+
+    python benchmarks/ingest.py [--reps 3] [--format ros2-mcap] [--bags 2]
+
+Records one simulated run (scene 1, targets Apple and Cup, all 8 starts: 16 searches, odometry
+at 10 Hz) per bag with ``objsearch record`` (bags differ by their start time), then per rep:
+
+* raw: ``AnyReader`` over every message of one bag, ``deserialize`` each (the floor any reader
+  of the bag pays);
+* ingest: ``objsearch ingest`` of the same bag into a fresh lake, 1 worker (hash, read,
+  deserialise what it converts, convert, validate the agent's events, write Parquet, commit);
+* ingest of ``--bags`` bags with 1 worker and with 2 workers (scaling).
+
+Prints medians, messages/s and MB/s, and the ratios (target: ingest ≥ 0.8 × raw).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+from objsearch.pipeline.bags.formats import BagFormat, storage_files
+from objsearch.pipeline.bags.ingest import ingest
+from objsearch.pipeline.bags.read import iter_raw
+from objsearch.pipeline.bags.record import DEFAULT_START_NS, record
+
+
+def size_of(bag: Path) -> int:
+    return sum(f.stat().st_size for f in storage_files(bag))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--format", default="ros2-mcap", choices=[f.value for f in BagFormat])
+    ap.add_argument("--bags", type=int, default=2, help="bags for the 1 → 2 worker scaling")
+    args = ap.parse_args()
+    fmt = BagFormat(args.format)
+    work = Path(tempfile.mkdtemp(prefix="objsearch-bench-ingest-"))
+    try:
+        bags = []
+        for i in range(args.bags):
+            name = f"run{i}.bag" if fmt is BagFormat.ROS1 else f"run{i}"
+            rec = record(
+                work / name,
+                fmt,
+                scenes=[1],
+                targets=["Apple", "Cup"],
+                start_ns=DEFAULT_START_NS + i * 86_400 * 10**9,
+            )
+            bags.append(rec.path)
+        bag = bags[0]
+        messages = sum(1 for _ in iter_raw(bag))
+        mb = size_of(bag) / 1e6
+        print(f"bag: {fmt.value}, {messages} messages, {mb:.1f} MB; {args.reps} reps, medians")
+        raw_t, ing_t, one_t, two_t = [], [], [], []
+        for rep in range(args.reps):
+            t0 = time.perf_counter()
+            n = sum(1 for _ in iter_raw(bag))
+            raw_t.append(time.perf_counter() - t0)
+            assert n == messages
+            lake = work / f"lake-{rep}"
+            t0 = time.perf_counter()
+            [res] = ingest([bag], lake)
+            ing_t.append(time.perf_counter() - t0)
+            assert res.error is None and res.committed > 0, res
+            for workers, times in ((1, one_t), (2, two_t)):
+                lake = work / f"lake-{rep}-w{workers}"
+                t0 = time.perf_counter()
+                results = ingest(bags, lake, workers=workers)
+                times.append(time.perf_counter() - t0)
+                assert all(r.error is None for r in results)
+                shutil.rmtree(lake)
+        raw, ing = statistics.median(raw_t), statistics.median(ing_t)
+        print(f"{'':24}{'median s':>10}{'msg/s':>10}{'MB/s':>8}")
+        print(f"{'raw AnyReader+deser':24}{raw:10.2f}{messages / raw:10.0f}{mb / raw:8.2f}")
+        print(f"{'ingest (1 bag)':24}{ing:10.2f}{messages / ing:10.0f}{mb / ing:8.2f}")
+        print(f"ingest / raw throughput: {raw / ing:.2f} (target ≥ 0.8)")
+        one, two = statistics.median(one_t), statistics.median(two_t)
+        total = messages * len(bags)
+        print(f"{len(bags)} bags, 1 worker: {one:.2f} s ({total / one:.0f} msg/s)")
+        print(f"{len(bags)} bags, 2 workers: {two:.2f} s ({total / two:.0f} msg/s)")
+        print(f"speed-up 1 → 2 workers: {one / two:.2f}×")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
