@@ -130,3 +130,50 @@ def events_to_tables(events: Iterable[Event]) -> dict[str, pa.Table]:
             if field.name not in _ENVELOPE_NAMES:
                 cols[field.name].append(_free_form(payload[field.name], field.type))
     return {t: pa.Table.from_pydict(cols, schema=schemas[t]) for t, cols in sorted(columns.items())}
+
+
+def tables_to_events(tables: Iterable[pa.Table]) -> list[Event]:
+    """The inverse of :func:`events_to_tables`: events (latest versions) sorted by (stream, seq).
+
+    Free-form objects come back from their JSON text; numbers come back as the column's type
+    (a JSON integer in a ``number`` field reads as a float, which compares equal).
+    """
+    events: list[Event] = []
+    for table in tables:
+        event_type = (table.schema.metadata or {}).get(b"event_type", b"").decode()
+        if not event_type:
+            raise EventStoreError("a lake table without its event_type metadata")
+        schema = event_schema(event_type)
+        free = {
+            f.name
+            for f in schema
+            if f.name not in _ENVELOPE_NAMES
+            and pa.types.is_string(f.type)
+            and _is_free(event_type, f.name)
+        }
+        for row in table.to_pylist():
+            payload = {
+                k: (json.loads(v) if k in free and isinstance(v, str) else v)
+                for k, v in row.items()
+                if k not in _ENVELOPE_NAMES
+            }
+            events.append(
+                Event(
+                    event_id=row["event_id"],
+                    stream=row["stream"],
+                    seq=row["seq"],
+                    time_ns=row["time_ns"],
+                    recorded_at_ns=row["recorded_at_ns"],
+                    type=event_type,
+                    version=row["version"],
+                    task_id=row["task_id"],
+                    payload=payload,
+                )
+            )
+    return sorted(events, key=lambda e: (e.stream, e.seq))
+
+
+def _is_free(event_type: str, field: str) -> bool:
+    registry = default_registry()
+    node = registry.schema(event_type, registry.latest_version(event_type))["properties"][field]
+    return node.get("type") == "object" and not node.get("properties")

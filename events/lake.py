@@ -34,7 +34,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from . import _fs
-from .arrow import event_schema, events_to_tables
+from .arrow import event_schema, events_to_tables, tables_to_events
 from .envelope import Event
 from .errors import EventStoreError
 from .log import LOCK_FILE, read_log
@@ -96,6 +96,13 @@ class Lake:
     def files(self, event_type: str) -> list[Path]:
         """The Parquet files of ``event_type`` across all runs."""
         return sorted(self.root.glob(f"robot=*/date=*/run=*/{event_type}.parquet"))
+
+    def read_events(self, run: RunInfo) -> list[Event]:
+        """Every event of one committed run, as :class:`Event` (latest versions), by (stream, seq)."""
+        # ParquetFile, not read_table: the latter would add the hive partition columns.
+        return tables_to_events(
+            pq.ParquetFile(p).read() for p in sorted(run.path.glob("*.parquet"))
+        )
 
     def event_types(self) -> list[str]:
         """Event types with at least one file in the lake."""

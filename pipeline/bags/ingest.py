@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from objsearch.pipeline.bags.errors import BagError
-from objsearch.pipeline.bags.lake import ParquetLake
+from objsearch.pipeline.bags.lake import BagLake
 from objsearch.pipeline.bags.read import BagReport, bag_identity, read_bag
 from objsearch.pipeline.bags.topics import TopicMap
 
@@ -32,7 +32,7 @@ def ingest_one(
     bag: Path, lake_dir: Path, topic_map: TopicMap, robot: str, progress: bool = False
 ) -> IngestResult:
     """Read one bag and commit it; an error is returned, not raised, so a fleet run goes on."""
-    lake = ParquetLake(lake_dir)
+    lake = BagLake(lake_dir)
     try:
         bag_id, _ = bag_identity(bag) if bag.exists() else ("", 0)
         if not bag_id:

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from bag_fixtures import Recorded
 from objsearch.pipeline.bags.ingest import ingest
-from objsearch.pipeline.bags.lake import ParquetLake
+from objsearch.pipeline.bags.lake import BagLake
 
 from objsearch.cli import main
 
@@ -50,9 +50,7 @@ def test_two_workers_give_the_same_lake_as_one(recorded: Recorded, tmp_path: Pat
     assert all(r.error is None and r.committed > 0 for r in two)
     assert [r.committed for r in one] == [r.committed for r in two]
     assert [r.report for r in one] == [r.report for r in two]
-    assert list(ParquetLake(tmp_path / "one").events()) == list(
-        ParquetLake(tmp_path / "two").events()
-    )
+    assert list(BagLake(tmp_path / "one").events()) == list(BagLake(tmp_path / "two").events())
 
 
 def test_cli_ingest_reports_and_is_idempotent(
