@@ -6,11 +6,12 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from objsearch.agent.errors import DataFileError
 from objsearch.agent.policy import SearchConfig
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
 from objsearch.sim.schedule import Schedule
-from objsearch.sim.world import SimClock, SimWorld
+from objsearch.sim.world import SimClock, SimWorld, WorldObserver
 
 TARGET_ORDER = ("Apple", "Cup", "Bowl", "Phone", "Laptop", "Pillow", "Vase", "ToiletPaper")
 PAUSE_BETWEEN_TASKS_S = 60.0
@@ -36,16 +37,28 @@ def run_schedule(
     schedule_name: str = "table2",
     targets: Sequence[str] = TARGET_ORDER,
     scenes: Sequence[int] | None = None,
+    starts: Sequence[str] | None = None,
     on_trial: Callable[[Trial], None] | None = None,
+    observer: WorldObserver | None = None,
 ) -> list[Trial]:
     """Search every target from every start in every scene, in that order, on one log.
 
     Each search is one task: the scene graph is updated (per ``update_mode``) when it ends, so the
-    next search, whatever its start, plans with what the previous ones saw.
+    next search, whatever its start, plans with what the previous ones saw. ``starts`` picks
+    start points by name (default: all of the home's); ``observer`` sees every pose and camera
+    frame (what ``objsearch record`` writes to a bag).
     """
     ctx = load_context(home_name)
     schedule = Schedule.load(ctx.home, schedule_name)
-    starts = ctx.home.starts
+    all_starts = ctx.home.starts
+    for name in starts or ():
+        ctx.home.start(name)  # an unknown start fails before anything is written
+    chosen = {name: all_starts[name] for name in starts} if starts else all_starts
+    unknown_scenes = sorted(set(scenes or ()) - set(schedule.scenes))
+    if unknown_scenes:
+        raise DataFileError(
+            f"schedule {schedule_name!r} has scenes {sorted(schedule.scenes)}, not {unknown_scenes}"
+        )
     trials: list[Trial] = []
     session = Session(ctx, log_dir, config, update_mode, params={"schedule": schedule_name})
     try:
@@ -53,9 +66,11 @@ def run_schedule(
         for scene in scenes or sorted(schedule.scenes):
             placements = schedule.scenes[scene]
             for target in targets:
-                for start_name, pose in starts.items():
+                for start_name, pose in chosen.items():
                     clock.advance(PAUSE_BETWEEN_TASKS_S)
-                    world = SimWorld(ctx.home, ctx.navmap, placements, pose, clock=clock)
+                    world = SimWorld(
+                        ctx.home, ctx.navmap, placements, pose, clock=clock, observer=observer
+                    )
                     oracle = world.oracle_length(target)
                     result = session.search(world, target, start_name, scene=scene)
                     trial = Trial(

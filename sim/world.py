@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 from objsearch.agent.geometry import Point, Pose, distance, heading
 from objsearch.agent.home import Box, Home
@@ -30,6 +31,18 @@ class Placement:
     inside: bool
 
 
+class WorldObserver(Protocol):
+    """Sees what the robot's sensors would publish: every pose change and every camera frame.
+
+    ``objsearch record`` turns these into odometry, TF and detection messages; the agent never
+    sees an observer.
+    """
+
+    def pose_changed(self, time_ns: int, pose: Pose) -> None: ...
+
+    def camera_frame(self, time_ns: int, pose: Pose, detections: Sequence[Detection]) -> None: ...
+
+
 class SimClock:
     """Simulated time, shared by successive tasks so a log's clock never runs backwards."""
 
@@ -52,6 +65,7 @@ class SimWorld:
         *,
         clock: SimClock | None = None,
         camera: Camera | None = None,
+        observer: WorldObserver | None = None,
     ) -> None:
         self.home = home
         self.navmap = navmap
@@ -60,14 +74,21 @@ class SimWorld:
         self.camera = camera or Camera()
         self._statics = home.statics
         self._pose = start
+        self.observer = observer
         if start.point not in navmap.room_of:
             raise ValueError(f"start {start} is not a viewpoint of home {home.name!r}")
+        self._set_pose(start)
 
     def pose(self) -> Pose:
         return self._pose
 
     def now_ns(self) -> int:
         return self.clock.ns
+
+    def _set_pose(self, pose: Pose) -> None:
+        self._pose = pose
+        if self.observer is not None:
+            self.observer.pose_changed(self.clock.ns, pose)
 
     def _view(self, pose: Pose, opened: str | None = None) -> tuple[Detection, ...]:
         room = self.navmap.room_at(pose.x, pose.y)
@@ -80,6 +101,8 @@ class SimWorld:
             seen.append(
                 Detection(p.cls, p.instance_id, self.camera.mask_area(pose, p.box), p.box.center)
             )
+        if self.observer is not None:
+            self.observer.camera_frame(self.clock.ns, pose, seen)
         return tuple(seen)
 
     def navigate(
@@ -105,7 +128,7 @@ class SimWorld:
                 metres += step
                 self.clock.advance(step / SPEED_M_PER_S)
             walked.append(b)
-            self._pose = Pose(b.x, b.y, yaw)
+            self._set_pose(Pose(b.x, b.y, yaw))
             if on_detection is not None:
                 # Every detection of the view reaches the agent, even after one asked to stop.
                 stops = [on_detection(det, self._pose) for det in self._view(self._pose)]
@@ -113,7 +136,7 @@ class SimWorld:
                     interrupted = True
                     break
         if final_yaw is not None and not interrupted:
-            self._pose = Pose(self._pose.x, self._pose.y, final_yaw)
+            self._set_pose(Pose(self._pose.x, self._pose.y, final_yaw))
         return Navigation(tuple(walked), metres, self._pose, tuple(rooms), interrupted)
 
     def oracle_length(self, cls: str) -> float:
@@ -132,8 +155,8 @@ class SimWorld:
         return min(lengths)
 
     def look(self, yaw: float) -> tuple[Detection, ...]:
-        self._pose = Pose(self._pose.x, self._pose.y, yaw)
         self.clock.advance(LOOK_S)
+        self._set_pose(Pose(self._pose.x, self._pose.y, yaw))
         return self._view(self._pose)
 
     def open(self, static_id: str) -> tuple[Detection, ...]:
@@ -143,6 +166,6 @@ class SimWorld:
         target = Point(container.box.center[0], container.box.center[1])
         if distance(self._pose, target) - max(container.box.size[:2]) / 2 > REACH_M:
             raise ValueError(f"robot at {self._pose} is too far to open {static_id!r}")
-        self._pose = Pose(self._pose.x, self._pose.y, heading(self._pose, target))
         self.clock.advance(OPEN_S)
+        self._set_pose(Pose(self._pose.x, self._pose.y, heading(self._pose, target)))
         return self._view(self._pose, opened=static_id)

@@ -59,4 +59,18 @@ EXAMPLES: dict[str, dict[str, Any]] = {
     "target_found": {"instance_id": "Cup|3", "position": [1.0, 2.0, 0.9], "approach": POSE},
     "search_failed": {"reason": "all candidates visited"},
     "task_ended": {"target": "Cup", "success": True, "path_length": 12.5},
+    "pose_observed": {"pose": POSE, "frame_id": "map", "topic": "/odom"},
+    "objects_detected": {
+        "frame_id": "map",
+        "topic": "/objsearch/detections",
+        "detections": [
+            {
+                "instance_id": "Cup|3",
+                "class_id": "Cup",
+                "score": 1.0,
+                "bbox": [320.0, 240.0, 28.5, 28.5],
+                "position": [1.0, 2.0, 0.9],
+            }
+        ],
+    },
 }

@@ -1,0 +1,101 @@
+"""``objsearch record`` and ``objsearch ingest``: simulated runs to ROS bags, bags to the lake."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+
+def _topic_map(args: argparse.Namespace) -> Any:
+    from objsearch.pipeline.bags.topics import TopicMap
+
+    return TopicMap.load(Path(args.topics)) if args.topics else TopicMap()
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    from objsearch.pipeline.bags.formats import BagFormat
+    from objsearch.pipeline.bags.record import record
+
+    fmt = BagFormat.parse(args.format)
+    rec = record(
+        Path(args.out),
+        fmt,
+        home=args.home,
+        scenes=args.scenes,
+        targets=args.targets,
+        starts=args.starts,
+        log_dir=Path(args.log) if args.log else None,
+        topic_map=_topic_map(args),
+        odom_hz=args.odom_hz,
+        seed=args.seed,
+    )
+    print(f"wrote {rec.path} ({rec.format.value}): {rec.tasks} searches, {rec.events} agent events")
+    for topic, n in sorted(rec.messages.items()):
+        print(f"  {topic:32} {n:8} messages")
+    if args.log:
+        print(f"  the agent's own log: {args.log}")
+    return 0
+
+
+def cmd_ingest(args: argparse.Namespace) -> int:
+    from objsearch.pipeline.bags.ingest import IngestResult, ingest
+
+    if args.workers < 1:
+        print("objsearch: error: --workers must be at least 1", file=sys.stderr)
+        return 2
+    topic_map = _topic_map(args)
+    failed = 0
+
+    def show(result: IngestResult) -> None:
+        nonlocal failed
+        if result.error is not None:
+            failed += 1
+            print(f"objsearch: error: {result.path}: {result.error}", file=sys.stderr)
+        elif result.already:
+            print(f"{result.path}: already in the lake; nothing to do")
+        else:
+            assert result.report is not None
+            print(result.report.render())
+            print(f"  committed {result.committed} events to {args.lake}")
+        sys.stdout.flush()
+
+    ingest(
+        [Path(b) for b in args.bags],
+        Path(args.lake),
+        topic_map=topic_map,
+        robot=args.robot,
+        workers=args.workers,
+        progress=not args.no_progress,
+        on_result=show,
+    )
+    return 2 if failed else 0
+
+
+def register(sub: Any) -> None:
+    rec = sub.add_parser(
+        "record", help="run searches in the simulator and write them as a robot's ROS bag"
+    )
+    rec.add_argument("--out", required=True, help="bag to write: NAME.bag (ros1) or a directory (ros2)")
+    rec.add_argument(
+        "--format", required=True, help="ros1, ros2-sqlite3 or ros2-mcap", metavar="FORMAT"
+    )
+    rec.add_argument("--home", default="paper")
+    rec.add_argument("--scenes", type=int, nargs="+", help="scenes of the schedule (all)")
+    rec.add_argument("--targets", nargs="+", help="targets to search for (all eight)")
+    rec.add_argument("--starts", nargs="+", help="start points, e.g. kitchen-1 (all)")
+    rec.add_argument("--log", help="also keep the agent's own event log here")
+    rec.add_argument("--topics", help="topic map override (.toml or .json)")
+    rec.add_argument("--odom-hz", type=float, default=10.0, help="odometry rate (10)")
+    rec.add_argument("--seed", type=int, default=0)
+    rec.set_defaults(func=cmd_record)
+
+    ing = sub.add_parser("ingest", help="read ROS bags (ROS 1, ROS 2 sqlite3, MCAP) into the lake")
+    ing.add_argument("bags", nargs="+", metavar="BAG", help=".bag files or ROS 2 bag directories")
+    ing.add_argument("--lake", required=True, help="the event lake directory")
+    ing.add_argument("--workers", type=int, default=1, help="bags ingested in parallel (1)")
+    ing.add_argument("--robot", default="robot", help="robot name, the lake's first partition")
+    ing.add_argument("--topics", help="topic map override (.toml or .json)")
+    ing.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ing.set_defaults(func=cmd_ingest)

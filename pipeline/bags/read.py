@@ -1,0 +1,648 @@
+"""A bag of any format → events and a report. Pure: reads the bag, writes nothing.
+
+``read_bag`` first reads with rosbags' ``AnyReader`` (index-driven, fast). If that fails
+anywhere — a bag cut short, a damaged index or chunk — it starts again with the salvage scanners
+of :mod:`objsearch.pipeline.bags.salvage` and reports what could not be read. Either way each
+message goes through the same conversion:
+
+* ``objsearch_msgs/Event`` → the agent's own event, envelope and payload exactly as logged,
+  checked against the envelope rules and the payload's JSON Schema (else rejected);
+* ``nav_msgs/Odometry`` → ``pose_observed`` (composed with map → odom from TF when known);
+  TF to the base frame does the same when a bag has no odometry topic;
+* ``vision_msgs/Detection2DArray`` → ``objects_detected``.
+
+Messages that do not deserialise, or carry non-finite numbers, a non-unit quaternion or
+implausible coordinates, are rejected and counted, never converted. Derived events get the
+stream ``bag:<first 16 hex of the bag id>`` and ids from (stream, seq), so the same bag always
+yields the same events.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import sys
+from collections import Counter
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from objsearch.events import Event, InvalidEventError, default_registry, deterministic_event_id
+from objsearch.pipeline.bags.errors import BagError
+from objsearch.pipeline.bags.formats import BagFormat, detect, storage_files
+from objsearch.pipeline.bags.salvage import Loss, RawConnection, Scan, scan_bag
+from objsearch.pipeline.bags.topics import ACCEPTED_TYPES, CONVERTED, Role, TopicMap
+from objsearch.pipeline.bags.types import Distro, typestore
+
+MAX_COORD_M = 1e5  # a pose or position farther than this from the origin is damage
+PROGRESS_MIN_MESSAGES = 20_000
+MAX_REASONS = 3
+
+Deserialize = Callable[[bytes, str], Any]
+
+
+@dataclass(frozen=True, slots=True)
+class TopicReport:
+    topic: str
+    msgtype: str
+    role: str
+    messages: int  # messages of the topic in the bag (read, or counted from its index)
+    events: int  # events made from them
+    rejected: int  # dropped as damaged or invalid
+    reasons: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class Skipped:
+    topic: str
+    msgtype: str
+    messages: int
+    reason: str
+
+
+@dataclass(frozen=True, slots=True)
+class BagReport:
+    path: str
+    format: str
+    bag_id: str
+    size_bytes: int
+    reader: str  # "AnyReader" or "salvage scan (...)"
+    topics: tuple[TopicReport, ...]
+    skipped: tuple[Skipped, ...]
+    losses: tuple[Loss, ...]
+    start_ns: int | None
+    end_ns: int | None
+    events: int
+    event_types: Mapping[str, int]
+    notes: tuple[str, ...] = ()
+
+    @property
+    def damaged(self) -> bool:
+        return bool(self.losses) or any(t.rejected for t in self.topics)
+
+    def render(self) -> str:
+        lines = [f"{self.path} ({self.format}, {self.size_bytes:,} bytes, id {self.bag_id[:16]}, read by {self.reader})"]
+        if self.start_ns is not None and self.end_ns is not None:
+            lines.append(
+                f"  time range {_iso(self.start_ns)} → {_iso(self.end_ns)} "
+                f"({(self.end_ns - self.start_ns) / 1e9:.1f} s)"
+            )
+        for t in self.topics:
+            extra = f", {t.rejected} rejected ({'; '.join(t.reasons)})" if t.rejected else ""
+            lines.append(
+                f"  {t.topic:32} {t.msgtype:36} {t.role:12} {t.messages:8} msgs → {t.events} events{extra}"
+            )
+        for s in self.skipped:
+            lines.append(f"  skipped {s.topic} ({s.msgtype}, {s.messages} msgs): {s.reason}")
+        for loss in self.losses:
+            lines.append(f"  LOST {loss}")
+        for note in self.notes:
+            lines.append(f"  note: {note}")
+        types = ", ".join(f"{k} {v}" for k, v in sorted(self.event_types.items()))
+        lines.append(f"  {self.events} events ({types or 'none'})")
+        return "\n".join(lines)
+
+
+@dataclass(frozen=True, slots=True)
+class BagContents:
+    report: BagReport
+    events: tuple[Event, ...]
+
+
+def _iso(ns: int) -> str:
+    import datetime as dt
+
+    return dt.datetime.fromtimestamp(ns / 1e9, dt.UTC).isoformat(timespec="milliseconds")
+
+
+def bag_identity(path: Path) -> tuple[str, int]:
+    """sha256 over the bag's storage files (names and bytes) and their total size."""
+    h = hashlib.sha256()
+    size = 0
+    for f in storage_files(path):
+        h.update(f.name.encode() + b"\0")
+        with f.open("rb") as fh:
+            while block := fh.read(1 << 20):
+                h.update(block)
+                size += len(block)
+    return h.hexdigest(), size
+
+
+# -- conversion -------------------------------------------------------------------------------
+
+
+def _yaw(q: Any) -> float:
+    x, y, z, w = float(q.x), float(q.y), float(q.z), float(q.w)
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not math.isfinite(norm) or abs(norm - 1.0) > 1e-3:
+        raise ValueError(f"quaternion of norm {norm:.6g} is not a rotation")
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def _coord(v: Any) -> float:
+    f = float(v)
+    if not math.isfinite(f) or abs(f) > MAX_COORD_M:
+        raise ValueError(f"coordinate {f!r} is not plausible")
+    return f
+
+
+@dataclass
+class _Planar:
+    x: float
+    y: float
+    yaw: float
+
+    def compose(self, other: _Planar) -> _Planar:
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        return _Planar(
+            self.x + c * other.x - s * other.y,
+            self.y + s * other.x + c * other.y,
+            math.atan2(math.sin(self.yaw + other.yaw), math.cos(self.yaw + other.yaw)),
+        )
+
+
+@dataclass
+class _TopicState:
+    conn: RawConnection
+    role: Role
+    messages: int = 0
+    events: int = 0
+    rejected: Counter[str] = field(default_factory=Counter)
+
+
+class Converter:
+    """Turns deserialised messages into events; one per bag."""
+
+    def __init__(self, topic_map: TopicMap, bag_id: str, distro: Distro) -> None:
+        self.map = topic_map
+        self.distro = distro
+        self.stream = f"bag:{bag_id[:16]}"
+        self.registry = default_registry()
+        self.topics: dict[int, _TopicState] = {}
+        self.skipped: dict[int, tuple[RawConnection, str]] = {}
+        self.skipped_messages: Counter[int] = Counter()
+        #: (bag time, topic, arrival, type, payload, from_tf): ordered and numbered by finish().
+        self.derived: list[tuple[int, str, int, str, dict[str, Any], bool]] = []
+        #: Poses in the odom frame, composed with map → odom as of their time by finish().
+        self.odom_poses: list[tuple[int, _Planar, dict[str, Any]]] = []
+        self.map_odom_track: list[tuple[int, _Planar]] = []
+        self.agent: dict[str, Event] = {}
+        self.duplicates = 0
+        self.start_ns: int | None = None
+        self.end_ns: int | None = None
+
+    def plan(self, conns: Iterable[RawConnection], known: Callable[[RawConnection], str | None]) -> None:
+        """Decide per connection: convert, count only, or skip (with the reason)."""
+        standard = typestore(self.distro).fielddefs
+        for c in conns:
+            if c.id in self.topics or c.id in self.skipped:
+                continue
+            role = self.map.role(c.topic)
+            if role is None:
+                hint = sorted(r.value for r, ts in ACCEPTED_TYPES.items() if c.msgtype in ts)
+                reason = "not in the topic map"
+                if hint:
+                    reason += f" (its type would be read as {' or '.join(hint)}; map it in a --topics file)"
+                elif c.msgtype not in standard:
+                    reason += f" (custom type {c.msgtype}, defined only in the bag)"
+                self.skipped[c.id] = (c, reason)
+            elif c.msgtype not in ACCEPTED_TYPES[role]:
+                self.skipped[c.id] = (
+                    c,
+                    f"mapped as {role.value}, which takes {', '.join(sorted(ACCEPTED_TYPES[role]))}, "
+                    f"not {c.msgtype}",
+                )
+            elif role in CONVERTED and (why := known(c)) is not None:
+                self.skipped[c.id] = (c, why)
+            else:
+                self.topics[c.id] = _TopicState(c, role)
+
+    def wants(self, conn_id: int) -> bool:
+        state = self.topics.get(conn_id)
+        return state is not None and state.role in CONVERTED
+
+    def count(self, conn_id: int, n: int = 1) -> None:
+        """Count messages without reading them (from an index)."""
+        if conn_id in self.topics:
+            self.topics[conn_id].messages += n
+        elif conn_id in self.skipped:
+            self.skipped_messages[conn_id] += n
+
+    def messages_per_topic(self) -> Counter[str]:
+        counts: Counter[str] = Counter()
+        for state in self.topics.values():
+            counts[state.conn.topic] += state.messages
+        for cid, (c, _) in self.skipped.items():
+            counts[c.topic] += self.skipped_messages[cid]
+        return counts
+
+    def feed(self, conn_id: int, log_ns: int, raw: bytes, deserialize: Deserialize) -> None:
+        state = self.topics.get(conn_id)
+        if state is None:
+            self.skipped_messages[conn_id] += 1
+            return
+        state.messages += 1
+        if state.role not in CONVERTED:
+            return
+        try:
+            msg = deserialize(raw, state.conn.msgtype)
+            made = self._convert(state, log_ns, msg)
+        except InvalidEventError as exc:
+            state.rejected[f"invalid event: {exc}"] += 1
+            return
+        except Exception as exc:  # noqa: BLE001 - any failure of one message is that message's damage
+            state.rejected[f"{type(exc).__name__}: {exc}"[:200]] += 1
+            return
+        state.events += made
+        self.start_ns = log_ns if self.start_ns is None else min(self.start_ns, log_ns)
+        self.end_ns = log_ns if self.end_ns is None else max(self.end_ns, log_ns)
+
+    def _derive(
+        self, type: str, log_ns: int, topic: str, payload: dict[str, Any], from_tf: bool = False
+    ) -> int:
+        self.derived.append((log_ns, topic, len(self.derived), type, payload, from_tf))
+        return 1
+
+    def _derived_events(self) -> list[Event]:
+        # Poses from TF only where the bag has no odometry; numbered in (time, topic, arrival)
+        # order, which is the same whichever reader (index or scan) delivered the messages.
+        self._compose_odom_poses()
+        has_odometry = any(s.role is Role.ODOMETRY for s in self.topics.values())
+        kept = sorted(
+            (d for d in self.derived if not (d[5] and has_odometry)), key=lambda d: d[:3]
+        )
+        return [
+            Event(
+                event_id=deterministic_event_id(self.stream, seq),
+                stream=self.stream,
+                seq=seq,
+                time_ns=log_ns,
+                recorded_at_ns=log_ns,
+                type=type,
+                version=1,
+                task_id=None,
+                payload=payload,
+            )
+            for seq, (log_ns, _, _, type, payload, _) in enumerate(kept, start=1)
+        ]
+
+    def _convert(self, state: _TopicState, log_ns: int, msg: Any) -> int:
+        role, topic = state.role, state.conn.topic
+        frames = self.map.frames
+        if role is Role.ODOMETRY:
+            p = msg.pose.pose
+            pose = _Planar(_coord(p.position.x), _coord(p.position.y), _yaw(p.orientation))
+            frame = msg.header.frame_id.lstrip("/") or frames.odom
+            return self._pose(log_ns, pose, frame, topic, False)
+        if role in (Role.TF, Role.TF_STATIC):
+            made = 0
+            for tr in msg.transforms:
+                parent, child = tr.header.frame_id.lstrip("/"), tr.child_frame_id.lstrip("/")
+                t = tr.transform
+                planar = _Planar(_coord(t.translation.x), _coord(t.translation.y), _yaw(t.rotation))
+                if parent == frames.map and child == frames.odom:
+                    self.map_odom_track.append((log_ns, planar))
+                elif child == frames.base and parent in (frames.odom, frames.map):
+                    made += self._pose(log_ns, planar, parent, topic, True)
+            return made
+        if role is Role.DETECTIONS:
+            return self._derive(
+                "objects_detected",
+                log_ns,
+                topic,
+                {
+                    "frame_id": msg.header.frame_id,
+                    "topic": topic,
+                    "detections": [_detection(d) for d in msg.detections],
+                },
+            )
+        if role is Role.EVENTS:
+            return self._agent_event(msg)
+        return 0
+
+    def _pose(self, log_ns: int, pose: _Planar, frame: str, topic: str, from_tf: bool) -> int:
+        payload = {"pose": {"x": pose.x, "y": pose.y, "yaw": pose.yaw}, "frame_id": frame, "topic": topic}
+        if frame == self.map.frames.odom:
+            self.odom_poses.append((log_ns, pose, payload))
+        return self._derive("pose_observed", log_ns, topic, payload, from_tf)
+
+    def _compose_odom_poses(self) -> None:
+        """Put odom-frame poses in the map frame with map → odom as of their time (or the first
+        one known, for poses recorded before it): localisation publishes asynchronously."""
+        if not self.map_odom_track:
+            return
+        import bisect
+
+        track = sorted(self.map_odom_track, key=lambda tp: tp[0])
+        times = [t for t, _ in track]
+        for log_ns, pose, payload in self.odom_poses:
+            i = max(bisect.bisect_right(times, log_ns) - 1, 0)
+            p = track[i][1].compose(pose)
+            payload["pose"] = {"x": p.x, "y": p.y, "yaw": p.yaw}
+            payload["frame_id"] = self.map.frames.map
+
+    def _agent_event(self, msg: Any) -> int:
+        try:
+            payload = json.loads(msg.payload_json)
+        except ValueError as exc:
+            raise InvalidEventError(f"payload_json is not JSON: {exc}") from None
+        event = Event(
+            event_id=msg.event_id,
+            stream=msg.stream,
+            seq=int(msg.seq),
+            time_ns=int(msg.time_ns),
+            recorded_at_ns=int(msg.recorded_at_ns),
+            type=msg.type,
+            version=int(msg.version),
+            task_id=msg.task_id or None,
+            payload=payload,
+        )
+        self.registry.validate_event(event)
+        if event.event_id in self.agent:
+            if self.agent[event.event_id] != event:
+                raise InvalidEventError(
+                    f"event id {event.event_id} appears twice with different contents"
+                )
+            self.duplicates += 1
+            return 0
+        self.agent[event.event_id] = event
+        return 1
+
+    def finish(self) -> tuple[list[Event], list[Loss], list[str]]:
+        """All events (the agent's in (stream, seq) order, then derived), gaps as losses."""
+        agent = sorted(self.agent.values(), key=lambda e: (e.stream, e.seq))
+        losses: list[Loss] = []
+        notes: list[str] = []
+        by_stream: dict[str, list[int]] = {}
+        for e in agent:
+            by_stream.setdefault(e.stream, []).append(e.seq)
+        for stream, seqs in by_stream.items():
+            missing = _gaps(seqs)
+            if missing:
+                n = sum(b - a + 1 for a, b in missing)
+                spans = ", ".join(f"{a}" if a == b else f"{a}–{b}" for a, b in missing[:10])
+                losses.append(
+                    Loss(f"agent stream {stream!r}", f"seq(s) {spans} missing", n)
+                )
+            if seqs[0] != 1:
+                notes.append(f"agent stream {stream!r} starts at seq {seqs[0]} (recording began mid-run)")
+        if self.duplicates:
+            notes.append(f"{self.duplicates} agent event(s) appeared more than once; kept once")
+        return [*agent, *self._derived_events()], losses, notes
+
+
+def _topic_rows(conv: Converter) -> tuple[TopicReport, ...]:
+    """One row per (topic, type): a topic recorded by several publishers has one connection each."""
+    merged: dict[tuple[str, str], _TopicState] = {}
+    for s in conv.topics.values():
+        key = (s.conn.topic, s.conn.msgtype)
+        if key not in merged:
+            merged[key] = _TopicState(s.conn, s.role)
+        m = merged[key]
+        m.messages += s.messages
+        m.events += s.events
+        m.rejected.update(s.rejected)
+    rows = []
+    for (topic, msgtype), m in sorted(merged.items()):
+        role = m.role.value if m.role in CONVERTED else f"{m.role.value} (counted, not converted)"
+        if m.role in (Role.TF, Role.TF_STATIC) and m.events == 0 and m.messages:
+            f = conv.map.frames
+            role += f" (no {f.map}→{f.odom} or {f.odom}/{f.map}→{f.base} transform, or odometry gives the poses)"
+        rows.append(
+            TopicReport(
+                topic,
+                msgtype,
+                role,
+                m.messages,
+                m.events,
+                sum(m.rejected.values()),
+                tuple(r for r, _ in m.rejected.most_common(MAX_REASONS)),
+            )
+        )
+    return tuple(rows)
+
+
+def _skipped_rows(conv: Converter) -> tuple[Skipped, ...]:
+    merged: Counter[tuple[str, str, str]] = Counter()
+    for cid, (c, reason) in conv.skipped.items():
+        merged[(c.topic, c.msgtype, reason)] += conv.skipped_messages[cid]
+    return tuple(Skipped(t, m, n, r) for (t, m, r), n in sorted(merged.items()))
+
+
+def _gaps(seqs: list[int]) -> list[tuple[int, int]]:
+    gaps = []
+    for a, b in zip(seqs, seqs[1:], strict=False):
+        if b > a + 1:
+            gaps.append((a + 1, b - 1))
+    return gaps
+
+
+def _detection(d: Any) -> dict[str, Any]:
+    best = max(d.results, key=lambda r: _score(r), default=None)
+    center = d.bbox.center
+    cx, cy = (center.position.x, center.position.y) if hasattr(center, "position") else (center.x, center.y)
+    bbox = [float(cx), float(cy), float(d.bbox.size_x), float(d.bbox.size_y)]
+    if not all(math.isfinite(v) for v in bbox):
+        raise ValueError("bounding box has a non-finite value")
+    position = None
+    class_id, score = "", 0.0
+    if best is not None:
+        hyp = getattr(best, "hypothesis", best)
+        class_id = str(getattr(hyp, "class_id", getattr(hyp, "id", "")))
+        score = float(hyp.score)
+        if not math.isfinite(score):
+            raise ValueError("hypothesis score is not finite")
+        pt = best.pose.pose.position
+        position = [_coord(pt.x), _coord(pt.y), _coord(pt.z)]
+    return {
+        "instance_id": str(getattr(d, "id", "")),
+        "class_id": class_id,
+        "score": score,
+        "bbox": bbox,
+        "position": position,
+    }
+
+
+def _score(r: Any) -> float:
+    return float(getattr(getattr(r, "hypothesis", r), "score", 0.0))
+
+
+# -- reading ----------------------------------------------------------------------------------
+
+
+def _metadata_counts(path: Path) -> dict[str, int] | None:
+    """Per-topic message counts from a ROS 2 bag's metadata.yaml, if it is there and sound."""
+    meta = path / "metadata.yaml"
+    if not path.is_dir() or not meta.exists():
+        return None
+    try:
+        from ruamel.yaml import YAML
+
+        doc = YAML(typ="safe").load(meta.read_text(encoding="utf-8"))
+        info = doc["rosbag2_bagfile_information"]
+        return {
+            t["topic_metadata"]["name"]: int(t["message_count"])
+            for t in info["topics_with_message_count"]
+        }
+    except Exception:  # noqa: BLE001 - a damaged metadata.yaml only costs us the expected counts
+        return None
+
+
+def _type_checker(store_types: Mapping[str, Any], bag_defs: bool) -> Callable[[RawConnection], str | None]:
+    def known(c: RawConnection) -> str | None:
+        if c.msgtype in store_types:
+            return None
+        return (
+            f"custom type {c.msgtype}: the bag carries no definition for it"
+            + (" that parses" if bag_defs else "")
+            + " and neither the ROS typestore nor objsearch's .msg files define it"
+        )
+
+    return known
+
+
+def _progress(total: int | None, enabled: bool, label: str) -> Any:
+    from tqdm import tqdm
+
+    show = enabled and (total is None or total >= PROGRESS_MIN_MESSAGES)
+    return tqdm(total=total, disable=not show, file=sys.stderr, unit="msg", desc=label, leave=False)
+
+
+def _read_anyreader(
+    path: Path, fmt: BagFormat, conv: Converter, progress: bool
+) -> dict[str, int]:
+    from rosbags.highlevel import AnyReader
+
+    # A ROS 2 directory is recognised by AnyReader from a non-".bag" name; a ROS 1 file must end
+    # in .bag for it, so a renamed ROS 1 bag is read by the scanner instead.
+    if fmt is BagFormat.ROS1 and path.suffix != ".bag":
+        raise BagError("ROS 1 bag without a .bag suffix")
+    with AnyReader([path], default_typestore=typestore(fmt.distro)) as reader:
+        conns = {
+            c.id: RawConnection(c.id, c.topic, c.msgtype, c.msgdef.data, c.msgdef.format.value)
+            for c in reader.connections
+        }
+        expected = {t: info.msgcount for t, info in reader.topics.items()}
+        conv.plan(conns.values(), _type_checker(reader.typestore.fielddefs, False))
+        wanted = [c for c in reader.connections if conv.wants(c.id)]
+        for c in reader.connections:
+            if not conv.wants(c.id):
+                conv.count(c.id, c.msgcount)
+        total = sum(c.msgcount for c in wanted)
+        with _progress(total, progress, path.name) as bar:
+            for c, t, raw in reader.messages(connections=wanted):
+                conv.feed(c.id, t, raw, reader.deserialize)
+                bar.update()
+    return expected
+
+
+def _read_salvage(
+    path: Path, fmt: BagFormat, conv: Converter, progress: bool
+) -> list[Scan]:
+    from rosbags.typesys import get_types_from_idl, get_types_from_msg, get_typestore
+    from rosbags.typesys import Stores
+
+    base = typestore(fmt.distro)
+    store = get_typestore(Stores.EMPTY)
+    store.register(dict(base.fielddefs))  # type: ignore[arg-type]
+    bad_defs: dict[int, str] = {}
+    seen: set[int] = set()
+    scans, messages = scan_bag(path, fmt.value)
+
+    def learn(c: RawConnection) -> None:
+        seen.add(c.id)
+        if not c.msgdef:
+            return
+        try:
+            if c.msgdef_format == "idl":
+                types = get_types_from_idl(c.msgdef)
+            else:
+                types = get_types_from_msg(c.msgdef, c.msgtype)
+            store.register(types)
+        except Exception as exc:  # noqa: BLE001 - a damaged definition only costs its topic
+            bad_defs[c.id] = f"its message definition in the bag does not parse ({exc})"
+
+    def known(c: RawConnection) -> str | None:
+        if c.id in bad_defs:
+            return bad_defs[c.id]
+        return _type_checker(store.fielddefs, True)(c)
+
+    deser: Deserialize = (
+        store.deserialize_ros1 if fmt.distro is Distro.ROS1 else store.deserialize_cdr
+    )
+    with _progress(None, progress, f"{path.name} (salvage)") as bar:
+        for conn, t, raw in messages:
+            if conn.id not in seen:
+                learn(conn)
+                conv.plan([conn], known)
+            conv.feed(conn.id, t, raw, deser)
+            bar.update()
+    # Connections declared but never seen with a message still belong in the report.
+    for scan in scans:
+        for conn in scan.connections.values():
+            if conn.id not in seen:
+                learn(conn)
+                conv.plan([conn], known)
+    return scans
+
+
+def read_bag(
+    path: Path | str, topic_map: TopicMap | None = None, *, progress: bool = False
+) -> BagContents:
+    """Read one bag (a ``.bag`` file or a ROS 2 directory) into events and a report."""
+    path = Path(path)
+    topic_map = topic_map or TopicMap()
+    fmt = detect(path)
+    bag_id, size = bag_identity(path)
+    conv = Converter(topic_map, bag_id, fmt.distro)
+    losses: list[Loss] = []
+    notes: list[str] = []
+    expected = _metadata_counts(path)
+    reader = "AnyReader"
+    try:
+        from_index = _read_anyreader(path, fmt, conv, progress)
+        expected = expected or from_index
+    except Exception as exc:  # noqa: BLE001 - whatever broke the indexed read, the scanner tries
+        notes.append(f"AnyReader could not read it ({type(exc).__name__}: {exc}); salvaged by scanning")
+        reader = "salvage scan"
+        conv = Converter(topic_map, bag_id, fmt.distro)
+        scans = _read_salvage(path, fmt, conv, progress)
+        for scan in scans:
+            losses.extend(scan.losses)
+    events, gap_losses, gap_notes = conv.finish()
+    losses.extend(gap_losses)
+    notes.extend(gap_notes)
+    if expected is not None and reader != "AnyReader":
+        read_counts = conv.messages_per_topic()
+        for topic, n in sorted(expected.items()):
+            got = read_counts.get(topic, 0)
+            if got < n:
+                losses.append(Loss(f"topic {topic}", f"{n - got} of {n} messages not recovered", n - got))
+    report = BagReport(
+        path=str(path),
+        format=fmt.value,
+        bag_id=bag_id,
+        size_bytes=size,
+        reader=reader,
+        topics=_topic_rows(conv),
+        skipped=_skipped_rows(conv),
+        losses=tuple(losses),
+        start_ns=conv.start_ns,
+        end_ns=conv.end_ns,
+        events=len(events),
+        event_types=dict(Counter(e.type for e in events)),
+        notes=tuple(notes),
+    )
+    return BagContents(report, tuple(events))
+
+
+def iter_raw(path: Path) -> Iterator[tuple[str, int, object]]:
+    """Plain AnyReader iteration with deserialisation of every message (the benchmark's baseline)."""
+    from rosbags.highlevel import AnyReader
+
+    fmt = detect(path)
+    with AnyReader([path], default_typestore=typestore(fmt.distro)) as reader:
+        for c, t, raw in reader.messages():
+            yield c.topic, t, reader.deserialize(raw, c.msgtype)

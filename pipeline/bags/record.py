@@ -1,0 +1,447 @@
+"""``objsearch record``: simulated searches written as the robot would record them.
+
+The searches run exactly as ``objsearch demo`` runs them (one event log, one scene graph); a
+:class:`~objsearch.sim.world.WorldObserver` collects every pose and camera frame. The bag then
+holds, stamped on one clock (``start_ns`` + the simulated clock):
+
+* ``/tf_static``: base_link → camera_link, once;
+* ``/odom`` (``nav_msgs/Odometry``, odom → base_link) at ``odom_hz`` and at every pose change,
+  with ``/tf`` carrying map → odom and odom → base_link at the same stamps;
+* ``/camera/color/camera_info`` and ``/objsearch/detections`` (``vision_msgs/Detection2DArray``)
+  for every camera frame the simulator rendered;
+* ``/objsearch/events`` (``objsearch_msgs/Event``): every event of the agent's log.
+
+The simulator's map and odom frames coincide (no drift), so map → odom is the identity.
+"""
+
+from __future__ import annotations
+
+import bisect
+import json
+import math
+import shutil
+import tempfile
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from objsearch.agent.geometry import Pose
+from objsearch.agent.world import Detection
+from objsearch.events import Event, read_log
+from objsearch.pipeline.bags.errors import BagError
+from objsearch.pipeline.bags.formats import BagFormat
+from objsearch.pipeline.bags.topics import Role, TopicMap
+from objsearch.pipeline.bags.types import Distro, typestore
+from objsearch.sim.perception import IMAGE_HEIGHT, IMAGE_WIDTH, Camera
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
+
+#: 2026-01-01T00:00:00Z: the bag clock of a recording starts here unless told otherwise, so two
+#: recordings of the same run are identical.
+DEFAULT_START_NS = 1_767_225_600 * 10**9
+DEFAULT_ODOM_HZ = 10.0
+
+MSG_TYPES = {
+    Role.ODOMETRY: "nav_msgs/msg/Odometry",
+    Role.TF: "tf2_msgs/msg/TFMessage",
+    Role.TF_STATIC: "tf2_msgs/msg/TFMessage",
+    Role.CAMERA_INFO: "sensor_msgs/msg/CameraInfo",
+    Role.DETECTIONS: "vision_msgs/msg/Detection2DArray",
+    Role.EVENTS: "objsearch_msgs/msg/Event",
+}
+
+
+@dataclass
+class Timeline:
+    """What the simulated sensors saw, in simulated time: a :class:`WorldObserver`."""
+
+    poses: list[tuple[int, Pose]] = field(default_factory=list)
+    frames: list[tuple[int, Pose, tuple[Detection, ...]]] = field(default_factory=list)
+
+    def pose_changed(self, time_ns: int, pose: Pose) -> None:
+        self.poses.append((time_ns, pose))
+
+    def camera_frame(self, time_ns: int, pose: Pose, detections: Sequence[Detection]) -> None:
+        self.frames.append((time_ns, pose, tuple(detections)))
+
+    def samples(self, hz: float) -> list[tuple[int, Pose]]:
+        """Every recorded pose plus poses interpolated at ``hz`` in between, in time order."""
+        if not self.poses:
+            return []
+        out = list(self.poses)
+        if hz > 0:
+            period = round(1e9 / hz)
+            times = [t for t, _ in self.poses]
+            t = times[0] - times[0] % period + period
+            while t < times[-1]:
+                i = bisect.bisect_right(times, t) - 1
+                (t0, a), (t1, b) = self.poses[i], self.poses[i + 1]
+                if t1 > t0 and t not in (t0, t1):
+                    out.append((t, _interpolate(a, b, (t - t0) / (t1 - t0))))
+                t += period
+        out.sort(key=lambda tp: tp[0])  # stable: equal stamps keep the order they happened in
+        return out
+
+
+def _interpolate(a: Pose, b: Pose, f: float) -> Pose:
+    # The simulator turns to the heading of a step when it starts it; yaw follows b.
+    return Pose(a.x + (b.x - a.x) * f, a.y + (b.y - a.y) * f, b.yaw)
+
+
+@dataclass(frozen=True, slots=True)
+class Recording:
+    path: Path
+    format: BagFormat
+    messages: dict[str, int]
+    events: int
+    tasks: int
+    start_ns: int
+    end_ns: int
+
+
+class _Messages:
+    """Builds the messages of one distro (ROS 1 headers carry ``seq``; ROS 2 ones do not)."""
+
+    def __init__(self, distro: Distro, topic_map: TopicMap, camera: Camera) -> None:
+        self.distro = distro
+        self.store: Typestore = typestore(distro)
+        self.t = self.store.types
+        self.frames = topic_map.frames
+        self.camera = camera
+        self._seq = 0
+
+    def header(self, stamp_ns: int, frame: str) -> Any:
+        stamp = self.t["builtin_interfaces/msg/Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+        if self.distro is Distro.ROS1:
+            self._seq += 1
+            return self.t["std_msgs/msg/Header"](seq=self._seq, stamp=stamp, frame_id=frame)
+        return self.t["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
+
+    def _quat(self, yaw: float) -> Any:
+        return self.t["geometry_msgs/msg/Quaternion"](
+            x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)
+        )
+
+    def _vec(self, x: float, y: float, z: float) -> Any:
+        return self.t["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)
+
+    def _transform(self, stamp: int, parent: str, child: str, x: float, y: float, z: float, yaw: float) -> Any:
+        return self.t["geometry_msgs/msg/TransformStamped"](
+            header=self.header(stamp, parent),
+            child_frame_id=child,
+            transform=self.t["geometry_msgs/msg/Transform"](
+                translation=self._vec(x, y, z), rotation=self._quat(yaw)
+            ),
+        )
+
+    def tf(self, stamp: int, pose: Pose) -> Any:
+        f = self.frames
+        return self.t["tf2_msgs/msg/TFMessage"](
+            transforms=[
+                self._transform(stamp, f.map, f.odom, 0.0, 0.0, 0.0, 0.0),
+                self._transform(stamp, f.odom, f.base, pose.x, pose.y, 0.0, pose.yaw),
+            ]
+        )
+
+    def tf_static(self, stamp: int) -> Any:
+        f = self.frames
+        return self.t["tf2_msgs/msg/TFMessage"](
+            transforms=[self._transform(stamp, f.base, f.camera, 0.0, 0.0, self.camera.height, 0.0)]
+        )
+
+    def odometry(self, stamp: int, pose: Pose, twist: tuple[float, float]) -> Any:
+        import numpy as np
+
+        t = self.t
+        return t["nav_msgs/msg/Odometry"](
+            header=self.header(stamp, self.frames.odom),
+            child_frame_id=self.frames.base,
+            pose=t["geometry_msgs/msg/PoseWithCovariance"](
+                pose=t["geometry_msgs/msg/Pose"](
+                    position=t["geometry_msgs/msg/Point"](x=pose.x, y=pose.y, z=0.0),
+                    orientation=self._quat(pose.yaw),
+                ),
+                covariance=np.zeros(36, dtype=np.float64),
+            ),
+            twist=t["geometry_msgs/msg/TwistWithCovariance"](
+                twist=t["geometry_msgs/msg/Twist"](
+                    linear=self._vec(twist[0], 0.0, 0.0), angular=self._vec(0.0, 0.0, twist[1])
+                ),
+                covariance=np.zeros(36, dtype=np.float64),
+            ),
+        )
+
+    def camera_info(self, stamp: int) -> Any:
+        import numpy as np
+
+        f = self.camera.focal_px
+        cx, cy = IMAGE_WIDTH / 2, IMAGE_HEIGHT / 2
+        k = np.array([f, 0, cx, 0, f, cy, 0, 0, 1], dtype=np.float64)
+        r = np.eye(3, dtype=np.float64).ravel()
+        p = np.array([f, 0, cx, 0, 0, f, cy, 0, 0, 0, 1, 0], dtype=np.float64)
+        roi = self.t["sensor_msgs/msg/RegionOfInterest"](
+            x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
+        )
+        fields: dict[str, Any] = {
+            "header": self.header(stamp, self.frames.camera),
+            "height": IMAGE_HEIGHT,
+            "width": IMAGE_WIDTH,
+            "distortion_model": "plumb_bob",
+            "binning_x": 0,
+            "binning_y": 0,
+            "roi": roi,
+        }
+        if self.distro is Distro.ROS1:
+            fields |= {"D": np.zeros(5, dtype=np.float64), "K": k, "R": r, "P": p}
+        else:
+            fields |= {"d": np.zeros(5, dtype=np.float64), "k": k, "r": r, "p": p}
+        return self.t["sensor_msgs/msg/CameraInfo"](**fields)
+
+    def detections(self, stamp: int, pose: Pose, dets: Sequence[Detection]) -> Any:
+        import numpy as np
+
+        t = self.t
+        items = []
+        for d in dets:
+            u, v, w, h = project(self.camera, pose, d)
+            items.append(
+                t["vision_msgs/msg/Detection2D"](
+                    header=self.header(stamp, self.frames.camera),
+                    results=[
+                        t["vision_msgs/msg/ObjectHypothesisWithPose"](
+                            hypothesis=t["vision_msgs/msg/ObjectHypothesis"](
+                                class_id=d.object_class, score=1.0
+                            ),
+                            # The 3-D position is in the map frame, as the agent uses it.
+                            pose=t["geometry_msgs/msg/PoseWithCovariance"](
+                                pose=t["geometry_msgs/msg/Pose"](
+                                    position=t["geometry_msgs/msg/Point"](
+                                        x=float(d.position[0]),
+                                        y=float(d.position[1]),
+                                        z=float(d.position[2]),
+                                    ),
+                                    orientation=self._quat(0.0),
+                                ),
+                                covariance=np.zeros(36, dtype=np.float64),
+                            ),
+                        )
+                    ],
+                    bbox=t["vision_msgs/msg/BoundingBox2D"](
+                        center=t["vision_msgs/msg/Pose2D"](
+                            position=t["vision_msgs/msg/Point2D"](x=u, y=v), theta=0.0
+                        ),
+                        size_x=w,
+                        size_y=h,
+                    ),
+                    id=d.instance_id,
+                )
+            )
+        return t["vision_msgs/msg/Detection2DArray"](
+            header=self.header(stamp, self.frames.map), detections=items
+        )
+
+    def event(self, stamp: int, e: Event) -> Any:
+        return self.t["objsearch_msgs/msg/Event"](
+            header=self.header(stamp, self.frames.map),
+            event_id=e.event_id,
+            stream=e.stream,
+            seq=e.seq,
+            time_ns=e.time_ns,
+            recorded_at_ns=e.recorded_at_ns,
+            type=e.type,
+            version=e.version,
+            task_id=e.task_id or "",
+            payload_json=json.dumps(
+                dict(e.payload), sort_keys=True, separators=(",", ":"), ensure_ascii=False
+            ),
+        )
+
+
+def project(camera: Camera, pose: Pose, d: Detection) -> tuple[float, float, float, float]:
+    """Centre (u, v) and size (w, h) in pixels of a detection whose mask area is known.
+
+    The box has the camera model's aspect (the object's widest side × its height) scaled to
+    the reported mask area, centred on the projection of the object's centre.
+    """
+    dx, dy = d.position[0] - pose.x, d.position[1] - pose.y
+    bearing = math.atan2(dy, dx) - pose.yaw
+    bearing = math.atan2(math.sin(bearing), math.cos(bearing))
+    ahead = max(math.hypot(dx, dy) * math.cos(bearing), 0.1)
+    f = camera.focal_px
+    u = IMAGE_WIDTH / 2 - f * math.tan(bearing)
+    v = IMAGE_HEIGHT / 2 - f * (d.position[2] - camera.height) / ahead
+    side = math.sqrt(max(d.mask_area, 0.0))
+    return u, v, side, side
+
+
+def bag_messages(
+    timeline: Timeline,
+    events: Sequence[Event],
+    distro: Distro,
+    topic_map: TopicMap,
+    *,
+    start_ns: int = DEFAULT_START_NS,
+    odom_hz: float = DEFAULT_ODOM_HZ,
+    camera: Camera | None = None,
+) -> Iterator[tuple[int, Role, Any]]:
+    """(bag time, role, message) for everything the robot publishes, in time order."""
+    m = _Messages(distro, topic_map, camera or Camera())
+    out: list[tuple[int, int, Role, Callable[[], Any]]] = []
+    order = 0
+
+    def add(sim_ns: int, role: Role, make: Callable[[], Any]) -> None:
+        nonlocal order
+        out.append((start_ns + sim_ns, order, role, make))
+        order += 1
+
+    first = min([t for t, _ in timeline.poses[:1]] + [e.time_ns for e in events[:1]], default=0)
+    add(first, Role.TF_STATIC, lambda: m.tf_static(start_ns + first))
+    previous: tuple[int, Pose] | None = None
+    for t, pose in timeline.samples(odom_hz):
+        twist = (0.0, 0.0)
+        if previous is not None and t > previous[0]:
+            dt = (t - previous[0]) / 1e9
+            twist = (math.dist(pose[:2], previous[1][:2]) / dt, 0.0)
+        previous = (t, pose)
+        stamp = start_ns + t
+        add(t, Role.ODOMETRY, lambda s=stamp, p=pose, tw=twist: m.odometry(s, p, tw))
+        add(t, Role.TF, lambda s=stamp, p=pose: m.tf(s, p))
+    for t, pose, dets in timeline.frames:
+        stamp = start_ns + t
+        add(t, Role.CAMERA_INFO, lambda s=stamp: m.camera_info(s))
+        add(t, Role.DETECTIONS, lambda s=stamp, p=pose, d=dets: m.detections(s, p, d))
+    for e in events:
+        add(e.time_ns, Role.EVENTS, lambda s=start_ns + e.time_ns, ev=e: m.event(s, ev))
+    out.sort(key=lambda item: (item[0], item[1]))
+    for stamp, _, role, make in out:
+        yield stamp, role, make()
+
+
+def write_bag(
+    path: Path,
+    fmt: BagFormat,
+    messages: Iterator[tuple[int, Role, Any]],
+    topic_map: TopicMap,
+    *,
+    chunk_bytes: int | None = None,
+) -> dict[str, int]:
+    """Write ``messages`` with the rosbags writer of ``fmt``; returns messages per topic.
+
+    Written into a temporary sibling and renamed into place, so ``path`` never holds half a bag.
+    ``chunk_bytes`` sets ROS 1's chunk size (rosbags' default is 1 MiB).
+    """
+    if path.exists():
+        raise BagError(f"{path} already exists; choose a new --out (bags are never overwritten)")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp_root = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
+    tmp = tmp_root / path.name
+    counts: dict[str, int] = {}
+    store = typestore(fmt.distro)
+    try:
+        if fmt is BagFormat.ROS1:
+            from rosbags.rosbag1 import Writer as Writer1
+
+            w1 = Writer1(tmp)
+            if chunk_bytes is not None:
+                w1.chunk_threshold = chunk_bytes
+            with w1:
+                conns1: dict[Role, Any] = {}
+                for stamp, role, msg in messages:
+                    msgtype = MSG_TYPES[role]
+                    if role not in conns1:
+                        conns1[role] = w1.add_connection(
+                            topic_map.topic_for(role),
+                            msgtype,
+                            typestore=store,
+                            latching=1 if role is Role.TF_STATIC else None,
+                        )
+                    w1.write(conns1[role], stamp, bytes(store.serialize_ros1(msg, msgtype)))
+                    topic = topic_map.topic_for(role)
+                    counts[topic] = counts.get(topic, 0) + 1
+        else:
+            from rosbags.rosbag2 import StoragePlugin
+            from rosbags.rosbag2 import Writer as Writer2
+
+            plugin = StoragePlugin.MCAP if fmt is BagFormat.ROS2_MCAP else StoragePlugin.SQLITE3
+            with Writer2(tmp, version=9, storage_plugin=plugin) as w2:
+                conns2: dict[Role, Any] = {}
+                for stamp, role, msg in messages:
+                    msgtype = MSG_TYPES[role]
+                    if role not in conns2:
+                        conns2[role] = w2.add_connection(
+                            topic_map.topic_for(role), msgtype, typestore=store
+                        )
+                    w2.write(conns2[role], stamp, bytes(store.serialize_cdr(msg, msgtype)))
+                    topic = topic_map.topic_for(role)
+                    counts[topic] = counts.get(topic, 0) + 1
+        tmp.rename(path)
+    finally:
+        shutil.rmtree(tmp_root, ignore_errors=True)
+    return counts
+
+
+def record(
+    out: Path,
+    fmt: BagFormat,
+    *,
+    home: str = "paper",
+    scenes: Sequence[int] | None = None,
+    targets: Sequence[str] | None = None,
+    starts: Sequence[str] | None = None,
+    log_dir: Path | None = None,
+    topic_map: TopicMap | None = None,
+    start_ns: int = DEFAULT_START_NS,
+    odom_hz: float = DEFAULT_ODOM_HZ,
+    chunk_bytes: int | None = None,
+    seed: int = 0,
+) -> Recording:
+    """Run the searches and write the bag; the agent's own log goes to ``log_dir`` if given."""
+    from objsearch.agent.policy import Method, SearchConfig
+    from objsearch.agent.scene_graph import UpdateMode
+    from objsearch.agent.session import load_context
+    from objsearch.sim.longterm import TARGET_ORDER, run_schedule
+
+    topic_map = topic_map or TopicMap()
+    if fmt is BagFormat.ROS1 and out.suffix != ".bag":
+        raise BagError(f"a ROS 1 bag is one file named *.bag; got --out {out}")
+    if fmt is not BagFormat.ROS1 and out.suffix in (".bag", ".db3", ".mcap"):
+        raise BagError(f"a ROS 2 bag is a directory; give --out a directory name, not {out.name}")
+    if out.exists():
+        raise BagError(f"{out} already exists; choose a new --out (bags are never overwritten)")
+    ctx = load_context(home)
+    chosen = [ctx.vocabulary.resolve_target(t).name for t in targets] if targets else TARGET_ORDER
+    tmp = None if log_dir is not None else Path(tempfile.mkdtemp(prefix="objsearch-record-"))
+    log = log_dir if log_dir is not None else tmp
+    assert log is not None
+    try:
+        timeline = Timeline()
+        trials = run_schedule(
+            home,
+            log,
+            SearchConfig(method=Method.WPL, alpha=10.0, seed=seed),
+            UpdateMode.ALL,
+            targets=chosen,
+            scenes=scenes,
+            starts=starts,
+            observer=timeline,
+        )
+        events = list(read_log(log))
+        messages = bag_messages(
+            timeline, events, fmt.distro, topic_map, start_ns=start_ns, odom_hz=odom_hz
+        )
+        counts = write_bag(out, fmt, messages, topic_map, chunk_bytes=chunk_bytes)
+    finally:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+    stamps = [t for t, _ in timeline.poses] + [e.time_ns for e in events]
+    return Recording(
+        path=out,
+        format=fmt,
+        messages=counts,
+        events=len(events),
+        tasks=len(trials),
+        start_ns=start_ns + min(stamps, default=0),
+        end_ns=start_ns + max(stamps, default=0),
+    )

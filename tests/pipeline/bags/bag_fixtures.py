@@ -1,0 +1,38 @@
+"""Helpers shared by the bag tests (importable by name: tests/pipeline/bags is on sys.path)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from objsearch.events import Event, read_log
+from objsearch.pipeline.bags.formats import BagFormat
+from objsearch.pipeline.bags.record import Recording, record
+
+from objsearch.paths import REPO_ROOT
+
+SHARED_BAGS = REPO_ROOT.parent / "shared" / "data" / "bags"
+
+
+@dataclass(frozen=True)
+class Recorded:
+    bag: Path
+    recording: Recording
+    log: tuple[Event, ...]  # the agent's own log
+
+
+def record_run(root: Path, fmt: BagFormat, **kwargs: object) -> Recorded:
+    name = "run.bag" if fmt is BagFormat.ROS1 else "run"
+    log_dir = root / "log"
+    rec = record(
+        root / name,
+        fmt,
+        scenes=[1],
+        targets=["Apple", "Cup"],
+        starts=["kitchen-1"],
+        log_dir=log_dir,
+        odom_hz=2.0,
+        chunk_bytes=16 * 1024,  # several chunks, so damage tests can lose some and keep others
+        **kwargs,  # type: ignore[arg-type]
+    )
+    return Recorded(root / name, rec, tuple(read_log(log_dir)))
