@@ -209,7 +209,7 @@ def cmd_map(args: argparse.Namespace) -> int:
 
 #: Modules that add subcommands: each has ``register(sub)`` taking the subparsers action and keeps
 #: its heavy imports inside the command functions, so ``objsearch --help`` stays fast.
-COMMAND_MODULES: tuple[str, ...] = ("objsearch.cli_bags",)
+COMMAND_MODULES: tuple[str, ...] = ("objsearch.cli_bags", "objsearch.cli_runtime")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -53,7 +53,7 @@ class TransportConfig:
     node: str = "objsearch"
     mode: str = "peer"
     connect: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
-    listen: tuple[str, ...] = ()
+    listen: tuple[str, ...] = ("tcp/127.0.0.1:0",)  # peers listen so gossip can mesh them
     peers: tuple[str, ...] = ("127.0.0.1",)
     interface: str = "lo"
     extra: dict[str, str] = field(default_factory=dict)
