@@ -83,7 +83,9 @@ def cmd_agent_find(args: argparse.Namespace) -> int:
     from objsearch.runtime.client import AgentClient
 
     with AgentClient(runtime_config(args)) as client:
-        result = client.find(args.target, start=args.start, scene=args.scene, timeout_s=args.timeout)
+        result = client.find(
+            args.target, start=args.start, scene=args.scene, timeout_s=args.timeout
+        )
     if args.json:
         print(json.dumps(result, indent=2, sort_keys=True))
     elif not result.get("ok"):

@@ -96,7 +96,7 @@ class AgentNode:
         start = str(request.get("start") or "robot")
         task_id = f"task-{self.session.graph.tasks_folded + 1:05d}"
         try:
-            self.world.pose()  # the robot is there before a task starts
+            self.world.fresh_pose(self.config.timeouts.robot_s)
             result = self.session.search(
                 self.world, target, start, scene=None if scene is None else int(scene)
             )
@@ -136,7 +136,9 @@ class AgentNode:
         self._stop.set()
 
     def run(self) -> int:
-        log.info("agent up: %s, log %s", self.config.transport.backend.value, self.session.log.directory)
+        log.info(
+            "agent up: %s, log %s", self.config.transport.backend.value, self.session.log.directory
+        )
         try:
             while not self._stop.is_set():
                 request = self.requests.next(0.2)

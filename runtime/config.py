@@ -1,28 +1,28 @@
 """The agent's view of one robot: middleware, topics, QoS and patience (``robot.toml``)::
 
-    transport = "zenoh"            # or "dds": what the robot's RMW_IMPLEMENTATION speaks
-    domain_id = 0                  # ROS_DOMAIN_ID
-    home = "paper"
+transport = "zenoh"            # or "dds": what the robot's RMW_IMPLEMENTATION speaks
+domain_id = 0                  # ROS_DOMAIN_ID
+home = "paper"
 
-    [zenoh]
-    mode = "peer"                  # rmw_zenoh's sessions are peers of a router
-    connect = ["tcp/192.168.1.20:7447"]   # the robot's rmw_zenohd
-    listen = []
+[zenoh]
+mode = "peer"                  # rmw_zenoh's sessions are peers of a router
+connect = ["tcp/192.168.1.20:7447"]   # the robot's rmw_zenohd
+listen = []
 
-    [dds]
-    interface = "eth0"
-    peers = ["192.168.1.20"]
+[dds]
+interface = "eth0"
+peers = ["192.168.1.20"]
 
-    [topics]
-    goal = "/goal_pose"
-    odometry = "/odom"
-    detections = "/objsearch/detections"
+[topics]
+goal = "/goal_pose"
+odometry = "/odom"
+detections = "/objsearch/detections"
 
-    [qos]
-    odometry = "reliable"          # or "best_effort" for a sensor-data publisher
+[qos]
+odometry = "reliable"          # or "best_effort" for a sensor-data publisher
 
-    [timeouts]
-    arrival_s = 60.0
+[timeouts]
+arrival_s = 60.0
 """
 
 from __future__ import annotations
@@ -91,7 +91,17 @@ class RuntimeConfig:
 
     @classmethod
     def from_mapping(cls, doc: dict[str, Any], *, source: str = "config") -> RuntimeConfig:
-        known = {"transport", "domain_id", "home", "node", "zenoh", "dds", "topics", "qos", "timeouts"}
+        known = {
+            "transport",
+            "domain_id",
+            "home",
+            "node",
+            "zenoh",
+            "dds",
+            "topics",
+            "qos",
+            "timeouts",
+        }
         unknown = sorted(set(doc) - known)
         if unknown:
             raise RuntimeConfigError(f"{source}: unknown keys {unknown}; known: {sorted(known)}")
@@ -126,13 +136,17 @@ def _section(default: Any, values: dict[str, Any], source: str, name: str, conv:
     fields = {f.name: f for f in dataclasses.fields(default)}
     bad = sorted(set(values) - set(fields))
     if bad:
-        raise RuntimeConfigError(f"{source}: [{name}] has unknown keys {bad}; known: {sorted(fields)}")
+        raise RuntimeConfigError(
+            f"{source}: [{name}] has unknown keys {bad}; known: {sorted(fields)}"
+        )
     changes = {}
     for key, value in values.items():
         if conv is None:
             kind = type(getattr(default, key))
             if not isinstance(value, int | float) or isinstance(value, bool):
-                raise RuntimeConfigError(f"{source}: [{name}] {key} must be a number, not {value!r}")
+                raise RuntimeConfigError(
+                    f"{source}: [{name}] {key} must be a number, not {value!r}"
+                )
             changes[key] = kind(value)
         else:
             changes[key] = conv(value)

@@ -48,7 +48,7 @@ def _field_type(node: Any) -> Any:
     if kind == Nodetype.BASE:
         name, bound = detail
         if name == "string":
-            return t.bounded_str[bound] if bound else str
+            return t.bounded_str[bound] if bound else str  # type: ignore[misc]
         if name == "bool":
             return bool
         return getattr(t, _BASE[name])
@@ -56,10 +56,12 @@ def _field_type(node: Any) -> Any:
         return idl_type(detail)
     if kind == Nodetype.ARRAY:
         sub, length = detail
-        return t.array[_field_type(sub), length]
+        return t.array[_field_type(sub), length]  # type: ignore[misc]
     if kind == Nodetype.SEQUENCE:
         sub, bound = detail
-        return t.sequence[_field_type(sub), bound] if bound else t.sequence[_field_type(sub)]
+        if bound:
+            return t.sequence[_field_type(sub), bound]  # type: ignore[misc]
+        return t.sequence[_field_type(sub)]  # type: ignore[misc]
     raise MessageError(f"unsupported field kind {kind!r}")
 
 
@@ -166,7 +168,7 @@ class DdsTransport:
             self.participant,
             self._topic(topic, msgtype),
             _qos(qos),
-            listener=Listener(on_data_available=on_data),
+            listener=Listener(on_data_available=on_data),  # type: ignore[no-untyped-call]
         )
         self._entities.append(reader)
 

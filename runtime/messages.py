@@ -175,9 +175,7 @@ def detections_of(msg: Any) -> tuple[Detection, ...]:
             raise MessageError(f"detection {d.id!r} has invalid numbers {values}")
         if not hyp.hypothesis.class_id or not d.id:
             raise MessageError("a detection without a class or an instance id")
-        found.append(
-            Detection(str(hyp.hypothesis.class_id), str(d.id), area, (p.x, p.y, p.z))
-        )
+        found.append(Detection(str(hyp.hypothesis.class_id), str(d.id), area, (p.x, p.y, p.z)))
     return tuple(found)
 
 

@@ -39,9 +39,7 @@ class Node:
     def publisher(self, topic: str, msgtype: str, qos: QoS) -> TypedPublisher:
         return TypedPublisher(self.transport.publisher(topic, msgtype, qos), msgtype)
 
-    def subscribe(
-        self, topic: str, msgtype: str, qos: QoS, handler: Callable[[Any], None]
-    ) -> None:
+    def subscribe(self, topic: str, msgtype: str, qos: QoS, handler: Callable[[Any], None]) -> None:
         def on_bytes(data: bytes) -> None:
             try:
                 handler(m.decode(data, msgtype))
@@ -79,7 +77,12 @@ class Requester:
             self._cond.notify_all()
 
     def call(
-        self, body: dict[str, Any], *, timeout_s: float, resend_s: float = 0.5, what: str = "request"
+        self,
+        body: dict[str, Any],
+        *,
+        timeout_s: float,
+        resend_s: float = 0.5,
+        what: str = "request",
     ) -> dict[str, Any]:
         rid = str(body.get("id") or uuid.uuid4())
         msg = m.json_string({**body, "id": rid})

@@ -38,6 +38,7 @@ class RobotLink:
         self._cond = threading.Condition()
         self.pose: Pose | None = None
         self.pose_ns = 0
+        self.pose_count = 0  # odometry messages received
         self.clock_ns = 0
         self.heard_at = 0.0  # monotonic time of the last message from the robot
         self._views: list[tuple[int, int, tuple[Detection, ...]]] = []  # (arrival no, stamp, dets)
@@ -53,6 +54,7 @@ class RobotLink:
         with self._cond:
             if ns >= self.pose_ns:
                 self.pose, self.pose_ns = pose, ns
+            self.pose_count += 1
             self.clock_ns = max(self.clock_ns, ns)
             self.heard_at = time.monotonic()
             self._cond.notify_all()
@@ -123,6 +125,17 @@ class RosWorld:
             )
         return pose  # type: ignore[no-any-return]
 
+    def fresh_pose(self, timeout_s: float) -> Pose:
+        """Wait for odometry newer than this call (a task starts from where the robot is now)."""
+        seen = self.link.pose_count
+        if not self.link.wait(lambda: self.link.pose_count > seen, timeout_s):
+            raise RobotError(
+                f"no fresh odometry on {self.link.config.topics.odometry} within {timeout_s:g} s; "
+                f"{self.link.silence()}"
+            )
+        self._commanded = None
+        return self.pose()
+
     def pose(self) -> Pose:
         pose = self.link.pose
         if pose is None:
@@ -133,9 +146,7 @@ class RosWorld:
 
     def navmap_pose(self, pose: Pose) -> Pose:
         """Odometry snapped to the viewpoint it is at (the graph the agent plans on)."""
-        point = min(
-            self.navmap.room_of, key=lambda p: (p.x - pose.x) ** 2 + (p.y - pose.y) ** 2
-        )
+        point = min(self.navmap.room_of, key=lambda p: (p.x - pose.x) ** 2 + (p.y - pose.y) ** 2)
         if math.hypot(point.x - pose.x, point.y - pose.y) <= self.timeouts.tolerance_m:
             return Pose(point.x, point.y, pose.yaw)
         return pose
@@ -160,17 +171,20 @@ class RosWorld:
         t = self.timeouts
         for _attempt in range(t.attempts):
             self.link.goal_pub.publish(msg)
-            arrived = self.link.wait(lambda: self._at(goal) and (self.link.pose_ns or -1), t.arrival_s)
+            arrived = self.link.wait(
+                lambda: self._at(goal) and (self.link.pose_ns or -1), t.arrival_s
+            )
             if not arrived:
                 continue
             self._commanded = goal
             if not view:
                 return ()
             arrival_ns = self.link.pose_ns
-            dets = self.link.wait(
-                lambda: self.link.view_after(mark, arrival_ns) is not None, t.detections_s
-            )
-            if dets:
+
+            def viewed(since: int = arrival_ns) -> bool:
+                return self.link.view_after(mark, since) is not None
+
+            if self.link.wait(viewed, t.detections_s):
                 view_dets = self.link.view_after(mark, arrival_ns)
                 assert view_dets is not None
                 return view_dets
@@ -221,11 +235,14 @@ class RosWorld:
     def open(self, static_id: str) -> tuple[Detection, ...]:
         mark = self.link.mark()
         t = self.timeouts
-        result = self.link.opener.call(
-            {"static_id": static_id},
-            timeout_s=t.arrival_s * t.attempts,
-            what=f"open {static_id!r}",
-        )
+        try:
+            result = self.link.opener.call(
+                {"static_id": static_id},
+                timeout_s=t.arrival_s * t.attempts,
+                what=f"open {static_id!r}",
+            )
+        except RobotError as exc:
+            raise RobotError(f"{exc}; {self.link.silence()}") from None
         if not result.get("ok"):
             raise RobotError(f"the robot could not open {static_id!r}: {result.get('error')}")
         stamp = int(result.get("stamp_ns", 0))

@@ -68,7 +68,9 @@ class StandInRobot:
         self._odom = self.node.publisher(t.odometry, m.ODOMETRY, q.odometry)
         self._views = self.node.publisher(t.detections, m.DETECTIONS, q.detections)
         self._inbox: queue.Queue[tuple[str, Any]] = queue.Queue()
-        self.node.subscribe(t.goal, m.POSE_STAMPED, q.goal, lambda msg: self._inbox.put(("goal", msg)))
+        self.node.subscribe(
+            t.goal, m.POSE_STAMPED, q.goal, lambda msg: self._inbox.put(("goal", msg))
+        )
         self._open = Server(self.node, t.open, t.open_result, q.requests)
         self._reset = Server(self.node, t.sim_reset, t.sim_reset_result, q.requests)
         self._last_goal: tuple[int, Pose] | None = None
@@ -86,7 +88,9 @@ class StandInRobot:
 
     def _world(self, scene: int | None, start: str) -> SimWorld:
         pose = self.ctx.home.start(start)
-        return SimWorld(self.ctx.home, self.ctx.navmap, self._placements(scene), pose, clock=self.clock)
+        return SimWorld(
+            self.ctx.home, self.ctx.navmap, self._placements(scene), pose, clock=self.clock
+        )
 
     # -- output, with dropped messages as a fault ----------------------------------------------
 
@@ -127,7 +131,9 @@ class StandInRobot:
         else:
             for b in self.ctx.navmap.path(here.point, target)[1:]:
                 self.world.navigate(b)
-                views.append(m.detections(self.world.now_ns(), self.world.pose(), self.world.view()))
+                views.append(
+                    m.detections(self.world.now_ns(), self.world.pose(), self.world.view())
+                )
             if self.world.pose().yaw != goal.yaw:
                 self.world.navigate(target, final_yaw=goal.yaw)  # turn in place, no view
         self._last_views = views
@@ -135,7 +141,9 @@ class StandInRobot:
         self._publish_views(views)
 
     def _viewpoint(self, goal: Pose) -> Point:
-        point = min(self.ctx.navmap.room_of, key=lambda p: (p.x - goal.x) ** 2 + (p.y - goal.y) ** 2)
+        point = min(
+            self.ctx.navmap.room_of, key=lambda p: (p.x - goal.x) ** 2 + (p.y - goal.y) ** 2
+        )
         return point
 
     def _on_open(self, request: Mapping[str, Any]) -> dict[str, Any]:

@@ -62,7 +62,9 @@ class TransportConfig:
         if not 0 <= self.domain_id <= 232:
             raise RuntimeConfigError(f"ROS domain id must be 0..232, got {self.domain_id}")
         if self.mode not in {"peer", "client", "router"}:
-            raise RuntimeConfigError(f"zenoh mode must be peer, client or router, not {self.mode!r}")
+            raise RuntimeConfigError(
+                f"zenoh mode must be peer, client or router, not {self.mode!r}"
+            )
 
 
 def open_transport(config: TransportConfig) -> Transport:

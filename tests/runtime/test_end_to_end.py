@@ -9,15 +9,15 @@ from typing import Any
 from objsearch.agent.policy import SearchConfig
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
-from objsearch.cli import build_parser
-from objsearch.cli_runtime import runtime_config
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.sim.schedule import Schedule
 from objsearch.sim.world import SimClock, SimWorld
-
 from runtime_fixtures import Net, objsearch, stop
+
+from objsearch.cli import build_parser
+from objsearch.cli_runtime import runtime_config
 
 # Scene 1 of Table II, in the long-term runner's order (scene → target → start), cut short for CI.
 TRIALS = [(1, "Apple", "kitchen-1"), (1, "Apple", "bedroom-1"), (1, "Cup", "living-1")]
@@ -35,7 +35,11 @@ def in_process(log_dir: Path) -> list[dict[str, Any]]:
     try:
         for scene, target, start in TRIALS:
             world = SimWorld(
-                ctx.home, ctx.navmap, schedule.scenes[scene], ctx.home.start(start), clock=SimClock()
+                ctx.home,
+                ctx.navmap,
+                schedule.scenes[scene],
+                ctx.home.start(start),
+                clock=SimClock(),
             )
             r = session.search(world, target, start, scene=scene)
             out.append(
@@ -53,7 +57,9 @@ def in_process(log_dir: Path) -> list[dict[str, Any]]:
 
 def run_over(net: Net, tmp_path: Path, trials: list[tuple[int, str, str]]) -> list[dict[str, Any]]:
     robot = objsearch("robot", "sim", *net.args, log=tmp_path / "robot.txt")
-    agent = objsearch("agent", "run", *net.args, "--log", str(tmp_path / "log"), log=tmp_path / "agent.txt")
+    agent = objsearch(
+        "agent", "run", *net.args, "--log", str(tmp_path / "log"), log=tmp_path / "agent.txt"
+    )
     out = []
     try:
         with AgentClient(client_config(net)) as client:
