@@ -96,7 +96,9 @@ class AgentNode:
         start = str(request.get("start") or "robot")
         task_id = f"task-{self.session.graph.tasks_folded + 1:05d}"
         try:
-            self.world.fresh_pose(self.config.timeouts.robot_s)
+            self.world.fresh_pose(
+                self.config.timeouts.robot_s, int(request.get("not_before_ns") or 0)
+            )
             result = self.session.search(
                 self.world, target, start, scene=None if scene is None else int(scene)
             )

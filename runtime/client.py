@@ -18,9 +18,22 @@ class AgentClient:
         self._reset = Requester(self.node, t.sim_reset, t.sim_reset_result, q)
 
     def find(
-        self, target: str, *, start: str | None = None, scene: int | None = None, timeout_s: float
+        self,
+        target: str,
+        *,
+        start: str | None = None,
+        scene: int | None = None,
+        not_before_ns: int = 0,
+        timeout_s: float,
     ) -> dict[str, Any]:
-        body: dict[str, Any] = {"target": target, "start": start, "scene": scene}
+        """``not_before_ns``: start from odometry stamped at or after this robot time (e.g. the
+        stand-in's reset answer), not from a message sent before it."""
+        body: dict[str, Any] = {
+            "target": target,
+            "start": start,
+            "scene": scene,
+            "not_before_ns": not_before_ns,
+        }
         return self._find.call(body, timeout_s=timeout_s, resend_s=1.0, what=f"find {target}")
 
     def reset_sim(self, scene: int | None, start: str, *, timeout_s: float) -> dict[str, Any]:

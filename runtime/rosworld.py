@@ -125,10 +125,15 @@ class RosWorld:
             )
         return pose  # type: ignore[no-any-return]
 
-    def fresh_pose(self, timeout_s: float) -> Pose:
-        """Wait for odometry newer than this call (a task starts from where the robot is now)."""
+    def fresh_pose(self, timeout_s: float, not_before_ns: int = 0) -> Pose:
+        """Wait for odometry received after this call and stamped at or after ``not_before_ns``
+        (a task starts from where the robot is now, not from a message still in flight)."""
         seen = self.link.pose_count
-        if not self.link.wait(lambda: self.link.pose_count > seen, timeout_s):
+
+        def fresh() -> bool:
+            return self.link.pose_count > seen and self.link.pose_ns >= not_before_ns
+
+        if not self.link.wait(fresh, timeout_s):
             raise RobotError(
                 f"no fresh odometry on {self.link.config.topics.odometry} within {timeout_s:g} s; "
                 f"{self.link.silence()}"

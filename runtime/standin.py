@@ -167,7 +167,7 @@ class StandInRobot:
             return {"ok": False, "error": str(exc)}
         self._last_goal = None
         self._publish_pose()
-        return {"ok": True}
+        return {"ok": True, "stamp_ns": self.world.now_ns()}
 
     # -- main loop -----------------------------------------------------------------------------
 

@@ -64,8 +64,11 @@ def run_over(net: Net, tmp_path: Path, trials: list[tuple[int, str, str]]) -> li
     try:
         with AgentClient(client_config(net)) as client:
             for scene, target, start in trials:
-                assert client.reset_sim(scene, start, timeout_s=20)["ok"]
-                r = client.find(target, start=start, scene=scene, timeout_s=60)
+                reset = client.reset_sim(scene, start, timeout_s=20)
+                assert reset["ok"]
+                r = client.find(
+                    target, start=start, scene=scene, timeout_s=60, not_before_ns=reset["stamp_ns"]
+                )
                 assert r["ok"], r
                 out.append({k: r[k] for k in ("success", "path_length", "found", "plans")})
     finally:
