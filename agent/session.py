@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -12,7 +12,7 @@ from typing import Any
 from objsearch.agent.categories import Vocabulary, read_json
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.navmap import NavigationMap
-from objsearch.agent.policy import Recorder, SearchAgent, SearchConfig, SearchResult
+from objsearch.agent.policy import Projection, Recorder, SearchAgent, SearchConfig, SearchResult
 from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode, seed_relations
 from objsearch.agent.semmap import SemanticMap
 from objsearch.agent.world import World
@@ -63,7 +63,10 @@ class Session:
         stream: str = "robot",
         params: dict[str, Any] | None = None,
         wall_clock: Callable[[], int] | None = None,
+        observers: Sequence[Projection] = (),
     ) -> None:
+        """``observers`` see every event right after it is appended (e.g. the on-robot
+        agent publishes each one on its events topic)."""
         self.ctx = ctx
         # First: the writer's lock guards the fold too. A fixed wall clock gives byte-identical
         # logs (golden logs); by default recorded_at_ns is the real time of each append.
@@ -81,7 +84,7 @@ class Session:
         # Everything that can fail on bad data is read before the first append: a run that
         # cannot start leaves the log as it was.
         prior = None if self.graph.relations else prior_values(ctx.vocabulary)
-        self.recorder = Recorder(self.log, [self.graph])
+        self.recorder = Recorder(self.log, [self.graph, *observers])
         self.recorder.record(
             "run_started",
             {

@@ -178,6 +178,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "objsearch.cli_map",
     "objsearch.cli_query",
     "objsearch.cli_replay",
+    "objsearch.cli_runtime",
 )
 
 

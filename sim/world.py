@@ -105,6 +105,10 @@ class SimWorld:
             self.observer.camera_frame(self.clock.ns, pose, seen)
         return tuple(seen)
 
+    def view(self) -> tuple[Detection, ...]:
+        """What the camera sees from where the robot stands, without turning or spending time."""
+        return self._view(self._pose)
+
     def navigate(
         self,
         goal: Point,

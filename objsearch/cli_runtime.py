@@ -1,0 +1,174 @@
+"""``objsearch agent run|find`` and ``objsearch robot sim|router``: the on-robot runtime."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import signal
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from objsearch.runtime.config import RuntimeConfig
+
+
+def _transport_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--config", help="robot.toml (transport, domain, endpoints, topics, QoS)")
+    p.add_argument("--transport", choices=["zenoh", "dds"], help="middleware (zenoh)")
+    p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (0)")
+    p.add_argument(
+        "--connect", action="append", help="zenoh endpoint to connect to (tcp/127.0.0.1:7447)"
+    )
+    p.add_argument("--listen", action="append", help="zenoh endpoint to listen on")
+    p.add_argument("--mode", choices=["peer", "client"], help="zenoh session mode (peer)")
+    p.add_argument("--peer", action="append", help="DDS unicast discovery peer (127.0.0.1)")
+    p.add_argument("--interface", help="DDS network interface (lo)")
+    p.add_argument("--home", help="home in data/homes (paper)")
+
+
+def runtime_config(args: argparse.Namespace) -> RuntimeConfig:
+    from objsearch.runtime.config import RuntimeConfig
+    from objsearch.runtime.transport import Backend
+
+    config = RuntimeConfig.load(Path(args.config)) if args.config else RuntimeConfig()
+    t = config.transport
+    changes: dict[str, Any] = {}
+    if args.transport:
+        changes["backend"] = Backend(args.transport)
+    if args.domain_id is not None:
+        changes["domain_id"] = args.domain_id
+    if args.connect:
+        changes["connect"] = tuple(args.connect)
+    if args.listen:
+        changes["listen"] = tuple(args.listen)
+    if args.mode:
+        changes["mode"] = args.mode
+    if args.peer:
+        changes["peers"] = tuple(args.peer)
+    if args.interface:
+        changes["interface"] = args.interface
+    config = replace(config, transport=replace(t, **changes))
+    if args.home:
+        config = replace(config, home=args.home)
+    return config
+
+
+def _stop_on_signals(stop: Any) -> None:
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop())
+
+
+def _logging() -> None:
+    logging.getLogger("objsearch").setLevel(logging.INFO)
+
+
+def cmd_agent_run(args: argparse.Namespace) -> int:
+    from objsearch.agent.policy import Method, SearchConfig
+    from objsearch.agent.scene_graph import UpdateMode
+    from objsearch.runtime.agent_node import AgentNode
+
+    _logging()
+    search = SearchConfig(method=Method(args.method), alpha=args.alpha, seed=args.seed)
+    node = AgentNode(runtime_config(args), Path(args.log), search, UpdateMode(args.update_mode))
+    _stop_on_signals(node.stop)
+    print(f"objsearch agent: serving searches, log {args.log}", file=sys.stderr, flush=True)
+    return node.run()
+
+
+def cmd_agent_find(args: argparse.Namespace) -> int:
+    from objsearch.runtime.client import AgentClient
+
+    with AgentClient(runtime_config(args)) as client:
+        result = client.find(
+            args.target, start=args.start, scene=args.scene, timeout_s=args.timeout
+        )
+    if args.json:
+        print(json.dumps(result, indent=2, sort_keys=True))
+    elif not result.get("ok"):
+        print(f"search failed: {result.get('error')}")
+    else:
+        verdict = "found" if result["success"] else "NOT found"
+        print(
+            f"{verdict}: {result['target']} ({result['task_id']}), "
+            f"path length {result['path_length']:.2f} m"
+            + (f", {result['found']}" if result.get("found") else "")
+        )
+    if not result.get("ok"):
+        return 2
+    return 0 if result["success"] else 1
+
+
+def cmd_robot_sim(args: argparse.Namespace) -> int:
+    from objsearch.runtime.standin import Faults, StandInRobot
+
+    _logging()
+    robot = StandInRobot(
+        runtime_config(args),
+        schedule=args.schedule,
+        scene=args.scene,
+        start=args.start,
+        faults=Faults(args.drop_every, args.exit_after, args.malformed_after),
+    )
+    _stop_on_signals(robot.stop)
+    print("objsearch robot: stand-in up", file=sys.stderr, flush=True)
+    return robot.run()
+
+
+def cmd_robot_router(args: argparse.Namespace) -> int:
+    """A zenoh router, for a machine without ``ros2 run rmw_zenoh_cpp rmw_zenohd``."""
+    from objsearch.runtime.transport import Backend, TransportConfig
+    from objsearch.runtime.zenoh_transport import ZenohTransport
+
+    listen = tuple(args.listen or ["tcp/127.0.0.1:7447"])
+    router = ZenohTransport(
+        TransportConfig(Backend.ZENOH, mode="router", connect=(), listen=listen, node="router")
+    )
+    stopped: list[bool] = []
+    _stop_on_signals(lambda: stopped.append(True))
+    print(f"objsearch router: listening on {', '.join(listen)}", file=sys.stderr, flush=True)
+    while not stopped:
+        time.sleep(0.2)
+    router.close()
+    return 0
+
+
+def register(sub: Any) -> None:
+    agent = sub.add_parser("agent", help="the on-robot agent over ROS 2 (zenoh or DDS)")
+    agent_sub = agent.add_subparsers(dest="agent_command", required=True, metavar="SUBCOMMAND")
+    run = agent_sub.add_parser("run", help="serve search requests, driving the robot")
+    _transport_options(run)
+    run.add_argument("--log", required=True, help="the agent's event log folder")
+    run.add_argument("--method", default="wpl", choices=["wpl", "rvp", "sdp"])
+    run.add_argument("--alpha", type=float, default=10.0)
+    run.add_argument("--seed", type=int, default=0)
+    run.add_argument("--update-mode", default="all", choices=["none", "targets", "all"])
+    run.set_defaults(func=cmd_agent_run)
+
+    find = agent_sub.add_parser("find", help="ask the running agent to find an object")
+    find.add_argument("target", help="object class, e.g. Apple")
+    _transport_options(find)
+    find.add_argument("--start", help="a label for where the robot starts (recorded)")
+    find.add_argument("--scene", type=int, help="the schedule scene (recorded; the stand-in's)")
+    find.add_argument("--timeout", type=float, default=600.0, help="seconds to wait (600)")
+    find.add_argument("--json", action="store_true")
+    find.set_defaults(func=cmd_agent_find)
+
+    robot = sub.add_parser("robot", help="a stand-in robot and a zenoh router for it")
+    robot_sub = robot.add_subparsers(dest="robot_command", required=True, metavar="SUBCOMMAND")
+    sim = robot_sub.add_parser("sim", help="the simulator behind a real robot's ROS 2 topics")
+    _transport_options(sim)
+    sim.add_argument("--schedule", default="table2")
+    sim.add_argument("--scene", type=int, help="place objects as in this scene (default: Table I)")
+    sim.add_argument("--start", help="start point (the home's first)")
+    sim.add_argument("--drop-every", type=int, default=0, help="fault: drop every n-th message")
+    sim.add_argument("--exit-after", type=int, default=0, help="fault: vanish after n goals")
+    sim.add_argument("--malformed-after", type=int, default=0, help="fault: garbage after n goals")
+    sim.set_defaults(func=cmd_robot_sim)
+
+    router = robot_sub.add_parser("router", help="a zenoh router (rmw_zenohd's role)")
+    router.add_argument("--listen", action="append", help="endpoint (tcp/127.0.0.1:7447)")
+    router.set_defaults(func=cmd_robot_router)

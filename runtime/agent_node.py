@@ -1,0 +1,155 @@
+"""The long-running on-robot agent: search requests in, robot commands out, every event logged
+and published.
+
+Each event is appended to the durable log first, then published on the events topic as an
+``objsearch_msgs/Event`` (so the robot's bag records it); a publish that fails is reported and
+the log is unaffected. A search the robot cannot finish (it stops answering, refuses, times out)
+ends as ``search_failed`` with the reason and ``task_ended`` with the metres walked so far, so the
+log stays a sequence of whole tasks and the next request carries on. On restart the session folds
+its log and continues the task numbering and the scene graph.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from pathlib import Path
+from typing import Any
+
+from objsearch.agent.errors import ObjsearchError
+from objsearch.agent.policy import SearchConfig
+from objsearch.agent.scene_graph import EventLike, UpdateMode
+from objsearch.agent.session import Session, load_context
+from objsearch.events import Event
+from objsearch.runtime import messages as m
+from objsearch.runtime.config import RuntimeConfig
+from objsearch.runtime.errors import RobotError
+from objsearch.runtime.node import Node, Server
+from objsearch.runtime.rosworld import RobotLink, RosWorld
+from objsearch.runtime.transport import open_transport
+
+log = logging.getLogger("objsearch.agent")
+
+
+class EventPublisher:
+    """A projection that publishes each appended event and tallies the metres of each task."""
+
+    def __init__(self, node: Node, config: RuntimeConfig) -> None:
+        self._pub = node.publisher(config.topics.events, m.EVENT, config.qos.events)
+        self.metres: dict[str, float] = {}
+        self.open_tasks: set[str] = set()
+        self.published = 0
+
+    def apply(self, event: EventLike) -> None:
+        assert isinstance(event, Event)
+        if event.type == "task_started" and event.task_id:
+            self.open_tasks.add(event.task_id)
+        elif event.type == "task_ended":
+            self.open_tasks.discard(event.task_id or "")
+        if event.type == "moved" and event.task_id:
+            self.metres[event.task_id] = self.metres.get(event.task_id, 0.0) + float(
+                event.payload["metres"]
+            )
+        try:
+            self._pub.publish(m.event(event, event.time_ns))
+            self.published += 1
+        except Exception as exc:  # the log has it; the topic is a copy
+            log.warning("event %d appended but not published: %s", event.seq, exc)
+
+
+class AgentNode:
+    def __init__(
+        self,
+        config: RuntimeConfig,
+        log_dir: Path,
+        search: SearchConfig,
+        update_mode: UpdateMode = UpdateMode.ALL,
+    ) -> None:
+        self.config = config
+        self.ctx = load_context(config.home)
+        self.node = Node(open_transport(config.transport))
+        try:
+            self.events = EventPublisher(self.node, config)
+            self.session = Session(
+                self.ctx,
+                log_dir,
+                search,
+                update_mode,
+                params={"transport": config.transport.backend.value},
+                observers=[self.events],
+            )
+        except BaseException:
+            self.node.close()
+            raise
+        self.link = RobotLink(self.node, config)
+        self.world = RosWorld(self.link, self.ctx.navmap)
+        t = config.topics
+        self.requests = Server(self.node, t.find, t.find_result, config.qos.requests)
+        self._stop = threading.Event()
+
+    def handle(self, request: dict[str, Any]) -> dict[str, Any]:
+        try:
+            target = self.ctx.vocabulary.resolve_target(str(request.get("target"))).name
+        except ObjsearchError as exc:
+            return {"ok": False, "error": str(exc)}
+        scene = request.get("scene")
+        start = str(request.get("start") or "robot")
+        task_id = f"task-{self.session.graph.tasks_folded + 1:05d}"
+        try:
+            self.world.fresh_pose(
+                self.config.timeouts.robot_s, int(request.get("not_before_ns") or 0)
+            )
+            result = self.session.search(
+                self.world, target, start, scene=None if scene is None else int(scene)
+            )
+        except RobotError as exc:
+            log.error("%s: search for %s failed: %s", task_id, target, exc)
+            if task_id in self.events.open_tasks:
+                self._fail_task(task_id, target, str(exc))
+            return {"ok": False, "target": target, "task_id": task_id, "error": str(exc)}
+        return {
+            "ok": True,
+            "target": target,
+            "task_id": result.task_id,
+            "success": result.success,
+            "path_length": result.path_length,
+            "found": result.found_instance,
+            "plans": [[room, list(order)] for room, order in result.plans],
+        }
+
+    def _fail_task(self, task_id: str, target: str, reason: str) -> None:
+        now = self.world.now_ns()
+        with self.session.log.batch():
+            self.session.recorder.record(
+                "search_failed", {"reason": f"robot: {reason}"}, time_ns=now, task_id=task_id
+            )
+            self.session.recorder.record(
+                "task_ended",
+                {
+                    "target": target,
+                    "success": False,
+                    "path_length": round(self.events.metres.get(task_id, 0.0), 4),
+                },
+                time_ns=now,
+                task_id=task_id,
+            )
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def run(self) -> int:
+        log.info(
+            "agent up: %s, log %s", self.config.transport.backend.value, self.session.log.directory
+        )
+        try:
+            while not self._stop.is_set():
+                request = self.requests.next(0.2)
+                if request is not None:
+                    self.requests.answer(request, self.handle(request))
+        finally:
+            self.close()
+        return 0
+
+    def close(self) -> None:
+        self.session.close()
+        self.node.close()

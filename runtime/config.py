@@ -1,0 +1,153 @@
+"""The agent's view of one robot: middleware, topics, QoS and patience (``robot.toml``)::
+
+transport = "zenoh"            # or "dds": what the robot's RMW_IMPLEMENTATION speaks
+domain_id = 0                  # ROS_DOMAIN_ID
+home = "paper"
+
+[zenoh]
+mode = "peer"                  # rmw_zenoh's sessions are peers of a router
+connect = ["tcp/192.168.1.20:7447"]   # the robot's rmw_zenohd
+listen = []
+
+[dds]
+interface = "eth0"
+peers = ["192.168.1.20"]
+
+[topics]
+goal = "/goal_pose"
+odometry = "/odom"
+detections = "/objsearch/detections"
+
+[qos]
+odometry = "reliable"          # or "best_effort" for a sensor-data publisher
+
+[timeouts]
+arrival_s = 60.0
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from objsearch.runtime.errors import RuntimeConfigError
+from objsearch.runtime.qos import DEFAULT, EVENTS, QoS
+from objsearch.runtime.transport import Backend, TransportConfig
+
+
+@dataclass(frozen=True, slots=True)
+class Topics:
+    goal: str = "/goal_pose"  # geometry_msgs/PoseStamped, as RViz's 2D Goal Pose and Nav2 take it
+    odometry: str = "/odom"  # nav_msgs/Odometry, pose in the map frame
+    detections: str = "/objsearch/detections"  # vision_msgs/Detection2DArray
+    events: str = "/objsearch/events"  # objsearch_msgs/Event, every append
+    find: str = "/objsearch/find"  # std_msgs/String JSON {id, target, start?, scene?}
+    find_result: str = "/objsearch/find/result"
+    open: str = "/objsearch/open"  # std_msgs/String JSON {id, static_id}
+    open_result: str = "/objsearch/open/result"
+    sim_reset: str = "/objsearch_sim/reset"  # the stand-in only: {id, scene, start}
+    sim_reset_result: str = "/objsearch_sim/reset/result"
+
+
+@dataclass(frozen=True, slots=True)
+class QosSettings:
+    odometry: QoS = DEFAULT
+    detections: QoS = DEFAULT
+    goal: QoS = DEFAULT
+    events: QoS = EVENTS
+    requests: QoS = DEFAULT
+
+
+@dataclass(frozen=True, slots=True)
+class Timeouts:
+    robot_s: float = 10.0  # no odometry for this long: the robot is gone
+    arrival_s: float = 10.0  # a goal not reached in this long is sent again …
+    attempts: int = 3  # … up to this many times, then the search fails
+    detections_s: float = 5.0  # the camera view after arriving
+    tolerance_m: float = 0.05
+    tolerance_rad: float = 0.05
+
+
+@dataclass(frozen=True, slots=True)
+class RuntimeConfig:
+    transport: TransportConfig = field(default_factory=TransportConfig)
+    home: str = "paper"
+    topics: Topics = Topics()
+    qos: QosSettings = QosSettings()
+    timeouts: Timeouts = Timeouts()
+
+    @classmethod
+    def load(cls, path: Path) -> RuntimeConfig:
+        try:
+            doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        except OSError as exc:
+            raise RuntimeConfigError(f"cannot read {path}: {exc.strerror or exc}") from exc
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise RuntimeConfigError(f"{path} is not valid TOML: {exc}") from exc
+        return cls.from_mapping(doc, source=str(path))
+
+    @classmethod
+    def from_mapping(cls, doc: dict[str, Any], *, source: str = "config") -> RuntimeConfig:
+        known = {
+            "transport",
+            "domain_id",
+            "home",
+            "node",
+            "zenoh",
+            "dds",
+            "topics",
+            "qos",
+            "timeouts",
+        }
+        unknown = sorted(set(doc) - known)
+        if unknown:
+            raise RuntimeConfigError(f"{source}: unknown keys {unknown}; known: {sorted(known)}")
+        try:
+            backend = Backend(doc.get("transport", "zenoh"))
+        except ValueError:
+            raise RuntimeConfigError(
+                f"{source}: transport must be zenoh or dds, not {doc['transport']!r}"
+            ) from None
+        z, d = doc.get("zenoh", {}), doc.get("dds", {})
+        base = TransportConfig()
+        transport = TransportConfig(
+            backend=backend,
+            domain_id=int(doc.get("domain_id", 0)),
+            node=str(doc.get("node", base.node)),
+            mode=str(z.get("mode", base.mode)),
+            connect=tuple(z.get("connect", base.connect)),
+            listen=tuple(z.get("listen", base.listen)),
+            peers=tuple(d.get("peers", base.peers)),
+            interface=str(d.get("interface", base.interface)),
+        )
+        return cls(
+            transport=transport,
+            home=str(doc.get("home", "paper")),
+            topics=_section(Topics(), doc.get("topics", {}), source, "topics", str),
+            qos=_section(QosSettings(), doc.get("qos", {}), source, "qos", QoS.parse),
+            timeouts=_section(Timeouts(), doc.get("timeouts", {}), source, "timeouts", None),
+        )
+
+
+def _section(default: Any, values: dict[str, Any], source: str, name: str, conv: Any) -> Any:
+    fields = {f.name: f for f in dataclasses.fields(default)}
+    bad = sorted(set(values) - set(fields))
+    if bad:
+        raise RuntimeConfigError(
+            f"{source}: [{name}] has unknown keys {bad}; known: {sorted(fields)}"
+        )
+    changes = {}
+    for key, value in values.items():
+        if conv is None:
+            kind = type(getattr(default, key))
+            if not isinstance(value, int | float) or isinstance(value, bool):
+                raise RuntimeConfigError(
+                    f"{source}: [{name}] {key} must be a number, not {value!r}"
+                )
+            changes[key] = kind(value)
+        else:
+            changes[key] = conv(value)
+    return replace(default, **changes)

@@ -1,0 +1,187 @@
+"""The one message layer both transports share: rosbags' ROS 2 types, CDR bytes, ROS 2 names.
+
+The types are the ROS 2 Humble store plus the repository's own ``.msg`` definitions
+(``objsearch.pipeline.bags.types``), so the agent's events and detections travel as the same
+``objsearch_msgs/msg/Event`` and ``vision_msgs/msg/Detection2DArray`` the bag pipeline records.
+A backend only ever moves the CDR bytes :func:`encode` returns; the names and hashes each
+middleware needs come from here.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from functools import cache
+from typing import TYPE_CHECKING, Any
+
+from objsearch.agent.geometry import Pose
+from objsearch.agent.world import Detection
+from objsearch.events import Event
+from objsearch.pipeline.bags.types import Distro, typestore
+from objsearch.runtime.errors import MessageError
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
+
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+ODOMETRY = "nav_msgs/msg/Odometry"
+STRING = "std_msgs/msg/String"
+DETECTIONS = "vision_msgs/msg/Detection2DArray"
+EVENT = "objsearch_msgs/msg/Event"
+
+
+def store() -> Typestore:
+    return typestore(Distro.ROS2)
+
+
+def types() -> Any:
+    return store().types
+
+
+def dds_type_name(msgtype: str) -> str:
+    """``geometry_msgs/msg/PoseStamped`` → ``geometry_msgs::msg::dds_::PoseStamped_`` (rosidl's
+    DDS name, which both rmw_cyclonedds_cpp and rmw_zenoh_cpp use)."""
+    parts = msgtype.split("/")
+    if len(parts) != 3 or not all(parts):
+        raise MessageError(f"{msgtype!r} is not a ROS 2 type name like pkg/msg/Name")
+    pkg, kind, name = parts
+    return f"{pkg}::{kind}::dds_::{name}_"
+
+
+@cache
+def type_hash(msgtype: str) -> str:
+    """The REP-2011 type description hash, ``RIHS01_<sha256 hex>``."""
+    try:
+        return str(store().hash_rihs01(msgtype))
+    except KeyError:
+        raise MessageError(f"unknown message type {msgtype!r}") from None
+
+
+def encode(msg: Any, msgtype: str) -> bytes:
+    """CDR (little endian, with its 4-byte encapsulation header), as ROS 2 puts on the wire."""
+    return bytes(store().serialize_cdr(msg, msgtype))
+
+
+def decode(data: bytes, msgtype: str) -> Any:
+    try:
+        return store().deserialize_cdr(data, msgtype)
+    except Exception as exc:  # rosbags raises assorted errors on short or garbled bytes
+        raise MessageError(f"malformed {msgtype} ({len(data)} bytes): {exc}") from None
+
+
+# -- builders and readers for what the agent and the robot exchange ----------------------------
+
+
+def stamp(ns: int) -> Any:
+    return types()["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+
+
+def stamp_ns(header: Any) -> int:
+    return int(header.stamp.sec) * 10**9 + int(header.stamp.nanosec)
+
+
+def header(ns: int, frame: str = "map") -> Any:
+    return types()["std_msgs/msg/Header"](stamp=stamp(ns), frame_id=frame)
+
+
+def _pose_msg(pose: Pose) -> Any:
+    t = types()
+    return t["geometry_msgs/msg/Pose"](
+        position=t["geometry_msgs/msg/Point"](x=float(pose.x), y=float(pose.y), z=0.0),
+        orientation=t["geometry_msgs/msg/Quaternion"](
+            x=0.0, y=0.0, z=math.sin(pose.yaw / 2), w=math.cos(pose.yaw / 2)
+        ),
+    )
+
+
+def _pose_of(msg: Any) -> Pose:
+    p, q = msg.position, msg.orientation
+    values = (p.x, p.y, q.x, q.y, q.z, q.w)
+    if not all(math.isfinite(v) for v in values):
+        raise MessageError(f"pose with non-finite values {values}")
+    yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+    return Pose(float(p.x), float(p.y), yaw)
+
+
+def pose_stamped(pose: Pose, ns: int, frame: str = "map") -> Any:
+    return types()[POSE_STAMPED](header=header(ns, frame), pose=_pose_msg(pose))
+
+
+def pose_of_pose_stamped(msg: Any) -> Pose:
+    return _pose_of(msg.pose)
+
+
+def odometry(pose: Pose, ns: int, frame: str = "map", child: str = "base_link") -> Any:
+    import numpy as np
+
+    t = types()
+    zero3 = t["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+    return t[ODOMETRY](
+        header=header(ns, frame),
+        child_frame_id=child,
+        pose=t["geometry_msgs/msg/PoseWithCovariance"](
+            pose=_pose_msg(pose), covariance=np.zeros(36, dtype=np.float64)
+        ),
+        twist=t["geometry_msgs/msg/TwistWithCovariance"](
+            twist=t["geometry_msgs/msg/Twist"](linear=zero3, angular=zero3),
+            covariance=np.zeros(36, dtype=np.float64),
+        ),
+    )
+
+
+def pose_of_odometry(msg: Any) -> Pose:
+    return _pose_of(msg.pose.pose)
+
+
+def string(data: str) -> Any:
+    return types()[STRING](data=data)
+
+
+def json_string(doc: dict[str, Any]) -> Any:
+    return string(json.dumps(doc, sort_keys=True, separators=(",", ":")))
+
+
+def json_of_string(msg: Any) -> dict[str, Any]:
+    try:
+        doc = json.loads(msg.data)
+    except ValueError as exc:
+        raise MessageError(f"expected a JSON object, got {msg.data[:80]!r}: {exc}") from None
+    if not isinstance(doc, dict):
+        raise MessageError(f"expected a JSON object, got {msg.data[:80]!r}")
+    return doc
+
+
+def detections(ns: int, pose: Pose, dets: Sequence[Detection]) -> Any:
+    """The bag pipeline's encoding (``objsearch record``): class and instance in the hypothesis
+    and id, the 3-D position (map frame) as the hypothesis pose, the mask area as the box area."""
+    from objsearch.pipeline.bags.record import _Messages
+    from objsearch.pipeline.bags.topics import TopicMap
+    from objsearch.sim.perception import Camera
+
+    return _Messages(Distro.ROS2, TopicMap(), Camera()).detections(ns, pose, dets)
+
+
+def detections_of(msg: Any) -> tuple[Detection, ...]:
+    found = []
+    for d in msg.detections:
+        if not d.results:
+            raise MessageError(f"detection {d.id!r} has no hypothesis")
+        hyp = d.results[0]
+        p = hyp.pose.pose.position
+        area = float(d.bbox.size_x) * float(d.bbox.size_y)
+        values = (p.x, p.y, p.z, area)
+        if not all(math.isfinite(v) for v in values) or area < 0:
+            raise MessageError(f"detection {d.id!r} has invalid numbers {values}")
+        if not hyp.hypothesis.class_id or not d.id:
+            raise MessageError("a detection without a class or an instance id")
+        found.append(Detection(str(hyp.hypothesis.class_id), str(d.id), area, (p.x, p.y, p.z)))
+    return tuple(found)
+
+
+def event(e: Event, ns: int) -> Any:
+    from objsearch.pipeline.bags.record import _Messages
+    from objsearch.pipeline.bags.topics import TopicMap
+    from objsearch.sim.perception import Camera
+
+    return _Messages(Distro.ROS2, TopicMap(), Camera()).event(ns, e)

@@ -1,0 +1,197 @@
+"""A stand-in robot: the simulator behind the same ROS 2 topics, types and QoS as a real robot.
+
+It follows goals on ``/goal_pose`` along the viewpoint graph (a goal at its own position turns it
+in place and takes a view, as the simulator's ``look``), publishes ``/odom`` (map frame, at
+``heartbeat_s`` and after every move) and one ``Detection2DArray`` per camera view, and opens
+containers on request. Its clock is the simulator's, carried in every stamp. A goal repeated with
+the same stamp is answered from the last reply without moving.
+
+``/objsearch_sim/reset`` ({scene, start}) places the objects of a schedule scene and the robot at
+a start, as a simulator's reset service would; a real robot has no such topic.
+
+Faults for tests: ``drop_every`` drops every n-th outgoing view or odometry message; ``exit_after``
+stops answering (the process exits) after that many goals; ``malformed_after`` sends garbage
+once after that many goals.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from objsearch.agent.geometry import Point, Pose
+from objsearch.agent.session import load_context
+from objsearch.runtime import messages as m
+from objsearch.runtime.config import RuntimeConfig
+from objsearch.runtime.errors import MessageError
+from objsearch.runtime.node import Node, Server
+from objsearch.runtime.transport import open_transport
+from objsearch.sim.longterm import PAUSE_BETWEEN_TASKS_S
+from objsearch.sim.schedule import Placements, Schedule, base_placements, table1_removals
+from objsearch.sim.world import SimClock, SimWorld
+
+log = logging.getLogger("objsearch.robot")
+
+
+@dataclass(frozen=True, slots=True)
+class Faults:
+    drop_every: int = 0
+    exit_after: int = 0
+    malformed_after: int = 0
+
+
+class StandInRobot:
+    def __init__(
+        self,
+        config: RuntimeConfig,
+        *,
+        schedule: str = "table2",
+        scene: int | None = None,
+        start: str | None = None,
+        faults: Faults = Faults(),
+        heartbeat_s: float = 0.2,
+    ) -> None:
+        self.config = config
+        self.ctx = load_context(config.home)
+        self.schedule = Schedule.load(self.ctx.home, schedule)
+        self.faults = faults
+        self.heartbeat_s = heartbeat_s
+        self.clock = SimClock()
+        start_name = start or next(iter(self.ctx.home.starts))
+        self.world = self._world(scene, start_name)
+        self.node = Node(open_transport(config.transport))
+        t, q = config.topics, config.qos
+        self._odom = self.node.publisher(t.odometry, m.ODOMETRY, q.odometry)
+        self._views = self.node.publisher(t.detections, m.DETECTIONS, q.detections)
+        self._inbox: queue.Queue[tuple[str, Any]] = queue.Queue()
+        self.node.subscribe(
+            t.goal, m.POSE_STAMPED, q.goal, lambda msg: self._inbox.put(("goal", msg))
+        )
+        self._open = Server(self.node, t.open, t.open_result, q.requests)
+        self._reset = Server(self.node, t.sim_reset, t.sim_reset_result, q.requests)
+        self._last_goal: tuple[int, Pose] | None = None
+        self._last_views: list[Any] = []
+        self._sent = 0
+        self.goals = 0
+        self._stop = threading.Event()
+
+    def _placements(self, scene: int | None) -> Placements:
+        if scene is None:
+            return base_placements(self.ctx.home, table1_removals(self.ctx.home))
+        if scene not in self.schedule.scenes:
+            raise MessageError(f"schedule {self.schedule.name!r} has no scene {scene}")
+        return self.schedule.scenes[scene]
+
+    def _world(self, scene: int | None, start: str) -> SimWorld:
+        pose = self.ctx.home.start(start)
+        return SimWorld(
+            self.ctx.home, self.ctx.navmap, self._placements(scene), pose, clock=self.clock
+        )
+
+    # -- output, with dropped messages as a fault ----------------------------------------------
+
+    def _send(self, pub: Any, msg: Any) -> None:
+        self._sent += 1
+        if self.faults.drop_every and self._sent % self.faults.drop_every == 0:
+            log.info("fault: dropping message %d", self._sent)
+            return
+        pub.publish(msg)
+
+    def _publish_pose(self) -> None:
+        self._send(self._odom, m.odometry(self.world.pose(), self.world.now_ns()))
+
+    def _publish_views(self, views: list[Any]) -> None:
+        for view in views:
+            self._send(self._views, view)
+
+    # -- commands ------------------------------------------------------------------------------
+
+    def _on_goal(self, msg: Any) -> None:
+        goal_id = m.stamp_ns(msg.header)
+        goal = m.pose_of_pose_stamped(msg)
+        if self._last_goal is not None and self._last_goal[0] == goal_id:
+            self._publish_pose()
+            self._publish_views(self._last_views)
+            return
+        self.goals += 1
+        if self.faults.malformed_after and self.goals == self.faults.malformed_after:
+            log.info("fault: sending a malformed detections message")
+            self._views._pub.publish(b"\x00\x01\x00\x00garbage")
+        self._last_goal = (goal_id, goal)
+        here = self.world.pose()
+        target = self._viewpoint(goal)
+        views: list[Any] = []
+        if target == here.point:
+            dets = self.world.look(goal.yaw)
+            views.append(m.detections(self.world.now_ns(), self.world.pose(), dets))
+        else:
+            for b in self.ctx.navmap.path(here.point, target)[1:]:
+                self.world.navigate(b)
+                views.append(
+                    m.detections(self.world.now_ns(), self.world.pose(), self.world.view())
+                )
+            if self.world.pose().yaw != goal.yaw:
+                self.world.navigate(target, final_yaw=goal.yaw)  # turn in place, no view
+        self._last_views = views
+        self._publish_pose()
+        self._publish_views(views)
+
+    def _viewpoint(self, goal: Pose) -> Point:
+        point = min(
+            self.ctx.navmap.room_of, key=lambda p: (p.x - goal.x) ** 2 + (p.y - goal.y) ** 2
+        )
+        return point
+
+    def _on_open(self, request: Mapping[str, Any]) -> dict[str, Any]:
+        try:
+            dets = self.world.open(str(request.get("static_id")))
+        except ValueError as exc:
+            return {"ok": False, "error": str(exc)}
+        view = m.detections(self.world.now_ns(), self.world.pose(), dets)
+        self._last_views = [view]
+        self._publish_pose()
+        self._publish_views([view])
+        return {"ok": True, "stamp_ns": self.world.now_ns(), "yaw": self.world.pose().yaw}
+
+    def _on_reset(self, request: Mapping[str, Any]) -> dict[str, Any]:
+        try:
+            scene = request.get("scene")
+            start = str(request.get("start"))
+            self.clock.advance(PAUSE_BETWEEN_TASKS_S)
+            self.world = self._world(None if scene is None else int(scene), start)
+        except (MessageError, KeyError, ValueError) as exc:
+            return {"ok": False, "error": str(exc)}
+        self._last_goal = None
+        self._publish_pose()
+        return {"ok": True, "stamp_ns": self.world.now_ns()}
+
+    # -- main loop -----------------------------------------------------------------------------
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def run(self) -> int:
+        """Serve until stopped (or until the ``exit_after`` fault); returns an exit code."""
+        try:
+            while not self._stop.is_set():
+                if self.faults.exit_after and self.goals >= self.faults.exit_after:
+                    log.warning("fault: the robot goes away after %d goals", self.goals)
+                    return 3
+                for server, handle in ((self._reset, self._on_reset), (self._open, self._on_open)):
+                    request = server.next(0)
+                    if request is not None:
+                        server.answer(request, handle(request))
+                try:
+                    kind, msg = self._inbox.get(timeout=self.heartbeat_s)
+                except queue.Empty:
+                    self._publish_pose()
+                    continue
+                if kind == "goal":
+                    self._on_goal(msg)
+        finally:
+            self.node.close()
+        return 0

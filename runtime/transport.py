@@ -1,0 +1,77 @@
+"""The transport seam: topics of CDR bytes with ROS 2 names, types and QoS.
+
+Two backends implement it: :mod:`objsearch.runtime.zenoh_transport` (what ``rmw_zenoh_cpp`` puts
+on the wire) and :mod:`objsearch.runtime.dds_transport` (what ``rmw_cyclonedds_cpp`` does). The
+agent's requests and results (search requests, container openings) are topic pairs with a
+correlation id in the JSON body, so they work the same over both.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from objsearch.runtime.errors import RuntimeConfigError
+from objsearch.runtime.qos import QoS
+
+#: Called with the CDR bytes of each message, on a middleware thread.
+Handler = Callable[[bytes], None]
+
+
+class Publisher(Protocol):
+    def publish(self, cdr: bytes) -> None: ...
+
+
+class Transport(Protocol):
+    """One ROS 2 participant (a node's worth of publishers and subscriptions)."""
+
+    def publisher(self, topic: str, msgtype: str, qos: QoS) -> Publisher: ...
+
+    def subscribe(self, topic: str, msgtype: str, qos: QoS, handler: Handler) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class Backend(enum.Enum):
+    ZENOH = "zenoh"
+    DDS = "dds"
+
+
+@dataclass(frozen=True, slots=True)
+class TransportConfig:
+    """Where the robot's ROS 2 graph is.
+
+    ``domain_id`` is ``ROS_DOMAIN_ID``. Zenoh: ``mode`` peer|client|router, ``connect`` and
+    ``listen`` endpoints (rmw_zenoh's default is a peer connecting to its router at
+    ``tcp/localhost:7447``). DDS: ``peers`` for unicast discovery and the network ``interface``.
+    """
+
+    backend: Backend = Backend.ZENOH
+    domain_id: int = 0
+    node: str = "objsearch"
+    mode: str = "peer"
+    connect: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
+    listen: tuple[str, ...] = ("tcp/127.0.0.1:0",)  # peers listen so gossip can mesh them
+    peers: tuple[str, ...] = ("127.0.0.1",)
+    interface: str = "lo"
+    extra: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.domain_id <= 232:
+            raise RuntimeConfigError(f"ROS domain id must be 0..232, got {self.domain_id}")
+        if self.mode not in {"peer", "client", "router"}:
+            raise RuntimeConfigError(
+                f"zenoh mode must be peer, client or router, not {self.mode!r}"
+            )
+
+
+def open_transport(config: TransportConfig) -> Transport:
+    if config.backend is Backend.ZENOH:
+        from objsearch.runtime.zenoh_transport import ZenohTransport
+
+        return ZenohTransport(config)
+    from objsearch.runtime.dds_transport import DdsTransport
+
+    return DdsTransport(config)

@@ -1,0 +1,3 @@
+from runtime_fixtures import net
+
+__all__ = ["net"]

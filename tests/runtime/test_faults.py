@@ -1,0 +1,131 @@
+"""Faults between the agent and the robot: the agent reports them, its log stays whole, and it
+resumes (or fails the search cleanly, saying why)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from objsearch.events import read_log
+from objsearch.runtime.client import AgentClient
+from runtime_fixtures import Net, objsearch, stop
+from test_end_to_end import client_config
+
+FAST = "[timeouts]\nrobot_s = 3.0\narrival_s = 1.5\nattempts = 3\ndetections_s = 1.5\n"
+
+
+@pytest.fixture
+def zenoh_only(net: Net) -> Net:
+    if net.transport != "zenoh":
+        pytest.skip("fault handling sits above the transport seam; one backend is enough")
+    return net
+
+
+def _agent(net: Net, tmp_path: Path, name: str = "agent") -> object:
+    config = tmp_path / "robot.toml"
+    config.write_text(FAST)
+    return objsearch(
+        "agent",
+        "run",
+        *net.args,
+        "--config",
+        str(config),
+        "--log",
+        str(tmp_path / "log"),
+        log=tmp_path / f"{name}.txt",
+    )
+
+
+def test_robot_vanishes_then_restarts(zenoh_only: Net, tmp_path: Path) -> None:
+    net = zenoh_only
+    robot = objsearch("robot", "sim", *net.args, "--exit-after", "2", log=tmp_path / "robot1.txt")
+    agent = _agent(net, tmp_path)
+    try:
+        with AgentClient(client_config(net)) as client:
+            reset = client.reset_sim(3, "bathroom-1", timeout_s=20)
+            assert reset["ok"]
+            failed = client.find(
+                "Laptop", start="bathroom-1", scene=3, timeout_s=60, not_before_ns=reset["stamp_ns"]
+            )
+            assert not failed["ok"]
+            assert "last heard from the robot" in failed["error"], failed
+            assert robot.wait(10) == 3
+            # The robot comes back (a fresh process); the agent carries on with the next request.
+            robot = objsearch("robot", "sim", *net.args, log=tmp_path / "robot2.txt")
+            reset = client.reset_sim(1, "kitchen-1", timeout_s=20)
+            assert reset["ok"]
+            ok = client.find(
+                "Apple", start="kitchen-1", scene=1, timeout_s=60, not_before_ns=reset["stamp_ns"]
+            )
+            assert ok["ok"] and ok["success"] and ok["task_id"] == "task-00002"
+    finally:
+        stop(agent)
+        stop(robot)
+    events = list(read_log(tmp_path / "log"))
+    ended = [e for e in events if e.type == "task_ended"]
+    assert [e.payload["success"] for e in ended] == [False, True]
+    reason = next(e for e in events if e.type == "search_failed").payload["reason"]
+    assert reason.startswith("robot: ") and "last heard from the robot" in reason
+
+
+def test_dropped_and_malformed_messages(zenoh_only: Net, tmp_path: Path) -> None:
+    """Every 5th message lost and one garbage message: same result as a clean run, reported."""
+    net = zenoh_only
+    robot = objsearch(
+        "robot",
+        "sim",
+        *net.args,
+        "--drop-every",
+        "5",
+        "--malformed-after",
+        "2",
+        log=tmp_path / "robot.txt",
+    )
+    agent = _agent(net, tmp_path)
+    try:
+        with AgentClient(client_config(net)) as client:
+            reset = client.reset_sim(1, "bedroom-1", timeout_s=20)
+            assert reset["ok"]
+            r = client.find(
+                "Apple", start="bedroom-1", scene=1, timeout_s=90, not_before_ns=reset["stamp_ns"]
+            )
+    finally:
+        stop(agent)
+        stop(robot)
+    import test_end_to_end
+    from test_end_to_end import in_process
+
+    test_end_to_end.TRIALS, saved = [(1, "Apple", "bedroom-1")], test_end_to_end.TRIALS
+    try:
+        (expected,) = in_process(tmp_path / "inproc")
+    finally:
+        test_end_to_end.TRIALS = saved
+    assert r["ok"] and {k: r[k] for k in expected} == expected
+    assert "dropped a message" in (tmp_path / "agent.txt").read_text()
+
+
+def test_agent_restart_rebuilds_from_its_log(zenoh_only: Net, tmp_path: Path) -> None:
+    net = zenoh_only
+    robot = objsearch("robot", "sim", *net.args, log=tmp_path / "robot.txt")
+    try:
+        with AgentClient(client_config(net)) as client:
+            for i, target in enumerate(["Apple", "Cup"]):
+                agent = _agent(net, tmp_path, f"agent{i}")
+                try:
+                    reset = client.reset_sim(1, "kitchen-1", timeout_s=20)
+                    assert reset["ok"]
+                    r = client.find(
+                        target,
+                        start="kitchen-1",
+                        scene=1,
+                        timeout_s=60,
+                        not_before_ns=reset["stamp_ns"],
+                    )
+                    assert r["ok"] and r["task_id"] == f"task-0000{i + 1}"
+                finally:
+                    assert stop(agent) == 0
+    finally:
+        stop(robot)
+    events = list(read_log(tmp_path / "log"))
+    assert [e.type for e in events].count("run_started") == 2
+    assert [e.type for e in events].count("scene_graph_seeded") == 1
