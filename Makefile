@@ -30,7 +30,7 @@ TYPECHECK := $(VENV)/typecheck
 typecheck: $(STAMP)
 	rm -rf $(TYPECHECK) && mkdir -p $(TYPECHECK)/objsearch
 	ln -s $(CURDIR)/objsearch/*.py $(CURDIR)/objsearch/py.typed $(TYPECHECK)/objsearch/
-	for d in agent events sim replay pipeline; do ln -s $(CURDIR)/$$d $(TYPECHECK)/objsearch/$$d; done
+	for d in agent events sim replay pipeline experiments; do ln -s $(CURDIR)/$$d $(TYPECHECK)/objsearch/$$d; done
 	MYPYPATH=$(TYPECHECK) $(BIN)/mypy -p objsearch
 
 bench: $(STAMP)

@@ -12,7 +12,9 @@ from typing import Any
 from objsearch.agent.categories import Vocabulary, read_json
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.navmap import NavigationMap
+from objsearch.agent.planner import StopPlanner
 from objsearch.agent.policy import Recorder, SearchAgent, SearchConfig, SearchResult
+from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode, seed_relations
 from objsearch.agent.semmap import SemanticMap
 from objsearch.agent.world import World
@@ -62,15 +64,21 @@ class Session:
         *,
         stream: str = "robot",
         params: dict[str, Any] | None = None,
+        graph: RelationModel | None = None,
+        planner: StopPlanner | None = None,
     ) -> None:
+        """``graph`` is the relation model to fold the log into (default: the paper's Eq. 4) and
+        ``planner`` the stop planner (default: the paper's for ``config.method``)."""
         self.ctx = ctx
         self.log = EventLog.open(log_dir, stream)  # first: the writer's lock guards the fold too
-        self.graph = SceneGraphProjection()
+        self.graph: RelationModel = graph if graph is not None else SceneGraphProjection()
         #: The log's clock so far; a continued log must not run backwards.
         self.resume_time_ns = 0
+        seeded = False
         for event in read_log(log_dir):
             self.graph.apply(event)
             self.resume_time_ns = event.time_ns
+            seeded = seeded or event.type == "scene_graph_seeded"
         self.recorder = Recorder(self.log, [self.graph])
         self.recorder.record(
             "run_started",
@@ -85,7 +93,7 @@ class Session:
             },
             time_ns=self.resume_time_ns,
         )
-        if not self.graph.relations:
+        if not seeded:
             source, values = prior_values(ctx.vocabulary)
             self.recorder.record(
                 "scene_graph_seeded",
@@ -93,7 +101,7 @@ class Session:
                 time_ns=self.resume_time_ns,
             )
         self.agent = SearchAgent(
-            ctx.navmap, ctx.semmap, ctx.vocabulary, self.graph, self.recorder, config
+            ctx.navmap, ctx.semmap, ctx.vocabulary, self.graph, self.recorder, config, planner
         )
 
     def search(

@@ -201,7 +201,7 @@ def cmd_map(args: argparse.Namespace) -> int:
 
 #: Modules that add subcommands: each has ``register(sub)`` taking the subparsers action and keeps
 #: its heavy imports inside the command functions, so ``objsearch --help`` stays fast.
-COMMAND_MODULES: tuple[str, ...] = ()
+COMMAND_MODULES: tuple[str, ...] = ("objsearch.cli_bench",)
 
 
 def build_parser() -> argparse.ArgumentParser:
