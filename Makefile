@@ -35,6 +35,7 @@ typecheck: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/planner.py
+	$(BIN)/python benchmarks/bench_paper.py
 
 data: $(STAMP)
 	$(BIN)/objsearch data build --source $(SHARED)

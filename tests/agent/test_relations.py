@@ -98,7 +98,8 @@ def test_negative_evidence_needs_an_update_mode_and_a_view() -> None:
     events = start("none") + task(10, "Apple", [("s1", "Sink")], [])
     assert fold(BetaRelations(), events).rel("Apple", "Sink") == pytest.approx(0.2)
     # A candidate that was planned but never looked at teaches nothing.
-    events = start() + [
+    events = [
+        *start(),
         Ev(10, "task_started", {"target": "Apple"}),
         Ev(11, "plan_computed", {"candidates": [{"static_id": "s1", "static_class": "Sink"}]}),
         Ev(12, "task_ended", {}),
