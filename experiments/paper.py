@@ -150,7 +150,7 @@ def render(summary: dict[str, Any]) -> str:
             "Table I — path length (m) per target, mean over 8 starts (paper's figures in brackets)"
         )
         lines.append(
-            f"{'strategy':10}" + "".join(f"{t[:11]:>16}" for t in targets) + f"{'avg':>16}"
+            f"{'strategy':10}" + "".join(f"{t[:11]:>19}" for t in targets) + f"{'avg':>19}"
         )
         for name, s in t1.items():
             paper = s["paper"] or {}
@@ -165,7 +165,7 @@ def render(summary: dict[str, Any]) -> str:
                 f"±{s['avg_std_over_seeds']:.2f}" if len(s["seeds"]) > 1 else ""
             )
             cells.append(f"{avg} [{_cell(paper.get('avg'))}]" if paper else avg)
-            lines.append(f"{name:10}" + "".join(f"{c:>16}" for c in cells))
+            lines.append(f"{name:10}" + "".join(f"{c:>19}" for c in cells))
         lines.append("")
     lt = summary["longterm"]
     if lt:
