@@ -30,7 +30,7 @@ TYPECHECK := $(VENV)/typecheck
 typecheck: $(STAMP)
 	rm -rf $(TYPECHECK) && mkdir -p $(TYPECHECK)/objsearch
 	ln -s $(CURDIR)/objsearch/*.py $(CURDIR)/objsearch/py.typed $(TYPECHECK)/objsearch/
-	for d in agent events sim replay pipeline runtime; do ln -s $(CURDIR)/$$d $(TYPECHECK)/objsearch/$$d; done
+	for d in agent events sim replay pipeline runtime experiments; do ln -s $(CURDIR)/$$d $(TYPECHECK)/objsearch/$$d; done
 	MYPYPATH=$(TYPECHECK) $(BIN)/mypy -p objsearch
 
 bench: $(STAMP)
@@ -38,6 +38,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/mapping.py
 	$(BIN)/python benchmarks/events.py $(BENCH_ARGS)
 	$(BIN)/python benchmarks/ingest.py
+	$(BIN)/python benchmarks/bench_paper.py
 
 data: $(STAMP)
 	$(BIN)/objsearch data build --source $(SHARED)

@@ -89,6 +89,11 @@ class Home:
     grid: float
     rooms: tuple[Room, ...]
     digest: str
+    #: Walkable steps between viewpoints of two rooms (doors, open walls) in a house whose rooms
+    #: share one floor plan; empty for iTHOR homes, whose rooms are joined by the teleport.
+    links: tuple[tuple[Point, Point], ...] = ()
+    #: Rooms joined the paper's way (zero-cost teleport between entry viewpoints) or walked.
+    teleport: bool = True
 
     def room(self, name: str) -> Room:
         for room in self.rooms:
@@ -193,6 +198,11 @@ def load_home(name_or_path: str | Path) -> Home:
             grid=float(doc["grid"]),
             rooms=rooms,
             digest=hashlib.sha256(path.read_bytes()).hexdigest()[:16],
+            links=tuple(
+                (Point(float(a[0]), float(a[1])), Point(float(b[0]), float(b[1])))
+                for a, b in doc.get("links", ())
+            ),
+            teleport=bool(doc.get("teleport", True)),
         )
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         raise DataFileError(f"home file {path} is malformed: {exc!r}") from None

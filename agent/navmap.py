@@ -1,5 +1,8 @@
 """The navigation map: viewpoints on a 0.25 m grid, joined into one metric graph.
 
+Homes built from whole houses (ProcTHOR) have no teleport: their rooms share one floor plan and are
+joined by ``links``, the walkable steps through doors and open walls.
+
 Within a room, neighbouring viewpoints are joined 8-connected (a diagonal step only where both
 orthogonal neighbours exist, so paths never cut a furniture corner). Rooms are joined the paper's way:
 a robot standing at a room's entry viewpoint can be teleported to any other room's entry viewpoint
@@ -53,11 +56,18 @@ class NavigationMap:
                     ):
                         continue
                     graph.add_edge(p, q, weight=g * math.hypot(dx, dy), teleport=False)
+        for p, q in home.links:
+            if p not in room_of or q not in room_of:
+                raise ValueError(
+                    f"home {home.name!r}: link {p}–{q} joins points that are no viewpoints"
+                )
+            graph.add_edge(p, q, weight=math.hypot(p.x - q.x, p.y - q.y), teleport=False)
         doors = {room.name: room.door for room in home.rooms}
         names = list(doors)
-        for i, a in enumerate(names):
-            for b in names[i + 1 :]:
-                graph.add_edge(doors[a], doors[b], weight=0.0, teleport=True)
+        if home.teleport:
+            for i, a in enumerate(names):
+                for b in names[i + 1 :]:
+                    graph.add_edge(doors[a], doors[b], weight=0.0, teleport=True)
         by_room = {room.name: room.viewpoints for room in home.rooms}
         return cls(graph=graph, room_of=room_of, doors=doors, grid=g, _by_room=by_room)
 

@@ -18,6 +18,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -156,3 +157,189 @@ def relation_order(start: FloatArray, dist: FloatArray, rel: FloatArray, alpha: 
         order.append(nxt)
         rest.remove(nxt)
     return Ordering(tuple(order), wpl_terms(order, start, dist, rel, alpha))
+
+
+# -- expected path length ------------------------------------------------------------------------
+
+
+def _epl_probabilities(rel: FloatArray, rest_mass: float) -> FloatArray:
+    """P(target at stop i), with ``rest_mass`` of relation mass in the rooms still to come.
+
+    The model: the target is at exactly one candidate of the home, with probability proportional to
+    its Rel. All-zero mass (nothing related anywhere) gives every stop of the room the same chance.
+    """
+    total = float(rel.sum()) + max(rest_mass, 0.0)
+    if total <= 0.0:
+        return np.full(len(rel), 1.0 / max(len(rel), 1))
+    return np.asarray(rel / total, dtype=np.float64)
+
+
+def epl_terms(
+    order: Sequence[int],
+    start: FloatArray,
+    dist: FloatArray,
+    prob: FloatArray,
+    to_exit: FloatArray | None,
+) -> tuple[float, ...]:
+    """Expected metres of each leg of an order: a leg is walked only if the target was not at any
+    earlier stop; the last term is the walk on to the next room, if the room held nothing."""
+    terms: list[float] = []
+    remaining = 1.0
+    prev: int | None = None
+    for k in order:
+        leg = start[k] if prev is None else dist[prev, k]
+        terms.append(float(leg) * remaining)
+        remaining -= float(prob[k])
+        prev = k
+    if to_exit is not None and prev is not None:
+        terms.append(float(to_exit[prev]) * max(remaining, 0.0))
+    return tuple(terms)
+
+
+def epl_enumerate(
+    start: FloatArray, dist: FloatArray, prob: FloatArray, to_exit: FloatArray | None = None
+) -> Ordering:
+    """Minimum expected path length by trying all n! orders (the reference for the DP)."""
+    n = len(start)
+    best: tuple[float, tuple[int, ...]] | None = None
+    for perm in itertools.permutations(range(n)):
+        value = math.fsum(epl_terms(perm, start, dist, prob, to_exit))
+        if best is None or value < best[0] - 1e-12:
+            best = (value, perm)
+    order = best[1] if best else ()
+    return Ordering(order, epl_terms(order, start, dist, prob, to_exit))
+
+
+def epl_exact(
+    start: FloatArray, dist: FloatArray, prob: FloatArray, to_exit: FloatArray | None = None
+) -> Ordering:
+    """Minimum expected path length by a subset DP: leg j→k after visiting set S costs
+    dist[j, k] · (1 − P(S)); it depends on S only through P(S), so (S, last) is a sufficient state."""
+    n = len(start)
+    if dist.shape != (n, n) or prob.shape != (n,):
+        raise ValueError(f"shape mismatch: start {start.shape}, dist {dist.shape}, p {prob.shape}")
+    if n == 0:
+        return Ordering((), ())
+    if n > MAX_EXACT_STOPS:
+        raise ValueError(f"{n} stops exceed the exact planner's limit of {MAX_EXACT_STOPS}")
+    full = (1 << n) - 1
+    masks = np.arange(1 << n, dtype=np.int64)
+    popcount = np.zeros(1 << n, dtype=np.int64)
+    mass = np.zeros(1 << n)
+    for k in range(n):
+        bit = (masks >> k) & 1
+        popcount += bit
+        mass += bit * prob[k]
+    remaining = np.maximum(1.0 - mass, 0.0)
+    cost = np.full((1 << n, n), np.inf)
+    parent = np.full((1 << n, n), -1, dtype=np.int8)
+    for k in range(n):
+        cost[1 << k, k] = start[k]
+    for c in range(2, n + 1):
+        layer = masks[popcount == c]
+        for k in range(n):
+            ends = layer[((layer >> k) & 1) == 1]
+            prev = ends ^ (1 << k)
+            cand = cost[prev] + dist[:, k][None, :] * remaining[prev][:, None]
+            best = np.argmin(cand, axis=1)
+            cost[ends, k] = cand[np.arange(len(ends)), best]
+            parent[ends, k] = best
+    final = cost[full].copy()
+    if to_exit is not None:
+        final += to_exit * remaining[full]
+    last = int(np.argmin(final))
+    order: list[int] = []
+    mask = full
+    while last >= 0:
+        order.append(last)
+        prev_last = int(parent[mask, last])
+        mask ^= 1 << last
+        last = prev_last if mask else -1
+    order.reverse()
+    return Ordering(tuple(order), epl_terms(order, start, dist, prob, to_exit))
+
+
+# -- planners as plug-ins ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class PlanProblem:
+    """Everything a stop planner may use to order the candidates of one room.
+
+    ``start``: metres from the robot to each stop; ``dist``: between stops; ``rel``: Rel(target, s)
+    per stop; ``to_exit``: metres from each stop to the entry of the next room to search (None in
+    the last room); ``rest_mass``: the summed Rel of the candidates in the rooms still to come.
+    """
+
+    start: FloatArray
+    dist: FloatArray
+    rel: FloatArray
+    to_exit: FloatArray | None = None
+    rest_mass: float = 0.0
+
+
+class StopPlanner(Protocol):
+    """Orders the stops of one room (the seam new planners plug into)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def alpha(self) -> float: ...
+
+    def plan(self, problem: PlanProblem) -> Ordering: ...
+
+
+@dataclass(frozen=True)
+class WplPlanner:
+    """The paper's Eq. 3 (SDP is this with α = 0)."""
+
+    alpha: float = 10.0
+    name: str = "wpl"
+
+    def plan(self, problem: PlanProblem) -> Ordering:
+        return wpl_plan(problem.start, problem.dist, problem.rel, self.alpha)
+
+
+@dataclass(frozen=True)
+class RelationOrderPlanner:
+    """RVP: highest Rel first (terms reported on Eq. 3's scale with ``alpha``)."""
+
+    alpha: float = 10.0
+    name: str = "rvp"
+
+    def plan(self, problem: PlanProblem) -> Ordering:
+        return relation_order(problem.start, problem.dist, problem.rel, self.alpha)
+
+
+@dataclass(frozen=True)
+class ExpectedPathPlanner:
+    """Minimum expected metres until the target is found, with P(stop) ∝ Rel over the stops of this
+    room and of the rooms still to come (``rest_mass``), counting the walk on to the next room.
+
+    Exact up to MAX_EXACT_STOPS; beyond, the DP runs over the stops most likely per metre and the
+    rest follow greedily (``exact=False``).
+    """
+
+    name: str = "epl"
+    alpha: float = 0.0
+
+    def plan(self, problem: PlanProblem) -> Ordering:
+        prob = _epl_probabilities(problem.rel, problem.rest_mass)
+        n = len(problem.start)
+        if n <= MAX_EXACT_STOPS:
+            return epl_exact(problem.start, problem.dist, prob, problem.to_exit)
+        ratio = problem.start / np.maximum(prob, 1e-12)
+        head = sorted(np.argsort(ratio, kind="stable")[:MAX_EXACT_STOPS].tolist())
+        sub = epl_exact(
+            problem.start[head], problem.dist[np.ix_(head, head)], prob[head], to_exit=None
+        )
+        order = [head[i] for i in sub.order]
+        rest = [k for k in range(n) if k not in set(order)]
+        while rest:
+            here = order[-1]
+            nxt = min(rest, key=lambda k: (problem.dist[here, k] / max(prob[k], 1e-12), k))
+            order.append(nxt)
+            rest.remove(nxt)
+        terms = epl_terms(order, problem.start, problem.dist, prob, problem.to_exit)
+        return Ordering(tuple(order), terms, exact=False)

@@ -18,8 +18,15 @@ from objsearch.agent.categories import Vocabulary
 from objsearch.agent.geometry import Point, Pose, heading, wrap_angle
 from objsearch.agent.home import Vec3
 from objsearch.agent.navmap import NavigationMap
-from objsearch.agent.planner import Ordering, relation_order, wpl_plan
-from objsearch.agent.scene_graph import EventLike, SceneGraphProjection
+from objsearch.agent.planner import (
+    Ordering,
+    PlanProblem,
+    RelationOrderPlanner,
+    StopPlanner,
+    WplPlanner,
+)
+from objsearch.agent.relations import RelationModel
+from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.semmap import MappedStatic, SemanticMap
 from objsearch.agent.world import Detection, Navigation, World
 
@@ -42,6 +49,12 @@ class SearchConfig:
     @property
     def effective_alpha(self) -> float:
         return 0.0 if self.method is Method.SDP else self.alpha
+
+    def default_planner(self) -> StopPlanner:
+        """The paper's planner for ``method``: RVP, or WPL (SDP: α = 0)."""
+        if self.method is Method.RVP:
+            return RelationOrderPlanner(alpha=self.alpha)
+        return WplPlanner(alpha=self.effective_alpha, name=self.method.value)
 
 
 class EventSink(Protocol):
@@ -120,9 +133,10 @@ class SearchAgent:
         navmap: NavigationMap,
         semmap: SemanticMap,
         vocabulary: Vocabulary,
-        graph: SceneGraphProjection,
+        graph: RelationModel,
         recorder: Recorder,
         config: SearchConfig,
+        planner: StopPlanner | None = None,
     ) -> None:
         self.navmap = navmap
         self.semmap = semmap
@@ -130,6 +144,8 @@ class SearchAgent:
         self.graph = graph
         self.recorder = recorder
         self.config = config
+        #: Orders the stops of a room; the paper's planner for ``config.method`` unless plugged in.
+        self.planner = planner or config.default_planner()
         self.rooms = tuple(navmap.doors)
 
     # -- planning -----------------------------------------------------------------------------
@@ -159,7 +175,16 @@ class SearchAgent:
             rest.sort(key=lambda r: (-self.room_relation(r, target), self.rooms.index(r)))
         return [start_room, *rest]
 
-    def order_stops(self, here: Point, stops: Sequence[Stop]) -> Ordering:
+    def order_stops(
+        self,
+        here: Point,
+        stops: Sequence[Stop],
+        *,
+        next_entry: Point | None = None,
+        rest_mass: float = 0.0,
+    ) -> Ordering:
+        """Order a room's stops with the planner; ``next_entry`` is where the next room to search
+        is entered and ``rest_mass`` the summed Rel of the candidates in the rooms still to come."""
         n = len(stops)
         start = np.array([self.navmap.distance(here, s.viewpoint) for s in stops], dtype=float)
         dist = np.zeros((n, n))
@@ -168,9 +193,12 @@ class SearchAgent:
                 if i != j:
                     dist[i, j] = self.navmap.distance(a.viewpoint, b.viewpoint)
         rel = np.array([s.rel for s in stops], dtype=float)
-        if self.config.method is Method.RVP:
-            return relation_order(start, dist, rel, self.config.alpha)
-        return wpl_plan(start, dist, rel, self.config.effective_alpha)
+        to_exit = (
+            None
+            if next_entry is None
+            else np.array([self.navmap.distance(s.viewpoint, next_entry) for s in stops])
+        )
+        return self.planner.plan(PlanProblem(start, dist, rel, to_exit, rest_mass))
 
     # -- acting -------------------------------------------------------------------------------
 
@@ -191,10 +219,17 @@ class SearchAgent:
         start_room = self.navmap.room_at(pose.x, pose.y)
         rooms = self.room_order(start_room, target, task_id)
         found: _Found | None = None
+        room_stops = {room: self.stops(room, target) for room in rooms}
         for i, room in enumerate(rooms):
-            stops = self.stops(room, target)
+            stops = room_stops[room]
             here = world.pose().point
-            ordering = self.order_stops(here, stops)
+            later = rooms[i + 1 :]
+            ordering = self.order_stops(
+                here,
+                stops,
+                next_entry=self.navmap.doors[later[0]] if later else None,
+                rest_mass=math.fsum(s.rel for r in later for s in room_stops[r]),
+            )
             ordered = [stops[k] for k in ordering.order]
             run.emit("plan_computed", self._plan_payload(room, rooms[i:], stops, ordering))
             result.plans.append((room, tuple(s.key for s in ordered)))
@@ -234,12 +269,12 @@ class SearchAgent:
     def _plan_payload(
         self, room: str, room_order: Sequence[str], stops: Sequence[Stop], ordering: Ordering
     ) -> dict[str, Any]:
-        objective = self.config.method.value + ("" if ordering.exact else "-truncated")
+        objective = self.planner.name + ("" if ordering.exact else "-truncated")
         return {
             "room": room,
             "room_order": list(room_order),
             "objective": objective,
-            "alpha": self.config.effective_alpha,
+            "alpha": self.planner.alpha,
             "candidates": [
                 {
                     "static_id": s.key,

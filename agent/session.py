@@ -12,7 +12,9 @@ from typing import Any
 from objsearch.agent.categories import Vocabulary, read_json
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.navmap import NavigationMap
+from objsearch.agent.planner import StopPlanner
 from objsearch.agent.policy import Projection, Recorder, SearchAgent, SearchConfig, SearchResult
+from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode, seed_relations
 from objsearch.agent.semmap import SemanticMap
 from objsearch.agent.world import World
@@ -64,9 +66,13 @@ class Session:
         params: dict[str, Any] | None = None,
         wall_clock: Callable[[], int] | None = None,
         observers: Sequence[Projection] = (),
+        graph: RelationModel | None = None,
+        planner: StopPlanner | None = None,
     ) -> None:
-        """``observers`` see every event right after it is appended (e.g. the on-robot
-        agent publishes each one on its events topic)."""
+        """``observers`` see every event right after it is appended (e.g. the on-robot agent
+        publishes each one on its events topic). ``graph`` is the relation model to fold the log
+        into (default: the paper's Eq. 4) and ``planner`` the stop planner (default: the paper's
+        for ``config.method``)."""
         self.ctx = ctx
         # First: the writer's lock guards the fold too. A fixed wall clock gives byte-identical
         # logs (golden logs); by default recorded_at_ns is the real time of each append.
@@ -75,15 +81,17 @@ class Session:
             if wall_clock is None
             else EventLog.open(log_dir, stream, wall_clock=wall_clock)
         )
-        self.graph = SceneGraphProjection()
+        self.graph: RelationModel = graph if graph is not None else SceneGraphProjection()
         #: The log's clock so far; a continued log must not run backwards.
         self.resume_time_ns = 0
+        seeded = False
         for event in read_log(log_dir):
             self.graph.apply(event)
             self.resume_time_ns = event.time_ns
+            seeded = seeded or event.type == "scene_graph_seeded"
         # Everything that can fail on bad data is read before the first append: a run that
         # cannot start leaves the log as it was.
-        prior = None if self.graph.relations else prior_values(ctx.vocabulary)
+        prior = None if seeded else prior_values(ctx.vocabulary)
         self.recorder = Recorder(self.log, [self.graph, *observers])
         self.recorder.record(
             "run_started",
@@ -106,7 +114,7 @@ class Session:
                 time_ns=self.resume_time_ns,
             )
         self.agent = SearchAgent(
-            ctx.navmap, ctx.semmap, ctx.vocabulary, self.graph, self.recorder, config
+            ctx.navmap, ctx.semmap, ctx.vocabulary, self.graph, self.recorder, config, planner
         )
 
     def search(

@@ -175,6 +175,7 @@ def cmd_graph(args: argparse.Namespace) -> int:
 #: its heavy imports inside the command functions, so ``objsearch --help`` stays fast.
 COMMAND_MODULES: tuple[str, ...] = (
     "objsearch.cli_bags",
+    "objsearch.cli_bench",
     "objsearch.cli_map",
     "objsearch.cli_query",
     "objsearch.cli_replay",

@@ -14,6 +14,9 @@ from pathlib import Path
 from . import jsonio
 from .errors import HomeSpecError, SourceDataError
 from .home import Home, build_home, normalise_floorplan
+from .more_homes import HELDOUT_SEED, PROCTHOR_FILES, heldout_ithor_homes
+from .placement_stats import placement_stats_json
+from .procthor import build_procthor_home
 from .provenance import provenance_md, sha256
 from .scenario import table1
 from .schedule import table2
@@ -85,6 +88,7 @@ def build_data(
     *,
     homes: Mapping[str, Sequence[str]] | None = None,
     progress: Callable[[str], None] | None = None,
+    more_homes: bool | None = None,
 ) -> BuildReport:
     """Derive ``vocabulary.json``, ``priors/``, ``homes/``, ``scenarios/``, ``schedules/`` and
     ``PROVENANCE.md`` under ``out`` from the raw public data under ``source``.
@@ -92,6 +96,10 @@ def build_data(
     ``homes`` maps a home name to four iTHOR scenes (kitchen, living room, bedroom, bathroom);
     default ``{"paper": PAPER_HOME}``. The Table I scenario and Table II schedule are derived for
     the home named ``paper`` when there is one.
+
+    ``more_homes`` (default: when ``homes`` is not given) also derives the held-out homes
+    (``pipeline/more_homes.py``: ten iTHOR combinations by a seeded rule and the ProcTHOR houses)
+    and the AI2-THOR placement statistics their schedules are drawn from.
     """
     say = progress or (lambda _msg: None)
     source, out = Path(source), Path(out)
@@ -135,7 +143,13 @@ def build_data(
         )
 
     normalised = {n: tuple(normalise_floorplan(s) for s in v) for n, v in wanted.items()}
-    outputs["PROVENANCE.md"] = provenance_md(source, normalised, default, sorted(outputs))
+    extra: list[str] = []
+    extra_files: dict[str, list[Path]] = {}
+    if more_homes if more_homes is not None else homes is None:
+        extra, extra_files = _more_homes(source, outputs, notes, normalised, say)
+    outputs["PROVENANCE.md"] = provenance_md(
+        source, normalised, default, sorted(outputs), extra=extra, extra_files=extra_files
+    )
 
     written = []
     for rel, text in outputs.items():
@@ -144,3 +158,71 @@ def build_data(
         jsonio.write_atomic(path, text.encode("utf-8"))
         written.append(path)
     return BuildReport(files=tuple(written), notes=tuple(notes))
+
+
+def _more_homes(
+    source: Path,
+    outputs: dict[str, str],
+    notes: list[str],
+    homes: Mapping[str, Sequence[str]],
+    say: Callable[[str], None],
+) -> tuple[list[str], dict[str, list[Path]]]:
+    """Held-out iTHOR homes, ProcTHOR houses and placement statistics; provenance lines."""
+    from .placement_stats import ASSETS, RECEPTACLES
+
+    say("held-out iTHOR homes")
+    paper = tuple(homes.get(PAPER_HOME_NAME, PAPER_HOME))
+    heldout, skipped = heldout_ithor_homes(source, paper, say)
+    notes += skipped
+    lines = [
+        "- held-out iTHOR homes (`pipeline/more_homes.py`, seed "
+        f"{HELDOUT_SEED}: per room type, scenes 1-25 minus the paper's, shuffled; home i takes "
+        "the i-th of each list; scenes whose walking graph is in pieces are skipped):"
+    ]
+    for home in heldout:
+        outputs[f"homes/{home.name}.json"] = jsonio.dumps(home.to_json())
+        notes.extend(_room_notes(home))
+        scenes = [r.source_scene for r in home.rooms]
+        lines.append(f"  - `homes/{home.name}.json`: {', '.join(scenes)}")
+    lines.append(
+        "- ProcTHOR homes (`pipeline/procthor.py`): navigation grid from the floor polygons minus "
+        "furniture footprints, rooms joined by doorways and open walls and walked (no teleport):"
+    )
+    for name, rel in PROCTHOR_FILES:
+        doc = build_procthor_home(source, name, Path(rel), say)
+        outputs[f"homes/{name}.json"] = jsonio.dumps(doc)
+        lines.append(
+            f"  - `homes/{name}.json`: `{rel}` ({len(doc['rooms'])} rooms, "
+            f"{len(doc['links'])} door/open-wall steps)"
+        )
+    say("AI2-THOR placement statistics")
+    outputs["priors/ai2thor_placements.json"] = jsonio.dumps(placement_stats_json(source))
+    lines.append(
+        f"- `priors/ai2thor_placements.json`: counts from `{RECEPTACLES.as_posix()}` for our "
+        f"targets on our static types, median sizes from `{ASSETS.as_posix()}`, move rate from "
+        "Table II (`pipeline/placement_stats.py`)."
+    )
+    files = {
+        "ithor": sorted(
+            {
+                p
+                for h in heldout
+                for r in h.rooms
+                for p in (Path(f"ai2thor/ithor_scenes/{r.source_scene}.json"),)
+            }
+        ),
+        "alfred": sorted(
+            {
+                p
+                for h in heldout
+                for r in h.rooms
+                for p in (
+                    Path(f"ai2thor/alfred_layouts/{r.source_scene}-layout.npy"),
+                    Path(f"ai2thor/alfred_layouts/{r.source_scene}-openable.json"),
+                )
+            }
+        ),
+        "procthor_houses": sorted(Path(rel) for _, rel in PROCTHOR_FILES),
+        "procthor_db": [ASSETS, RECEPTACLES],
+    }
+    return lines, files

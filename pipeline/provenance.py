@@ -9,7 +9,7 @@ from pathlib import Path
 
 from .room_objects import OPENABLE_NOT_CONTAINER, PREFERRED_PART, SUPPORT_RADIUS_M
 from .rooms import FLOOR_CONTACT_M, NOT_OBSTACLES
-from .sourceinfo import ALL_SOURCES, SourceInfo
+from .sourceinfo import ALL_SOURCES, EXTRA_SOURCES, SourceInfo
 from .sources import VG_MATRIX, layout_path, openable_path, scene_path
 
 
@@ -54,8 +54,15 @@ def provenance_md(
     homes: Mapping[str, Sequence[str]],
     default_homes: Mapping[str, Sequence[str]],
     outputs: Sequence[str],
+    *,
+    extra: Sequence[str] = (),
+    extra_files: Mapping[str, Sequence[Path]] | None = None,
 ) -> str:
+    """``extra``: more lines for "How they were made"; ``extra_files``: source key → more files read
+    (keys of ``ALL_SOURCES`` or ``EXTRA_SOURCES``)."""
     files = used_files(source, homes)
+    for key, more in (extra_files or {}).items():
+        files[key] = sorted(set(files.get(key, [])) | set(more))
     home_lines = [
         f"  - `homes/{name}.json`: kitchen {s[0]}, living room {s[1]}, bedroom {s[2]}, "
         f"bathroom {s[3]}"
@@ -103,12 +110,14 @@ def provenance_md(
         "- `scenarios/table1.json`: the paper's section 6.1.1 removals applied to home `paper`.",
         "- `schedules/table2.json`: the paper's Table II resolved to static instances of home "
         "`paper` (nearest instance of the class to the object's previous position).",
+        *extra,
         "",
         "## Sources",
         "",
     ]
-    for info in ALL_SOURCES:
-        lines += _source_section(info, files[info.key], source)
+    for info in (*ALL_SOURCES, *EXTRA_SOURCES):
+        if files.get(info.key):
+            lines += _source_section(info, files[info.key], source)
     lines += [
         "## Licence notices",
         "",

@@ -61,3 +61,32 @@ VSGM = SourceInfo(
 )
 
 ALL_SOURCES: tuple[SourceInfo, ...] = (ITHOR, ALFRED, VSGM)
+
+PROCTHOR_HOUSES = SourceInfo(
+    key="procthor_houses",
+    local=Path("procthor_houses"),
+    repo="zhiyuan-gao/procthor (houses_20); allenai/ai2thor (procthor_train_1.json)",
+    revision=(
+        "commit 7f073e665088a96b4b80c268d924d108cd127e0b; allenai/ai2thor commit "
+        "0c2389e9d7a961834ef127608bf7e85323d51ce2"
+    ),
+    commit=None,
+    upstream_path="houses_20/house_*.json; ai2thor/tests/data/arm/procthor_train_1.json",
+    licence="Apache-2.0",
+    licence_file=Path("procthor_houses/LICENSE.zhiyuan-gao-procthor"),
+    copyright="Copyright 2022 Allen Institute for AI (ProcTHOR) and the repository's authors",
+)
+
+PROCTHOR_DB = SourceInfo(
+    key="procthor_db",
+    local=Path("ai2thor/procthor_db"),
+    repo="allenai/procthor",
+    revision="commit 53d5bd4c8c96a699e6a615dc390abb670cc9d353",
+    commit="53d5bd4c8c96a699e6a615dc390abb670cc9d353",
+    upstream_path="procthor/databases/",
+    licence="Apache-2.0",
+    licence_file=Path("ai2thor/procthor_db/LICENSE.procthor"),
+    copyright="Copyright 2022 Allen Institute for AI",
+)
+
+EXTRA_SOURCES: tuple[SourceInfo, ...] = (PROCTHOR_HOUSES, PROCTHOR_DB)

@@ -18,6 +18,10 @@ EXPECTED = {
     "scenarios/table1.json",
     "schedules/table2.json",
     "PROVENANCE.md",
+    "priors/ai2thor_placements.json",
+    *(f"homes/ithor-{i:02d}.json" for i in range(1, 11)),
+    *(f"homes/procthor-{i:02d}.json" for i in range(15)),
+    "homes/procthor-train1.json",
 }
 
 

@@ -1,0 +1,157 @@
+"""Relation models: folds of the event log into Rel(o_d, o_s), the seam new learning rules plug into.
+
+The paper's rule is Eq. 4 (:class:`objsearch.agent.scene_graph.SceneGraphProjection`). Here is a
+second one, folding the *same* events (schema v1, no new fields):
+
+:class:`BetaRelations` keeps a Beta(a, b) posterior per (semi-dynamic, static) class pair, seeded
+from the Visual Genome prior as a = k·Rel₀, b = k·(1 − Rel₀) (k pseudo-observations). At the end of a
+task it adds
+
+- **positive evidence** a += 1 for every pair Eq. 4 would raise (the class was seen at the static
+  class; which classes count follows the update mode, as in Eq. 4);
+- **negative evidence** b += 1 for (target, s) for every static class s the robot looked at or
+  opened during the task without seeing the target there — something Eq. 4 never does;
+
+and, with a half-life h (in tasks), multiplies all evidence by 2^(−1/h) when a task starts, so old
+sightings fade back toward the prior. Rel is the posterior mean a / (a + b).
+
+Which static class a ``view_taken`` looked at comes from the ``plan_computed`` candidates of the same
+task (the plan lists each static id with its class), so the fold needs nothing but the log.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Protocol
+
+from objsearch.agent.scene_graph import EventLike, Pair, UpdateMode
+
+
+class RelationModel(Protocol):
+    """What the search policy needs from a scene graph: a fold with Rel per class pair."""
+
+    tasks_folded: int
+    last_seq: int
+
+    def apply(self, event: EventLike) -> None: ...
+
+    def rel(self, dynamic: str, static: str) -> float: ...
+
+    @property
+    def state(self) -> Mapping[Pair, float]: ...
+
+    def as_table(self) -> dict[str, dict[str, float]]: ...
+
+
+@dataclass
+class BetaRelations:
+    """Beta posterior per pair with negative evidence and optional decay (see the module doc)."""
+
+    prior_strength: float = 2.0
+    half_life_tasks: float | None = None
+    update_mode: UpdateMode = UpdateMode.ALL
+    last_seq: int = 0
+    tasks_folded: int = 0
+    prior: dict[Pair, float] = field(default_factory=dict)
+    positive: dict[Pair, float] = field(default_factory=dict)
+    negative: dict[Pair, float] = field(default_factory=dict)
+    _static_class: dict[str, str] = field(default_factory=dict)
+    _target: str | None = None
+    _seen_at: dict[str, set[str]] = field(default_factory=dict)
+    _viewed: set[str] = field(default_factory=set)
+
+    def __post_init__(self) -> None:
+        if self.prior_strength <= 0:
+            raise ValueError(f"prior strength must be positive, got {self.prior_strength}")
+        if self.half_life_tasks is not None and self.half_life_tasks <= 0:
+            raise ValueError(f"half-life must be positive, got {self.half_life_tasks}")
+
+    @property
+    def decay(self) -> float:
+        """Factor applied to all evidence when a task starts (1 without decay)."""
+        return 1.0 if self.half_life_tasks is None else 0.5 ** (1.0 / self.half_life_tasks)
+
+    def apply(self, event: EventLike) -> None:
+        kind, payload = event.type, event.payload
+        if kind == "run_started":
+            self.update_mode = UpdateMode(payload["update_mode"])
+        elif kind == "scene_graph_seeded":
+            self.prior = {(v["dynamic"], v["static"]): float(v["rel"]) for v in payload["values"]}
+            self.positive = {}
+            self.negative = {}
+        elif kind == "task_started":
+            self._target = payload["target"]
+            self._seen_at = {}
+            self._viewed = set()
+            self._static_class = {}
+            self._fade()
+        elif kind == "plan_computed":
+            for c in payload["candidates"]:
+                self._static_class[c["static_id"]] = c["static_class"]
+        elif kind == "view_taken":
+            cls = self._static_class.get(payload["static_id"])
+            if cls is not None:
+                self._viewed.add(cls)
+        elif kind == "detection" and payload["accepted"]:
+            statics = self._seen_at.setdefault(payload["object_class"], set())
+            support = payload["support"]
+            if support is not None and support["at"]:
+                statics.add(support["static_class"])
+        elif kind == "task_ended":
+            self._end_task()
+        self.last_seq = event.seq
+
+    def _fade(self) -> None:
+        factor = self.decay
+        if factor == 1.0:
+            return
+        self.positive = {p: v * factor for p, v in self.positive.items()}
+        self.negative = {p: v * factor for p, v in self.negative.items()}
+
+    def _end_task(self) -> None:
+        known = {d for d, _ in self.prior}
+        if self.update_mode is UpdateMode.ALL:
+            chosen = {d: s for d, s in self._seen_at.items() if d in known}
+        elif self.update_mode is UpdateMode.TARGETS and self._target in self._seen_at:
+            chosen = {self._target: self._seen_at[self._target]}
+        else:
+            chosen = {}
+        for d, statics in chosen.items():
+            for s in statics:
+                if (d, s) in self.prior:
+                    self.positive[(d, s)] = self.positive.get((d, s), 0.0) + 1.0
+        target = self._target
+        if self.update_mode is not UpdateMode.NONE and target in known:
+            found_at = self._seen_at.get(target, set())
+            for s in self._viewed - found_at:
+                if (target, s) in self.prior:
+                    self.negative[(target, s)] = self.negative.get((target, s), 0.0) + 1.0
+        self._target = None
+        self._seen_at = {}
+        self._viewed = set()
+        self.tasks_folded += 1
+
+    def rel(self, dynamic: str, static: str) -> float:
+        pair = (dynamic, static)
+        if pair not in self.prior:
+            return 0.0
+        k = self.prior_strength
+        a = k * self.prior[pair] + self.positive.get(pair, 0.0)
+        b = k * (1.0 - self.prior[pair]) + self.negative.get(pair, 0.0)
+        return a / (a + b)
+
+    @property
+    def relations(self) -> dict[Pair, float]:
+        return {pair: self.rel(*pair) for pair in sorted(self.prior)}
+
+    @property
+    def state(self) -> Mapping[Pair, float]:
+        return MappingProxyType(self.relations)
+
+    def as_table(self) -> dict[str, dict[str, float]]:
+        table: dict[str, dict[str, float]] = {}
+        for (d, s), value in self.relations.items():
+            table.setdefault(d, {})[s] = value
+        return table

@@ -1,0 +1,199 @@
+"""Run searches for experiments: one job = one strategy, update mode and seed on one home and one
+placement source, searched on one event log; jobs run in parallel processes."""
+
+from __future__ import annotations
+
+import multiprocessing
+import sys
+import tempfile
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from objsearch.agent.errors import ObjsearchError
+from objsearch.agent.geometry import Point
+from objsearch.agent.scene_graph import UpdateMode
+from objsearch.agent.session import HomeContext, Session, load_context
+from objsearch.experiments.strategies import strategy
+from objsearch.sim.schedule import Placements, Schedule, base_placements, table1_removals
+from objsearch.sim.stats_schedule import stats_schedule
+from objsearch.sim.world import SimClock, SimWorld
+from tqdm import tqdm
+
+TARGETS = ("Apple", "Cup", "Bowl", "Phone", "Laptop", "Pillow", "Vase", "ToiletPaper")
+PAUSE_BETWEEN_TASKS_S = 60.0
+
+
+@dataclass(frozen=True)
+class Job:
+    """``placements``: ``table1`` (the paper's Table I scene), ``table2`` (its Table II schedule)
+    or ``stats-<seed>`` (a schedule drawn from AI2-THOR placement statistics with that seed)."""
+
+    experiment: str
+    home: str
+    placements: str
+    strategy: str
+    update_mode: str
+    seed: int = 0
+    targets: tuple[str, ...] = TARGETS
+    scenes: tuple[int, ...] | None = None
+    log_dir: str | None = None
+    keep_routes: bool = False
+
+
+@dataclass(frozen=True)
+class Row:
+    experiment: str
+    home: str
+    placements: str
+    strategy: str
+    update_mode: str
+    seed: int
+    scene: int
+    target: str
+    start: str
+    success: bool
+    path_length: float
+    oracle_length: float
+    task_id: str
+    route: tuple[tuple[float, float], ...] = field(default=(), compare=False)
+
+    def record(self) -> dict[str, object]:
+        d = asdict(self)
+        d.pop("route")
+        return d
+
+
+def scenes_of(ctx: HomeContext, spec: str) -> dict[int, Placements]:
+    """Scene number → placements for a placement source (see :class:`Job`)."""
+    if spec == "table1":
+        return {0: base_placements(ctx.home, table1_removals(ctx.home))}
+    if spec.startswith("stats-"):
+        try:
+            seed = int(spec.removeprefix("stats-"))
+        except ValueError:
+            raise ObjsearchError(
+                f"placement source {spec!r}: expected stats-<integer seed>"
+            ) from None
+        return dict(stats_schedule(ctx.home, seed).scenes)
+    return dict(Schedule.load(ctx.home, spec).scenes)
+
+
+def run_job(job: Job) -> list[Row]:
+    """Every target from every start in every scene, in that order, on one log."""
+    ctx = load_context(job.home)
+    strat = strategy(job.strategy)
+    scenes = scenes_of(ctx, job.placements)
+    wanted = job.scenes or tuple(sorted(scenes))
+    with tempfile.TemporaryDirectory(prefix="objsearch-bench-") as tmp:
+        log_dir = Path(job.log_dir) if job.log_dir else Path(tmp)
+        session = Session(
+            ctx,
+            log_dir,
+            strat.config(job.seed),
+            UpdateMode(job.update_mode),
+            params={"strategy": strat.name, "placements": job.placements},
+            graph=strat.relations(),
+            planner=strat.planner() if strat.planner else None,
+        )
+        rows: list[Row] = []
+        try:
+            clock = SimClock(session.resume_time_ns)
+            for scene in wanted:
+                placements = scenes[scene]
+                present = {p.cls for p in placements.values()}
+                for target in job.targets:
+                    if target not in present:
+                        continue
+                    for start_name, pose in ctx.home.starts.items():
+                        clock.advance(PAUSE_BETWEEN_TASKS_S)
+                        world = SimWorld(ctx.home, ctx.navmap, placements, pose, clock=clock)
+                        oracle = world.oracle_length(target)
+                        result = session.search(world, target, start_name, scene=scene)
+                        route: tuple[tuple[float, float], ...] = ()
+                        if job.keep_routes:
+                            route = tuple((p.x, p.y) for p in result.route)
+                        rows.append(
+                            Row(
+                                job.experiment,
+                                job.home,
+                                job.placements,
+                                job.strategy,
+                                job.update_mode,
+                                job.seed,
+                                scene,
+                                target,
+                                start_name,
+                                result.success,
+                                round(result.path_length, 4),
+                                round(oracle, 4),
+                                result.task_id,
+                                route,
+                            )
+                        )
+        finally:
+            session.close()
+    return rows
+
+
+def _count(job: Job) -> int:
+    ctx = load_context(job.home)
+    scenes = scenes_of(ctx, job.placements)
+    wanted = job.scenes or tuple(sorted(scenes))
+    starts = len(ctx.home.starts)
+    return sum(
+        starts * sum(1 for t in job.targets if t in {p.cls for p in scenes[s].values()})
+        for s in wanted
+    )
+
+
+def run_jobs(
+    jobs: Sequence[Job],
+    *,
+    workers: int = 1,
+    progress: bool = True,
+    label: str = "searches",
+) -> list[Row]:
+    """Run jobs (in ``workers`` processes); rows come back in job order whatever finishes first."""
+    total = sum(_count(j) for j in jobs)
+    done: dict[int, list[Row]] = {}
+    with tqdm(total=total, disable=not progress, file=sys.stderr, unit="search", desc=label) as bar:
+        if workers <= 1 or len(jobs) <= 1:
+            for i, job in enumerate(jobs):
+                done[i] = run_job(job)
+                bar.update(len(done[i]))
+        else:
+            ctx = multiprocessing.get_context("fork" if sys.platform == "linux" else "spawn")
+            with ctx.Pool(min(workers, len(jobs))) as pool:
+                # Longest jobs first so the last one to finish is short.
+                order = sorted(range(len(jobs)), key=lambda i: -_count(jobs[i]))
+                for i, rows in pool.imap_unordered(_run_indexed, [(i, jobs[i]) for i in order]):
+                    done[i] = rows
+                    bar.update(len(rows))
+    return [row for i in range(len(jobs)) for row in done[i]]
+
+
+def _run_indexed(item: tuple[int, Job]) -> tuple[int, list[Row]]:
+    return item[0], run_job(item[1])
+
+
+def to_frame(rows: Iterable[Row]) -> object:
+    """The rows as a polars DataFrame (typed as object to keep polars out of the signatures)."""
+    import polars as pl
+
+    return pl.DataFrame([r.record() for r in rows])
+
+
+def write_rows(rows: Sequence[Row], out: Path, stem: str) -> tuple[Path, Path]:
+    """Parquet and CSV of the rows (same content)."""
+    import polars as pl
+
+    frame = pl.DataFrame([r.record() for r in rows])
+    parquet, csv = out / f"{stem}.parquet", out / f"{stem}.csv"
+    frame.write_parquet(parquet)
+    frame.write_csv(csv)
+    return parquet, csv
+
+
+def route_points(rows: Sequence[Row]) -> Mapping[str, list[Point]]:
+    return {r.task_id: [Point(x, y) for x, y in r.route] for r in rows if r.route}

@@ -1,0 +1,123 @@
+"""``objsearch bench``: the experiments (paper tables, held-out homes, the results document)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+
+def _strategies(text: str | None, default: str) -> list[str]:
+    from objsearch.experiments.strategies import PAPER_STRATEGIES, STRATEGIES
+
+    text = text or default
+    if text == "all":
+        return list(STRATEGIES)
+    if text == "paper":
+        return list(PAPER_STRATEGIES)
+    return [s.strip() for s in text.split(",") if s.strip()]
+
+
+def _workers(args: argparse.Namespace) -> int:
+    return max(1, args.workers if args.workers else min(2, os.cpu_count() or 1))
+
+
+def cmd_bench_paper(args: argparse.Namespace) -> int:
+    from objsearch.experiments.paper import render, run_paper
+    from objsearch.experiments.runner import TARGETS
+
+    targets = [t.strip() for t in args.targets.split(",")] if args.targets else list(TARGETS)
+    summary = run_paper(
+        Path(args.out),
+        strategies=_strategies(args.strategies, "all"),
+        sdp_seeds=args.sdp_seeds,
+        workers=_workers(args),
+        progress=not args.no_progress and not args.json,
+        targets=targets,
+        scenes=[int(s) for s in args.scenes.split(",")] if args.scenes else None,
+        keep_logs=args.keep_logs,
+    )
+    if args.json:
+        print(json.dumps(_headline(summary), indent=2))
+    else:
+        print(render(summary))
+        print(
+            f"\n{summary['searches']} searches in {summary['elapsed_s']} s; results in {args.out}"
+        )
+    return 0
+
+
+def cmd_bench_homes(args: argparse.Namespace) -> int:
+    from objsearch.experiments.homes import render, run_homes
+
+    summary = run_homes(
+        Path(args.out),
+        homes=[h.strip() for h in args.homes.split(",")] if args.homes else None,
+        strategies=_strategies(args.strategies, "all"),
+        seeds=args.seeds,
+        scenes=args.scenes,
+        workers=_workers(args),
+        progress=not args.no_progress and not args.json,
+    )
+    if args.json:
+        print(json.dumps(_headline(summary), indent=2))
+    else:
+        print(render(summary))
+        print(
+            f"\n{summary['searches']} searches in {summary['elapsed_s']} s; results in {args.out}"
+        )
+    return 0
+
+
+def cmd_bench_report(args: argparse.Namespace) -> int:
+    from objsearch.experiments.report import write_report
+
+    path = write_report(Path(args.paper), Path(args.homes), Path(args.out), Path(args.img))
+    print(f"wrote {path}")
+    return 0
+
+
+def _headline(summary: dict[str, Any]) -> dict[str, Any]:
+    keys = ("command", "elapsed_s", "searches", "strategies", "files")
+    return {k: summary[k] for k in keys if k in summary}
+
+
+def register(sub: Any) -> None:
+    bench = sub.add_parser("bench", help="experiments: the paper's tables, held-out homes, report")
+    bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="SUBCOMMAND")
+
+    def common(p: argparse.ArgumentParser, out: str) -> None:
+        p.add_argument("--out", default=out, help=f"output folder ({out})")
+        p.add_argument(
+            "--strategies",
+            help="comma-separated names, 'paper' (sdp,rvp,wpl) or 'all' (default: all)",
+        )
+        p.add_argument("--workers", type=int, default=0, help="processes (default: min(2, cores))")
+        p.add_argument("--json", action="store_true", help="print a JSON summary per strategy")
+        p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    paper = bsub.add_parser("paper", help="Table I and the long-term experiment on the paper home")
+    common(paper, "out/bench-paper")
+    paper.add_argument(
+        "--sdp-seeds", type=int, default=20, help="seeds for SDP's random rooms (20)"
+    )
+    paper.add_argument("--targets", help="comma-separated subset of the eight targets")
+    paper.add_argument("--scenes", help="comma-separated subset of Table II's scenes (1-10)")
+    paper.add_argument("--keep-logs", action="store_true", help="keep long-term event logs")
+    paper.set_defaults(func=cmd_bench_paper)
+
+    homes = bsub.add_parser("homes", help="every strategy on the held-out homes")
+    common(homes, "out/bench-homes")
+    homes.add_argument("--homes", help="comma-separated home names (default: all but 'paper')")
+    homes.add_argument("--seeds", type=int, default=1, help="schedules per home, seeds 0..N-1 (1)")
+    homes.add_argument("--scenes", type=int, help="scenes per schedule (10)")
+    homes.set_defaults(func=cmd_bench_homes)
+
+    report = bsub.add_parser("report", help="write docs/results.md from bench outputs")
+    report.add_argument("--paper", default="out/bench-paper", help="bench paper output folder")
+    report.add_argument("--homes", default="out/bench-homes", help="bench homes output folder")
+    report.add_argument("--out", default="docs/results.md")
+    report.add_argument("--img", default="docs/img", help="folder for the PNG plots")
+    report.set_defaults(func=cmd_bench_report)

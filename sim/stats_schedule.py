@@ -1,0 +1,126 @@
+"""Placement schedules drawn from AI2-THOR's own placement statistics, with a seed.
+
+``data/priors/ai2thor_placements.json`` (derived by ``objsearch data build`` from ProcTHOR's
+``receptacles.json``) counts how often each target type was placed on each receptacle type over the
+iTHOR/RoboTHOR scenes. A schedule of ``SCENES`` scenes for a home is drawn as follows:
+
+- scene 1: for every target class, a receptacle *type* is drawn among the home's static objects with
+  weight = that count (a type the home lacks, or that is not one of our static classes, cannot be
+  drawn: the agent could never look there), then an instance of that type uniformly; a class with no
+  possible receptacle in the home is left out of the schedule;
+- later scenes: each object moves with probability ``move_rate`` (21 of 72 in the paper's Table II)
+  and is then redrawn the same way among the other instances;
+- the object rests on one of the static's ``rest_points`` (where AI2-THOR put objects on it; the box
+  top centre if none), raised by half its height; in a container it sits at the box centre.
+
+Object sizes are the median AI2-THOR asset sizes of the class. Everything is drawn from one
+``random.Random`` seeded by (home, seed), so a seed names one schedule.
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from functools import cache
+from typing import Any
+
+from objsearch.agent.categories import read_json
+from objsearch.agent.errors import DataFileError
+from objsearch.agent.home import Box, Home, StaticObject, home_path
+from objsearch.sim.schedule import Placements, Schedule
+from objsearch.sim.world import Placement
+
+from objsearch.paths import data_dir
+
+SCENES = 10
+PLACEMENTS_FILE = "priors/ai2thor_placements.json"
+#: AI2-THOR names a basin as its own receptacle type; the statistics count the fixture.
+_RECEPTACLE_ALIAS = {"SinkBasin": "Sink", "BathtubBasin": "Bathtub"}
+
+
+@dataclass(frozen=True)
+class PlacementStats:
+    counts: Mapping[str, Mapping[str, float]]  # class → receptacle type → count
+    sizes: Mapping[str, tuple[float, float, float]]  # class → box size (ROS)
+    move_rate: float
+
+    @classmethod
+    @cache
+    def load(cls) -> PlacementStats:
+        path = data_dir() / PLACEMENTS_FILE
+        doc = read_json(path, "the AI2-THOR placement statistics")
+        try:
+            return cls(
+                counts={c: dict(v) for c, v in doc["counts"].items()},
+                sizes={c: (float(s[0]), float(s[1]), float(s[2])) for c, s in doc["sizes"].items()},
+                move_rate=float(doc["move_rate"]),
+            )
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise DataFileError(f"{path} is malformed: {exc!r}") from None
+
+
+@cache
+def _rest_points(home_name: str) -> dict[str, tuple[tuple[float, float, float], ...]]:
+    doc: Any = read_json(home_path(home_name), "a home")
+    return {
+        s["id"]: tuple((float(p[0]), float(p[1]), float(p[2])) for p in s.get("rest_points", ()))
+        for r in doc["rooms"]
+        for s in r["statics"]
+    }
+
+
+def _receptacle_type(s: StaticObject) -> str:
+    return _RECEPTACLE_ALIAS.get(s.thor_type, s.thor_type)
+
+
+def _draw_static(
+    rng: random.Random,
+    weights: Mapping[str, float],
+    statics: Sequence[StaticObject],
+    exclude: str | None,
+) -> StaticObject | None:
+    by_type: dict[str, list[StaticObject]] = {}
+    for s in statics:
+        if s.id != exclude and weights.get(_receptacle_type(s), 0) > 0:
+            by_type.setdefault(_receptacle_type(s), []).append(s)
+    if not by_type:
+        return None
+    types = sorted(by_type)
+    chosen = rng.choices(types, weights=[weights[t] for t in types])[0]
+    return rng.choice(sorted(by_type[chosen], key=lambda s: s.id))
+
+
+def _place(
+    rng: random.Random, home: Home, cls: str, size: tuple[float, float, float], s: StaticObject
+) -> Placement:
+    if s.container:
+        center = s.box.center
+    else:
+        rests = _rest_points(home.name).get(s.id, ())
+        if rests:
+            x, y, z = rng.choice(rests)
+        else:
+            x, y, z = s.box.center[0], s.box.center[1], s.box.top
+        center = (x, y, z + size[2] / 2)
+    return Placement(f"{cls}|schedule", cls, Box(center, size), s.room, s.id, s.container)
+
+
+def stats_schedule(home: Home, seed: int, *, scenes: int = SCENES) -> Schedule:
+    """A schedule for ``home`` drawn from the placement statistics (see the module doc)."""
+    stats = PlacementStats.load()
+    rng = random.Random(f"stats-schedule:{home.name}:{seed}")
+    statics = sorted(home.statics.values(), key=lambda s: s.id)
+    current: dict[str, Placement] = {}
+    out: dict[int, Placements] = {}
+    for scene in range(1, scenes + 1):
+        for cls in sorted(stats.counts):
+            old = current.get(cls)
+            if old is not None and rng.random() >= stats.move_rate:
+                continue
+            s = _draw_static(rng, stats.counts[cls], statics, old.support if old else None)
+            if s is None:
+                continue
+            current[cls] = _place(rng, home, cls, stats.sizes[cls], s)
+        out[scene] = {p.instance_id: p for p in current.values()}
+    return Schedule(name=f"stats-{seed}", home=home.name, scenes=out)
