@@ -16,10 +16,13 @@ def register(sub: Any) -> None:
         "task, pose) and plans again with today's code. Exit status 0 when every decision is "
         "the same, 1 when any differs.",
     )
-    rp.add_argument("log", help="event log folder")
+    rp.add_argument("log", metavar="LOG|LAKE", help="event log folder, or a lake (with --run)")
+    rp.add_argument("--run", help="the lake run to replay (objsearch lake ls lists them)")
+    rp.add_argument("--robot", help="the robot whose run it is, if run names repeat")
     rp.add_argument("--until", type=int, metavar="SEQ", help="stop after this event")
     rp.add_argument("--alpha", type=float, help="replay with another α (Eq. 3)")
-    rp.add_argument("--method", choices=["wpl", "rvp", "sdp"], help="replay with another planner")
+    rp.add_argument("--method", choices=["wpl", "rvp", "sdp"], help="replay with another method")
+    rp.add_argument("--strategy", help="replay with a bench strategy (e.g. epl, wpl-neg-decay)")
     rp.add_argument("--json", action="store_true", help="print every decision as JSON")
     rp.add_argument("--all", action="store_true", help="list unchanged decisions too")
     rp.set_defaults(func=cmd_replay)
@@ -30,7 +33,9 @@ def register(sub: Any) -> None:
         description="Writes index.md and one Markdown file per task (with a route PNG for "
         "flagged tasks, or all with --plots all) to --out.",
     )
-    au.add_argument("log", help="event log folder")
+    au.add_argument("log", metavar="LOG|LAKE", help="event log folder, or a lake (with --run)")
+    au.add_argument("--run", help="the lake run to audit")
+    au.add_argument("--robot", help="the robot whose run it is, if run names repeat")
     au.add_argument("--out", default="out/audit", help="report folder (out/audit)")
     au.add_argument("--plots", choices=["all", "flagged", "none"], default="flagged")
     au.add_argument("--max-plots", type=int, default=25, help="at most this many PNGs (25)")
@@ -48,12 +53,13 @@ def register(sub: Any) -> None:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    from objsearch.events import read_log
     from objsearch.replay.decisions import Overrides, replay, summarise
+    from objsearch.replay.source import open_events
 
+    events, _ = open_events(Path(args.log), run=args.run, robot=args.robot)
     replayer = replay(
-        read_log(Path(args.log)),
-        overrides=Overrides(method=args.method, alpha=args.alpha),
+        events,
+        overrides=Overrides(method=args.method, alpha=args.alpha, strategy=args.strategy),
         until_seq=args.until,
     )
     decisions = replayer.decisions
@@ -101,18 +107,17 @@ def _short(order: tuple[str, ...]) -> str:
 
 
 def cmd_audit(args: argparse.Namespace) -> int:
-    from objsearch.events import read_log
     from objsearch.replay.audit import anomaly_counts, audit, write_report
+    from objsearch.replay.source import open_events
 
+    events, name = open_events(Path(args.log), run=args.run, robot=args.robot)
     auditor = audit(
-        read_log(Path(args.log)),
+        events,
         oracle_ratio=args.oracle_ratio,
         oracle_excess_m=args.oracle_excess,
     )
     out = Path(args.out)
-    write_report(
-        auditor, out, plots=args.plots, max_plots=args.max_plots, title=f"audit of {args.log}"
-    )
+    write_report(auditor, out, plots=args.plots, max_plots=args.max_plots, title=f"audit of {name}")
     counts = anomaly_counts(auditor.tasks)
     if args.json:
         anomalies = [

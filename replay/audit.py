@@ -208,7 +208,7 @@ class Auditor:
                     f"task_ended says {task.path_length:.3f} m but its moves add up to "
                     f"{task._moved_metres:.3f} m (a moved event is missing?)",
                 )
-            mode = self.state.graph.update_mode.value
+            mode = self.state.run.update_mode if self.state.run else "unknown"
             task.updates.append(
                 f"Eq. 4 at seq {event.seq} (update mode {mode}): "
                 + (

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point
-from objsearch.agent.planner import wpl_terms
+from objsearch.agent.planner import StopPlanner, wpl_terms
 from objsearch.agent.policy import Method, Recorder, SearchAgent, SearchConfig, Stop
 from objsearch.agent.session import HomeContext, load_context
 from objsearch.replay.state import ReplayState, RunSettings, TaskState
@@ -32,6 +32,7 @@ class Overrides:
 
     method: str | None = None
     alpha: float | None = None
+    strategy: str | None = None  # a bench strategy name (objsearch.experiments.strategies)
 
     def config(self, run: RunSettings) -> SearchConfig:
         return SearchConfig(
@@ -114,8 +115,29 @@ class Replayer:
                 return
             if event.type == "plan_computed":
                 self.decisions.append(self._replay(event))
+            elif event.type == "run_started" and self.state.graph.last_seq == 0:
+                self._choose_relation_model(event.payload)
             self.state.apply(event)
             yield event
+
+    def _choose_relation_model(self, run_started: Mapping[str, Any]) -> None:
+        """Fold with the relation model of the run's strategy (e.g. a Beta posterior), which the
+        log's first ``run_started`` names; the paper's Eq. 4 otherwise."""
+        name = self.overrides.strategy or run_started.get("params", {}).get("strategy")
+        if name is not None:
+            from objsearch.experiments.strategies import strategy
+
+            self.state.graph = strategy(str(name)).relations()
+
+    def _planner(self, run: RunSettings) -> StopPlanner | None:
+        """The stop planner of the run's strategy (bench runs record it), else the method's."""
+        name = self.overrides.strategy or run.params.get("strategy")
+        if name is None:
+            return None
+        from objsearch.experiments.strategies import strategy
+
+        chosen = strategy(str(name))
+        return None if chosen.planner is None else chosen.planner()
 
     def _context(self, run: RunSettings) -> HomeContext:
         ctx = load_context(run.home)
@@ -139,7 +161,13 @@ class Replayer:
         ctx = self._context(run)
         config = self.overrides.config(run)
         agent = SearchAgent(
-            ctx.navmap, ctx.semmap, ctx.vocabulary, st.graph, Recorder(_NoSink(), ()), config
+            ctx.navmap,
+            ctx.semmap,
+            ctx.vocabulary,
+            st.graph,
+            Recorder(_NoSink(), ()),
+            config,
+            self._planner(run),
         )
         rooms = self._room_orders.get(task.task_id)
         if rooms is None:
@@ -148,8 +176,17 @@ class Replayer:
             self._room_orders = {task.task_id: rooms}
         p = event.payload
         here = st.pose.point
+        # Exactly as the agent plans: the room's stops, plus (for planners that use them) where
+        # the next room is entered and how much Rel the rooms still to come hold.
+        position = task.plans_so_far
+        later = rooms[position + 1 :] if rooms[position : position + 1] == [p["room"]] else []
         stops = agent.stops(p["room"], task.target)
-        ordering = agent.order_stops(here, stops)
+        ordering = agent.order_stops(
+            here,
+            stops,
+            next_entry=ctx.navmap.doors[later[0]] if later else None,
+            rest_mass=math.fsum(s.rel for r in later for s in agent.stops(r, task.target)),
+        )
         replayed_order = tuple(stops[k].key for k in ordering.order)
         recorded_order = tuple(p["order"])
         today = _value_of(agent, config, here, stops, recorded_order)
@@ -182,7 +219,10 @@ def _value_of(
     stops: Sequence[Stop],
     order: Sequence[str],
 ) -> float:
-    """Today's objective for a recorded order (NaN when it names stops today's plan lacks)."""
+    """Today's WPL for a recorded order (NaN when it names stops today's plan lacks, or when the
+    planner optimises another objective, which has no score for a given order)."""
+    if agent.planner.name not in ("wpl", "sdp", "rvp"):
+        return math.nan
     index = {s.key: i for i, s in enumerate(stops)}
     if any(key not in index for key in order) or len(order) != len(stops):
         return math.nan

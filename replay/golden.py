@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import shutil
 import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,6 +21,9 @@ from objsearch.sim.schedule import Schedule
 from objsearch.sim.world import SimClock, SimWorld
 
 DEFAULT_DIR = Path(__file__).resolve().parent.parent / "tests" / "replay" / "golden"
+#: A lake holding one ingested bag: the path a real robot's recording takes.
+BAG_LAKE = "lake-from-bag"
+BAG_ROBOT = "sim"
 PAUSE_BETWEEN_TASKS_S = 60.0
 FIXED_WALL_CLOCK_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00:00Z
 
@@ -84,9 +88,42 @@ def record(run: GoldenRun, log_dir: Path, *, home: str = "paper") -> None:
         session.close()
 
 
+def record_bag_lake(lake_dir: Path) -> None:
+    """Record a short simulated run as an MCAP bag and ingest it into a fresh lake.
+
+    The bag's agent events carry the wall clock of the recording, so unlike the log goldens
+    this lake's run name (the bag's digest) changes at every re-bless.
+    """
+    from objsearch.pipeline.bags.formats import BagFormat
+    from objsearch.pipeline.bags.ingest import ingest
+    from objsearch.pipeline.bags.record import record as record_bag
+
+    with tempfile.TemporaryDirectory(prefix="objsearch-golden-") as tmp:
+        bag = Path(tmp) / "golden-bag"
+        record_bag(
+            bag,
+            BagFormat.ROS2_MCAP,
+            scenes=(4,),
+            targets=("Bowl", "Pillow"),
+            starts=("living-2", "bathroom-1"),
+            odom_hz=2.0,
+        )
+        [result] = ingest([bag], lake_dir, robot=BAG_ROBOT)
+        if result.error is not None:
+            raise RuntimeError(f"ingesting the golden bag failed: {result.error}")
+
+
 def bless(directory: Path = DEFAULT_DIR) -> list[Path]:
-    """Re-record every golden log under ``directory``; returns the log folders written."""
+    """Re-record every golden log (and the bag lake) under ``directory``; returns what was
+    written."""
     written = []
+    lake = directory / BAG_LAKE
+    tmp_lake = directory / f".{BAG_LAKE}.tmp"
+    shutil.rmtree(tmp_lake, ignore_errors=True)
+    record_bag_lake(tmp_lake)
+    shutil.rmtree(lake, ignore_errors=True)
+    tmp_lake.rename(lake)
+    written.append(lake)
     for run in GOLDEN_RUNS:
         target = directory / run.name
         tmp = directory / f".{run.name}.tmp"

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from objsearch.agent.geometry import Pose
+from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import EventLike, SceneGraphProjection
 
 
@@ -45,7 +46,7 @@ def _pose(doc: Any) -> Pose:
 class ReplayState:
     """Every projection replay uses, advanced together one event at a time."""
 
-    graph: SceneGraphProjection = field(default_factory=SceneGraphProjection)
+    graph: RelationModel = field(default_factory=SceneGraphProjection)
     run: RunSettings | None = None
     task: TaskState | None = None
     pose: Pose | None = None

@@ -9,20 +9,21 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from objsearch.events import read_log
 from objsearch.replay.decisions import replay
-from objsearch.replay.golden import DEFAULT_DIR, GOLDEN_RUNS
+from objsearch.replay.golden import BAG_LAKE, DEFAULT_DIR, GOLDEN_RUNS
+from objsearch.replay.source import open_events
 
 GOLDEN = sorted(p for p in DEFAULT_DIR.iterdir() if p.is_dir() and not p.name.startswith("."))
 
 
-def test_every_golden_run_is_committed() -> None:
-    assert [p.name for p in GOLDEN] == sorted(run.name for run in GOLDEN_RUNS)
+def test_every_golden_is_committed() -> None:
+    assert [p.name for p in GOLDEN] == sorted([BAG_LAKE, *(run.name for run in GOLDEN_RUNS)])
 
 
 @pytest.mark.parametrize("log", GOLDEN, ids=lambda p: p.name)
 def test_todays_code_makes_the_recorded_decisions(log: Path) -> None:
-    replayer = replay(read_log(log))
+    events, _ = open_events(log)  # a log folder, or the lake holding the ingested bag
+    replayer = replay(events)
     assert replayer.decisions, "a golden log without plans tests nothing"
     assert not replayer.notes, replayer.notes
     changed = [d for d in replayer.decisions if not d.same]
