@@ -62,12 +62,28 @@ def apply_eq4(
     Rel/2 + 1/2 where o_d was seen at o_s, Rel/2 where o_d was seen but not at o_s, unchanged for
     classes not seen.
     """
+    return _apply_eq4(relations, seen_at, _pairs_by_dynamic(relations))
+
+
+def _pairs_by_dynamic(relations: Mapping[Pair, float]) -> dict[str, tuple[Pair, ...]]:
+    grouped: dict[str, list[Pair]] = {}
+    for pair in relations:
+        grouped.setdefault(pair[0], []).append(pair)
+    return {d: tuple(pairs) for d, pairs in grouped.items()}
+
+
+def _apply_eq4(
+    relations: Mapping[Pair, float],
+    seen_at: Mapping[str, Iterable[str]],
+    pairs_of: Mapping[str, tuple[Pair, ...]],
+) -> dict[Pair, float]:
+    # Only the pairs of the classes seen change, so the fold of a long log touches a few pairs per
+    # task instead of the whole graph (the 1 M-event rebuild is dominated by task ends).
     updated = dict(relations)
     for d, statics in seen_at.items():
-        at = set(statics)
-        for pair, value in relations.items():
-            if pair[0] == d:
-                updated[pair] = value / 2 + (0.5 if pair[1] in at else 0.0)
+        at = statics if isinstance(statics, (set, frozenset)) else set(statics)
+        for pair in pairs_of.get(d, ()):
+            updated[pair] = relations[pair] / 2 + (0.5 if pair[1] in at else 0.0)
     return updated
 
 
@@ -81,6 +97,10 @@ class SceneGraphProjection:
     tasks_folded: int = 0
     _target: str | None = None
     _experience: dict[str, set[str]] = field(default_factory=dict)
+    _pairs_of: dict[str, tuple[Pair, ...]] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self._pairs_of = _pairs_by_dynamic(self.relations)
 
     def apply(self, event: EventLike) -> None:
         kind, payload = event.type, event.payload
@@ -90,6 +110,7 @@ class SceneGraphProjection:
             self.relations = {
                 (v["dynamic"], v["static"]): float(v["rel"]) for v in payload["values"]
             }
+            self._pairs_of = _pairs_by_dynamic(self.relations)
         elif kind == "task_started":
             self._target = payload["target"]
             self._experience = {}
@@ -104,14 +125,14 @@ class SceneGraphProjection:
         self.last_seq = event.seq
 
     def _end_task(self) -> None:
-        known = {d for d, _ in self.relations}
         if self.update_mode is UpdateMode.ALL:
-            chosen = {d: s for d, s in self._experience.items() if d in known}
+            chosen = {d: s for d, s in self._experience.items() if d in self._pairs_of}
         elif self.update_mode is UpdateMode.TARGETS and self._target in self._experience:
             chosen = {self._target: self._experience[self._target]}
         else:
             chosen = {}
-        self.relations = apply_eq4(self.relations, chosen)
+        if chosen:
+            self.relations = _apply_eq4(self.relations, chosen, self._pairs_of)
         self._target = None
         self._experience = {}
         self.tasks_folded += 1

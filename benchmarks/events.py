@@ -214,7 +214,7 @@ def main() -> None:
         if args.only in (None, "projection", "query"):
             events = bench_projection(args.fold_events, args.reps, root)
             if args.only != "projection":
-                copies = max(1, args.lake_events // len(events))
+                copies = max(1, -(-args.lake_events // len(events)))  # at least --lake-events
                 bench_queries(events, copies, args.reps, root)
         if args.kills and args.only in (None, "crash"):
             print(f"\n## crash test: {args.kills} SIGKILLs")
