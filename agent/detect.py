@@ -2,7 +2,8 @@
 
 - :class:`GroundTruthDetector` reads the simulator's per-pixel ground truth (the paper's simulator
   hands over "the object category and mask", §6.1);
-- :class:`TorchScriptDetector` runs a scripted or traced model (the robot's Mask R-CNN, §4.3).
+- :class:`TorchDetector` runs a trained model (the robot's Mask R-CNN, §4.3): a ``torch.export``
+  program (``.pt2``) or a scripted or traced TorchScript module.
 
 A detection is located by back-projecting its mask (:func:`locate`), and approached from its
 nearest viewpoint (:func:`approach`). Masks become detections the agent accepts only when their area reaches the class's
@@ -11,6 +12,8 @@ nearest viewpoint (:func:`approach`). Masks become detections the agent accepts 
 
 from __future__ import annotations
 
+import json
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -75,15 +78,18 @@ class GroundTruthDetector:
         return tuple(out)
 
 
-class TorchScriptDetector:
-    """A TorchScript instance-segmentation model.
+class TorchDetector:
+    """An instance-segmentation model saved with ``torch.export`` (``.pt2``) or TorchScript.
 
-    Contract (what ``torch.jit.script``/``trace`` of a Mask R-CNN wrapper gives): ``forward`` takes
+    Contract (what exporting, scripting or tracing a Mask R-CNN wrapper gives): ``forward`` takes
     a float image (3, H, W) in [0, 1] and returns ``(masks, labels, scores)`` — masks (N, H, W),
     boolean or probabilities (thresholded at 0.5), labels (N,) int64 indices into the model's
-    class names, scores (N,). Class names come from a ``class_names: List[str]`` attribute of the
-    module or from ``class_names=``; names are resolved through the vocabulary (class names,
-    aliases and AI2-THOR types) and labels of other classes are dropped.
+    class names, scores (N,). Class names come from ``class_names=``, else from the file: a
+    ``class_names.json`` extra file of a ``.pt2`` (``torch.export.save(..., extra_files=...)``) or a
+    ``class_names: List[str]`` attribute of a TorchScript module. Names are resolved through the
+    vocabulary (class names, aliases and AI2-THOR types) and labels of other classes are dropped.
+    ``torch.export`` is the format to prefer: torch 2.13 deprecates TorchScript, which is still read
+    because that is what many deployed detectors are.
     """
 
     def __init__(
@@ -101,14 +107,12 @@ class TorchScriptDetector:
         path = Path(path)
         if not path.is_file():
             raise DetectorError(f"no detector model at {path}")
-        try:
-            self.model = torch.jit.load(  # type: ignore[no-untyped-call]
-                str(path), map_location=self.device
-            ).eval()
-        except (RuntimeError, ValueError) as exc:
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise DetectorError(f"{path} is not a TorchScript model: {first}") from None
-        names = class_names if class_names is not None else _attr_names(self.model)
+        self.path = path
+        if zipfile.is_zipfile(path) and _is_exported_program(path):
+            self.model, stored = self._load_exported(path)
+        else:
+            self.model, stored = self._load_torchscript(path)
+        names = class_names if class_names is not None else stored
         if names is None:
             raise DetectorError(
                 f"{path} has no class_names attribute; pass the model's class names"
@@ -120,7 +124,41 @@ class TorchScriptDetector:
             except UnknownObjectClassError:
                 self.labels.append(None)
         self.score_threshold = score_threshold
-        self.path = path
+
+    def _load_exported(self, path: Path) -> tuple[Any, list[str] | None]:
+        import torch
+
+        extra = {CLASS_NAMES_FILE: ""}
+        try:
+            program = torch.export.load(path, extra_files=extra)
+        except (RuntimeError, ValueError, KeyError) as exc:
+            raise DetectorError(
+                f"{path} is not a torch.export program: {_first_line(exc)}"
+            ) from None
+        names: list[str] | None = None
+        if extra[CLASS_NAMES_FILE]:
+            try:
+                loaded = json.loads(extra[CLASS_NAMES_FILE])
+            except ValueError as exc:
+                raise DetectorError(f"{path}: {CLASS_NAMES_FILE} is not JSON: {exc}") from None
+            if not (isinstance(loaded, list) and all(isinstance(n, str) for n in loaded)):
+                raise DetectorError(f"{path}: {CLASS_NAMES_FILE} must be a list of strings")
+            names = loaded
+        return program.module().to(self.device), names
+
+    def _load_torchscript(self, path: Path) -> tuple[Any, list[str] | None]:
+        import torch
+
+        try:
+            model = torch.jit.load(  # type: ignore[no-untyped-call]
+                str(path), map_location=self.device
+            ).eval()
+        except (RuntimeError, ValueError) as exc:
+            raise DetectorError(
+                f"{path} is neither a torch.export program nor a TorchScript model: "
+                f"{_first_line(exc)}"
+            ) from None
+        return model, _attr_names(model)
 
     def detect(self, frame: RGBDFrame) -> tuple[MaskDetection, ...]:
         import torch
@@ -169,6 +207,23 @@ class TorchScriptDetector:
             labels_t.to(torch.int64).cpu().numpy(),
             scores_t.float().cpu().numpy(),
         )
+
+
+#: The extra file of a ``.pt2`` that names the model's labels, in order (a JSON list of strings).
+CLASS_NAMES_FILE = "class_names.json"
+
+
+def _is_exported_program(path: Path) -> bool:
+    # Both formats are zip files, so look inside rather than trust the suffix: a torch.export
+    # archive says so in its ``archive_format`` entry; TorchScript has none.
+    with zipfile.ZipFile(path) as archive:
+        marks = [n for n in archive.namelist() if n.rpartition("/")[2] == "archive_format"]
+        return any(archive.read(n).strip() == b"pt2" for n in marks)
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
 
 
 def _attr_names(model: torch.jit.ScriptModule) -> list[str] | None:

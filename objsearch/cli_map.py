@@ -38,7 +38,7 @@ def register(sub: Any) -> None:
     build.add_argument("--voxel", type=float, default=0.05, help="voxel size, metres (0.05)")
     build.add_argument(
         "--model",
-        help="TorchScript detector (forward(image) -> masks, labels, scores); "
+        help="detector model: a torch.export .pt2 or TorchScript file (forward(image) -> masks, labels, scores); "
         "default: the simulator's ground-truth masks",
     )
     build.add_argument(
@@ -100,7 +100,7 @@ def cmd_map_build(args: argparse.Namespace) -> int:
     import torch
 
     from objsearch.agent.categories import Category
-    from objsearch.agent.detect import Detector, GroundTruthDetector, TorchScriptDetector
+    from objsearch.agent.detect import Detector, GroundTruthDetector, TorchDetector
     from objsearch.agent.mapping import MappingConfig, SemanticMapBuilder, survey_poses
     from objsearch.agent.session import load_context
     from objsearch.cli import _fail
@@ -121,7 +121,7 @@ def cmd_map_build(args: argparse.Namespace) -> int:
     detector: Detector
     if args.model:
         names = args.class_names.split(",") if args.class_names else None
-        detector = TorchScriptDetector(args.model, ctx.vocabulary, class_names=names)
+        detector = TorchDetector(args.model, ctx.vocabulary, class_names=names)
     else:
         detector = GroundTruthDetector(frozenset(classes))
     config = MappingConfig(voxel=args.voxel, points_per_room=args.points_per_room)

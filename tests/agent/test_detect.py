@@ -2,6 +2,7 @@
 
 # No `from __future__ import annotations`: TorchScript reads the models' annotations at runtime.
 
+import json
 import math
 from pathlib import Path
 
@@ -10,10 +11,11 @@ import pytest
 import torch
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.detect import (
+    CLASS_NAMES_FILE,
     DetectorError,
     GroundTruthDetector,
     MaskDetection,
-    TorchScriptDetector,
+    TorchDetector,
     accepted,
 )
 from objsearch.agent.frames import CameraIntrinsics, GroundTruth, RGBDFrame, camera_to_map
@@ -58,20 +60,30 @@ def vocab() -> Vocabulary:
     return Vocabulary.load()
 
 
-def save(model: torch.nn.Module, path: Path, how: str) -> Path:
-    if how == "script":
+# torch 2.13 deprecates TorchScript; deployed detectors still come as TorchScript, so it is read.
+pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.*deprecated:DeprecationWarning")
+
+
+def save(model: torch.nn.Module, path: Path, how: str, names: list[str] | None = None) -> Path:
+    if how == "export":
+        program = torch.export.export(model, (torch.zeros(3, *K.shape),))
+        extra = {CLASS_NAMES_FILE: json.dumps(names)} if names is not None else None
+        torch.export.save(program, path, extra_files=extra)
+    elif how == "script":
         torch.jit.script(model).save(str(path))
     else:
         torch.jit.trace(model, torch.zeros(3, *K.shape)).save(str(path))
     return path
 
 
-@pytest.mark.parametrize("how", ["script", "trace"])
-def test_torchscript_model_round_trip(tmp_path: Path, vocab: Vocabulary, how: str) -> None:
-    # Scripted modules keep class_names; a traced one loses the attribute, so pass the names.
-    path = save(ColourSegmenter(["Apple", "fridge", "Person"]), tmp_path / "m.pt", how)
-    names = None if how == "script" else ["Apple", "fridge", "Person"]
-    det = TorchScriptDetector(path, vocab, class_names=names, device="cpu")
+@pytest.mark.parametrize("how", ["export", "script", "trace"])
+def test_model_round_trip(tmp_path: Path, vocab: Vocabulary, how: str) -> None:
+    # An export carries its names in an extra file and a scripted module as an attribute; a
+    # traced one loses the attribute, so the names are passed.
+    classes = ["Apple", "fridge", "Person"]
+    path = save(ColourSegmenter(classes), tmp_path / "m.pt2", how, classes)
+    names = classes if how == "trace" else None
+    det = TorchDetector(path, vocab, class_names=names, device="cpu")
     rgb = two_patches()
     out = det.detect(frame(rgb))
     assert [d.cls for d in out] == ["Apple", "Fridge"]  # names resolve through the vocabulary
@@ -87,23 +99,25 @@ def test_labels_outside_the_vocabulary_and_low_scores_are_dropped(
     tmp_path: Path, vocab: Vocabulary
 ) -> None:
     path = save(ColourSegmenter(["toaster", "Sofa", "Bed"]), tmp_path / "m.pt", "script")
-    assert [d.cls for d in TorchScriptDetector(path, vocab).detect(frame(two_patches()))] == [
-        "Sofa"
-    ]
-    strict = TorchScriptDetector(path, vocab, score_threshold=0.95)
+    assert [d.cls for d in TorchDetector(path, vocab).detect(frame(two_patches()))] == ["Sofa"]
+    strict = TorchDetector(path, vocab, score_threshold=0.95)
     assert strict.detect(frame(two_patches())) == ()
 
 
 def test_bad_model_files_are_clear_errors(tmp_path: Path, vocab: Vocabulary) -> None:
     with pytest.raises(DetectorError, match="no detector model"):
-        TorchScriptDetector(tmp_path / "missing.pt", vocab)
+        TorchDetector(tmp_path / "missing.pt", vocab)
     junk = tmp_path / "junk.pt"
     junk.write_bytes(b"not a model")
-    with pytest.raises(DetectorError, match="not a TorchScript model"):
-        TorchScriptDetector(junk, vocab)
+    with pytest.raises(DetectorError, match=r"neither a torch\.export program nor a TorchScript"):
+        TorchDetector(junk, vocab)
+    nameless = save(ColourSegmenter(["Apple", "Sofa", "Bed"]), tmp_path / "n.pt2", "export")
+    with pytest.raises(DetectorError, match="class_names"):
+        TorchDetector(nameless, vocab)
+    assert TorchDetector(nameless, vocab, class_names=["Apple", "Sofa", "Bed"]).labels[0] == "Apple"
     traced = save(ColourSegmenter(["Apple", "Sofa", "Bed"]), tmp_path / "t.pt", "trace")
     with pytest.raises(DetectorError, match="class_names"):
-        TorchScriptDetector(traced, vocab)
+        TorchDetector(traced, vocab)
 
 
 class WrongShape(torch.nn.Module):
@@ -121,7 +135,7 @@ def test_a_model_returning_the_wrong_shapes_is_reported(tmp_path: Path, vocab: V
     path = tmp_path / "w.pt"
     torch.jit.script(WrongShape()).save(str(path))
     with pytest.raises(DetectorError, match="expected"):
-        TorchScriptDetector(path, vocab).detect(frame(two_patches()))
+        TorchDetector(path, vocab).detect(frame(two_patches()))
 
 
 def test_ground_truth_detector_reads_the_simulators_masks() -> None:
