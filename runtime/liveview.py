@@ -17,6 +17,7 @@ import logging
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any, Final, Protocol
 
 from objsearch.agent.geometry import Point, Pose, heading
@@ -116,11 +117,10 @@ def marker(
     action: int = ADD,
 ) -> Any:
     """A ``visualization_msgs/Marker`` with every field the Humble definition requires filled."""
-    import numpy as np
-
     t = m.types()
+    header, texture, mesh_file = _marker_parts(stamp_ns)
     return t["visualization_msgs/msg/Marker"](
-        header=m.header(stamp_ns),
+        header=header,
         ns=ns,
         id=id,
         type=type,
@@ -133,17 +133,27 @@ def marker(
         points=list(points),
         colors=[],
         texture_resource="",
-        texture=t["sensor_msgs/msg/CompressedImage"](
-            header=m.header(stamp_ns), format="", data=np.zeros(0, dtype=np.uint8)
-        ),
+        texture=texture,
         uv_coordinates=[],
         text=text,
         mesh_resource="",
-        mesh_file=t["visualization_msgs/msg/MeshFile"](
-            filename="", data=np.zeros(0, dtype=np.uint8)
-        ),
+        mesh_file=mesh_file,
         mesh_use_embedded_materials=False,
     )
+
+
+@lru_cache(maxsize=4)
+def _marker_parts(stamp_ns: int) -> tuple[Any, Any, Any]:
+    """The header and the empty texture and mesh of a stamp's markers, built once and shared by
+    all of them (messages are never mutated; building them is most of the cost of a view)."""
+    import numpy as np
+
+    t = m.types()
+    texture = t["sensor_msgs/msg/CompressedImage"](
+        header=m.header(stamp_ns), format="", data=np.zeros(0, dtype=np.uint8)
+    )
+    mesh = t["visualization_msgs/msg/MeshFile"](filename="", data=np.zeros(0, dtype=np.uint8))
+    return m.header(stamp_ns), texture, mesh
 
 
 def marker_array(markers: Sequence[Any]) -> Any:
@@ -234,16 +244,20 @@ def statics_markers(ctx: HomeContext, stamp_ns: int) -> Any:
 
 def path(points: Sequence[Point | Pose], stamp_ns: int) -> Any:
     """A ``nav_msgs/Path`` through ``points``; a point without a yaw faces the next one."""
-    poses = []
-    for i, p in enumerate(points):
-        if isinstance(p, Pose):
-            yaw = p.yaw
-        elif i + 1 < len(points):
-            yaw = heading(p, points[i + 1])
-        else:
-            yaw = heading(points[i - 1], p) if i else 0.0
-        poses.append(m.pose_stamped(Pose(p[0], p[1], yaw), stamp_ns))
+    poses = [path_pose(points, i, stamp_ns) for i in range(len(points))]
     return m.types()[PATH](header=m.header(stamp_ns), poses=poses)
+
+
+def path_pose(points: Sequence[Point | Pose], i: int, stamp_ns: int) -> Any:
+    """Pose ``i`` of :func:`path`; it depends on point ``i + 1`` (unless ``i`` is a Pose)."""
+    p = points[i]
+    if isinstance(p, Pose):
+        yaw = p.yaw
+    elif i + 1 < len(points):
+        yaw = heading(p, points[i + 1])
+    else:
+        yaw = heading(points[i - 1], p) if i else 0.0
+    return m.pose_stamped(Pose(p[0], p[1], yaw), stamp_ns)
 
 
 def _pose_of(doc: Mapping[str, Any]) -> Pose:
@@ -260,6 +274,10 @@ class _Task:
     route: list[Point] = field(default_factory=list)
     plan: dict[str, Any] | None = None
     detections: list[Mapping[str, Any]] = field(default_factory=list)
+    # Built messages, kept so that each new message (the whole route, every detection of the
+    # task: a late viewer needs only the last one) costs the new parts, not all of them again.
+    route_poses: list[Any] = field(default_factory=list)
+    detection_markers: list[tuple[Any, ...]] = field(default_factory=list)
     found: str | None = None
     status: str = "searching"
 
@@ -312,6 +330,7 @@ class LiveView:
         p = event.payload
         self.pose = _pose_of(p["pose"])
         self.task = _Task(event.task_id or "", str(p["target"]), route=[self._on_grid(self.pose)])
+        self.task.route_poses = [path_pose(self.task.route, 0, stamp)]
         self._send(ROBOT, stamp, m.pose_stamped(self.pose, stamp))
         self._send(ROUTE, stamp, path(self.task.route, stamp))
         self._send(PLAN, stamp, path([], stamp))
@@ -356,8 +375,13 @@ class LiveView:
                 walked = [a, b]
             if self.task.route and self.task.route[-1] == walked[0]:
                 walked = walked[1:]
-            self.task.route.extend(walked)
-            self._send(ROUTE, stamp, path(self.task.route, stamp))
+            route = self.task.route
+            route.extend(walked)
+            # The last pose faced back along the route; it now faces the next point.
+            poses = self.task.route_poses[: max(len(self.task.route_poses) - 1, 0)]
+            poses.extend(path_pose(route, i, stamp) for i in range(len(poses), len(route)))
+            self.task.route_poses = poses
+            self._send(ROUTE, stamp, m.types()[PATH](header=m.header(stamp), poses=poses))
         self._send(ROBOT, stamp, m.pose_stamped(end, stamp))
 
     def _on_view_taken(self, event: Event, stamp: int) -> None:
@@ -384,6 +408,7 @@ class LiveView:
         if self.task is not None:
             self.task.found = str(event.payload["instance_id"])
             self.task.status = "found"
+            self.task.detection_markers.clear()  # the found one changes colour: redraw
             self._send(DETECTION_MARKERS, stamp, self._detection_markers(stamp))
         self._send_graph(event, stamp)
 
@@ -408,30 +433,35 @@ class LiveView:
     def _detection_markers(self, stamp: int) -> Any:
         out = [marker(stamp, "detections", 0, SPHERE, action=DELETEALL)]
         task = self.task
-        for i, d in enumerate(task.detections if task is not None else ()):
+        if task is None:
+            return marker_array(out)
+        built = task.detection_markers
+        for i in range(len(built), len(task.detections)):
+            d = task.detections[i]
             x, y, z = d["position"]
-            if task is not None and d["instance_id"] == task.found:
+            if d["instance_id"] == task.found:
                 color, label = _color(0.1, 0.9, 0.1), f"{d['object_class']} (found)"
-            elif task is not None and d["object_class"] == task.target:
+            elif d["object_class"] == task.target:
                 color, label = _color(1.0, 0.6, 0.0), f"{d['object_class']} (target, not accepted)"
             elif d["accepted"]:
                 color, label = _color(0.9, 0.9, 0.2), str(d["object_class"])
             else:
                 color, label = _color(0.5, 0.5, 0.5), f"{d['object_class']} (below threshold)"
-            out.append(
-                marker(stamp, "detections", 2 * i + 1, SPHERE, pose=_pose(x, y, z), color=color)
+            sphere = marker(
+                stamp, "detections", 2 * i + 1, SPHERE, pose=_pose(x, y, z), color=color
             )
-            out.append(
-                marker(
-                    stamp,
-                    "detections",
-                    2 * i + 2,
-                    TEXT,
-                    pose=_pose(x, y, z + 0.2),
-                    scale=(0.12, 0.12, 0.12),
-                    text=label,
-                )
+            text = marker(
+                stamp,
+                "detections",
+                2 * i + 2,
+                TEXT,
+                pose=_pose(x, y, z + 0.2),
+                scale=(0.12, 0.12, 0.12),
+                text=label,
             )
+            built.append((sphere, text))
+        for pair in built:
+            out.extend(pair)
         return marker_array(out)
 
     def _send_graph(self, event: Event, stamp: int, **extra: Any) -> None:

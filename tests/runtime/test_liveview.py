@@ -357,3 +357,29 @@ def test_agent_run_serves_and_records_the_live_view(net: Any, tmp_path: Path) ->
     assert load_context("paper").navmap.path_length(points) == pytest.approx(
         r["path_length"], abs=1e-3
     )
+
+
+def test_detection_markers_hold_the_tasks_detections(drawn: Path, events: list[Event]) -> None:
+    """Each message is the whole task so far (a late viewer needs only the last one); the found
+    instance is green."""
+    topics = read_all(drawn)
+    for task_events in by_task(events).values():
+        end = next(e for e in task_events if e.type == "task_ended")
+        found = next((e for e in task_events if e.type == "target_found"), None)
+        dets = [e.payload for e in task_events if e.type == "detection"]
+        stamp = DEFAULT_START_NS + end.time_ns
+        last = [msg for s, msg in topics[lv.DETECTION_MARKERS] if s <= stamp][-1]
+        assert last.markers[0].action == lv.DELETEALL
+        spheres = [mk for mk in last.markers if mk.type == lv.SPHERE and mk.action == lv.ADD]
+        assert [(mk.pose.position.x, mk.pose.position.y) for mk in spheres] == [
+            (d["position"][0], d["position"][1]) for d in dets
+        ]
+        green = [mk for mk in spheres if mk.color.g > 0.8 and mk.color.r < 0.2]
+        if found is None:
+            assert green == []
+        else:
+            assert {(mk.pose.position.x, mk.pose.position.y) for mk in green} == {
+                (d["position"][0], d["position"][1])
+                for d in dets
+                if d["instance_id"] == found.payload["instance_id"]
+            }
