@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from objsearch.runtime.config import RuntimeConfig
+    from objsearch.runtime.liveview import LiveSink
 
 
 def _transport_options(p: argparse.ArgumentParser) -> None:
@@ -66,6 +67,37 @@ def _logging() -> None:
     logging.getLogger("objsearch").setLevel(logging.INFO)
 
 
+def live_sinks(live: str | None, live_mcap: str | None) -> list[LiveSink]:
+    """The live view's sinks from ``--live [HOST:]PORT`` and ``--live-mcap FILE`` (none: off).
+
+    If the second cannot start, the first is closed again before the error is raised."""
+    from objsearch.runtime.livesinks import FoxgloveSink, McapSink, parse_address
+
+    sinks: list[LiveSink] = []
+    try:
+        if live is not None:
+            host, port = parse_address(live)
+            server = FoxgloveSink(host, port)
+            sinks.append(server)
+            print(
+                f"objsearch agent: live view on ws://{_host_for_url(server.host)}:{server.port} "
+                "(Foxglove: Open connection → Foxglove WebSocket)",
+                file=sys.stderr,
+                flush=True,
+            )
+        if live_mcap is not None:
+            sinks.append(McapSink(Path(live_mcap)))
+    except BaseException:
+        for sink in sinks:
+            sink.close()
+        raise
+    return sinks
+
+
+def _host_for_url(host: str) -> str:
+    return f"[{host}]" if ":" in host else host
+
+
 def cmd_agent_run(args: argparse.Namespace) -> int:
     from objsearch.agent.policy import Method, SearchConfig
     from objsearch.agent.scene_graph import UpdateMode
@@ -73,10 +105,39 @@ def cmd_agent_run(args: argparse.Namespace) -> int:
 
     _logging()
     search = SearchConfig(method=Method(args.method), alpha=args.alpha, seed=args.seed)
-    node = AgentNode(runtime_config(args), Path(args.log), search, UpdateMode(args.update_mode))
+    config = runtime_config(args)  # bad options fail before a port is taken or a file made
+    sinks = live_sinks(args.live, args.live_mcap)
+    node = AgentNode(config, Path(args.log), search, UpdateMode(args.update_mode), live=sinks)
     _stop_on_signals(node.stop)
     print(f"objsearch agent: serving searches, log {args.log}", file=sys.stderr, flush=True)
     return node.run()
+
+
+def cmd_liveview(args: argparse.Namespace) -> int:
+    from objsearch.pipeline.bags.record import DEFAULT_START_NS
+    from objsearch.replay.source import open_events
+    from objsearch.runtime.livesinks import McapSink
+    from objsearch.runtime.liveview import CHANNELS, render
+
+    events, name = open_events(Path(args.log), run=args.run, robot=args.robot)
+    started = time.perf_counter()
+    sink = McapSink(Path(args.mcap))
+    try:
+        render(events, [sink], clock_offset_ns=DEFAULT_START_NS if args.sim_clock else 0)
+    except BaseException:
+        sink.abort()  # no half-drawn file at --mcap
+        raise
+    sink.close()
+    seconds = time.perf_counter() - started
+    total = sum(sink.counts.values())
+    print(
+        f"{args.mcap}: {total} messages on {len(sink.counts)} channels from {name} "
+        f"in {seconds:.2f} s ({Path(args.mcap).stat().st_size / 1e6:.1f} MB)"
+    )
+    for topic in CHANNELS:
+        if topic in sink.counts:
+            print(f"  {topic:36} {CHANNELS[topic]:36} {sink.counts[topic]:>7}")
+    return 0
 
 
 def cmd_agent_find(args: argparse.Namespace) -> int:
@@ -146,6 +207,15 @@ def register(sub: Any) -> None:
     run.add_argument("--alpha", type=float, default=10.0)
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--update-mode", default="all", choices=["none", "targets", "all"])
+    run.add_argument(
+        "--live",
+        metavar="[HOST:]PORT",
+        help="serve the live view to Foxglove on this WebSocket port (host 127.0.0.1 unless "
+        "given; 0 picks a free port); off by default",
+    )
+    run.add_argument(
+        "--live-mcap", metavar="FILE", help="also write the live view's channels to FILE.mcap"
+    )
     run.set_defaults(func=cmd_agent_run)
 
     find = agent_sub.add_parser("find", help="ask the running agent to find an object")
@@ -168,6 +238,26 @@ def register(sub: Any) -> None:
     sim.add_argument("--exit-after", type=int, default=0, help="fault: vanish after n goals")
     sim.add_argument("--malformed-after", type=int, default=0, help="fault: garbage after n goals")
     sim.set_defaults(func=cmd_robot_sim)
+
+    view = sub.add_parser(
+        "liveview",
+        help="draw a recorded log's live-view channels into an MCAP file for Foxglove",
+        description="Replays the log through the live view the agent serves with --live "
+        "(map, static objects, plan, route, robot, detections, scene graph, events) and writes "
+        "the channels to a ROS 2 MCAP file (rosbag2, CDR) that Foxglove and rosbags read.",
+    )
+    view.add_argument("log", metavar="LOG|LAKE", help="event log folder, or a lake (with --run)")
+    view.add_argument("--mcap", required=True, metavar="FILE", help="the .mcap file to write")
+    view.add_argument("--run", help="the lake run to draw")
+    view.add_argument("--robot", help="the robot whose run it is, if run names repeat")
+    view.add_argument(
+        "--robot-clock",
+        dest="sim_clock",
+        action="store_false",
+        help="stamp with the log's clock as is (a robot's log); by default a simulated log's "
+        "clock starts at 2026-01-01, as objsearch record's bags do",
+    )
+    view.set_defaults(func=cmd_liveview)
 
     router = robot_sub.add_parser("router", help="a zenoh router (rmw_zenohd's role)")
     router.add_argument("--listen", action="append", help="endpoint (tcp/127.0.0.1:7447)")

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -20,10 +21,11 @@ from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.policy import SearchConfig
 from objsearch.agent.scene_graph import EventLike, UpdateMode
 from objsearch.agent.session import Session, load_context
-from objsearch.events import Event
+from objsearch.events import Event, read_log
 from objsearch.runtime import messages as m
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import RobotError
+from objsearch.runtime.liveview import LiveSink, LiveView
 from objsearch.runtime.node import Node, Server
 from objsearch.runtime.rosworld import RobotLink, RosWorld
 from objsearch.runtime.transport import open_transport
@@ -57,6 +59,25 @@ class EventPublisher:
             log.warning("event %d appended but not published: %s", event.seq, exc)
 
 
+class GuardedLiveView:
+    """The live view as an observer whose failures are reported, never raised: the log is the
+    record, the view a picture of it (a full disk or a stuck viewer must not stop a search)."""
+
+    def __init__(self, view: LiveView) -> None:
+        self.view = view
+        self.failures = 0
+
+    def apply(self, event: EventLike) -> None:
+        try:
+            self.view.apply(event)
+        except Exception as exc:
+            self.failures += 1
+            if self.failures == 1 or self.failures % 1000 == 0:
+                log.warning(
+                    "live view: event %d not drawn (%d so far): %s", event.seq, self.failures, exc
+                )
+
+
 class AgentNode:
     def __init__(
         self,
@@ -64,10 +85,25 @@ class AgentNode:
         log_dir: Path,
         search: SearchConfig,
         update_mode: UpdateMode = UpdateMode.ALL,
+        *,
+        live: Sequence[LiveSink] = (),
     ) -> None:
+        """``live``: sinks of the live view (:mod:`objsearch.runtime.livesinks`); the node owns
+        them from here on and closes them with itself."""
         self.config = config
-        self.ctx = load_context(config.home)
-        self.node = Node(open_transport(config.transport))
+        self.live_sinks = tuple(live)
+        try:
+            self.ctx = load_context(config.home)
+            observers: list[Any] = []
+            if self.live_sinks:
+                view = LiveView(self.ctx, self.live_sinks)
+                if (log_dir / "meta.json").exists():
+                    view.fold(read_log(log_dir))  # a restart: the graph so far, not redrawn
+                observers.append(GuardedLiveView(view))
+            self.node = Node(open_transport(config.transport))
+        except BaseException:
+            self._close_live()
+            raise
         try:
             self.events = EventPublisher(self.node, config)
             self.session = Session(
@@ -76,10 +112,11 @@ class AgentNode:
                 search,
                 update_mode,
                 params={"transport": config.transport.backend.value},
-                observers=[self.events],
+                observers=[self.events, *observers],
             )
         except BaseException:
             self.node.close()
+            self._close_live()
             raise
         self.link = RobotLink(self.node, config)
         self.world = RosWorld(self.link, self.ctx.navmap)
@@ -151,5 +188,15 @@ class AgentNode:
         return 0
 
     def close(self) -> None:
-        self.session.close()
-        self.node.close()
+        try:
+            self.session.close()
+            self.node.close()
+        finally:
+            self._close_live()
+
+    def _close_live(self) -> None:
+        for sink in self.live_sinks:
+            try:
+                sink.close()
+            except Exception as exc:  # the others still get closed
+                log.error("live view: %s", exc)

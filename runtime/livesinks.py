@@ -1,0 +1,192 @@
+"""The live view's two sinks: a Foxglove WebSocket server and an MCAP file (ROS 2 profile).
+
+Both take the same :class:`~objsearch.runtime.liveview.LiveMessage` (topic, ROS 2 type, CDR
+bytes), so a channel looks the same live and in the file: encoding ``cdr``, schema the type's
+``ros2msg`` definition with its dependencies (what ``ros2 bag record`` writes).
+
+* :class:`McapSink` writes with rosbags' own ROS 2 writer (MCAP storage), so the file is a
+  rosbag2 MCAP that rosbags' ``Reader``/``AnyReader``, ``ros2 bag`` and Foxglove read. It needs no
+  extra package.
+* :class:`FoxgloveSink` serves the channels with ``foxglove-sdk`` (the ``robot`` extra) on
+  127.0.0.1 unless told otherwise. A client that subscribes late gets the channel's last message
+  again, so the map (sent once) is there whenever Foxglove connects.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import shutil
+import tempfile
+import threading
+from pathlib import Path
+from typing import Any
+
+from objsearch.agent.errors import ObjsearchError
+from objsearch.runtime import messages as m
+from objsearch.runtime.liveview import LiveMessage
+
+log = logging.getLogger("objsearch.liveview")
+
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_PORT = 8765
+
+
+class LiveViewError(ObjsearchError):
+    """The live view cannot start: the port is taken, the file cannot be written, …"""
+
+
+def parse_address(text: str) -> tuple[str, int]:
+    """``PORT``, ``HOST:PORT`` or ``[IPv6]:PORT`` → (host, port); the host defaults to loopback."""
+    host, sep, port_text = text.rpartition(":")
+    if not sep:
+        host = DEFAULT_HOST
+    elif host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    elif not host or ":" in host:
+        raise LiveViewError(f"--live {text!r}: expected PORT or HOST:PORT (IPv6 as [addr]:PORT)")
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise LiveViewError(f"--live {text!r}: the port {port_text!r} is not a number") from None
+    if not 0 <= port <= 65535:
+        raise LiveViewError(f"--live {text!r}: the port must be 0–65535 (0 picks a free one)")
+    return host, port
+
+
+class McapSink:
+    """A rosbag2 MCAP file at ``path`` (``*.mcap``), complete once :meth:`close` returns.
+
+    rosbags writes a bag directory (``NAME/NAME.mcap`` + ``metadata.yaml``); it lives in a hidden
+    sibling ``.NAME.mcap.*`` while the view runs and its ``.mcap`` is renamed to ``path`` on close,
+    so ``path`` never holds a file without its summary. After a crash the partial file stays in
+    that hidden folder (its chunks are readable; the summary is missing).
+    """
+
+    def __init__(self, path: Path) -> None:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+
+        if path.suffix != ".mcap":
+            raise LiveViewError(f"the live view's MCAP file must end in .mcap; got {path}")
+        if path.exists():
+            raise LiveViewError(f"{path} already exists; choose a new file (never overwritten)")
+        self.path = path
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._tmp_root = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
+        except OSError as exc:
+            raise LiveViewError(
+                f"cannot write the MCAP file {path}: {exc.strerror or exc}"
+            ) from exc
+        self._bag = self._tmp_root / path.stem
+        self._writer = Writer(self._bag, version=9, storage_plugin=StoragePlugin.MCAP)
+        try:
+            self._writer.open()
+        except Exception as exc:
+            shutil.rmtree(self._tmp_root, ignore_errors=True)
+            raise LiveViewError(f"cannot write the MCAP file {path}: {exc}") from exc
+        self._connections: dict[str, Any] = {}
+        self.counts: dict[str, int] = {}
+        self._closed = False
+
+    def write(self, message: LiveMessage) -> None:
+        conn = self._connections.get(message.topic)
+        if conn is None:
+            conn = self._writer.add_connection(message.topic, message.msgtype, typestore=m.store())
+            self._connections[message.topic] = conn
+        self._writer.write(conn, message.stamp_ns, message.data)
+        self.counts[message.topic] = self.counts.get(message.topic, 0) + 1
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._writer.close()
+            (self._bag / f"{self._bag.name}.mcap").rename(self.path)
+        except OSError as exc:
+            raise LiveViewError(
+                f"could not finish the MCAP file {self.path}: {exc.strerror or exc} "
+                f"(what was written is in {self._tmp_root})"
+            ) from exc
+        shutil.rmtree(self._tmp_root, ignore_errors=True)
+
+    def abort(self) -> None:
+        """Drop what was written: ``path`` is not created (a replay that failed half way)."""
+        if not self._closed:
+            self._closed = True
+            with contextlib.suppress(Exception):
+                self._writer.close()
+        shutil.rmtree(self._tmp_root, ignore_errors=True)
+
+
+class FoxgloveSink:
+    """A Foxglove WebSocket server (``foxglove-sdk``) with one channel per live topic."""
+
+    def __init__(
+        self, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, name: str = "objsearch"
+    ) -> None:
+        try:
+            import foxglove
+            from foxglove.websocket import ServerListener
+        except ImportError:
+            raise LiveViewError(
+                "the live view needs foxglove-sdk: pip install 'objsearch[robot]' "
+                "(or pip install foxglove-sdk)"
+            ) from None
+        self._foxglove = foxglove
+        # A context of our own: the SDK's global one would mix in any other user of the library.
+        self._context = foxglove.Context()
+        self._channels: dict[str, Any] = {}
+        self._latest: dict[int, bytes] = {}
+        self._lock = threading.Lock()
+        sink = self
+
+        class Latch(ServerListener):
+            """Re-sends a channel's last message to a client that subscribes (called from the
+            SDK's thread): the map and the statics are sent once, long before Foxglove connects."""
+
+            def on_subscribe(self, client: Any, channel: Any) -> None:
+                sink._resend(int(channel.id))
+
+        try:
+            self._server = foxglove.start_server(
+                name=name, host=host, port=port, context=self._context, server_listener=Latch()
+            )
+        except RuntimeError as exc:
+            raise LiveViewError(
+                f"cannot serve the live view on {host}:{port}: {exc} "
+                "(choose another port with --live HOST:PORT, or 0 for a free one)"
+            ) from exc
+        self.host = host
+        self.port = int(self._server.port)
+
+    def write(self, message: LiveMessage) -> None:
+        with self._lock:
+            channel = self._channels.get(message.topic)
+            if channel is None:
+                channel = self._channel(message)
+                self._channels[message.topic] = channel
+            self._latest[channel.id()] = message.data
+        # Stamped on arrival (the SDK's default): a live viewer orders by when things happen.
+        channel.log(message.data)
+
+    def _channel(self, message: LiveMessage) -> Any:
+        definition, _ = m.store().generate_msgdef(message.msgtype, ros_version=2)
+        schema = self._foxglove.Schema(
+            name=message.msgtype, encoding="ros2msg", data=definition.encode("utf-8")
+        )
+        return self._foxglove.Channel(
+            message.topic, schema=schema, message_encoding="cdr", context=self._context
+        )
+
+    def _resend(self, channel_id: int) -> None:
+        with self._lock:
+            data = self._latest.get(channel_id)
+            channel = next((c for c in self._channels.values() if c.id() == channel_id), None)
+        if data is not None and channel is not None:
+            channel.log(data)
+
+    def close(self) -> None:
+        with contextlib.suppress(Exception):  # already stopped
+            self._server.stop()
