@@ -482,7 +482,7 @@ def _gaps(seqs: list[int]) -> list[tuple[int, int]]:
 
 
 def _detection(d: Any) -> dict[str, Any]:
-    best = max(d.results, key=lambda r: _score(r), default=None)
+    best = max(d.results, key=lambda r: hypothesis_score(r), default=None)
     center = d.bbox.center
     cx, cy = (
         (center.position.x, center.position.y)
@@ -511,7 +511,7 @@ def _detection(d: Any) -> dict[str, Any]:
     }
 
 
-def _score(r: Any) -> float:
+def hypothesis_score(r: Any) -> float:
     return float(getattr(getattr(r, "hypothesis", r), "score", 0.0))
 
 

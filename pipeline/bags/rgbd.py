@@ -36,7 +36,7 @@ from objsearch.agent.mapping import BuiltMap, MappingConfig, MaskedDepth, Semant
 from objsearch.agent.navmap import NavigationMap
 from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.formats import detect
-from objsearch.pipeline.bags.read import Deserialize, _score, read_messages, unrecovered
+from objsearch.pipeline.bags.read import Deserialize, hypothesis_score, read_messages, unrecovered
 from objsearch.pipeline.bags.salvage import Loss, RawConnection
 from objsearch.pipeline.bags.tf import TransformBuffer, TransformError
 from objsearch.pipeline.bags.topics import ACCEPTED_TYPES, Role, TopicMap
@@ -120,7 +120,7 @@ def _stamp(header: Any) -> int:
 
 def _best(d: Any) -> tuple[str, float]:
     """Class and score of a detection's best hypothesis (ROS 2 4.x or ROS 1 layout)."""
-    best = max(d.results, key=_score, default=None)
+    best = max(d.results, key=hypothesis_score, default=None)
     if best is None:
         return "", 0.0
     hyp = getattr(best, "hypothesis", best)
