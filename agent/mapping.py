@@ -12,22 +12,24 @@
    components (OpenCV). Each instance's loc_s is the centre of mass of its voxels, N_s the room's
    viewpoint nearest to it and θ_s the heading from N_s to loc_s.
 
-Frames come from any :class:`~objsearch.agent.frames.FrameSource`; masks from any
-:class:`~objsearch.agent.detect.Detector`. Same frames and masks → the same map, to the bit.
+The builder consumes :class:`MaskedDepth` views — depth, intrinsics, camera pose and masks —
+whatever produced them: the simulator's frames run through a
+:class:`~objsearch.agent.detect.Detector` (:func:`detected`), or a bag's depth, instance image,
+camera info and TF (``objsearch.pipeline.bags.rgbd``). Same views → the same map, to the bit.
 """
 
 from __future__ import annotations
 
 import math
 import statistics
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 import torch
 from objsearch.agent.detect import Detector, MaskDetection
-from objsearch.agent.frames import RGBDFrame
+from objsearch.agent.frames import CameraIntrinsics, Float64Array, FloatArray, RGBDFrame
 from objsearch.agent.geometry import Point, Pose, heading
 from objsearch.agent.home import Box
 from objsearch.agent.navmap import NavigationMap
@@ -104,6 +106,35 @@ def survey_poses(
 
 
 # -- back-projection and fusion -------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class MaskedDepth:
+    """What fusion needs of one view: depth (metres along the optical axis, 0 = no return), the
+    camera, its pose (``T_map_camera``, optical frame → map) and the masks seen in it."""
+
+    depth: FloatArray
+    intrinsics: CameraIntrinsics
+    T_map_camera: Float64Array
+    detections: tuple[MaskDetection, ...]
+    stamp_ns: int = 0
+
+    @property
+    def position(self) -> tuple[float, float, float]:
+        x, y, z = (float(v) for v in self.T_map_camera[:3, 3])
+        return (x, y, z)
+
+
+def detected(frames: Iterable[RGBDFrame], detector: Detector) -> Iterator[MaskedDepth]:
+    """The views of rendered (or otherwise captured) frames with a detector's masks."""
+    for frame in frames:
+        yield MaskedDepth(
+            frame.depth,
+            frame.intrinsics,
+            frame.T_map_camera,
+            detector.detect(frame),
+            frame.stamp_ns,
+        )
 
 
 def default_device() -> torch.device:
@@ -248,27 +279,27 @@ class SemanticMapBuilder:
             self.grids[room] = VoxelGrid(spec, len(self.classes), self.device)
         return self.grids[room]
 
-    def add(self, frame: RGBDFrame, detections: Sequence[MaskDetection]) -> None:
-        """Fuse one frame into the grid of the room the camera stands in."""
-        x, y, _ = frame.position
+    def add(self, view: MaskedDepth) -> None:
+        """Fuse one view into the grid of the room the camera stands in."""
+        x, y, _ = view.position
         grid = self.grid(self.navmap.room_at(x, y))
-        labels = label_image(detections, self.classes, frame.intrinsics.shape)
-        rays = self._rays.get(frame.intrinsics)
+        labels = label_image(view.detections, self.classes, view.intrinsics.shape)
+        rays = self._rays.get(view.intrinsics)
         if rays is None:
-            rays = torch.from_numpy(frame.intrinsics.rays().copy()).to(self.device)
-            self._rays[frame.intrinsics] = rays
+            rays = torch.from_numpy(view.intrinsics.rays().copy()).to(self.device)
+            self._rays[view.intrinsics] = rays
         points, lab = backproject_labels(
-            torch.from_numpy(frame.depth).to(self.device),
+            torch.from_numpy(view.depth).to(self.device),
             torch.from_numpy(labels).to(self.device),
             rays,
-            torch.from_numpy(frame.T_map_camera.astype(np.float32)).to(self.device),
+            torch.from_numpy(view.T_map_camera.astype(np.float32)).to(self.device),
         )
         self.points += grid.integrate(points, lab)
         self.frames += 1
 
-    def add_all(self, frames: Iterable[RGBDFrame], detector: Detector) -> None:
-        for frame in frames:
-            self.add(frame, detector.detect(frame))
+    def fuse(self, views: Iterable[MaskedDepth]) -> None:
+        for view in views:
+            self.add(view)
 
     def build(self) -> BuiltMap:
         import cv2

@@ -15,10 +15,36 @@ def _topic_map(args: argparse.Namespace) -> Any:
 
 
 def cmd_record(args: argparse.Namespace) -> int:
-    from objsearch.pipeline.bags.formats import BagFormat
-    from objsearch.pipeline.bags.record import record
+    from objsearch.pipeline.bags.formats import BagFormat, storage_files
+    from objsearch.pipeline.bags.record import record, record_mapping_sweep
 
     fmt = BagFormat.parse(args.format)
+    if args.mapping_sweep:
+        searches = [f"--{n}" for n in ("scenes", "targets", "starts", "log") if getattr(args, n)]
+        if searches:
+            print(
+                f"objsearch: error: {', '.join(searches)} belong to searches, not --mapping-sweep",
+                file=sys.stderr,
+            )
+            return 2
+        rec = record_mapping_sweep(
+            Path(args.out),
+            fmt,
+            home=args.home,
+            rooms=args.rooms,
+            points_per_room=4 if args.points_per_room is None else args.points_per_room,
+            topic_map=_topic_map(args),
+            odom_hz=args.odom_hz,
+        )
+        size = sum(f.stat().st_size for f in storage_files(rec.path))
+        print(f"wrote {rec.path} ({rec.format.value}): mapping sweep, {size / 1e6:.1f} MB")
+        _print_counts(rec.messages)
+        return 0
+    if args.rooms or args.points_per_room is not None:
+        print(
+            "objsearch: error: --rooms and --points-per-room need --mapping-sweep", file=sys.stderr
+        )
+        return 2
     rec = record(
         Path(args.out),
         fmt,
@@ -32,11 +58,15 @@ def cmd_record(args: argparse.Namespace) -> int:
         seed=args.seed,
     )
     print(f"wrote {rec.path} ({rec.format.value}): {rec.tasks} searches, {rec.events} agent events")
-    for topic, n in sorted(rec.messages.items()):
-        print(f"  {topic:32} {n:8} messages")
+    _print_counts(rec.messages)
     if args.log:
         print(f"  the agent's own log: {args.log}")
     return 0
+
+
+def _print_counts(messages: dict[str, int]) -> None:
+    for topic, n in sorted(messages.items()):
+        print(f"  {topic:32} {n:8} messages")
 
 
 def cmd_ingest(args: argparse.Namespace) -> int:
@@ -91,6 +121,19 @@ def register(sub: Any) -> None:
     rec.add_argument("--topics", help="topic map override (.toml or .json)")
     rec.add_argument("--odom-hz", type=float, default=10.0, help="odometry rate (10)")
     rec.add_argument("--seed", type=int, default=0)
+    rec.add_argument(
+        "--mapping-sweep",
+        action="store_true",
+        help="record the §4.3 mapping survey instead of searches: RGB (rgb8), depth (32FC1 m), "
+        "instance masks (mono16 + the detections as label table), camera info and TF per view "
+        "(large: ~2.8 MB a view; the paper home at 4 points per room is 128 views)",
+    )
+    rec.add_argument("--rooms", nargs="+", help="rooms to sweep (all; with --mapping-sweep)")
+    rec.add_argument(
+        "--points-per-room",
+        type=int,
+        help="sampling points per room (4, as objsearch map build; with --mapping-sweep)",
+    )
     rec.set_defaults(func=cmd_record)
 
     ing = sub.add_parser("ingest", help="read ROS bags (ROS 1, ROS 2 sqlite3, MCAP) into the lake")

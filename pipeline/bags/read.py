@@ -28,7 +28,7 @@ from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, TypeVar
 
 from objsearch.events import Event, InvalidEventError, default_registry, deterministic_event_id
 from objsearch.events.record import encode_record
@@ -43,6 +43,37 @@ PROGRESS_MIN_MESSAGES = 20_000
 MAX_REASONS = 3
 
 Deserialize = Callable[[bytes, str], Any]
+
+
+class MessageSink(Protocol):
+    """What the two readers (``AnyReader``, the salvage scan) feed a bag's messages into: the
+    event :class:`Converter`, or ``rgbd.ViewCollector`` for map building."""
+
+    def plan(
+        self, conns: Iterable[RawConnection], known: Callable[[RawConnection], str | None]
+    ) -> None:
+        """Decide per connection whether it is read (``known`` says why a type cannot be)."""
+
+    def wants(self, conn_id: int) -> bool: ...
+
+    def count(self, conn_id: int, n: int = 1) -> None:
+        """Count messages that are not read (from an index)."""
+
+    def feed(self, conn_id: int, log_ns: int, raw: bytes, deserialize: Deserialize) -> None: ...
+
+    def messages_per_topic(self) -> Counter[str]: ...
+
+
+Sink = TypeVar("Sink", bound=MessageSink)
+
+
+@dataclass(frozen=True, slots=True)
+class ReadOutcome:
+    reader: str  # "AnyReader" or "salvage scan"
+    losses: tuple[Loss, ...]
+    notes: tuple[str, ...]
+    #: Messages per topic the bag says it holds (metadata.yaml or the index), if known.
+    expected: Mapping[str, int] | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -451,7 +482,7 @@ def _gaps(seqs: list[int]) -> list[tuple[int, int]]:
 
 
 def _detection(d: Any) -> dict[str, Any]:
-    best = max(d.results, key=lambda r: _score(r), default=None)
+    best = max(d.results, key=lambda r: hypothesis_score(r), default=None)
     center = d.bbox.center
     cx, cy = (
         (center.position.x, center.position.y)
@@ -480,7 +511,7 @@ def _detection(d: Any) -> dict[str, Any]:
     }
 
 
-def _score(r: Any) -> float:
+def hypothesis_score(r: Any) -> float:
     return float(getattr(getattr(r, "hypothesis", r), "score", 0.0))
 
 
@@ -530,7 +561,9 @@ def _progress(total: int | None, enabled: bool, label: str) -> Any:
 _DEF_FORMATS = {"MSG": "msg", "IDL": "idl"}
 
 
-def _read_anyreader(path: Path, fmt: BagFormat, conv: Converter, progress: bool) -> dict[str, int]:
+def _read_anyreader(
+    path: Path, fmt: BagFormat, conv: MessageSink, progress: bool
+) -> dict[str, int]:
     from rosbags.highlevel import AnyReader
 
     # A ROS 2 directory is recognised by AnyReader from a non-".bag" name; a ROS 1 file must end
@@ -558,7 +591,7 @@ def _read_anyreader(path: Path, fmt: BagFormat, conv: Converter, progress: bool)
     return expected
 
 
-def _read_salvage(path: Path, fmt: BagFormat, conv: Converter, progress: bool) -> list[Scan]:
+def _read_salvage(path: Path, fmt: BagFormat, conv: MessageSink, progress: bool) -> list[Scan]:
     from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
 
     base = typestore(fmt.distro)
@@ -605,6 +638,43 @@ def _read_salvage(path: Path, fmt: BagFormat, conv: Converter, progress: bool) -
     return scans
 
 
+def read_messages(
+    path: Path, fmt: BagFormat, make_sink: Callable[[], Sink], *, progress: bool = False
+) -> tuple[Sink, ReadOutcome]:
+    """Feed the bag's messages into a sink from ``make_sink``: read by ``AnyReader``, or — when
+    that fails anywhere — into a fresh sink by the salvage scanners, with what was lost."""
+    sink = make_sink()
+    losses: list[Loss] = []
+    notes: list[str] = []
+    expected = _metadata_counts(path)
+    reader = "AnyReader"
+    try:
+        from_index = _read_anyreader(path, fmt, sink, progress)
+        expected = expected or from_index
+    except Exception as exc:
+        notes.append(
+            f"AnyReader could not read it ({type(exc).__name__}: {exc}); salvaged by scanning"
+        )
+        reader = "salvage scan"
+        sink = make_sink()
+        scans = _read_salvage(path, fmt, sink, progress)
+        for scan in scans:
+            losses.extend(scan.losses)
+    return sink, ReadOutcome(reader, tuple(losses), tuple(notes), expected)
+
+
+def unrecovered(outcome: ReadOutcome, sink: MessageSink) -> list[Loss]:
+    """Per-topic messages the bag says it had and the salvage scan did not recover."""
+    if outcome.expected is None or outcome.reader == "AnyReader":
+        return []
+    read_counts = sink.messages_per_topic()
+    return [
+        Loss(f"topic {topic}", f"{n - got} of {n} messages not recovered", n - got)
+        for topic, n in sorted(outcome.expected.items())
+        if (got := read_counts.get(topic, 0)) < n
+    ]
+
+
 def read_bag(
     path: Path | str, topic_map: TopicMap | None = None, *, progress: bool = False
 ) -> BagContents:
@@ -613,40 +683,21 @@ def read_bag(
     topic_map = topic_map or TopicMap()
     fmt = detect(path)
     bag_id, size = bag_identity(path)
-    conv = Converter(topic_map, bag_id, fmt.distro)
-    losses: list[Loss] = []
-    notes: list[str] = []
-    expected = _metadata_counts(path)
-    reader = "AnyReader"
-    try:
-        from_index = _read_anyreader(path, fmt, conv, progress)
-        expected = expected or from_index
-    except Exception as exc:
-        notes.append(
-            f"AnyReader could not read it ({type(exc).__name__}: {exc}); salvaged by scanning"
-        )
-        reader = "salvage scan"
-        conv = Converter(topic_map, bag_id, fmt.distro)
-        scans = _read_salvage(path, fmt, conv, progress)
-        for scan in scans:
-            losses.extend(scan.losses)
+    conv, outcome = read_messages(
+        path, fmt, lambda: Converter(topic_map, bag_id, fmt.distro), progress=progress
+    )
+    losses = list(outcome.losses)
+    notes = list(outcome.notes)
     events, gap_losses, gap_notes = conv.finish()
     losses.extend(gap_losses)
     notes.extend(gap_notes)
-    if expected is not None and reader != "AnyReader":
-        read_counts = conv.messages_per_topic()
-        for topic, n in sorted(expected.items()):
-            got = read_counts.get(topic, 0)
-            if got < n:
-                losses.append(
-                    Loss(f"topic {topic}", f"{n - got} of {n} messages not recovered", n - got)
-                )
+    losses.extend(unrecovered(outcome, conv))
     report = BagReport(
         path=str(path),
         format=fmt.value,
         bag_id=bag_id,
         size_bytes=size,
-        reader=reader,
+        reader=outcome.reader,
         topics=_topic_rows(conv),
         skipped=_skipped_rows(conv),
         losses=tuple(losses),

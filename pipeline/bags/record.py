@@ -11,6 +11,12 @@ holds, stamped on one clock (``start_ns`` + the simulated clock):
   for every camera frame the simulator rendered;
 * ``/objsearch/events`` (``objsearch_msgs/Event``): every event of the agent's log.
 
+``record_mapping_sweep`` writes the §4.3 mapping survey instead: the robot holds still at each
+view (sampling points on each room's boundary, a view every 45°) while the camera publishes RGB
+(``rgb8``), depth (``32FC1``, metres, REP 118), an instance image (``mono16``: pixel value k is the
+k-th detection of the ``Detection2DArray`` with the same stamp, 0 none) and camera info, all in
+the optical frame, with ``/tf_static`` carrying base_link → camera_link → camera_link_optical.
+
 The simulator's map and odom frames coincide (no drift), so map → odom is the identity.
 """
 
@@ -27,6 +33,7 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from objsearch.agent.frames import CameraIntrinsics
 from objsearch.agent.geometry import Pose
 from objsearch.agent.world import Detection
 from objsearch.events import Event, read_log
@@ -38,7 +45,21 @@ from objsearch.pipeline.bags.types import Distro, typestore
 from objsearch.sim.perception import IMAGE_HEIGHT, IMAGE_WIDTH, Camera
 
 if TYPE_CHECKING:
+    import numpy as np
+    import numpy.typing as npt
+    from objsearch.agent.detect import Detector, MaskDetection
+    from objsearch.agent.frames import RGBDFrame
+    from objsearch.sim.render import SimulatedCamera
     from rosbags.typesys.store import Typestore
+
+#: camera_link (x forward, z up) → its optical frame (x right, y down, z forward), REP 103:
+#: the quaternion (x, y, z, w) of the rotation whose columns are the optical axes in camera_link.
+OPTICAL_ROTATION = (-0.5, 0.5, -0.5, 0.5)
+#: Sweep timing: a view every 2 s; the robot holds still for the first second and the images are
+#: stamped 0.55 s in, off the 10 Hz TF grid, so a reader must interpolate TF (as with a real camera).
+SWEEP_VIEW_NS = 2_000_000_000
+SWEEP_HOLD_NS = 1_000_000_000
+SWEEP_IMAGE_NS = 550_000_000
 
 #: 2026-01-01T00:00:00Z: the bag clock of a recording starts here unless told otherwise, so two
 #: recordings of the same run are identical.
@@ -50,6 +71,9 @@ MSG_TYPES = {
     Role.TF: "tf2_msgs/msg/TFMessage",
     Role.TF_STATIC: "tf2_msgs/msg/TFMessage",
     Role.CAMERA_INFO: "sensor_msgs/msg/CameraInfo",
+    Role.IMAGE: "sensor_msgs/msg/Image",
+    Role.DEPTH: "sensor_msgs/msg/Image",
+    Role.INSTANCES: "sensor_msgs/msg/Image",
     Role.DETECTIONS: "vision_msgs/msg/Detection2DArray",
     Role.EVENTS: "objsearch_msgs/msg/Event",
 }
@@ -106,12 +130,12 @@ class Recording:
 class _Messages:
     """Builds the messages of one distro (ROS 1 headers carry ``seq``; ROS 2 ones do not)."""
 
-    def __init__(self, distro: Distro, topic_map: TopicMap, camera: Camera) -> None:
+    def __init__(self, distro: Distro, topic_map: TopicMap, camera: Camera | None = None) -> None:
         self.distro = distro
+        self.camera = camera or Camera()  # the search's geometric camera model
         self.store: Typestore = typestore(distro)
         self.t = self.store.types
         self.frames = topic_map.frames
-        self.camera = camera
         self._seq = 0
 
     def header(self, stamp_ns: int, frame: str) -> Any:
@@ -124,21 +148,27 @@ class _Messages:
         return self.t["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
 
     def _quat(self, yaw: float) -> Any:
-        return self.t["geometry_msgs/msg/Quaternion"](
-            x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)
-        )
+        return self._rotation((0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)))
+
+    def _rotation(self, q: tuple[float, float, float, float]) -> Any:
+        return self.t["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3])
 
     def _vec(self, x: float, y: float, z: float) -> Any:
         return self.t["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)
 
     def _transform(
-        self, stamp: int, parent: str, child: str, x: float, y: float, z: float, yaw: float
+        self,
+        stamp: int,
+        parent: str,
+        child: str,
+        xyz: tuple[float, float, float],
+        q: tuple[float, float, float, float],
     ) -> Any:
         return self.t["geometry_msgs/msg/TransformStamped"](
             header=self.header(stamp, parent),
             child_frame_id=child,
             transform=self.t["geometry_msgs/msg/Transform"](
-                translation=self._vec(x, y, z), rotation=self._quat(yaw)
+                translation=self._vec(*xyz), rotation=self._rotation(q)
             ),
         )
 
@@ -146,16 +176,26 @@ class _Messages:
         f = self.frames
         return self.t["tf2_msgs/msg/TFMessage"](
             transforms=[
-                self._transform(stamp, f.map, f.odom, 0.0, 0.0, 0.0, 0.0),
-                self._transform(stamp, f.odom, f.base, pose.x, pose.y, 0.0, pose.yaw),
+                self._transform(stamp, f.map, f.odom, (0.0, 0.0, 0.0), _yaw_q(0.0)),
+                self._transform(stamp, f.odom, f.base, (pose.x, pose.y, 0.0), _yaw_q(pose.yaw)),
             ]
         )
 
-    def tf_static(self, stamp: int) -> Any:
+    def tf_static(
+        self, stamp: int, height: float, *, pitch: float = 0.0, optical: bool = False
+    ) -> Any:
+        """base → camera (``height`` up, tilted down by ``pitch``: a turn about its y axis) and,
+        with ``optical``, camera → its optical frame."""
         f = self.frames
-        return self.t["tf2_msgs/msg/TFMessage"](
-            transforms=[self._transform(stamp, f.base, f.camera, 0.0, 0.0, self.camera.height, 0.0)]
-        )
+        tilt = (0.0, math.sin(pitch / 2), 0.0, math.cos(pitch / 2))
+        transforms = [self._transform(stamp, f.base, f.camera, (0.0, 0.0, height), tilt)]
+        if optical:
+            transforms.append(
+                self._transform(
+                    stamp, f.camera, f.camera_optical, (0.0, 0.0, 0.0), OPTICAL_ROTATION
+                )
+            )
+        return self.t["tf2_msgs/msg/TFMessage"](transforms=transforms)
 
     def odometry(self, stamp: int, pose: Pose, twist: tuple[float, float]) -> Any:
         import numpy as np
@@ -179,54 +219,90 @@ class _Messages:
             ),
         )
 
-    def camera_info(self, stamp: int) -> Any:
+    def camera_info(self, stamp: int, k: CameraIntrinsics, frame: str) -> Any:
+        """A distortion-free pinhole; K's principal point in OpenCV pixel coordinates (pixel
+        centres at integers), the convention of ``CameraIntrinsics`` too."""
         import numpy as np
 
-        f = self.camera.focal_px
-        cx, cy = IMAGE_WIDTH / 2, IMAGE_HEIGHT / 2
-        k = np.array([f, 0, cx, 0, f, cy, 0, 0, 1], dtype=np.float64)
+        fx, fy, cx, cy = k.fx, k.fy, k.cx, k.cy
+        kk = np.array([fx, 0, cx, 0, fy, cy, 0, 0, 1], dtype=np.float64)
         r = np.eye(3, dtype=np.float64).ravel()
-        p = np.array([f, 0, cx, 0, 0, f, cy, 0, 0, 0, 1, 0], dtype=np.float64)
+        p = np.array([fx, 0, cx, 0, 0, fy, cy, 0, 0, 0, 1, 0], dtype=np.float64)
         roi = self.t["sensor_msgs/msg/RegionOfInterest"](
             x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
         )
         fields: dict[str, Any] = {
-            "header": self.header(stamp, self.frames.camera),
-            "height": IMAGE_HEIGHT,
-            "width": IMAGE_WIDTH,
+            "header": self.header(stamp, frame),
+            "height": k.height,
+            "width": k.width,
             "distortion_model": "plumb_bob",
             "binning_x": 0,
             "binning_y": 0,
             "roi": roi,
         }
         if self.distro is Distro.ROS1:
-            fields |= {"D": np.zeros(5, dtype=np.float64), "K": k, "R": r, "P": p}
+            fields |= {"D": np.zeros(5, dtype=np.float64), "K": kk, "R": r, "P": p}
         else:
-            fields |= {"d": np.zeros(5, dtype=np.float64), "k": k, "r": r, "p": p}
+            fields |= {"d": np.zeros(5, dtype=np.float64), "k": kk, "r": r, "p": p}
         return self.t["sensor_msgs/msg/CameraInfo"](**fields)
 
+    def image(self, stamp: int, encoding: str, pixels: npt.NDArray[Any]) -> Any:
+        """A ``sensor_msgs/Image`` in the optical frame, little-endian, rows packed."""
+        import numpy as np
+
+        little = pixels.astype(pixels.dtype.newbyteorder("<"), copy=False)
+        data = np.ascontiguousarray(little).view(np.uint8).ravel()
+        height, width = pixels.shape[:2]
+        return self.t["sensor_msgs/msg/Image"](
+            header=self.header(stamp, self.frames.camera_optical),
+            height=height,
+            width=width,
+            encoding=encoding,
+            is_bigendian=0,
+            step=len(data) // height,
+            data=data,
+        )
+
     def detections(self, stamp: int, pose: Pose, dets: Sequence[Detection]) -> Any:
+        """The search's detections: boxes from the geometric camera model (``project``)."""
+        return self.detection_array(
+            stamp,
+            self.frames.camera,
+            [
+                (d.instance_id, d.object_class, 1.0, project(self.camera, pose, d), d.position)
+                for d in dets
+            ],
+        )
+
+    def detection_array(
+        self,
+        stamp: int,
+        frame: str,
+        dets: Sequence[
+            tuple[str, str, float, tuple[float, float, float, float], tuple[float, float, float]]
+        ],
+    ) -> Any:
+        """(instance id, class, score, box (u, v, w, h) in pixels, map-frame position) each."""
         import numpy as np
 
         t = self.t
         items = []
-        for d in dets:
-            u, v, w, h = project(self.camera, pose, d)
+        for instance_id, cls, score, (u, v, w, h), position in dets:
             items.append(
                 t["vision_msgs/msg/Detection2D"](
-                    header=self.header(stamp, self.frames.camera),
+                    header=self.header(stamp, frame),
                     results=[
                         t["vision_msgs/msg/ObjectHypothesisWithPose"](
                             hypothesis=t["vision_msgs/msg/ObjectHypothesis"](
-                                class_id=d.object_class, score=1.0
+                                class_id=cls, score=score
                             ),
                             # The 3-D position is in the map frame, as the agent uses it.
                             pose=t["geometry_msgs/msg/PoseWithCovariance"](
                                 pose=t["geometry_msgs/msg/Pose"](
                                     position=t["geometry_msgs/msg/Point"](
-                                        x=float(d.position[0]),
-                                        y=float(d.position[1]),
-                                        z=float(d.position[2]),
+                                        x=float(position[0]),
+                                        y=float(position[1]),
+                                        z=float(position[2]),
                                     ),
                                     orientation=self._quat(0.0),
                                 ),
@@ -241,7 +317,7 @@ class _Messages:
                         size_x=w,
                         size_y=h,
                     ),
-                    id=d.instance_id,
+                    id=instance_id,
                 )
             )
         return t["vision_msgs/msg/Detection2DArray"](
@@ -264,6 +340,10 @@ class _Messages:
             ),
             crc32=event_crc32(e),
         )
+
+
+def _yaw_q(yaw: float) -> tuple[float, float, float, float]:
+    return (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
 
 
 def event_crc32(e: Event) -> int:
@@ -299,36 +379,164 @@ def bag_messages(
     camera: Camera | None = None,
 ) -> Iterator[tuple[int, Role, Any]]:
     """(bag time, role, message) for everything the robot publishes, in time order."""
-    m = _Messages(distro, topic_map, camera or Camera())
-    out: list[tuple[int, int, Role, Callable[[], Any]]] = []
-    order = 0
-
-    def add(sim_ns: int, role: Role, make: Callable[[], Any]) -> None:
-        nonlocal order
-        out.append((start_ns + sim_ns, order, role, make))
-        order += 1
-
+    camera = camera or Camera()
+    m = _Messages(distro, topic_map, camera)
+    f = camera.focal_px
+    # The geometric camera model's image centre, as sim/perception.py projects with it.
+    k = CameraIntrinsics(IMAGE_WIDTH, IMAGE_HEIGHT, f, f, IMAGE_WIDTH / 2, IMAGE_HEIGHT / 2)
+    out = _Schedule(start_ns)
     first = min([t for t, _ in timeline.poses[:1]] + [e.time_ns for e in events[:1]], default=0)
-    add(first, Role.TF_STATIC, lambda: m.tf_static(start_ns + first))
-    previous: tuple[int, Pose] | None = None
-    for t, pose in timeline.samples(odom_hz):
-        twist = (0.0, 0.0)
-        if previous is not None and t > previous[0]:
-            dt = (t - previous[0]) / 1e9
-            twist = (math.dist(pose[:2], previous[1][:2]) / dt, 0.0)
-        previous = (t, pose)
-        stamp = start_ns + t
-        add(t, Role.ODOMETRY, partial(m.odometry, stamp, pose, twist))
-        add(t, Role.TF, partial(m.tf, stamp, pose))
+    out.add(first, Role.TF_STATIC, lambda: m.tf_static(start_ns + first, camera.height))
+    out.add_motion(m, timeline, odom_hz)
     for t, pose, dets in timeline.frames:
         stamp = start_ns + t
-        add(t, Role.CAMERA_INFO, partial(m.camera_info, stamp))
-        add(t, Role.DETECTIONS, partial(m.detections, stamp, pose, dets))
+        out.add(t, Role.CAMERA_INFO, partial(m.camera_info, stamp, k, m.frames.camera))
+        out.add(t, Role.DETECTIONS, partial(m.detections, stamp, pose, dets))
     for e in events:
-        add(e.time_ns, Role.EVENTS, partial(m.event, start_ns + e.time_ns, e))
-    out.sort(key=lambda item: (item[0], item[1]))
-    for stamp, _, role, make in out:
-        yield stamp, role, make()
+        out.add(e.time_ns, Role.EVENTS, partial(m.event, start_ns + e.time_ns, e))
+    return iter(out)
+
+
+class _Schedule:
+    """Messages to write, made lazily (images are large) and yielded in (stamp, order added)."""
+
+    def __init__(self, start_ns: int) -> None:
+        self.start_ns = start_ns
+        self.items: list[tuple[int, int, Role, Callable[[], Any]]] = []
+
+    def add(self, sim_ns: int, role: Role, make: Callable[[], Any]) -> None:
+        self.items.append((self.start_ns + sim_ns, len(self.items), role, make))
+
+    def add_motion(self, m: _Messages, timeline: Timeline, odom_hz: float) -> None:
+        """Odometry and TF at every pose change and at ``odom_hz`` in between."""
+        previous: tuple[int, Pose] | None = None
+        for t, pose in timeline.samples(odom_hz):
+            twist = (0.0, 0.0)
+            if previous is not None and t > previous[0]:
+                dt = (t - previous[0]) / 1e9
+                twist = (math.dist(pose[:2], previous[1][:2]) / dt, 0.0)
+            previous = (t, pose)
+            stamp = self.start_ns + t
+            self.add(t, Role.ODOMETRY, partial(m.odometry, stamp, pose, twist))
+            self.add(t, Role.TF, partial(m.tf, stamp, pose))
+
+    def __iter__(self) -> Iterator[tuple[int, Role, Any]]:
+        self.items.sort(key=lambda item: (item[0], item[1]))
+        for stamp, _, role, make in self.items:
+            yield stamp, role, make()
+
+
+def sweep_messages(
+    camera: SimulatedCamera,
+    poses: Sequence[tuple[str, Pose]],
+    detector: Detector,
+    distro: Distro,
+    topic_map: TopicMap,
+    *,
+    start_ns: int = DEFAULT_START_NS,
+    odom_hz: float = DEFAULT_ODOM_HZ,
+) -> Iterator[tuple[int, Role, Any]]:
+    """(bag time, role, message) of a mapping sweep: one rendered view per (room, pose)."""
+    m = _Messages(distro, topic_map)
+    timeline = Timeline()
+    for i, (_, pose) in enumerate(poses):
+        timeline.pose_changed(i * SWEEP_VIEW_NS, pose)
+        timeline.pose_changed(i * SWEEP_VIEW_NS + SWEEP_HOLD_NS, pose)
+    out = _Schedule(start_ns)
+    out.add(
+        0,
+        Role.TF_STATIC,
+        lambda: m.tf_static(start_ns, camera.height, pitch=camera.pitch, optical=True),
+    )
+    out.add_motion(m, timeline, odom_hz)
+    views = _Views(camera, poses, detector, start_ns)
+    optical = m.frames.camera_optical
+    for i in range(len(poses)):
+        t = i * SWEEP_VIEW_NS + SWEEP_IMAGE_NS
+        stamp = start_ns + t
+        out.add(t, Role.CAMERA_INFO, partial(m.camera_info, stamp, camera.intrinsics, optical))
+        for role in (Role.IMAGE, Role.DEPTH, Role.INSTANCES):
+            out.add(t, role, partial(views.image, m, stamp, i, role))
+        out.add(t, Role.DETECTIONS, partial(views.detections, m, stamp, i))
+    return iter(out)
+
+
+class _Views:
+    """Renders each sweep view once, when its first message is made (one view held at a time)."""
+
+    def __init__(
+        self,
+        camera: SimulatedCamera,
+        poses: Sequence[tuple[str, Pose]],
+        detector: Detector,
+        start_ns: int,
+    ) -> None:
+        self.camera, self.poses, self.detector, self.start_ns = camera, poses, detector, start_ns
+        self._held: tuple[int, RGBDFrame, tuple[MaskDetection, ...]] | None = None
+
+    def _view(self, i: int) -> tuple[RGBDFrame, tuple[MaskDetection, ...]]:
+        if self._held is None or self._held[0] != i:
+            room, pose = self.poses[i]
+            stamp = self.start_ns + i * SWEEP_VIEW_NS + SWEEP_IMAGE_NS
+            frame = self.camera.frame(pose, room, stamp_ns=stamp)
+            self._held = (i, frame, self.detector.detect(frame))
+        return self._held[1], self._held[2]
+
+    def image(self, m: _Messages, stamp: int, i: int, role: Role) -> Any:
+        """RGB ``rgb8``, depth ``32FC1`` (metres, REP 118) or the instance image ``mono16``."""
+        frame = self._view(i)[0]
+        if role is Role.IMAGE:
+            return m.image(stamp, "rgb8", frame.rgb)
+        if role is Role.DEPTH:
+            return m.image(stamp, "32FC1", frame.depth)
+        return m.image(stamp, "mono16", self._instances(i))
+
+    def detections(self, m: _Messages, stamp: int, i: int) -> Any:
+        """The instance image's label table: detection k is pixel value k + 1."""
+        return m.detection_array(stamp, m.frames.camera_optical, self._table(i))
+
+    def _instances(self, i: int) -> npt.NDArray[np.uint16]:
+        """Pixel value k + 1 for the k-th detection; overlaps go to the higher score, as
+        ``agent.mapping.label_image`` resolves them."""
+        import numpy as np
+
+        frame, dets = self._view(i)
+        image = np.zeros(frame.intrinsics.shape, dtype=np.uint16)
+        for k in sorted(range(len(dets)), key=lambda k: dets[k].score):
+            image[dets[k].mask] = k + 1
+        return image
+
+    def _table(
+        self, i: int
+    ) -> list[
+        tuple[str, str, float, tuple[float, float, float, float], tuple[float, float, float]]
+    ]:
+        import numpy as np
+        from objsearch.agent.detect import locate
+
+        frame, dets = self._view(i)
+        rows = []
+        for k, d in enumerate(dets):
+            rs, cs = np.nonzero(d.mask)
+            box = (
+                (cs.min() + cs.max()) / 2,
+                (rs.min() + rs.max()) / 2,
+                cs.max() - cs.min() + 1,
+                rs.max() - rs.min() + 1,
+            )
+            # A rendered object's pixels always have depth (beyond range they show no object).
+            position = locate(frame, d)
+            assert position is not None
+            rows.append(
+                (
+                    d.instance_id or f"{d.cls}#{k + 1}",
+                    d.cls,
+                    d.score,
+                    tuple(map(float, box)),
+                    position,
+                )
+            )
+        return rows  # type: ignore[return-value]
 
 
 def write_bag(
@@ -394,6 +602,15 @@ def write_bag(
     return counts
 
 
+def _check_out(out: Path, fmt: BagFormat) -> None:
+    if fmt is BagFormat.ROS1 and out.suffix != ".bag":
+        raise BagError(f"a ROS 1 bag is one file named *.bag; got --out {out}")
+    if fmt is not BagFormat.ROS1 and out.suffix in (".bag", ".db3", ".mcap"):
+        raise BagError(f"a ROS 2 bag is a directory; give --out a directory name, not {out.name}")
+    if out.exists():
+        raise BagError(f"{out} already exists; choose a new --out (bags are never overwritten)")
+
+
 def record(
     out: Path,
     fmt: BagFormat,
@@ -416,12 +633,7 @@ def record(
     from objsearch.sim.longterm import TARGET_ORDER, run_schedule
 
     topic_map = topic_map or TopicMap()
-    if fmt is BagFormat.ROS1 and out.suffix != ".bag":
-        raise BagError(f"a ROS 1 bag is one file named *.bag; got --out {out}")
-    if fmt is not BagFormat.ROS1 and out.suffix in (".bag", ".db3", ".mcap"):
-        raise BagError(f"a ROS 2 bag is a directory; give --out a directory name, not {out.name}")
-    if out.exists():
-        raise BagError(f"{out} already exists; choose a new --out (bags are never overwritten)")
+    _check_out(out, fmt)
     ctx = load_context(home)
     chosen = [ctx.vocabulary.resolve_target(t).name for t in targets] if targets else TARGET_ORDER
     tmp = None if log_dir is not None else Path(tempfile.mkdtemp(prefix="objsearch-record-"))
@@ -456,4 +668,58 @@ def record(
         tasks=len(trials),
         start_ns=start_ns + min(stamps, default=0),
         end_ns=start_ns + max(stamps, default=0),
+    )
+
+
+def record_mapping_sweep(
+    out: Path,
+    fmt: BagFormat,
+    *,
+    home: str = "paper",
+    rooms: Sequence[str] | None = None,
+    points_per_room: int = 4,
+    topic_map: TopicMap | None = None,
+    start_ns: int = DEFAULT_START_NS,
+    odom_hz: float = DEFAULT_ODOM_HZ,
+    chunk_bytes: int | None = None,
+) -> Recording:
+    """Write the §4.3 mapping survey as RGB-D: the views ``objsearch map build`` renders, with
+    the simulator's masks of every object (the home's movable objects where the data has them)."""
+    from objsearch.agent.detect import GroundTruthDetector
+    from objsearch.agent.errors import ObjsearchError
+    from objsearch.agent.mapping import survey_poses
+    from objsearch.agent.session import load_context
+    from objsearch.sim.render import SimulatedCamera
+    from objsearch.sim.schedule import base_placements, table1_removals
+
+    topic_map = topic_map or TopicMap()
+    _check_out(out, fmt)
+    ctx = load_context(home)
+    names = [r.name for r in ctx.home.rooms]
+    chosen = list(rooms) if rooms else names
+    unknown = sorted(set(chosen) - set(names))
+    if unknown:
+        raise ObjsearchError(f"unknown room(s) {unknown} in home {home!r}; rooms: {names}")
+    if points_per_room < 1:
+        raise ObjsearchError(f"points per room must be at least 1, not {points_per_room}")
+    poses = survey_poses(ctx.navmap, chosen, points_per_room)
+    camera = SimulatedCamera(ctx.home, base_placements(ctx.home, table1_removals(ctx.home)))
+    messages = sweep_messages(
+        camera,
+        poses,
+        GroundTruthDetector(),
+        fmt.distro,
+        topic_map,
+        start_ns=start_ns,
+        odom_hz=odom_hz,
+    )
+    counts = write_bag(out, fmt, messages, topic_map, chunk_bytes=chunk_bytes)
+    return Recording(
+        path=out,
+        format=fmt,
+        messages=counts,
+        events=0,
+        tasks=0,
+        start_ns=start_ns,
+        end_ns=start_ns + max(len(poses) - 1, 0) * SWEEP_VIEW_NS + SWEEP_HOLD_NS,
     )

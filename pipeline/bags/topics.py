@@ -12,6 +12,7 @@ robot names things differently overrides them with a TOML or JSON file::
     odom = "odom"
     base = "base_link"
     camera = "camera_link"
+    camera_optical = "camera_link_optical"
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ class Role(enum.Enum):
     CAMERA_INFO = "camera_info"
     IMAGE = "image"
     DEPTH = "depth"
+    INSTANCES = "instances"
     DETECTIONS = "detections"
     EVENTS = "events"
 
@@ -50,13 +52,14 @@ ACCEPTED_TYPES: Final[Mapping[Role, frozenset[str]]] = MappingProxyType(
         Role.CAMERA_INFO: frozenset({"sensor_msgs/msg/CameraInfo"}),
         Role.IMAGE: frozenset({"sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage"}),
         Role.DEPTH: frozenset({"sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage"}),
+        Role.INSTANCES: frozenset({"sensor_msgs/msg/Image"}),
         Role.DETECTIONS: frozenset({"vision_msgs/msg/Detection2DArray"}),
         Role.EVENTS: frozenset({"objsearch_msgs/msg/Event"}),
     }
 )
 
-#: Roles turned into events. Camera info and images are recognised and counted, not converted:
-#: RGB-D comes with the perception work.
+#: Roles turned into events. Camera info and images are recognised and counted, not converted
+#: into events: ``objsearch map build --bag`` reads them (``rgbd.py``).
 CONVERTED: Final = frozenset({Role.ODOMETRY, Role.TF, Role.TF_STATIC, Role.DETECTIONS, Role.EVENTS})
 
 DEFAULT_TOPICS: Final[Mapping[str, Role]] = MappingProxyType(
@@ -67,6 +70,7 @@ DEFAULT_TOPICS: Final[Mapping[str, Role]] = MappingProxyType(
         "/camera/color/camera_info": Role.CAMERA_INFO,
         "/camera/color/image_raw": Role.IMAGE,
         "/camera/depth/image_raw": Role.DEPTH,
+        "/camera/instances/image_raw": Role.INSTANCES,
         "/objsearch/detections": Role.DETECTIONS,
         "/objsearch/events": Role.EVENTS,
     }
@@ -77,12 +81,16 @@ IGNORE: Final = "ignore"
 
 @dataclass(frozen=True, slots=True)
 class Frames:
-    """TF frame names (REP-105): map → odom → base → camera."""
+    """TF frame names (REP-105): map → odom → base → camera → camera_optical.
+
+    ``camera`` follows the body convention (x forward, z up); images and camera info are in
+    ``camera_optical`` (REP-103's ``_optical`` suffix: x right, y down, z forward)."""
 
     map: str = "map"
     odom: str = "odom"
     base: str = "base_link"
     camera: str = "camera_link"
+    camera_optical: str = "camera_link_optical"
 
 
 @dataclass(frozen=True, slots=True)

@@ -18,6 +18,7 @@ from objsearch.agent.mapping import (
     SemanticMapBuilder,
     VoxelGrid,
     backproject_labels,
+    detected,
     label_image,
     sampling_points,
     survey_poses,
@@ -91,7 +92,7 @@ def build(rooms: list[str], k: int) -> BuiltMap:
     classes = ctx.vocabulary.names(Category.STATIC)
     builder = SemanticMapBuilder(ctx.navmap, classes, MappingConfig(points_per_room=k), device=CPU)
     frames = SurveyFrames(SimulatedCamera(ctx.home), survey_poses(ctx.navmap, rooms, k))
-    builder.add_all(frames.frames(), GroundTruthDetector(frozenset(classes)))
+    builder.fuse(detected(frames.frames(), GroundTruthDetector(frozenset(classes))))
     return builder.build()
 
 
