@@ -14,10 +14,14 @@ from test_end_to_end import client_config
 FAST = "[timeouts]\nrobot_s = 3.0\narrival_s = 1.5\nattempts = 3\ndetections_s = 1.5\n"
 
 
+# Fault handling sits above the transport seam, so one backend is enough (both run end to end in
+# test_end_to_end.py); zenoh is the one with a router that can vanish.
+pytestmark = pytest.mark.parametrize("net", ["zenoh"], indirect=True)
+
+
 @pytest.fixture
 def zenoh_only(net: Net) -> Net:
-    if net.transport != "zenoh":
-        pytest.skip("fault handling sits above the transport seam; one backend is enough")
+    assert net.transport == "zenoh"
     return net
 
 
