@@ -606,13 +606,20 @@ def _read_salvage(path: Path, fmt: BagFormat, conv: Converter, progress: bool) -
 
 
 def read_bag(
-    path: Path | str, topic_map: TopicMap | None = None, *, progress: bool = False
+    path: Path | str,
+    topic_map: TopicMap | None = None,
+    *,
+    progress: bool = False,
+    identity: tuple[str, int] | None = None,
 ) -> BagContents:
-    """Read one bag (a ``.bag`` file or a ROS 2 directory) into events and a report."""
+    """Read one bag (a ``.bag`` file or a ROS 2 directory) into events and a report.
+
+    ``identity`` is :func:`bag_identity` of the bag when the caller has just computed it.
+    """
     path = Path(path)
     topic_map = topic_map or TopicMap()
     fmt = detect(path)
-    bag_id, size = bag_identity(path)
+    bag_id, size = identity or bag_identity(path)
     conv = Converter(topic_map, bag_id, fmt.distro)
     losses: list[Loss] = []
     notes: list[str] = []
