@@ -9,7 +9,11 @@ at 10 Hz) per bag with ``objsearch record`` (bags differ by their start time), t
   of the bag pays);
 * ingest: ``objsearch ingest`` of the same bag into a fresh lake, 1 worker (hash, read,
   deserialise what it converts, convert, validate the agent's events, write Parquet, commit);
-* ingest of ``--bags`` bags with 1 worker and with 2 workers (scaling).
+* ingest of ``--bags`` bags with 1 worker and with 2 workers (scaling), and with
+  ``--engine ray`` on a local 2-CPU Ray instance when Ray is installed (started once, outside
+  the timing);
+* what the driver-commits design costs: pickling a bag's tables and report (what travels from
+  a worker to the driver) and committing them.
 
 Prints medians, messages/s and MB/s, and the ratios (target: ingest ≥ 0.8 × raw).
 """
@@ -17,16 +21,20 @@ Prints medians, messages/s and MB/s, and the ratios (target: ingest ≥ 0.8 × r
 from __future__ import annotations
 
 import argparse
+import pickle
 import shutil
 import statistics
 import tempfile
 import time
 from pathlib import Path
 
+from objsearch.pipeline.bags.engines import Engine, RayEngine
 from objsearch.pipeline.bags.formats import BagFormat, storage_files
-from objsearch.pipeline.bags.ingest import ingest
+from objsearch.pipeline.bags.ingest import BagTask, commit_converted, convert_bag, ingest
+from objsearch.pipeline.bags.lake import BagLake
 from objsearch.pipeline.bags.read import iter_raw
 from objsearch.pipeline.bags.record import DEFAULT_START_NS, record
+from objsearch.pipeline.bags.topics import TopicMap
 
 
 def size_of(bag: Path) -> int:
@@ -57,7 +65,15 @@ def main() -> None:
         messages = sum(1 for _ in iter_raw(bag))
         mb = size_of(bag) / 1e6
         print(f"bag: {fmt.value}, {messages} messages, {mb:.1f} MB; {args.reps} reps, medians")
-        raw_t, ing_t, one_t, two_t = [], [], [], []
+        ray_engine: Engine | None = None
+        try:
+            import ray
+
+            ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+            ray_engine = RayEngine()
+        except ImportError:
+            print("(Ray is not installed: no --engine ray figures)")
+        raw_t, ing_t, one_t, two_t, ray_t, ship_t, commit_t = [], [], [], [], [], [], []
         for rep in range(args.reps):
             t0 = time.perf_counter()
             n = sum(1 for _ in iter_raw(bag))
@@ -75,6 +91,23 @@ def main() -> None:
                 times.append(time.perf_counter() - t0)
                 assert all(r.error is None for r in results)
                 shutil.rmtree(lake)
+            if ray_engine is not None:
+                lake = work / f"lake-{rep}-ray"
+                t0 = time.perf_counter()
+                results = ingest(bags, lake, engine=ray_engine)
+                ray_t.append(time.perf_counter() - t0)
+                assert all(r.error is None for r in results)
+                shutil.rmtree(lake)
+            converted = convert_bag(BagTask(bag, TopicMap()))
+            t0 = time.perf_counter()
+            shipped = pickle.dumps(converted, protocol=5)
+            pickle.loads(shipped)
+            ship_t.append(time.perf_counter() - t0)
+            lake = work / f"lake-{rep}-commit"
+            t0 = time.perf_counter()
+            assert commit_converted(BagLake(lake), converted, "robot").committed > 0
+            commit_t.append(time.perf_counter() - t0)
+            shutil.rmtree(lake)
         raw, ing = statistics.median(raw_t), statistics.median(ing_t)
         print(f"{'':24}{'median s':>10}{'msg/s':>10}{'MB/s':>8}")
         print(f"{'raw AnyReader+deser':24}{raw:10.2f}{messages / raw:10.0f}{mb / raw:8.2f}")
@@ -85,6 +118,16 @@ def main() -> None:
         print(f"{len(bags)} bags, 1 worker: {one:.2f} s ({total / one:.0f} msg/s)")
         print(f"{len(bags)} bags, 2 workers: {two:.2f} s ({total / two:.0f} msg/s)")
         print(f"speed-up 1 → 2 workers: {one / two:.2f}×")
+        if ray_t:
+            ray_s = statistics.median(ray_t)
+            print(
+                f"{len(bags)} bags, --engine ray (local, 2 CPUs): {ray_s:.2f} s ({total / ray_s:.0f} msg/s)"
+            )
+        ship, commit = statistics.median(ship_t), statistics.median(commit_t)
+        print(
+            f"worker → driver: {len(shipped) / 1e6:.1f} MB pickled, {ship:.3f} s to pickle and "
+            f"unpickle; driver commit {commit:.3f} s ({(ship + commit) / ing:.0%} of ingest)"
+        )
     finally:
         shutil.rmtree(work, ignore_errors=True)
 

@@ -112,12 +112,19 @@ def events_to_tables(events: Iterable[Event]) -> dict[str, pa.Table]:
     upcast = default_upcaster().upcast
     columns: dict[str, dict[str, list[Any]]] = {}
     schemas: dict[str, pa.Schema] = {}
+    # Per type, once: (payload field, its column, whether it may hold free-form JSON text).
+    payload_fields: dict[str, list[tuple[str, list[Any], bool]]] = {}
     for raw in events:
         event = upcast(raw)
         cols = columns.get(event.type)
         if cols is None:
             schema = schemas[event.type] = event_schema(event.type)
             cols = columns[event.type] = {name: [] for name in schema.names}
+            payload_fields[event.type] = [
+                (f.name, cols[f.name], pa.types.is_string(f.type))
+                for f in schema
+                if f.name not in _ENVELOPE_NAMES
+            ]
         cols["event_id"].append(event.event_id)
         cols["stream"].append(event.stream)
         cols["seq"].append(event.seq)
@@ -126,9 +133,9 @@ def events_to_tables(events: Iterable[Event]) -> dict[str, pa.Table]:
         cols["version"].append(event.version)
         cols["task_id"].append(event.task_id)
         payload = event.payload
-        for field in schemas[event.type]:
-            if field.name not in _ENVELOPE_NAMES:
-                cols[field.name].append(_free_form(payload[field.name], field.type))
+        for name, column, text in payload_fields[event.type]:
+            value = payload[name]
+            column.append(_free_form(value, pa.string()) if text else value)
     return {t: pa.Table.from_pydict(cols, schema=schemas[t]) for t, cols in sorted(columns.items())}
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import math
 import numbers
 import uuid
@@ -35,7 +36,16 @@ def deterministic_event_id(stream: str, seq: int) -> str:
     Deterministic ids make two runs of a seeded simulation produce identical logs (up to the wall
     clock), so logs can be diffed and golden logs compared byte for byte.
     """
-    return str(uuid.uuid5(EVENT_ID_NAMESPACE, f"{stream}/{seq}"))
+    # uuid.uuid5 spelled out (SHA-1 of namespace + name, version and variant bits): the same
+    # string, without building two UUID objects per id — bag ingest numbers ~10^5 events a bag.
+    digest = bytearray(hashlib.sha1(_NAMESPACE_BYTES + f"{stream}/{seq}".encode()).digest()[:16])
+    digest[6] = (digest[6] & 0x0F) | 0x50
+    digest[8] = (digest[8] & 0x3F) | 0x80
+    h = digest.hex()
+    return f"{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:]}"
+
+
+_NAMESPACE_BYTES: Final = EVENT_ID_NAMESPACE.bytes
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

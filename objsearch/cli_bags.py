@@ -70,11 +70,10 @@ def _print_counts(messages: dict[str, int]) -> None:
 
 
 def cmd_ingest(args: argparse.Namespace) -> int:
+    from objsearch.pipeline.bags.engines import make_engine
     from objsearch.pipeline.bags.ingest import IngestResult, ingest
 
-    if args.workers < 1:
-        print("objsearch: error: --workers must be at least 1", file=sys.stderr)
-        return 2
+    engine = make_engine(args.engine, workers=args.workers, address=args.address)
     topic_map = _topic_map(args)
     failed = 0
 
@@ -96,7 +95,7 @@ def cmd_ingest(args: argparse.Namespace) -> int:
         Path(args.lake),
         topic_map=topic_map,
         robot=args.robot,
-        workers=args.workers,
+        engine=engine,
         progress=not args.no_progress,
         on_result=show,
     )
@@ -139,7 +138,22 @@ def register(sub: Any) -> None:
     ing = sub.add_parser("ingest", help="read ROS bags (ROS 1, ROS 2 sqlite3, MCAP) into the lake")
     ing.add_argument("bags", nargs="+", metavar="BAG", help=".bag files or ROS 2 bag directories")
     ing.add_argument("--lake", required=True, help="the event lake directory")
-    ing.add_argument("--workers", type=int, default=1, help="bags ingested in parallel (1)")
+    ing.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="bags ingested in parallel (1); with --engine ray and no --address, the CPUs of "
+        "the local Ray instance",
+    )
+    ing.add_argument(
+        "--engine",
+        default="local",
+        choices=["local", "ray"],
+        help="local processes (default) or Ray tasks (needs objsearch[fleet])",
+    )
+    ing.add_argument(
+        "--address", help="Ray cluster address (e.g. ray://head:10001 or auto); --engine ray only"
+    )
     ing.add_argument("--robot", default="robot", help="robot name, the lake's first partition")
     ing.add_argument("--topics", help="topic map override (.toml or .json)")
     ing.add_argument("--no-progress", action="store_true", help="no progress bar")

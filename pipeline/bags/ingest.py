@@ -1,20 +1,25 @@
-"""``objsearch ingest``: bags into the lake, one atomic commit per bag, in parallel processes.
+"""``objsearch ingest``: bags into the lake, one atomic commit per bag, on a choice of engines.
 
-A bag is one task: read it (:func:`~objsearch.pipeline.bags.read.read_bag`), commit its events
-(:class:`~objsearch.pipeline.bags.lake.LakeWriter`). Tasks share nothing but the lake, whose
-commits are atomic per bag, so ``--workers N`` runs them in N processes.
+A bag is one task, :func:`convert_bag`: hash it, read it (:func:`~objsearch.pipeline.bags.read.read_bag`)
+and turn its events into the lake's typed Arrow tables. Tasks run wherever the
+:class:`~objsearch.pipeline.bags.engines.Engine` puts them (this process, ``--workers N`` local
+processes, a Ray cluster) and write nothing. The caller — the driver — commits each result as it
+arrives (:class:`~objsearch.pipeline.bags.lake.LakeWriter`), so the lake needs to be reachable
+from one machine only, and atomicity stays with the lake's rename on that machine.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
+import pyarrow as pa
+from objsearch.events.arrow import events_to_tables
+from objsearch.pipeline.bags.engines import Engine, InlineEngine, ProcessEngine, TaskFailed
 from objsearch.pipeline.bags.errors import BagError
-from objsearch.pipeline.bags.lake import BagLake
+from objsearch.pipeline.bags.lake import BagLake, LakeWriter, run_name
 from objsearch.pipeline.bags.read import BagReport, bag_identity, read_bag
 from objsearch.pipeline.bags.topics import TopicMap
 
@@ -28,29 +33,60 @@ class IngestResult:
     error: str | None = None
 
 
-def ingest_one(
-    bag: Path, lake_dir: Path, topic_map: TopicMap, robot: str, progress: bool = False
-) -> IngestResult:
-    """Read one bag and commit it; an error is returned, not raised, so a fleet run goes on."""
-    lake = BagLake(lake_dir)
+@dataclass(frozen=True, slots=True)
+class BagTask:
+    """What a worker needs for one bag; small and picklable (it travels to Ray workers)."""
+
+    path: Path
+    topic_map: TopicMap
+    known: frozenset[str] = frozenset()  # run names of the bags already in the lake
+    progress: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class Converted:
+    """A task's answer: the bag's tables and report, or why there are none."""
+
+    path: str
+    bag_id: str
+    report: BagReport | None
+    tables: Mapping[str, pa.Table] = field(default_factory=dict)
+    already: bool = False
+    error: str | None = None
+
+
+def convert_bag(task: BagTask) -> Converted:
+    """Read one bag into tables. Writes nothing; an error is returned, not raised."""
+    path = str(task.path)
     try:
-        bag_id, _ = bag_identity(bag) if bag.exists() else ("", 0)
-        if not bag_id:
-            raise BagError(f"no bag at {bag}: no such file or directory")
-        if lake.has_bag(bag_id):
-            return IngestResult(str(bag), None, 0, already=True)
-        contents = read_bag(bag, topic_map, progress=progress)
+        if not task.path.exists():
+            raise BagError(f"no bag at {task.path}: no such file or directory")
+        identity = bag_identity(task.path)
+        if run_name(identity[0]) in task.known:
+            return Converted(path, identity[0], None, already=True)
+        contents = read_bag(task.path, task.topic_map, progress=task.progress, identity=identity)
+        return Converted(path, identity[0], contents.report, events_to_tables(contents.events))
+    except Exception as exc:
+        return Converted(path, "", None, error=str(exc) or repr(exc))
+
+
+def commit_converted(lake: LakeWriter, converted: Converted, robot: str) -> IngestResult:
+    """The driver's half: commit one task's tables atomically; an error is returned, not raised."""
+    if converted.error is not None or converted.already or converted.report is None:
+        return IngestResult(converted.path, None, 0, converted.already, converted.error)
+    report = converted.report
+    try:
         commit = lake.commit_bag(
-            contents.report.bag_id,
-            contents.events,
+            report.bag_id,
+            converted.tables,
             robot=robot,
-            start_ns=contents.report.start_ns,
-            report=dataclasses.asdict(contents.report),
+            start_ns=report.start_ns,
+            report=dataclasses.asdict(report),
         )
     except Exception as exc:
-        return IngestResult(str(bag), None, 0, already=False, error=str(exc) or repr(exc))
+        return IngestResult(converted.path, None, 0, already=False, error=str(exc) or repr(exc))
     return IngestResult(
-        str(bag), contents.report, commit.events if commit.new else 0, already=not commit.new
+        converted.path, report, commit.events if commit.new else 0, already=not commit.new
     )
 
 
@@ -61,26 +97,27 @@ def ingest(
     topic_map: TopicMap | None = None,
     robot: str = "robot",
     workers: int = 1,
+    engine: Engine | None = None,
     progress: bool = False,
     on_result: Callable[[IngestResult], None] | None = None,
 ) -> list[IngestResult]:
-    """Ingest every bag (duplicates by path once); results in the order of ``bags``."""
+    """Ingest every bag (duplicates by path once); results in the order of ``bags``.
+
+    ``engine`` defaults to this process for one worker and ``workers`` local processes otherwise.
+    """
     topic_map = topic_map or TopicMap()
     unique = list(dict.fromkeys(Path(b) for b in bags))
-    results: dict[Path, IngestResult] = {}
-    if workers <= 1 or len(unique) <= 1:
-        for bag in unique:
-            results[bag] = ingest_one(bag, lake_dir, topic_map, robot, progress)
-            if on_result:
-                on_result(results[bag])
-    else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {
-                pool.submit(ingest_one, bag, lake_dir, topic_map, robot, False): bag
-                for bag in unique
-            }
-            for fut in as_completed(futures):
-                results[futures[fut]] = fut.result()
-                if on_result:
-                    on_result(results[futures[fut]])
-    return [results[b] for b in unique]
+    if engine is None:
+        engine = InlineEngine() if workers <= 1 or len(unique) <= 1 else ProcessEngine(workers)
+    lake = BagLake(lake_dir)
+    known = lake.known_runs()
+    tasks = [BagTask(bag, topic_map, known, progress and engine.in_process) for bag in unique]
+    results: dict[int, IngestResult] = {}
+    for i, outcome in engine.run(convert_bag, tasks):
+        if isinstance(outcome, TaskFailed):
+            results[i] = IngestResult(str(unique[i]), None, 0, already=False, error=outcome.message)
+        else:
+            results[i] = commit_converted(lake, outcome, robot)
+        if on_result:
+            on_result(results[i])
+    return [results[i] for i in range(len(unique))]

@@ -1,7 +1,8 @@
 """Where ingested bags go: the event lake (:mod:`objsearch.events.lake`), one run per bag.
 
-Ingest needs two things of the lake, behind the :class:`LakeWriter` seam: whether a bag is in it
-already (``has_bag``) and to commit a bag whole (``commit_bag``). :class:`BagLake` does both with the
+Ingest needs three things of the lake, behind the :class:`LakeWriter` seam: which bags are in it
+already (``known_runs``, handed to workers so they skip those bags without reading them; and
+``has_bag``), and to commit a bag's tables whole (``commit_bag``). :class:`BagLake` does both with the
 event store's lake, so bags and compacted agent logs share one layout, one set of typed Parquet
 tables and one set of DuckDB views::
 
@@ -18,11 +19,12 @@ import datetime as dt
 import json
 import os
 import uuid
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
+import pyarrow as pa
 from objsearch.events import Event, EventStoreError
 from objsearch.events.lake import Lake
 from objsearch.pipeline.bags.errors import LakeError
@@ -40,12 +42,14 @@ class Commit:
 
 
 class LakeWriter(Protocol):
+    def known_runs(self) -> frozenset[str]: ...
+
     def has_bag(self, bag_id: str) -> bool: ...
 
     def commit_bag(
         self,
         bag_id: str,
-        events: Sequence[Event],
+        tables: Mapping[str, pa.Table],
         *,
         robot: str,
         start_ns: int | None,
@@ -67,29 +71,38 @@ class BagLake:
     def _runs(self, bag_id: str) -> list[Path]:
         return sorted(self.root.glob(f"robot=*/date=*/run={run_name(bag_id)}/_run.json"))
 
+    def known_runs(self) -> frozenset[str]:
+        """The run names (:func:`run_name`) of every bag in the lake: one directory listing."""
+        return frozenset(
+            p.parent.name.removeprefix("run=")
+            for p in self.root.glob(f"robot=*/date=*/run={RUN_PREFIX}*/_run.json")
+        )
+
     def has_bag(self, bag_id: str) -> bool:
         return bool(self._runs(bag_id))
 
     def commit_bag(
         self,
         bag_id: str,
-        events: Sequence[Event],
+        tables: Mapping[str, pa.Table],
         *,
         robot: str,
         start_ns: int | None,
         report: Mapping[str, Any],
     ) -> Commit:
+        """Commit a bag's tables (one per event type, :func:`~objsearch.events.arrow.events_to_tables`)."""
+        events = sum(t.num_rows for t in tables.values())
         if self.has_bag(bag_id):
-            return Commit(bag_id, self._runs(bag_id)[0].parent, len(events), new=False)
+            return Commit(bag_id, self._runs(bag_id)[0].parent, events, new=False)
         date = dt.datetime.fromtimestamp((start_ns or 0) / 1e9, dt.UTC).date()
         try:
-            info = self.lake.commit_events(
-                events, robot=robot, run=run_name(bag_id), date=date, source=f"bag:{bag_id}"
+            info = self.lake.commit_tables(
+                tables, robot=robot, run=run_name(bag_id), date=date, source=f"bag:{bag_id}"
             )
         except (OSError, EventStoreError) as exc:
             raise LakeError(f"committing bag {bag_id[:16]} to {self.root} failed: {exc}") from exc
-        self._write_manifest(bag_id, info.path, len(events), report)
-        return Commit(bag_id, info.path, len(events), new=True)
+        self._write_manifest(bag_id, info.path, events, report)
+        return Commit(bag_id, info.path, events, new=True)
 
     def _write_manifest(
         self, bag_id: str, run: Path, events: int, report: Mapping[str, Any]

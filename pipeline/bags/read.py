@@ -32,7 +32,9 @@ from typing import Any, Protocol, TypeVar
 
 from objsearch.events import Event, InvalidEventError, default_registry, deterministic_event_id
 from objsearch.events.record import encode_record
+from objsearch.pipeline.bags import fastdecode
 from objsearch.pipeline.bags.errors import BagError
+from objsearch.pipeline.bags.fastdecode import OdomFields, TransformFields
 from objsearch.pipeline.bags.formats import BagFormat, detect, storage_files
 from objsearch.pipeline.bags.salvage import Loss, RawConnection, Scan, scan_bag
 from objsearch.pipeline.bags.topics import ACCEPTED_TYPES, CONVERTED, Role, TopicMap
@@ -168,12 +170,49 @@ def bag_identity(path: Path) -> tuple[str, int]:
 # -- conversion -------------------------------------------------------------------------------
 
 
-def _yaw(q: Any) -> float:
-    x, y, z, w = float(q.x), float(q.y), float(q.z), float(q.w)
+def _yaw(x: float, y: float, z: float, w: float) -> float:
     norm = math.sqrt(x * x + y * y + z * z + w * w)
     if not math.isfinite(norm) or abs(norm - 1.0) > 1e-3:
         raise ValueError(f"quaternion of norm {norm:.6g} is not a rotation")
     return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def _as_bytes(raw: bytes) -> bytes:
+    # The salvage scanners may hand over memoryviews; the decoders slice and decode bytes.
+    return raw if type(raw) is bytes else bytes(raw)
+
+
+def _odometry_fields(msg: Any) -> OdomFields:
+    p = msg.pose.pose
+    q = p.orientation
+    return (
+        msg.header.frame_id,
+        float(p.position.x),
+        float(p.position.y),
+        float(q.x),
+        float(q.y),
+        float(q.z),
+        float(q.w),
+    )
+
+
+def _transform_fields(msg: Any) -> list[TransformFields]:
+    out = []
+    for tr in msg.transforms:
+        t, q = tr.transform.translation, tr.transform.rotation
+        out.append(
+            (
+                tr.header.frame_id,
+                tr.child_frame_id,
+                float(t.x),
+                float(t.y),
+                float(q.x),
+                float(q.y),
+                float(q.z),
+                float(q.w),
+            )
+        )
+    return out
 
 
 def _coord(v: Any) -> float:
@@ -284,8 +323,7 @@ class Converter:
         if state.role not in CONVERTED:
             return
         try:
-            msg = deserialize(raw, state.conn.msgtype)
-            made = self._convert(state, log_ns, msg)
+            made = self._convert(state, log_ns, raw, deserialize)
         except InvalidEventError as exc:
             state.rejected[f"invalid event: {exc}"] += 1
             return
@@ -308,40 +346,53 @@ class Converter:
         self._compose_odom_poses()
         has_odometry = any(s.role is Role.ODOMETRY for s in self.topics.values())
         kept = sorted((d for d in self.derived if not (d[5] and has_odometry)), key=lambda d: d[:3])
+        # Event._adopt: the envelope's types are still checked, but neither a deep copy of a
+        # payload this converter built from checked floats and strings (and owns) nor a parse
+        # of an id deterministic_event_id just formatted. The payload's JSON Schema is enforced
+        # by the lake's typed columns when the tables are built.
         return [
-            Event(
-                event_id=deterministic_event_id(self.stream, seq),
-                stream=self.stream,
-                seq=seq,
-                time_ns=log_ns,
-                recorded_at_ns=log_ns,
-                type=type,
-                version=1,
-                task_id=None,
-                payload=payload,
+            Event._adopt(
+                {
+                    "event_id": deterministic_event_id(self.stream, seq),
+                    "stream": self.stream,
+                    "seq": seq,
+                    "time_ns": log_ns,
+                    "recorded_at_ns": log_ns,
+                    "type": type,
+                    "version": 1,
+                    "task_id": None,
+                    "payload": payload,
+                }
             )
             for seq, (log_ns, _, _, type, payload, _) in enumerate(kept, start=1)
         ]
 
-    def _convert(self, state: _TopicState, log_ns: int, msg: Any) -> int:
+    def _convert(
+        self, state: _TopicState, log_ns: int, raw: bytes, deserialize: Deserialize
+    ) -> int:
         role, topic = state.role, state.conn.topic
         frames = self.map.frames
         if role is Role.ODOMETRY:
-            p = msg.pose.pose
-            pose = _Planar(_coord(p.position.x), _coord(p.position.y), _yaw(p.orientation))
-            frame = msg.header.frame_id.lstrip("/") or frames.odom
-            return self._pose(log_ns, pose, frame, topic, False)
+            odom = fastdecode.ODOMETRY[self.distro](_as_bytes(raw))
+            if odom is None:  # not the standard layout: let rosbags read it
+                odom = _odometry_fields(deserialize(raw, state.conn.msgtype))
+            frame_id, x, y, qx, qy, qz, qw = odom
+            pose = _Planar(_coord(x), _coord(y), _yaw(qx, qy, qz, qw))
+            return self._pose(log_ns, pose, frame_id.lstrip("/") or frames.odom, topic, False)
         if role in (Role.TF, Role.TF_STATIC):
+            transforms = fastdecode.TF[self.distro](_as_bytes(raw))
+            if transforms is None:
+                transforms = _transform_fields(deserialize(raw, state.conn.msgtype))
             made = 0
-            for tr in msg.transforms:
-                parent, child = tr.header.frame_id.lstrip("/"), tr.child_frame_id.lstrip("/")
-                t = tr.transform
-                planar = _Planar(_coord(t.translation.x), _coord(t.translation.y), _yaw(t.rotation))
+            for parent_id, child_id, x, y, qx, qy, qz, qw in transforms:
+                parent, child = parent_id.lstrip("/"), child_id.lstrip("/")
+                planar = _Planar(_coord(x), _coord(y), _yaw(qx, qy, qz, qw))
                 if parent == frames.map and child == frames.odom:
                     self.map_odom_track.append((log_ns, planar))
                 elif child == frames.base and parent in (frames.odom, frames.map):
                     made += self._pose(log_ns, planar, parent, topic, True)
             return made
+        msg = deserialize(raw, state.conn.msgtype)
         if role is Role.DETECTIONS:
             return self._derive(
                 "objects_detected",
@@ -583,6 +634,8 @@ def _read_anyreader(
         for c in reader.connections:
             if not conv.wants(c.id):
                 conv.count(c.id, c.msgcount)
+        if not wanted:  # rosbags reads *every* connection when given none
+            return expected
         total = sum(c.msgcount for c in wanted)
         with _progress(total, progress, path.name) as bar:
             for c, t, raw in reader.messages(connections=wanted):
@@ -676,13 +729,20 @@ def unrecovered(outcome: ReadOutcome, sink: MessageSink) -> list[Loss]:
 
 
 def read_bag(
-    path: Path | str, topic_map: TopicMap | None = None, *, progress: bool = False
+    path: Path | str,
+    topic_map: TopicMap | None = None,
+    *,
+    progress: bool = False,
+    identity: tuple[str, int] | None = None,
 ) -> BagContents:
-    """Read one bag (a ``.bag`` file or a ROS 2 directory) into events and a report."""
+    """Read one bag (a ``.bag`` file or a ROS 2 directory) into events and a report.
+
+    ``identity`` is :func:`bag_identity` of the bag when the caller has just computed it.
+    """
     path = Path(path)
     topic_map = topic_map or TopicMap()
     fmt = detect(path)
-    bag_id, size = bag_identity(path)
+    bag_id, size = identity or bag_identity(path)
     conv, outcome = read_messages(
         path, fmt, lambda: Converter(topic_map, bag_id, fmt.distro), progress=progress
     )

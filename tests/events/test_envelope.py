@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from objsearch.events import EVENT_ID_NAMESPACE, Event, InvalidEventError, deterministic_event_id
 
 
@@ -172,3 +174,9 @@ def test_equal_events_hash_equal() -> None:
     assert hash(a) == hash(b)
     assert len({a, b}) == 1
     assert make_event(seq=2) != a
+
+
+@given(st.text(min_size=1), st.integers(min_value=1, max_value=2**63 - 1))
+def test_deterministic_ids_are_uuid5_of_stream_and_seq(stream: str, seq: int) -> None:
+    expected = str(uuid.uuid5(EVENT_ID_NAMESPACE, f"{stream}/{seq}"))
+    assert deterministic_event_id(stream, seq) == expected
