@@ -29,10 +29,18 @@ ODOMETRY = "nav_msgs/msg/Odometry"
 STRING = "std_msgs/msg/String"
 DETECTIONS = "vision_msgs/msg/Detection2DArray"
 EVENT = "objsearch_msgs/msg/Event"
+TF = "tf2_msgs/msg/TFMessage"
+GOAL_STATUS_ARRAY = "action_msgs/msg/GoalStatusArray"
 
 
+@cache
 def store() -> Typestore:
-    return typestore(Distro.ROS2)
+    """The bag pipeline's ROS 2 store plus the services and actions of :mod:`interfaces`."""
+    from objsearch.runtime import interfaces
+
+    ts = typestore(Distro.ROS2)
+    interfaces.register(ts)
+    return ts
 
 
 def types() -> Any:
