@@ -63,3 +63,7 @@ DEFAULT = QoS()
 SENSOR_DATA = QoS(Reliability.BEST_EFFORT, Durability.VOLATILE, 5)
 LATCHED = QoS(Reliability.RELIABLE, Durability.TRANSIENT_LOCAL, 1)
 EVENTS = QoS(Reliability.RELIABLE, Durability.VOLATILE, 1000)
+#: rmw_qos_profile_services_default.
+SERVICES = QoS(Reliability.RELIABLE, Durability.VOLATILE, 10)
+#: rcl_action's status topic (rcl_action_qos_profile_status_default): latched.
+ACTION_STATUS = QoS(Reliability.RELIABLE, Durability.TRANSIENT_LOCAL, 1)
