@@ -23,7 +23,7 @@ from typing import Any
 from objsearch.runtime.errors import TransportError
 from objsearch.runtime.messages import dds_type_name, type_hash
 from objsearch.runtime.qos import SERVICES, QoS
-from objsearch.runtime.transport import Handler, Responder, ServiceHandler, TransportConfig
+from objsearch.runtime.transport import Handler, ServiceHandler, TransportConfig
 
 GID_SIZE = 16
 #: How often a client asks again while no server answers (discovery still under way).
@@ -204,9 +204,7 @@ class ZenohTransport:
         )
 
     def _gid(self, entity: int) -> bytes:
-        return (self.session_id.encode() + entity.to_bytes(4, "little") + os.urandom(16))[
-            :GID_SIZE
-        ]
+        return (self.session_id.encode() + entity.to_bytes(4, "little") + os.urandom(16))[:GID_SIZE]
 
     def close(self) -> None:
         if self._closed:
