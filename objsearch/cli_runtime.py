@@ -172,7 +172,15 @@ def cmd_robot_sim(args: argparse.Namespace) -> int:
         schedule=args.schedule,
         scene=args.scene,
         start=args.start,
-        faults=Faults(args.drop_every, args.exit_after, args.malformed_after),
+        faults=Faults(
+            args.drop_every,
+            args.exit_after,
+            args.malformed_after,
+            args.reject_after,
+            args.abort_after,
+            args.mute_after,
+            args.stall_after,
+        ),
     )
     _stop_on_signals(robot.stop)
     print("objsearch robot: stand-in up", file=sys.stderr, flush=True)
@@ -237,6 +245,13 @@ def register(sub: Any) -> None:
     sim.add_argument("--drop-every", type=int, default=0, help="fault: drop every n-th message")
     sim.add_argument("--exit-after", type=int, default=0, help="fault: vanish after n goals")
     sim.add_argument("--malformed-after", type=int, default=0, help="fault: garbage after n goals")
+    for fault, what in (
+        ("reject", "reject the n-th navigate_to_pose goal"),
+        ("abort", "abort the n-th navigate_to_pose goal"),
+        ("mute", "leave send_goal unanswered from the n-th goal on"),
+        ("stall", "accept the n-th goal and never finish it"),
+    ):
+        sim.add_argument(f"--{fault}-after", type=int, default=0, help=f"fault: {what}")
     sim.set_defaults(func=cmd_robot_sim)
 
     view = sub.add_parser(

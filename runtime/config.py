@@ -23,6 +23,16 @@ odometry = "reliable"          # or "best_effort" for a sensor-data publisher
 
 [timeouts]
 arrival_s = 60.0
+
+[navigation]
+interface = "goal_pose"        # or "navigate_to_pose": Nav2's action (see docs/runtime.md)
+action = "/navigate_to_pose"
+behavior_tree = ""             # Nav2's default tree
+
+[pose]
+source = "odometry"            # or "tf": map → base_link from /tf and /tf_static
+map_frame = "map"
+base_frame = "base_link"
 """
 
 from __future__ import annotations
@@ -34,7 +44,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.runtime.errors import RuntimeConfigError
-from objsearch.runtime.qos import DEFAULT, EVENTS, QoS
+from objsearch.runtime.qos import DEFAULT, EVENTS, TF, TF_STATIC, QoS
 from objsearch.runtime.transport import Backend, TransportConfig
 
 
@@ -50,6 +60,8 @@ class Topics:
     open_result: str = "/objsearch/open/result"
     sim_reset: str = "/objsearch_sim/reset"  # the stand-in only: {id, scene, start}
     sim_reset_result: str = "/objsearch_sim/reset/result"
+    tf: str = "/tf"  # tf2_msgs/TFMessage, with [pose] source = "tf"
+    tf_static: str = "/tf_static"
 
 
 @dataclass(frozen=True, slots=True)
@@ -59,6 +71,8 @@ class QosSettings:
     goal: QoS = DEFAULT
     events: QoS = EVENTS
     requests: QoS = DEFAULT
+    tf: QoS = TF
+    tf_static: QoS = TF_STATIC
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,12 +86,45 @@ class Timeouts:
 
 
 @dataclass(frozen=True, slots=True)
+class Navigation:
+    """How goals reach the robot: ``goal_pose`` (a PoseStamped topic; arrival judged from the
+    pose) or ``navigate_to_pose`` (Nav2's action: arrival is its SUCCEEDED result)."""
+
+    interface: str = "goal_pose"
+    action: str = "/navigate_to_pose"
+    behavior_tree: str = ""
+
+    def __post_init__(self) -> None:
+        if self.interface not in {"goal_pose", "navigate_to_pose"}:
+            raise RuntimeConfigError(
+                f"[navigation] interface must be goal_pose or navigate_to_pose, "
+                f"not {self.interface!r}"
+            )
+
+
+@dataclass(frozen=True, slots=True)
+class PoseSource:
+    """Where the robot's pose in the map comes from: ``odometry`` (its pose in ``map``) or
+    ``tf`` (``map_frame`` → ``base_frame`` composed from /tf and /tf_static)."""
+
+    source: str = "odometry"
+    map_frame: str = "map"
+    base_frame: str = "base_link"
+
+    def __post_init__(self) -> None:
+        if self.source not in {"odometry", "tf"}:
+            raise RuntimeConfigError(f"[pose] source must be odometry or tf, not {self.source!r}")
+
+
+@dataclass(frozen=True, slots=True)
 class RuntimeConfig:
     transport: TransportConfig = field(default_factory=TransportConfig)
     home: str = "paper"
     topics: Topics = Topics()
     qos: QosSettings = QosSettings()
     timeouts: Timeouts = Timeouts()
+    navigation: Navigation = Navigation()
+    pose: PoseSource = PoseSource()
 
     @classmethod
     def load(cls, path: Path) -> RuntimeConfig:
@@ -101,6 +148,8 @@ class RuntimeConfig:
             "topics",
             "qos",
             "timeouts",
+            "navigation",
+            "pose",
         }
         unknown = sorted(set(doc) - known)
         if unknown:
@@ -129,6 +178,8 @@ class RuntimeConfig:
             topics=_section(Topics(), doc.get("topics", {}), source, "topics", str),
             qos=_section(QosSettings(), doc.get("qos", {}), source, "qos", QoS.parse),
             timeouts=_section(Timeouts(), doc.get("timeouts", {}), source, "timeouts", None),
+            navigation=_section(Navigation(), doc.get("navigation", {}), source, "navigation", str),
+            pose=_section(PoseSource(), doc.get("pose", {}), source, "pose", str),
         )
 
 

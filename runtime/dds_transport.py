@@ -6,17 +6,33 @@ writer match ours; QoS maps one to one (a best-effort writer never meets a relia
 volatile writer never meets a transient-local reader). The Python binding serialises typed
 samples, so each message type is declared from its rosbags definition and the CDR bytes
 round-trip through it (they are identical: tested).
+
+A service ``/svc`` is the topic pair ``rq/svcRequest`` and ``rr/svcReply`` with types
+``pkg::srv::dds_::Name_Request_`` / ``_Response_`` (``pkg::action::dds_::…`` for an action's
+services), each sample led by rmw_cyclonedds_cpp's ``cdds_request_header_t``: the client's 64-bit
+id (its request writer's instance handle there) and a 64-bit sequence number, both echoed in the
+reply; the client keeps only replies carrying its own id. As the header is 16 bytes, the message
+that follows keeps its CDR alignment, so the wire bytes are the encapsulation header, the two
+numbers (little endian) and the message's own CDR body.
 """
 
 from __future__ import annotations
 
+import itertools
+import os
+import struct
+import threading
+import time
 from functools import cache
 from typing import Any
 
 from objsearch.runtime.errors import MessageError, TransportError
 from objsearch.runtime.messages import dds_type_name, store
-from objsearch.runtime.qos import Durability, QoS, Reliability
-from objsearch.runtime.transport import Handler, TransportConfig
+from objsearch.runtime.qos import SERVICES, Durability, QoS, Reliability
+from objsearch.runtime.transport import Handler, ServiceHandler, TransportConfig
+
+#: How often a client sends its request again while unanswered (discovery still under way).
+RETRY_S = 0.5
 
 _BASE = {
     "bool": "bool",
@@ -65,9 +81,17 @@ def _field_type(node: Any) -> Any:
     raise MessageError(f"unsupported field kind {kind!r}")
 
 
+def service_topics(service: str) -> tuple[str, str]:
+    """ROS 2 service → its request and reply topics (``rq/<svc>Request``, ``rr/<svc>Reply``)."""
+    name = service.strip("/")
+    return f"rq/{name}Request", f"rr/{name}Reply"
+
+
 @cache
-def idl_type(msgtype: str) -> Any:
-    """A Cyclone DDS struct with the ROS 2 type's DDS name and members."""
+def idl_type(msgtype: str, *, request_header: bool = False) -> Any:
+    """A Cyclone DDS struct with the ROS 2 type's DDS name and members (led by
+    ``cdds_request_header_t`` for a service's request or response)."""
+    import cyclonedds.idl.types as t
     from cyclonedds.idl import make_idl_struct
 
     try:
@@ -75,8 +99,22 @@ def idl_type(msgtype: str) -> Any:
     except KeyError:
         raise MessageError(f"unknown message type {msgtype!r}") from None
     members = {name: _field_type(node) for name, node in fields}
+    if request_header:
+        members = {"client_guid_": t.uint64, "sequence_number_": t.int64, **members}
     cls_name = dds_type_name(msgtype).rsplit("::", 1)[1]
     return make_idl_struct(cls_name, dds_type_name(msgtype), members)
+
+
+def wrap(cdr: bytes, guid: int, seq: int) -> bytes:
+    """Message CDR → the same with ``cdds_request_header_t`` in front."""
+    return cdr[:4] + struct.pack("<Qq", guid, seq) + cdr[4:]
+
+
+def unwrap(data: bytes) -> tuple[int, int, bytes]:
+    if len(data) < 20:
+        raise MessageError(f"a service sample of {len(data)} bytes has no request header")
+    guid, seq = struct.unpack_from("<Qq", data, 4)
+    return guid, seq, data[:4] + data[20:]
 
 
 def _qos(qos: QoS) -> Any:
@@ -122,6 +160,53 @@ class _DdsPublisher:
         self._writer.write(sample)
 
 
+class _DdsClient:
+    def __init__(self, transport: DdsTransport, service: str, srvtype: str) -> None:
+        from cyclonedds.core import Listener
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.sub import DataReader
+
+        rq, rr = service_topics(service)
+        self._req_cls = idl_type(f"{srvtype}_Request", request_header=True)
+        self._guid = int.from_bytes(os.urandom(8), "little") >> 1
+        self._seq = itertools.count(1)
+        self._cond = threading.Condition()
+        self._replies: dict[int, bytes] = {}
+        self._writer = DataWriter(
+            transport.participant, transport._topic(rq, self._req_cls), _qos(SERVICES)
+        )
+        resp_cls = idl_type(f"{srvtype}_Response", request_header=True)
+
+        def on_data(reader: Any) -> None:
+            for sample in reader.take(N=64):
+                guid, seq, body = unwrap(bytes(sample.serialize()))
+                if guid == self._guid:  # replies to other clients share the topic
+                    with self._cond:
+                        self._replies[seq] = body
+                        self._cond.notify_all()
+
+        self._reader = DataReader(
+            transport.participant,
+            transport._topic(rr, resp_cls),
+            _qos(SERVICES),
+            listener=Listener(on_data_available=on_data),  # type: ignore[no-untyped-call]
+        )
+        transport._entities += [self._writer, self._reader]
+
+    def call(self, request: bytes, timeout_s: float) -> bytes | None:
+        deadline = time.monotonic() + timeout_s
+        sent: set[int] = set()
+        with self._cond:
+            while (left := deadline - time.monotonic()) > 0:
+                seq = next(self._seq)
+                sent.add(seq)
+                self._writer.write(self._req_cls.deserialize(wrap(request, self._guid, seq)))
+                self._cond.wait(min(RETRY_S, left))
+                for s in sorted(sent & set(self._replies)):
+                    return self._replies.pop(s)
+        return None
+
+
 class DdsTransport:
     def __init__(self, config: TransportConfig) -> None:
         try:
@@ -141,18 +226,19 @@ class DdsTransport:
         self._topics: dict[str, Any] = {}
         self._entities: list[Any] = []
 
-    def _topic(self, topic: str, msgtype: str) -> Any:
+    def _topic(self, name: str, cls: Any) -> Any:
         from cyclonedds.topic import Topic
 
-        name = topic_name(topic)
         if name not in self._topics:
-            self._topics[name] = Topic(self.participant, name, idl_type(msgtype))
+            self._topics[name] = Topic(self.participant, name, cls)
         return self._topics[name]
 
     def publisher(self, topic: str, msgtype: str, qos: QoS) -> _DdsPublisher:
         from cyclonedds.pub import DataWriter
 
-        writer = DataWriter(self.participant, self._topic(topic, msgtype), _qos(qos))
+        writer = DataWriter(
+            self.participant, self._topic(topic_name(topic), idl_type(msgtype)), _qos(qos)
+        )
         self._entities.append(writer)
         return _DdsPublisher(writer, idl_type(msgtype), msgtype)
 
@@ -166,11 +252,41 @@ class DdsTransport:
 
         reader = DataReader(
             self.participant,
-            self._topic(topic, msgtype),
+            self._topic(topic_name(topic), idl_type(msgtype)),
             _qos(qos),
             listener=Listener(on_data_available=on_data),  # type: ignore[no-untyped-call]
         )
         self._entities.append(reader)
+
+    def serve(self, service: str, srvtype: str, handler: ServiceHandler) -> None:
+        from cyclonedds.core import Listener
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.sub import DataReader
+
+        rq, rr = service_topics(service)
+        req_cls = idl_type(f"{srvtype}_Request", request_header=True)
+        resp_cls = idl_type(f"{srvtype}_Response", request_header=True)
+        writer = DataWriter(self.participant, self._topic(rr, resp_cls), _qos(SERVICES))
+
+        def on_data(reader: Any) -> None:
+            for sample in reader.take(N=64):
+                guid, seq, body = unwrap(bytes(sample.serialize()))
+
+                def respond(response: bytes, guid: int = guid, seq: int = seq) -> None:
+                    writer.write(resp_cls.deserialize(wrap(response, guid, seq)))
+
+                handler(body, respond)
+
+        reader = DataReader(
+            self.participant,
+            self._topic(rq, req_cls),
+            _qos(SERVICES),
+            listener=Listener(on_data_available=on_data),  # type: ignore[no-untyped-call]
+        )
+        self._entities += [writer, reader]
+
+    def client(self, service: str, srvtype: str) -> _DdsClient:
+        return _DdsClient(self, service, srvtype)
 
     def close(self) -> None:
         # Dropping the participant deletes its readers and writers; robots see it leave.

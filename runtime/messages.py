@@ -29,10 +29,18 @@ ODOMETRY = "nav_msgs/msg/Odometry"
 STRING = "std_msgs/msg/String"
 DETECTIONS = "vision_msgs/msg/Detection2DArray"
 EVENT = "objsearch_msgs/msg/Event"
+TF = "tf2_msgs/msg/TFMessage"
+GOAL_STATUS_ARRAY = "action_msgs/msg/GoalStatusArray"
 
 
+@cache
 def store() -> Typestore:
-    return typestore(Distro.ROS2)
+    """The bag pipeline's ROS 2 store plus the services and actions of :mod:`interfaces`."""
+    from objsearch.runtime import interfaces
+
+    ts = typestore(Distro.ROS2)
+    interfaces.register(ts)
+    return ts
 
 
 def types() -> Any:
@@ -185,3 +193,91 @@ def event(e: Event, ns: int) -> Any:
     from objsearch.sim.perception import Camera
 
     return _Messages(Distro.ROS2, TopicMap(), Camera()).event(ns, e)
+
+
+# -- TF: what the stand-in publishes and how the agent reads map → base_link --------------------
+
+#: The stand-in's map → odom: a fixed offset (as a localiser's correction), so a reader that
+#: skipped the composition would be visibly wrong. Dyadic numbers keep the sums exact.
+MAP_TO_ODOM = (1.0, -0.5)
+
+
+def tf(pose: Pose, ns: int, frames: tuple[str, str, str] = ("map", "odom", "base_link")) -> Any:
+    """map → odom (:data:`MAP_TO_ODOM`) and odom → base_link, at one stamp."""
+    t = types()
+    world, odom, base = frames
+    ox, oy = MAP_TO_ODOM
+
+    def transform(parent: str, child: str, x: float, y: float, yaw: float) -> Any:
+        return t["geometry_msgs/msg/TransformStamped"](
+            header=header(ns, parent),
+            child_frame_id=child,
+            transform=t["geometry_msgs/msg/Transform"](
+                translation=t["geometry_msgs/msg/Vector3"](x=x, y=y, z=0.0),
+                rotation=_pose_msg(Pose(0.0, 0.0, yaw)).orientation,
+            ),
+        )
+
+    return t[TF](
+        transforms=[
+            transform(world, odom, ox, oy, 0.0),
+            transform(odom, base, pose.x - ox, pose.y - oy, pose.yaw),
+        ]
+    )
+
+
+def transforms_of(msg: Any) -> list[tuple[str, str, int, Any, Any]]:
+    """``(parent, child, stamp, translation xyz, rotation xyzw)`` of each transform."""
+    import numpy as np
+
+    out = []
+    for tr in msg.transforms:
+        v, q = tr.transform.translation, tr.transform.rotation
+        out.append(
+            (
+                str(tr.header.frame_id).lstrip("/"),
+                str(tr.child_frame_id).lstrip("/"),
+                stamp_ns(tr.header),
+                np.array([v.x, v.y, v.z], dtype=np.float64),
+                np.array([q.x, q.y, q.z, q.w], dtype=np.float64),
+            )
+        )
+    return out
+
+
+def pose_of_matrix(matrix: Any) -> Pose:
+    """A 4×4 transform (map ← base) as the robot's planar pose."""
+    x, y = float(matrix[0, 3]), float(matrix[1, 3])
+    yaw = math.atan2(float(matrix[1, 0]), float(matrix[0, 0]))
+    if not all(math.isfinite(v) for v in (x, y, yaw)):
+        raise MessageError(f"transform with non-finite values {(x, y, yaw)}")
+    return Pose(x, y, yaw)
+
+
+def default(msgtype: str) -> Any:
+    """A message with every field at its ROS 2 default (zero, empty, nested defaults), as a
+    ``NavigateToPose_Result`` an action server returns when it has nothing to say."""
+    import numpy as np
+    from rosbags.interfaces import Nodetype
+
+    def value(node: Any) -> Any:
+        kind, detail = node
+        if kind == Nodetype.BASE:
+            name = detail[0]
+            if name.startswith("float"):
+                return 0.0
+            return "" if name == "string" else False if name == "bool" else 0
+        if kind == Nodetype.NAME:
+            return default(detail)
+        if kind == Nodetype.ARRAY:
+            sub, length = detail
+            if sub[0] == Nodetype.BASE and sub[1][0] not in {"string", "bool"}:
+                return np.zeros(length, dtype=np.dtype(_NUMPY.get(sub[1][0], sub[1][0])))
+            return [value(sub) for _ in range(length)]
+        return [] if kind == Nodetype.SEQUENCE else None
+
+    _, fields = store().fielddefs[msgtype]
+    return types()[msgtype](**{name: value(node) for name, node in fields})
+
+
+_NUMPY = {"byte": "uint8", "char": "uint8"}

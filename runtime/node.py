@@ -16,7 +16,7 @@ from typing import Any
 from objsearch.runtime import messages as m
 from objsearch.runtime.errors import MessageError, RobotError
 from objsearch.runtime.qos import QoS
-from objsearch.runtime.transport import Publisher, Transport
+from objsearch.runtime.transport import Publisher, ServiceClient, Transport
 
 log = logging.getLogger("objsearch.runtime")
 
@@ -28,6 +28,18 @@ class TypedPublisher:
 
     def publish(self, msg: Any) -> None:
         self._pub.publish(m.encode(msg, self.msgtype))
+
+
+class TypedClient:
+    def __init__(self, client: ServiceClient, service: str, srvtype: str) -> None:
+        self._client = client
+        self.service = service
+        self.srvtype = srvtype
+
+    def call(self, request: Any, timeout_s: float) -> Any | None:
+        """The decoded response, or None when none came in time."""
+        data = self._client.call(m.encode(request, f"{self.srvtype}_Request"), timeout_s)
+        return None if data is None else m.decode(data, f"{self.srvtype}_Response")
 
 
 class Node:
@@ -47,6 +59,24 @@ class Node:
                 self.report(f"{topic}: {exc}")
 
         self.transport.subscribe(topic, msgtype, qos, on_bytes)
+
+    def serve(
+        self, service: str, srvtype: str, handler: Callable[[Any, Callable[[Any], None]], None]
+    ) -> None:
+        """``handler(request, respond)``: a malformed request is reported and left unanswered."""
+
+        def on_bytes(data: bytes, respond_bytes: Callable[[bytes], None]) -> None:
+            try:
+                request = m.decode(data, f"{srvtype}_Request")
+            except MessageError as exc:
+                self.report(f"{service}: {exc}")
+                return
+            handler(request, lambda msg: respond_bytes(m.encode(msg, f"{srvtype}_Response")))
+
+        self.transport.serve(service, srvtype, on_bytes)
+
+    def client(self, service: str, srvtype: str) -> TypedClient:
+        return TypedClient(self.transport.client(service, srvtype), service, srvtype)
 
     def report(self, problem: str) -> None:
         with self._lock:

@@ -63,3 +63,10 @@ DEFAULT = QoS()
 SENSOR_DATA = QoS(Reliability.BEST_EFFORT, Durability.VOLATILE, 5)
 LATCHED = QoS(Reliability.RELIABLE, Durability.TRANSIENT_LOCAL, 1)
 EVENTS = QoS(Reliability.RELIABLE, Durability.VOLATILE, 1000)
+#: rmw_qos_profile_services_default.
+SERVICES = QoS(Reliability.RELIABLE, Durability.VOLATILE, 10)
+#: rcl_action's status topic (rcl_action_qos_profile_status_default): latched.
+ACTION_STATUS = QoS(Reliability.RELIABLE, Durability.TRANSIENT_LOCAL, 1)
+#: tf2_ros: a TransformListener's /tf and the latched /tf_static.
+TF = QoS(Reliability.RELIABLE, Durability.VOLATILE, 100)
+TF_STATIC = QoS(Reliability.RELIABLE, Durability.TRANSIENT_LOCAL, 1)

@@ -7,6 +7,12 @@ is the first ``vision_msgs/Detection2DArray`` stamped at or after arrival. Stopp
 waypoints is how the detector "cancels" a goal. Each goal carries a unique stamp, so sending it
 again after a lost message is harmless: the robot answers a repeated goal without moving.
 
+With ``[navigation] interface = "navigate_to_pose"`` each waypoint is a goal of Nav2's action
+instead: arrival is the goal's SUCCEEDED result (Nav2's own tolerance decides), the view is the
+first one stamped at or after it; a goal without a result in ``arrival_s`` is cancelled
+(``cancel_goal``) and sent again as a new goal; a rejected or aborted goal fails the search.
+The pose comes from odometry or, with ``[pose] source = "tf"``, from map → base_link in /tf.
+
 Every wait has a deadline; a robot that does not answer raises :class:`RobotError` saying what
 was asked, what was last heard and when.
 """
@@ -14,6 +20,7 @@ was asked, what was last heard and when.
 from __future__ import annotations
 
 import itertools
+import logging
 import math
 import threading
 import time
@@ -23,10 +30,18 @@ from typing import Any
 from objsearch.agent.geometry import Point, Pose, heading, wrap_angle
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
+from objsearch.pipeline.bags.tf import TransformBuffer, TransformError
 from objsearch.runtime import messages as m
+from objsearch.runtime.action import STATUS_NAMES, STATUS_SUCCEEDED, ActionClient, new_goal_id
 from objsearch.runtime.config import RuntimeConfig
-from objsearch.runtime.errors import RobotError
+from objsearch.runtime.errors import MessageError, RobotError
+from objsearch.runtime.interfaces import NAVIGATE_TO_POSE
 from objsearch.runtime.node import Node, Requester
+
+log = logging.getLogger("objsearch.agent")
+
+#: TF samples older than this (robot time) behind the newest are dropped (tf2 keeps 10 s).
+TF_CACHE_NS = 10 * 10**9
 
 
 class RobotLink:
@@ -43,14 +58,43 @@ class RobotLink:
         self.heard_at = 0.0  # monotonic time of the last message from the robot
         self._views: list[tuple[int, int, tuple[Detection, ...]]] = []  # (arrival no, stamp, dets)
         self._received = itertools.count()
-        self.goal_pub = node.publisher(t.goal, m.POSE_STAMPED, q.goal)
+        nav = config.navigation
+        self.navigator: ActionClient | None = None
+        if nav.interface == "navigate_to_pose":
+            self.navigator = ActionClient(node, nav.action, NAVIGATE_TO_POSE)
+        else:
+            self.goal_pub = node.publisher(t.goal, m.POSE_STAMPED, q.goal)
         self.opener = Requester(node, t.open, t.open_result, q.requests)
-        node.subscribe(t.odometry, m.ODOMETRY, q.odometry, self._on_odometry)
+        if config.pose.source == "tf":
+            self.tf = TransformBuffer()
+            node.subscribe(t.tf, m.TF, q.tf, self._on_tf)
+            node.subscribe(t.tf_static, m.TF, q.tf_static, lambda msg: self._on_tf(msg, True))
+        else:
+            node.subscribe(t.odometry, m.ODOMETRY, q.odometry, self._on_odometry)
         node.subscribe(t.detections, m.DETECTIONS, q.detections, self._on_detections)
 
     def _on_odometry(self, msg: Any) -> None:
-        pose = m.pose_of_odometry(msg)
-        ns = m.stamp_ns(msg.header)
+        self._set_pose(m.pose_of_odometry(msg), m.stamp_ns(msg.header))
+
+    def _on_tf(self, msg: Any, static: bool = False) -> None:
+        frames = self.config.pose
+        with self._cond:
+            try:
+                for parent, child, ns, xyz, q in m.transforms_of(msg):
+                    self.tf.add(parent, child, ns, xyz, q, static=static)
+            except TransformError as exc:
+                raise MessageError(str(exc)) from None
+            at = self.tf.latest_common_ns(frames.map_frame, frames.base_frame)
+            if at is None:
+                return  # not connected yet (or all static): no pose
+            try:
+                pose = m.pose_of_matrix(self.tf.lookup(frames.map_frame, frames.base_frame, at))
+            except TransformError:
+                return  # the frames are not connected yet
+            self.tf.forget_before(at - TF_CACHE_NS)
+        self._set_pose(pose, at)
+
+    def _set_pose(self, pose: Pose, ns: int) -> None:
         with self._cond:
             if ns >= self.pose_ns:
                 self.pose, self.pose_ns = pose, ns
@@ -115,12 +159,20 @@ class RosWorld:
         #: The last pose the robot was sent to (or told it turned to): odometry within tolerance
         #: of it reads as exactly it, so the agent plans on the numbers it asked for.
         self._commanded: Pose | None = None
+        #: Nav2 said SUCCEEDED at ``_commanded``: within its tolerance, which is its business.
+        self._arrived = False
+
+    def _pose_topic(self) -> str:
+        c = self.link.config
+        if c.pose.source == "tf":
+            return f"{c.topics.tf} ({c.pose.map_frame} → {c.pose.base_frame})"
+        return c.topics.odometry
 
     def wait_for_robot(self, timeout_s: float) -> Pose:
         pose = self.link.wait(lambda: self.link.pose, timeout_s)
         if pose is None:
             raise RobotError(
-                f"no odometry on {self.link.config.topics.odometry} within {timeout_s:g} s: "
+                f"no pose on {self._pose_topic()} within {timeout_s:g} s: "
                 "is the robot up, on the same transport and domain, with matching QoS?"
             )
         return pose  # type: ignore[no-any-return]
@@ -135,17 +187,18 @@ class RosWorld:
 
         if not self.link.wait(fresh, timeout_s):
             raise RobotError(
-                f"no fresh odometry on {self.link.config.topics.odometry} within {timeout_s:g} s; "
+                f"no fresh pose on {self._pose_topic()} within {timeout_s:g} s; "
                 f"{self.link.silence()}"
             )
         self._commanded = None
+        self._arrived = False
         return self.pose()
 
     def pose(self) -> Pose:
         pose = self.link.pose
         if pose is None:
             pose = self.wait_for_robot(self.timeouts.robot_s)
-        if self._commanded is not None and self._at(self._commanded):
+        if self._commanded is not None and (self._arrived or self._at(self._commanded)):
             return self._commanded
         return self.navmap_pose(pose)
 
@@ -170,6 +223,8 @@ class RosWorld:
 
     def _drive(self, goal: Pose, *, view: bool) -> tuple[Detection, ...]:
         """Send one goal (again if need be) and wait for arrival and, with ``view``, the view."""
+        if self.link.navigator is not None:
+            return self._drive_action(self.link.navigator, goal, view=view)
         goal_stamp = time.time_ns() + next(self._goal_ids)  # unique: the goal's identity
         msg = m.pose_stamped(goal, goal_stamp)
         mark = self.link.mark()
@@ -197,6 +252,62 @@ class RosWorld:
             f"the robot did not {'reach' if not view else 'reach and view from'} "
             f"({goal.x:.2f}, {goal.y:.2f}, yaw {goal.yaw:.2f}) after {t.attempts} attempts "
             f"of {t.arrival_s:g} s; {self.link.silence()}"
+        )
+
+    def _drive_action(self, nav: ActionClient, goal: Pose, *, view: bool) -> tuple[Detection, ...]:
+        t = self.timeouts
+        where = f"({goal.x:.2f}, {goal.y:.2f}, yaw {goal.yaw:.2f})"
+        what = f"{nav.name} goal to {where}"
+        mark = self.link.mark()
+        self._arrived = False
+        for attempt in range(1, t.attempts + 1):
+            goal_id = new_goal_id()
+            request = m.types()[f"{NAVIGATE_TO_POSE}_Goal"](
+                pose=m.pose_stamped(goal, self.link.clock_ns),
+                behavior_tree=self.link.config.navigation.behavior_tree,
+            )
+            accepted = nav.send_goal(goal_id, request, t.robot_s)
+            if accepted is None:
+                raise RobotError(
+                    f"no answer to {what} (send_goal) within {t.robot_s:g} s; {self.link.silence()}"
+                )
+            if not accepted.accepted:
+                raise RobotError(f"the robot rejected the {what}")
+            outcome = nav.get_result(goal_id, t.arrival_s)
+            if outcome is None:
+                # Stuck, or the result was lost: stop that goal before sending another.
+                code = nav.cancel(goal_id, t.robot_s)
+                log.warning(
+                    "%s: no result within %g s (attempt %d); cancel_goal answered %s",
+                    what,
+                    t.arrival_s,
+                    attempt,
+                    code,
+                )
+                continue
+            if outcome.status != STATUS_SUCCEEDED:
+                raise RobotError(
+                    f"the {what} ended {STATUS_NAMES.get(outcome.status, outcome.status)}"
+                )
+            self._commanded, self._arrived = goal, True
+            if not view:
+                return ()
+            arrival_ns = max(accepted.stamp_ns, self.link.clock_ns)
+
+            def viewed(since: int = arrival_ns) -> bool:
+                return self.link.view_after(mark, since) is not None
+
+            if self.link.wait(viewed, t.detections_s):
+                view_dets = self.link.view_after(mark, arrival_ns)
+                assert view_dets is not None
+                return view_dets
+            raise RobotError(
+                f"no camera view after the {what} succeeded within {t.detections_s:g} s; "
+                f"{self.link.silence()}"
+            )
+        raise RobotError(
+            f"the {what} had no result after {t.attempts} attempts of {t.arrival_s:g} s "
+            f"(each cancelled); {self.link.silence()}"
         )
 
     def navigate(

@@ -9,9 +9,16 @@ the same stamp is answered from the last reply without moving.
 ``/objsearch_sim/reset`` ({scene, start}) places the objects of a schedule scene and the robot at
 a start, as a simulator's reset service would; a real robot has no such topic.
 
+With ``[navigation] interface = "navigate_to_pose"`` it serves Nav2's action instead of the
+goal topic: it accepts each goal, drives it as above (publishing odometry, TF and views), then
+finishes it SUCCEEDED; a cancelled goal ends CANCELED. It always publishes /tf (map → odom →
+base_link, with a fixed map → odom offset) beside odometry, for ``[pose] source = "tf"``.
+
 Faults for tests: ``drop_every`` drops every n-th outgoing view or odometry message; ``exit_after``
 stops answering (the process exits) after that many goals; ``malformed_after`` sends garbage
-once after that many goals.
+once after that many goals. Action mode only: the n-th goal is rejected (``reject_after``),
+aborted (``abort_after``), never answered (``mute_after``: send_goal gets no reply from then on)
+or accepted and never finished (``stall_after``: only a cancel ends it).
 """
 
 from __future__ import annotations
@@ -26,8 +33,10 @@ from typing import Any
 from objsearch.agent.geometry import Point, Pose
 from objsearch.agent.session import load_context
 from objsearch.runtime import messages as m
+from objsearch.runtime.action import STATUS_ABORTED, STATUS_CANCELED, STATUS_SUCCEEDED, ActionServer
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import MessageError
+from objsearch.runtime.interfaces import NAVIGATE_TO_POSE
 from objsearch.runtime.node import Node, Server
 from objsearch.runtime.transport import open_transport
 from objsearch.sim.longterm import PAUSE_BETWEEN_TASKS_S
@@ -42,6 +51,10 @@ class Faults:
     drop_every: int = 0
     exit_after: int = 0
     malformed_after: int = 0
+    reject_after: int = 0
+    abort_after: int = 0
+    mute_after: int = 0
+    stall_after: int = 0
 
 
 class StandInRobot:
@@ -66,11 +79,23 @@ class StandInRobot:
         self.node = Node(open_transport(config.transport))
         t, q = config.topics, config.qos
         self._odom = self.node.publisher(t.odometry, m.ODOMETRY, q.odometry)
+        self._tf = self.node.publisher(t.tf, m.TF, q.tf)
         self._views = self.node.publisher(t.detections, m.DETECTIONS, q.detections)
         self._inbox: queue.Queue[tuple[str, Any]] = queue.Queue()
-        self.node.subscribe(
-            t.goal, m.POSE_STAMPED, q.goal, lambda msg: self._inbox.put(("goal", msg))
-        )
+        self.action: ActionServer | None = None
+        if config.navigation.interface == "navigate_to_pose":
+            self.action = ActionServer(
+                self.node,
+                config.navigation.action,
+                NAVIGATE_TO_POSE,
+                self._on_action_goal,
+                lambda goal_id: self._inbox.put(("cancel", goal_id)),
+                lambda: self.world.now_ns(),
+            )
+        else:
+            self.node.subscribe(
+                t.goal, m.POSE_STAMPED, q.goal, lambda msg: self._inbox.put(("goal", msg))
+            )
         self._open = Server(self.node, t.open, t.open_result, q.requests)
         self._reset = Server(self.node, t.sim_reset, t.sim_reset_result, q.requests)
         self._last_goal: tuple[int, Pose] | None = None
@@ -102,7 +127,9 @@ class StandInRobot:
         pub.publish(msg)
 
     def _publish_pose(self) -> None:
-        self._send(self._odom, m.odometry(self.world.pose(), self.world.now_ns()))
+        pose, ns = self.world.pose(), self.world.now_ns()
+        self._send(self._odom, m.odometry(pose, ns))
+        self._tf.publish(m.tf(pose, ns))
 
     def _publish_views(self, views: list[Any]) -> None:
         for view in views:
@@ -122,6 +149,43 @@ class StandInRobot:
             log.info("fault: sending a malformed detections message")
             self._views._pub.publish(b"\x00\x01\x00\x00garbage")
         self._last_goal = (goal_id, goal)
+        views = self._move(goal)
+        self._last_views = views
+        self._publish_pose()
+        self._publish_views(views)
+
+    def _on_action_goal(self, goal_id: bytes, goal: Any) -> bool | None:
+        """On a middleware thread: accept (queue for the main loop), reject, or stay silent."""
+        f = self.faults
+        n = self.goals + 1
+        if f.mute_after and n >= f.mute_after:
+            log.info("fault: no answer to send_goal %d", n)
+            return None
+        self.goals = n
+        if f.reject_after and n == f.reject_after:
+            log.info("fault: rejecting goal %d", n)
+            return False
+        self._inbox.put(("action", (goal_id, goal, n)))
+        return True
+
+    def _on_action(self, goal_id: bytes, goal: Any, n: int) -> None:
+        assert self.action is not None
+        f = self.faults
+        if f.stall_after and n == f.stall_after:
+            log.info("fault: goal %d accepted and never finished", n)
+            self.action.executing(goal_id)
+            return
+        if f.abort_after and n == f.abort_after:
+            log.info("fault: aborting goal %d", n)
+            self.action.finish(goal_id, STATUS_ABORTED)
+            return
+        views = self._move(m.pose_of_pose_stamped(goal.pose))
+        self._publish_pose()
+        self._publish_views(views)
+        self.action.finish(goal_id, STATUS_SUCCEEDED)
+
+    def _move(self, goal: Pose) -> list[Any]:
+        """Drive to ``goal`` along the viewpoint graph; the views taken on the way."""
         here = self.world.pose()
         target = self._viewpoint(goal)
         views: list[Any] = []
@@ -136,9 +200,7 @@ class StandInRobot:
                 )
             if self.world.pose().yaw != goal.yaw:
                 self.world.navigate(target, final_yaw=goal.yaw)  # turn in place, no view
-        self._last_views = views
-        self._publish_pose()
-        self._publish_views(views)
+        return views
 
     def _viewpoint(self, goal: Pose) -> Point:
         point = min(
@@ -192,6 +254,10 @@ class StandInRobot:
                     continue
                 if kind == "goal":
                     self._on_goal(msg)
+                elif kind == "action":
+                    self._on_action(*msg)
+                elif kind == "cancel" and self.action is not None:
+                    self.action.finish(msg, STATUS_CANCELED)
         finally:
             self.node.close()
         return 0

@@ -2,8 +2,9 @@
 
 Two backends implement it: :mod:`objsearch.runtime.zenoh_transport` (what ``rmw_zenoh_cpp`` puts
 on the wire) and :mod:`objsearch.runtime.dds_transport` (what ``rmw_cyclonedds_cpp`` does). The
-agent's requests and results (search requests, container openings) are topic pairs with a
-correlation id in the JSON body, so they work the same over both.
+agent's own requests and results (search requests, container openings) are topic pairs with a
+correlation id in the JSON body, so they work the same over both; ROS 2 services (Nav2's action)
+are request/reply the way each RMW does them.
 """
 
 from __future__ import annotations
@@ -18,18 +19,39 @@ from objsearch.runtime.qos import QoS
 
 #: Called with the CDR bytes of each message, on a middleware thread.
 Handler = Callable[[bytes], None]
+#: Sends the CDR bytes of a service's response to the request it was handed with.
+Responder = Callable[[bytes], None]
+#: Called with a request's CDR bytes on a middleware thread; answers through the responder, now
+#: or later (an action's get_result is answered when the goal ends), exactly once.
+ServiceHandler = Callable[[bytes, Responder], None]
 
 
 class Publisher(Protocol):
     def publish(self, cdr: bytes) -> None: ...
 
 
+class ServiceClient(Protocol):
+    def call(self, request: bytes, timeout_s: float) -> bytes | None:
+        """The response's CDR bytes, or None if none came within ``timeout_s`` (the request is
+        sent again while no server is matched, so a call made during discovery still lands)."""
+        ...
+
+
 class Transport(Protocol):
-    """One ROS 2 participant (a node's worth of publishers and subscriptions)."""
+    """One ROS 2 participant (a node's worth of publishers, subscriptions, services, clients).
+
+    A service is named like a topic (``/navigate_to_pose/_action/send_goal``); ``srvtype`` is
+    the service type (``nav2_msgs/action/NavigateToPose_SendGoal``), whose ``_Request`` and
+    ``_Response`` messages are in the typestore (:mod:`objsearch.runtime.interfaces`).
+    """
 
     def publisher(self, topic: str, msgtype: str, qos: QoS) -> Publisher: ...
 
     def subscribe(self, topic: str, msgtype: str, qos: QoS, handler: Handler) -> None: ...
+
+    def serve(self, service: str, srvtype: str, handler: ServiceHandler) -> None: ...
+
+    def client(self, service: str, srvtype: str) -> ServiceClient: ...
 
     def close(self) -> None: ...
 

@@ -3,7 +3,11 @@
 * key expression ``<domain>/<topic without leading />/<pkg>::msg::dds_::<Name>_/RIHS01_<hash>``;
 * a liveliness token per node, publisher and subscription under ``@ros2_lv/<domain>/…``;
 * each sample carries an attachment: sequence number (int64 LE), source timestamp (ns since the
-  epoch, int64 LE), the GID length (one byte, 16) and the publisher's 16-byte GID.
+  epoch, int64 LE), the GID length (one byte, 16) and the publisher's 16-byte GID;
+* a service is a queryable (declared complete) on ``<domain>/<service>/<pkg>::srv::dds_::Name_/
+  RIHS01_<hash of the service type>``; a client's request is a ``get`` (target ALL_COMPLETE, no
+  consolidation) with the attachment above carrying its sequence number and GID, and the reply
+  echoes the sequence number and GID with its own timestamp. Tokens ``SS`` and ``SC``.
 """
 
 from __future__ import annotations
@@ -18,10 +22,12 @@ from typing import Any
 
 from objsearch.runtime.errors import TransportError
 from objsearch.runtime.messages import dds_type_name, type_hash
-from objsearch.runtime.qos import QoS
-from objsearch.runtime.transport import Handler, TransportConfig
+from objsearch.runtime.qos import SERVICES, QoS
+from objsearch.runtime.transport import Handler, ServiceHandler, TransportConfig
 
 GID_SIZE = 16
+#: How often a client asks again while no server answers (discovery still under way).
+RETRY_S = 0.2
 
 
 def topic_key(domain_id: int, topic: str, msgtype: str) -> str:
@@ -76,6 +82,38 @@ class _ZenohPublisher:
         self._pub.put(cdr, attachment=attachment(seq, time.time_ns(), self._gid))
 
 
+class _ZenohClient:
+    def __init__(self, transport: ZenohTransport, key: str, gid: bytes) -> None:
+        self._transport = transport
+        self._key = key
+        self._gid = gid
+        self._seq = itertools.count(1)
+        self._lock = threading.Lock()
+
+    def call(self, request: bytes, timeout_s: float) -> bytes | None:
+        import zenoh
+
+        deadline = time.monotonic() + timeout_s
+        while (left := deadline - time.monotonic()) > 0:
+            with self._lock:
+                seq = next(self._seq)
+            start = time.monotonic()
+            replies = self._transport.session.get(
+                self._key,
+                payload=request,
+                attachment=attachment(seq, time.time_ns(), self._gid),
+                target=zenoh.QueryTarget.ALL_COMPLETE,
+                consolidation=zenoh.ConsolidationMode.NONE,
+                timeout=left,
+            )
+            for reply in replies:
+                if reply.ok is not None:
+                    return bytes(reply.ok.payload.to_bytes())
+            # No server yet (the get ends at once): wait a little and ask again.
+            time.sleep(max(0.0, RETRY_S - (time.monotonic() - start)))
+        return None
+
+
 class ZenohTransport:
     def __init__(self, config: TransportConfig) -> None:
         try:
@@ -114,8 +152,9 @@ class ZenohTransport:
     def publisher(self, topic: str, msgtype: str, qos: QoS) -> _ZenohPublisher:
         entity = next(self._entities)
         self._tokens.append(self._token(entity, "MP", topic, msgtype, qos))
-        gid = (self.session_id.encode() + entity.to_bytes(4, "little") + os.urandom(16))[:GID_SIZE]
-        return _ZenohPublisher(self, topic_key(self.config.domain_id, topic, msgtype), gid)
+        return _ZenohPublisher(
+            self, topic_key(self.config.domain_id, topic, msgtype), self._gid(entity)
+        )
 
     def subscribe(self, topic: str, msgtype: str, qos: QoS, handler: Handler) -> None:
         entity = next(self._entities)
@@ -126,6 +165,46 @@ class ZenohTransport:
 
         key = topic_key(self.config.domain_id, topic, msgtype)
         self._subscribers.append(self.session.declare_subscriber(key, on_sample))
+
+    def serve(self, service: str, srvtype: str, handler: ServiceHandler) -> None:
+        entity = next(self._entities)
+        self._tokens.append(self._token(entity, "SS", service, srvtype, SERVICES))
+        gid = self._gid(entity)
+
+        def on_query(query: Any) -> None:
+            try:
+                seq, _, client_gid = parse_attachment(bytes(query.attachment.to_bytes()))
+            except (AttributeError, ValueError):  # not a ROS 2 client: answer it all the same
+                seq, client_gid = 0, gid
+            payload = query.payload
+            request = bytes(payload.to_bytes()) if payload is not None else b""
+            lock = threading.Lock()
+
+            def respond(response: bytes) -> None:
+                # Kept alive by this closure until answered (get_result answers late); the
+                # query is finished (dropped) right after its one reply.
+                with lock:
+                    query.reply(
+                        query.key_expr,
+                        response,
+                        attachment=attachment(seq, time.time_ns(), client_gid),
+                    )
+                    query.drop()
+
+            handler(request, respond)
+
+        key = topic_key(self.config.domain_id, service, srvtype)
+        self._subscribers.append(self.session.declare_queryable(key, on_query, complete=True))
+
+    def client(self, service: str, srvtype: str) -> _ZenohClient:
+        entity = next(self._entities)
+        self._tokens.append(self._token(entity, "SC", service, srvtype, SERVICES))
+        return _ZenohClient(
+            self, topic_key(self.config.domain_id, service, srvtype), self._gid(entity)
+        )
+
+    def _gid(self, entity: int) -> bytes:
+        return (self.session_id.encode() + entity.to_bytes(4, "little") + os.urandom(16))[:GID_SIZE]
 
     def close(self) -> None:
         if self._closed:

@@ -119,6 +119,30 @@ class TransformBuffer:
             edge.samples.insert(i, sample)
         self.latest_ns = stamp_ns if self.latest_ns is None else max(self.latest_ns, stamp_ns)
 
+    def latest_common_ns(self, target: str, source: str) -> int | None:
+        """tf2's "time 0": the newest stamp at which every dynamic transform from ``source`` up
+        to ``target`` can be looked up (None: the chain is all static, or broken)."""
+        latest: int | None = None
+        frame, hops = source, 0
+        while frame != target:
+            edge = self._edges.get(frame)
+            if edge is None or hops > len(self._edges):
+                return None
+            if not edge.static:
+                latest = edge.stamps[-1] if latest is None else min(latest, edge.stamps[-1])
+            frame, hops = edge.parent, hops + 1
+        return latest
+
+    def forget_before(self, stamp_ns: int) -> None:
+        """Drops dynamic samples older than ``stamp_ns`` but the last of each edge (a live
+        buffer, as tf2's cache time, stays bounded)."""
+        for edge in self._edges.values():
+            if edge.static:
+                continue
+            i = min(bisect.bisect_left(edge.stamps, stamp_ns), len(edge.stamps) - 1)
+            if i > 0:
+                del edge.stamps[:i], edge.samples[:i]
+
     def lookup(self, target: str, source: str, stamp_ns: int) -> Vec:
         """T_target_source: maps points in ``source`` to ``target`` (an ancestor of it)."""
         out = np.eye(4)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Any
 
 import pytest
 from objsearch.agent.geometry import Pose
@@ -137,3 +138,126 @@ def test_dds_qos_mismatch_never_matches() -> None:
         assert got["best_effort"] and not got["reliable"]
     finally:
         t.close()
+
+
+# -- services and actions (sources in docs/runtime.md, "Sources of the interop facts") ----------
+
+#: Published REP-2011 hashes of service and action types (Jazzy): AddTwoInts from rmw_zenoh's
+#: design doc; CancelGoal and GoalStatusArray from `ros2 action info -v` output and several
+#: client libraries; the Fibonacci action's services from one client library's locked table.
+PUBLISHED_SERVICE_HASHES = {
+    "action_msgs/srv/CancelGoal": "RIHS01_573d8b0a534451d7bc2ac8c5ffde8ac14b8593b7001175d0cd6516dcbeb8689a",
+    "action_msgs/msg/GoalStatusArray": "RIHS01_6c1684b00f177d37438febe6e709fc4e2b0d4248dca4854946f9ed8b30cda83e",
+}
+
+
+def _test_store() -> object:
+    from objsearch.runtime import interfaces
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    b = interfaces._Builder()
+    b.add(interfaces._read(interfaces.SERVICE_EVENT_INFO), interfaces.SERVICE_EVENT_INFO)
+    b.service("example_interfaces/srv/AddTwoInts", "int64 a\nint64 b\n", "int64 sum\n")
+    b.action(
+        "action_tutorials_interfaces/action/Fibonacci",
+        "int32 order\n",
+        "int32[] sequence\n",
+        "int32[] partial_sequence\n",
+    )
+    store.register({k: v for k, v in b.result().items() if k not in store.fielddefs})
+    return store
+
+
+def test_service_and_action_hashes_follow_rosidl() -> None:
+    """The expansion rules (request/response/event, action services) give published hashes."""
+    store: Any = _test_store()
+    assert store.hash_rihs01("example_interfaces/srv/AddTwoInts") == (
+        "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a"
+    )
+    fib = "action_tutorials_interfaces/action/Fibonacci"
+    assert store.hash_rihs01(f"{fib}_SendGoal") == (
+        "RIHS01_a0603060ed69fe2dfbd1a6f3b982a1749957ef346e4a4d2b311a05e305ec37bb"
+    )
+    assert store.hash_rihs01(f"{fib}_GetResult") == (
+        "RIHS01_8b47e383f1e31f6d8df6417ab54957e7d5ea24dad315646ad711ac3fdea81d58"
+    )
+    assert store.hash_rihs01(f"{fib}_FeedbackMessage") == (
+        "RIHS01_50fc26b9cac313652ecbeab3adf9b5414d59fd4d4d5f9058ddcc7525169927f1"
+    )
+    for name, published in PUBLISHED_SERVICE_HASHES.items():
+        assert m.type_hash(name) == published
+
+
+def test_navigate_to_pose_names() -> None:
+    """Computed, not checked against a published value (none exists for Humble's definition)."""
+    from objsearch.runtime.action import topics
+    from objsearch.runtime.dds_transport import service_topics
+
+    t = topics("/navigate_to_pose")
+    srv = "nav2_msgs/action/NavigateToPose_SendGoal"
+    assert topic_key(0, t["send_goal"], srv) == (
+        "0/navigate_to_pose/_action/send_goal/nav2_msgs::action::dds_::NavigateToPose_SendGoal_/"
+        + m.type_hash(srv)
+    )
+    assert topic_key(0, t["cancel_goal"], "action_msgs/srv/CancelGoal").endswith(
+        "/action_msgs::srv::dds_::CancelGoal_/"
+        + PUBLISHED_SERVICE_HASHES["action_msgs/srv/CancelGoal"]
+    )
+    assert service_topics(t["send_goal"]) == (
+        "rq/navigate_to_pose/_action/send_goalRequest",
+        "rr/navigate_to_pose/_action/send_goalReply",
+    )
+    # Humble's result is std_msgs/Empty: one byte after the encapsulation.
+    result = m.default("nav2_msgs/action/NavigateToPose_Result")
+    assert m.encode(result, "nav2_msgs/action/NavigateToPose_Result") == bytes.fromhex("0001000000")
+
+
+def test_dds_request_header_keeps_the_message_bytes() -> None:
+    """cdds_request_header_t (64-bit client id, 64-bit sequence number) leads the sample; the
+    declared Cyclone type serialises wrapped requests byte for byte."""
+    from objsearch.runtime.action import _goal_info
+    from objsearch.runtime.dds_transport import idl_type, unwrap, wrap
+
+    name = "action_msgs/srv/CancelGoal_Request"
+    cdr = m.encode(m.types()[name](goal_info=_goal_info(bytes(range(16)), 5)), name)
+    data = wrap(cdr, 0x0102030405060708, 42)
+    assert data[4:20] == (0x0102030405060708).to_bytes(8, "little") + (42).to_bytes(8, "little")
+    assert unwrap(data) == (0x0102030405060708, 42, cdr)
+    cls = idl_type(name, request_header=True)
+    assert bytes(cls.deserialize(data).serialize()) == data
+
+
+def test_tf_composes_map_odom_base() -> None:
+    """The stand-in's /tf (map → odom offset, odom → base_link) read through the TF buffer gives
+    the robot's map pose; odom → base_link alone would not."""
+    from objsearch.pipeline.bags.tf import TransformBuffer
+
+    pose = Pose(2.25, -1.5, 0.75)
+    msg = m.decode(m.encode(m.tf(pose, 7_000), m.TF), m.TF)
+    buf = TransformBuffer()
+    for parent, child, ns, xyz, q in m.transforms_of(msg):
+        buf.add(parent, child, ns, xyz, q)
+    at = buf.latest_common_ns("map", "base_link")
+    assert at == 7_000
+    got = m.pose_of_matrix(buf.lookup("map", "base_link", at))
+    assert (got.x, got.y) == (pose.x, pose.y) and math.isclose(got.yaw, pose.yaw)
+    odom_only = m.pose_of_matrix(buf.lookup("odom", "base_link", at))
+    assert (odom_only.x, odom_only.y) != (pose.x, pose.y)
+
+
+def test_navigation_and_pose_config() -> None:
+    from objsearch.runtime.config import RuntimeConfig
+    from objsearch.runtime.errors import RuntimeConfigError
+
+    c = RuntimeConfig.from_mapping(
+        {
+            "navigation": {"interface": "navigate_to_pose", "action": "/r1/navigate_to_pose"},
+            "pose": {"source": "tf", "base_frame": "base_footprint"},
+        }
+    )
+    assert c.navigation.action == "/r1/navigate_to_pose" and c.pose.base_frame == "base_footprint"
+    with pytest.raises(RuntimeConfigError, match="interface must be goal_pose or navigate_to_pose"):
+        RuntimeConfig.from_mapping({"navigation": {"interface": "move_base"}})
+    with pytest.raises(RuntimeConfigError, match="source must be odometry or tf"):
+        RuntimeConfig.from_mapping({"pose": {"source": "gps"}})
