@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -86,7 +87,7 @@ def render_rearr(run: dict[str, Any], rows: Sequence[Row], folder: Path) -> str:
     seeds = sorted({r.seed for r in rows})
     homes = list(run["homes"])
     scenes = int(run["scenes"])
-    strategies = sorted({r.strategy for r in rows if r.update_mode == "all"})
+    strategies = list(dict.fromkeys(r.strategy for r in rows if r.update_mode == "all"))
     cmd = (
         f"objsearch bench homes --out {folder} --homes {','.join(homes)} "
         f"--schedules {','.join(run.get('schedules', kinds))} --seeds {len(seeds)} "
@@ -105,12 +106,18 @@ def render_rearr(run: dict[str, Any], rows: Sequence[Row], folder: Path) -> str:
             "",
         ]
     keys = list(summary["overall"])
-    per_home = [f"{'home':12}" + "".join(f"{f'{k} {kind}':>24}" for k in keys for kind in kinds)]
+    per_home = [f"{'home':12}" + "".join(f"{k:>20}" for k in keys)]
     for home, per in summary["by_home_schedule"].items():
-        per_home.append(
-            f"{home:12}"
-            + "".join(f"{per.get(kind, {}).get(k, math.nan):24.2f}" for k in keys for kind in kinds)
+        cells = (
+            " / ".join(f"{per.get(kind, {}).get(k, math.nan):.2f}" for kind in kinds) for k in keys
         )
+        per_home.append(f"{home:12}" + "".join(f"{c:>20}" for c in cells))
+    failed = {
+        kind: Counter(
+            r.target for r in rows if not r.success and schedule_kind(r.placements) == kind
+        )
+        for kind in kinds
+    }
     by = summary["by_schedule"]
     notes = []
     for kind in kinds:
@@ -138,10 +145,19 @@ def render_rearr(run: dict[str, Any], rows: Sequence[Row], folder: Path) -> str:
         )
         stats0 = homes_summary([r for r in rows if r.placements == "stats-0"])["overall"]
         notes.append(
-            "- Cross-check with docs/results.md (`stats-0`, same ten iTHOR homes, 3 scenes): "
+            "- Cross-check: the `stats-0` runs alone give "
             + ", ".join(f"{k} {s['mean_path_length']:.2f} m" for k, s in stats0.items())
-            + ' here; docs/results.md\'s "ithor homes" rows come from the same schedules.'
+            + '; compare docs/results.md\'s "ithor homes" rows (the same `stats-0` schedules '
+            "when that run used these homes and scenes)."
         )
+    notes.append(
+        "- Failed searches by target: "
+        + "; ".join(
+            f"{kind}: " + (", ".join(f"{t} {n}" for t, n in c.most_common()) or "none")
+            for kind, c in failed.items()
+        )
+        + " (every strategy and start counted)."
+    )
     move_lines = [
         f"- {kind}: an object changes its static in {m['static']:.0%} and its room in "
         f"{m['room']:.0%} of {m['steps']} scene-to-scene steps"
@@ -179,7 +195,7 @@ length is below WPL's.
 ```
 {chr(10).join(tables).rstrip()}
 ```
-Mean path length (m) per home (mean over seeds):
+Mean path length (m) per home, mean over seeds ({" / ".join(kinds)}):
 ```
 {chr(10).join(per_home)}
 ```
