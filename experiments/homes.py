@@ -1,5 +1,6 @@
-"""``objsearch bench homes``: every strategy on homes we did not tune on, with schedules drawn from
-AI2-THOR placement statistics (one schedule per seed)."""
+"""``objsearch bench homes``: every strategy on homes we did not tune on, with seeded schedules (one
+per seed and kind): ``stats`` drawn from AI2-THOR placement statistics, ``rearr`` taken from real
+AI2-THOR rearrangement episodes (iTHOR-based homes only)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,8 @@ from objsearch.agent.home import available_homes
 from objsearch.experiments.metrics import mean_std, summarise
 from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, write_rows
 from objsearch.experiments.strategies import STRATEGIES, strategy
+from objsearch.sim.rearr_schedule import homes_with_rearrangement
+from objsearch.sim.schedules import SEEDED_KINDS, UnknownScheduleError
 
 
 def heldout_homes() -> tuple[str, ...]:
@@ -33,6 +36,7 @@ def homes_jobs(
     *,
     scenes: int | None = None,
     targets: Sequence[str] = TARGETS,
+    schedules: Sequence[str] = ("stats",),
 ) -> list[Job]:
     known = set(available_homes())
     unknown = [h for h in homes if h not in known]
@@ -42,36 +46,79 @@ def homes_jobs(
         )
     for name in strategies:
         strategy(name)
+    bad = [k for k in schedules if k not in SEEDED_KINDS]
+    if bad or not schedules:
+        raise UnknownScheduleError(
+            f"unknown schedule kind(s) {', '.join(bad) or '(none given)'}; "
+            f"expected a comma-separated subset of {', '.join(SEEDED_KINDS)}"
+        )
+    if "rearr" in schedules:
+        have = set(homes_with_rearrangement())
+        missing = [h for h in homes if h not in have]
+        if missing:
+            raise ObjsearchError(
+                f"home(s) {', '.join(missing)} have no rearrangement data (the AI2-THOR "
+                "rearrangement episodes cover iTHOR FloorPlans only); homes with data: "
+                f"{', '.join(sorted(have))}; use --schedules stats for the others"
+            )
     scene_ids = tuple(range(1, scenes + 1)) if scenes else None
     jobs = []
     for home in homes:
-        for seed in range(seeds):
-            spec = f"stats-{seed}"
-            for name in strategies:
-                jobs.append(Job("homes", home, spec, name, "all", seed, tuple(targets), scene_ids))
-            if "wpl" in strategies:
-                jobs.append(
-                    Job("homes", home, spec, "wpl", "none", seed, tuple(targets), scene_ids)
-                )
+        for kind in schedules:
+            for seed in range(seeds):
+                spec = f"{kind}-{seed}"
+                for name in strategies:
+                    jobs.append(
+                        Job("homes", home, spec, name, "all", seed, tuple(targets), scene_ids)
+                    )
+                if "wpl" in strategies:
+                    jobs.append(
+                        Job("homes", home, spec, "wpl", "none", seed, tuple(targets), scene_ids)
+                    )
     return jobs
+
+
+def schedule_kind(spec: str) -> str:
+    return spec.partition("-")[0]
 
 
 def _key(r: Row) -> str:
     return r.strategy if r.update_mode == "all" else f"{r.strategy}/{r.update_mode}"
 
 
+def _with_spread(rows: Sequence[Row]) -> dict[str, Any]:
+    """Metrics of ``rows`` and their spread: over (home, schedule) runs, each one mean path length,
+    and over seeds, each the mean of its runs."""
+    lengths: dict[tuple[str, str], list[float]] = {}
+    seed_of: dict[tuple[str, str], int] = {}
+    for r in rows:
+        lengths.setdefault((r.home, r.placements), []).append(r.path_length)
+        seed_of[(r.home, r.placements)] = r.seed
+    per_run = {hs: statistics.fmean(v) for hs, v in sorted(lengths.items())}
+    per_seed = [
+        statistics.fmean(v for hs, v in per_run.items() if seed_of[hs] == s)
+        for s in sorted(set(seed_of.values()))
+    ]
+    _, sd = mean_std(list(per_run.values()))
+    _, sd_seed = mean_std(per_seed)
+    return {
+        **summarise(rows),
+        "runs": len(per_run),
+        "std_over_runs": sd,
+        "std_over_seeds": sd_seed,
+    }
+
+
 def homes_summary(rows: Sequence[Row]) -> dict[str, Any]:
     keys = list(dict.fromkeys(_key(r) for r in rows))
-    out: dict[str, Any] = {"overall": {}, "by_family": {}, "by_home": {}}
+    out: dict[str, Any] = {"overall": {}, "by_schedule": {}, "by_family": {}, "by_home": {}}
     for k in keys:
         mine = [r for r in rows if _key(r) == k]
-        # Spread over (home, schedule) runs: each run is one mean path length.
-        runs = sorted({(r.home, r.seed) for r in mine})
-        per_run = [
-            statistics.fmean(r.path_length for r in mine if (r.home, r.seed) == hs) for hs in runs
-        ]
-        _, sd = mean_std(per_run)
-        out["overall"][k] = {**summarise(mine), "runs": len(runs), "std_over_runs": sd}
+        out["overall"][k] = _with_spread(mine)
+        for kind in sorted({schedule_kind(r.placements) for r in mine}):
+            out["by_schedule"].setdefault(kind, {})[k] = _with_spread(
+                [r for r in mine if schedule_kind(r.placements) == kind]
+            )
         for fam in sorted({family(r.home) for r in mine}):
             out["by_family"].setdefault(fam, {})[k] = summarise(
                 r for r in mine if family(r.home) == fam
@@ -79,20 +126,35 @@ def homes_summary(rows: Sequence[Row]) -> dict[str, Any]:
         for home in sorted({r.home for r in mine}):
             out["by_home"].setdefault(home, {})[k] = summarise(r for r in mine if r.home == home)
     # Wins: in how many (home, schedule) runs each strategy beats the paper's WPL.
-    wpl: dict[tuple[str, int], list[float]] = {
-        (r.home, r.seed): [] for r in rows if _key(r) == "wpl"
-    }
+    lengths: dict[tuple[str, str, str], list[float]] = {}
     for r in rows:
-        if _key(r) == "wpl":
-            wpl[(r.home, r.seed)].append(r.path_length)
+        lengths.setdefault((_key(r), r.home, r.placements), []).append(r.path_length)
+    run_mean = {key: statistics.fmean(v) for key, v in lengths.items()}
     for k in keys:
-        wins = total = 0
-        for hs, base in wpl.items():
-            lengths = [r.path_length for r in rows if _key(r) == k and (r.home, r.seed) == hs]
-            if lengths and base:
-                total += 1
-                wins += statistics.fmean(lengths) < statistics.fmean(base) - 1e-9
-        out["overall"][k]["runs_better_than_wpl"] = f"{wins}/{total}"
+        for kind in [None, *out["by_schedule"]]:
+            wins = total = 0
+            for (key, home, spec), base in run_mean.items():
+                if key != "wpl" or (kind and schedule_kind(spec) != kind):
+                    continue
+                own = run_mean.get((k, home, spec))
+                if own is not None:
+                    total += 1
+                    wins += own < base - 1e-9
+            target = out["overall"] if kind is None else out["by_schedule"][kind]
+            if k in target:
+                target[k]["runs_better_than_wpl"] = f"{wins}/{total}"
+    # Per home and schedule kind: the paired view (same home, same strategy, other schedules).
+    by_hs: dict[str, dict[str, dict[str, list[float]]]] = {}
+    for (k, home, spec), mean in sorted(run_mean.items()):
+        by_hs.setdefault(home, {}).setdefault(schedule_kind(spec), {}).setdefault(k, []).append(
+            mean
+        )
+    out["by_home_schedule"] = {
+        home: {
+            kind: {k: statistics.fmean(v) for k, v in per.items()} for kind, per in kinds.items()
+        }
+        for home, kinds in by_hs.items()
+    }
     return out
 
 
@@ -108,6 +170,14 @@ def render(summary: dict[str, Any]) -> str:
             f"{k:20}{s['n']:7d}{s['mean_path_length']:9.2f}{s['std_over_runs']:7.2f}{s['success_rate']:9.1%}"
             f"{s['spl']:7.3f}{s['oracle_ratio']:9.2f}{s['runs_better_than_wpl']:>8}"
         )
+    if len(summary.get("by_schedule", {})) > 1:
+        for kind, per in summary["by_schedule"].items():
+            lines.append(f"\n{kind} schedules: mean path length (m) ±runs / SPL")
+            for k, s in per.items():
+                lines.append(
+                    f"  {k:20}{s['mean_path_length']:8.2f}{s['std_over_runs']:7.2f}"
+                    f"{s['spl']:8.3f}  success {s['success_rate']:.1%}"
+                )
     for fam, per in summary["by_family"].items():
         lines.append(f"\n{fam} homes: mean path length (m) / SPL")
         for k, s in per.items():
@@ -126,11 +196,12 @@ def run_homes(
     scenes: int | None = None,
     workers: int = 2,
     progress: bool = True,
+    schedules: Sequence[str] = ("stats",),
 ) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     homes = list(homes) if homes else list(heldout_homes())
     strategies = list(strategies) if strategies else list(STRATEGIES)
-    jobs = homes_jobs(homes, strategies, seeds, scenes=scenes)
+    jobs = homes_jobs(homes, strategies, seeds, scenes=scenes, schedules=schedules)
     started = time.perf_counter()
     rows = run_jobs(jobs, workers=workers, progress=progress, label="bench homes")
     elapsed = time.perf_counter() - started
@@ -139,6 +210,7 @@ def run_homes(
         "command": "objsearch bench homes",
         "homes": homes,
         "seeds": list(range(seeds)),
+        "schedules": list(schedules),
         "scenes": scenes or 10,
         "workers": workers,
         "elapsed_s": round(elapsed, 1),

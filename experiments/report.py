@@ -278,6 +278,10 @@ strategy's mean path length is below the paper's WPL.
 
 {verdict}
 
+Schedules taken from real AI2-THOR rearrangement episodes (`rearr-<seed>`, iTHOR homes) have
+their own generated page: [results-rearrangement.md](results-rearrangement.md)
+(`objsearch bench report --rearr <bench homes output>`).
+
 ## Route and scene graph
 {route}.
 

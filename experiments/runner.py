@@ -10,13 +10,12 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import HomeContext, Session, load_context
 from objsearch.experiments.strategies import strategy
-from objsearch.sim.schedule import Placements, Schedule, base_placements, table1_removals
-from objsearch.sim.stats_schedule import stats_schedule
+from objsearch.sim.schedule import Placements, base_placements, table1_removals
+from objsearch.sim.schedules import load_schedule
 from objsearch.sim.world import SimClock, SimWorld
 from tqdm import tqdm
 
@@ -26,8 +25,9 @@ PAUSE_BETWEEN_TASKS_S = 60.0
 
 @dataclass(frozen=True)
 class Job:
-    """``placements``: ``table1`` (the paper's Table I scene), ``table2`` (its Table II schedule)
-    or ``stats-<seed>`` (a schedule drawn from AI2-THOR placement statistics with that seed)."""
+    """``placements``: ``table1`` (the paper's Table I scene), ``table2`` (its Table II schedule),
+    ``stats-<seed>`` (a schedule drawn from AI2-THOR placement statistics with that seed) or
+    ``rearr-<seed>`` (one taken from real AI2-THOR rearrangement episodes, ``sim/schedules.py``)."""
 
     experiment: str
     home: str
@@ -68,15 +68,7 @@ def scenes_of(ctx: HomeContext, spec: str) -> dict[int, Placements]:
     """Scene number → placements for a placement source (see :class:`Job`)."""
     if spec == "table1":
         return {0: base_placements(ctx.home, table1_removals(ctx.home))}
-    if spec.startswith("stats-"):
-        try:
-            seed = int(spec.removeprefix("stats-"))
-        except ValueError:
-            raise ObjsearchError(
-                f"placement source {spec!r}: expected stats-<integer seed>"
-            ) from None
-        return dict(stats_schedule(ctx.home, seed).scenes)
-    return dict(Schedule.load(ctx.home, spec).scenes)
+    return dict(load_schedule(ctx.home, spec).scenes)
 
 
 def run_job(job: Job) -> list[Row]:

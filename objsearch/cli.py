@@ -64,7 +64,8 @@ def _config(args: argparse.Namespace) -> Any:
 def cmd_search(args: argparse.Namespace) -> int:
     from objsearch.agent.scene_graph import UpdateMode
     from objsearch.agent.session import Session, load_context
-    from objsearch.sim.schedule import Schedule, base_placements, table1_removals
+    from objsearch.sim.schedule import base_placements, table1_removals
+    from objsearch.sim.schedules import load_schedule
     from objsearch.sim.world import SimClock, SimWorld
 
     ctx = load_context(args.home)
@@ -74,7 +75,7 @@ def cmd_search(args: argparse.Namespace) -> int:
     if args.scene is None:
         placements = base_placements(ctx.home, table1_removals(ctx.home))
     else:
-        schedule = Schedule.load(ctx.home, args.schedule)
+        schedule = load_schedule(ctx.home, args.schedule)
         if args.scene not in schedule.scenes:
             return _fail(
                 f"schedule {args.schedule!r} has scenes {sorted(schedule.scenes)}, not {args.scene}"
@@ -214,7 +215,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="place objects as in this scene of the schedule "
         "(default: the home's own placements, with the paper's Table I removals)",
     )
-    search.add_argument("--schedule", default="table2", help="placement schedule (table2)")
+    search.add_argument(
+        "--schedule",
+        default="table2",
+        help="placement schedule: table2, stats-<seed> or rearr-<seed> (table2)",
+    )
     search.add_argument("--log", help="event log folder to append to (default: a temporary one)")
     search.add_argument(
         "--update-mode",

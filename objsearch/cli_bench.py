@@ -60,6 +60,7 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
         scenes=args.scenes,
         workers=_workers(args),
         progress=not args.no_progress and not args.json,
+        schedules=[k.strip() for k in args.schedules.split(",") if k.strip()],
     )
     if args.json:
         print(json.dumps(_headline(summary), indent=2))
@@ -74,6 +75,16 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
 def cmd_bench_report(args: argparse.Namespace) -> int:
     from objsearch.experiments.report import write_report
 
+    missing = [d for d in (args.paper, args.homes) if not (Path(d) / "summary.json").is_file()]
+    if args.rearr:
+        from objsearch.experiments.report_rearr import RESULTS_FILE, write_rearr_report
+
+        target = Path(args.rearr_out) if args.rearr_out else Path(args.out).parent / RESULTS_FILE
+        print(f"wrote {write_rearr_report(Path(args.rearr), target)}")
+        # results.md needs both other runs; without them only the rearrangement page is written.
+        if missing:
+            print(f"kept {args.out}: no bench summary in {', '.join(missing)}")
+            return 0
     path = write_report(Path(args.paper), Path(args.homes), Path(args.out), Path(args.img))
     print(f"wrote {path}")
     return 0
@@ -113,6 +124,13 @@ def register(sub: Any) -> None:
     homes.add_argument("--homes", help="comma-separated home names (default: all but 'paper')")
     homes.add_argument("--seeds", type=int, default=1, help="schedules per home, seeds 0..N-1 (1)")
     homes.add_argument("--scenes", type=int, help="scenes per schedule (10)")
+    homes.add_argument(
+        "--schedules",
+        default="stats",
+        help="comma-separated schedule kinds, each run with seeds 0..N-1: stats (drawn from "
+        "AI2-THOR placement statistics), rearr (real rearrangement episodes; iTHOR homes only) "
+        "(stats)",
+    )
     homes.set_defaults(func=cmd_bench_homes)
 
     report = bsub.add_parser("report", help="write docs/results.md from bench outputs")
@@ -120,4 +138,13 @@ def register(sub: Any) -> None:
     report.add_argument("--homes", default="out/bench-homes", help="bench homes output folder")
     report.add_argument("--out", default="docs/results.md")
     report.add_argument("--img", default="docs/img", help="folder for the PNG plots")
+    report.add_argument(
+        "--rearr",
+        help="a bench homes output with --schedules rearr[,stats]: also write "
+        "docs/results-rearrangement.md (results.md only if --paper and --homes outputs exist)",
+    )
+    report.add_argument(
+        "--rearr-out",
+        help="where the rearrangement page goes (beside --out: results-rearrangement.md)",
+    )
     report.set_defaults(func=cmd_bench_report)

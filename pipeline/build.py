@@ -18,9 +18,11 @@ from .more_homes import HELDOUT_SEED, PROCTHOR_FILES, heldout_ithor_homes
 from .placement_stats import placement_stats_json
 from .procthor import build_procthor_home
 from .provenance import provenance_md, sha256
+from .rearrangement import REARRANGEMENT, SUPPORT_TOLERANCE_M, load_episodes, rearrangement_json
+from .room_objects import SUPPORT_RADIUS_M
 from .scenario import table1
 from .schedule import table2
-from .sources import VG_MATRIX, load_cooccurrence
+from .sources import VG_MATRIX, load_cooccurrence, load_scene
 from .vg_prior import vg_prior_json
 from .vocabulary import vocabulary_json
 
@@ -146,7 +148,7 @@ def build_data(
     extra: list[str] = []
     extra_files: dict[str, list[Path]] = {}
     if more_homes if more_homes is not None else homes is None:
-        extra, extra_files = _more_homes(source, outputs, notes, normalised, say)
+        extra, extra_files = _more_homes(source, outputs, notes, normalised, say, built)
     outputs["PROVENANCE.md"] = provenance_md(
         source, normalised, default, sorted(outputs), extra=extra, extra_files=extra_files
     )
@@ -166,8 +168,10 @@ def _more_homes(
     notes: list[str],
     homes: Mapping[str, Sequence[str]],
     say: Callable[[str], None],
+    built: Mapping[str, Home],
 ) -> tuple[list[str], dict[str, list[Path]]]:
-    """Held-out iTHOR homes, ProcTHOR houses and placement statistics; provenance lines."""
+    """Held-out iTHOR homes, ProcTHOR houses, placement statistics and rearrangement placements
+    (for ``built`` and the held-out iTHOR homes); provenance lines."""
     from .placement_stats import ASSETS, RECEPTACLES
 
     say("held-out iTHOR homes")
@@ -225,4 +229,44 @@ def _more_homes(
         "procthor_houses": sorted(Path(rel) for _, rel in PROCTHOR_FILES),
         "procthor_db": [ASSETS, RECEPTACLES],
     }
-    return lines, files
+    rearr_lines, files["rearrangement"] = _rearrangement(
+        source, [*built.values(), *heldout], outputs, notes, say
+    )
+    return [*lines, *rearr_lines], files
+
+
+def _rearrangement(
+    source: Path,
+    homes: Sequence[Home],
+    outputs: dict[str, str],
+    notes: list[str],
+    say: Callable[[str], None],
+) -> tuple[list[str], list[Path]]:
+    """``rearrangement/<home>.json`` for every iTHOR home; provenance lines and files read."""
+    say("rearrangement placements")
+    episodes = load_episodes(source)
+    lines = [
+        f"- `rearrangement/<home>.json`: per room, the poses of our targets in the 50 "
+        f"episodes of its FloorPlan (`{REARRANGEMENT.as_posix()}`, target and starting poses), "
+        "converted like the homes (Unity -> REP-103, the room's offset) and attributed to the "
+        f"static whose box is within {SUPPORT_TOLERANCE_M} m of the object's bottom centre (top "
+        f"nearest that height, then centre nearest), else the nearest static box within "
+        f"{SUPPORT_RADIUS_M} m; poses near no static are dropped (`pipeline/rearrangement.py`):",
+    ]
+    for home in homes:
+        scenes = {
+            r.source_scene: load_scene(source, r.source_scene, f"the rearrangement of {home.name}")
+            for r in home.rooms
+        }
+        doc, counts = rearrangement_json(home, scenes, episodes, source)
+        outputs[f"rearrangement/{home.name}.json"] = jsonio.dumps(doc, inline_rows=True)
+        lines.append(
+            f"  - `rearrangement/{home.name}.json`: {counts.kept} poses kept, "
+            f"{counts.dropped} dropped (no static within {SUPPORT_RADIUS_M} m), {counts.absent} "
+            "absent from their episode"
+        )
+        notes.append(
+            f"rearrangement/{home.name}: {counts.kept} kept, {counts.dropped} dropped, "
+            f"{counts.absent} absent"
+        )
+    return lines, list(episodes.files)

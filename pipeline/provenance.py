@@ -9,7 +9,7 @@ from pathlib import Path
 
 from .room_objects import OPENABLE_NOT_CONTAINER, PREFERRED_PART, SUPPORT_RADIUS_M
 from .rooms import FLOOR_CONTACT_M, NOT_OBSTACLES
-from .sourceinfo import ALL_SOURCES, EXTRA_SOURCES, SourceInfo
+from .sourceinfo import ALL_SOURCES, EXTRA_SOURCES, REARRANGEMENT, SourceInfo
 from .sources import VG_MATRIX, layout_path, openable_path, scene_path
 
 
@@ -130,6 +130,16 @@ def provenance_md(
         "for AI). The derived homes are modified (converted, filtered, translated) forms of that "
         "metadata. Full text: `shared/data/ai2thor/ithor_scenes/LICENSE.procthor`, "
         "https://www.apache.org/licenses/LICENSE-2.0.",
+        *(
+            [
+                "- Apache-2.0: AI2-THOR Rearrangement episodes from allenai/ai2thor-rearrangement "
+                f"({REARRANGEMENT.copyright}), {REARRANGEMENT.revision}. `rearrangement/*.json` "
+                "are modified (converted, attributed, filtered) forms of their poses. Full text: "
+                f"`shared/data/{REARRANGEMENT.licence_file.as_posix()}`.",
+            ]
+            if files.get(REARRANGEMENT.key)
+            else []
+        ),
         "- The paper's Table I and Table II are facts transcribed from Zhou et al., \"Long-term "
         'object search using incremental scene graph updating".',
         "",

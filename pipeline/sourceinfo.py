@@ -89,4 +89,16 @@ PROCTHOR_DB = SourceInfo(
     copyright="Copyright 2022 Allen Institute for AI",
 )
 
-EXTRA_SOURCES: tuple[SourceInfo, ...] = (PROCTHOR_HOUSES, PROCTHOR_DB)
+REARRANGEMENT = SourceInfo(
+    key="rearrangement",
+    local=Path("ai2thor/rearrangement"),
+    repo="allenai/ai2thor-rearrangement",
+    revision="commit 7fcf881b09ddd88be37ee87bbeea319c01e62bc4",
+    commit="7fcf881b09ddd88be37ee87bbeea319c01e62bc4",
+    upstream_path="data/2022/{train,val}.pkl.gz (converted to JSON by the shared-data curators)",
+    licence="Apache-2.0",
+    licence_file=Path("ai2thor/rearrangement/LICENSE.ai2thor-rearrangement"),
+    copyright="Copyright 2021 Allen Institute for AI",
+)
+
+EXTRA_SOURCES: tuple[SourceInfo, ...] = (PROCTHOR_HOUSES, PROCTHOR_DB, REARRANGEMENT)

@@ -34,6 +34,11 @@ class ThorObject:
     pickupable: bool
     openable: bool
     parents: tuple[str, ...]
+    # The object's own name (``Cup_dc95d5e8``), pivot position and yaw: what the rearrangement
+    # episodes give for a pose, so their poses can be tied to this box.
+    name: str = ""
+    position: Vec3 | None = None
+    yaw_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -102,6 +107,9 @@ def load_scene(source: Path, floorplan: str, needed_for: str) -> ThorScene:
                 pickupable=bool(o["pickupable"]),
                 openable=bool(o["openable"]),
                 parents=tuple(str(p) for p in o.get("parentReceptacles") or ()),
+                name=str(o.get("name", "")),
+                position=_vec(o["position"]) if "position" in o else None,
+                yaw_deg=float(o["rotation"]["y"]) if "rotation" in o else 0.0,
             )
             for o in raw["objects"]
         )

@@ -40,7 +40,8 @@ from objsearch.runtime.interfaces import NAVIGATE_TO_POSE
 from objsearch.runtime.node import Node, Server
 from objsearch.runtime.transport import open_transport
 from objsearch.sim.longterm import PAUSE_BETWEEN_TASKS_S
-from objsearch.sim.schedule import Placements, Schedule, base_placements, table1_removals
+from objsearch.sim.schedule import Placements, base_placements, table1_removals
+from objsearch.sim.schedules import load_schedule
 from objsearch.sim.world import SimClock, SimWorld
 
 log = logging.getLogger("objsearch.robot")
@@ -70,7 +71,7 @@ class StandInRobot:
     ) -> None:
         self.config = config
         self.ctx = load_context(config.home)
-        self.schedule = Schedule.load(self.ctx.home, schedule)
+        self.schedule = load_schedule(self.ctx.home, schedule)
         self.faults = faults
         self.heartbeat_s = heartbeat_s
         self.clock = SimClock()

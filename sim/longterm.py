@@ -10,7 +10,7 @@ from objsearch.agent.errors import DataFileError
 from objsearch.agent.policy import SearchConfig
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
-from objsearch.sim.schedule import Schedule
+from objsearch.sim.schedules import load_schedule
 from objsearch.sim.world import SimClock, SimWorld, WorldObserver
 
 TARGET_ORDER = ("Apple", "Cup", "Bowl", "Phone", "Laptop", "Pillow", "Vase", "ToiletPaper")
@@ -43,13 +43,14 @@ def run_schedule(
 ) -> list[Trial]:
     """Search every target from every start in every scene, in that order, on one log.
 
-    Each search is one task: the scene graph is updated (per ``update_mode``) when it ends, so the
+    ``schedule_name`` is any schedule ``sim/schedules.py`` knows: ``table2``, ``stats-<seed>`` or
+    ``rearr-<seed>``. Each search is one task: the scene graph is updated (per ``update_mode``) when it ends, so the
     next search, whatever its start, plans with what the previous ones saw. ``starts`` picks
     start points by name (default: all of the home's); ``observer`` sees every pose and camera
     frame (what ``objsearch record`` writes to a bag).
     """
     ctx = load_context(home_name)
-    schedule = Schedule.load(ctx.home, schedule_name)
+    schedule = load_schedule(ctx.home, schedule_name)
     all_starts = ctx.home.starts
     for name in starts or ():
         ctx.home.start(name)  # an unknown start fails before anything is written

@@ -39,11 +39,15 @@ def table1_removals(home: Home, path: Path | None = None) -> frozenset[str]:
 
 @dataclass(frozen=True)
 class Schedule:
-    """Placements per scene (paper Table II): scene number → class → placement."""
+    """Placements per scene (paper Table II): scene number → instance id → placement.
+
+    ``fallback``: classes this schedule places by another source than its own (a ``rearr-<seed>``
+    schedule places classes without rearrangement data as ``stats-<seed>`` does)."""
 
     name: str
     home: str
     scenes: Mapping[int, Placements]
+    fallback: tuple[str, ...] = ()
 
     @classmethod
     def load(cls, home: Home, name: str = "table2", path: Path | None = None) -> Schedule:

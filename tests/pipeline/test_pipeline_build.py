@@ -22,6 +22,7 @@ EXPECTED = {
     *(f"homes/ithor-{i:02d}.json" for i in range(1, 11)),
     *(f"homes/procthor-{i:02d}.json" for i in range(15)),
     "homes/procthor-train1.json",
+    *(f"rearrangement/{h}.json" for h in ["paper", *(f"ithor-{i:02d}" for i in range(1, 11))]),
 }
 
 

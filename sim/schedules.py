@@ -1,0 +1,60 @@
+"""Every kind of placement schedule, by name: the one place that turns a name into a schedule.
+
+- ``table2`` (and any other ``data/schedules/<name>.json``): a schedule written by the converter;
+- ``stats-<seed>``: drawn from AI2-THOR placement statistics (``sim/stats_schedule.py``);
+- ``rearr-<seed>``: taken from real AI2-THOR rearrangement episodes (``sim/rearr_schedule.py``).
+"""
+
+from __future__ import annotations
+
+from objsearch.agent.errors import ObjsearchError
+from objsearch.agent.home import Home
+from objsearch.sim.rearr_schedule import rearr_schedule
+from objsearch.sim.schedule import Schedule
+from objsearch.sim.stats_schedule import SCENES, stats_schedule
+
+from objsearch.paths import data_dir
+
+#: Seeded schedule kinds: ``<kind>-<seed>``.
+SEEDED_KINDS = ("stats", "rearr")
+
+
+class UnknownScheduleError(ObjsearchError, ValueError):
+    """A schedule name that is no file schedule and no ``<kind>-<seed>``."""
+
+
+def file_schedules() -> tuple[str, ...]:
+    return tuple(sorted(p.stem for p in (data_dir() / "schedules").glob("*.json")))
+
+
+def _expected() -> str:
+    return ", ".join([*file_schedules(), *(f"{k}-<seed>" for k in SEEDED_KINDS)])
+
+
+def parse_seeded(name: str) -> tuple[str, int] | None:
+    """``"rearr-3"`` -> ``("rearr", 3)``; None for a file schedule's name; an error if malformed."""
+    kind, sep, seed = name.partition("-")
+    if not sep or kind not in SEEDED_KINDS:
+        return None
+    try:
+        value = int(seed)
+    except ValueError:
+        raise UnknownScheduleError(
+            f"schedule {name!r}: expected {kind}-<integer seed>, e.g. {kind}-0"
+        ) from None
+    if value < 0:
+        raise UnknownScheduleError(f"schedule {name!r}: the seed must be >= 0")
+    return kind, value
+
+
+def load_schedule(home: Home, name: str, *, scenes: int = SCENES) -> Schedule:
+    """The schedule ``name`` for ``home`` (``scenes`` applies to the seeded kinds only)."""
+    seeded = parse_seeded(name)
+    if seeded is not None:
+        kind, seed = seeded
+        if kind == "stats":
+            return stats_schedule(home, seed, scenes=scenes)
+        return rearr_schedule(home, seed, scenes=scenes)
+    if name not in file_schedules():
+        raise UnknownScheduleError(f"unknown schedule {name!r}; expected one of: {_expected()}")
+    return Schedule.load(home, name)
