@@ -2,8 +2,8 @@
 
 A pinhole camera with Kinect-like intrinsics (640×480, 90° horizontal FOV, so f = 320 px) at the
 robot's pose. An object is in view when its centre lies within the horizontal FOV and in the robot's
-room; its mask area is approximated by the projected size of its bounding box; objects inside a
-closed container are hidden unless the robot opened that container for this view. Furniture does
+room; its mask area is the projected area of its bounding box (the faces the camera sees, so a
+phone lying flat shows its top, not only its 1 cm edge); objects inside a closed container are hidden unless the robot opened that container for this view. Furniture does
 not occlude (the paper's simulator reports detections "even far away"; the mask-area threshold is
 what limits range).
 """
@@ -34,11 +34,13 @@ class Camera:
         return abs(wrap_angle(bearing - pose.yaw)) <= self.hfov / 2 + 1e-9
 
     def mask_area(self, pose: Pose, box: Box) -> float:
-        """Projected area of the box in pixels (its widest horizontal side × its height)."""
+        """Projected area of the box in pixels: f² / d² times the area of its orthographic
+        projection along the line of sight, which for a box is Σ face area × |cos| of the angle
+        between the face's normal and the line of sight (the faces turned towards the camera)."""
         dx, dy = box.center[0] - pose.x, box.center[1] - pose.y
         dz = box.center[2] - self.height
         dist = max(math.sqrt(dx * dx + dy * dy + dz * dz), 0.1)
+        sx, sy, sz = box.size
+        projected = (sy * sz * abs(dx) + sx * sz * abs(dy) + sx * sy * abs(dz)) / dist
         f = self.focal_px
-        width_px = min(f * max(box.size[0], box.size[1]) / dist, IMAGE_WIDTH)
-        height_px = min(f * box.size[2] / dist, IMAGE_HEIGHT)
-        return width_px * height_px
+        return min(f * f * projected / (dist * dist), float(IMAGE_WIDTH * IMAGE_HEIGHT))

@@ -57,6 +57,21 @@ def test_camera_sees_only_within_its_field_of_view() -> None:
     assert cam.mask_area(Pose(1.0, 0.0, 0.0), box) == pytest.approx(64 * 64)
 
 
+def test_a_flat_object_seen_from_above_shows_its_top() -> None:
+    # A phone (0.15 × 0.08 × 0.01 m) lying on a bed 1.5 m away, camera 0.5 m above it: its edge
+    # alone is ~30 px, under the 100 px threshold; with its top face (what a camera sees) it is
+    # well above. Straight on, at the camera's height, only the edge shows.
+    cam = Camera()
+    phone = Box((1.5, 0.0, 0.5), (0.15, 0.08, 0.01))
+    d = math.hypot(1.5, 0.5)
+    edge = 320**2 * (0.08 * 0.01 * 1.5 / d) / d**2
+    top = 320**2 * (0.15 * 0.08 * 0.5 / d) / d**2
+    assert cam.mask_area(Pose(0.0, 0.0, 0.0), phone) == pytest.approx(edge + top)
+    assert cam.mask_area(Pose(0.0, 0.0, 0.0), phone) > 100 > edge
+    level = Box((1.5, 0.0, 1.0), (0.15, 0.08, 0.01))
+    assert cam.mask_area(Pose(0.0, 0.0, 0.0), level) == pytest.approx(320**2 * 0.08 * 0.01 / 1.5**2)
+
+
 def test_a_closed_container_hides_its_contents_until_opened() -> None:
     ctx = load_context("paper")
     schedule = Schedule.load(ctx.home, "table2")
