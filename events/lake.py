@@ -4,12 +4,21 @@ Layout (Hive-style, readable by DuckDB, polars, pyarrow and any Parquet reader):
 
     LAKE/robot=<robot>/date=<YYYY-MM-DD>/run=<run>/<event_type>.parquet
     LAKE/robot=<robot>/date=<YYYY-MM-DD>/run=<run>/_run.json      what the run holds
+    LAKE/robot=<robot>/date=<YYYY-MM-DD>/run=<run>/_derived/<name>.v<version>.parquet
     LAKE/.staging/                                               runs being written
 
 A run is committed whole and atomically: its files are written and fsync'ed in a staging
 directory, then the directory is renamed into place, so a reader (or a crash) sees all of a run
 or none of it. Committing the same content again is a no-op (its digest matches), so re-running
 an import never duplicates; different content for an existing run needs ``replace=True``.
+
+Each event table is written sorted by ``seq`` in row groups of 128 Ki rows, so a reader
+filtering on ``seq`` can skip row groups by their min/max statistics. Next to the events, a
+commit writes the run's derived tables (:mod:`objsearch.events.derived`: per-task summaries and
+the Eq. 4 update rows), computed from that run's tables alone; they are not part of the digest
+(they are a function of it), and committing the same content again writes any that are missing
+or of an older version, which is how a lake written by older code is upgraded
+(:meth:`Lake.upgrade` does it for every run).
 
 The lake is where anything that produces events lands: :func:`compact_log` seals an event log
 into it, and other importers (e.g. ROS bags) call :meth:`Lake.commit_events` or
@@ -35,6 +44,7 @@ import pyarrow.parquet as pq
 
 from . import _fs
 from .arrow import event_schema, events_to_tables, tables_to_events
+from .derived import DERIVED_DIR, DERIVED_TABLES, DerivedTable, derive_run
 from .envelope import Event
 from .errors import EventStoreError
 from .log import LOCK_FILE, read_log
@@ -43,6 +53,9 @@ LAKE_FORMAT: Final = "objsearch.lake/1"
 RUN_FILE: Final = "_run.json"
 STAGING: Final = ".staging"
 _NAME: Final = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
+#: Rows per Parquet row group: small enough that a seq range skips most of a 1 M-event run and
+#: that DuckDB has several units of work per file, large enough to compress well.
+ROW_GROUP_ROWS: Final = 1 << 17
 
 
 class LakeError(EventStoreError):
@@ -64,6 +77,10 @@ class RunInfo:
     @property
     def events(self) -> int:
         return sum(self.rows.values())
+
+    def missing_derived(self) -> list[DerivedTable]:
+        """Derived tables this run lacks at their current version (older code wrote it)."""
+        return [d for d in DERIVED_TABLES if not d.path(self.path).is_file()]
 
 
 class Lake:
@@ -103,6 +120,20 @@ class Lake:
         return tables_to_events(
             pq.ParquetFile(p).read() for p in sorted(run.path.glob("*.parquet"))
         )
+
+    def read_tables(self, run: RunInfo) -> dict[str, pa.Table]:
+        """The event tables of one committed run as stored (one per type present)."""
+        return {p.stem: pq.ParquetFile(p).read() for p in sorted(run.path.glob("*.parquet"))}
+
+    def upgrade(self) -> list[RunInfo]:
+        """Write the derived tables every run lacks (a lake written by older code); returns the
+        runs upgraded. Idempotent, and each file appears atomically, so readers never see half."""
+        upgraded = []
+        for info in self.runs():
+            if info.missing_derived():
+                _write_derived(info.path, self.read_tables(info), info)
+                upgraded.append(info)
+        return upgraded
 
     def event_types(self) -> list[str]:
         """Event types with at least one file in the lake."""
@@ -161,7 +192,10 @@ class Lake:
         existing = self.find(robot, run)
         if existing is not None:
             if existing.digest == digest and existing.date == day:
-                return existing  # the same run again: nothing to do
+                # The same run again: nothing to do but add derived tables it may lack.
+                if existing.missing_derived():
+                    _write_derived(existing.path, checked, existing)
+                return existing
             if not replace:
                 raise LakeError(
                     f"{existing.path} already holds run {run!r} of robot {robot!r} with other "
@@ -172,7 +206,12 @@ class Lake:
         _fs.make_dirs(staging)
         try:
             for event_type, table in checked.items():
-                _write_parquet(staging / f"{event_type}.parquet", table)
+                _write_parquet(staging / f"{event_type}.parquet", table.sort_by("seq"))
+            derived = derive_run(checked, robot=robot, date=day, run=run)
+            _fs.make_dirs(staging / DERIVED_DIR)
+            for spec in DERIVED_TABLES:
+                _write_parquet(spec.path(staging), derived[spec.name])
+            _fs.fsync_dir(staging / DERIVED_DIR)
             manifest = {
                 "format": LAKE_FORMAT,
                 "robot": robot,
@@ -254,8 +293,28 @@ def _conform(event_type: str, table: pa.Table) -> pa.Table:
         raise LakeError(f"table for {event_type} cannot be cast to its schema: {exc}") from exc
 
 
+def _write_derived(run_dir: Path, tables: Mapping[str, pa.Table], info: RunInfo) -> None:
+    """Add the missing derived tables to a committed run, each atomically (tmp file, rename)."""
+    derived = derive_run(tables, robot=info.robot, date=info.date, run=info.run)
+    _fs.make_dirs(run_dir / DERIVED_DIR)
+    for spec in info.missing_derived():
+        final = spec.path(run_dir)
+        tmp = final.with_name(f".{final.name}.{uuid.uuid4().hex}.tmp")
+        try:
+            _write_parquet(tmp, derived[spec.name])
+            os.rename(tmp, final)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+        # An older version of the same table is dead weight once the current one is in place.
+        for stale in final.parent.glob(f"{spec.name}.v*.parquet"):
+            if stale != final:
+                stale.unlink()
+    _fs.fsync_dir(run_dir / DERIVED_DIR)
+
+
 def _write_parquet(path: Path, table: pa.Table) -> None:
-    pq.write_table(table, path, compression="zstd", row_group_size=1 << 20)
+    pq.write_table(table, path, compression="zstd", row_group_size=ROW_GROUP_ROWS)
     fd = os.open(path, os.O_RDONLY)
     try:
         os.fsync(fd)

@@ -18,7 +18,7 @@ from .lake import Lake
 from .schemas import default_registry
 
 PARTITION_COLUMNS: Final = (("robot", "VARCHAR"), ("date", "DATE"), ("run", "VARCHAR"))
-_HIVE_TYPES: Final = "{" + ", ".join(f"'{n}': '{t}'" for n, t in PARTITION_COLUMNS) + "}"
+HIVE_TYPES: Final = "{" + ", ".join(f"'{n}': '{t}'" for n, t in PARTITION_COLUMNS) + "}"
 
 
 def quote_ident(name: str) -> str:
@@ -46,7 +46,7 @@ def create_type_views(con: duckdb.DuckDBPyConnection, lake: Lake) -> None:
             pattern = str(lake.root / "robot=*" / "date=*" / "run=*" / f"{event_type}.parquet")
             source = (
                 f"read_parquet({quote_literal(pattern)}, hive_partitioning = true, "
-                f"hive_types = {_HIVE_TYPES}, union_by_name = true)"
+                f"hive_types = {HIVE_TYPES}, union_by_name = true)"
             )
             con.execute(f"CREATE OR REPLACE VIEW {view} AS SELECT * FROM {source}")
         else:

@@ -8,10 +8,12 @@ import duckdb
 import polars as pl
 import pyarrow as pa
 import pyarrow.dataset as ds
+import pyarrow.parquet as pq
 import pytest
 from objsearch.events import EventLog, default_registry, read_log
 from objsearch.events.arrow import event_schema, events_to_tables
-from objsearch.events.lake import Lake, LakeError, compact_log
+from objsearch.events.derived import DERIVED_DIR, DERIVED_TABLES
+from objsearch.events.lake import ROW_GROUP_ROWS, Lake, LakeError, compact_log
 from objsearch.events.sql import connect
 
 from .payloads import EXAMPLES, OLD_EXAMPLES
@@ -111,6 +113,24 @@ def test_recommitting_the_same_run_is_a_no_op(tmp_path: Path) -> None:
     mtime = (first.path / "detection.parquet").stat().st_mtime_ns
     assert compact_log(V1_LOG, lake, robot="sim") == first
     assert (first.path / "detection.parquet").stat().st_mtime_ns == mtime
+
+
+def test_tables_are_written_by_seq_with_the_derived_tables_beside_them(tmp_path: Path) -> None:
+    lake = Lake(tmp_path / "lake")
+    tables = events_to_tables(read_log(V1_LOG))
+    shuffled = {t: table.take(list(range(table.num_rows))[::-1]) for t, table in tables.items()}
+    info = lake.commit_tables(shuffled, robot="sim", run="rev", date="2024-01-01")
+    stored = pq.ParquetFile(info.path / "detection.parquet")
+    seqs = stored.read(columns=["seq"]).column("seq").to_pylist()
+    assert seqs == sorted(seqs) and len(seqs) == tables["detection"].num_rows
+    assert stored.metadata.num_row_groups == -(-len(seqs) // ROW_GROUP_ROWS)
+    assert info.missing_derived() == []
+    assert sorted(p.name for p in (info.path / DERIVED_DIR).iterdir()) == sorted(
+        d.file_name for d in DERIVED_TABLES
+    )
+    # Derived files are not event types and not events.
+    assert lake.event_types() == sorted(tables)
+    assert len(lake.read_events(info)) == sum(t.num_rows for t in tables.values())
 
 
 def test_other_content_for_a_run_needs_replace(tmp_path: Path) -> None:

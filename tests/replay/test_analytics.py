@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 from pathlib import Path
 
 import duckdb
+import pyarrow.parquet as pq
 import pytest
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.events import fold, read_log
+from objsearch.events.arrow import events_to_tables
+from objsearch.events.derived import DERIVED_DIR, DERIVED_TABLES, EQ4_UPDATES
 from objsearch.events.lake import Lake
 from objsearch.replay.analytics import open_analytics
 
@@ -19,9 +23,26 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "analytics.md"
 QUESTIONS = re.findall(r"### (\d+)\. [^\n]*\n.*?```sql\n(.*?)```", DOC.read_text(), re.S)
 
 
-@pytest.fixture(scope="module")
-def con(lake: Lake) -> duckdb.DuckDBPyConnection:
-    return open_analytics(lake.root)
+def _without_derived(lake: Lake, root: Path, runs: set[str]) -> Lake:
+    """A copy of ``lake`` as older code wrote it: ``runs`` have no derived tables."""
+    shutil.copytree(lake.root, root)
+    copy = Lake(root)
+    for info in copy.runs():
+        if info.run in runs:
+            shutil.rmtree(info.path / DERIVED_DIR)
+    return copy
+
+
+# Every test below runs on the lake as committed (derived tables), as older code wrote it (none:
+# every view computes from the events) and mixed, so both paths must give the same answers.
+@pytest.fixture(scope="module", params=["derived", "legacy", "mixed"])
+def con(
+    request: pytest.FixtureRequest, lake: Lake, tmp_path_factory: pytest.TempPathFactory
+) -> duckdb.DuckDBPyConnection:
+    if request.param == "derived":
+        return open_analytics(lake.root)
+    runs = {"robot", "targets"} if request.param == "legacy" else {"targets"}
+    return open_analytics(_without_derived(lake, tmp_path_factory.mktemp("lake") / "l", runs).root)
 
 
 def test_the_doc_has_ten_questions_at_least() -> None:
@@ -61,6 +82,20 @@ def test_closed_form_equals_the_fold_at_every_task_end(
         prior = _graph_sql(con, run, checkpoints[0])
         changed += sum(abs(sql[k] - prior[k]) > 1e-9 for k in prior)
     assert changed > 0  # the updates moved the graph, so the comparison means something
+
+
+@pytest.mark.parametrize("run", ["robot", "targets"])
+def test_scene_graph_is_the_fold_of_the_whole_run(
+    con: duckdb.DuckDBPyConnection, logs: dict[str, Path], run: str
+) -> None:
+    graph = fold(read_log(logs[run]), SceneGraphProjection())
+    rows = con.execute(
+        "SELECT dynamic, static, rel, updates FROM scene_graph WHERE run = ?", [run]
+    ).fetchall()
+    assert {(d, s) for d, s, _, _ in rows} == graph.relations.keys()
+    for d, s, rel, _ in rows:
+        assert rel == pytest.approx(graph.relations[d, s], abs=1e-12), (d, s)
+    assert sum(u for *_, u in rows) > 0
 
 
 def test_targets_mode_updates_only_targets(con: duckdb.DuckDBPyConnection) -> None:
@@ -114,6 +149,60 @@ def test_plans_keep_the_chosen_order(con: duckdb.DuckDBPyConnection, logs: dict[
         (e.seq, list(e.payload["order"]), len(e.payload["candidates"])) for e in plans
     ]
     assert all(r[2] == (r[1][0] if r[1] else None) for r in rows)
+
+
+# --- derived tables --------------------------------------------------------------------------
+
+
+def test_derived_tables_equal_the_live_query(lake: Lake, tmp_path: Path) -> None:
+    legacy = open_analytics(_without_derived(lake, tmp_path / "l", {"robot", "targets"}).root)
+    derived = open_analytics(lake.root)
+    for name, key in (
+        ("searches", "run, task_index"),
+        ("eq4_updates", "run, end_seq, dynamic"),
+        ("scene_graph", "run, dynamic, static"),
+    ):
+        # Sums may add in another order per run than over the lake: Rel to 1e-12.
+        columns = "* REPLACE (round(rel, 12) AS rel)" if name == "scene_graph" else "*"
+        sql = f"SELECT {columns} FROM {name} ORDER BY {key}"
+        rows = derived.execute(sql).fetchall()
+        assert rows and rows == legacy.execute(sql).fetchall(), name
+        assert [d[0] for d in derived.description] == [d[0] for d in legacy.description]
+
+
+def test_a_run_without_derived_tables_is_computed_live_and_upgraded(
+    lake: Lake, tmp_path: Path, logs: dict[str, Path]
+) -> None:
+    old = _without_derived(lake, tmp_path / "l", {"targets"})
+    (info,) = [r for r in old.runs() if r.run == "targets"]
+    assert info.missing_derived() == list(DERIVED_TABLES)
+    before = open_analytics(old.root).execute("SELECT * FROM scene_graph ORDER BY ALL").fetchall()
+    # Committing the same content again adds what is missing, and nothing else changes.
+    tables = events_to_tables(read_log(logs["targets"]))
+    again = old.commit_tables(tables, robot="sim", run="targets", date=info.date)
+    assert again.digest == info.digest and not again.missing_derived()
+    shutil.rmtree(info.path / DERIVED_DIR)
+    assert [r.run for r in old.upgrade()] == ["targets"] and old.upgrade() == []
+    assert all(not r.missing_derived() for r in old.runs())
+    after = open_analytics(old.root).execute("SELECT * FROM scene_graph ORDER BY ALL").fetchall()
+    assert after == before
+
+
+def test_a_derived_table_of_an_older_version_is_not_trusted(lake: Lake, tmp_path: Path) -> None:
+    old = _without_derived(lake, tmp_path / "l", set())
+    (info,) = [r for r in old.runs() if r.run == "targets"]
+    current = EQ4_UPDATES.path(info.path)
+    stale = current.with_name("eq4_updates.v0.parquet")
+    # An older version's rows, made wrong on purpose: if read, the graph would change.
+    table = pq.read_table(current)
+    pq.write_table(table.slice(0, table.num_rows // 2), stale)
+    current.unlink()
+    assert (
+        open_analytics(old.root).execute("SELECT * FROM scene_graph ORDER BY ALL").fetchall()
+        == open_analytics(lake.root).execute("SELECT * FROM scene_graph ORDER BY ALL").fetchall()
+    )
+    old.upgrade()
+    assert current.is_file() and not stale.exists()
 
 
 # --- the command line ----------------------------------------------------------------------------
