@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pyarrow as pa
-from objsearch.events.arrow import events_to_tables
 from objsearch.pipeline.bags.engines import Engine, InlineEngine, ProcessEngine, TaskFailed
 from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.lake import BagLake, LakeWriter, run_name
@@ -65,7 +64,7 @@ def convert_bag(task: BagTask) -> Converted:
         if run_name(identity[0]) in task.known:
             return Converted(path, identity[0], None, already=True)
         contents = read_bag(task.path, task.topic_map, progress=task.progress, identity=identity)
-        return Converted(path, identity[0], contents.report, events_to_tables(contents.events))
+        return Converted(path, identity[0], contents.report, contents.tables())
     except Exception as exc:
         return Converted(path, "", None, error=str(exc) or repr(exc))
 

@@ -28,19 +28,27 @@ from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol, TypeVar
+from typing import Any, Final, Protocol, TypeVar
 
+import numpy as np
+import pyarrow as pa
 from objsearch.events import Event, InvalidEventError, default_registry, deterministic_event_id
+from objsearch.events.arrow import events_to_tables
 from objsearch.events.record import encode_record
 from objsearch.pipeline.bags import fastdecode
 from objsearch.pipeline.bags.errors import BagError
-from objsearch.pipeline.bags.fastdecode import OdomFields, TransformFields
 from objsearch.pipeline.bags.formats import BagFormat, detect, storage_files
+from objsearch.pipeline.bags.posetrack import (
+    POSE_TYPE,
+    PoseSource,
+    PoseTrack,
+    convert_sources,
+    coord,
+)
 from objsearch.pipeline.bags.salvage import Loss, RawConnection, Scan, scan_bag
 from objsearch.pipeline.bags.topics import ACCEPTED_TYPES, CONVERTED, Role, TopicMap
 from objsearch.pipeline.bags.types import Distro, typestore
 
-MAX_COORD_M = 1e5  # a pose or position farther than this from the origin is damage
 PROGRESS_MIN_MESSAGES = 20_000
 MAX_REASONS = 3
 
@@ -62,6 +70,10 @@ class MessageSink(Protocol):
         """Count messages that are not read (from an index)."""
 
     def feed(self, conn_id: int, log_ns: int, raw: bytes, deserialize: Deserialize) -> None: ...
+
+    def end_of_messages(self) -> None:
+        """After the last message, while the reader is still open (its deserialiser works only
+        then): a sink that collected messages converts them now."""
 
     def messages_per_topic(self) -> Counter[str]: ...
 
@@ -144,8 +156,32 @@ class BagReport:
 
 @dataclass(frozen=True, slots=True)
 class BagContents:
+    """A bag's events: the agent's, the derived ones made one by one, and the pose track
+    (columns; by far the most rows)."""
+
     report: BagReport
-    events: tuple[Event, ...]
+    agent: tuple[Event, ...]  # in (stream, seq) order
+    derived: tuple[Event, ...]  # objects_detected, numbered among the poses
+    poses: PoseTrack
+    stream: str  # the derived events' stream
+
+    @property
+    def events(self) -> tuple[Event, ...]:
+        """Every event: the agent's, then the derived ones in seq order."""
+        poses = self.poses.events(self.stream)
+        derived = sorted([*self.derived, *poses], key=lambda e: e.seq)
+        return (*self.agent, *derived)
+
+    def tables(self) -> dict[str, pa.Table]:
+        """The lake's typed tables: ``events_to_tables(self.events)``, with the pose track's
+        table built from its columns instead of an event per pose."""
+        tables = events_to_tables([*self.agent, *self.derived])
+        if len(self.poses):
+            track = self.poses.table(self.stream)
+            if POSE_TYPE in tables:  # the agent's own poses come first, as in self.events
+                track = pa.concat_tables([tables[POSE_TYPE], track]).combine_chunks()
+            tables[POSE_TYPE] = track
+        return dict(sorted(tables.items()))
 
 
 def _iso(ns: int) -> str:
@@ -170,71 +206,7 @@ def bag_identity(path: Path) -> tuple[str, int]:
 # -- conversion -------------------------------------------------------------------------------
 
 
-def _yaw(x: float, y: float, z: float, w: float) -> float:
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if not math.isfinite(norm) or abs(norm - 1.0) > 1e-3:
-        raise ValueError(f"quaternion of norm {norm:.6g} is not a rotation")
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-
-
-def _as_bytes(raw: bytes) -> bytes:
-    # The salvage scanners may hand over memoryviews; the decoders slice and decode bytes.
-    return raw if type(raw) is bytes else bytes(raw)
-
-
-def _odometry_fields(msg: Any) -> OdomFields:
-    p = msg.pose.pose
-    q = p.orientation
-    return (
-        msg.header.frame_id,
-        float(p.position.x),
-        float(p.position.y),
-        float(q.x),
-        float(q.y),
-        float(q.z),
-        float(q.w),
-    )
-
-
-def _transform_fields(msg: Any) -> list[TransformFields]:
-    out = []
-    for tr in msg.transforms:
-        t, q = tr.transform.translation, tr.transform.rotation
-        out.append(
-            (
-                tr.header.frame_id,
-                tr.child_frame_id,
-                float(t.x),
-                float(t.y),
-                float(q.x),
-                float(q.y),
-                float(q.z),
-                float(q.w),
-            )
-        )
-    return out
-
-
-def _coord(v: Any) -> float:
-    f = float(v)
-    if not math.isfinite(f) or abs(f) > MAX_COORD_M:
-        raise ValueError(f"coordinate {f!r} is not plausible")
-    return f
-
-
-@dataclass
-class _Planar:
-    x: float
-    y: float
-    yaw: float
-
-    def compose(self, other: _Planar) -> _Planar:
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        return _Planar(
-            self.x + c * other.x - s * other.y,
-            self.y + s * other.x + c * other.y,
-            math.atan2(math.sin(self.yaw + other.yaw), math.cos(self.yaw + other.yaw)),
-        )
+_POSE_ROLES: Final = frozenset({Role.ODOMETRY, Role.TF, Role.TF_STATIC})
 
 
 @dataclass
@@ -247,7 +219,12 @@ class _TopicState:
 
 
 class Converter:
-    """Turns deserialised messages into events; one per bag."""
+    """Turns a bag's messages into events; one per bag.
+
+    Odometry and TF messages are only collected while the bag is read (:class:`PoseSource`, one
+    per connection) and converted together by :meth:`finish`
+    (:mod:`~objsearch.pipeline.bags.posetrack`); the others are converted as they come.
+    """
 
     def __init__(self, topic_map: TopicMap, bag_id: str, distro: Distro) -> None:
         self.map = topic_map
@@ -257,11 +234,13 @@ class Converter:
         self.topics: dict[int, _TopicState] = {}
         self.skipped: dict[int, tuple[RawConnection, str]] = {}
         self.skipped_messages: Counter[int] = Counter()
-        #: (bag time, topic, arrival, type, payload, from_tf): ordered and numbered by finish().
-        self.derived: list[tuple[int, str, int, str, dict[str, Any], bool]] = []
-        #: Poses in the odom frame, composed with map → odom as of their time by finish().
-        self.odom_poses: list[tuple[int, _Planar, dict[str, Any]]] = []
-        self.map_odom_track: list[tuple[int, _Planar]] = []
+        self.pose_sources: dict[int, PoseSource] = {}
+        #: Other derived events, (bag time, topic, arrival, type, payload): numbered by finish()
+        #: among the poses in (time, topic, arrival) order.
+        self.derived: list[tuple[int, str, int, str, dict[str, Any]]] = []
+        self.arrivals = 0  # converted messages fed so far: the order they came in
+        #: The pose track and the other derived events, numbered: made by end_of_messages().
+        self.numbered: tuple[PoseTrack, list[Event]] | None = None
         self.agent: dict[str, Event] = {}
         self.duplicates = 0
         self.start_ns: int | None = None
@@ -294,6 +273,12 @@ class Converter:
                 self.skipped[c.id] = (c, why)
             else:
                 self.topics[c.id] = _TopicState(c, role)
+                if role in _POSE_ROLES:
+                    tf = role is not Role.ODOMETRY
+                    layouts = fastdecode.TF_LAYOUT if tf else fastdecode.ODOMETRY_LAYOUT
+                    self.pose_sources[c.id] = PoseSource(
+                        c.topic, c.msgtype, tf, layouts[self.distro]
+                    )
 
     def wants(self, conn_id: int) -> bool:
         state = self.topics.get(conn_id)
@@ -322,6 +307,11 @@ class Converter:
         state.messages += 1
         if state.role not in CONVERTED:
             return
+        self.arrivals += 1
+        source = self.pose_sources.get(conn_id)
+        if source is not None:
+            source.add(log_ns, self.arrivals, raw, deserialize)
+            return
         try:
             made = self._convert(state, log_ns, raw, deserialize)
         except InvalidEventError as exc:
@@ -331,107 +321,99 @@ class Converter:
             state.rejected[f"{type(exc).__name__}: {exc}"[:200]] += 1
             return
         state.events += made
-        self.start_ns = log_ns if self.start_ns is None else min(self.start_ns, log_ns)
-        self.end_ns = log_ns if self.end_ns is None else max(self.end_ns, log_ns)
+        self._accepted(log_ns, log_ns)
 
-    def _derive(
-        self, type: str, log_ns: int, topic: str, payload: dict[str, Any], from_tf: bool = False
-    ) -> int:
-        self.derived.append((log_ns, topic, len(self.derived), type, payload, from_tf))
-        return 1
-
-    def _derived_events(self) -> list[Event]:
-        # Poses from TF only where the bag has no odometry; numbered in (time, topic, arrival)
-        # order, which is the same whichever reader (index or scan) delivered the messages.
-        self._compose_odom_poses()
-        has_odometry = any(s.role is Role.ODOMETRY for s in self.topics.values())
-        kept = sorted((d for d in self.derived if not (d[5] and has_odometry)), key=lambda d: d[:3])
-        # Event._adopt: the envelope's types are still checked, but neither a deep copy of a
-        # payload this converter built from checked floats and strings (and owns) nor a parse
-        # of an id deterministic_event_id just formatted. The payload's JSON Schema is enforced
-        # by the lake's typed columns when the tables are built.
-        return [
-            Event._adopt(
-                {
-                    "event_id": deterministic_event_id(self.stream, seq),
-                    "stream": self.stream,
-                    "seq": seq,
-                    "time_ns": log_ns,
-                    "recorded_at_ns": log_ns,
-                    "type": type,
-                    "version": 1,
-                    "task_id": None,
-                    "payload": payload,
-                }
-            )
-            for seq, (log_ns, _, _, type, payload, _) in enumerate(kept, start=1)
-        ]
+    def _accepted(self, first_ns: int, last_ns: int) -> None:
+        self.start_ns = first_ns if self.start_ns is None else min(self.start_ns, first_ns)
+        self.end_ns = last_ns if self.end_ns is None else max(self.end_ns, last_ns)
 
     def _convert(
         self, state: _TopicState, log_ns: int, raw: bytes, deserialize: Deserialize
     ) -> int:
-        role, topic = state.role, state.conn.topic
-        frames = self.map.frames
-        if role is Role.ODOMETRY:
-            odom = fastdecode.ODOMETRY[self.distro](_as_bytes(raw))
-            if odom is None:  # not the standard layout: let rosbags read it
-                odom = _odometry_fields(deserialize(raw, state.conn.msgtype))
-            frame_id, x, y, qx, qy, qz, qw = odom
-            pose = _Planar(_coord(x), _coord(y), _yaw(qx, qy, qz, qw))
-            return self._pose(log_ns, pose, frame_id.lstrip("/") or frames.odom, topic, False)
-        if role in (Role.TF, Role.TF_STATIC):
-            transforms = fastdecode.TF[self.distro](_as_bytes(raw))
-            if transforms is None:
-                transforms = _transform_fields(deserialize(raw, state.conn.msgtype))
-            made = 0
-            for parent_id, child_id, x, y, qx, qy, qz, qw in transforms:
-                parent, child = parent_id.lstrip("/"), child_id.lstrip("/")
-                planar = _Planar(_coord(x), _coord(y), _yaw(qx, qy, qz, qw))
-                if parent == frames.map and child == frames.odom:
-                    self.map_odom_track.append((log_ns, planar))
-                elif child == frames.base and parent in (frames.odom, frames.map):
-                    made += self._pose(log_ns, planar, parent, topic, True)
-            return made
+        topic = state.conn.topic
         msg = deserialize(raw, state.conn.msgtype)
-        if role is Role.DETECTIONS:
-            return self._derive(
-                "objects_detected",
-                log_ns,
-                topic,
-                {
-                    "frame_id": msg.header.frame_id,
-                    "topic": topic,
-                    "detections": [_detection(d) for d in msg.detections],
-                },
-            )
-        if role is Role.EVENTS:
+        if state.role is Role.DETECTIONS:
+            payload = {
+                "frame_id": msg.header.frame_id,
+                "topic": topic,
+                "detections": [_detection(d) for d in msg.detections],
+            }
+            self.derived.append((log_ns, topic, self.arrivals, "objects_detected", payload))
+            return 1
+        if state.role is Role.EVENTS:
             return self._agent_event(msg)
         return 0
 
-    def _pose(self, log_ns: int, pose: _Planar, frame: str, topic: str, from_tf: bool) -> int:
-        payload = {
-            "pose": {"x": pose.x, "y": pose.y, "yaw": pose.yaw},
-            "frame_id": frame,
-            "topic": topic,
-        }
-        if frame == self.map.frames.odom:
-            self.odom_poses.append((log_ns, pose, payload))
-        return self._derive("pose_observed", log_ns, topic, payload, from_tf)
+    def end_of_messages(self) -> None:
+        if self.numbered is None:
+            self.numbered = self._pose_track()
 
-    def _compose_odom_poses(self) -> None:
-        """Put odom-frame poses in the map frame with map → odom as of their time (or the first
-        one known, for poses recorded before it): localisation publishes asynchronously."""
-        if not self.map_odom_track:
-            return
-        import bisect
+    def _pose_track(self) -> tuple[PoseTrack, list[Event]]:
+        """Convert the collected odometry and TF, then number every derived event.
 
-        track = sorted(self.map_odom_track, key=lambda tp: tp[0])
-        times = [t for t, _ in track]
-        for log_ns, pose, payload in self.odom_poses:
-            i = max(bisect.bisect_right(times, log_ns) - 1, 0)
-            p = track[i][1].compose(pose)
-            payload["pose"] = {"x": p.x, "y": p.y, "yaw": p.yaw}
-            payload["frame_id"] = self.map.frames.map
+        Poses from TF only where the bag has no odometry; numbered in (time, topic, arrival)
+        order, which is the same whichever reader (index or scan) delivered the messages.
+        """
+        sources = list(self.pose_sources.items())
+        poses, outcomes = convert_sources([s for _, s in sources], self.map.frames)
+        for (conn_id, _), outcome in zip(sources, outcomes, strict=True):
+            state = self.topics[conn_id]
+            state.events += outcome.events
+            state.rejected.update(outcome.rejected)
+            if outcome.first_ns is not None and outcome.last_ns is not None:
+                self._accepted(outcome.first_ns, outcome.last_ns)
+        if any(s.role is Role.ODOMETRY for s in self.topics.values()):
+            poses = poses.take(~poses.from_tf)
+        topics = sorted({*poses.topics, *(d[1] for d in self.derived)})
+        rank = np.array([topics.index(t) for t in poses.topics] + [0], dtype=np.int64)
+        n_derived = len(self.derived)
+        time = np.concatenate([poses.time, np.array([d[0] for d in self.derived], np.int64)])
+        topic = np.concatenate(
+            [rank[poses.topic], np.array([topics.index(d[1]) for d in self.derived], np.int64)]
+        )
+        arrival = np.concatenate([poses.arrival, np.array([d[2] for d in self.derived], np.int64)])
+        index = np.concatenate([poses.index, np.zeros(n_derived, np.int64)])
+        seq = np.empty(len(time), dtype=np.int64)
+        seq[np.lexsort((index, arrival, topic, time))] = np.arange(1, len(time) + 1)
+        pose_seq = seq[: len(poses.time)]
+        order = np.argsort(pose_seq)
+        track = PoseTrack(
+            pose_seq[order],
+            poses.time[order],
+            poses.x[order],
+            poses.y[order],
+            poses.yaw[order],
+            poses.frame[order],
+            poses.topic[order],
+            poses.frames,
+            poses.topics,
+        )
+        # Event._adopt: the envelope's types are still checked, but no deep copy of a payload
+        # this converter built from checked floats and strings (and owns), nor a parse of an id
+        # deterministic_event_id just formatted. The payload's JSON Schema is enforced by the
+        # lake's typed columns when the tables are built.
+        derived = sorted(
+            (
+                Event._adopt(
+                    {
+                        "event_id": deterministic_event_id(self.stream, s),
+                        "stream": self.stream,
+                        "seq": s,
+                        "time_ns": log_ns,
+                        "recorded_at_ns": log_ns,
+                        "type": type,
+                        "version": 1,
+                        "task_id": None,
+                        "payload": payload,
+                    }
+                )
+                for s, (log_ns, _, _, type, payload) in zip(
+                    seq[len(poses.time) :].tolist(), self.derived, strict=True
+                )
+            ),
+            key=lambda e: e.seq,
+        )
+        return track, derived
 
     def _agent_event(self, msg: Any) -> int:
         try:
@@ -463,7 +445,7 @@ class Converter:
         self.agent[event.event_id] = event
         return 1
 
-    def finish(self) -> tuple[list[Event], list[Loss], list[str]]:
+    def finish(self) -> Finished:
         """All events (the agent's in (stream, seq) order, then derived), gaps as losses."""
         agent = sorted(self.agent.values(), key=lambda e: (e.stream, e.seq))
         losses: list[Loss] = []
@@ -483,7 +465,26 @@ class Converter:
                 )
         if self.duplicates:
             notes.append(f"{self.duplicates} agent event(s) appeared more than once; kept once")
-        return [*agent, *self._derived_events()], losses, notes
+        self.end_of_messages()
+        assert self.numbered is not None
+        poses, derived = self.numbered
+        return Finished(tuple(agent), tuple(derived), poses, losses, notes)
+
+
+@dataclass(frozen=True, slots=True)
+class Finished:
+    agent: tuple[Event, ...]
+    derived: tuple[Event, ...]
+    poses: PoseTrack
+    losses: list[Loss]
+    notes: list[str]
+
+    def event_types(self) -> Counter[str]:
+        types = Counter(e.type for e in self.agent)
+        types.update(e.type for e in self.derived)
+        if len(self.poses):
+            types[POSE_TYPE] += len(self.poses)
+        return types
 
 
 def _topic_rows(conv: Converter) -> tuple[TopicReport, ...]:
@@ -552,7 +553,7 @@ def _detection(d: Any) -> dict[str, Any]:
         if not math.isfinite(score):
             raise ValueError("hypothesis score is not finite")
         pt = best.pose.pose.position
-        position = [_coord(pt.x), _coord(pt.y), _coord(pt.z)]
+        position = [coord(pt.x), coord(pt.y), coord(pt.z)]
     return {
         "instance_id": str(getattr(d, "id", "")),
         "class_id": class_id,
@@ -641,6 +642,7 @@ def _read_anyreader(
             for c, t, raw in reader.messages(connections=wanted):
                 conv.feed(c.id, t, raw, reader.deserialize)
                 bar.update()
+            conv.end_of_messages()
     return expected
 
 
@@ -682,6 +684,7 @@ def _read_salvage(path: Path, fmt: BagFormat, conv: MessageSink, progress: bool)
                 conv.plan([conn], known)
             conv.feed(conn.id, t, raw, deser)
             bar.update()
+        conv.end_of_messages()
     # Connections declared but never seen with a message still belong in the report.
     for scan in scans:
         for conn in scan.connections.values():
@@ -748,10 +751,11 @@ def read_bag(
     )
     losses = list(outcome.losses)
     notes = list(outcome.notes)
-    events, gap_losses, gap_notes = conv.finish()
-    losses.extend(gap_losses)
-    notes.extend(gap_notes)
+    done = conv.finish()
+    losses.extend(done.losses)
+    notes.extend(done.notes)
     losses.extend(unrecovered(outcome, conv))
+    types = done.event_types()
     report = BagReport(
         path=str(path),
         format=fmt.value,
@@ -763,11 +767,11 @@ def read_bag(
         losses=tuple(losses),
         start_ns=conv.start_ns,
         end_ns=conv.end_ns,
-        events=len(events),
-        event_types=dict(Counter(e.type for e in events)),
+        events=sum(types.values()),
+        event_types=dict(types),
         notes=tuple(notes),
     )
-    return BagContents(report, tuple(events))
+    return BagContents(report, done.agent, done.derived, done.poses, conv.stream)
 
 
 def iter_raw(path: Path) -> Iterator[tuple[str, int, object]]:

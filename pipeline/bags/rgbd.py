@@ -213,6 +213,9 @@ class ViewCollector:
     def messages_per_topic(self) -> Counter[str]:
         return Counter(self.counts)
 
+    def end_of_messages(self) -> None:
+        pass  # views are collected as they come
+
     def feed(self, conn_id: int, log_ns: int, raw: bytes, deserialize: Deserialize) -> None:
         entry = self.conns.get(conn_id)
         if entry is None:

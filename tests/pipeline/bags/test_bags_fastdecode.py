@@ -8,7 +8,7 @@ import pytest
 from bag_fixtures import Recorded
 from objsearch.pipeline.bags import fastdecode
 from objsearch.pipeline.bags.formats import detect
-from objsearch.pipeline.bags.read import _odometry_fields, _transform_fields
+from objsearch.pipeline.bags.posetrack import odometry_fields, transform_fields
 from objsearch.pipeline.bags.topics import ACCEPTED_TYPES, Role
 from objsearch.pipeline.bags.types import typestore
 
@@ -17,7 +17,8 @@ TF = ACCEPTED_TYPES[Role.TF]
 
 
 def _compare(bag: Path) -> int:
-    """Decode every odometry and TF message both ways; return how many were compared."""
+    """Decode every odometry and TF message both ways, one by one and in batches per
+    connection; return how many were compared."""
     from rosbags.highlevel import AnyReader
 
     fmt = detect(bag)
@@ -25,14 +26,39 @@ def _compare(bag: Path) -> int:
     with AnyReader([bag], default_typestore=typestore(fmt.distro)) as reader:
         conns = [c for c in reader.connections if c.msgtype in ODOM | TF]
         assert conns, f"{bag} has no odometry or TF to compare"
-        for c, _, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, c.msgtype)
-            if c.msgtype in ODOM:
-                assert fastdecode.ODOMETRY[fmt.distro](raw) == _odometry_fields(msg)
-            else:
-                assert fastdecode.TF[fmt.distro](raw) == _transform_fields(msg)
-            compared += 1
+        for conn in conns:
+            raws, expected = [], []
+            for c, _, raw in reader.messages(connections=[conn]):
+                msg = reader.deserialize(raw, c.msgtype)
+                if c.msgtype in ODOM:
+                    fields = odometry_fields(msg)
+                    assert fastdecode.ODOMETRY[fmt.distro](raw) == fields
+                    expected.append([(fields[0], "", *fields[1:])])
+                else:
+                    transforms = transform_fields(msg)
+                    assert fastdecode.TF[fmt.distro](raw) == transforms
+                    expected.append(transforms)
+                raws.append(raw)
+                compared += 1
+            tf = conn.msgtype in TF
+            layouts = fastdecode.TF_LAYOUT if tf else fastdecode.ODOMETRY_LAYOUT
+            assert _batch(raws, layouts[fmt.distro], tf) == expected
     return compared
+
+
+def _batch(
+    raws: list[bytes], layout: fastdecode.LayoutReader, tf: bool
+) -> list[list[tuple[object, ...]]]:
+    """decode_batch's rows, per message in transform order, as the single decoders give them."""
+    d = fastdecode.decode_batch(raws, layout, tf=tf)
+    assert d.undecoded == ()
+    frames = [*d.frames, ""]  # code -1: no child (odometry)
+    rows = sorted(zip(d.message.tolist(), d.index.tolist(), range(len(d.message)), strict=True))
+    out: list[list[tuple[object, ...]]] = [[] for _ in raws]
+    for m, _, r in rows:
+        values = (float(v[r]) for v in (d.x, d.y, d.qx, d.qy, d.qz, d.qw))
+        out[m].append((frames[d.parent[r]], frames[d.child[r]], *values))
+    return out
 
 
 def test_decoders_agree_with_rosbags_on_recorded_bags(recorded: Recorded) -> None:
@@ -64,3 +90,27 @@ def test_anything_but_the_standard_layout_falls_back(recorded: Recorded) -> None
     assert decode(b"") is None
     if fmt.distro.value == "ros2":
         assert decode(b"\x00\x00" + raw[2:]) is None  # big-endian CDR: not decoded here
+
+
+def test_the_batch_decoder_groups_layouts_and_leaves_the_rest(recorded: Recorded) -> None:
+    from rosbags.highlevel import AnyReader
+
+    fmt = detect(recorded.bag)
+    layout = fastdecode.ODOMETRY_LAYOUT[fmt.distro]
+    with AnyReader([recorded.bag], default_typestore=typestore(fmt.distro)) as reader:
+        [conn] = [c for c in reader.connections if c.topic == "/odom"]
+        raws = [raw for _, _, raw in reader.messages(connections=[conn])][:20]
+    # Same length, other frame names: another layout of the same length, decoded too.
+    renamed = [r.replace(b"odom", b"odoM") for r in raws[:5]]
+    broken = [raws[0][:-8], b"", raws[1] + b"\0" * 8]
+    d = fastdecode.decode_batch([*raws, *renamed, *broken], layout, tf=False)
+    n = len(raws) + len(renamed)
+    assert sorted(d.message.tolist()) == list(range(n))
+    assert d.undecoded == (n, n + 1, n + 2)
+    assert {d.frames[c] for c in d.parent[d.message >= len(raws)].tolist()} == {"odoM"}
+    single = [fastdecode.odometry_fields(r, layout) for r in [*raws, *renamed]]
+    for row, m in enumerate(d.message.tolist()):
+        assert single[m] == (
+            d.frames[d.parent[row]],
+            *(float(v[row]) for v in (d.x, d.y, d.qx, d.qy, d.qz, d.qw)),
+        )
