@@ -107,6 +107,19 @@ def cmd_lake_add(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_lake_upgrade(args: argparse.Namespace) -> int:
+    from objsearch.events.lake import Lake
+
+    lake = Path(args.lake)
+    if not lake.is_dir():
+        return _fail(f"no lake at {lake}")
+    upgraded = Lake(lake).upgrade()
+    for info in upgraded:
+        print(f"{info.path}: derived tables written")
+    print(f"{len(upgraded)} run(s) upgraded; every run now has the current derived tables")
+    return 0
+
+
 def cmd_lake_ls(args: argparse.Namespace) -> int:
     from objsearch.events.lake import Lake
 
@@ -151,3 +164,12 @@ def register(sub: Any) -> None:
     )
     ls.add_argument("--format", choices=["table", "csv", "json"], default="table")
     ls.set_defaults(func=cmd_lake_ls)
+    upgrade = lake_sub.add_parser(
+        "upgrade",
+        help="write the derived tables (searches, eq4_updates, scene_graph) that runs committed "
+        "by older code lack; queries are correct without them, only slower",
+    )
+    upgrade.add_argument(
+        "--lake", default=_default_lake(), help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})"
+    )
+    upgrade.set_defaults(func=cmd_lake_upgrade)

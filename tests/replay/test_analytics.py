@@ -188,6 +188,19 @@ def test_a_run_without_derived_tables_is_computed_live_and_upgraded(
     assert after == before
 
 
+def test_cli_lake_upgrade_writes_what_older_code_left_out(
+    lake: Lake, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    old = _without_derived(lake, tmp_path / "l", {"targets"})
+    assert main(["lake", "upgrade", "--lake", str(old.root)]) == 0
+    assert "1 run(s) upgraded" in capsys.readouterr().out
+    assert all(not r.missing_derived() for r in old.runs())
+    assert main(["lake", "upgrade", "--lake", str(old.root)]) == 0
+    assert "0 run(s) upgraded" in capsys.readouterr().out
+    assert main(["lake", "upgrade", "--lake", str(tmp_path / "missing")]) == 2
+    assert "no lake at" in capsys.readouterr().err
+
+
 def test_a_derived_table_of_an_older_version_is_not_trusted(lake: Lake, tmp_path: Path) -> None:
     old = _without_derived(lake, tmp_path / "l", set())
     (info,) = [r for r in old.runs() if r.run == "targets"]
