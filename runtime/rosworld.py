@@ -239,20 +239,25 @@ class RosWorld:
             self._commanded = goal
             if not view:
                 return ()
-            arrival_ns = self.link.pose_ns
-
-            def viewed(since: int = arrival_ns) -> bool:
-                return self.link.view_after(mark, since) is not None
-
-            if self.link.wait(viewed, t.detections_s):
-                view_dets = self.link.view_after(mark, arrival_ns)
-                assert view_dets is not None
+            view_dets = self._view_at(mark, self.link.pose_ns)
+            if view_dets is not None:
                 return view_dets
         raise RobotError(
             f"the robot did not {'reach' if not view else 'reach and view from'} "
             f"({goal.x:.2f}, {goal.y:.2f}, yaw {goal.yaw:.2f}) after {t.attempts} attempts "
             f"of {t.arrival_s:g} s; {self.link.silence()}"
         )
+
+    def _view_at(self, mark: int, arrival_ns: int) -> tuple[Detection, ...] | None:
+        """The first view received after ``mark`` and stamped at or after ``arrival_ns``, waiting
+        up to the detections timeout; None if none came (an empty view is a view, not None)."""
+        if not self.link.wait(
+            lambda: self.link.view_after(mark, arrival_ns) is not None, self.timeouts.detections_s
+        ):
+            return None
+        view_dets = self.link.view_after(mark, arrival_ns)
+        assert view_dets is not None
+        return view_dets
 
     def _drive_action(self, nav: ActionClient, goal: Pose, *, view: bool) -> tuple[Detection, ...]:
         t = self.timeouts
@@ -292,14 +297,8 @@ class RosWorld:
             self._commanded, self._arrived = goal, True
             if not view:
                 return ()
-            arrival_ns = max(accepted.stamp_ns, self.link.clock_ns)
-
-            def viewed(since: int = arrival_ns) -> bool:
-                return self.link.view_after(mark, since) is not None
-
-            if self.link.wait(viewed, t.detections_s):
-                view_dets = self.link.view_after(mark, arrival_ns)
-                assert view_dets is not None
+            view_dets = self._view_at(mark, max(accepted.stamp_ns, self.link.clock_ns))
+            if view_dets is not None:
                 return view_dets
             raise RobotError(
                 f"no camera view after the {what} succeeded within {t.detections_s:g} s; "
