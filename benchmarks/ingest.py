@@ -27,6 +27,7 @@ import statistics
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 from objsearch.pipeline.bags.engines import Engine, RayEngine
 from objsearch.pipeline.bags.formats import BagFormat, storage_files
@@ -84,18 +85,17 @@ def main() -> None:
             [res] = ingest([bag], lake)
             ing_t.append(time.perf_counter() - t0)
             assert res.error is None and res.committed > 0, res
-            for workers, times in ((1, one_t), (2, two_t)):
-                lake = work / f"lake-{rep}-w{workers}"
-                t0 = time.perf_counter()
-                results = ingest(bags, lake, workers=workers)
-                times.append(time.perf_counter() - t0)
-                assert all(r.error is None for r in results)
-                shutil.rmtree(lake)
+            fleets: list[tuple[str, dict[str, Any], list[float]]] = [
+                ("w1", {"workers": 1}, one_t),
+                ("w2", {"workers": 2}, two_t),
+            ]
             if ray_engine is not None:
-                lake = work / f"lake-{rep}-ray"
+                fleets.append(("ray", {"engine": ray_engine}, ray_t))
+            for label, how, times in fleets:
+                lake = work / f"lake-{rep}-{label}"
                 t0 = time.perf_counter()
-                results = ingest(bags, lake, engine=ray_engine)
-                ray_t.append(time.perf_counter() - t0)
+                results = ingest(bags, lake, **how)
+                times.append(time.perf_counter() - t0)
                 assert all(r.error is None for r in results)
                 shutil.rmtree(lake)
             converted = convert_bag(BagTask(bag, TopicMap()))

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from objsearch.agent.errors import DataFileError
+from objsearch.agent.planner import StopPlanner
 from objsearch.agent.policy import SearchConfig
+from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
 from objsearch.sim.schedules import load_schedule
@@ -40,6 +42,9 @@ def run_schedule(
     starts: Sequence[str] | None = None,
     on_trial: Callable[[Trial], None] | None = None,
     observer: WorldObserver | None = None,
+    params: Mapping[str, object] | None = None,
+    graph: RelationModel | None = None,
+    planner: StopPlanner | None = None,
 ) -> list[Trial]:
     """Search every target from every start in every scene, in that order, on one log.
 
@@ -47,7 +52,9 @@ def run_schedule(
     ``rearr-<seed>``. Each search is one task: the scene graph is updated (per ``update_mode``) when it ends, so the
     next search, whatever its start, plans with what the previous ones saw. ``starts`` picks
     start points by name (default: all of the home's); ``observer`` sees every pose and camera
-    frame (what ``objsearch record`` writes to a bag).
+    frame (what ``objsearch record`` writes to a bag). ``params`` go into ``run_started`` beside
+    the schedule's name; ``graph`` and ``planner`` pick another strategy than the paper's
+    (``Session``'s defaults).
     """
     ctx = load_context(home_name)
     schedule = load_schedule(ctx.home, schedule_name)
@@ -61,7 +68,15 @@ def run_schedule(
             f"schedule {schedule_name!r} has scenes {sorted(schedule.scenes)}, not {unknown_scenes}"
         )
     trials: list[Trial] = []
-    session = Session(ctx, log_dir, config, update_mode, params={"schedule": schedule_name})
+    session = Session(
+        ctx,
+        log_dir,
+        config,
+        update_mode,
+        params={"schedule": schedule_name, **(params or {})},
+        graph=graph,
+        planner=planner,
+    )
     try:
         clock = SimClock(session.resume_time_ns)
         for scene in scenes or sorted(schedule.scenes):

@@ -102,38 +102,22 @@ def test_runs_of_other_strategies_replay_with_their_own_model_and_planner(
     tmp_path: Path, name: str
 ) -> None:
     from objsearch.agent.scene_graph import UpdateMode
-    from objsearch.agent.session import Session
     from objsearch.experiments.strategies import strategy
-    from objsearch.sim.schedule import Schedule
-    from objsearch.sim.world import SimClock, SimWorld
+    from objsearch.sim.longterm import run_schedule
 
-    ctx = load_context("paper")
     chosen = strategy(name)
-    schedule = Schedule.load(ctx.home, "table2")
-    session = Session(
-        ctx,
+    run_schedule(
+        "paper",
         tmp_path,
         chosen.config(0),
         UpdateMode.ALL,
+        scenes=(1, 2),
+        targets=("Apple", "Vase"),
+        starts=("kitchen-2", "bedroom-1"),
         params={"strategy": name},
         graph=chosen.relations(),
         planner=chosen.planner() if chosen.planner else None,
     )
-    try:
-        clock = SimClock(session.resume_time_ns)
-        for scene in (1, 2):
-            for target in ("Apple", "Vase"):
-                for start in ("kitchen-2", "bedroom-1"):
-                    world = SimWorld(
-                        ctx.home,
-                        ctx.navmap,
-                        schedule.scenes[scene],
-                        ctx.home.start(start),
-                        clock=clock,
-                    )
-                    session.search(world, target, start, scene=scene)
-    finally:
-        session.close()
     replayer = replay(read_log(tmp_path))
     assert len(replayer.decisions) >= 8
     assert all(d.same for d in replayer.decisions), [
