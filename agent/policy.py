@@ -7,6 +7,7 @@ projections, so the scene graph the next plan uses is always the fold of what wa
 from __future__ import annotations
 
 import enum
+import logging
 import math
 import random
 from collections.abc import Mapping, Sequence
@@ -29,6 +30,8 @@ from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.semmap import MappedStatic, SemanticMap
 from objsearch.agent.world import Detection, Navigation, World
+
+_log = logging.getLogger(__name__)
 
 LOOK_OFFSETS = (0.0, math.pi / 4, -math.pi / 4)  # θ_s and ±45° (paper §5.1)
 
@@ -69,14 +72,33 @@ class Projection(Protocol):
 
 @dataclass
 class Recorder:
-    """Appends events and folds each one into the live projections."""
+    """Appends events and folds each one into the live projections.
+
+    A stream's time never runs backwards (the log refuses it), but a robot's clock can step back
+    (a restarted simulator, an NTP step): such an event is stamped with the last event's time
+    instead, with one warning per step, so a clock never stops the agent.
+    """
 
     sink: EventSink
     projections: Sequence[Projection]
+    time_floor_ns: int = 0
+    _behind: bool = field(default=False, init=False)
 
     def record(
         self, type: str, payload: Mapping[str, Any], *, time_ns: int, task_id: str | None = None
     ) -> EventLike:
+        if time_ns < self.time_floor_ns:
+            if not self._behind:
+                _log.warning(
+                    "the robot's clock stepped back %.3f s; events are stamped with the last "
+                    "event's time until it catches up",
+                    (self.time_floor_ns - time_ns) / 1e9,
+                )
+            self._behind = True
+            time_ns = self.time_floor_ns
+        else:
+            self._behind = False
+            self.time_floor_ns = time_ns
         event = self.sink.append(type, payload, time_ns=time_ns, task_id=task_id)
         for projection in self.projections:
             projection.apply(event)

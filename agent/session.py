@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import contextlib
+import json
+import time
+import uuid
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import cache
@@ -23,6 +26,8 @@ from objsearch.events import EventLog, read_log
 from objsearch.paths import data_dir
 
 PRIOR_FILE = "priors/visual_genome.json"
+# uuid5(NAMESPACE_URL, "urn:objsearch:runs"); fixed forever, like the event id namespace.
+RUN_ID_NAMESPACE = uuid.uuid5(uuid.NAMESPACE_URL, "urn:objsearch:runs")
 
 
 @dataclass(frozen=True)
@@ -52,6 +57,12 @@ def prior_values(vocabulary: Vocabulary) -> tuple[str, list[dict[str, Any]]]:
     return str(prior.get("source", PRIOR_FILE)), values
 
 
+def derived_run_id(stream: str, run_spec: dict[str, Any]) -> str:
+    """A run id that is a function of the stream and the run's spec (its seed included)."""
+    spec = json.dumps({"stream": stream, **run_spec}, sort_keys=True, separators=(",", ":"))
+    return str(uuid.uuid5(RUN_ID_NAMESPACE, spec))
+
+
 class Session:
     """Opens (or continues) a log, folds it into the scene graph and runs searches on top of it."""
 
@@ -68,18 +79,31 @@ class Session:
         observers: Sequence[Projection] = (),
         graph: RelationModel | None = None,
         planner: StopPlanner | None = None,
+        run_id: str | None = None,
     ) -> None:
         """``observers`` see every event right after it is appended (e.g. the on-robot agent
         publishes each one on its events topic). ``graph`` is the relation model to fold the log
         into (default: the paper's Eq. 4) and ``planner`` the stop planner (default: the paper's
         for ``config.method``)."""
         self.ctx = ctx
+        run_spec = {
+            "home": ctx.home.name,
+            "home_digest": ctx.home.digest,
+            "method": config.method.value,
+            "alpha": config.alpha,
+            "update_mode": update_mode.value,
+            "seed": config.seed,
+            "params": {"support_radius": config.support_radius, **(params or {})},
+        }
         # First: the writer's lock guards the fold too. A fixed wall clock gives byte-identical
-        # logs (golden logs); by default recorded_at_ns is the real time of each append.
-        self.log = (
-            EventLog.open(log_dir, stream)
-            if wall_clock is None
-            else EventLog.open(log_dir, stream, wall_clock=wall_clock)
+        # logs (golden logs); by default recorded_at_ns is the real time of each append. A new
+        # log's run id is derived from what the run is (so a seeded run is reproducible) unless
+        # the caller gives one (the on-robot agent gives a random one: its runs never repeat).
+        self.log = EventLog.open(
+            log_dir,
+            stream,
+            run_id=run_id if run_id is not None else derived_run_id(stream, run_spec),
+            wall_clock=wall_clock if wall_clock is not None else time.time_ns,
         )
         self.graph: RelationModel = graph if graph is not None else SceneGraphProjection()
         #: The log's clock so far; a continued log must not run backwards.
@@ -92,18 +116,12 @@ class Session:
         # Everything that can fail on bad data is read before the first append: a run that
         # cannot start leaves the log as it was.
         prior = None if seeded else prior_values(ctx.vocabulary)
-        self.recorder = Recorder(self.log, [self.graph, *observers])
+        self.recorder = Recorder(
+            self.log, [self.graph, *observers], time_floor_ns=self.log.last_time_ns
+        )
         self.recorder.record(
             "run_started",
-            {
-                "home": ctx.home.name,
-                "home_digest": ctx.home.digest,
-                "method": config.method.value,
-                "alpha": config.alpha,
-                "update_mode": update_mode.value,
-                "seed": config.seed,
-                "params": {"support_radius": config.support_radius, **(params or {})},
-            },
+            run_spec,
             time_ns=self.resume_time_ns,
         )
         if prior is not None:

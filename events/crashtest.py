@@ -61,7 +61,7 @@ for command in sys.stdin:
                     global n
                     n += 1
                     tag = f"{seed}.{n}"
-                    e = log.append("search_failed", {"reason": tag + ":" + "x" * size}, time_ns=n)
+                    e = log.append("search_failed", {"reason": tag + ":" + "x" * size}, time_ns=log.last_time_ns + 1)
                     acked.append(f"{e.seq} {e.event_id} {tag} {size}\n")
                 if batch:
                     with log.batch():
@@ -253,7 +253,7 @@ def _check(
                 tag, _, fill = str(event.payload["reason"]).partition(":")
                 if event.type != "search_failed" or set(fill) - {"x"} or "." not in tag:
                     raise CrashTestFailure(f"{where}: seq {event.seq} was never appended")
-            probe = log.append("search_failed", {"reason": "probe.0:"}, time_ns=0)
+            probe = log.append("search_failed", {"reason": "probe.0:"}, time_ns=log.last_time_ns)
         last = list(read_log(log_dir, from_seq=probe.seq))
         if last != [probe]:
             raise CrashTestFailure(f"{where}: the append after recovery did not read back")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import math
 import numbers
+import re
 import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -30,15 +31,16 @@ ENVELOPE_FIELDS: Final = (
 )
 
 
-def deterministic_event_id(stream: str, seq: int) -> str:
-    """The id an event gets when the caller gives none: the same (stream, seq) → the same id.
+def deterministic_event_id(run: str, seq: int) -> str:
+    """The id of the ``seq``-th event of ``run``: ``uuid5(EVENT_ID_NAMESPACE, f"{run}/{seq}")``.
 
-    Deterministic ids make two runs of a seeded simulation produce identical logs (up to the wall
-    clock), so logs can be diffed and golden logs compared byte for byte.
+    A format-2 log passes its run id (unique per log, recorded in ``meta.json``), so two logs
+    never share an id for different facts; a seeded simulation that derives its run id from its
+    inputs still writes identical logs (up to the wall clock). Format-1 logs passed the stream.
     """
     # uuid.uuid5 spelled out (SHA-1 of namespace + name, version and variant bits): the same
     # string, without building two UUID objects per id — bag ingest numbers ~10^5 events a bag.
-    digest = bytearray(hashlib.sha1(_NAMESPACE_BYTES + f"{stream}/{seq}".encode()).digest()[:16])
+    digest = bytearray(hashlib.sha1(_NAMESPACE_BYTES + f"{run}/{seq}".encode()).digest()[:16])
     digest[6] = (digest[6] & 0x0F) | 0x50
     digest[8] = (digest[8] & 0x3F) | 0x80
     h = digest.hex()
@@ -160,7 +162,7 @@ def _plausible_envelope(d: dict[str, Any]) -> bool:
     task_id = d["task_id"]
     return (
         type(d["event_id"]) is str
-        and len(d["event_id"]) == 36
+        and _CANONICAL_UUID.fullmatch(d["event_id"]) is not None
         and type(d["stream"]) is str
         and d["stream"] != ""
         and type(d["seq"]) is int
@@ -236,13 +238,15 @@ def _is_int(value: object) -> TypeGuard[int]:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
+# uuid.UUID also accepts braces, "urn:uuid:" and upper case; only one spelling per id keeps ids
+# comparable as strings. This is exactly the set of strings with str(uuid.UUID(s)) == s.
+_CANONICAL_UUID: Final = re.compile(
+    r"[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}", re.ASCII
+)
+
+
 def _is_canonical_uuid(value: str) -> bool:
-    # uuid.UUID also accepts braces, "urn:uuid:" and upper case; only one spelling per id keeps
-    # ids comparable as strings.
-    try:
-        return str(uuid.UUID(value)) == value
-    except ValueError:
-        return False
+    return _CANONICAL_UUID.fullmatch(value) is not None
 
 
 def _json_copy(value: Any, path: str, event_type: str, version: int) -> Any:

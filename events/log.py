@@ -2,23 +2,33 @@
 
 Layout of a log directory::
 
-    meta.json    {"format": "objsearch.events/1", "stream": "<stream>"}, written once, atomically
-    events.log   one record per line (see record.py); only ever appended to, or cut at a torn tail
-    LOCK         flock'ed by the single writer; holds its pid as a hint
+    meta.json     {"format": "objsearch.events/2", "stream": ..., "run_id": <uuid>}, written once
+    events.log    one record per line (see record.py); only ever appended to; flock'ed by the writer
+    durable.json  the durable high-water mark: seq, byte offset and checksum of the last record when
+                  the writer last closed (so a log cut at a record boundary is noticed)
+    LOCK          holds the writer's pid (a hint for error messages); also flock'ed
 
 ``meta.json`` exists because the records alone can't say which stream an empty log belongs to or
 which on-disk format a directory uses; a reader refuses a format it doesn't know instead of
-reporting every line as corrupt.
+reporting every line as corrupt. Its run id makes event ids and the checksum chain unique to this
+log, so records of another log never pass as this one's.
+
+The writer locks ``events.log`` itself: a lock file can be deleted from under a writer (and a
+second writer then locks a new inode of the same name); the log cannot be, without the writer
+noticing (it checks the file is still linked at every fsync).
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import logging
 import os
 import time
+import uuid
 import warnings
+import zlib
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +41,7 @@ from .errors import (
     CorruptLogError,
     DuplicateEventError,
     EventStoreError,
+    InvalidEventError,
     LogClosedError,
     LogLockedError,
     LogNotFoundError,
@@ -38,131 +49,230 @@ from .errors import (
     TornTailWarning,
     WrongExpectedSeqError,
 )
-from .record import RecordError, checksum_ok, decode_record, encode_record
+from .record import RecordError, decode_record, encode_record
 from .schemas import SchemaRegistry, default_registry
 from .upcast import default_upcaster
 
-LOG_FORMAT: Final = "objsearch.events/1"
+LOG_FORMAT: Final = "objsearch.events/2"
+#: Read and appended to as they are: plain CRC-32 per record, ids from the stream name.
+LOG_FORMAT_V1: Final = "objsearch.events/1"
 LOG_FILE: Final = "events.log"
 META_FILE: Final = "meta.json"
+DURABLE_FILE: Final = "durable.json"
 LOCK_FILE: Final = "LOCK"
+#: Prefix of the files that keep bytes a writer or ``repair_log`` took out of ``events.log``.
+QUARANTINE_PREFIX: Final = "events.log."
 
 _log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, slots=True)
+class LogMeta:
+    """What ``meta.json`` says: the on-disk format, the stream and (format 2) the run id."""
+
+    format: str
+    stream: str
+    run_id: str | None
+
+    @property
+    def chained(self) -> bool:
+        return self.format == LOG_FORMAT
+
+    @property
+    def genesis(self) -> int:
+        """The checksum the first record's chains from (0: plain CRC-32 in format 1)."""
+        if not self.chained:
+            return 0
+        return zlib.crc32(f"{self.format}\n{self.stream}\n{self.run_id}\n".encode())
+
+    def id_key(self) -> str:
+        """What default event ids are derived from: the run id (format 1: the stream)."""
+        return self.run_id if self.run_id is not None else self.stream
+
+
+@dataclass(frozen=True, slots=True)
+class Durable:
+    """The durable high-water mark: where the log ended when its writer last closed."""
+
+    seq: int
+    offset: int
+    checksum: int
+
+
+@dataclass(frozen=True, slots=True)
 class TornTail:
-    """Bytes after the last good record that belong to no acknowledged append."""
+    """An unterminated fragment after the last newline: an append that never completed."""
 
     path: Path
     offset: int  # where the last good record ends: the file is cut (or read) up to here
     length: int  # bytes from ``offset`` to the end of the file
-    line: int  # line number (1-based) where the damage starts
-    lines: int  # lines in the tail, counting an unterminated last one
-    complete: bool  # whether the tail ends with a newline
-    reason: str
+    line: int  # line number (1-based) of the fragment
+    quarantine: Path | None = None  # where a writer kept the bytes it cut
+    lines: int = 1
+    complete: bool = False
+    reason: str = "last line has no newline (interrupted append)"
+
+
+@dataclass(slots=True)
+class _Cursor:
+    """Where a scan stands: after the record ending at ``offset`` (line ``line``, seq ``seq``)."""
+
+    offset: int = 0
+    line: int = 0
+    seq: int = 0
+    checksum: int = 0
+    time_ns: int = 0
 
 
 class _Scan:
-    """One pass over ``events.log`` that checks framing, checksums, stream and seq continuity.
+    """One pass over ``events.log`` that checks every record and yields the good events in order.
 
-    Yields good events in order. A damaged line is only a torn tail if nothing but damage
-    follows it; a checksum-valid record after it means the damage is in the middle, and that is
-    a :class:`CorruptLogError`. After the iteration ends, ``torn_tail``, ``end_offset`` and
-    ``last_seq`` describe what was found.
+    Only an unterminated fragment after the last newline is a torn tail (``torn_tail``); any
+    complete line that is not a valid record, a broken checksum chain, a seq gap, a record of
+    another stream, an event type or version this code does not know, time running backwards,
+    or a log that ends before its durable high-water mark is a :class:`CorruptLogError`.
     """
 
     def __init__(
         self,
         path: Path,
-        stream: str,
+        meta: LogMeta,
         *,
+        registry: SchemaRegistry,
+        durable: Durable | None = None,
         stop_after: int | None = None,
-        start: tuple[int, int, int] = (0, 0, 0),
+        start: _Cursor | None = None,
         ids: dict[str, int] | None = None,
     ) -> None:
         self.path = path
-        self.stream = stream
+        self.meta = meta
+        self.registry = registry
+        self.durable = durable
         self.stop_after = stop_after
         self.torn_tail: TornTail | None = None
-        # (byte offset, line number, seq) of the end of the last good record: where a resumed
-        # scan (a tailing reader) starts, having checked everything before it.
-        self.end_offset, self.end_line, self.last_seq = start
+        self.at = start if start is not None else _Cursor(checksum=meta.genesis)
         #: when given, filled with event id → byte offset of its record (for idempotent appends)
         self.ids = ids
+
+    @property
+    def end_offset(self) -> int:
+        return self.at.offset
+
+    @property
+    def last_seq(self) -> int:
+        return self.at.seq
 
     def __iter__(self) -> Iterator[Event]:
         try:
             f = self.path.open("rb")
         except FileNotFoundError:
-            return  # meta.json written, crash before events.log existed: an empty log
-        with f:
-            if self.end_offset:
-                f.seek(self.end_offset)
-            yield from self._lines(f)
+            f = None  # meta.json written, crash before events.log existed: an empty log
+        if f is not None:
+            with f:
+                if self.at.offset:
+                    f.seek(self.at.offset)
+                yield from self._lines(f)
+        if self.stop_after is None or self.at.seq < self.stop_after:
+            self._check_durable()
 
     def _lines(self, f: IO[bytes]) -> Iterator[Event]:
-        offset = self.end_offset
-        line_no = self.end_line
-        damage: tuple[int, int, str] | None = None  # (line, offset, reason) of the first bad line
-        complete = True
+        at = self.at
+        chained = self.meta.chained
         for line in f:
-            line_no += 1
-            start = offset
-            offset += len(line)
-            complete = line.endswith(b"\n")
-            if damage is not None:
-                if complete and checksum_ok(line[:-1]):
-                    self._corrupt(
-                        damage[0],
-                        damage[1],
-                        f"{damage[2]}; a valid record follows at line {line_no}, so this is "
-                        "not a torn tail",
-                    )
-                continue
-            if not complete:
-                damage = (line_no, start, "last line has no newline (interrupted append)")
-                continue
+            start = at.offset
+            line_no = at.line + 1
+            if not line.endswith(b"\n"):
+                # The only shape an interrupted append can leave: bytes after the last newline.
+                self.torn_tail = TornTail(
+                    path=self.path, offset=start, length=len(line), line=line_no
+                )
+                return
             try:
-                event = decode_record(line[:-1])
+                event, checksum = decode_record(line[:-1], at.checksum if chained else 0)
             except RecordError as exc:
-                if exc.intact:
-                    self._corrupt(line_no, start, exc.reason)
-                damage = (line_no, start, exc.reason)
-                continue
-            if event.stream != self.stream:
+                self._corrupt(line_no, start, self._explain(line[:-1], exc))
+            if event.stream != self.meta.stream:
                 self._corrupt(
                     line_no,
                     start,
-                    f"record of stream {event.stream!r} in the log of stream {self.stream!r}",
+                    f"record of stream {event.stream!r} in the log of stream {self.meta.stream!r}",
                 )
-            if event.seq != self.last_seq + 1:
+            if event.seq != at.seq + 1:
+                self._corrupt(line_no, start, f"expected seq {at.seq + 1}, found seq {event.seq}")
+            if not self.registry.knows(event.type, event.version):
                 self._corrupt(
-                    line_no, start, f"expected seq {self.last_seq + 1}, found seq {event.seq}"
+                    line_no,
+                    start,
+                    f"event type {event.type!r} version {event.version} is not one this code "
+                    "knows (written by newer code, or damaged)",
                 )
-            self.last_seq = event.seq
-            self.end_offset = offset
-            self.end_line = line_no
+            if event.time_ns < at.time_ns:
+                self._corrupt(
+                    line_no,
+                    start,
+                    f"time runs backwards: time_ns {event.time_ns} after {at.time_ns}",
+                )
+            at.offset = start + len(line)
+            at.line = line_no
+            at.seq = event.seq
+            at.checksum = checksum
+            at.time_ns = event.time_ns
+            mark = self.durable
+            if (
+                mark is not None
+                and event.seq == mark.seq
+                and (at.offset != mark.offset or checksum != mark.checksum)
+            ):
+                self._corrupt(
+                    line_no,
+                    start,
+                    f"the record at seq {mark.seq} is not the one its writer closed the log with "
+                    f"({DURABLE_FILE}: ends at byte {mark.offset}, checksum {mark.checksum:08x})",
+                )
             if self.ids is not None:
                 self.ids[event.event_id] = start
             yield event
             if self.stop_after is not None and event.seq >= self.stop_after:
                 return
-        if damage is not None:
-            self.torn_tail = TornTail(
-                path=self.path,
-                offset=damage[1],
-                length=offset - damage[1],
-                line=damage[0],
-                lines=line_no - damage[0] + 1,
-                complete=complete,
-                reason=damage[2],
+
+    def _explain(self, line: bytes, exc: RecordError) -> str:
+        reason = exc.reason
+        if line.endswith(b"\r"):
+            return (
+                f"{reason}; the line ends in CR LF: its line endings were converted (git "
+                "core.autocrlf, an editor), `objsearch log repair` can convert them back"
+            )
+        if exc.intact:
+            return reason
+        try:
+            Event._adopt(json.loads(line.rpartition(b"\t")[0]))
+        except (ValueError, InvalidEventError):
+            return reason
+        return (
+            f"{reason}: the record reads as a whole, valid event, so it was most likely not "
+            "damaged but spliced, reordered or copied from another log (its checksum does not "
+            "follow its predecessor)"
+        )
+
+    def _check_durable(self) -> None:
+        mark = self.durable
+        if mark is None:
+            return
+        at = self.at
+        if at.offset < mark.offset or at.seq < mark.seq:
+            lost = "" if self.torn_tail is None else " (the rest is an unterminated fragment)"
+            self._corrupt(
+                at.line + 1,
+                at.offset,
+                f"the log ends at seq {at.seq} (byte {at.offset}){lost}, but its writer closed "
+                f"it at seq {mark.seq} (byte {mark.offset}, {DURABLE_FILE}): acknowledged "
+                "records are missing",
             )
 
     def _corrupt(self, line: int, offset: int, reason: str) -> NoReturn:
         raise CorruptLogError(
             f"corrupt event log {self.path}: line {line} (byte offset {offset}): {reason}; "
-            "the log was not changed and needs manual repair",
+            "the log was not changed (`objsearch log repair` keeps what it removes)",
             path=str(self.path),
             line=line,
             offset=offset,
@@ -181,11 +291,11 @@ class EventLog:
         self,
         *,
         directory: Path,
-        stream: str,
+        meta: LogMeta,
         fd: int,
         lock_fd: int,
-        size: int,
-        last_seq: int,
+        at: _Cursor,
+        durable: Durable | None,
         torn_tail: TornTail | None,
         registry: SchemaRegistry,
         wall_clock: Callable[[], int],
@@ -193,11 +303,11 @@ class EventLog:
     ) -> None:
         # Private: only open() knows how to reach a consistent state (lock, meta, recovery).
         self._directory = directory
-        self._stream = stream
+        self._meta = meta
         self._fd = fd
         self._lock_fd = lock_fd
-        self._size = size
-        self._last_seq = last_seq
+        self._at = at
+        self._durable = durable
         self._torn_tail = torn_tail
         self._registry = registry
         self._wall_clock = wall_clock
@@ -214,39 +324,60 @@ class EventLog:
         stream: str,
         *,
         create: bool = True,
+        run_id: str | None = None,
         registry: SchemaRegistry | None = None,
         wall_clock: Callable[[], int] = time.time_ns,
     ) -> EventLog:
         """Open ``directory`` for appending to ``stream``, creating it if allowed.
 
-        Takes the directory's lock (:class:`LogLockedError` if another writer has it), checks
-        the format and stream (:class:`StreamMismatchError`), verifies every record
-        (:class:`CorruptLogError`) and cuts a torn tail with a :class:`TornTailWarning`.
+        Takes the log's lock (:class:`LogLockedError` if another writer has it), checks the
+        format and stream (:class:`StreamMismatchError`), verifies every record
+        (:class:`CorruptLogError`, the file untouched) and cuts an unterminated last fragment
+        with a :class:`TornTailWarning`, keeping its bytes in a quarantine file beside the log.
+        ``run_id`` is the id a log created by this call gets (a random UUID if None; pass one
+        derived from a seed for reproducible logs); an existing log keeps its own.
         ``wall_clock`` stamps ``recorded_at_ns``; pass a fixed one for byte-identical logs.
         """
         directory = Path(directory)
         if not (isinstance(stream, str) and stream):
             raise ValueError(f"stream must be a non-empty string, got {stream!r}")
+        if run_id is not None and str(_parse_uuid(run_id, "run_id")) != run_id:
+            raise ValueError(f"run_id must be a canonical (lower-case) UUID, got {run_id!r}")
+        if directory.exists() and not directory.is_dir():
+            raise LogNotFoundError(f"no event log at {directory}: it is not a directory")
         if not directory.is_dir():
             if not create:
                 raise LogNotFoundError(
                     f"no event log at {directory}: the directory does not exist (create=False)"
                 )
             _fs.make_dirs(directory)
-        elif not create:
-            _read_meta(directory)  # raises LogNotFoundError before a LOCK file is left behind
+        elif not create or _non_empty(directory / LOG_FILE):
+            read_meta(directory)  # before anything is created: a LogNotFoundError leaves no trace
 
-        lock_path = directory / LOCK_FILE
-        lock_fd = _fs.try_lock(lock_path)
-        if lock_fd is None:
-            raise LogLockedError(
-                f"event log {directory} is already open for writing (lock {lock_path} is held"
-                f"{_fs.lock_holder_hint(lock_path)}); a stream has exactly one writer"
-            )
+        log_path = directory / LOG_FILE
+        created = not log_path.exists()
+        fd = os.open(log_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        lock_fd = -1
         try:
-            return cls._open_locked(directory, stream, lock_fd, create, registry, wall_clock)
+            if created:
+                _fs.fsync_dir(directory)
+            hint_fd = _fs.try_lock(directory / LOCK_FILE) if _flock(fd) else None
+            if hint_fd is None:
+                raise LogLockedError(
+                    f"event log {directory} is already open for writing (its lock is held"
+                    f"{_fs.lock_holder_hint(directory / LOCK_FILE)}); a stream has exactly one "
+                    "writer"
+                )
+            lock_fd = hint_fd
+            if os.fstat(fd).st_ino != os.stat(log_path).st_ino:
+                raise LogLockedError(
+                    f"event log {log_path} was replaced while it was being opened; try again"
+                )
+            return cls._open_locked(directory, stream, fd, lock_fd, run_id, registry, wall_clock)
         except BaseException:
-            os.close(lock_fd)
+            os.close(fd)
+            if lock_fd >= 0:
+                os.close(lock_fd)
             raise
 
     @classmethod
@@ -254,47 +385,45 @@ class EventLog:
         cls,
         directory: Path,
         stream: str,
+        fd: int,
         lock_fd: int,
-        create: bool,
+        run_id: str | None,
         registry: SchemaRegistry | None,
         wall_clock: Callable[[], int],
     ) -> EventLog:
-        log_path = directory / LOG_FILE
-        if (directory / META_FILE).exists() or log_path.exists() or not create:
-            found = _read_meta(directory)
-            if found != stream:
+        # events.log is created (to be locked) before meta.json: a crash between the two leaves
+        # an empty events.log without meta.json, which is still a log waiting to be created.
+        if (directory / META_FILE).exists() or _non_empty(directory / LOG_FILE):
+            meta = read_meta(directory)
+            if meta.stream != stream:
                 raise StreamMismatchError(
-                    f"event log {directory} belongs to stream {found!r}, not {stream!r}"
+                    f"event log {directory} belongs to stream {meta.stream!r}, not {stream!r}"
                 )
         else:
-            meta = {"format": LOG_FORMAT, "stream": stream}
-            data = json.dumps(meta, sort_keys=True, ensure_ascii=False).encode() + b"\n"
+            meta = LogMeta(LOG_FORMAT, stream, run_id or str(uuid.uuid4()))
+            doc = {"format": meta.format, "stream": meta.stream, "run_id": meta.run_id}
+            data = json.dumps(doc, sort_keys=True, ensure_ascii=False).encode() + b"\n"
             _fs.write_atomic(directory / META_FILE, data)
-
-        created = not log_path.exists()
-        fd = os.open(log_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC, 0o644)
-        try:
-            if created:
-                _fs.fsync_dir(directory)
-            scan = _Scan(log_path, stream, ids={})
-            for _ in scan:
-                pass
-            if scan.torn_tail is not None:
-                _cut_torn_tail(fd, scan.torn_tail)
-        except BaseException:
-            os.close(fd)
-            raise
+        registry = registry if registry is not None else default_registry()
+        durable = read_durable(directory)
+        ids: dict[str, int] = {}
+        scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable, ids=ids)
+        for _ in scan:
+            pass
+        tail = scan.torn_tail
+        if tail is not None:
+            tail = _cut_torn_tail(fd, tail)
         return cls(
             directory=directory,
-            stream=stream,
+            meta=meta,
             fd=fd,
             lock_fd=lock_fd,
-            size=scan.end_offset,
-            last_seq=scan.last_seq,
-            torn_tail=scan.torn_tail,
-            registry=registry if registry is not None else default_registry(),
+            at=scan.at,
+            durable=durable,
+            torn_tail=tail,
+            registry=registry,
             wall_clock=wall_clock,
-            ids=scan.ids if scan.ids is not None else {},
+            ids=ids,
         )
 
     @property
@@ -303,12 +432,22 @@ class EventLog:
 
     @property
     def stream(self) -> str:
-        return self._stream
+        return self._meta.stream
+
+    @property
+    def run_id(self) -> str | None:
+        """The log's run id (None for a format-1 log)."""
+        return self._meta.run_id
 
     @property
     def last_seq(self) -> int:
         """Seq of the last appended record (0 for an empty log)."""
-        return self._last_seq
+        return self._at.seq
+
+    @property
+    def last_time_ns(self) -> int:
+        """``time_ns`` of the last appended record (0 for an empty log); never goes back."""
+        return self._at.time_ns
 
     @property
     def torn_tail(self) -> TornTail | None:
@@ -333,7 +472,8 @@ class EventLog:
         """Validate, write and (outside a batch) fsync one event; return it as stored.
 
         ``version`` defaults to the type's latest schema version, ``event_id`` to
-        :func:`deterministic_event_id`. Raises :class:`InvalidEventError` with the file unchanged.
+        :func:`deterministic_event_id` of the log's run id and the seq. ``time_ns`` may not be
+        earlier than the last event's. Raises :class:`InvalidEventError` with the file unchanged.
 
         Idempotent by event id: if the stream already holds ``event_id`` with the same type,
         version, task, time and payload, nothing is written and the stored event is returned
@@ -345,16 +485,17 @@ class EventLog:
         self._check_usable()
         if version is None:
             version = self._registry.latest_version(type)
-        seq = self._last_seq + 1
+        at = self._at
+        seq = at.seq + 1
         if event_id is not None and event_id in self._ids:
             return self._existing(event_id, type, version, payload, time_ns, task_id)
-        if expected_last_seq is not None and expected_last_seq != self._last_seq:
+        if expected_last_seq is not None and expected_last_seq != at.seq:
             raise WrongExpectedSeqError(
-                f"event log {self._directory} ends at seq {self._last_seq}, "
+                f"event log {self._directory} ends at seq {at.seq}, "
                 f"not at the expected seq {expected_last_seq}; nothing was written"
             )
         if event_id is None:
-            event_id = deterministic_event_id(self._stream, seq)
+            event_id = deterministic_event_id(self._meta.id_key(), seq)
             if event_id in self._ids:
                 raise DuplicateEventError(
                     f"the default id {event_id} of seq {seq} is already used by an earlier "
@@ -362,7 +503,7 @@ class EventLog:
                 )
         event = Event(
             event_id=event_id,
-            stream=self._stream,
+            stream=self._meta.stream,
             seq=seq,
             time_ns=time_ns,
             recorded_at_ns=self._wall_clock(),
@@ -371,11 +512,25 @@ class EventLog:
             task_id=task_id,
             payload=payload,
         )
+        if time_ns < at.time_ns:
+            raise InvalidEventError(
+                f"invalid {type} v{version} event: time_ns {time_ns} is before the last event's "
+                f"({at.time_ns}); a stream's time never runs backwards",
+                event_type=type,
+                version=version,
+                path="time_ns",
+                reason="earlier than the previous event",
+            )
         self._registry.validate_event(event)
-        offset = self._size
-        self._write(encode_record(event))
+        record = encode_record(event, at.checksum if self._meta.chained else 0)
+        offset = at.offset
+        self._write(record)
         self._ids[event.event_id] = offset
-        self._last_seq = seq
+        at.offset += len(record)
+        at.line += 1
+        at.seq = seq
+        at.checksum = int(record[-9:-1], 16)
+        at.time_ns = time_ns
         if self._batch_depth:
             self._unsynced = True
         else:
@@ -394,10 +549,12 @@ class EventLog:
         """The stored event with ``event_id``, if the new append asks for the same fact."""
         with (self._directory / LOG_FILE).open("rb") as f:
             f.seek(self._ids[event_id])
-            stored = decode_record(f.readline()[:-1])
+            line = f.readline()[:-1]
+        # Its checksum was verified when the log was opened; here only its content matters.
+        stored = Event._adopt(json.loads(line.rpartition(b"\t")[0]))
         wanted = Event(
             event_id=event_id,
-            stream=self._stream,
+            stream=self._meta.stream,
             seq=stored.seq,
             time_ns=time_ns,
             recorded_at_ns=stored.recorded_at_ns,
@@ -436,12 +593,14 @@ class EventLog:
                 self._sync()
 
     def close(self) -> None:
-        """Fsync anything pending, then release the file and the lock. Idempotent."""
+        """Fsync anything pending, record the high-water mark, release the lock. Idempotent."""
         if self._closed:
             return
         try:
             if self._unsynced and self._broken is None:
                 self._sync()
+            if self._broken is None:
+                self._mark_durable()
         finally:
             self._closed = True
             os.close(self._fd)
@@ -459,8 +618,8 @@ class EventLog:
         self.close()
 
     def __repr__(self) -> str:
-        state = "closed" if self._closed else f"last_seq={self._last_seq}"
-        return f"EventLog({str(self._directory)!r}, stream={self._stream!r}, {state})"
+        state = "closed" if self._closed else f"last_seq={self._at.seq}"
+        return f"EventLog({str(self._directory)!r}, stream={self._meta.stream!r}, {state})"
 
     def _check_usable(self) -> None:
         if self._closed:
@@ -479,21 +638,55 @@ class EventLog:
         except BaseException as exc:
             # A partial line left in place would turn the next append into mid-file corruption.
             try:
-                os.ftruncate(self._fd, self._size)
+                os.ftruncate(self._fd, self._at.offset)
             except OSError as cut_exc:
                 self._broken = f"write failed ({exc!r}) and undoing it failed ({cut_exc!r})"
             raise
-        self._size += len(data)
 
     def _sync(self) -> None:
         try:
             os.fsync(self._fd)
+            if os.fstat(self._fd).st_nlink == 0:
+                raise LogClosedError(
+                    f"{self._directory / LOG_FILE} was deleted while it was open for writing; "
+                    "the events since the last fsync are only in the deleted file"
+                )
         except BaseException as exc:
             # After a failed fsync the kernel may drop the dirty pages and report success on the
             # next try, so nothing written since the last good fsync can be trusted any more.
             self._broken = f"fsync failed: {exc!r}"
             raise
         self._unsynced = False
+
+    def _mark_durable(self) -> None:
+        at = self._at
+        mark = Durable(seq=at.seq, offset=at.offset, checksum=at.checksum)
+        if at.seq == 0 or mark == self._durable:
+            return
+        write_durable(self._directory, mark)
+        self._durable = mark
+
+
+def _non_empty(path: Path) -> bool:
+    try:
+        return path.stat().st_size > 0
+    except FileNotFoundError:
+        return False
+
+
+def _flock(fd: int) -> bool:
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    return True
+
+
+def _parse_uuid(value: object, what: str) -> uuid.UUID:
+    try:
+        return uuid.UUID(str(value))
+    except ValueError:
+        raise ValueError(f"{what} must be a UUID, got {value!r}") from None
 
 
 def read_log(
@@ -505,17 +698,19 @@ def read_log(
 ) -> Iterator[Event]:
     """Yield the events of a log with ``from_seq <= seq <= to_seq``, in order. Never writes.
 
-    Checks every record's checksum, stream and seq continuity up to ``to_seq`` (so a call
-    raises :class:`CorruptLogError` rather than skip anything), but not payload schemas: those
-    were checked at append. A torn tail is skipped with a :class:`TornTailWarning`, except an
-    unterminated last line while a writer holds the lock: that is an append in progress.
+    Checks every record (checksum chain, stream, seq continuity, known type and version, time
+    order) up to ``to_seq`` and, reading to the end, that the log reaches its durable high-water
+    mark, so a call raises :class:`CorruptLogError` rather than skip anything — but not payload
+    schemas: those were checked at append. An unterminated last fragment is skipped with a
+    :class:`TornTailWarning`, silently while a writer holds the lock (an append in progress).
     Events of an old schema version are upcast to their type's latest (``upcast=False`` gives
     them exactly as stored). Raises :class:`LogNotFoundError` at call time if there is no log.
     """
     directory = Path(directory)
     _check_seq_range(from_seq, to_seq)
-    stream = _read_meta(directory)
-    events = _read(directory, stream, from_seq, to_seq)
+    meta = read_meta(directory)
+    durable = read_durable(directory)
+    events = _read(directory, meta, durable, from_seq, to_seq)
     return _upcast_all(events) if upcast else events
 
 
@@ -529,33 +724,33 @@ def follow_log(
 ) -> Iterator[Event]:
     """Yield a log's events from ``from_seq`` on, waiting for new ones as a writer appends them.
 
-    A reader that tails a live log: it takes no lock, reads only complete, checksum-valid
-    records and checks them like :func:`read_log` (a damaged line followed by a valid record is
-    a :class:`CorruptLogError`); an unfinished or damaged last line is waited on, since the
-    writer may still be writing it or a restarted writer may cut it. Stops after
+    A reader that tails a live log: it takes no lock, reads only complete records and checks
+    them like :func:`read_log` (any damaged complete line is a :class:`CorruptLogError`); an
+    unterminated last line is waited on, since the writer may still be writing it. Stops after
     ``idle_timeout`` seconds without a new event (never, if None).
     """
     directory = Path(directory)
     _check_seq_range(from_seq, None)
     if poll_interval <= 0:
         raise ValueError(f"poll_interval must be > 0, got {poll_interval!r}")
-    stream = _read_meta(directory)
-    events = _follow(directory / LOG_FILE, stream, from_seq, poll_interval, idle_timeout)
+    meta = read_meta(directory)
+    events = _follow(directory / LOG_FILE, meta, from_seq, poll_interval, idle_timeout)
     return _upcast_all(events) if upcast else events
 
 
 def _follow(
-    path: Path, stream: str, from_seq: int, poll_interval: float, idle_timeout: float | None
+    path: Path, meta: LogMeta, from_seq: int, poll_interval: float, idle_timeout: float | None
 ) -> Iterator[Event]:
-    position = (0, 0, 0)
+    registry = default_registry()
+    position = _Cursor(checksum=meta.genesis)
     idle_since = time.monotonic()
     while True:
-        scan = _Scan(path, stream, start=position)
+        scan = _Scan(path, meta, registry=registry, start=position)
         for event in scan:
             idle_since = time.monotonic()
             if event.seq >= from_seq:
                 yield event
-        position = (scan.end_offset, scan.end_line, scan.last_seq)
+        position = scan.at
         if idle_timeout is not None and time.monotonic() - idle_since >= idle_timeout:
             return
         time.sleep(poll_interval)
@@ -574,17 +769,25 @@ def _check_seq_range(from_seq: object, to_seq: object) -> None:
         raise ValueError(f"to_seq must be an integer or None, got {to_seq!r}")
 
 
-def _read(directory: Path, stream: str, from_seq: int, to_seq: int | None) -> Iterator[Event]:
+def _read(
+    directory: Path,
+    meta: LogMeta,
+    durable: Durable | None,
+    from_seq: int,
+    to_seq: int | None,
+) -> Iterator[Event]:
     if to_seq is not None and to_seq < from_seq:
         return
-    scan = _Scan(directory / LOG_FILE, stream, stop_after=to_seq)
+    scan = _Scan(
+        directory / LOG_FILE, meta, registry=default_registry(), durable=durable, stop_after=to_seq
+    )
     for event in scan:
         if event.seq >= from_seq:
             yield event
     tail = scan.torn_tail
     if tail is None:
         return
-    if tail.lines == 1 and not tail.complete and _fs.is_locked(directory / LOCK_FILE):
+    if is_being_written(directory):
         _log.debug("%s: unterminated last line while a writer is active; not yet written", tail)
         return
     _report(
@@ -594,15 +797,49 @@ def _read(directory: Path, stream: str, from_seq: int, to_seq: int | None) -> It
     )
 
 
-def _cut_torn_tail(fd: int, tail: TornTail) -> None:
-    # The only modification ever made to existing bytes, and never silent.
+def is_being_written(directory: Path | str) -> bool:
+    """Whether a writer holds the log in ``directory`` open (read-only check)."""
+    directory = Path(directory)
+    return _fs.is_locked(directory / LOG_FILE) or _fs.is_locked(directory / LOCK_FILE)
+
+
+def _cut_torn_tail(fd: int, tail: TornTail) -> TornTail:
+    # The only modification a writer makes to existing bytes, never silent, and never a loss:
+    # the fragment is kept beside the log before the file is cut.
+    with tail.path.open("rb") as f:
+        f.seek(tail.offset)
+        fragment = f.read()
+    keep = quarantine(tail.path.parent, f"torn-{tail.offset}", fragment)
     _report(
         f"torn tail in {tail.path}: cut {tail.length} byte(s) at byte offset {tail.offset} "
-        f"(line {tail.line}; {tail.reason}); these bytes were never acknowledged",
+        f"(line {tail.line}; {tail.reason}); an interrupted append, never acknowledged; "
+        f"the bytes are kept in {keep}",
         stacklevel=5,
     )
     os.ftruncate(fd, tail.offset)
     os.fsync(fd)
+    return TornTail(
+        path=tail.path, offset=tail.offset, length=tail.length, line=tail.line, quarantine=keep
+    )
+
+
+def quarantine(directory: Path, label: str, data: bytes) -> Path:
+    """Keep ``data`` durably in a new file ``events.log.<label>[.N]`` of ``directory``."""
+    path = directory / f"{QUARANTINE_PREFIX}{label}"
+    n = 0
+    while path.exists():
+        n += 1
+        path = directory / f"{QUARANTINE_PREFIX}{label}.{n}"
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o644)
+    try:
+        view = memoryview(data)
+        while view:
+            view = view[os.write(fd, view) :]
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+    _fs.fsync_dir(directory)
+    return path
 
 
 def _report(message: str, *, stacklevel: int) -> None:
@@ -610,8 +847,8 @@ def _report(message: str, *, stacklevel: int) -> None:
     warnings.warn(message, TornTailWarning, stacklevel=stacklevel)
 
 
-def _read_meta(directory: Path) -> str:
-    """The stream named in ``meta.json``, after checking the directory is a log we can read."""
+def read_meta(directory: Path) -> LogMeta:
+    """What ``meta.json`` says, after checking the directory is a log this code can read."""
     meta_path = directory / META_FILE
     try:
         raw = meta_path.read_bytes()
@@ -628,12 +865,60 @@ def _read_meta(directory: Path) -> str:
         meta = json.loads(raw)
     except ValueError as exc:
         raise EventStoreError(f"{meta_path} is not valid JSON: {exc}") from exc
-    if not isinstance(meta, dict) or meta.get("format") != LOG_FORMAT:
-        found = meta.get("format") if isinstance(meta, dict) else None
+    found = meta.get("format") if isinstance(meta, dict) else None
+    if found not in (LOG_FORMAT, LOG_FORMAT_V1):
         raise EventStoreError(
-            f"{meta_path}: unsupported log format {found!r} (this code reads {LOG_FORMAT!r})"
+            f"{meta_path}: unsupported log format {found!r} (this code reads {LOG_FORMAT!r} "
+            f"and {LOG_FORMAT_V1!r})"
         )
-    stream = meta.get("stream")
+    assert isinstance(meta, dict)
+    expected = {"format", "stream"} | ({"run_id"} if found == LOG_FORMAT else set())
+    if set(meta) != expected:
+        raise EventStoreError(f"{meta_path}: expected exactly the keys {sorted(expected)}")
+    stream = meta["stream"]
     if not (isinstance(stream, str) and stream):
         raise EventStoreError(f"{meta_path}: 'stream' is missing or not a non-empty string")
-    return stream
+    run_id = meta.get("run_id")
+    if found == LOG_FORMAT:
+        try:
+            valid = isinstance(run_id, str) and str(uuid.UUID(run_id)) == run_id
+        except ValueError:
+            valid = False
+        if not valid:
+            raise EventStoreError(f"{meta_path}: 'run_id' is not a canonical UUID: {run_id!r}")
+    return LogMeta(found, stream, run_id)
+
+
+def _read_meta(directory: Path) -> str:
+    """The stream named in ``meta.json`` (see :func:`read_meta`)."""
+    return read_meta(directory).stream
+
+
+def read_durable(directory: Path) -> Durable | None:
+    """The high-water mark the writer left at its last close, or None if it left none."""
+    path = directory / DURABLE_FILE
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        return None
+    try:
+        doc = json.loads(raw)
+        mark = Durable(seq=doc["seq"], offset=doc["offset"], checksum=int(doc["checksum"], 16))
+        if set(doc) != {"seq", "offset", "checksum"} or not all(
+            type(v) is int and v >= 0 for v in (mark.seq, mark.offset, mark.checksum)
+        ):
+            raise ValueError("unexpected keys or values")
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise CorruptLogError(
+            f"corrupt event log {directory}: {path} is damaged ({exc}); the log was not changed "
+            "(`objsearch log repair` rewrites it from the records)",
+            path=str(path),
+            line=0,
+            offset=0,
+        ) from exc
+    return mark
+
+
+def write_durable(directory: Path, mark: Durable) -> None:
+    doc = {"seq": mark.seq, "offset": mark.offset, "checksum": f"{mark.checksum:08x}"}
+    _fs.write_atomic(directory / DURABLE_FILE, json.dumps(doc, sort_keys=True).encode() + b"\n")

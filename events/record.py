@@ -1,9 +1,15 @@
-"""One line of ``events.log``: ``<JSON envelope>\\t<crc32 as 8 lower-case hex digits>\\n``.
+"""One line of ``events.log``: ``<JSON envelope>\\t<checksum as 8 lower-case hex digits>\\n``.
 
 The JSON is compact with sorted keys so the same event always has the same bytes. ``json.dumps``
 escapes every control character, so the JSON never holds a raw tab or newline: a line is split
 at its last tab, and lines at ``\\n`` bytes (never at text line breaks: ``ensure_ascii=False``
 leaves U+2028 raw, which ``str.splitlines`` would split).
+
+The checksum is CRC-32 of the JSON bytes started from ``prev``. In a format-2 log ``prev`` is the
+previous record's checksum (the first record's is the log's genesis value, from its stream and run
+id), so each checksum covers its predecessor: a hash chain, which makes a spliced, reordered or
+foreign record fail even though its own bytes are intact. Format-1 logs use ``prev = 0`` for every
+record (a plain CRC-32 of the line).
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ class RecordError(Exception):
     """A line is not a valid record.
 
     ``intact`` says the checksum matched: the bytes are exactly what a writer wrote, so the damage
-    cannot come from an interrupted write and is never treated as a torn tail.
+    is in what was written, not in how it was stored.
     """
 
     def __init__(self, reason: str, *, intact: bool) -> None:
@@ -32,8 +38,8 @@ class RecordError(Exception):
         self.intact = intact
 
 
-def encode_record(event: Event) -> bytes:
-    """The full line for ``event`` (newline included); ``InvalidEventError`` if unstorable."""
+def encode_body(event: Event) -> bytes:
+    """The JSON bytes of ``event``; ``InvalidEventError`` if it cannot be stored."""
     try:
         text = json.dumps(
             event.envelope_dict(),
@@ -42,7 +48,7 @@ def encode_record(event: Event) -> bytes:
             ensure_ascii=False,
             allow_nan=False,
         )
-        body = text.encode("utf-8")
+        return text.encode("utf-8")
     except ValueError as exc:  # NaN/inf, or a lone surrogate that UTF-8 cannot encode
         raise InvalidEventError(
             f"invalid {event.type} v{event.version} event: cannot be stored as UTF-8 JSON: {exc}",
@@ -50,21 +56,36 @@ def encode_record(event: Event) -> bytes:
             version=event.version,
             reason=str(exc),
         ) from exc
-    return body + b"\t%08x\n" % zlib.crc32(body)
 
 
-def checksum_ok(line: bytes) -> bool:
-    """Whether a line (without its newline) carries a matching checksum, whatever its JSON."""
-    body, sep, crc = line.rpartition(RECORD_SEPARATOR)
-    return bool(sep) and crc == b"%08x" % zlib.crc32(body)
+def encode_record(event: Event, prev: int = 0) -> bytes:
+    """The full line for ``event`` (newline included), its checksum started from ``prev``."""
+    body = encode_body(event)
+    return body + b"\t%08x\n" % zlib.crc32(body, prev)
 
 
-def decode_record(line: bytes) -> Event:
-    """Parse one line (without its newline); raise :class:`RecordError` saying what is wrong."""
+def record_checksum(line: bytes) -> int | None:
+    """The checksum a line (without its newline) carries, or None if it has none."""
+    _, sep, crc = line.rpartition(RECORD_SEPARATOR)
+    if not sep or len(crc) != 8:
+        return None
+    try:
+        return int(crc, 16)
+    except ValueError:
+        return None
+
+
+def decode_record(line: bytes, prev: int = 0) -> tuple[Event, int]:
+    """Parse one line (without its newline) whose checksum starts from ``prev``.
+
+    Returns the event and its checksum (the next record's ``prev`` in a chained log); raises
+    :class:`RecordError` saying what is wrong.
+    """
     body, sep, crc = line.rpartition(RECORD_SEPARATOR)
     if not sep:
         raise RecordError("no tab separating the JSON from its checksum", intact=False)
-    computed = b"%08x" % zlib.crc32(body)
+    value = zlib.crc32(body, prev)
+    computed = b"%08x" % value
     if crc != computed:
         raise RecordError(
             f"checksum mismatch (stored {crc[:16].decode('ascii', 'replace')!r}, "
@@ -78,6 +99,6 @@ def decode_record(line: bytes) -> Event:
     if not isinstance(data, dict):
         raise RecordError("checksum matches but the JSON is not an object", intact=True)
     try:
-        return Event._adopt(data)
+        return Event._adopt(data), value
     except InvalidEventError as exc:
         raise RecordError(f"checksum matches but {exc}", intact=True) from exc

@@ -95,6 +95,10 @@ class SchemaRegistry:
         self._require_type(event_type)
         return tuple(sorted(v for t, v in self._schemas if t == event_type))
 
+    def knows(self, event_type: str, version: int) -> bool:
+        """Whether this registry has a schema for ``event_type`` at ``version``."""
+        return (event_type, version) in self._schemas
+
     def latest_version(self, event_type: str) -> int:
         self._require_type(event_type)
         return self._latest[event_type]

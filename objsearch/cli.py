@@ -177,6 +177,7 @@ def cmd_graph(args: argparse.Namespace) -> int:
 COMMAND_MODULES: tuple[str, ...] = (
     "objsearch.cli_bags",
     "objsearch.cli_bench",
+    "objsearch.cli_log",
     "objsearch.cli_map",
     "objsearch.cli_query",
     "objsearch.cli_replay",

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import uuid
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -113,6 +114,9 @@ class AgentNode:
                 update_mode,
                 params={"transport": config.transport.backend.value},
                 observers=[self.events, *observers],
+                # A robot's runs never repeat: a new log gets a random run id, so no two robots'
+                # logs share event ids (a seeded simulation derives its id instead).
+                run_id=str(uuid.uuid4()),
             )
         except BaseException:
             self.node.close()

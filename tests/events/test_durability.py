@@ -29,11 +29,11 @@ with EventLog.open(directory, "crash") as log:
         if batch:
             with log.batch():
                 events = [
-                    log.append("search_failed", {"reason": f"r{i}.{k}"}, time_ns=i)
+                    log.append("search_failed", {"reason": f"r{i}.{k}"}, time_ns=log.last_time_ns)
                     for k in range(batch)
                 ]
         else:
-            events = [log.append("search_failed", {"reason": f"r{i}"}, time_ns=i)]
+            events = [log.append("search_failed", {"reason": f"r{i}"}, time_ns=log.last_time_ns)]
         for event in events:  # acknowledged: append (or the batch) has returned
             # One write per line: print() may emit its arguments in separate writes, and a kill
             # between them would leave half an ack.

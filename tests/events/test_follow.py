@@ -39,9 +39,11 @@ def test_a_reader_follows_a_writer_in_another_process(tmp_path: Path) -> None:
 
 
 def test_follow_waits_for_an_unfinished_line_then_reads_it(tmp_path: Path) -> None:
-    with EventLog.open(tmp_path, "s") as log:
+    # The donor is the same run (run id, clock), so its second line chains onto ours.
+    run = "00000000-0000-4000-8000-000000000001"
+    with EventLog.open(tmp_path, "s", run_id=run, wall_clock=lambda: 0) as log:
         log.append("search_failed", {"reason": "a"}, time_ns=0)
-    with EventLog.open(tmp_path / "other", "s") as donor:
+    with EventLog.open(tmp_path / "other", "s", run_id=run, wall_clock=lambda: 0) as donor:
         donor.append("search_failed", {"reason": "a"}, time_ns=0)
         donor.append("search_failed", {"reason": "b"}, time_ns=0)
     line2 = (tmp_path / "other" / "events.log").read_bytes().splitlines(keepends=True)[1]

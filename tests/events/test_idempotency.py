@@ -81,8 +81,12 @@ def test_the_same_id_for_another_fact_is_refused(
 
 def test_an_explicit_id_that_takes_a_future_default_id_is_caught(tmp_path: Path) -> None:
     with EventLog.open(tmp_path, "s") as log:
+        assert log.run_id is not None
         log.append(
-            "search_failed", {"reason": "a"}, time_ns=0, event_id=deterministic_event_id("s", 2)
+            "search_failed",
+            {"reason": "a"},
+            time_ns=0,
+            event_id=deterministic_event_id(log.run_id, 2),
         )
         with pytest.raises(DuplicateEventError, match="default id"):
             log.append("search_failed", {"reason": "b"}, time_ns=0)

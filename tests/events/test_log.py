@@ -4,6 +4,7 @@ import json
 import logging
 import os
 import re
+import uuid
 import warnings
 import zlib
 from pathlib import Path
@@ -28,27 +29,53 @@ from objsearch.events import (
 from .payloads import EXAMPLES
 
 STREAM = "run-1"
+RUN = "00000000-0000-4000-8000-0000000000aa"
 LINE = re.compile(rb"^(\{[^\t\n]*\})\t([0-9a-f]{8})\n$")
 
 
 def open_log(directory: Path, stream: str = STREAM, **kwargs: Any) -> EventLog:
     kwargs.setdefault("wall_clock", lambda: 42)
+    kwargs.setdefault("run_id", RUN)
     return EventLog.open(directory, stream, **kwargs)
 
 
-def write_events(directory: Path, n: int, stream: str = STREAM) -> list[Event]:
+def write_events(
+    directory: Path, n: int, stream: str = STREAM, *, crash_after: int | None = None
+) -> list[Event]:
+    """Append ``n`` events; with ``crash_after``, close cleanly after that many and die (as a
+    SIGKILL would: no close, no high-water mark) after the rest."""
+    if crash_after is not None:
+        return write_events(directory, crash_after, stream) + crash_after_appending(
+            directory, n - crash_after, stream, first=crash_after
+        )
     with open_log(directory, stream) as log:
         return [log.append("search_failed", {"reason": f"r{i}"}, time_ns=i) for i in range(n)]
+
+
+def crash_after_appending(directory: Path, n: int, stream: str, *, first: int = 0) -> list[Event]:
+    log = open_log(directory, stream)
+    events = [
+        log.append("search_failed", {"reason": f"r{i}"}, time_ns=i) for i in range(first, first + n)
+    ]
+    abandon(log)
+    return events
+
+
+def abandon(log: EventLog) -> None:
+    """What a killed writer leaves: its descriptors closed by the kernel, nothing else done."""
+    os.close(log._fd)
+    os.close(log._lock_fd)
+    log._closed = True
 
 
 def lines(directory: Path) -> list[bytes]:
     return (directory / "events.log").read_bytes().splitlines(keepends=True)
 
 
-def record_line(envelope: dict[str, Any]) -> bytes:
-    """A well-formed line with a correct checksum, whatever the envelope says."""
+def record_line(envelope: dict[str, Any], after: bytes) -> bytes:
+    """A well-formed line whose checksum chains onto the line ``after``, whatever it says."""
     body = json.dumps(envelope, sort_keys=True, separators=(",", ":")).encode()
-    return body + b"\t%08x\n" % zlib.crc32(body)
+    return body + b"\t%08x\n" % zlib.crc32(body, int(after[-9:-1], 16))
 
 
 # --- round trip, format, sequence ---------------------------------------------------------------
@@ -64,7 +91,7 @@ def test_append_then_read_round_trips_every_event_type(tmp_path: Path) -> None:
     read = list(read_log(tmp_path / "log"))
     assert read == written
     assert [e.seq for e in read] == list(range(1, len(EXAMPLES) + 1))
-    assert read[0].event_id == deterministic_event_id(STREAM, 1)
+    assert read[0].event_id == deterministic_event_id(RUN, 1)
     assert read[0].recorded_at_ns == 42
 
 
@@ -73,12 +100,19 @@ def test_records_are_compact_sorted_json_with_a_crc(tmp_path: Path) -> None:
     for raw in lines(tmp_path):
         match = LINE.match(raw)
         assert match is not None, raw
+    meta = json.loads((tmp_path / "meta.json").read_text())
+    assert meta == {"format": "objsearch.events/2", "stream": STREAM, "run_id": RUN}
+    # The chain starts from the log's genesis (format, stream, run id) and each checksum
+    # continues from the previous one.
+    prev = zlib.crc32(f"objsearch.events/2\n{STREAM}\n{RUN}\n".encode())
+    for raw in lines(tmp_path):
+        match = LINE.match(raw)
+        assert match is not None, raw
         body, crc = match.groups()
-        assert int(crc, 16) == zlib.crc32(body)
+        assert int(crc, 16) == zlib.crc32(body, prev)
+        prev = int(crc, 16)
         envelope = json.loads(body)
         assert body == json.dumps(envelope, sort_keys=True, separators=(",", ":")).encode()
-    meta = json.loads((tmp_path / "meta.json").read_text())
-    assert meta == {"format": "objsearch.events/1", "stream": STREAM}
 
 
 def test_unicode_line_separators_in_payloads_do_not_split_records(tmp_path: Path) -> None:
@@ -97,7 +131,7 @@ def test_reopening_continues_the_sequence(tmp_path: Path) -> None:
         assert log.last_seq == 3
         event = log.append("search_failed", {"reason": "again"}, time_ns=9)
     assert event.seq == 4
-    assert event.event_id == deterministic_event_id(STREAM, 4)
+    assert event.event_id == deterministic_event_id(RUN, 4)
     assert [e.seq for e in read_log(tmp_path)] == [1, 2, 3, 4]
 
 
@@ -181,10 +215,10 @@ def test_invalid_events_are_refused_and_nothing_is_written(
 
 
 @pytest.mark.parametrize("keep", [1, 10, 0.5, -2, -1], ids=lambda k: f"keep={k}")
-def test_torn_last_record_is_cut_on_open_with_a_warning(
+def test_torn_last_record_is_cut_on_open_kept_aside_and_warned(
     tmp_path: Path, keep: float, caplog: pytest.LogCaptureFixture
 ) -> None:
-    write_events(tmp_path, 3)
+    write_events(tmp_path, 3, crash_after=2)
     data = (tmp_path / "events.log").read_bytes()
     last_start = len(data) - len(lines(tmp_path)[-1])
     last_len = len(data) - last_start
@@ -205,15 +239,18 @@ def test_torn_last_record_is_cut_on_open_with_a_warning(
         assert log.last_seq == 2
         assert log.torn_tail is not None and log.torn_tail.offset == last_start
         assert (tmp_path / "events.log").read_bytes() == data[:last_start]
+        # Nothing is deleted: the cut bytes are kept beside the log, named in the warning.
+        assert log.torn_tail.quarantine == tmp_path / f"events.log.torn-{last_start}"
+        assert log.torn_tail.quarantine.read_bytes() == data[last_start:cut_at]
+        assert str(log.torn_tail.quarantine) in message
         assert log.append("search_failed", {"reason": "after"}, time_ns=5).seq == 3
     assert [e.payload["reason"] for e in read_log(tmp_path)] == ["r0", "r1", "after"]
 
 
-@pytest.mark.parametrize(
-    "garbage",
-    [b"garbage without newline", b"\x00" * 300, b'{"half": "a rec', b"bad\tffffffff\n", b"x\ny"],
-)
-def test_garbage_after_the_last_record_is_a_torn_tail(tmp_path: Path, garbage: bytes) -> None:
+@pytest.mark.parametrize("garbage", [b"garbage without newline", b"\x00" * 300, b'{"half": "a rec'])
+def test_an_unterminated_fragment_after_the_last_record_is_a_torn_tail(
+    tmp_path: Path, garbage: bytes
+) -> None:
     write_events(tmp_path, 2)
     good = (tmp_path / "events.log").read_bytes()
     (tmp_path / "events.log").write_bytes(good + garbage)
@@ -221,19 +258,48 @@ def test_garbage_after_the_last_record_is_a_torn_tail(tmp_path: Path, garbage: b
         assert log.last_seq == 2
         log.append("search_failed", {"reason": "ok"}, time_ns=3)
     assert [e.seq for e in read_log(tmp_path)] == [1, 2, 3]
+    assert (tmp_path / f"events.log.torn-{len(good)}").read_bytes() == garbage
 
 
-def test_a_damaged_complete_last_line_is_a_torn_tail(tmp_path: Path) -> None:
-    write_events(tmp_path, 3)
+@pytest.mark.parametrize("garbage", [b"bad\tffffffff\n", b"x\ny", b"\n"])
+def test_a_complete_bad_line_at_the_end_is_corruption_not_a_torn_tail(
+    tmp_path: Path, garbage: bytes
+) -> None:
+    write_events(tmp_path, 2)
+    with (tmp_path / "events.log").open("ab") as f:
+        f.write(garbage)
+    _assert_corrupt(tmp_path, 3, "checksum")
+
+
+def test_a_damaged_complete_last_line_is_corruption(tmp_path: Path) -> None:
+    write_events(tmp_path, 3, crash_after=2)
     raw = lines(tmp_path)
     damaged = raw[-1].replace(b'"r2"', b'"r9"')  # same length, checksum no longer matches
     (tmp_path / "events.log").write_bytes(b"".join(raw[:-1]) + damaged)
-    with pytest.warns(TornTailWarning, match="checksum mismatch"), open_log(tmp_path) as log:
-        assert log.last_seq == 2
+    _assert_corrupt(tmp_path, 3, "checksum mismatch")
+
+
+def test_a_log_cut_before_its_high_water_mark_is_corruption(tmp_path: Path) -> None:
+    write_events(tmp_path, 3)
+    raw = lines(tmp_path)
+    (tmp_path / "events.log").write_bytes(b"".join(raw[:2]))  # a clean cut at a record boundary
+    _assert_corrupt(tmp_path, 3, "closed it at seq 3 .* acknowledged records are missing")
+    (tmp_path / "events.log").write_bytes(b"".join(raw) + raw[2][:10])
+    with pytest.warns(TornTailWarning):  # past the mark, an unterminated fragment is torn
+        assert [e.seq for e in read_log(tmp_path)] == [1, 2, 3]
+    (tmp_path / "events.log").write_bytes(b"".join(raw[:2]) + raw[2][:-1])
+    _assert_corrupt(tmp_path, 3, "acknowledged records are missing")
+
+
+def test_crlf_line_endings_are_corruption_and_named(tmp_path: Path) -> None:
+    write_events(tmp_path, 3)
+    crlf = (tmp_path / "events.log").read_bytes().replace(b"\n", b"\r\n")
+    (tmp_path / "events.log").write_bytes(crlf)
+    _assert_corrupt(tmp_path, 1, "CR LF")
 
 
 def test_reader_skips_a_torn_tail_with_a_warning_and_changes_nothing(tmp_path: Path) -> None:
-    write_events(tmp_path, 3)
+    write_events(tmp_path, 3, crash_after=2)
     torn = (tmp_path / "events.log").read_bytes()[:-7]
     (tmp_path / "events.log").write_bytes(torn)
     with pytest.warns(TornTailWarning, match="skipping .* the file was not changed"):
@@ -267,16 +333,17 @@ def _assert_corrupt(tmp_path: Path, line: int, match: str) -> None:
     with pytest.raises(CorruptLogError, match=match):
         open_log(tmp_path)
     assert (tmp_path / "events.log").read_bytes() == before
+    assert not list(tmp_path.glob("events.log.*"))  # nothing cut, nothing kept aside
     with pytest.raises(CorruptLogError):  # not LogLockedError: the failed open let go of the lock
         open_log(tmp_path)
 
 
-def test_bad_checksum_in_the_middle_is_corruption_not_a_torn_tail(tmp_path: Path) -> None:
+def test_bad_checksum_in_the_middle_is_corruption(tmp_path: Path) -> None:
     write_events(tmp_path, 5)
     raw = lines(tmp_path)
     raw[2] = raw[2].replace(b'"r2"', b'"rX"')
     (tmp_path / "events.log").write_bytes(b"".join(raw))
-    _assert_corrupt(tmp_path, 3, "checksum mismatch.*a valid record follows at line 4")
+    _assert_corrupt(tmp_path, 3, "checksum mismatch")
 
 
 def test_missing_newline_in_the_middle_is_corruption(tmp_path: Path) -> None:
@@ -284,31 +351,56 @@ def test_missing_newline_in_the_middle_is_corruption(tmp_path: Path) -> None:
     raw = lines(tmp_path)
     raw[1] = raw[1][:-1]  # lines 2 and 3 merge into one damaged line
     (tmp_path / "events.log").write_bytes(b"".join(raw))
-    _assert_corrupt(tmp_path, 2, "valid record follows at line 3")
+    _assert_corrupt(tmp_path, 2, "checksum mismatch")
+
+
+@pytest.mark.parametrize("how", ["swap", "splice", "copy"])
+def test_intact_records_out_of_place_break_the_chain(tmp_path: Path, how: str) -> None:
+    write_events(tmp_path / "a", 4)
+    # The same stream name, another run: before the chain, its records passed every check.
+    with EventLog.open(tmp_path / "b", STREAM, wall_clock=lambda: 42) as other:
+        for i in range(4):
+            other.append("search_failed", {"reason": f"r{i}"}, time_ns=i)
+    raw, donor = lines(tmp_path / "a"), lines(tmp_path / "b")
+    if how == "swap":
+        raw[1], raw[2] = raw[2], raw[1]
+        line, match = 2, "spliced, reordered"
+    elif how == "splice":
+        raw = raw[:2] + donor[2:]
+        line, match = 3, "spliced, reordered"
+    else:
+        raw = [*raw, donor[0]]
+        line, match = 5, "spliced, reordered"
+    (tmp_path / "a" / "events.log").write_bytes(b"".join(raw))
+    _assert_corrupt(tmp_path / "a", line, match)
 
 
 def test_seq_gap_is_corruption(tmp_path: Path) -> None:
     events = write_events(tmp_path, 3)
     raw = lines(tmp_path)
     skipped = dict(events[2].to_json_dict(), seq=5)
-    (tmp_path / "events.log").write_bytes(b"".join(raw[:2]) + record_line(skipped))
+    (tmp_path / "events.log").write_bytes(b"".join(raw[:2]) + record_line(skipped, raw[1]))
     _assert_corrupt(tmp_path, 3, "expected seq 3, found seq 5")
 
 
 def test_checksummed_but_invalid_record_is_corruption_even_at_the_end(tmp_path: Path) -> None:
     write_events(tmp_path, 2)
     body = b'{"not": "an envelope"'
-    bad = body + b"\t%08x\n" % zlib.crc32(body)
+    bad = body + b"\t%08x\n" % zlib.crc32(body, int(lines(tmp_path)[-1][-9:-1], 16))
     with (tmp_path / "events.log").open("ab") as f:
         f.write(bad)
     _assert_corrupt(tmp_path, 3, "checksum matches but the JSON is invalid")
 
 
+def _append_forged(tmp_path: Path, envelope: dict[str, Any]) -> None:
+    last = lines(tmp_path)[-1]
+    with (tmp_path / "events.log").open("ab") as f:
+        f.write(record_line(envelope, last))
+
+
 def test_record_of_another_stream_is_corruption(tmp_path: Path) -> None:
     events = write_events(tmp_path, 2)
-    foreign = dict(events[1].to_json_dict(), seq=3, stream="other")
-    with (tmp_path / "events.log").open("ab") as f:
-        f.write(record_line(foreign))
+    _append_forged(tmp_path, dict(events[1].to_json_dict(), seq=3, stream="other"))
     _assert_corrupt(tmp_path, 3, "record of stream 'other' in the log of stream 'run-1'")
 
 
@@ -317,9 +409,27 @@ def test_record_missing_envelope_fields_is_corruption(tmp_path: Path) -> None:
     partial = events[0].to_json_dict()
     partial["seq"] = 2
     del partial["time_ns"]
-    with (tmp_path / "events.log").open("ab") as f:
-        f.write(record_line(partial))
+    _append_forged(tmp_path, partial)
     _assert_corrupt(tmp_path, 2, "missing field\\(s\\) 'time_ns'")
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"event_id": "not-a-uuid"}, "event_id"),
+        ({"event_id": "0000000A-0000-4000-8000-000000000001"}, "event_id"),
+        ({"version": 99}, "version 99 is not one this code knows"),
+        ({"type": "teleported"}, "'teleported' version 1 is not one this code knows"),
+        ({"time_ns": 0}, "time runs backwards"),
+    ],
+)
+def test_envelopes_the_docs_forbid_are_corruption(
+    tmp_path: Path, change: dict[str, Any], match: str
+) -> None:
+    events = write_events(tmp_path, 2)
+    forged = dict(events[1].to_json_dict(), seq=3, time_ns=5, **{"event_id": str(uuid.uuid4())})
+    _append_forged(tmp_path, {**forged, **change})
+    _assert_corrupt(tmp_path, 3, match)
 
 
 # --- opening: lock, stream, missing logs -------------------------------------------------------
@@ -367,8 +477,8 @@ def test_events_log_without_meta_is_not_adopted(tmp_path: Path) -> None:
 
 def test_unknown_format_is_refused(tmp_path: Path) -> None:
     write_events(tmp_path, 1)
-    (tmp_path / "meta.json").write_text('{"format": "objsearch.events/2", "stream": "run-1"}')
-    with pytest.raises(EventStoreError, match=r"unsupported log format 'objsearch\.events/2'"):
+    (tmp_path / "meta.json").write_text('{"format": "objsearch.events/3", "stream": "run-1"}')
+    with pytest.raises(EventStoreError, match=r"unsupported log format 'objsearch\.events/3'"):
         read_log(tmp_path)
 
 

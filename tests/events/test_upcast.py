@@ -146,7 +146,9 @@ def _decision_facts(event: Event) -> dict[str, Any]:
     # The fixture predates the simulated camera's projected-area mask model: the mask areas it
     # measured, and so which detections cleared the threshold, differ. Every plan, move and
     # outcome, and every detection's class, instance, position and support must not.
+    # Ids differ by design: a format-1 log derived them from its stream, today's from its run id.
     d = _facts(event)
+    del d["event_id"]
     if d["type"] == "detection":
         d["payload"] = {k: v for k, v in d["payload"].items() if k not in ("mask_area", "accepted")}
     return d
