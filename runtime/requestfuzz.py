@@ -22,11 +22,15 @@ from __future__ import annotations
 
 import json
 import random
+import socket
 import struct
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from objsearch.agent.geometry import Pose
@@ -34,6 +38,7 @@ from objsearch.runtime import messages as m
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.node import Node
 from objsearch.runtime.requests import MAX_DOCUMENT_BYTES
+from objsearch.runtime.transport import TransportConfig
 
 #: Values no field of any request accepts, as raw JSON text (so NaN and 1e400 can be written).
 ANY_BAD = [
@@ -85,6 +90,10 @@ class Case:
     field: str | None = None  # the field the error must name
 
 
+#: Which process reads each kind of case (and so must log the drop).
+RECEIVER = {"find": "agent", "open": "robot", "reset": "robot", "goal": "robot"}
+
+
 @dataclass
 class Counts:
     tried: int = 0
@@ -93,6 +102,7 @@ class Counts:
     served: int = 0  # valid requests answered correctly
     crashed: int = 0
     wrong: list[str] = field(default_factory=list)  # cases whose answer was not as expected
+    drops_by: dict[str, int] = field(default_factory=lambda: {"agent": 0, "robot": 0})
 
     def line(self) -> str:
         return (
@@ -309,6 +319,7 @@ class Fuzzer:
             self._publish(case)
             if case.expect == "drop":
                 counts.dropped += 1
+                counts.drops_by[RECEIVER[case.kind]] += 1
                 time.sleep(pace_s)
                 continue
             assert case.rid is not None
@@ -321,3 +332,154 @@ class Fuzzer:
                 counts.wrong.append(f"{case.kind} {case.note}: error names no field: {answer}")
             else:
                 counts.error_answered += 1
+
+
+# -- against real processes --------------------------------------------------------------------
+
+
+@dataclass
+class Rig:
+    """A zenoh router, ``objsearch robot sim`` and ``objsearch agent run`` on 127.0.0.1, each
+    logging to a file in ``workdir``."""
+
+    workdir: Path
+    port: int
+    procs: dict[str, subprocess.Popen[bytes]] = field(default_factory=dict)
+
+    @property
+    def args(self) -> list[str]:
+        return ["--transport", "zenoh", "--connect", f"tcp/127.0.0.1:{self.port}"]
+
+    def config(self) -> RuntimeConfig:
+        return RuntimeConfig(transport=TransportConfig(connect=(f"tcp/127.0.0.1:{self.port}",)))
+
+    def start(self, robot_toml: str = "") -> None:
+        endpoint = f"tcp/127.0.0.1:{self.port}"
+        self._spawn("router", "robot", "router", "--listen", endpoint)
+        time.sleep(0.3)
+        self._spawn("robot", "robot", "sim", *self.args)
+        config = self.workdir / "robot.toml"
+        config.write_text(robot_toml)
+        log = str(self.workdir / "log")
+        self._spawn("agent", "agent", "run", *self.args, "--config", str(config), "--log", log)
+
+    def _spawn(self, name: str, *args: str) -> None:
+        out = (self.workdir / f"{name}.txt").open("wb")
+        self.procs[name] = subprocess.Popen(
+            [sys.executable, "-m", "objsearch.cli", *args], stdout=out, stderr=subprocess.STDOUT
+        )
+
+    def output(self, name: str) -> str:
+        return (self.workdir / f"{name}.txt").read_text(errors="replace")
+
+    def alive(self, name: str) -> bool:
+        return self.procs[name].poll() is None
+
+    def stop(self) -> None:
+        for proc in reversed(self.procs.values()):
+            if proc.poll() is None:
+                proc.terminate()
+                try:
+                    proc.wait(10)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait(10)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def drops_logged(rig: Rig, name: str) -> int:
+    return rig.output(name).count("dropped a message")
+
+
+#: The valid search sent after the cases: (scene, target, start) of Table II.
+CHECK_SEARCH = (1, "Apple", "kitchen-1")
+RESULT_KEYS = ("success", "path_length", "found", "plans")
+
+
+def simulated(log_dir: Path) -> dict[str, Any]:
+    """:data:`CHECK_SEARCH` in the in-process simulator on a fresh log: what the agent, after
+    the cases, must answer (its first task, as no case may start one)."""
+    from objsearch.agent.policy import SearchConfig
+    from objsearch.agent.scene_graph import UpdateMode
+    from objsearch.agent.session import Session, load_context
+    from objsearch.sim.schedule import Schedule
+    from objsearch.sim.world import SimClock, SimWorld
+
+    scene, target, start = CHECK_SEARCH
+    ctx = load_context("paper")
+    placements = Schedule.load(ctx.home, "table2").scenes[scene]
+    session = Session(ctx, log_dir, SearchConfig(), UpdateMode.ALL)
+    try:
+        world = SimWorld(ctx.home, ctx.navmap, placements, ctx.home.start(start), clock=SimClock())
+        r = session.search(world, target, start, scene=scene)
+    finally:
+        session.close()
+    plans = [[room, list(order)] for room, order in r.plans]
+    return {
+        "success": r.success,
+        "path_length": r.path_length,
+        "found": r.found_instance,
+        "plans": plans,
+        "task_id": r.task_id,
+    }
+
+
+def fuzz_rig(
+    rig: Rig, n: int, seed: int, expected: dict[str, Any], *, settle_s: float = 20.0
+) -> tuple[Counts, Any]:
+    """Run ``n`` cases against ``rig``, then one valid reset and search (:data:`CHECK_SEARCH`);
+    returns the tally and the search's result (None if it got none). ``served`` counts the
+    search if its result equals ``expected`` (:func:`simulated`); otherwise it is ``wrong``.
+
+    ``crashed`` counts processes that died or printed a traceback; a drop whose log line never
+    appeared (within ``settle_s``) is a ``wrong`` case."""
+    from objsearch.runtime.client import AgentClient
+    from objsearch.runtime.transport import open_transport
+
+    counts = Counts()
+    config = rig.config()
+    node = Node(open_transport(config.transport))
+    result: Any = None
+    try:
+        with AgentClient(config) as client:
+            # Both ends up and matched before the first case.
+            client.reset_sim(None, "kitchen-1", timeout_s=60)
+            client.find("Unicorn", timeout_s=60)
+            fuzzer = Fuzzer(node, config, seed)
+            time.sleep(0.5)
+            fuzzer.run(n, counts)
+            scene, target, start = CHECK_SEARCH
+            reset = client.reset_sim(scene, start, timeout_s=30)
+            if reset.get("ok"):
+                result = client.find(
+                    target,
+                    start=start,
+                    scene=scene,
+                    timeout_s=90,
+                    not_before_ns=int(reset["stamp_ns"]),
+                )
+    finally:
+        node.close()
+    if (
+        result is not None
+        and result.get("ok")
+        and all(result.get(k) == v for k, v in expected.items())
+    ):
+        counts.served += 1
+    else:
+        counts.wrong.append(f"the valid search after the cases: {result}, expected {expected}")
+    deadline = time.monotonic() + settle_s
+    for name in ("agent", "robot"):
+        while drops_logged(rig, name) < counts.drops_by[name] and time.monotonic() < deadline:
+            time.sleep(0.1)
+        logged = drops_logged(rig, name)
+        if logged != counts.drops_by[name]:
+            counts.wrong.append(f"{name}: {logged} drops logged, {counts.drops_by[name]} sent")
+        if not rig.alive(name) or "Traceback" in rig.output(name):
+            counts.crashed += 1
+    return counts, result
