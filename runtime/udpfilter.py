@@ -95,6 +95,10 @@ class UdpSocket:
 
 def udp_sockets() -> list[UdpSocket]:
     """This process's IPv4 UDP sockets (from ``/proc``), with their local address and port."""
+    if not sys.platform.startswith("linux"):
+        raise TransportError(
+            "restricting DDS to one interface needs Linux (/proc, SO_ATTACH_FILTER)"
+        )
     inodes: dict[str, int] = {}
     for fd in os.listdir("/proc/self/fd"):
         try:
@@ -117,8 +121,6 @@ def udp_sockets() -> list[UdpSocket]:
 def restrict(address: str, before: set[str]) -> list[UdpSocket]:
     """Filter every wildcard-bound UDP socket opened since ``before`` (a set of inodes) to
     datagrams for ``address``; returns them."""
-    if not sys.platform.startswith("linux"):
-        raise TransportError("restricting DDS to one interface needs Linux (SO_ATTACH_FILTER)")
     done = []
     for s in udp_sockets():
         if s.inode in before or s.address != "0.0.0.0":
