@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import threading
 import uuid
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -39,6 +40,10 @@ STATUS_NAMES = {
     6: "aborted",
 }
 TERMINAL = {STATUS_SUCCEEDED, STATUS_CANCELED, STATUS_ABORTED}
+
+#: Goals an :class:`ActionServer` remembers; beyond this the oldest finished (or rejected) ones
+#: are forgotten (rcl_action drops results after a timeout too), so memory stays bounded.
+MAX_GOALS = 256
 
 # action_msgs/srv/CancelGoal return codes
 CANCEL_OK = 0
@@ -141,7 +146,7 @@ class ActionServer:
         self._clock = clock
         self._goals: dict[bytes, _Goal] = {}
         self._lock = threading.RLock()
-        self.cancel_requests: list[bytes] = []
+        self.cancel_requests: deque[bytes] = deque(maxlen=MAX_GOALS)  # the latest, for tests
         t = topics(name)
         self._status = node.publisher(t["status"], m.GOAL_STATUS_ARRAY, ACTION_STATUS)
         self._feedback = node.publisher(t["feedback"], f"{action}_FeedbackMessage", DEFAULT)
@@ -169,8 +174,16 @@ class ActionServer:
                 if not decision:
                     known.status = STATUS_UNKNOWN
                 self._goals[goal_id] = known
+                self._forget_old_goals()
                 self._publish_status()
             respond(self._send_goal_response(known))
+
+    def _forget_old_goals(self) -> None:
+        excess = len(self._goals) - MAX_GOALS
+        if excess > 0:
+            done = [gid for gid, g in self._goals.items() if not g.accepted or g.status in TERMINAL]
+            for gid in done[:excess]:
+                del self._goals[gid]
 
     def _handle_get_result(self, request: Any, respond: Callable[[Any], None]) -> None:
         goal_id = bytes(request.goal_id.uuid)

@@ -28,6 +28,7 @@ from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import RobotError
 from objsearch.runtime.liveview import LiveSink, LiveView
 from objsearch.runtime.node import Node, Server
+from objsearch.runtime.requests import FindRequest, parse_find_request
 from objsearch.runtime.rosworld import RobotLink, RosWorld
 from objsearch.runtime.transport import open_transport
 
@@ -125,24 +126,22 @@ class AgentNode:
         self.link = RobotLink(self.node, config)
         self.world = RosWorld(self.link, self.ctx.navmap)
         t = config.topics
-        self.requests = Server(self.node, t.find, t.find_result, config.qos.requests)
+        self.requests = Server(
+            self.node, t.find, t.find_result, config.qos.requests, parse_find_request
+        )
         self._stop = threading.Event()
 
-    def handle(self, request: dict[str, Any]) -> dict[str, Any]:
+    def handle(self, request: FindRequest) -> dict[str, Any]:
+        """One search; ``request`` is checked field by field already (:mod:`requests`)."""
         try:
-            target = self.ctx.vocabulary.resolve_target(str(request.get("target"))).name
+            target = self.ctx.vocabulary.resolve_target(request.target).name
         except ObjsearchError as exc:
-            return {"ok": False, "error": str(exc)}
-        scene = request.get("scene")
-        start = str(request.get("start") or "robot")
+            return {"ok": False, "error": f"find request: field 'target': {exc}"}
+        start = request.start or "robot"
         task_id = f"task-{self.session.graph.tasks_folded + 1:05d}"
         try:
-            self.world.fresh_pose(
-                self.config.timeouts.robot_s, int(request.get("not_before_ns") or 0)
-            )
-            result = self.session.search(
-                self.world, target, start, scene=None if scene is None else int(scene)
-            )
+            self.world.fresh_pose(self.config.timeouts.robot_s, request.not_before_ns)
+            result = self.session.search(self.world, target, start, scene=request.scene)
         except RobotError as exc:
             log.error("%s: search for %s failed: %s", task_id, target, exc)
             if task_id in self.events.open_tasks:

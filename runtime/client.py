@@ -7,6 +7,7 @@ from typing import Any
 
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.node import Node, Requester
+from objsearch.runtime.requests import check_find_result, check_reset_result
 from objsearch.runtime.transport import open_transport
 
 
@@ -14,8 +15,8 @@ class AgentClient:
     def __init__(self, config: RuntimeConfig) -> None:
         self.node = Node(open_transport(config.transport))
         t, q = config.topics, config.qos.requests
-        self._find = Requester(self.node, t.find, t.find_result, q)
-        self._reset = Requester(self.node, t.sim_reset, t.sim_reset_result, q)
+        self._find = Requester(self.node, t.find, t.find_result, q, check_find_result)
+        self._reset = Requester(self.node, t.sim_reset, t.sim_reset_result, q, check_reset_result)
 
     def find(
         self,

@@ -25,11 +25,13 @@ import threading
 import time
 from functools import cache
 from typing import Any
+from xml.sax.saxutils import quoteattr
 
 from objsearch.runtime.errors import MessageError, TransportError
 from objsearch.runtime.messages import dds_type_name, store
 from objsearch.runtime.qos import SERVICES, Durability, QoS, Reliability
 from objsearch.runtime.transport import Handler, ServiceHandler, TransportConfig
+from objsearch.runtime.udpfilter import interface_address, restrict, udp_sockets
 
 #: How often a client sends its request again while unanswered (discovery still under way).
 RETRY_S = 0.5
@@ -133,12 +135,13 @@ def _qos(qos: QoS) -> Any:
     return Qos(reliability, durability, Policy.History.KeepLast(qos.depth))
 
 
-def domain_xml(config: TransportConfig) -> str:
-    """Unicast discovery on one interface (no multicast: containers and CI often lack it)."""
-    peers = "".join(f'<Peer address="{p}"/>' for p in config.peers)
+def domain_xml(config: TransportConfig, address: str) -> str:
+    """Unicast discovery on one interface, named by its IPv4 ``address`` (no multicast:
+    containers and CI often lack it, and it would need sockets on every interface)."""
+    peers = "".join(f"<Peer address={quoteattr(p)}/>" for p in config.peers)
     return (
         "<CycloneDDS><Domain><General>"
-        f'<Interfaces><NetworkInterface name="{config.interface}"/></Interfaces>'
+        f"<Interfaces><NetworkInterface address={quoteattr(address)}/></Interfaces>"
         "<AllowMulticast>false</AllowMulticast></General>"
         "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
         f"<MaxAutoParticipantIndex>30</MaxAutoParticipantIndex><Peers>{peers}</Peers>"
@@ -216,15 +219,24 @@ class DdsTransport:
                 "the dds transport needs cyclonedds: pip install 'objsearch[robot]'"
             ) from exc
         self.config = config
+        self.address = interface_address(config.interface)
+        before = {s.inode for s in udp_sockets()}
         try:
-            self._domain = Domain(config.domain_id, domain_xml(config))
+            self._domain = Domain(config.domain_id, domain_xml(config, self.address))
             self.participant: Any = DomainParticipant(config.domain_id)
         except Exception as exc:
             raise TransportError(
                 f"cannot join DDS domain {config.domain_id} on {config.interface}: {exc}"
             ) from exc
+        # Cyclone binds its receive sockets to 0.0.0.0 (no option says otherwise): keep them to
+        # datagrams for the configured interface's address (see udpfilter).
         self._topics: dict[str, Any] = {}
         self._entities: list[Any] = []
+        try:
+            self.restricted = restrict(self.address, before)
+        except TransportError:
+            self.close()
+            raise
 
     def _topic(self, name: str, cls: Any) -> Any:
         from cyclonedds.topic import Topic

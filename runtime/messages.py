@@ -71,7 +71,13 @@ def encode(msg: Any, msgtype: str) -> bytes:
     return bytes(store().serialize_cdr(msg, msgtype))
 
 
+#: The encapsulation headers of plain CDR, big and little endian (what ROS 2 sends).
+CDR_HEADERS = (b"\x00\x00", b"\x00\x01")
+
+
 def decode(data: bytes, msgtype: str) -> Any:
+    if data[:2] not in CDR_HEADERS or len(data) < 4:
+        raise MessageError(f"malformed {msgtype} ({len(data)} bytes): not plain CDR")
     try:
         return store().deserialize_cdr(data, msgtype)
     except Exception as exc:  # rosbags raises assorted errors on short or garbled bytes
@@ -148,16 +154,6 @@ def string(data: str) -> Any:
 
 def json_string(doc: dict[str, Any]) -> Any:
     return string(json.dumps(doc, sort_keys=True, separators=(",", ":")))
-
-
-def json_of_string(msg: Any) -> dict[str, Any]:
-    try:
-        doc = json.loads(msg.data)
-    except ValueError as exc:
-        raise MessageError(f"expected a JSON object, got {msg.data[:80]!r}: {exc}") from None
-    if not isinstance(doc, dict):
-        raise MessageError(f"expected a JSON object, got {msg.data[:80]!r}")
-    return doc
 
 
 def detections(ns: int, pose: Pose, dets: Sequence[Detection]) -> Any:

@@ -1,7 +1,10 @@
 """Typed topics over a transport, and request/result pairs with a correlation id.
 
-Subscription handlers run on middleware threads; a malformed message is reported (logged and
-counted in :attr:`Node.malformed`) and dropped, never raised into the middleware.
+Subscription handlers run on middleware threads; a malformed message (too big, bytes that are not
+CDR of the topic's type, a field out of range) is reported — logged as ``dropped a message: …``
+and counted in :attr:`Node.dropped` — and dropped, never raised into the middleware. A request
+that can be answered (it has an ``id``) but is malformed gets an error result instead
+(:class:`Server`).
 """
 
 from __future__ import annotations
@@ -10,15 +13,28 @@ import logging
 import threading
 import time
 import uuid
-from collections.abc import Callable
-from typing import Any
+from collections import OrderedDict, deque
+from collections.abc import Callable, Mapping
+from typing import Any, Generic, Protocol, TypeVar
 
 from objsearch.runtime import messages as m
+from objsearch.runtime import requests as rq
 from objsearch.runtime.errors import MessageError, RobotError
 from objsearch.runtime.qos import QoS
 from objsearch.runtime.transport import Publisher, ServiceClient, Transport
 
 log = logging.getLogger("objsearch.runtime")
+
+#: The largest message any subscription decodes (a Detection2DArray of a busy view is tens of
+#: kilobytes); bigger ones are dropped unread.
+MAX_MESSAGE_BYTES = 4 * 1024 * 1024
+#: Request and result topics carry one small JSON document (CDR header and length included).
+MAX_REQUEST_BYTES = rq.MAX_DOCUMENT_BYTES + 64
+#: Answers a :class:`Server` remembers (the last this many ids): a request sent again within
+#: them is answered from memory, not carried out twice. Clients resend only until answered.
+REMEMBER_IDS = 1024
+#: Requests waiting to be carried out; more are answered ``busy`` at once (and may be resent).
+MAX_QUEUED = 64
 
 
 class TypedPublisher:
@@ -45,18 +61,35 @@ class TypedClient:
 class Node:
     def __init__(self, transport: Transport) -> None:
         self.transport = transport
-        self.malformed: list[str] = []
+        self.malformed: deque[str] = deque(maxlen=100)  # the latest problems, for tests and logs
+        self.dropped = 0
         self._lock = threading.Lock()
 
     def publisher(self, topic: str, msgtype: str, qos: QoS) -> TypedPublisher:
         return TypedPublisher(self.transport.publisher(topic, msgtype, qos), msgtype)
 
-    def subscribe(self, topic: str, msgtype: str, qos: QoS, handler: Callable[[Any], None]) -> None:
+    def subscribe(
+        self,
+        topic: str,
+        msgtype: str,
+        qos: QoS,
+        handler: Callable[[Any], None],
+        *,
+        max_bytes: int = MAX_MESSAGE_BYTES,
+    ) -> None:
+        """``handler(message)`` on a middleware thread; it raises :class:`MessageError` to have a
+        message reported and dropped."""
+
         def on_bytes(data: bytes) -> None:
             try:
+                if len(data) > max_bytes:
+                    raise MessageError(f"{len(data)} bytes (at most {max_bytes} on this topic)")
                 handler(m.decode(data, msgtype))
             except MessageError as exc:
                 self.report(f"{topic}: {exc}")
+            except Exception as exc:  # a bug, but never one that takes the middleware down
+                log.exception("%s: handler failed", topic)
+                self.report(f"{topic}: {type(exc).__name__}: {exc}")
 
         self.transport.subscribe(topic, msgtype, qos, on_bytes)
 
@@ -67,11 +100,15 @@ class Node:
 
         def on_bytes(data: bytes, respond_bytes: Callable[[bytes], None]) -> None:
             try:
+                if len(data) > MAX_MESSAGE_BYTES:
+                    raise MessageError(f"{len(data)} bytes (at most {MAX_MESSAGE_BYTES})")
                 request = m.decode(data, f"{srvtype}_Request")
+                handler(request, lambda msg: respond_bytes(m.encode(msg, f"{srvtype}_Response")))
             except MessageError as exc:
                 self.report(f"{service}: {exc}")
-                return
-            handler(request, lambda msg: respond_bytes(m.encode(msg, f"{srvtype}_Response")))
+            except Exception as exc:
+                log.exception("%s: handler failed", service)
+                self.report(f"{service}: {type(exc).__name__}: {exc}")
 
         self.transport.serve(service, srvtype, on_bytes)
 
@@ -81,30 +118,52 @@ class Node:
     def report(self, problem: str) -> None:
         with self._lock:
             self.malformed.append(problem)
+            self.dropped += 1
         log.warning("dropped a message: %s", problem)
 
     def close(self) -> None:
         self.transport.close()
 
 
-class Requester:
+R = TypeVar("R")
+
+
+class Requester(Generic[R]):
     """Sends a JSON request on a String topic until its result (same ``id``) arrives.
 
     Sending again covers the moments before discovery has matched both ends; the server
-    answers a repeated id from its cache, so a request is carried out once.
+    answers a repeated id from its cache, so a request is carried out once. Results are checked
+    by ``parse`` (:mod:`objsearch.runtime.requests`); one that fails, or answers an id nobody
+    here is waiting for, is dropped with a log line.
     """
 
-    def __init__(self, node: Node, topic: str, result_topic: str, qos: QoS) -> None:
+    def __init__(
+        self,
+        node: Node,
+        topic: str,
+        result_topic: str,
+        qos: QoS,
+        parse: Callable[[Mapping[str, Any]], R],
+    ) -> None:
+        self._node = node
         self._pub = node.publisher(topic, m.STRING, qos)
-        self._results: dict[str, dict[str, Any]] = {}
+        self._parse = parse
+        self._waiting: set[str] = set()
+        self._results: dict[str, R] = {}
         self._cond = threading.Condition()
-        node.subscribe(result_topic, m.STRING, qos, self._on_result)
+        node.subscribe(result_topic, m.STRING, qos, self._on_result, max_bytes=MAX_REQUEST_BYTES)
 
     def _on_result(self, msg: Any) -> None:
-        doc = m.json_of_string(msg)
+        doc = rq.parse_document(msg.data)
+        rid = rq.request_id(doc)
         with self._cond:
-            self._results[str(doc.get("id"))] = doc
-            self._cond.notify_all()
+            if rid not in self._waiting:
+                return  # another client's answer (results share the topic), or a late repeat
+        result = self._parse(doc)
+        with self._cond:
+            if rid in self._waiting:
+                self._results[rid] = result
+                self._cond.notify_all()
 
     def call(
         self,
@@ -113,53 +172,113 @@ class Requester:
         timeout_s: float,
         resend_s: float = 0.5,
         what: str = "request",
-    ) -> dict[str, Any]:
+    ) -> R:
         rid = str(body.get("id") or uuid.uuid4())
         msg = m.json_string({**body, "id": rid})
         deadline = time.monotonic() + timeout_s
         with self._cond:
-            while rid not in self._results:
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    raise RobotError(f"no answer to {what} {rid} within {timeout_s:g} s")
-                self._pub.publish(msg)
-                self._cond.wait(min(resend_s, left))
-            return self._results.pop(rid)
+            self._waiting.add(rid)
+            try:
+                while rid not in self._results:
+                    left = deadline - time.monotonic()
+                    if left <= 0:
+                        raise RobotError(f"no answer to {what} {rid} within {timeout_s:g} s")
+                    self._pub.publish(msg)
+                    self._cond.wait(min(resend_s, left))
+                return self._results.pop(rid)
+            finally:
+                self._waiting.discard(rid)
+                self._results.pop(rid, None)
 
 
-class Server:
-    """Answers JSON requests once per id, in arrival order, on the thread that calls :meth:`spin`."""
+class HasId(Protocol):
+    @property
+    def id(self) -> str: ...
 
-    def __init__(self, node: Node, topic: str, result_topic: str, qos: QoS) -> None:
+
+Q = TypeVar("Q", bound=HasId)
+
+
+class Server(Generic[Q]):
+    """Answers JSON requests once per id, in arrival order, on the thread that calls :meth:`next`.
+
+    Each request is checked by ``parse`` on arrival: one without a usable id is dropped with a
+    log line (there is nothing to answer it under); one with an id and a bad field is answered
+    at once ``{id, ok: false, error}``, the error naming the field. The last
+    :data:`REMEMBER_IDS` answers are kept (least recently used out first), so memory stays
+    bounded however many ids arrive; at most :data:`MAX_QUEUED` requests wait, more are answered
+    ``busy``.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        topic: str,
+        result_topic: str,
+        qos: QoS,
+        parse: Callable[[Mapping[str, Any]], Q],
+        *,
+        remember: int = REMEMBER_IDS,
+        max_queued: int = MAX_QUEUED,
+    ) -> None:
         self._node = node
+        self._topic = topic
+        self._parse = parse
+        self._remember = remember
+        self._max_queued = max_queued
         self._pub = node.publisher(result_topic, m.STRING, qos)
-        self._answers: dict[str, dict[str, Any]] = {}
-        self._queue: list[dict[str, Any]] = []
+        self._answers: OrderedDict[str, dict[str, Any]] = OrderedDict()
+        self._queue: deque[Q] = deque()
         self._queued: set[str] = set()
         self._cond = threading.Condition()
-        node.subscribe(topic, m.STRING, qos, self._on_request)
+        self.refused = 0
+        node.subscribe(topic, m.STRING, qos, self._on_request, max_bytes=MAX_REQUEST_BYTES)
 
     def _on_request(self, msg: Any) -> None:
-        doc = m.json_of_string(msg)
-        rid = doc.get("id")
-        if not isinstance(rid, str) or not rid:
-            raise MessageError(f"a request without an id: {msg.data[:80]!r}")
+        doc = rq.parse_document(msg.data)
+        rid = rq.request_id(doc)
         with self._cond:
             if rid in self._answers:
+                self._answers.move_to_end(rid)
                 self._pub.publish(m.json_string(self._answers[rid]))
-            elif rid not in self._queued:
-                self._queued.add(rid)
-                self._queue.append(doc)
-                self._cond.notify_all()
+                return
+            if rid in self._queued:
+                return  # sent again while waiting: it will be answered once
+            try:
+                request = self._parse(doc)
+            except MessageError as exc:
+                self.refused += 1
+                log.warning("%s: refused request %s: %s", self._topic, rid, exc)
+                self._remember_answer({"id": rid, "ok": False, "error": str(exc)})
+                return
+            if len(self._queue) >= self._max_queued:
+                log.warning("%s: busy, refused request %s", self._topic, rid)
+                error = f"busy: {len(self._queue)} requests are waiting; send it again later"
+                self._pub.publish(m.json_string({"id": rid, "ok": False, "error": error}))
+                return
+            self._queued.add(rid)
+            self._queue.append(request)
+            self._cond.notify_all()
 
-    def next(self, timeout_s: float) -> dict[str, Any] | None:
+    def _remember_answer(self, doc: dict[str, Any]) -> None:
+        """Under the lock: keep ``doc`` as the answer to its id, and publish it."""
+        self._answers[doc["id"]] = doc
+        self._answers.move_to_end(doc["id"])
+        while len(self._answers) > self._remember:
+            self._answers.popitem(last=False)
+        self._pub.publish(m.json_string(doc))
+
+    def next(self, timeout_s: float) -> Q | None:
         with self._cond:
             if not self._queue:
                 self._cond.wait(timeout_s)
-            return self._queue.pop(0) if self._queue else None
+            return self._queue.popleft() if self._queue else None
 
-    def answer(self, request: dict[str, Any], result: dict[str, Any]) -> None:
-        doc = {**result, "id": request["id"]}
+    def answer(self, request: Q, result: dict[str, Any]) -> None:
         with self._cond:
-            self._answers[request["id"]] = doc
-        self._pub.publish(m.json_string(doc))
+            self._queued.discard(request.id)
+            self._remember_answer({**result, "id": request.id})
+
+    def remembered(self) -> int:
+        with self._cond:
+            return len(self._answers)

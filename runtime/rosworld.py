@@ -24,6 +24,7 @@ import logging
 import math
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
@@ -37,8 +38,13 @@ from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import MessageError, RobotError
 from objsearch.runtime.interfaces import NAVIGATE_TO_POSE
 from objsearch.runtime.node import Node, Requester
+from objsearch.runtime.requests import OpenResult, parse_open_result
 
 log = logging.getLogger("objsearch.agent")
+
+#: Camera views kept for :meth:`RobotLink.view_after` (the newest; a search waits for one view
+#: at a time, so this only bounds memory over a long run).
+VIEWS_KEPT = 1024
 
 #: TF samples older than this (robot time) behind the newest are dropped (tf2 keeps 10 s).
 TF_CACHE_NS = 10 * 10**9
@@ -56,7 +62,8 @@ class RobotLink:
         self.pose_count = 0  # odometry messages received
         self.clock_ns = 0
         self.heard_at = 0.0  # monotonic time of the last message from the robot
-        self._views: list[tuple[int, int, tuple[Detection, ...]]] = []  # (arrival no, stamp, dets)
+        # (arrival no, stamp, dets) of the latest views
+        self._views: deque[tuple[int, int, tuple[Detection, ...]]] = deque(maxlen=VIEWS_KEPT)
         self._received = itertools.count()
         nav = config.navigation
         self.navigator: ActionClient | None = None
@@ -64,7 +71,9 @@ class RobotLink:
             self.navigator = ActionClient(node, nav.action, NAVIGATE_TO_POSE)
         else:
             self.goal_pub = node.publisher(t.goal, m.POSE_STAMPED, q.goal)
-        self.opener = Requester(node, t.open, t.open_result, q.requests)
+        self.opener: Requester[OpenResult] = Requester(
+            node, t.open, t.open_result, q.requests, parse_open_result
+        )
         if config.pose.source == "tf":
             self.tf = TransformBuffer()
             node.subscribe(t.tf, m.TF, q.tf, self._on_tf)
@@ -358,11 +367,11 @@ class RosWorld:
             )
         except RobotError as exc:
             raise RobotError(f"{exc}; {self.link.silence()}") from None
-        if not result.get("ok"):
-            raise RobotError(f"the robot could not open {static_id!r}: {result.get('error')}")
-        stamp = int(result.get("stamp_ns", 0))
+        if not result.ok:
+            raise RobotError(f"the robot could not open {static_id!r}: {result.error}")
+        stamp = result.stamp_ns
         here = self.pose()
-        self._commanded = Pose(here.x, here.y, float(result.get("yaw", here.yaw)))
+        self._commanded = Pose(here.x, here.y, result.yaw)
         dets = self.link.wait(lambda: self.link.view_after(mark, stamp) is not None, t.detections_s)
         if not dets:
             raise RobotError(

@@ -26,10 +26,10 @@ from __future__ import annotations
 import logging
 import queue
 import threading
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point, Pose
 from objsearch.agent.session import load_context
 from objsearch.runtime import messages as m
@@ -38,6 +38,12 @@ from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import MessageError
 from objsearch.runtime.interfaces import NAVIGATE_TO_POSE
 from objsearch.runtime.node import Node, Server
+from objsearch.runtime.requests import (
+    OpenRequest,
+    ResetRequest,
+    parse_open_request,
+    parse_reset_request,
+)
 from objsearch.runtime.transport import open_transport
 from objsearch.sim.longterm import PAUSE_BETWEEN_TASKS_S
 from objsearch.sim.schedule import Placements, base_placements, table1_removals
@@ -45,6 +51,9 @@ from objsearch.sim.schedules import load_schedule
 from objsearch.sim.world import SimClock, SimWorld
 
 log = logging.getLogger("objsearch.robot")
+
+#: Commands (goals, cancels) waiting for the main loop; more are dropped with a log line.
+INBOX_SIZE = 256
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,7 +91,8 @@ class StandInRobot:
         self._odom = self.node.publisher(t.odometry, m.ODOMETRY, q.odometry)
         self._tf = self.node.publisher(t.tf, m.TF, q.tf)
         self._views = self.node.publisher(t.detections, m.DETECTIONS, q.detections)
-        self._inbox: queue.Queue[tuple[str, Any]] = queue.Queue()
+        # Goals and cancels for the main loop; bounded, so a flood is dropped, not hoarded.
+        self._inbox: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=INBOX_SIZE)
         self.action: ActionServer | None = None
         if config.navigation.interface == "navigate_to_pose":
             self.action = ActionServer(
@@ -90,15 +100,15 @@ class StandInRobot:
                 config.navigation.action,
                 NAVIGATE_TO_POSE,
                 self._on_action_goal,
-                lambda goal_id: self._inbox.put(("cancel", goal_id)),
+                lambda goal_id: self._put(("cancel", goal_id)),
                 lambda: self.world.now_ns(),
             )
         else:
-            self.node.subscribe(
-                t.goal, m.POSE_STAMPED, q.goal, lambda msg: self._inbox.put(("goal", msg))
-            )
-        self._open = Server(self.node, t.open, t.open_result, q.requests)
-        self._reset = Server(self.node, t.sim_reset, t.sim_reset_result, q.requests)
+            self.node.subscribe(t.goal, m.POSE_STAMPED, q.goal, self._on_goal_message)
+        self._open = Server(self.node, t.open, t.open_result, q.requests, parse_open_request)
+        self._reset = Server(
+            self.node, t.sim_reset, t.sim_reset_result, q.requests, parse_reset_request
+        )
         self._last_goal: tuple[int, Pose] | None = None
         self._last_views: list[Any] = []
         self._sent = 0
@@ -138,9 +148,17 @@ class StandInRobot:
 
     # -- commands ------------------------------------------------------------------------------
 
-    def _on_goal(self, msg: Any) -> None:
-        goal_id = m.stamp_ns(msg.header)
-        goal = m.pose_of_pose_stamped(msg)
+    def _put(self, item: tuple[str, Any]) -> None:
+        try:
+            self._inbox.put_nowait(item)
+        except queue.Full:
+            raise MessageError(f"{INBOX_SIZE} commands are waiting; {item[0]} dropped") from None
+
+    def _on_goal_message(self, msg: Any) -> None:
+        """On a middleware thread: a goal with a pose that makes no sense is dropped here."""
+        self._put(("goal", (m.stamp_ns(msg.header), m.pose_of_pose_stamped(msg))))
+
+    def _on_goal(self, goal_id: int, goal: Pose) -> None:
         if self._last_goal is not None and self._last_goal[0] == goal_id:
             self._publish_pose()
             self._publish_views(self._last_views)
@@ -158,6 +176,11 @@ class StandInRobot:
     def _on_action_goal(self, goal_id: bytes, goal: Any) -> bool | None:
         """On a middleware thread: accept (queue for the main loop), reject, or stay silent."""
         f = self.faults
+        try:
+            pose = m.pose_of_pose_stamped(goal.pose)
+        except MessageError as exc:
+            log.warning("rejected a navigate_to_pose goal: %s", exc)
+            return False
         n = self.goals + 1
         if f.mute_after and n >= f.mute_after:
             log.info("fault: no answer to send_goal %d", n)
@@ -166,10 +189,14 @@ class StandInRobot:
         if f.reject_after and n == f.reject_after:
             log.info("fault: rejecting goal %d", n)
             return False
-        self._inbox.put(("action", (goal_id, goal, n)))
+        try:
+            self._put(("action", (goal_id, pose, n)))
+        except MessageError as exc:
+            log.warning("rejected a navigate_to_pose goal: %s", exc)
+            return False
         return True
 
-    def _on_action(self, goal_id: bytes, goal: Any, n: int) -> None:
+    def _on_action(self, goal_id: bytes, pose: Pose, n: int) -> None:
         assert self.action is not None
         f = self.faults
         if f.stall_after and n == f.stall_after:
@@ -180,7 +207,7 @@ class StandInRobot:
             log.info("fault: aborting goal %d", n)
             self.action.finish(goal_id, STATUS_ABORTED)
             return
-        views = self._move(m.pose_of_pose_stamped(goal.pose))
+        views = self._move(pose)
         self._publish_pose()
         self._publish_views(views)
         self.action.finish(goal_id, STATUS_SUCCEEDED)
@@ -209,25 +236,28 @@ class StandInRobot:
         )
         return point
 
-    def _on_open(self, request: Mapping[str, Any]) -> dict[str, Any]:
+    def _on_open(self, request: OpenRequest) -> dict[str, Any]:
         try:
-            dets = self.world.open(str(request.get("static_id")))
+            dets = self.world.open(request.static_id)
         except ValueError as exc:
-            return {"ok": False, "error": str(exc)}
+            return {"ok": False, "error": f"open request: field 'static_id': {exc}"}
         view = m.detections(self.world.now_ns(), self.world.pose(), dets)
         self._last_views = [view]
         self._publish_pose()
         self._publish_views([view])
         return {"ok": True, "stamp_ns": self.world.now_ns(), "yaw": self.world.pose().yaw}
 
-    def _on_reset(self, request: Mapping[str, Any]) -> dict[str, Any]:
+    def _on_reset(self, request: ResetRequest) -> dict[str, Any]:
         try:
-            scene = request.get("scene")
-            start = str(request.get("start"))
-            self.clock.advance(PAUSE_BETWEEN_TASKS_S)
-            self.world = self._world(None if scene is None else int(scene), start)
-        except (MessageError, KeyError, ValueError) as exc:
-            return {"ok": False, "error": str(exc)}
+            placements = self._placements(request.scene)
+        except MessageError as exc:
+            return {"ok": False, "error": f"reset request: field 'scene': {exc}"}
+        try:
+            pose = self.ctx.home.start(request.start)
+        except ObjsearchError as exc:
+            return {"ok": False, "error": f"reset request: field 'start': {exc}"}
+        self.clock.advance(PAUSE_BETWEEN_TASKS_S)
+        self.world = SimWorld(self.ctx.home, self.ctx.navmap, placements, pose, clock=self.clock)
         self._last_goal = None
         self._publish_pose()
         return {"ok": True, "stamp_ns": self.world.now_ns()}
@@ -244,17 +274,19 @@ class StandInRobot:
                 if self.faults.exit_after and self.goals >= self.faults.exit_after:
                     log.warning("fault: the robot goes away after %d goals", self.goals)
                     return 3
-                for server, handle in ((self._reset, self._on_reset), (self._open, self._on_open)):
-                    request = server.next(0)
-                    if request is not None:
-                        server.answer(request, handle(request))
+                reset = self._reset.next(0)
+                if reset is not None:
+                    self._reset.answer(reset, self._on_reset(reset))
+                opening = self._open.next(0)
+                if opening is not None:
+                    self._open.answer(opening, self._on_open(opening))
                 try:
                     kind, msg = self._inbox.get(timeout=self.heartbeat_s)
                 except queue.Empty:
                     self._publish_pose()
                     continue
                 if kind == "goal":
-                    self._on_goal(msg)
+                    self._on_goal(*msg)
                 elif kind == "action":
                     self._on_action(*msg)
                 elif kind == "cancel" and self.action is not None:
