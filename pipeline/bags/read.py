@@ -36,6 +36,7 @@ from objsearch.events import Event, InvalidEventError, default_registry, determi
 from objsearch.events.arrow import events_to_tables
 from objsearch.events.record import encode_record
 from objsearch.pipeline.bags import fastdecode
+from objsearch.pipeline.bags.census import Census, take_census
 from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.formats import BagFormat, detect, storage_files
 from objsearch.pipeline.bags.posetrack import (
@@ -86,8 +87,22 @@ class ReadOutcome:
     reader: str  # "AnyReader" or "salvage scan"
     losses: tuple[Loss, ...]
     notes: tuple[str, ...]
-    #: Messages per topic the bag says it holds (metadata.yaml or the index), if known.
-    expected: Mapping[str, int] | None
+    #: Messages per topic the bag says it holds (the largest of its own claims:
+    #: :mod:`~objsearch.pipeline.bags.census`).
+    claimed: Mapping[str, int]
+    #: False when no claim covers the whole bag (its index is gone): the losses are lower bounds.
+    claims_complete: bool
+    census: Census
+    scans: tuple[Scan, ...] = ()  # the salvage scans, when the scanner read the bag
+
+
+@dataclass(frozen=True, slots=True)
+class TopicLoss:
+    """Messages of one topic the bag says it holds that were not read, and where they went."""
+
+    claimed: int
+    lost: int
+    reasons: tuple[str, ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -99,6 +114,11 @@ class TopicReport:
     events: int  # events made from them
     rejected: int  # dropped as damaged or invalid
     reasons: tuple[str, ...] = ()
+    #: Messages the bag's own index/metadata says the topic has (None: no claim survived).
+    claimed: int | None = None
+    #: Of those, not read at all (the bag is damaged there), and why where known.
+    lost: int = 0
+    lost_reasons: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,6 +127,7 @@ class Skipped:
     msgtype: str
     messages: int
     reason: str
+    lost: int = 0  # claimed by the bag's index but not read (see TopicReport.lost)
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,10 +145,16 @@ class BagReport:
     events: int
     event_types: Mapping[str, int]
     notes: tuple[str, ...] = ()
+    #: Whether the bag's claims cover all of it; if not, the per-topic ``lost`` are lower bounds.
+    claims_complete: bool = True
 
     @property
     def damaged(self) -> bool:
-        return bool(self.losses) or any(t.rejected for t in self.topics)
+        return (
+            bool(self.losses)
+            or any(t.rejected or t.lost for t in self.topics)
+            or any(s.lost for s in self.skipped)
+        )
 
     def render(self) -> str:
         lines = [
@@ -140,11 +167,15 @@ class BagReport:
             )
         for t in self.topics:
             extra = f", {t.rejected} rejected ({'; '.join(t.reasons)})" if t.rejected else ""
+            if t.lost or not self.claims_complete:
+                extra += f", {_lost(t.lost, self.claims_complete)} lost"
+                extra += f" ({'; '.join(t.lost_reasons)})" if t.lost_reasons else ""
             lines.append(
                 f"  {t.topic:32} {t.msgtype:36} {t.role:12} {t.messages:8} msgs → {t.events} events{extra}"
             )
         for s in self.skipped:
-            lines.append(f"  skipped {s.topic} ({s.msgtype}, {s.messages} msgs): {s.reason}")
+            lost = f", {_lost(s.lost, self.claims_complete)} lost" if s.lost else ""
+            lines.append(f"  skipped {s.topic} ({s.msgtype}, {s.messages} msgs{lost}): {s.reason}")
         for loss in self.losses:
             lines.append(f"  LOST {loss}")
         for note in self.notes:
@@ -182,6 +213,10 @@ class BagContents:
                 track = pa.concat_tables([tables[POSE_TYPE], track]).combine_chunks()
             tables[POSE_TYPE] = track
         return dict(sorted(tables.items()))
+
+
+def _lost(n: int, exact: bool) -> str:
+    return str(n) if exact else f"at least {n}"
 
 
 def _iso(ns: int) -> str:
@@ -356,13 +391,15 @@ class Converter:
         """
         sources = list(self.pose_sources.items())
         poses, outcomes = convert_sources([s for _, s in sources], self.map.frames)
-        for (conn_id, _), outcome in zip(sources, outcomes, strict=True):
+        odometry = any(s.role is Role.ODOMETRY for s in self.topics.values())
+        for (conn_id, source), outcome in zip(sources, outcomes, strict=True):
             state = self.topics[conn_id]
-            state.events += outcome.events
+            # TF's poses are dropped below when odometry gives them: credit none to TF then.
+            state.events += 0 if odometry and source.tf else outcome.events
             state.rejected.update(outcome.rejected)
             if outcome.first_ns is not None and outcome.last_ns is not None:
                 self._accepted(outcome.first_ns, outcome.last_ns)
-        if any(s.role is Role.ODOMETRY for s in self.topics.values()):
+        if odometry:
             poses = poses.take(~poses.from_tf)
         topics = sorted({*poses.topics, *(d[1] for d in self.derived)})
         rank = np.array([topics.index(t) for t in poses.topics] + [0], dtype=np.int64)
@@ -487,8 +524,14 @@ class Finished:
         return types
 
 
-def _topic_rows(conv: Converter) -> tuple[TopicReport, ...]:
-    """One row per (topic, type): a topic recorded by several publishers has one connection each."""
+def _topic_rows(
+    conv: Converter, claimed: Mapping[str, int], losses: Mapping[str, TopicLoss]
+) -> tuple[TopicReport, ...]:
+    """One row per (topic, type): a topic recorded by several publishers has one connection each.
+
+    A topic's losses go on its first row; a topic the bag claims messages of whose connection
+    was never read (its declaration was lost with the damage) gets a row of its own.
+    """
     merged: dict[tuple[str, str], _TopicState] = {}
     for s in conv.topics.values():
         key = (s.conn.topic, s.conn.msgtype)
@@ -499,7 +542,11 @@ def _topic_rows(conv: Converter) -> tuple[TopicReport, ...]:
         m.events += s.events
         m.rejected.update(s.rejected)
     rows = []
+    placed = {c.topic for c, _ in conv.skipped.values()}
     for (topic, msgtype), m in sorted(merged.items()):
+        first = topic not in placed
+        loss = losses.get(topic) if first else None
+        placed.add(topic)
         role = m.role.value if m.role in CONVERTED else f"{m.role.value} (counted, not converted)"
         if m.role in (Role.TF, Role.TF_STATIC) and m.events == 0 and m.messages:
             f = conv.map.frames
@@ -513,16 +560,41 @@ def _topic_rows(conv: Converter) -> tuple[TopicReport, ...]:
                 m.events,
                 sum(m.rejected.values()),
                 tuple(r for r, _ in m.rejected.most_common(MAX_REASONS)),
+                claimed.get(topic) if first else None,
+                0 if loss is None else loss.lost,
+                () if loss is None else loss.reasons,
             )
         )
+    for topic, loss in sorted(losses.items()):
+        if topic not in placed:
+            rows.append(
+                TopicReport(
+                    topic,
+                    "",
+                    "unknown (no declaration of the topic could be read)",
+                    0,
+                    0,
+                    0,
+                    (),
+                    loss.claimed,
+                    loss.lost,
+                    loss.reasons,
+                )
+            )
     return tuple(rows)
 
 
-def _skipped_rows(conv: Converter) -> tuple[Skipped, ...]:
+def _skipped_rows(conv: Converter, losses: Mapping[str, TopicLoss]) -> tuple[Skipped, ...]:
     merged: Counter[tuple[str, str, str]] = Counter()
     for cid, (c, reason) in conv.skipped.items():
         merged[(c.topic, c.msgtype, reason)] += conv.skipped_messages[cid]
-    return tuple(Skipped(t, m, n, r) for (t, m, r), n in sorted(merged.items()))
+    rows = []
+    placed: set[str] = set()
+    for (t, m, r), n in sorted(merged.items()):
+        loss = None if t in placed else losses.get(t)
+        placed.add(t)
+        rows.append(Skipped(t, m, n, r, 0 if loss is None else loss.lost))
+    return tuple(rows)
 
 
 def _gaps(seqs: list[int]) -> list[tuple[int, int]]:
@@ -570,24 +642,6 @@ def hypothesis_score(r: Any) -> float:
 # -- reading ----------------------------------------------------------------------------------
 
 
-def _metadata_counts(path: Path) -> dict[str, int] | None:
-    """Per-topic message counts from a ROS 2 bag's metadata.yaml, if it is there and sound."""
-    meta = path / "metadata.yaml"
-    if not path.is_dir() or not meta.exists():
-        return None
-    try:
-        from ruamel.yaml import YAML
-
-        doc = YAML(typ="safe").load(meta.read_text(encoding="utf-8"))
-        info = doc["rosbag2_bagfile_information"]
-        return {
-            t["topic_metadata"]["name"]: int(t["message_count"])
-            for t in info["topics_with_message_count"]
-        }
-    except Exception:
-        return None
-
-
 def _type_checker(
     store_types: Mapping[str, Any], bag_defs: bool
 ) -> Callable[[RawConnection], str | None]:
@@ -613,9 +667,7 @@ def _progress(total: int | None, enabled: bool, label: str) -> Any:
 _DEF_FORMATS = {"MSG": "msg", "IDL": "idl"}
 
 
-def _read_anyreader(
-    path: Path, fmt: BagFormat, conv: MessageSink, progress: bool
-) -> dict[str, int]:
+def _read_anyreader(path: Path, fmt: BagFormat, conv: MessageSink, progress: bool) -> None:
     from rosbags.highlevel import AnyReader
 
     # A ROS 2 directory is recognised by AnyReader from a non-".bag" name; a ROS 1 file must end
@@ -629,21 +681,19 @@ def _read_anyreader(
             )
             for c in reader.connections
         }
-        expected = {t: info.msgcount for t, info in reader.topics.items()}
         conv.plan(conns.values(), _type_checker(reader.typestore.fielddefs, False))
         wanted = [c for c in reader.connections if conv.wants(c.id)]
         for c in reader.connections:
             if not conv.wants(c.id):
                 conv.count(c.id, c.msgcount)
         if not wanted:  # rosbags reads *every* connection when given none
-            return expected
+            return
         total = sum(c.msgcount for c in wanted)
         with _progress(total, progress, path.name) as bar:
             for c, t, raw in reader.messages(connections=wanted):
                 conv.feed(c.id, t, raw, reader.deserialize)
                 bar.update()
             conv.end_of_messages()
-    return expected
 
 
 def _read_salvage(path: Path, fmt: BagFormat, conv: MessageSink, progress: bool) -> list[Scan]:
@@ -698,36 +748,123 @@ def read_messages(
     path: Path, fmt: BagFormat, make_sink: Callable[[], Sink], *, progress: bool = False
 ) -> tuple[Sink, ReadOutcome]:
     """Feed the bag's messages into a sink from ``make_sink``: read by ``AnyReader``, or — when
-    that fails anywhere — into a fresh sink by the salvage scanners, with what was lost."""
-    sink = make_sink()
-    losses: list[Loss] = []
+    that fails anywhere, or delivers fewer messages of a topic than the bag's own index claims —
+    into a fresh sink by the salvage scanners, with what was lost.
+
+    When AnyReader fell short and the scanner recovers no more, AnyReader's sink is kept.
+    """
+    census = take_census(path, fmt.value)
     notes: list[str] = []
-    expected = _metadata_counts(path)
-    reader = "AnyReader"
+    sink = make_sink()
+    read_whole = True
     try:
-        from_index = _read_anyreader(path, fmt, sink, progress)
-        expected = expected or from_index
+        _read_anyreader(path, fmt, sink, progress)
     except Exception as exc:
+        read_whole = False
         notes.append(
             f"AnyReader could not read it ({type(exc).__name__}: {exc}); salvaged by scanning"
         )
-        reader = "salvage scan"
-        sink = make_sink()
-        scans = _read_salvage(path, fmt, sink, progress)
-        for scan in scans:
-            losses.extend(scan.losses)
-    return sink, ReadOutcome(reader, tuple(losses), tuple(notes), expected)
+    else:
+        claimed, _ = census.per_topic()
+        short = _shortfall(claimed, sink.messages_per_topic())
+        if not short:
+            return sink, _outcome("AnyReader", (), notes, census, ())
+        said = ", ".join(f"{t} {got} of {n}" for t, (got, n) in sorted(short.items()))
+        notes.append(
+            f"AnyReader delivered fewer messages than the bag's index lists ({said}): "
+            "it skips records it cannot parse; read again by scanning"
+        )
+    salvaged = make_sink()
+    scans = tuple(_read_salvage(path, fmt, salvaged, progress))
+    if read_whole:
+        _name_ids(census, scans)
+        claimed, _ = census.per_topic()
+        lost_any = sum(
+            n - got for got, n in _shortfall(claimed, sink.messages_per_topic()).values()
+        )
+        lost_scan = sum(
+            n - got for got, n in _shortfall(claimed, salvaged.messages_per_topic()).values()
+        )
+        if lost_scan >= lost_any:
+            notes.append("the scan recovered no more; AnyReader's reading is kept")
+            return sink, _outcome("AnyReader", (), notes, census, ())
+    losses = tuple(loss for scan in scans for loss in scan.losses)
+    return salvaged, _outcome("salvage scan", losses, notes, census, scans)
+
+
+def _name_ids(census: Census, scans: Iterable[Scan]) -> None:
+    """Name the census's connection ids by the scanned declarations where it could not."""
+    by_path = {scan.path: scan for scan in scans}
+    for f in census.files:
+        scan = by_path.get(f.path)
+        if scan is not None:
+            for cid, conn in scan.connections.items():
+                f.topics.setdefault(cid, conn.topic)
+
+
+def _outcome(
+    reader: str,
+    losses: tuple[Loss, ...],
+    notes: list[str],
+    census: Census,
+    scans: tuple[Scan, ...],
+) -> ReadOutcome:
+    _name_ids(census, scans)
+    claimed, disagree = census.per_topic()
+    return ReadOutcome(reader, losses, (*notes, *disagree), claimed, census.complete, census, scans)
+
+
+def _shortfall(claimed: Mapping[str, int], read: Mapping[str, int]) -> dict[str, tuple[int, int]]:
+    return {t: (read.get(t, 0), n) for t, n in claimed.items() if read.get(t, 0) < n}
+
+
+def topic_losses(outcome: ReadOutcome, sink: MessageSink) -> dict[str, TopicLoss]:
+    """Per topic, the messages the bag claims and did not reach the sink, with where they went:
+    the damaged chunks that held them (their index says how many), else what is known."""
+    by_path = {scan.path: scan for scan in outcome.scans}
+    in_chunks: dict[str, list[tuple[int, str]]] = {}
+    for f in outcome.census.files:
+        scan = by_path.get(f.path)
+        if scan is None:
+            continue
+        for chunk, counts in sorted(f.chunks.items()):
+            for cid, n in sorted(counts.items()):
+                missing = n - scan.delivered[(chunk, cid)]
+                topic = f.topics.get(cid)
+                if missing > 0 and topic is not None:
+                    in_chunks.setdefault(topic, []).append(
+                        (
+                            missing,
+                            f"{missing} of {n} in the damaged chunk at byte {chunk} of {f.path.name}",
+                        )
+                    )
+    out: dict[str, TopicLoss] = {}
+    for topic, (got, n) in sorted(_shortfall(outcome.claimed, sink.messages_per_topic()).items()):
+        lost = n - got
+        chunks = sorted(in_chunks.get(topic, []), key=lambda c: -c[0])
+        reasons = [why for _, why in chunks[:MAX_REASONS]]
+        if len(chunks) > MAX_REASONS:
+            reasons.append(f"{len(chunks) - MAX_REASONS} more damaged chunk(s)")
+        rest = lost - sum(m for m, _ in chunks)
+        if rest > 0:
+            reasons.append(
+                f"{rest} the index lists that AnyReader skipped"
+                if outcome.reader == "AnyReader"
+                else f"{rest} not found in what could be read"
+            )
+        out[topic] = TopicLoss(n, lost, tuple(reasons))
+    return out
 
 
 def unrecovered(outcome: ReadOutcome, sink: MessageSink) -> list[Loss]:
-    """Per-topic messages the bag says it had and the salvage scan did not recover."""
-    if outcome.expected is None or outcome.reader == "AnyReader":
-        return []
-    read_counts = sink.messages_per_topic()
+    """Per-topic messages the bag says it had and that were not read, as loss lines."""
     return [
-        Loss(f"topic {topic}", f"{n - got} of {n} messages not recovered", n - got)
-        for topic, n in sorted(outcome.expected.items())
-        if (got := read_counts.get(topic, 0)) < n
+        Loss(
+            f"topic {topic}",
+            f"{loss.lost} of {loss.claimed} messages not read ({'; '.join(loss.reasons)})",
+            loss.lost,
+        )
+        for topic, loss in topic_losses(outcome, sink).items()
     ]
 
 
@@ -754,7 +891,13 @@ def read_bag(
     done = conv.finish()
     losses.extend(done.losses)
     notes.extend(done.notes)
+    per_topic = topic_losses(outcome, conv)
     losses.extend(unrecovered(outcome, conv))
+    if not outcome.claims_complete:
+        notes.append(
+            "the bag's own index is gone or damaged and only some chunks' indexes could be read: "
+            "losses per topic are lower bounds (messages after a cut cannot be counted)"
+        )
     types = done.event_types()
     report = BagReport(
         path=str(path),
@@ -762,14 +905,15 @@ def read_bag(
         bag_id=bag_id,
         size_bytes=size,
         reader=outcome.reader,
-        topics=_topic_rows(conv),
-        skipped=_skipped_rows(conv),
+        topics=_topic_rows(conv, outcome.claimed, per_topic),
+        skipped=_skipped_rows(conv, per_topic),
         losses=tuple(losses),
         start_ns=conv.start_ns,
         end_ns=conv.end_ns,
         events=sum(types.values()),
         event_types=dict(types),
         notes=tuple(notes),
+        claims_complete=outcome.claims_complete,
     )
     return BagContents(report, done.agent, done.derived, done.poses, conv.stream)
 

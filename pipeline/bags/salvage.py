@@ -22,6 +22,7 @@ from __future__ import annotations
 import bz2
 import sqlite3
 import struct
+from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -62,6 +63,10 @@ class Scan:
     path: Path
     connections: dict[int, RawConnection] = field(default_factory=dict)
     losses: list[Loss] = field(default_factory=list)
+    #: Messages delivered per (byte offset of the chunk record, connection id): compared with
+    #: what each chunk's index lists (:mod:`~objsearch.pipeline.bags.census`) to say where
+    #: messages were lost.
+    delivered: Counter[tuple[int, int]] = field(default_factory=Counter)
 
 
 class _Damage(Exception):
@@ -169,7 +174,7 @@ def _partial_decompress(compression: str, data: bytes) -> tuple[bytes, str | Non
 
 
 def _ros1_chunk_records(
-    scan: Scan, data: bytes, where: str
+    scan: Scan, data: bytes, where: str, chunk: int
 ) -> Iterator[tuple[RawConnection, int, bytes]]:
     pos = 0
     while pos < len(data):
@@ -188,6 +193,7 @@ def _ros1_chunk_records(
                 conn_or_none = scan.connections.get(cid)
                 if conn_or_none is None:
                     raise _Damage(f"message of undeclared connection {cid}")
+                scan.delivered[(chunk, cid)] += 1
                 yield conn_or_none, t, body
         except _Damage as exc:
             scan.losses.append(
@@ -205,6 +211,7 @@ def scan_ros1(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int, byte
         if not buf.startswith(ROS1_MAGIC):
             scan.losses.append(Loss(str(path), "not a ROS 1 bag (magic missing): nothing read"))
             return
+        _ros1_index_connections(buf, scan)
         pos = len(ROS1_MAGIC)
         chunks_ok = 0
         while pos < len(buf):
@@ -225,7 +232,9 @@ def scan_ros1(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int, byte
                             "messages after the cut are lost",
                         )
                     )
-                    yield from _ros1_chunk_records(scan, data, f"{path.name} chunk at byte {pos}")
+                    yield from _ros1_chunk_records(
+                        scan, data, f"{path.name} chunk at byte {pos}", pos
+                    )
                     return
                 body = buf[dstart:nxt]
                 if op == 5:
@@ -234,7 +243,7 @@ def scan_ros1(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int, byte
                     where = f"{path.name} chunk at byte {pos}"
                     if why is not None:
                         scan.losses.append(Loss(where, f"chunk damaged: {why}"))
-                    yield from _ros1_chunk_records(scan, data, where)
+                    yield from _ros1_chunk_records(scan, data, where, pos)
                     chunks_ok += 1
                 elif op == 7:
                     conn = _ros1_connection(fields, body)
@@ -265,6 +274,24 @@ def scan_ros1(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int, byte
 
 
 _CHUNK_OP = struct.pack("<I", 4) + b"op=\x05"
+
+
+def _ros1_index_connections(buf: bytes, scan: Scan) -> None:
+    """The connection records of the index section, if it is there: a writer declares each
+    connection once, in the chunk of its first message, so with that chunk damaged every later
+    message of the connection would be unroutable without them."""
+    try:
+        fields, _, _, pos = _ros1_record(buf, len(ROS1_MAGIC))
+        index_pos = struct.unpack("<Q", fields.get("index_pos", b""))[0]
+        pos = index_pos if len(ROS1_MAGIC) < index_pos < len(buf) else len(buf)
+        while pos < len(buf):
+            fields, dstart, _dlen, nxt = _ros1_record(buf, pos)
+            if fields["op"] == b"\x07" and nxt <= len(buf):
+                conn = _ros1_connection(fields, buf[dstart:nxt])
+                scan.connections.setdefault(conn.id, conn)
+            pos = nxt
+    except (_Damage, struct.error):
+        pass  # connections from the chunks only
 
 
 def _resync_ros1(buf: bytes, start: int) -> int | None:
@@ -339,7 +366,9 @@ def scan_mcap_file(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int,
     buf = path.read_bytes()
     schemas: dict[int, tuple[str, str, str]] = {}
 
-    def records(r: _Reader, where: str, top: bool) -> Iterator[tuple[RawConnection, int, bytes]]:
+    def records(
+        r: _Reader, where: str, top: bool, chunk: int = -1
+    ) -> Iterator[tuple[RawConnection, int, bytes]]:
         while r.pos < r.end:
             start = r.pos
             try:
@@ -347,6 +376,10 @@ def scan_mcap_file(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int,
                     raise _Damage("record header cut")
                 op = r.buf[r.pos]
                 r.pos += 1
+                if op not in (_MCAP_TOP_OPS if top else _MCAP_CHUNK_OPS):
+                    raise _Damage(
+                        f"no record has op code {op:#04x}" + ("" if top else " inside a chunk")
+                    )
                 length = r.u64()
                 if length > MAX_RECORD:
                     raise _Damage(f"record length {length} implausible")
@@ -379,6 +412,7 @@ def scan_mcap_file(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int,
                     conn = scan.connections.get(cid)
                     if conn is None:
                         raise _Damage(f"message on undeclared channel {cid}")
+                    scan.delivered[(chunk, cid)] += 1
                     yield conn, log_time, rec.buf[rec.pos : rec.end]
                 elif op == 0x06 and top:
                     rec.u64()
@@ -408,7 +442,7 @@ def scan_mcap_file(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int,
                                 Loss(cwhere, "chunk CRC mismatch: its messages are dropped")
                             )
                             continue
-                    yield from records(_Reader(out), cwhere, top=False)
+                    yield from records(_Reader(out), cwhere, top=False, chunk=start)
                     if cut:
                         return
                 elif op == 0x0F and top:  # data end: the summary follows
@@ -439,6 +473,13 @@ def scan_mcap_file(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int,
         yield from records(_Reader(buf, len(MCAP_MAGIC)), path.name, top=True)
 
     return scan, gen()
+
+
+# Record op codes of the MCAP spec: 0x01–0x10 at the top level (0x80 and up are for users); a
+# chunk holds only schemas, channels and messages. Any other op byte is damage (rosbags' reader
+# skips it, and the messages it hides, silently).
+_MCAP_TOP_OPS = frozenset([*range(0x01, 0x11), *range(0x80, 0x100)])
+_MCAP_CHUNK_OPS = frozenset({0x03, 0x04, 0x05})
 
 
 def _resync_mcap(buf: bytes, start: int) -> int | None:

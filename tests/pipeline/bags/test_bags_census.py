@@ -1,0 +1,88 @@
+"""What a bag says it holds (census.py), and ingest holding the readers to it."""
+
+from __future__ import annotations
+
+import shutil
+import struct
+from pathlib import Path
+
+from bag_fixtures import Recorded
+from objsearch.pipeline.bags.battery import ZERO_BLOCK, chunk_spans
+from objsearch.pipeline.bags.census import take_census
+from objsearch.pipeline.bags.formats import BagFormat, storage_files
+from objsearch.pipeline.bags.read import read_bag
+
+
+def _copy(recorded: Recorded, dest: Path) -> tuple[Path, Path]:
+    dest.mkdir()
+    out = dest / recorded.bag.name
+    if recorded.bag.is_dir():
+        shutil.copytree(recorded.bag, out)
+    else:
+        shutil.copy(recorded.bag, out)
+    return out, storage_files(out)[0]
+
+
+def test_census_of_an_intact_bag_is_what_was_recorded(recorded: Recorded, tmp_path: Path) -> None:
+    census = take_census(recorded.bag, recorded.recording.format.value)
+    claimed, notes = census.per_topic()
+    assert claimed == recorded.recording.messages
+    assert census.complete and not notes
+    # Without metadata.yaml the storage file's own index says the same.
+    bag, _ = _copy(recorded, tmp_path / "copy")
+    if bag.is_dir():
+        (bag / "metadata.yaml").unlink()
+    alone = take_census(bag, recorded.recording.format.value)
+    assert alone.per_topic() == (recorded.recording.messages, [])
+    assert alone.complete
+
+
+def test_zeroed_block_in_a_chunk_is_lost_per_topic_never_silently(
+    recorded: Recorded, tmp_path: Path
+) -> None:
+    fmt = recorded.recording.format
+    start, end = chunk_spans(recorded.bag, fmt)[0]
+    bag, data = _copy(recorded, tmp_path / "zeroed")
+    buf = bytearray(data.read_bytes())
+    at = (start + end) // 2
+    at -= at % ZERO_BLOCK if fmt is BagFormat.ROS2_SQLITE3 else 0  # a whole page
+    buf[at : at + ZERO_BLOCK] = bytes(ZERO_BLOCK)
+    data.write_bytes(bytes(buf))
+    report = read_bag(bag).report
+    intact = read_bag(recorded.bag).report
+    by_topic = {t.topic: t for t in report.topics}
+    skipped = {s.topic: s for s in report.skipped}
+    lost = 0
+    for t in intact.topics:
+        if t.topic in skipped:  # its declaration was damaged: counted, not converted
+            assert skipped[t.topic].messages + skipped[t.topic].lost == t.messages
+            lost += skipped[t.topic].lost
+            continue
+        got = by_topic[t.topic]
+        assert got.messages + got.lost == t.messages, t.topic
+        assert got.claimed == t.messages
+        lost += got.lost
+        if got.lost:  # why: the damaged chunk, what AnyReader skipped, or rows not found
+            assert got.lost_reasons, got
+    assert lost > 0
+    assert " lost (" in report.render()
+
+
+def test_a_flipped_ros1_index_count_is_not_a_loss(recorded: Recorded, tmp_path: Path) -> None:
+    if recorded.recording.format is not BagFormat.ROS1:
+        return
+    bag, data = _copy(recorded, tmp_path / "flipped")
+    buf = bytearray(data.read_bytes())
+    census = take_census(recorded.bag, "ros1").files[0]
+    # The index section's first Chunk Info: flip a high bit of its first connection's count.
+    first_chunk = min(census.chunks)
+    needle = b"chunk_pos=" + struct.pack("<Q", first_chunk)
+    header = buf.index(needle, first_chunk + 1)
+    hstart = buf.rfind(b"\x04\x00\x00\x00op=\x06", 0, header) - 4
+    (hlen,) = struct.unpack_from("<I", buf, hstart)
+    data_at = hstart + 4 + hlen + 4
+    buf[data_at + 4 + 2] ^= 0x20  # count (u32 after conn) gains 2**21
+    data.write_bytes(bytes(buf))
+    contents = read_bag(bag)
+    assert all(t.lost == 0 for t in contents.report.topics)
+    assert any("disagree" in n for n in contents.report.notes), contents.report.notes
