@@ -29,7 +29,8 @@ _SERVER: Final = r"""
 import json, os, signal, sys, traceback
 import duckdb, pyarrow.parquet
 import objsearch.cli, objsearch.cli_query, objsearch.cli_bags
-import objsearch.events.lake, objsearch.pipeline.bags.ingest
+import objsearch.events.lake, objsearch.pipeline.bags.ingest, objsearch.pipeline.bags.read
+import objsearch.replay.analytics, rosbags.highlevel
 for line in sys.stdin:
     job = json.loads(line)
     pid = os.fork()

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from objsearch.agent.errors import ObjsearchError
 from objsearch.events import Event, read_log
-from objsearch.events.lake import Lake, RunInfo
+from objsearch.events.lake import Lake, RunInfo, deep_check
 
 _log = logging.getLogger(__name__)
 
@@ -36,6 +36,9 @@ def lake_run(path: Path, *, run: str | None = None, robot: str | None = None) ->
         r for r in healthy if (run is None or r.run == run) and (robot is None or r.robot == robot)
     ]
     if len(runs) == 1:
+        problem = deep_check(runs[0])
+        if problem is not None:
+            raise ObjsearchError(f"run {runs[0].run!r} in the lake {path} is damaged: {problem}")
         return runs[0]
     available = ", ".join(f"{r.robot}/{r.run}" for r in healthy) or "none"
     if not runs:
