@@ -6,11 +6,21 @@ Layout (Hive-style, readable by DuckDB, polars, pyarrow and any Parquet reader):
     LAKE/robot=<robot>/date=<YYYY-MM-DD>/run=<run>/_run.json      what the run holds
     LAKE/robot=<robot>/date=<YYYY-MM-DD>/run=<run>/_derived/<name>.v<version>.parquet
     LAKE/.staging/                                               runs being written
+    LAKE/.writer                                                 pid of the last writer (a hint)
 
 A run is committed whole and atomically: its files are written and fsync'ed in a staging
 directory, then the directory is renamed into place, so a reader (or a crash) sees all of a run
 or none of it. Committing the same content again is a no-op (its digest matches), so re-running
 an import never duplicates; different content for an existing run needs ``replace=True``.
+
+Writers hold the lake's lock (an ``flock`` on the lake directory itself) for the whole commit; a
+second writer waits for it, up to ``lock_wait_s``, then fails with :class:`LakeBusyError`. Whoever
+takes the lock first finishes what a killed writer left (:meth:`Lake.recover`): a replace is
+rolled forward from its intent record, and every other entry of ``.staging`` (a half-written run,
+the trash of a finished replace) is removed. A replace is: stage the new run; write the intent
+``.staging/<id>.replace.json`` (the commit point: before it the old run stays, after it the new
+run wins); rename the old run into ``.staging``; rename the new one into place; drop the old one
+and the intent. At every instant a complete old or new run exists, and the intent says which.
 
 Each event table is written sorted by ``seq`` in row groups of 128 Ki rows, so a reader
 filtering on ``seq`` can skip row groups by their min/max statistics. Next to the events, a
@@ -30,11 +40,14 @@ from __future__ import annotations
 import datetime as dt
 import hashlib
 import json
+import logging
 import os
 import re
 import shutil
+import time
 import uuid
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
@@ -52,7 +65,13 @@ from .log import LOCK_FILE, read_log
 LAKE_FORMAT: Final = "objsearch.lake/1"
 RUN_FILE: Final = "_run.json"
 STAGING: Final = ".staging"
-_NAME: Final = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
+WRITER_HINT: Final = ".writer"
+INTENT_SUFFIX: Final = ".replace.json"
+#: How long a writer waits for another commit to release the lake by default.
+LOCK_WAIT_S: Final = 30.0
+_NAME: Final = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
+_ATTACHMENT: Final = re.compile(r"_[A-Za-z0-9][A-Za-z0-9._-]*")
+_log = logging.getLogger(__name__)
 #: Rows per Parquet row group: small enough that a seq range skips most of a 1 M-event run and
 #: that DuckDB has several units of work per file, large enough to compress well.
 ROW_GROUP_ROWS: Final = 1 << 17
@@ -60,6 +79,18 @@ ROW_GROUP_ROWS: Final = 1 << 17
 
 class LakeError(EventStoreError):
     """The lake cannot do what was asked (bad name, run exists with other content, …)."""
+
+
+class LakeBusyError(LakeError):
+    """Another commit held the lake's lock for longer than this writer would wait."""
+
+
+@dataclass(frozen=True, slots=True)
+class DamagedRun:
+    """A run folder readers leave out: its manifest or one of its Parquet files is not whole."""
+
+    path: Path
+    reason: str
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,8 +117,10 @@ class RunInfo:
 class Lake:
     """A directory of committed runs. Cheap to create; nothing is read until asked."""
 
-    def __init__(self, root: Path | str) -> None:
+    def __init__(self, root: Path | str, *, lock_wait_s: float = LOCK_WAIT_S) -> None:
         self.root = Path(root)
+        self.lock_wait_s = lock_wait_s
+        self._lock_depth = 0
 
     def __repr__(self) -> str:
         return f"Lake({str(self.root)!r})"
@@ -116,23 +149,47 @@ class Lake:
 
     def read_events(self, run: RunInfo) -> list[Event]:
         """Every event of one committed run, as :class:`Event` (latest versions), by (stream, seq)."""
-        # ParquetFile, not read_table: the latter would add the hive partition columns.
-        return tables_to_events(
-            pq.ParquetFile(p).read() for p in sorted(run.path.glob("*.parquet"))
-        )
+        return tables_to_events(self.read_tables(run).values())
 
     def read_tables(self, run: RunInfo) -> dict[str, pa.Table]:
         """The event tables of one committed run as stored (one per type present)."""
-        return {p.stem: pq.ParquetFile(p).read() for p in sorted(run.path.glob("*.parquet"))}
+        return {p.stem: _read_parquet(p) for p in sorted(run.path.glob("*.parquet"))}
+
+    def scan(self) -> tuple[list[RunInfo], list[DamagedRun]]:
+        """The runs readers can use, and the run folders they must leave out.
+
+        A run is left out if its manifest is unreadable or a Parquet file it should hold is
+        missing, empty or truncated (no ``PAR1`` magic at both ends, or a footer longer than the
+        file). That check reads 8 bytes a file; damage inside a file that keeps its ends is
+        found by :func:`deep_check` (a full footer parse), which readers run when a view fails.
+        """
+        runs: list[RunInfo] = []
+        damaged: list[DamagedRun] = []
+        for folder in sorted(self.root.glob("robot=*/date=*/run=*")):
+            if not folder.is_dir():
+                continue
+            try:
+                info = _read_run_file(folder / RUN_FILE)
+            except LakeError as exc:
+                damaged.append(DamagedRun(folder, str(exc)))
+                continue
+            problem = _run_problem(info)
+            if problem is None:
+                runs.append(info)
+            else:
+                damaged.append(DamagedRun(folder, problem))
+        runs.sort(key=lambda r: (r.robot, r.date, r.run))
+        return runs, damaged
 
     def upgrade(self) -> list[RunInfo]:
         """Write the derived tables every run lacks (a lake written by older code); returns the
         runs upgraded. Idempotent, and each file appears atomically, so readers never see half."""
         upgraded = []
-        for info in self.runs():
-            if info.missing_derived():
-                _write_derived(info.path, self.read_tables(info), info)
-                upgraded.append(info)
+        with self.locked():
+            for info in self.runs():
+                if info.missing_derived():
+                    _write_derived(info.path, self.read_tables(info), info)
+                    upgraded.append(info)
         return upgraded
 
     def event_types(self) -> list[str]:
@@ -181,37 +238,39 @@ class Lake:
         date: str | dt.date,
         source: str = "",
         replace: bool = False,
+        attachments: Mapping[str, bytes] | None = None,
     ) -> RunInfo:
         """Commit one table per event type as one run, atomically. Tables must match
-        :func:`event_schema` of their type (columns may be cast, not missing)."""
+        :func:`event_schema` of their type (columns may be cast, not missing).
+
+        ``attachments`` are files (name → bytes, names starting with ``_``) committed in the run's
+        folder with it, e.g. an importer's report; they are not part of the digest.
+        """
+        attachments = attachments or {}
         _check_name("robot", robot)
         _check_name("run", run)
+        for name in attachments:
+            if not (_ATTACHMENT.fullmatch(name) and name != RUN_FILE):
+                raise LakeError(f"attachment name {name!r} must be '_' then letters, digits, '.-_'")
         day = _check_date(date)
         checked = {t: _conform(t, table) for t, table in sorted(tables.items())}
         digest = _digest(checked)
-        existing = self.find(robot, run)
-        if existing is not None:
-            if existing.digest == digest and existing.date == day:
-                # The same run again: nothing to do but add derived tables it may lack.
-                if existing.missing_derived():
-                    _write_derived(existing.path, checked, existing)
-                return existing
-            if not replace:
-                raise LakeError(
-                    f"{existing.path} already holds run {run!r} of robot {robot!r} with other "
-                    "content; pass replace=True to replace it"
-                )
-        final = self.root / f"robot={robot}" / f"date={day}" / f"run={run}"
-        staging = self.root / STAGING / uuid.uuid4().hex
-        _fs.make_dirs(staging)
-        try:
-            for event_type, table in checked.items():
-                _write_parquet(staging / f"{event_type}.parquet", table.sort_by("seq"))
-            derived = derive_run(checked, robot=robot, date=day, run=run)
-            _fs.make_dirs(staging / DERIVED_DIR)
-            for spec in DERIVED_TABLES:
-                _write_parquet(spec.path(staging), derived[spec.name])
-            _fs.fsync_dir(staging / DERIVED_DIR)
+        with self.locked():
+            existing = self.find(robot, run)
+            if existing is not None:
+                if existing.digest == digest and existing.date == day:
+                    # The same run again: nothing to do but add derived tables it may lack.
+                    if existing.missing_derived():
+                        _write_derived(existing.path, checked, existing)
+                    return existing
+                if not replace:
+                    raise LakeError(
+                        f"{existing.path} already holds run {run!r} of robot {robot!r} with "
+                        "other content; pass replace=True to replace it"
+                    )
+            final = self.root / f"robot={robot}" / f"date={day}" / f"run={run}"
+            token = uuid.uuid4().hex
+            staged = self.root / STAGING / token
             manifest = {
                 "format": LAKE_FORMAT,
                 "robot": robot,
@@ -221,22 +280,145 @@ class Lake:
                 "digest": digest,
                 "source": source,
             }
-            _fs.write_atomic(staging / RUN_FILE, _json_bytes(manifest))
-            _fs.fsync_dir(staging)
+            _fs.make_dirs(staged)
+            try:
+                _stage(staged, checked, manifest, attachments)
+            except BaseException:
+                shutil.rmtree(staged, ignore_errors=True)
+                raise
             _fs.make_dirs(final.parent)
-            if existing is not None:
-                trash = self.root / STAGING / f"old-{uuid.uuid4().hex}"
-                os.rename(existing.path, trash)
-                _fs.fsync_dir(existing.path.parent)
-                os.rename(staging, final)
-                shutil.rmtree(trash)
+            if existing is None:
+                _fs.rename(staged, final)
+                _fs.fsync_dir(final.parent)
+                _fs.fsync_dir(staged.parent)
             else:
-                os.rename(staging, final)  # fails if a concurrent commit got there first
+                intent = {
+                    "staged": token,
+                    "final": str(final.relative_to(self.root)),
+                    "old": str(existing.path.relative_to(self.root)),
+                    "trash": f"old-{token}",
+                }
+                intent_path = self.root / STAGING / f"{token}{INTENT_SUFFIX}"
+                _fs.write_atomic(intent_path, _json_bytes(intent))
+                self._roll_forward(intent_path)
+            return _read_run_file(final / RUN_FILE)
+
+    # -- the lock and recovery ------------------------------------------------------------------
+
+    @contextmanager
+    def locked(self) -> Iterator[None]:
+        """Hold the lake's writer lock (re-entrant on this object), after finishing or removing
+        whatever a killed writer left (:meth:`recover`). Waits up to ``lock_wait_s`` for
+        another writer, saying so once on the log, then raises :class:`LakeBusyError`."""
+        if self._lock_depth:
+            self._lock_depth += 1
+            try:
+                yield
+            finally:
+                self._lock_depth -= 1
+            return
+        _fs.make_dirs(self.root)
+        fd = self._acquire()
+        self._lock_depth = 1
+        try:
+            with suppress(OSError):  # only a hint for the "busy" message
+                (self.root / WRITER_HINT).write_text(f"{os.getpid()}\n", encoding="ascii")
+            self._recover_locked()
+            yield
+        finally:
+            self._lock_depth = 0
+            os.close(fd)
+
+    def recover(self) -> bool:
+        """Finish or undo what killed writers left, if no writer holds the lake now; returns
+        whether it could look (False: a live writer holds the lock and will do it)."""
+        if not self.root.is_dir():
+            return True
+        if self._lock_depth:
+            self._recover_locked()
+            return True
+        fd = _fs.try_lock_dir(self.root)
+        if fd is None:
+            return False
+        try:
+            self._recover_locked()
+        finally:
+            os.close(fd)
+        return True
+
+    def needs_recovery(self) -> bool:
+        """Whether a killed writer left anything in ``.staging`` (cheap: one directory listing)."""
+        staging = self.root / STAGING
+        return staging.is_dir() and any(staging.iterdir())
+
+    def _acquire(self) -> int:
+        fd = _fs.try_lock_dir(self.root)
+        if fd is not None:
+            return fd
+        deadline = time.monotonic() + self.lock_wait_s
+        if self.lock_wait_s > 0:
+            _log.warning(
+                "%s: another commit holds the lake%s; waiting up to %g s for it",
+                self.root,
+                self._holder_hint(),
+                self.lock_wait_s,
+            )
+        while time.monotonic() < deadline:
+            time.sleep(0.05)
+            fd = _fs.try_lock_dir(self.root)
+            if fd is not None:
+                return fd
+        raise LakeBusyError(
+            f"{self.root}: another commit holds the lake{self._holder_hint()}"
+            + (f" and did not finish within {self.lock_wait_s:g} s" if self.lock_wait_s > 0 else "")
+            + "; try again when it is done"
+        )
+
+    def _holder_hint(self) -> str:
+        return _fs.lock_holder_hint(self.root / WRITER_HINT)
+
+    def _recover_locked(self) -> None:
+        staging = self.root / STAGING
+        if staging.is_dir():
+            for intent in sorted(staging.glob(f"*{INTENT_SUFFIX}")):
+                _log.warning("%s: finishing a replace a killed writer left", self.root)
+                self._roll_forward(intent)
+            stale = sorted(staging.iterdir())
+            for entry in stale:
+                if entry.is_dir() and not entry.is_symlink():
+                    shutil.rmtree(entry)
+                else:
+                    entry.unlink()
+            if stale:
+                _log.warning(
+                    "%s: removed %d unfinished commit(s) from %s", self.root, len(stale), STAGING
+                )
+                _fs.fsync_dir(staging)
+        for tmp in self.root.glob(f"robot=*/date=*/run=*/{DERIVED_DIR}/.*.tmp"):
+            tmp.unlink()
+
+    def _roll_forward(self, intent_path: Path) -> None:
+        """Carry a replace from its intent record to the end; each step is idempotent."""
+        try:
+            intent = json.loads(intent_path.read_bytes())
+            staged = self.root / STAGING / intent["staged"]
+            final = self.root / intent["final"]
+            old = self.root / intent["old"]
+            trash = self.root / STAGING / intent["trash"]
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise LakeError(f"{intent_path}: unreadable replace intent: {exc}") from exc
+        if staged.is_dir():
+            if old.is_dir() and not trash.exists():
+                _fs.rename(old, trash)
+                _fs.fsync_dir(old.parent)
+                _fs.fsync_dir(trash.parent)
+            _fs.make_dirs(final.parent)
+            _fs.rename(staged, final)
             _fs.fsync_dir(final.parent)
-        except BaseException:
-            shutil.rmtree(staging, ignore_errors=True)
-            raise
-        return _read_run_file(final / RUN_FILE)
+            _fs.fsync_dir(staged.parent)
+        shutil.rmtree(trash, ignore_errors=True)
+        intent_path.unlink()
+        _fs.fsync_dir(intent_path.parent)
 
 
 def compact_log(
@@ -293,6 +475,28 @@ def _conform(event_type: str, table: pa.Table) -> pa.Table:
         raise LakeError(f"table for {event_type} cannot be cast to its schema: {exc}") from exc
 
 
+def _stage(
+    staged: Path,
+    tables: Mapping[str, pa.Table],
+    manifest: Mapping[str, Any],
+    attachments: Mapping[str, bytes],
+) -> None:
+    """Write a run's files into its staging folder, each fsync'ed, the manifest last."""
+    for event_type, table in tables.items():
+        _write_parquet(staged / f"{event_type}.parquet", table.sort_by("seq"))
+    derived = derive_run(
+        tables, robot=manifest["robot"], date=manifest["date"], run=manifest["run"]
+    )
+    _fs.make_dirs(staged / DERIVED_DIR)
+    for spec in DERIVED_TABLES:
+        _write_parquet(spec.path(staged), derived[spec.name])
+    _fs.fsync_dir(staged / DERIVED_DIR)
+    for name, data in sorted(attachments.items()):
+        _fs.write_atomic(staged / name, data)
+    _fs.write_atomic(staged / RUN_FILE, _json_bytes(manifest))
+    _fs.fsync_dir(staged)
+
+
 def _write_derived(run_dir: Path, tables: Mapping[str, pa.Table], info: RunInfo) -> None:
     """Add the missing derived tables to a committed run, each atomically (tmp file, rename)."""
     derived = derive_run(tables, robot=info.robot, date=info.date, run=info.run)
@@ -302,7 +506,7 @@ def _write_derived(run_dir: Path, tables: Mapping[str, pa.Table], info: RunInfo)
         tmp = final.with_name(f".{final.name}.{uuid.uuid4().hex}.tmp")
         try:
             _write_parquet(tmp, derived[spec.name])
-            os.rename(tmp, final)
+            _fs.rename(tmp, final)
         except BaseException:
             tmp.unlink(missing_ok=True)
             raise
@@ -315,11 +519,60 @@ def _write_derived(run_dir: Path, tables: Mapping[str, pa.Table], info: RunInfo)
 
 def _write_parquet(path: Path, table: pa.Table) -> None:
     pq.write_table(table, path, compression="zstd", row_group_size=ROW_GROUP_ROWS)
-    fd = os.open(path, os.O_RDONLY)
+    _fs.fsync_file(path)
+
+
+def _read_parquet(path: Path) -> pa.Table:
+    # ParquetFile, not read_table: the latter would add the hive partition columns.
     try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
+        return pq.ParquetFile(path).read()
+    except (OSError, pa.ArrowException) as exc:
+        raise LakeError(f"{path}: damaged Parquet file: {exc}") from exc
+
+
+def parquet_problem(path: Path) -> str | None:
+    """Why ``path`` is not a whole Parquet file (by its ends alone), or None."""
+    try:
+        with path.open("rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+            if size == 0:
+                return f"{path.name} is empty"
+            head = fh.read(4)
+            fh.seek(max(0, size - 8))
+            tail = fh.read(8)
+    except OSError as exc:
+        return f"{path.name}: {exc.strerror or exc}"
+    if size < 12 or head != b"PAR1" or tail[4:] != b"PAR1":
+        return f"{path.name} is truncated or not Parquet ({size} bytes, no PAR1 at both ends)"
+    if int.from_bytes(tail[:4], "little") > size - 12:
+        return f"{path.name} is truncated (its footer is longer than the file)"
+    return None
+
+
+def deep_check(run: RunInfo) -> str | None:
+    """Why a run's Parquet files cannot be opened (footers parsed), or None."""
+    for path in sorted(run.path.glob("*.parquet")) + sorted(
+        (run.path / DERIVED_DIR).glob("*.parquet")
+    ):
+        try:
+            pq.read_metadata(path)
+        except (OSError, pa.ArrowException) as exc:
+            return f"{path.name}: {exc}"
+    return None
+
+
+def _run_problem(info: RunInfo) -> str | None:
+    for event_type in info.rows:
+        problem = parquet_problem(info.path / f"{event_type}.parquet")
+        if problem is not None:
+            return problem
+    for spec in DERIVED_TABLES:
+        path = spec.path(info.path)
+        if path.exists():
+            problem = parquet_problem(path)
+            if problem is not None:
+                return problem
+    return None
 
 
 def _digest(tables: Mapping[str, pa.Table]) -> str:
@@ -344,19 +597,22 @@ def _read_run_file(path: Path) -> RunInfo:
         raise LakeError(f"{path}: cannot read the run manifest: {exc}") from exc
     if not isinstance(doc, dict) or doc.get("format") != LAKE_FORMAT:
         raise LakeError(f"{path}: not a {LAKE_FORMAT} run manifest")
-    return RunInfo(
-        robot=doc["robot"],
-        date=doc["date"],
-        run=doc["run"],
-        path=path.parent,
-        rows=dict(doc["rows"]),
-        digest=doc["digest"],
-        source=doc["source"],
-    )
+    try:
+        return RunInfo(
+            robot=str(doc["robot"]),
+            date=str(doc["date"]),
+            run=str(doc["run"]),
+            path=path.parent,
+            rows={str(t): int(n) for t, n in dict(doc["rows"]).items()},
+            digest=str(doc["digest"]),
+            source=str(doc["source"]),
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise LakeError(f"{path}: run manifest lacks or mistypes {exc}") from exc
 
 
 def _check_name(what: str, value: str) -> None:
-    if not (isinstance(value, str) and _NAME.match(value)):
+    if not (isinstance(value, str) and _NAME.fullmatch(value)):
         raise LakeError(
             f"{what} name {value!r} must start with a letter or digit and hold only letters, "
             "digits, '.', '_' and '-' (it becomes a directory name)"

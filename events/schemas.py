@@ -24,7 +24,7 @@ from jsonschema.exceptions import SchemaError, ValidationError, best_match
 from .envelope import Event
 from .errors import EventStoreError, InvalidEventError
 
-_FILE_NAME: Final = re.compile(r"^(?P<type>[a-z][a-z0-9_]*)\.v(?P<version>[1-9][0-9]*)\.json$")
+_FILE_NAME: Final = re.compile(r"(?P<type>[a-z][a-z0-9_]*)\.v(?P<version>[1-9][0-9]*)\.json")
 _PACKAGE: Final = __name__.rpartition(".")[0]
 
 
@@ -65,7 +65,7 @@ class SchemaRegistry:
         for entry in sorted(directory.iterdir(), key=lambda e: e.name):
             if not entry.name.endswith(".json"):
                 continue
-            match = _FILE_NAME.match(entry.name)
+            match = _FILE_NAME.fullmatch(entry.name)
             if match is None:
                 raise EventStoreError(
                     f"schema file {entry.name!r} in {directory} is not named "

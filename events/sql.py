@@ -3,22 +3,37 @@
 Views read the Parquet files in place (nothing is copied into DuckDB) with the partition columns
 ``robot`` (VARCHAR), ``date`` (DATE) and ``run`` (VARCHAR) added. A type without any file in the
 lake still gets its view, empty but with its typed columns, so queries never depend on which
-event types happen to have occurred.
+event types happen to have occurred. Views read every run through a glob, or, when some runs
+must be left out (damaged), the listed files of the others.
+
+:func:`lock_down` makes a connection the analysts' sandbox: it reads the lake's folder and
+nothing else, writes no file, loads no extension, and cannot change that (DuckDB's own settings);
+:func:`check_read_only` refuses every statement but ``SELECT`` (and ``EXPLAIN`` of one), which
+also keeps ``COPY … TO`` from writing into the lake folder it may read.
 """
 
 from __future__ import annotations
 
+import re
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Final
 
 import duckdb
 import pyarrow as pa
 
 from .arrow import ENVELOPE_COLUMNS, event_schema
-from .lake import Lake
+from .errors import EventStoreError
+from .lake import Lake, RunInfo
 from .schemas import default_registry
 
 PARTITION_COLUMNS: Final = (("robot", "VARCHAR"), ("date", "DATE"), ("run", "VARCHAR"))
 HIVE_TYPES: Final = "{" + ", ".join(f"'{n}': '{t}'" for n, t in PARTITION_COLUMNS) + "}"
+_EXPLAIN: Final = re.compile(r"\s*EXPLAIN\s+(?:ANALY[SZ]E\s+)?", re.IGNORECASE)
+
+
+class QueryRefusedError(EventStoreError):
+    """A query would do more than read the lake (write, attach, configure, load, …)."""
 
 
 def quote_ident(name: str) -> str:
@@ -29,25 +44,46 @@ def quote_literal(text: str) -> str:
     return "'" + text.replace("'", "''") + "'"
 
 
-def connect(lake: Lake, *, database: str = ":memory:") -> duckdb.DuckDBPyConnection:
-    """A DuckDB connection with the lake's views (in an in-memory database by default)."""
+def connect(
+    lake: Lake, *, database: str = ":memory:", runs: Sequence[RunInfo] | None = None
+) -> duckdb.DuckDBPyConnection:
+    """A DuckDB connection with the lake's views (in an in-memory database by default);
+    ``runs``, if given, are the only runs the views read."""
     con = duckdb.connect(database)
-    create_type_views(con, lake)
+    create_type_views(con, lake, runs)
     return con
 
 
-def create_type_views(con: duckdb.DuckDBPyConnection, lake: Lake) -> None:
-    present = set(lake.event_types())
+def parquet_source(
+    lake: Lake, name_in_run: str, runs: Sequence[RunInfo] | None, *, union_by_name: bool = False
+) -> str | None:
+    """``read_parquet(…)`` of the file ``name_in_run`` of every run (a glob), or of ``runs``
+    only (a list); None if none of ``runs`` has that file."""
+    if runs is None:
+        files = quote_literal(str(lake.root / "robot=*" / "date=*" / "run=*" / name_in_run))
+    else:
+        paths = [r.path / name_in_run for r in runs if (r.path / name_in_run).is_file()]
+        if not paths:
+            return None
+        files = "[" + ", ".join(quote_literal(str(p)) for p in paths) + "]"
+    extra = ", union_by_name = true" if union_by_name else ""
+    return f"read_parquet({files}, hive_partitioning = true, hive_types = {HIVE_TYPES}{extra})"
+
+
+def create_type_views(
+    con: duckdb.DuckDBPyConnection, lake: Lake, runs: Sequence[RunInfo] | None = None
+) -> None:
+    present = set(lake.event_types()) if runs is None else {t for r in runs for t in r.rows}
     envelope = ", ".join(quote_ident(f.name) for f in ENVELOPE_COLUMNS)
     parts = []
     for event_type in default_registry().types:
         view = quote_ident(event_type)
-        if event_type in present:
-            pattern = str(lake.root / "robot=*" / "date=*" / "run=*" / f"{event_type}.parquet")
-            source = (
-                f"read_parquet({quote_literal(pattern)}, hive_partitioning = true, "
-                f"hive_types = {HIVE_TYPES}, union_by_name = true)"
-            )
+        source = (
+            parquet_source(lake, f"{event_type}.parquet", runs, union_by_name=True)
+            if event_type in present
+            else None
+        )
+        if source is not None:
             con.execute(f"CREATE OR REPLACE VIEW {view} AS SELECT * FROM {source}")
         else:
             empty = pa.Table.from_pylist([], schema=event_schema(event_type))
@@ -61,3 +97,43 @@ def create_type_views(con: duckdb.DuckDBPyConnection, lake: Lake) -> None:
             f"SELECT robot, date, run, {envelope}, {quote_literal(event_type)} AS type FROM {view}"
         )
     con.execute("CREATE OR REPLACE VIEW events AS " + "\nUNION ALL ".join(parts))
+
+
+def lock_down(con: duckdb.DuckDBPyConnection, readable: Sequence[Path]) -> None:
+    """Let the connection read files under ``readable`` folders and nothing else, load no
+    extension, and lock its configuration so no later statement can undo it."""
+    folders = sorted(
+        {str(p.absolute()) + "/" for p in readable} | {str(p.resolve()) + "/" for p in readable}
+    )
+    con.execute("SET allowed_directories = [" + ", ".join(quote_literal(f) for f in folders) + "]")
+    for setting in (
+        "enable_external_access = false",
+        "autoinstall_known_extensions = false",
+        "autoload_known_extensions = false",
+        "allow_community_extensions = false",
+        "lock_configuration = true",
+    ):
+        con.execute(f"SET {setting}")
+
+
+def check_read_only(con: duckdb.DuckDBPyConnection, sql: str) -> None:
+    """Raise :class:`QueryRefusedError` unless ``sql`` is one or more ``SELECT`` statements
+    (``EXPLAIN`` of one included). Syntax errors raise DuckDB's own ``ParserException``."""
+    statements = con.extract_statements(sql)
+    if not statements:
+        raise QueryRefusedError("no SQL statement given")
+    for statement in statements:
+        if statement.type == duckdb.StatementType.SELECT:
+            continue
+        if statement.type == duckdb.StatementType.EXPLAIN:
+            explained = _EXPLAIN.match(statement.query)
+            if explained is not None:
+                inner = con.extract_statements(statement.query[explained.end() :])
+                if [s.type for s in inner] == [duckdb.StatementType.SELECT]:
+                    continue
+        text = " ".join(statement.query.split())
+        raise QueryRefusedError(
+            f"queries over the lake are read-only: only SELECT runs, not {statement.type.name} "
+            f"({text[:60]}{'…' if len(text) > 60 else ''}); to write a result file, use --out "
+            "PATH; a PIVOT runs as SELECT * FROM (PIVOT …)"
+        )

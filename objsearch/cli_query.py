@@ -6,9 +6,12 @@ import argparse
 import csv
 import datetime as dt
 import decimal
+import io
 import json
+import math
 import os
 import sys
+import uuid
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -29,19 +32,36 @@ def _fail(message: str) -> int:
 def cmd_query(args: argparse.Namespace) -> int:
     import duckdb
 
-    from objsearch.replay.analytics import open_analytics
+    from objsearch.replay.analytics import open_analytics, run_query
 
     lake = Path(args.lake)
     if not lake.is_dir():
         return _fail(f"no lake at {lake} (add runs with `objsearch lake add LOG --lake {lake}`)")
-    con = open_analytics(lake)
+    out = Path(args.out) if args.out is not None else None
+    if out is not None:
+        if not args.out.strip():
+            return _fail("--out needs a file path")
+        if out.resolve().is_relative_to(lake.resolve()):
+            return _fail(f"--out {args.out} is inside the lake {lake}; write results elsewhere")
+        if out.is_dir():
+            return _fail(f"--out {args.out} is a directory, not a file")
+    if not args.sql.strip():
+        return _fail('no SQL given (e.g. "SELECT count(*) FROM events")')
     try:
-        result = con.execute(args.sql)
-        names = [d[0] for d in result.description or ()]
-        rows = result.fetchall()
+        con = open_analytics(lake)
+        names, rows = run_query(con, args.sql)
     except duckdb.Error as exc:
         return _fail(f"query failed: {exc}")
-    write_rows(names, rows, args.format, sys.stdout)
+    if out is None:
+        write_rows(names, rows, args.format, sys.stdout)
+        return 0
+    text = io.StringIO()
+    write_rows(names, rows, args.format, text)
+    try:
+        out.write_text(text.getvalue(), encoding="utf-8")
+    except OSError as exc:
+        return _fail(f"cannot write --out {args.out}: {exc.strerror or exc}")
+    print(f"wrote {len(rows)} row{'s' if len(rows) != 1 else ''} to {out}", file=sys.stderr)
     return 0
 
 
@@ -66,43 +86,62 @@ def write_rows(names: Sequence[str], rows: Sequence[Sequence[Any]], fmt: str, ou
 
 
 def _plain(value: Any) -> Any:
-    """A JSON-able value: dates as ISO text, decimals as floats, NaN/inf as null."""
+    """A JSON-able value: dates as ISO text, decimals as floats, NaN/inf as null, intervals as
+    seconds, UUIDs and anything else DuckDB may return as text."""
+    if value is None or isinstance(value, bool | int | str):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
     if isinstance(value, dt.date | dt.datetime | dt.time):
         return value.isoformat()
+    if isinstance(value, dt.timedelta):
+        return value.total_seconds()
     if isinstance(value, decimal.Decimal):
-        return float(value)
-    if isinstance(value, float) and (value != value or value in (float("inf"), float("-inf"))):
-        return None
+        return _plain(float(value))
     if isinstance(value, dict):
         return {str(k): _plain(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
         return [_plain(v) for v in value]
-    if isinstance(value, bytes):
-        return value.hex()
-    return value
+    if isinstance(value, bytes | bytearray | memoryview):
+        return bytes(value).hex()
+    if isinstance(value, uuid.UUID):
+        return str(value)
+    return str(value)
 
 
 def _cell(value: Any) -> str:
+    """One value as text for a table or CSV cell: scalars as themselves (no JSON quotes),
+    nested values as JSON."""
     if value is None:
         return ""
-    if isinstance(value, str):
-        return value
     if isinstance(value, float):
         return repr(value)
-    return json.dumps(_plain(value), ensure_ascii=False)
+    if isinstance(value, dt.timedelta):
+        return str(value)
+    plain = _plain(value)
+    if isinstance(plain, str):
+        return plain
+    return json.dumps(plain, ensure_ascii=False)
 
 
 def cmd_lake_add(args: argparse.Namespace) -> int:
     from objsearch.events.lake import Lake, compact_log
 
-    info = compact_log(
-        Path(args.log),
-        Lake(args.lake),
-        robot=args.robot,
-        run=args.run,
-        date=args.date,
-        replace=args.replace,
-    )
+    if not (args.wait >= 0 and math.isfinite(args.wait)):
+        return _fail(f"--wait must be seconds ≥ 0, not {args.wait}")
+    if Path(args.lake).exists() and not Path(args.lake).is_dir():
+        return _fail(f"--lake {args.lake} is a file, not a lake folder")
+    try:
+        info = compact_log(
+            Path(args.log),
+            Lake(args.lake, lock_wait_s=args.wait),
+            robot=args.robot,
+            run=args.run,
+            date=args.date,
+            replace=args.replace,
+        )
+    except OSError as exc:
+        return _fail(f"lake add: {exc.filename or args.lake}: {exc.strerror or exc}")
     print(f"{info.path}: {info.events} events in {len(info.rows)} tables ({info.digest[:19]}…)")
     return 0
 
@@ -123,7 +162,9 @@ def cmd_lake_upgrade(args: argparse.Namespace) -> int:
 def cmd_lake_ls(args: argparse.Namespace) -> int:
     from objsearch.events.lake import Lake
 
-    runs = Lake(args.lake).runs()
+    runs, damaged = Lake(args.lake).scan()
+    for run in damaged:
+        print(f"objsearch: warning: {run.path}: damaged run: {run.reason}", file=sys.stderr)
     rows = [(r.robot, r.date, r.run, r.events, r.source) for r in runs]
     write_rows(["robot", "date", "run", "events", "source"], rows, args.format, sys.stdout)
     return 0
@@ -144,6 +185,12 @@ def register(sub: Any) -> None:
         "--lake", default=_default_lake(), help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})"
     )
     query.add_argument("--format", choices=["table", "csv", "json"], default="table")
+    query.add_argument(
+        "--out",
+        metavar="PATH",
+        help="write the result to this file (not inside the lake) instead of stdout; SQL itself "
+        "cannot write files",
+    )
     query.set_defaults(func=cmd_query)
 
     lake = sub.add_parser("lake", help="put event logs into the analytics lake, list what it holds")
@@ -154,6 +201,13 @@ def register(sub: Any) -> None:
     add.add_argument("--run", help="run name (default: the log's stream)")
     add.add_argument("--date", help="YYYY-MM-DD (default: the UTC day of the first event)")
     add.add_argument("--replace", action="store_true", help="replace the run if it differs")
+    add.add_argument(
+        "--wait",
+        type=float,
+        default=30.0,
+        metavar="SECONDS",
+        help="how long to wait for another commit to the lake to finish (30; 0: fail at once)",
+    )
     add.add_argument(
         "--lake", default=_default_lake(), help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})"
     )

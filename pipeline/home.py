@@ -15,8 +15,8 @@ from .rooms import ROOM_SLOTS, Room, RoomSource, build_room
 from .sources import load_layout, load_openable, load_scene, scene_path
 
 ROOM_GAP_M = 1.0
-_HOME_NAME = re.compile(r"^[a-z0-9][a-z0-9_-]*$")
-_FLOORPLAN = re.compile(r"^(?:FloorPlan)?([1-9][0-9]*)$")
+_HOME_NAME = re.compile(r"[a-z0-9][a-z0-9_-]*")
+_FLOORPLAN = re.compile(r"(?:FloorPlan)?([1-9][0-9]*)")
 
 NOTES = (
     "Unity -> ROS REP-103 (x=z_u, y=-x_u, z=y_u, yaw=-yaw_u). Rooms laid along +x in the order "
@@ -62,14 +62,14 @@ class Home:
 
 def normalise_floorplan(text: str) -> str:
     """``"FloorPlan2"`` or ``"2"`` -> ``"FloorPlan2"``."""
-    match = _FLOORPLAN.match(text.strip())
+    match = _FLOORPLAN.fullmatch(text.strip())
     if not match:
         raise HomeSpecError(f"{text!r} is not an iTHOR scene name like 'FloorPlan201'")
     return f"FloorPlan{match.group(1)}"
 
 
 def check_home_spec(name: str, floorplans: Sequence[str]) -> tuple[str, ...]:
-    if not _HOME_NAME.match(name):
+    if not _HOME_NAME.fullmatch(name):
         raise HomeSpecError(
             f"home name {name!r} must be lower-case letters, digits, '-' or '_' (it names a file)"
         )

@@ -33,10 +33,13 @@ adds the seed's prior.
 
 from __future__ import annotations
 
+import logging
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Final
+from typing import Any, Final
 
 import duckdb
+from objsearch.events import EventStoreError
 from objsearch.events.derived import (
     DERIVED_DIR,
     DERIVED_TABLES,
@@ -45,9 +48,17 @@ from objsearch.events.derived import (
     SCENE_GRAPH_BODY,
     DerivedTable,
 )
-from objsearch.events.lake import Lake
+from objsearch.events.lake import DamagedRun, Lake, RunInfo, deep_check
 from objsearch.events.schemas import default_registry
-from objsearch.events.sql import HIVE_TYPES, connect, quote_ident, quote_literal
+from objsearch.events.sql import (
+    check_read_only,
+    connect,
+    lock_down,
+    parquet_source,
+    quote_ident,
+)
+
+_log = logging.getLogger(__name__)
 
 _PLANS: Final = """
 CREATE OR REPLACE VIEW plans AS
@@ -74,23 +85,27 @@ LEFT JOIN task_started s ON s.robot = d.robot AND s.run = d.run AND s.task_id = 
 _LEGACY: Final = "_legacy"  # schema of the type views restricted to runs without derived tables
 
 
-def create_views(con: duckdb.DuckDBPyConnection, lake: Lake) -> None:
+def create_views(
+    con: duckdb.DuckDBPyConnection, lake: Lake, runs: Sequence[RunInfo] | None = None
+) -> None:
     """Add the convenience views and scene-graph macros to a connection with the type views.
 
     ``searches`` and ``eq4_updates`` read each run's derived table
     (:mod:`objsearch.events.derived`); runs that lack it at its current version (written by
     older code) get the same rows computed from their events by the same SQL, so a mixed lake
     answers exactly like an upgraded one, only slower. Which runs lack it is decided now: open a
-    new connection after committing runs with older code.
+    new connection after committing runs with older code. ``runs``, if given, are the only runs
+    the views read (the type views must have been made with the same).
     """
-    runs = lake.runs()
+    only = runs
+    runs = lake.runs() if only is None else list(only)
     legacy = sorted({(r.robot, r.run) for r in runs if r.missing_derived()})
     if legacy:
         _create_legacy_views(con, legacy)
     for spec in DERIVED_TABLES:
         con.execute(
             f"CREATE OR REPLACE VIEW {spec.name} AS "
-            + _derived_source(lake, spec, any(not r.missing_derived() for r in runs), legacy)
+            + _derived_source(lake, spec, any(not r.missing_derived() for r in runs), legacy, only)
         )
     for ddl in (_PLANS, _DETECTIONS):
         con.execute(ddl)
@@ -120,15 +135,16 @@ def _create_legacy_views(con: duckdb.DuckDBPyConnection, legacy: list[tuple[str,
 
 
 def _derived_source(
-    lake: Lake, spec: DerivedTable, any_derived: bool, legacy: list[tuple[str, str]]
+    lake: Lake,
+    spec: DerivedTable,
+    any_derived: bool,
+    legacy: list[tuple[str, str]],
+    only: Sequence[RunInfo] | None,
 ) -> str:
     parts = []
-    if any_derived:
-        pattern = str(lake.root / "robot=*" / "date=*" / "run=*" / DERIVED_DIR / spec.file_name)
-        files = (
-            f"SELECT * FROM read_parquet({quote_literal(pattern)}, hive_partitioning = true, "
-            f"hive_types = {HIVE_TYPES})"
-        )
+    source = parquet_source(lake, f"{DERIVED_DIR}/{spec.file_name}", only)
+    if any_derived and source is not None:
+        files = f"SELECT * FROM {source}"
         # A run missing any derived table is computed live for all of them (scene_graph reads
         # eq4_updates), so its files that do exist are skipped rather than counted twice.
         parts.append(f"{files} ANTI JOIN {_LEGACY}._runs USING (robot, run)" if legacy else files)
@@ -141,8 +157,48 @@ def _derived_source(
 
 
 def open_analytics(lake_dir: Path | str) -> duckdb.DuckDBPyConnection:
-    """An in-memory DuckDB with every view over the lake at ``lake_dir``."""
-    lake = Lake(lake_dir)
-    con = connect(lake)
-    create_views(con, lake)
+    """An in-memory DuckDB with every view over the lake at ``lake_dir``, locked down
+    (:func:`~objsearch.events.sql.lock_down`: it reads the lake's folder and nothing else).
+
+    A damaged run (unreadable manifest, a missing, empty or truncated Parquet file) is left out
+    of every view with a warning naming it, so the other runs still answer. A commit a killed
+    writer left half done is finished first if no writer holds the lake.
+    """
+    lake = Lake(Path(lake_dir).absolute())
+    if lake.needs_recovery():
+        try:
+            lake.recover()
+        except (OSError, EventStoreError) as exc:
+            _log.warning("%s: could not finish an interrupted commit: %s", lake.root, exc)
+    runs, damaged = lake.scan()
+    try:
+        con = _views(lake, runs, restricted=bool(damaged))
+    except duckdb.Error:
+        # Damage the 8-byte check cannot see: parse every footer, leave out what fails, retry.
+        more = [DamagedRun(r.path, why) for r in runs if (why := deep_check(r)) is not None]
+        if not more:
+            raise
+        left_out = {d.path for d in more}
+        runs = [r for r in runs if r.path not in left_out]
+        damaged += more
+        con = _views(lake, runs, restricted=True)
+    for run in damaged:
+        _log.warning("%s: damaged run left out of every view: %s", run.path, run.reason)
+    lock_down(con, [lake.root])
     return con
+
+
+def _views(lake: Lake, runs: list[RunInfo], *, restricted: bool) -> duckdb.DuckDBPyConnection:
+    only = runs if restricted else None
+    con = connect(lake, runs=only)
+    create_views(con, lake, only)
+    return con
+
+
+def run_query(con: duckdb.DuckDBPyConnection, sql: str) -> tuple[list[str], list[tuple[Any, ...]]]:
+    """Column names and rows of a read-only query (:func:`~objsearch.events.sql.check_read_only`
+    refuses anything else with :class:`~objsearch.events.sql.QueryRefusedError`)."""
+    check_read_only(con, sql)
+    result = con.execute(sql)
+    names = [d[0] for d in result.description or ()]
+    return names, result.fetchall()

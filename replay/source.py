@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterable
 from pathlib import Path
 
 from objsearch.agent.errors import ObjsearchError
 from objsearch.events import Event, read_log
-from objsearch.events.lake import Lake, RunInfo
+from objsearch.events.lake import Lake, RunInfo, deep_check
+
+_log = logging.getLogger(__name__)
 
 
 def is_log(path: Path) -> bool:
@@ -15,15 +18,29 @@ def is_log(path: Path) -> bool:
 
 
 def lake_run(path: Path, *, run: str | None = None, robot: str | None = None) -> RunInfo:
-    """The one run of the lake at ``path`` that ``run`` / ``robot`` select."""
+    """The one run of the lake at ``path`` that ``run`` / ``robot`` select; damaged runs are
+    left out with a warning, and selecting one is an error that names it."""
+    lake = Lake(path)
+    if lake.needs_recovery():
+        lake.recover()
+    healthy, damaged = lake.scan()
+    for bad in damaged:
+        if (
+            run is not None
+            and bad.path.name == f"run={run}"
+            and (robot is None or bad.path.parent.parent.name == f"robot={robot}")
+        ):
+            raise ObjsearchError(f"run {run!r} in the lake {path} is damaged: {bad.reason}")
+        _log.warning("%s: damaged run left out: %s", bad.path, bad.reason)
     runs = [
-        r
-        for r in Lake(path).runs()
-        if (run is None or r.run == run) and (robot is None or r.robot == robot)
+        r for r in healthy if (run is None or r.run == run) and (robot is None or r.robot == robot)
     ]
     if len(runs) == 1:
+        problem = deep_check(runs[0])
+        if problem is not None:
+            raise ObjsearchError(f"run {runs[0].run!r} in the lake {path} is damaged: {problem}")
         return runs[0]
-    available = ", ".join(f"{r.robot}/{r.run}" for r in Lake(path).runs()) or "none"
+    available = ", ".join(f"{r.robot}/{r.run}" for r in healthy) or "none"
     if not runs:
         raise ObjsearchError(
             f"no run {run!r}{f' of robot {robot!r}' if robot else ''} in the lake {path} "

@@ -71,7 +71,13 @@ def convert_bag(task: BagTask) -> Converted:
 
 def commit_converted(lake: LakeWriter, converted: Converted, robot: str) -> IngestResult:
     """The driver's half: commit one task's tables atomically; an error is returned, not raised."""
-    if converted.error is not None or converted.already or converted.report is None:
+    if converted.already:
+        try:
+            lake.restore_report(converted.bag_id)  # a crash may have come between run and report
+        except Exception as exc:
+            return IngestResult(converted.path, None, 0, already=True, error=str(exc) or repr(exc))
+        return IngestResult(converted.path, None, 0, already=True)
+    if converted.error is not None or converted.report is None:
         return IngestResult(converted.path, None, 0, converted.already, converted.error)
     report = converted.report
     try:

@@ -179,6 +179,9 @@ def test_a_failed_commit_leaves_nothing(tmp_path: Path, monkeypatch: pytest.Monk
         ({"robot": "../x"}, "robot name '../x'"),
         ({"robot": "r", "run": "a b"}, "run name 'a b'"),
         ({"robot": "r", "date": "yesterday"}, "not an ISO date"),
+        # A `$` regex matches before a trailing newline; the check is a full match.
+        ({"robot": "x\n"}, r"robot name 'x\\n'"),
+        ({"robot": "r", "run": "a\n"}, r"run name 'a\\n'"),
     ],
 )
 def test_bad_partition_values_are_refused(
@@ -186,6 +189,30 @@ def test_bad_partition_values_are_refused(
 ) -> None:
     with pytest.raises(LakeError, match=message):
         compact_log(small_log(tmp_path / "log"), Lake(tmp_path / "lake"), **kwargs)
+    assert not list((tmp_path / "lake").glob("robot=*"))
+
+
+def test_a_truncated_or_empty_file_is_named_and_its_run_left_out(tmp_path: Path) -> None:
+    lake = Lake(tmp_path / "lake")
+    good = compact_log(small_log(tmp_path / "a"), lake, robot="r", run="a")
+    truncated = compact_log(small_log(tmp_path / "b", stream="b"), lake, robot="r", run="b")
+    empty = compact_log(small_log(tmp_path / "c", stream="c"), lake, robot="r", run="c")
+    path = truncated.path / "detection.parquet"
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    DERIVED_TABLES[0].path(empty.path).write_bytes(b"")
+    runs, damaged = lake.scan()
+    assert runs == [good]
+    assert [(d.path, d.reason) for d in damaged] == [
+        (
+            truncated.path,
+            "detection.parquet is truncated or not Parquet ("
+            + str(path.stat().st_size)
+            + " bytes, no PAR1 at both ends)",
+        ),
+        (empty.path, f"{DERIVED_TABLES[0].file_name} is empty"),
+    ]
+    with pytest.raises(LakeError, match=r"detection.parquet: damaged Parquet file"):
+        lake.read_events(truncated)
 
 
 def test_a_table_that_does_not_fit_its_schema_is_refused(tmp_path: Path) -> None:

@@ -143,3 +143,12 @@ def test_parse_home_arg() -> None:
         parse_home_arg("FloorPlan2,FloorPlan201")
     with pytest.raises(HomeSpecError):
         parse_home_arg("x=Kitchen2,FloorPlan201,FloorPlan303,FloorPlan401")
+
+
+@pytest.mark.parametrize("name", ["home\n", "home\nx", "home/x"])
+def test_home_names_are_checked_whole(name: str) -> None:
+    from objsearch.pipeline.home import check_home_spec
+
+    with pytest.raises(HomeSpecError, match="home name"):
+        check_home_spec(name, PAPER_HOME)
+    assert check_home_spec("home", PAPER_HOME) == PAPER_HOME

@@ -1,0 +1,126 @@
+"""Kill-point harness: run a command in a process that SIGKILLs itself after its N-th durable step.
+
+Every fsync and rename made through :mod:`._fs` (the lake's commits, the ingest report) is a
+*step*; with ``OBJSEARCH_KILL_AFTER_STEP=N`` in its environment a process kills itself right
+after its N-th. A test runs a command with N = 1, 2, … until it completes without dying, so it
+is killed once at every step of its commit, not at random moments, and checks each time that a
+re-run completes and leaves what an uninterrupted run leaves.
+
+A process start costs more than most commits (imports of pyarrow, DuckDB, …), so
+:class:`KillServer` is one Python process that has imported the command line once and forks a
+fresh child per command: the child sets the variable and calls ``objsearch.cli.main(argv)``,
+the real command line, and the server reports how it ended. SIGKILL leaves the page cache alone,
+so this tests the order of operations and recovery, not power loss.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Final
+
+from ._fs import KILL_AFTER_STEP_ENV
+
+_SERVER: Final = r"""
+import json, os, signal, sys, traceback
+import duckdb, pyarrow.parquet
+import objsearch.cli, objsearch.cli_query, objsearch.cli_bags
+import objsearch.events.lake, objsearch.pipeline.bags.ingest, objsearch.pipeline.bags.read
+import objsearch.replay.analytics, rosbags.highlevel
+for line in sys.stdin:
+    job = json.loads(line)
+    pid = os.fork()
+    if pid == 0:
+        fd = os.open(job["output"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        os.dup2(fd, 1)
+        os.dup2(fd, 2)
+        if job["kill_after"]:
+            os.environ[job["env"]] = str(job["kill_after"])
+        code = 70
+        try:
+            code = objsearch.cli.main(job["argv"])
+        except BaseException:
+            traceback.print_exc()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    _, status = os.waitpid(pid, 0)
+    code = -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
+    sys.stdout.write(f"{code}\n")
+    sys.stdout.flush()
+"""
+
+
+@dataclass(frozen=True, slots=True)
+class Outcome:
+    code: int  # exit status, or minus the signal that ended it
+    output: str  # stdout and stderr together
+
+    @property
+    def killed(self) -> bool:
+        return self.code == -9
+
+
+class KillServer:
+    """Runs ``objsearch`` commands in forked children; a context manager."""
+
+    def __init__(self, scratch: Path) -> None:
+        self._output = scratch / "killtest-output.txt"
+        self._server = subprocess.Popen(
+            [sys.executable, "-c", _SERVER],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            bufsize=1,
+        )
+
+    def run(self, argv: list[str], *, kill_after: int = 0) -> Outcome:
+        """Run ``objsearch ARGV`` in a fresh child, killed after step ``kill_after`` (0: never)."""
+        assert self._server.stdin is not None and self._server.stdout is not None
+        job = {
+            "argv": argv,
+            "kill_after": kill_after,
+            "env": KILL_AFTER_STEP_ENV,
+            "output": str(self._output),
+        }
+        self._server.stdin.write(json.dumps(job) + "\n")
+        self._server.stdin.flush()
+        line = self._server.stdout.readline()
+        if not line:
+            raise RuntimeError("the kill-test server died")
+        return Outcome(int(line), self._output.read_text(encoding="utf-8", errors="replace"))
+
+    def close(self) -> None:
+        if self._server.stdin is not None:
+            self._server.stdin.close()
+        self._server.wait(timeout=30)
+
+    def __enter__(self) -> KillServer:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+def tree(root: Path, *, ignore: frozenset[str] = frozenset({".writer"})) -> dict[str, bytes | None]:
+    """Every file (its bytes) and folder (None) under ``root`` by relative path: what a lake
+    holds, to compare an interrupted-then-rerun lake with an uninterrupted one."""
+    found: dict[str, bytes | None] = {}
+    for path in sorted(root.rglob("*")):
+        rel = str(path.relative_to(root))
+        if path.name in ignore:
+            continue
+        found[rel] = None if path.is_dir() else path.read_bytes()
+    return found
+
+
+__all__ = ["KillServer", "Outcome", "tree"]

@@ -1,0 +1,70 @@
+"""Ingest's commit: killed right after each durable step (fsync, rename), a re-run completes and
+leaves the lake, ingest report included, exactly as an uninterrupted ingest does."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from objsearch.events.killtest import KillServer, tree
+from objsearch.events.lake import STAGING
+from objsearch.pipeline.bags.formats import BagFormat
+from objsearch.pipeline.bags.lake import MANIFESTS, RUN_REPORT, BagLake
+from objsearch.pipeline.bags.record import record
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One short search (each kill re-reads it): every step kind of a bag's commit."""
+    path = tmp_path_factory.mktemp("bag") / "run.bag"
+    record(path, BagFormat.ROS1, scenes=[1], targets=["Apple"], starts=["kitchen-1"], odom_hz=1.0)
+    return path
+
+
+def test_ingest_killed_at_every_step_then_rerun_equals_an_uninterrupted_ingest(
+    bag: Path, tmp_path: Path
+) -> None:
+    lake = tmp_path / "lake"
+    argv = ["ingest", str(bag), "--lake", str(lake), "--no-progress"]
+    with KillServer(tmp_path) as server:
+        first = server.run(argv)
+        assert first.code == 0, first.output
+        reference = tree(lake)
+        [report] = (lake / MANIFESTS).iterdir()
+        [run] = BagLake(lake).lake.runs()
+        assert (run.path / RUN_REPORT).read_bytes() == report.read_bytes()
+        assert json.loads(report.read_bytes())["run"] == str(run.path.relative_to(lake))
+        reruns = {"committed": 0, "already": 0}
+        n = 0
+        while True:
+            n += 1
+            shutil.rmtree(lake, ignore_errors=True)
+            outcome = server.run(argv, kill_after=n)
+            if not outcome.killed:
+                assert outcome.code == 0, outcome.output
+                assert tree(lake) == reference
+                break
+            again = server.run(argv)
+            assert again.code == 0, f"re-run after a kill at step {n}: {again.output}"
+            reruns["already" if "already in the lake" in again.output else "committed"] += 1
+            assert tree(lake) == reference, f"kill at step {n}: the re-run left another lake"
+            assert not list((lake / STAGING).iterdir())
+            assert n < 200
+    # Some kills came after the run's rename (the re-run finds the bag and writes its report).
+    assert reruns["already"] >= 1 and reruns["committed"] >= 10, reruns
+
+
+def test_a_missing_report_is_restored_from_the_run(bag: Path, tmp_path: Path) -> None:
+    from objsearch.pipeline.bags.ingest import ingest
+
+    lake = tmp_path / "lake"
+    [done] = ingest([bag], lake)
+    assert done.error is None and done.committed > 0
+    [report] = (lake / MANIFESTS).iterdir()
+    kept = report.read_bytes()
+    report.unlink()
+    [again] = ingest([bag], lake)
+    assert again.already and again.error is None
+    assert report.read_bytes() == kept

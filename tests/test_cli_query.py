@@ -1,0 +1,202 @@
+"""``objsearch query``: read-only and sandboxed, tolerant of a damaged run, any result type in
+every output format."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from objsearch.events.killtest import tree
+from objsearch.events.lake import Lake
+
+from objsearch.cli import main
+
+
+@pytest.fixture(scope="module")
+def lake(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("query")
+    for target, run in (("Apple", "apple"), ("Cup", "cup")):
+        log = root / f"log-{run}"
+        args = ["search", "--target", target, "--start", "kitchen-1", "--log", str(log), "--json"]
+        assert main(args) == 0
+        args = [
+            "lake",
+            "add",
+            str(log),
+            "--robot",
+            "r1",
+            "--run",
+            run,
+            "--lake",
+            str(root / "lake"),
+        ]
+        assert main(args) == 0
+    return root / "lake"
+
+
+def _query(lake: Path, sql: str, *extra: str) -> list[str]:
+    return ["query", "--lake", str(lake), *extra, sql]
+
+
+def _mean_path(lake: Path, capsys: pytest.CaptureFixture[str]) -> str:
+    assert main(_query(lake, "SELECT avg(path_length) FROM task_ended", "--format", "csv")) == 0
+    return capsys.readouterr().out
+
+
+ATTACKS = {
+    "copy into the lake": "COPY (SELECT 999.0 AS path_length) TO '{run}/task_ended.parquet' (FORMAT parquet)",
+    "copy out": "COPY (SELECT 1) TO '{tmp}/out.csv'",
+    "read a file": "SELECT * FROM read_csv('/etc/passwd')",
+    "read text": "SELECT * FROM read_text('/etc/hostname')",
+    "attach": "ATTACH '{tmp}/x.duckdb' AS x",
+    "export": "EXPORT DATABASE '{tmp}/exported'",
+    "set": "SET enable_external_access = true",
+    "reset": "RESET lock_configuration",
+    "install": "INSTALL httpfs",
+    "load": "LOAD httpfs",
+    "pragma": "PRAGMA enable_profiling",
+    "create": "CREATE TABLE t AS SELECT 1",
+    "second statement": "SELECT 1; COPY (SELECT 1) TO '{tmp}/two.csv'",
+    "explain analyze copy": "EXPLAIN ANALYZE COPY (SELECT 1) TO '{tmp}/explained.csv'",
+    "call": "CALL duckdb_settings()",
+}
+
+
+@pytest.mark.parametrize("attack", ATTACKS, ids=list(ATTACKS))
+def test_sql_cannot_write_read_elsewhere_or_reconfigure(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], attack: str
+) -> None:
+    [run] = [r for r in Lake(lake).runs() if r.run == "apple"]
+    before = tree(lake)
+    mean = _mean_path(lake, capsys)
+    sql = ATTACKS[attack].format(run=run.path, tmp=tmp_path)
+    assert main(_query(lake, sql)) == 2
+    captured = capsys.readouterr()
+    assert captured.err.startswith("objsearch: error: ") and "Traceback" not in captured.err
+    assert captured.out == ""
+    assert tree(lake) == before  # every committed byte as it was
+    assert list(tmp_path.iterdir()) == []
+    assert _mean_path(lake, capsys) == mean
+
+
+def test_what_an_analyst_needs_still_runs(lake: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for sql in (
+        "SELECT target, count(*) FROM searches GROUP BY 1 ORDER BY 1",
+        "FROM searches SELECT run ORDER BY run",
+        "EXPLAIN SELECT count(*) FROM events",
+        "DESCRIBE searches",
+        "WITH t AS (SELECT 1 AS x) SELECT * FROM t",
+        "SELECT count(*) FROM glob('" + str(lake) + "/robot=*/date=*/run=*/_run.json')",
+    ):
+        assert main(_query(lake, sql)) == 0, sql
+    out = capsys.readouterr().out
+    assert "Apple" in out and "Cup" in out
+
+
+def test_a_result_file_is_an_explicit_option(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "result.csv"
+    sql = "SELECT run, date FROM searches ORDER BY run"
+    assert main(_query(lake, sql, "--format", "csv", "--out", str(out))) == 0
+    assert "wrote 2 rows" in capsys.readouterr().err
+    rows = list(csv.reader(io.StringIO(out.read_text())))
+    assert rows[0] == ["run", "date"] and [r[0] for r in rows[1:]] == ["apple", "cup"]
+    assert main(_query(lake, sql, "--out", str(lake / "x.csv"))) == 2
+    assert "inside the lake" in capsys.readouterr().err
+    assert not (lake / "x.csv").exists()
+
+
+@pytest.mark.parametrize("sql", ["", "   ", " ; ", "-- nothing\n"])
+def test_empty_sql_is_a_clear_error(
+    lake: Path, capsys: pytest.CaptureFixture[str], sql: str
+) -> None:
+    assert main(_query(lake, sql)) == 2
+    assert capsys.readouterr().err.startswith("objsearch: error: ")
+
+
+TYPED = (
+    "SELECT INTERVAL 3 DAY + INTERVAL 2 HOUR AS i, uuid() AS u, DATE '2026-12-01' AS d, "
+    "TIMESTAMP '2026-12-01 10:00:00' AS ts, [1, 2] AS l, {'a': DATE '2026-01-02'} AS s, "
+    "1.25::DECIMAL(4, 2) AS m, 'ab'::BLOB AS b, NULL AS n, 'nan'::DOUBLE AS f, true AS t, "
+    "'say \"hi\", ok' AS q, 12345678901234567890::HUGEINT AS h, TIME '10:11:12' AS tm"
+)
+
+
+def test_every_result_type_prints_in_every_format(
+    lake: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(_query(lake, TYPED, "--format", "json")) == 0
+    [row] = json.loads(capsys.readouterr().out)
+    assert row["i"] == 3 * 86400 + 7200 and len(row["u"]) == 36 and row["d"] == "2026-12-01"
+    assert row["s"] == {"a": "2026-01-02"} and row["m"] == 1.25 and row["b"] == "6162"
+    assert row["n"] is None and row["f"] is None and row["t"] is True
+    assert row["h"] == 12345678901234567890 and row["tm"] == "10:11:12"
+
+    assert main(_query(lake, TYPED, "--format", "csv")) == 0
+    header, values = csv.reader(io.StringIO(capsys.readouterr().out))
+    cells = dict(zip(header, values, strict=True))
+    assert cells["d"] == "2026-12-01" and cells["ts"] == "2026-12-01T10:00:00"
+    assert cells["q"] == 'say "hi", ok' and cells["i"] == "3 days, 2:00:00"
+    assert cells["l"] == "[1, 2]" and cells["s"] == '{"a": "2026-01-02"}' and cells["n"] == ""
+
+    assert main(_query(lake, TYPED)) == 0
+    table = capsys.readouterr().out
+    assert "2026-12-01" in table and '"2026-12-01"' not in table and "(1 row)" in table
+
+
+def test_csv_dates_are_not_quoted_twice(lake: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(_query(lake, "SELECT date FROM searches LIMIT 1", "--format", "csv")) == 0
+    assert capsys.readouterr().out.splitlines()[1] == str(Lake(lake).runs()[0].date)
+
+
+@pytest.mark.parametrize("damage", ["truncated", "empty", "footer"])
+def test_a_damaged_run_is_named_and_left_out(
+    lake: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    caplog: pytest.LogCaptureFixture,
+    damage: str,
+) -> None:
+    copy = tmp_path / "lake"
+    shutil.copytree(lake, copy)
+    [bad] = [r for r in Lake(copy).runs() if r.run == "cup"]
+    path = bad.path / "task_ended.parquet"
+    data = path.read_bytes()
+    if damage == "truncated":
+        path.write_bytes(data[: len(data) * 2 // 3])
+    elif damage == "empty":
+        path.write_bytes(b"")
+    else:  # the ends intact, the footer zeroed: only a footer parse sees it
+        footer = int.from_bytes(data[-8:-4], "little")
+        path.write_bytes(data[: -8 - footer] + bytes(footer) + data[-8:])
+    for sql in ("SELECT 1", "SELECT run, count(*) FROM events GROUP BY run"):
+        caplog.clear()
+        assert main(_query(copy, sql, "--format", "csv")) == 0
+        assert f"{bad.path}: damaged run left out" in caplog.text  # the CLI prints it on stderr
+        assert "task_ended.parquet" in caplog.text
+        assert "cup" not in capsys.readouterr().out
+    assert main(_query(copy, "SELECT DISTINCT run FROM searches", "--format", "csv")) == 0
+    assert capsys.readouterr().out.splitlines() == ["run", "apple"]
+
+    assert main(["replay", str(copy), "--run", "cup"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("objsearch: error: run 'cup'") and "is damaged: task_ended" in err
+    caplog.clear()
+    assert main(["replay", str(copy), "--run", "apple"]) == 0
+    # Replay parses only the chosen run's footers; the 8-byte check sees the rest.
+    assert (f"{bad.path}: damaged run left out" in caplog.text) == (damage != "footer")
+
+
+@pytest.mark.parametrize("name", ["x\n", "x\ny", "../x", ""])
+def test_lake_add_checks_the_whole_name(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str
+) -> None:
+    log = lake.parent / "log-apple"
+    assert main(["lake", "add", str(log), "--robot", name, "--lake", str(tmp_path / "l")]) == 2
+    assert capsys.readouterr().err.startswith(f"objsearch: error: robot name {name!r}")
+    assert not list(tmp_path.glob("l/robot=*"))
