@@ -10,12 +10,13 @@ import enum
 import logging
 import math
 import random
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
 from objsearch.agent.categories import Vocabulary
+from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point, Pose, heading, wrap_angle
 from objsearch.agent.home import Vec3
 from objsearch.agent.navmap import NavigationMap
@@ -159,6 +160,7 @@ class SearchAgent:
         recorder: Recorder,
         config: SearchConfig,
         planner: StopPlanner | None = None,
+        next_task_id: Callable[[], str] | None = None,
     ) -> None:
         self.navmap = navmap
         self.semmap = semmap
@@ -169,6 +171,9 @@ class SearchAgent:
         #: Orders the stops of a room; the paper's planner for ``config.method`` unless plugged in.
         self.planner = planner or config.default_planner()
         self.rooms = tuple(navmap.doors)
+        #: Task ids come from the log's task ledger (objsearch.agent.state), never from a counter
+        #: in the relation model: a crashed task must not hand its id to the next one.
+        self._next_task_id = next_task_id
 
     # -- planning -----------------------------------------------------------------------------
 
@@ -227,7 +232,9 @@ class SearchAgent:
     def search(
         self, world: World, target: str, start: str, *, scene: int | None = None
     ) -> SearchResult:
-        task_id = f"task-{self.graph.tasks_folded + 1:05d}"
+        if self._next_task_id is None:
+            raise ObjsearchError("this agent only plans (replay); it was given no task numbering")
+        task_id = self._next_task_id()
         run = _Task(self, world, task_id, target)
         result = SearchResult(
             task_id=task_id, target=target, start=start, success=False, path_length=0.0

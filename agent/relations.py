@@ -24,7 +24,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Protocol
+from typing import Any, ClassVar, Protocol
 
 from objsearch.agent.scene_graph import EventLike, Pair, UpdateMode
 
@@ -101,6 +101,10 @@ class BetaRelations:
                 statics.add(support["static_class"])
         elif kind == "task_ended":
             self._end_task()
+        elif kind == "task_aborted":  # a search cut short by a crash folds nothing
+            self._target = None
+            self._seen_at = {}
+            self._viewed = set()
         self.last_seq = event.seq
 
     def _fade(self) -> None:
@@ -132,6 +136,47 @@ class BetaRelations:
         self._seen_at = {}
         self._viewed = set()
         self.tasks_folded += 1
+
+    snapshot_name: ClassVar[str] = "beta_relations"
+    snapshot_version: ClassVar[int] = 1
+
+    def to_snapshot(self) -> dict[str, Any]:
+        def pairs(d: Mapping[Pair, float]) -> list[list[Any]]:
+            return [[a, b, v] for (a, b), v in sorted(d.items())]
+
+        return {
+            "prior_strength": self.prior_strength,
+            "half_life_tasks": self.half_life_tasks,
+            "update_mode": self.update_mode.value,
+            "tasks_folded": self.tasks_folded,
+            "prior": pairs(self.prior),
+            "positive": pairs(self.positive),
+            "negative": pairs(self.negative),
+            "static_class": dict(sorted(self._static_class.items())),
+            "target": self._target,
+            "seen_at": {d: sorted(s) for d, s in sorted(self._seen_at.items())},
+            "viewed": sorted(self._viewed),
+        }
+
+    @classmethod
+    def from_snapshot(cls, state: Mapping[str, Any], last_seq: int) -> BetaRelations:
+        def pairs(rows: list[list[Any]]) -> dict[Pair, float]:
+            return {(a, b): float(v) for a, b, v in rows}
+
+        return cls(
+            prior_strength=float(state["prior_strength"]),
+            half_life_tasks=state["half_life_tasks"],
+            update_mode=UpdateMode(state["update_mode"]),
+            last_seq=last_seq,
+            tasks_folded=int(state["tasks_folded"]),
+            prior=pairs(state["prior"]),
+            positive=pairs(state["positive"]),
+            negative=pairs(state["negative"]),
+            _static_class=dict(state["static_class"]),
+            _target=state["target"],
+            _seen_at={d: set(s) for d, s in state["seen_at"].items()},
+            _viewed=set(state["viewed"]),
+        )
 
     def rel(self, dynamic: str, static: str) -> float:
         pair = (dynamic, static)

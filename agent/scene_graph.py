@@ -122,6 +122,11 @@ class SceneGraphProjection:
                 statics.add(support["static_class"])
         elif kind == "task_ended":
             self._end_task()
+        elif kind == "task_aborted":
+            # A search cut short by a crash: Eq. 4 applies "after each search", so nothing of it
+            # is folded.
+            self._target = None
+            self._experience = {}
         self.last_seq = event.seq
 
     def _end_task(self) -> None:

@@ -13,15 +13,18 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.categories import Vocabulary, read_json
+from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.navmap import NavigationMap
-from objsearch.agent.planner import StopPlanner
-from objsearch.agent.policy import Projection, Recorder, SearchAgent, SearchConfig, SearchResult
+from objsearch.agent.policy import Projection, Recorder, SearchAgent, SearchResult
 from objsearch.agent.relations import RelationModel
-from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode, seed_relations
+from objsearch.agent.scene_graph import seed_relations
 from objsearch.agent.semmap import SemanticMap
+from objsearch.agent.state import AgentState
+from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import World
-from objsearch.events import EventLog, read_log
+from objsearch.events import EventLog, fold, read_log
+from objsearch.events.snapshot import restore, save_snapshot
 
 from objsearch.paths import data_dir
 
@@ -57,82 +60,161 @@ def prior_values(vocabulary: Vocabulary) -> tuple[str, list[dict[str, Any]]]:
     return str(prior.get("source", PRIOR_FILE)), values
 
 
-def derived_run_id(stream: str, run_spec: dict[str, Any]) -> str:
-    """A run id that is a function of the stream and the run's spec (its seed included)."""
-    spec = json.dumps({"stream": stream, **run_spec}, sort_keys=True, separators=(",", ":"))
-    return str(uuid.uuid5(RUN_ID_NAMESPACE, spec))
+def derived_run_id(stream: str, spec: RunSpec) -> str:
+    """A run id that is a function of the stream and the run's spec (its seed included): a
+    seeded simulation writes the same log every time, and two different runs never share ids."""
+    text = json.dumps({"stream": stream, **spec.payload()}, sort_keys=True, separators=(",", ":"))
+    return str(uuid.uuid5(RUN_ID_NAMESPACE, text))
 
 
 class Session:
-    """Opens (or continues) a log, folds it into the scene graph and runs searches on top of it."""
+    """An agent bound to its log: opened (restored from the log, once), then runs started on it.
+
+    :meth:`open` locks the log, restores the :class:`AgentState` (from a snapshot when one is
+    given and trusted, else by folding the log) and closes a task a crash left open with a
+    ``task_aborted`` event. :meth:`start_run` records ``run_started`` (and the prior, the first
+    time) and builds the agent from the spec; :meth:`start` does both.
+    """
 
     def __init__(
         self,
         ctx: HomeContext,
+        log: EventLog,
+        state: AgentState,
+        observers: Sequence[Projection],
+        snapshot_dir: Path | None,
+    ) -> None:
+        # Private: use open() or start().
+        self.ctx = ctx
+        self.log = log
+        self.state = state
+        self.snapshot_dir = snapshot_dir
+        self.recorder = Recorder(log, [state, *observers], time_floor_ns=log.last_time_ns)
+        self._agent: SearchAgent | None = None
+
+    @classmethod
+    def open(
+        cls,
+        ctx: HomeContext,
         log_dir: Path,
-        config: SearchConfig,
-        update_mode: UpdateMode,
         *,
         stream: str = "robot",
-        params: dict[str, Any] | None = None,
+        run_id: str | None = None,
         wall_clock: Callable[[], int] | None = None,
         observers: Sequence[Projection] = (),
-        graph: RelationModel | None = None,
-        planner: StopPlanner | None = None,
-        run_id: str | None = None,
-    ) -> None:
-        """``observers`` see every event right after it is appended (e.g. the on-robot agent
-        publishes each one on its events topic). ``graph`` is the relation model to fold the log
-        into (default: the paper's Eq. 4) and ``planner`` the stop planner (default: the paper's
-        for ``config.method``)."""
-        self.ctx = ctx
-        run_spec = {
-            "home": ctx.home.name,
-            "home_digest": ctx.home.digest,
-            "method": config.method.value,
-            "alpha": config.alpha,
-            "update_mode": update_mode.value,
-            "seed": config.seed,
-            "params": {"support_radius": config.support_radius, **(params or {})},
-        }
-        # First: the writer's lock guards the fold too. A fixed wall clock gives byte-identical
-        # logs (golden logs); by default recorded_at_ns is the real time of each append. A new
-        # log's run id is derived from what the run is (so a seeded run is reproducible) unless
-        # the caller gives one (the on-robot agent gives a random one: its runs never repeat).
-        self.log = EventLog.open(
+        snapshot_dir: Path | None = None,
+    ) -> Session:
+        """Open (or create) the log at ``log_dir`` and restore what the agent knew.
+
+        ``run_id`` names a log this call creates (see :func:`derived_run_id`); a fixed
+        ``wall_clock`` gives byte-identical logs (golden logs). With ``snapshot_dir``, the state is
+        restored from its snapshot there (if trusted) plus the events after it, and a new snapshot
+        is written when the session closes.
+        """
+        log = EventLog.open(
             log_dir,
             stream,
-            run_id=run_id if run_id is not None else derived_run_id(stream, run_spec),
+            run_id=run_id,
             wall_clock=wall_clock if wall_clock is not None else time.time_ns,
         )
-        self.graph: RelationModel = graph if graph is not None else SceneGraphProjection()
-        #: The log's clock so far; a continued log must not run backwards.
-        self.resume_time_ns = 0
-        seeded = False
-        for event in read_log(log_dir):
-            self.graph.apply(event)
-            self.resume_time_ns = event.time_ns
-            seeded = seeded or event.type == "scene_graph_seeded"
+        try:
+            if snapshot_dir is not None:
+                state, _ = restore(
+                    log_dir,
+                    AgentState,
+                    AgentState.from_snapshot,
+                    snapshot_dir=snapshot_dir,
+                    save=False,
+                )
+            else:
+                state = fold(read_log(log_dir), AgentState())
+            session = cls(ctx, log, state, observers, snapshot_dir)
+            session._close_open_task()
+        except BaseException:
+            log.close()
+            raise
+        return session
+
+    @classmethod
+    def start(
+        cls,
+        ctx: HomeContext,
+        log_dir: Path,
+        spec: RunSpec,
+        *,
+        stream: str = "robot",
+        run_id: str | None = None,
+        **kwargs: Any,
+    ) -> Session:
+        """:meth:`open` then :meth:`start_run`; a new log's run id is derived from ``spec``."""
+        chosen = run_id if run_id is not None else derived_run_id(stream, spec)
+        session = cls.open(ctx, log_dir, stream=stream, run_id=chosen, **kwargs)
+        try:
+            session.start_run(spec)
+        except BaseException:
+            session.close()
+            raise
+        return session
+
+    @property
+    def resume_time_ns(self) -> int:
+        """The log's clock so far: a continued log must not run backwards."""
+        return self.log.last_time_ns
+
+    @property
+    def graph(self) -> RelationModel:
+        return self.state.graph()
+
+    @property
+    def agent(self) -> SearchAgent:
+        if self._agent is None:
+            raise ObjsearchError("no run started in this session: call start_run(spec) first")
+        return self._agent
+
+    def start_run(self, spec: RunSpec) -> None:
+        """Record ``run_started`` (and, the first time, the Visual Genome prior) and build the
+        agent from ``spec``. A log's relation model is fixed by its first run."""
+        first = self.state.first_run
+        if first is not None and first.relations != spec.relations:
+            raise ObjsearchError(
+                f"this log's memory is folded by {first.relations.model} "
+                f"({first.strategy}); a {spec.strategy} run ({spec.relations.model}) needs a new log"
+            )
         # Everything that can fail on bad data is read before the first append: a run that
         # cannot start leaves the log as it was.
-        prior = None if seeded else prior_values(ctx.vocabulary)
-        self.recorder = Recorder(
-            self.log, [self.graph, *observers], time_floor_ns=self.log.last_time_ns
-        )
-        self.recorder.record(
-            "run_started",
-            run_spec,
-            time_ns=self.resume_time_ns,
-        )
+        prior = None if self.state.seeded else prior_values(self.ctx.vocabulary)
+        at = self.resume_time_ns
+        self.recorder.record("run_started", spec.payload(), time_ns=at)
         if prior is not None:
             source, values = prior
             self.recorder.record(
-                "scene_graph_seeded",
-                {"source": source, "values": values},
-                time_ns=self.resume_time_ns,
+                "scene_graph_seeded", {"source": source, "values": values}, time_ns=at
             )
-        self.agent = SearchAgent(
-            ctx.navmap, ctx.semmap, ctx.vocabulary, self.graph, self.recorder, config, planner
+        ctx = self.ctx
+        self._agent = SearchAgent(
+            ctx.navmap,
+            ctx.semmap,
+            ctx.vocabulary,
+            self.state.graph(),
+            self.recorder,
+            spec.config(),
+            spec.stop_planner(),
+            next_task_id=self.state.tasks.next_task_id,
+        )
+
+    def _close_open_task(self) -> None:
+        open_task = self.state.tasks.open
+        if open_task is None:
+            return
+        self.recorder.record(
+            "task_aborted",
+            {
+                "target": open_task.target,
+                "reason": "restart",
+                "path_length": round(open_task.metres, 4),
+            },
+            time_ns=self.resume_time_ns,
+            task_id=open_task.task_id,
         )
 
     def search(
@@ -143,18 +225,16 @@ class Session:
             return self.agent.search(world, target, start, scene=scene)
 
     def close(self) -> None:
-        self.log.close()
+        try:
+            if self.snapshot_dir is not None and not self.log.closed and self.state.last_seq:
+                save_snapshot(self.snapshot_dir, self.state, log_dir=self.log.directory)
+        finally:
+            self.log.close()
 
 
 @contextlib.contextmanager
-def open_session(
-    home_name: str,
-    log_dir: Path,
-    config: SearchConfig,
-    update_mode: UpdateMode,
-    **kwargs: Any,
-) -> Iterator[Session]:
-    session = Session(load_context(home_name), log_dir, config, update_mode, **kwargs)
+def open_session(home_name: str, log_dir: Path, spec: RunSpec, **kwargs: Any) -> Iterator[Session]:
+    session = Session.start(load_context(home_name), log_dir, spec, **kwargs)
     try:
         yield session
     finally:

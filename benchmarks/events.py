@@ -20,6 +20,7 @@ than its baseline. Targets (issue 4): fold ≤ 1 s at 1 M events; aggregates ≤
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import random
 import re
@@ -178,6 +179,64 @@ def bench_projection(n: int, reps: int, root: Path) -> list[Event]:
     return events
 
 
+def _write_log(directory: Path, events: list[Event]) -> None:
+    """The events as a closed format-2 log (records chained as EventLog writes them)."""
+    from objsearch.events.log import LOG_FORMAT, Durable, LogMeta, write_durable
+    from objsearch.events.record import encode_record
+
+    directory.mkdir(parents=True)
+    run_id = "00000000-0000-4000-8000-00000000b001"
+    meta = LogMeta(LOG_FORMAT, events[0].stream, run_id)
+    (directory / "meta.json").write_text(
+        json.dumps({"format": LOG_FORMAT, "stream": meta.stream, "run_id": run_id})
+    )
+    prev, offset = meta.genesis, 0
+    with (directory / "events.log").open("wb") as f:
+        for e in events:
+            line = encode_record(e, prev)
+            f.write(line)
+            prev, offset = int(line[-9:-1], 16), offset + len(line)
+    write_durable(directory, Durable(seq=events[-1].seq, offset=offset, checksum=prev))
+
+
+def bench_restart(events: list[Event], reps: int, root: Path) -> None:
+    """Agent restart on a long log: open the writer (which verifies every record), then get the
+    agent's state by a full fold, or from a snapshot plus the events after it."""
+    from objsearch.agent.state import AgentState
+    from objsearch.events.snapshot import restore, save_snapshot
+
+    n = len(events)
+    print(f"\n## restart on a {n:,}-event log (median of {reps})")
+    log_dir, snaps = root / "restart-log", root / "restart-snapshots"
+    _write_log(log_dir, events)
+    save_snapshot(snaps, fold(read_log(log_dir), AgentState()), log_dir=log_dir)
+
+    def open_only() -> None:
+        EventLog.open(log_dir, events[0].stream).close()
+
+    def full() -> AgentState:
+        with EventLog.open(log_dir, events[0].stream):
+            return fold(read_log(log_dir), AgentState())
+
+    def snapshot() -> AgentState:
+        with EventLog.open(log_dir, events[0].stream):
+            state, _ = restore(
+                log_dir, AgentState, AgentState.from_snapshot, snapshot_dir=snaps, save=False
+            )
+            return state
+
+    t_open, _ = median_time(open_only, reps)
+    t_full, a = median_time(full, reps)
+    t_snap, b = median_time(snapshot, reps)
+    assert a.graph().as_table() == b.graph().as_table()
+    print(f"{'what':52} {'median s':>9} {'ratio':>7}")
+    print(f"{'writer open alone (verifies every record)':52} {t_open:9.3f} {t_open / t_full:7.2f}")
+    print(f"{'full fold: open + read_log + fold (baseline)':52} {t_full:9.3f} {1.0:7.2f}")
+    print(
+        f"{'from the snapshot: open + restore (tail only)':52} {t_snap:9.3f} {t_snap / t_full:7.2f}"
+    )
+
+
 def bench_queries(events: list[Event], copies: int, reps: int, root: Path) -> None:
     lake = Lake(root / "query-lake")
     tables = events_to_tables(events)
@@ -215,7 +274,7 @@ def main() -> None:
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--kills", type=int, default=0, help="also run the crash test this many times")
     ap.add_argument("--quick", action="store_true", help="all sizes ÷ 100")
-    ap.add_argument("--only", choices=["append", "projection", "query", "crash"])
+    ap.add_argument("--only", choices=["append", "projection", "query", "restart", "crash"])
     args = ap.parse_args()
     if args.quick:
         args.append_events //= 10
@@ -230,6 +289,8 @@ def main() -> None:
             if args.only != "projection":
                 copies = max(1, -(-args.lake_events // len(events)))  # at least --lake-events
                 bench_queries(events, copies, args.reps, root)
+        if args.only in (None, "restart"):
+            bench_restart(synthetic_run(args.fold_events), args.reps, root)
         if args.kills and args.only in (None, "crash"):
             print(f"\n## crash test: {args.kills} SIGKILLs")
             with warnings.catch_warnings():

@@ -16,7 +16,10 @@ they are upgraded (:meth:`objsearch.events.lake.Lake.upgrade`).
 
 The SQL lives here, beside the lake that writes it, because the lake cannot import the agent. It
 restates the boundaries :class:`objsearch.agent.scene_graph.SceneGraphProjection` folds (tests in
-``tests/replay`` check the closed form built on it against the fold).
+``tests/replay`` check the closed form built on it against the fold). The closed form is Eq. 4's
+only: a run whose spec (``run_started.relations``) names another relation model (the Beta
+posterior) has no rows in ``scene_graph`` — it is folded by ``objsearch graph`` and replay, which
+build its model from the spec — rather than rows that would say something the robot never knew.
 """
 
 from __future__ import annotations
@@ -60,24 +63,30 @@ _MODES: Final = """
 
 SEARCHES: Final = DerivedTable(
     "searches",
-    1,
+    2,
     f"""
 WITH plans_per_task AS (
     SELECT robot, run, task_id, count(*) AS rooms_planned FROM plan_computed GROUP BY ALL
 ), detections_per_task AS (
     SELECT robot, run, task_id, count(*) AS detections FROM detection GROUP BY ALL
-), modes AS ({_MODES})
+), modes AS ({_MODES}
+), ends AS (  -- a task ends, or a crash left it open and the restart aborted it (one row a task)
+    SELECT robot, run, task_id, seq, time_ns, success, path_length, false AS aborted
+    FROM task_ended
+    UNION ALL
+    SELECT robot, run, task_id, seq, time_ns, false, path_length, true FROM task_aborted
+)
 SELECT s.robot, s.date, s.run, s.task_id,
        row_number() OVER (PARTITION BY s.robot, s.run ORDER BY s.seq) AS task_index,
        s.target, s.start, s.scene, r.method, r.update_mode, r.alpha,
        s.seq AS start_seq, e.seq AS end_seq, s.time_ns AS start_ns, e.time_ns AS end_ns,
        (e.time_ns - s.time_ns) / 1e9 AS duration_s,
-       e.success, e.path_length,
+       e.success, e.path_length, e.aborted,
        coalesce(p.rooms_planned, 0) AS rooms_planned,
        coalesce(d.detections, 0) AS detections,
        f.instance_id AS found_instance
 FROM task_started s
-LEFT JOIN task_ended e USING (robot, run, task_id)
+LEFT JOIN ends e USING (robot, run, task_id)
 LEFT JOIN plans_per_task p USING (robot, run, task_id)
 LEFT JOIN detections_per_task d USING (robot, run, task_id)
 LEFT JOIN target_found f USING (robot, run, task_id)
@@ -97,12 +106,14 @@ LEFT JOIN modes r
 # applied by the closed form (objsearch.replay.analytics).
 EQ4_UPDATES: Final = DerivedTable(
     "eq4_updates",
-    1,
+    2,
     f"""
-WITH bounds AS (  -- the experience pool is emptied at every task start and task end
-    SELECT robot, run, seq, target, true AS is_start FROM task_started
+WITH bounds AS (  -- the experience pool is emptied at every task start, end and abort
+    SELECT robot, run, seq, target, true AS is_start, false AS is_abort FROM task_started
     UNION ALL
-    SELECT robot, run, seq, NULL AS target, false AS is_start FROM task_ended
+    SELECT robot, run, seq, NULL AS target, false AS is_start, false FROM task_ended
+    UNION ALL  -- an aborted task folds nothing
+    SELECT robot, run, seq, NULL AS target, false AS is_start, true FROM task_aborted
 ), ends AS (  -- each task end with its task's target (NULL if the end follows another end)
     SELECT e.robot, e.date, e.run, e.seq AS end_seq,
            CASE WHEN b.is_start THEN b.target END AS target
@@ -120,7 +131,7 @@ WITH bounds AS (  -- the experience pool is emptied at every task start and task
            CASE WHEN d.support."at" THEN d.support.static_class END AS static
     FROM detection d
     ASOF JOIN bounds b ON d.robot = b.robot AND d.run = b.run AND d.seq < b.seq
-    WHERE d.accepted AND NOT b.is_start
+    WHERE d.accepted AND NOT b.is_start AND NOT b.is_abort
 ), updates AS (
     SELECT m.robot, m.date, m.run, m.end_seq, x.dynamic,
            coalesce(list_sort(list_distinct(list(x.static))), []::VARCHAR[]) AS statics
@@ -144,10 +155,13 @@ FROM updates
 SCENE_GRAPH_BODY: Final = """
 WITH limits AS (
     {limit}
+), folds AS (  -- the relation model of the run's first run_started: this form is Eq. 4's only
+    SELECT robot, run, arg_min(relations.model, seq) AS model FROM run_started GROUP BY ALL
 ), seeds AS (  -- the seed in force at the cut-off
     SELECT g.robot, g.run, max(g.seq) AS seed_seq, any_value(l.upto) AS upto
     FROM scene_graph_seeded g JOIN limits l ON g.robot = l.robot AND g.run = l.run
-    WHERE g.seq <= l.upto GROUP BY g.robot, g.run
+    JOIN folds f ON g.robot = f.robot AND g.run = f.run
+    WHERE g.seq <= l.upto AND f.model = 'eq4' GROUP BY g.robot, g.run
 ), prior AS (
     SELECT g.robot, g.date, g.run, v.dynamic, v.static, v.rel AS rel0
     FROM (SELECT robot, date, run, seq, unnest("values") AS v FROM scene_graph_seeded) g
@@ -188,7 +202,7 @@ LIMIT_NONE: Final = (
 )
 
 # The graph at the end of the run: a committed run has no later events, so this is final.
-SCENE_GRAPH: Final = DerivedTable("scene_graph", 1, SCENE_GRAPH_BODY.format(limit=LIMIT_NONE))
+SCENE_GRAPH: Final = DerivedTable("scene_graph", 2, SCENE_GRAPH_BODY.format(limit=LIMIT_NONE))
 
 DERIVED_TABLES: Final = (SEARCHES, EQ4_UPDATES, SCENE_GRAPH)  # in dependency order
 

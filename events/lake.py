@@ -61,6 +61,7 @@ from .derived import DERIVED_DIR, DERIVED_TABLES, DerivedTable, derive_run
 from .envelope import Event
 from .errors import EventStoreError
 from .log import LOCK_FILE, read_log
+from .upcast import default_upcaster
 
 LAKE_FORMAT: Final = "objsearch.lake/1"
 RUN_FILE: Final = "_run.json"
@@ -148,8 +149,12 @@ class Lake:
         return sorted(self.root.glob(f"robot=*/date=*/run=*/{event_type}.parquet"))
 
     def read_events(self, run: RunInfo) -> list[Event]:
-        """Every event of one committed run, as :class:`Event` (latest versions), by (stream, seq)."""
-        return tables_to_events(self.read_tables(run).values())
+        """Every event of one committed run, as :class:`Event` (latest versions), by (stream, seq).
+
+        A run committed by older code stores an older version of some types (its files are never
+        rewritten); they are upcast here, as ``read_log`` does."""
+        upcast = default_upcaster().upcast
+        return [upcast(e) for e in tables_to_events(self.read_tables(run).values())]
 
     def read_tables(self, run: RunInfo) -> dict[str, pa.Table]:
         """The event tables of one committed run as stored (one per type present)."""

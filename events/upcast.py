@@ -38,10 +38,37 @@ def _detection_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
     return payload
 
 
+def _run_started_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
+    # What a v1 run *was*, with the defaults of the code that wrote it. v1 recorded the method and
+    # α; bench runs put the strategy's name in params; the Beta model's parameters were constants
+    # of that code (prior strength 2, half-life 64 tasks) and are frozen here, so a v1 log folds
+    # as it did whatever today's registry (objsearch.agent.strategies) says.
+    params = dict(payload.pop("params"))
+    name = params.pop("strategy", None)
+    method = payload["method"]
+    relations: dict[str, Any] = {"model": "eq4", "prior_strength": None, "half_life_tasks": None}
+    if name in ("wpl-neg", "wpl-neg-decay", "epl-neg-decay"):
+        half_life = None if name == "wpl-neg" else 64.0
+        relations = {"model": "beta", "prior_strength": 2.0, "half_life_tasks": half_life}
+    planner = "epl" if name in ("epl", "epl-neg-decay") or method == "epl" else method
+    if method == "epl":  # v1 allowed it as a method; its rooms were ordered as WPL's
+        payload["method"] = "wpl"
+    payload["strategy"] = name if isinstance(name, str) else method
+    payload["planner"] = planner
+    payload["relations"] = relations
+    radius = params.pop("support_radius", 0.5)
+    payload["support_radius"] = float(radius) if isinstance(radius, int | float) else 0.5
+    schedule = params.pop("schedule", None)
+    payload["schedule"] = schedule if isinstance(schedule, str) else None
+    payload["params"] = params
+    return payload
+
+
 #: (type, from_version) → step to from_version + 1. Append-only, like the schema files.
 STEPS: Final[Mapping[tuple[str, int], UpcastStep]] = MappingProxyType(
     {
         ("detection", 1): _detection_v1_to_v2,
+        ("run_started", 1): _run_started_v1_to_v2,
     }
 )
 

@@ -74,16 +74,17 @@ def plot_route(
     """Fig. 7-like: one WPL search drawn over the home's viewpoints and static objects."""
     import tempfile
 
-    from objsearch.agent.policy import SearchConfig
     from objsearch.agent.scene_graph import UpdateMode
     from objsearch.agent.session import Session, load_context
+    from objsearch.agent.strategies import RunSpec
     from objsearch.sim.schedule import base_placements, table1_removals
     from objsearch.sim.world import SimWorld
 
     ctx = load_context(home_name)
     placements = base_placements(ctx.home, table1_removals(ctx.home))
     with tempfile.TemporaryDirectory() as tmp:
-        session = Session(ctx, Path(tmp), SearchConfig(), UpdateMode.NONE)
+        spec = RunSpec.of(ctx.home.name, ctx.home.digest, "wpl", update_mode=UpdateMode.NONE)
+        session = Session.start(ctx, Path(tmp), spec)
         try:
             world = SimWorld(ctx.home, ctx.navmap, placements, ctx.home.start(start))
             result = session.search(world, target, start)
@@ -144,18 +145,22 @@ def plot_graph_before_after(path: Path) -> None:
 
     from objsearch.agent.relations import BetaRelations
     from objsearch.agent.scene_graph import SceneGraphProjection
-    from objsearch.events import read_log
+    from objsearch.agent.state import AgentState
+    from objsearch.agent.strategies import HALF_LIFE_TASKS, PRIOR_STRENGTH
+    from objsearch.events import fold, read_log
     from objsearch.experiments.runner import Job, run_job
 
     tables = []
     with tempfile.TemporaryDirectory() as tmp:
         run_job(Job("longterm", "paper", "table2", "wpl", "all", log_dir=tmp))
-        before, eq4 = SceneGraphProjection(), SceneGraphProjection()
-        beta = BetaRelations(prior_strength=2.0, half_life_tasks=64.0)
+        # The run's own fold (Eq. 4, from its spec), the prior alone, and — on purpose, a
+        # counterfactual — the same log folded by the Beta model.
+        eq4 = fold(read_log(Path(tmp)), AgentState()).graph()
+        before = SceneGraphProjection()
+        beta = BetaRelations(prior_strength=PRIOR_STRENGTH, half_life_tasks=HALF_LIFE_TASKS)
         for e in read_log(Path(tmp)):
             if e.type in ("run_started", "scene_graph_seeded"):
                 before.apply(e)
-            eq4.apply(e)
             beta.apply(e)
         tables = [
             ("before (Visual Genome, Eq. 2)", before.as_table()),

@@ -12,15 +12,12 @@ from pathlib import Path
 
 from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import UpdateMode
-from objsearch.agent.session import HomeContext, Session, load_context
-from objsearch.experiments.strategies import strategy
-from objsearch.sim.schedule import Placements, base_placements, table1_removals
-from objsearch.sim.schedules import load_schedule
-from objsearch.sim.world import SimClock, SimWorld
+from objsearch.agent.session import load_context
+from objsearch.agent.strategies import RunSpec
+from objsearch.sim.longterm import TARGET_ORDER, run_schedule, scenes_of
 from tqdm import tqdm
 
-TARGETS = ("Apple", "Cup", "Bowl", "Phone", "Laptop", "Pillow", "Vase", "ToiletPaper")
-PAUSE_BETWEEN_TASKS_S = 60.0
+TARGETS = TARGET_ORDER
 
 
 @dataclass(frozen=True)
@@ -64,73 +61,52 @@ class Row:
         return d
 
 
-def scenes_of(ctx: HomeContext, spec: str) -> dict[int, Placements]:
-    """Scene number → placements for a placement source (see :class:`Job`)."""
-    if spec == "table1":
-        return {0: base_placements(ctx.home, table1_removals(ctx.home))}
-    return dict(load_schedule(ctx.home, spec).scenes)
-
-
 def run_job(job: Job) -> list[Row]:
     """Every target from every start in every scene, in that order, on one log."""
     ctx = load_context(job.home)
-    strat = strategy(job.strategy)
-    scenes = scenes_of(ctx, job.placements)
-    wanted = job.scenes or tuple(sorted(scenes))
+    spec = RunSpec.of(
+        job.home,
+        ctx.home.digest,
+        job.strategy,
+        seed=job.seed,
+        update_mode=UpdateMode(job.update_mode),
+        schedule=job.placements,
+    )
+    scenes = scenes_of(job.home, job.placements)
     with tempfile.TemporaryDirectory(prefix="objsearch-bench-") as tmp:
-        log_dir = Path(job.log_dir) if job.log_dir else Path(tmp)
-        session = Session(
-            ctx,
-            log_dir,
-            strat.config(job.seed),
-            UpdateMode(job.update_mode),
-            params={"strategy": strat.name, "placements": job.placements},
-            graph=strat.relations(),
-            planner=strat.planner() if strat.planner else None,
+        trials = run_schedule(
+            Path(job.log_dir) if job.log_dir else Path(tmp),
+            spec,
+            targets=job.targets,
+            scenes=job.scenes,
+            placements=scenes,
+            skip_absent_targets=True,
+            keep_routes=job.keep_routes,
         )
-        rows: list[Row] = []
-        try:
-            clock = SimClock(session.resume_time_ns)
-            for scene in wanted:
-                placements = scenes[scene]
-                present = {p.cls for p in placements.values()}
-                for target in job.targets:
-                    if target not in present:
-                        continue
-                    for start_name, pose in ctx.home.starts.items():
-                        clock.advance(PAUSE_BETWEEN_TASKS_S)
-                        world = SimWorld(ctx.home, ctx.navmap, placements, pose, clock=clock)
-                        oracle = world.oracle_length(target)
-                        result = session.search(world, target, start_name, scene=scene)
-                        route: tuple[tuple[float, float], ...] = ()
-                        if job.keep_routes:
-                            route = tuple((p.x, p.y) for p in result.route)
-                        rows.append(
-                            Row(
-                                job.experiment,
-                                job.home,
-                                job.placements,
-                                job.strategy,
-                                job.update_mode,
-                                job.seed,
-                                scene,
-                                target,
-                                start_name,
-                                result.success,
-                                round(result.path_length, 4),
-                                round(oracle, 4),
-                                result.task_id,
-                                route,
-                            )
-                        )
-        finally:
-            session.close()
-    return rows
+    return [
+        Row(
+            job.experiment,
+            job.home,
+            job.placements,
+            job.strategy,
+            job.update_mode,
+            job.seed,
+            t.scene,
+            t.target,
+            t.start,
+            t.success,
+            round(t.path_length, 4),
+            round(t.oracle_length, 4),
+            t.task_id,
+            tuple((p.x, p.y) for p in t.route),
+        )
+        for t in trials
+    ]
 
 
 def _count(job: Job) -> int:
     ctx = load_context(job.home)
-    scenes = scenes_of(ctx, job.placements)
+    scenes = scenes_of(job.home, job.placements)
     wanted = job.scenes or tuple(sorted(scenes))
     starts = len(ctx.home.starts)
     return sum(

@@ -55,14 +55,23 @@ def cmd_data_build(args: argparse.Namespace) -> int:
 # -- search -----------------------------------------------------------------------------------
 
 
-def _config(args: argparse.Namespace) -> Any:
-    from objsearch.agent.policy import Method, SearchConfig
+def run_spec(args: argparse.Namespace, home: Any, **extra: Any) -> Any:
+    """The run spec the search options name (--strategy, --alpha, --seed, --update-mode)."""
+    from objsearch.agent.scene_graph import UpdateMode
+    from objsearch.agent.strategies import RunSpec
 
-    return SearchConfig(method=Method(args.method), alpha=args.alpha, seed=args.seed)
+    return RunSpec.of(
+        home.name,
+        home.digest,
+        args.strategy,
+        seed=args.seed,
+        alpha=args.alpha,
+        update_mode=UpdateMode(getattr(args, "update_mode", "all")),
+        **extra,
+    )
 
 
 def cmd_search(args: argparse.Namespace) -> int:
-    from objsearch.agent.scene_graph import UpdateMode
     from objsearch.agent.session import Session, load_context
     from objsearch.sim.schedule import base_placements, table1_removals
     from objsearch.sim.schedules import load_schedule
@@ -84,7 +93,8 @@ def cmd_search(args: argparse.Namespace) -> int:
     tmp = None if args.log else tempfile.mkdtemp(prefix="objsearch-search-")
     log_dir = Path(args.log or tmp or ".")
     try:
-        session = Session(ctx, log_dir, _config(args), UpdateMode(args.update_mode))
+        spec = run_spec(args, ctx.home, schedule=None if args.scene is None else args.schedule)
+        session = Session.start(ctx, log_dir, spec)
         try:
             world = SimWorld(
                 ctx.home, ctx.navmap, placements, pose, clock=SimClock(session.resume_time_ns)
@@ -99,7 +109,7 @@ def cmd_search(args: argparse.Namespace) -> int:
     summary = {
         "target": target,
         "start": args.start,
-        "method": args.method,
+        "strategy": args.strategy,
         "success": result.success,
         "found": result.found_instance,
         "path_length_m": round(result.path_length, 3),
@@ -113,7 +123,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         print(json.dumps(summary, indent=2))
         return 0
     print(
-        f"{'found' if result.success else 'NOT found'}: {target} from {args.start} ({args.method})"
+        f"{'found' if result.success else 'NOT found'}: {target} from {args.start} ({args.strategy})"
     )
     for room, order in result.plans:
         print(
@@ -254,7 +264,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _search_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--home", default="paper", help="home in data/homes (paper)")
-    p.add_argument("--method", default="wpl", choices=["wpl", "rvp", "sdp"], help="planner (wpl)")
+    from objsearch.agent.strategies import DEFAULT_STRATEGY, STRATEGIES
+
+    p.add_argument(
+        "--strategy",
+        default=DEFAULT_STRATEGY,
+        choices=list(STRATEGIES),
+        help=f"search strategy: the paper's wpl/rvp/sdp or ours ({DEFAULT_STRATEGY}); "
+        "objsearch bench compares them",
+    )
     p.add_argument("--alpha", type=float, default=10.0, help="α of Eq. 3 (10)")
     p.add_argument("--seed", type=int, default=0, help="seed (SDP's random room order)")
 

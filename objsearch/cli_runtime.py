@@ -99,15 +99,21 @@ def _host_for_url(host: str) -> str:
 
 
 def cmd_agent_run(args: argparse.Namespace) -> int:
-    from objsearch.agent.policy import Method, SearchConfig
     from objsearch.agent.scene_graph import UpdateMode
     from objsearch.runtime.agent_node import AgentNode
 
     _logging()
-    search = SearchConfig(method=Method(args.method), alpha=args.alpha, seed=args.seed)
     config = runtime_config(args)  # bad options fail before a port is taken or a file made
     sinks = live_sinks(args.live, args.live_mcap)
-    node = AgentNode(config, Path(args.log), search, UpdateMode(args.update_mode), live=sinks)
+    node = AgentNode(
+        config,
+        Path(args.log),
+        strategy=args.strategy or config.strategy,
+        alpha=args.alpha,
+        seed=args.seed,
+        update_mode=UpdateMode(args.update_mode),
+        live=sinks,
+    )
     _stop_on_signals(node.stop)
     print(f"objsearch agent: serving searches, log {args.log}", file=sys.stderr, flush=True)
     return node.run()
@@ -211,7 +217,13 @@ def register(sub: Any) -> None:
     run = agent_sub.add_parser("run", help="serve search requests, driving the robot")
     _transport_options(run)
     run.add_argument("--log", required=True, help="the agent's event log folder")
-    run.add_argument("--method", default="wpl", choices=["wpl", "rvp", "sdp"])
+    from objsearch.agent.strategies import STRATEGIES
+
+    run.add_argument(
+        "--strategy",
+        choices=list(STRATEGIES),
+        help="search strategy (default: robot.toml's strategy, else wpl)",
+    )
     run.add_argument("--alpha", type=float, default=10.0)
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--update-mode", default="all", choices=["none", "targets", "all"])

@@ -208,9 +208,11 @@ class Auditor:
                     f"task_ended says {task.path_length:.3f} m but its moves add up to "
                     f"{task._moved_metres:.3f} m (a moved event is missing?)",
                 )
-            mode = self.state.run.update_mode if self.state.run else "unknown"
+            run = self.state.run
+            mode = run.update_mode.value if run else "unknown"
+            rule = "Eq. 4" if run is None or run.relations.model == "eq4" else run.relations.model
             task.updates.append(
-                f"Eq. 4 at seq {event.seq} (update mode {mode}): "
+                f"{rule} at seq {event.seq} (update mode {mode}): "
                 + (
                     "; ".join(f"{d} seen at {', '.join(s)}" for d, s in task.learned.items())
                     or "nothing seen at a static object"
@@ -219,6 +221,15 @@ class Auditor:
             task.timeline.append(
                 f"{event.seq}: task ended — {'found' if task.success else 'not found'}, "
                 f"{task.path_length:.2f} m"
+            )
+            self._finish(task)
+            self._current = None
+        elif kind == "task_aborted":
+            task.success = False
+            task.path_length = float(p["path_length"])
+            task.timeline.append(
+                f"{event.seq}: task aborted ({p['reason']}) after {task.path_length:.2f} m; "
+                "nothing of it is folded into the scene graph"
             )
             self._finish(task)
             self._current = None

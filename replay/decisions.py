@@ -17,10 +17,12 @@ from typing import Any
 import numpy as np
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point
-from objsearch.agent.planner import StopPlanner, wpl_terms
+from objsearch.agent.planner import wpl_terms
 from objsearch.agent.policy import Method, Recorder, SearchAgent, SearchConfig, Stop
 from objsearch.agent.session import HomeContext, load_context
-from objsearch.replay.state import ReplayState, RunSettings, TaskState
+from objsearch.agent.state import AgentState
+from objsearch.agent.strategies import RelationSpec, RunSpec, strategy
+from objsearch.replay.state import ReplayState, TaskState
 
 REL_TOLERANCE = 1e-9
 VALUE_TOLERANCE = 1e-6
@@ -32,15 +34,28 @@ class Overrides:
 
     method: str | None = None
     alpha: float | None = None
-    strategy: str | None = None  # a bench strategy name (objsearch.experiments.strategies)
+    strategy: str | None = None  # a registered strategy's room order and planner
 
-    def config(self, run: RunSettings) -> SearchConfig:
-        return SearchConfig(
-            method=Method(self.method or run.method),
-            alpha=run.alpha if self.alpha is None else self.alpha,
-            support_radius=float(run.params.get("support_radius", 0.5)),
-            seed=run.seed,
-        )
+    def relations(self) -> RelationSpec | None:
+        """The relation model to fold with instead of the run's: only a ``strategy`` override
+        changes it (a counterfactual: the log folded as that strategy would have)."""
+        return None if self.strategy is None else strategy(self.strategy).relations
+
+    def spec(self, run: RunSpec) -> RunSpec:
+        """The spec to re-plan with: the run's own, with the overrides applied."""
+        if self.strategy is not None:
+            chosen = strategy(self.strategy)
+            run = run.with_changes(
+                strategy=chosen.name,
+                method=chosen.method,
+                planner=chosen.planner_name,
+                relations=chosen.relations,
+            )
+        if self.method is not None:
+            run = run.with_changes(method=Method(self.method), planner=self.method)
+        if self.alpha is not None:
+            run = run.with_changes(alpha=self.alpha)
+        return run
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,7 +118,7 @@ class Replayer:
 
     def __init__(self, overrides: Overrides = Overrides()) -> None:
         self.overrides = overrides
-        self.state = ReplayState()
+        self.state = ReplayState(AgentState(counterfactual=overrides.relations()))
         self.decisions: list[DecisionReplay] = []
         self.notes: list[str] = []
         self._room_orders: dict[str, list[str]] = {}
@@ -115,31 +130,10 @@ class Replayer:
                 return
             if event.type == "plan_computed":
                 self.decisions.append(self._replay(event))
-            elif event.type == "run_started" and self.state.graph.last_seq == 0:
-                self._choose_relation_model(event.payload)
             self.state.apply(event)
             yield event
 
-    def _choose_relation_model(self, run_started: Mapping[str, Any]) -> None:
-        """Fold with the relation model of the run's strategy (e.g. a Beta posterior), which the
-        log's first ``run_started`` names; the paper's Eq. 4 otherwise."""
-        name = self.overrides.strategy or run_started.get("params", {}).get("strategy")
-        if name is not None:
-            from objsearch.experiments.strategies import strategy
-
-            self.state.graph = strategy(str(name)).relations()
-
-    def _planner(self, run: RunSettings) -> StopPlanner | None:
-        """The stop planner of the run's strategy (bench runs record it), else the method's."""
-        name = self.overrides.strategy or run.params.get("strategy")
-        if name is None:
-            return None
-        from objsearch.experiments.strategies import strategy
-
-        chosen = strategy(str(name))
-        return None if chosen.planner is None else chosen.planner()
-
-    def _context(self, run: RunSettings) -> HomeContext:
+    def _context(self, run: RunSpec) -> HomeContext:
         ctx = load_context(run.home)
         if ctx.home.digest != run.home_digest:
             note = (
@@ -159,7 +153,8 @@ class Replayer:
             )
         run, task = st.run, st.task
         ctx = self._context(run)
-        config = self.overrides.config(run)
+        spec = self.overrides.spec(run)
+        config = spec.config()
         agent = SearchAgent(
             ctx.navmap,
             ctx.semmap,
@@ -167,7 +162,7 @@ class Replayer:
             st.graph,
             Recorder(_NoSink(), ()),
             config,
-            self._planner(run),
+            spec.stop_planner(),
         )
         rooms = self._room_orders.get(task.task_id)
         if rooms is None:
@@ -238,13 +233,13 @@ def _value_of(
 
 def _reasons(
     payload: Mapping[str, Any],
-    run: RunSettings,
+    run: RunSpec,
     config: SearchConfig,
     stops: Sequence[Stop],
     task: TaskState,
 ) -> Iterator[str]:
-    if config.method.value != run.method:
-        yield f"method {run.method} → {config.method.value}"
+    if config.method is not run.method:
+        yield f"method {run.method.value} → {config.method.value}"
     if config.effective_alpha != float(payload["alpha"]):
         yield f"α {payload['alpha']} → {config.effective_alpha}"
     recorded = {c["static_id"]: c for c in payload["candidates"]}

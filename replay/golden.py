@@ -14,17 +14,16 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from objsearch.agent.policy import Method, SearchConfig
+from objsearch.agent.policy import Method
 from objsearch.agent.scene_graph import UpdateMode
-from objsearch.agent.session import Session, load_context
-from objsearch.sim.schedule import Schedule
-from objsearch.sim.world import SimClock, SimWorld
+from objsearch.agent.session import load_context
+from objsearch.agent.strategies import RunSpec
+from objsearch.sim.longterm import run_schedule
 
 DEFAULT_DIR = Path(__file__).resolve().parent.parent / "tests" / "replay" / "golden"
 #: A lake holding one ingested bag: the path a real robot's recording takes.
 BAG_LAKE = "lake-from-bag"
 BAG_ROBOT = "sim"
-PAUSE_BETWEEN_TASKS_S = 60.0
 FIXED_WALL_CLOCK_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00:00Z
 
 
@@ -61,31 +60,22 @@ GOLDEN_RUNS = (
 def record(run: GoldenRun, log_dir: Path, *, home: str = "paper") -> None:
     """Run the golden's searches into ``log_dir`` (which must not exist yet)."""
     ctx = load_context(home)
-    schedule = Schedule.load(ctx.home, "table2")
-    session = Session(
-        ctx,
-        log_dir,
-        SearchConfig(method=run.method),
-        run.update_mode,
+    spec = RunSpec.of(
+        home,
+        ctx.home.digest,
+        run.method.value,
+        update_mode=run.update_mode,
+        schedule="table2",
         params={"golden": run.name},
+    )
+    run_schedule(
+        log_dir,
+        spec,
+        targets=run.targets,
+        scenes=run.scenes,
+        starts=run.starts,
         wall_clock=lambda: FIXED_WALL_CLOCK_NS,
     )
-    try:
-        clock = SimClock(session.resume_time_ns)
-        for scene in run.scenes:
-            for target in run.targets:
-                for start in run.starts:
-                    clock.advance(PAUSE_BETWEEN_TASKS_S)
-                    world = SimWorld(
-                        ctx.home,
-                        ctx.navmap,
-                        schedule.scenes[scene],
-                        ctx.home.start(start),
-                        clock=clock,
-                    )
-                    session.search(world, target, start, scene=scene)
-    finally:
-        session.close()
 
 
 def record_bag_lake(lake_dir: Path) -> None:

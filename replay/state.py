@@ -12,20 +12,9 @@ from typing import Any
 
 from objsearch.agent.geometry import Pose
 from objsearch.agent.relations import RelationModel
-from objsearch.agent.scene_graph import EventLike, SceneGraphProjection
-
-
-@dataclass(frozen=True, slots=True)
-class RunSettings:
-    """What ``run_started`` recorded: the home and the planner's parameters."""
-
-    home: str
-    home_digest: str
-    method: str
-    alpha: float
-    update_mode: str
-    seed: int
-    params: dict[str, Any]
+from objsearch.agent.scene_graph import EventLike
+from objsearch.agent.state import AgentState
+from objsearch.agent.strategies import RunSpec
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,10 +33,10 @@ def _pose(doc: Any) -> Pose:
 
 @dataclass
 class ReplayState:
-    """Every projection replay uses, advanced together one event at a time."""
+    """What the agent knew (its :class:`AgentState`: run spec, relation model, tasks) plus the
+    task in progress and the robot's pose, advanced together one event at a time."""
 
-    graph: RelationModel = field(default_factory=SceneGraphProjection)
-    run: RunSettings | None = None
+    agent: AgentState = field(default_factory=AgentState)
     task: TaskState | None = None
     pose: Pose | None = None
     last_seq: int = 0
@@ -57,20 +46,18 @@ class ReplayState:
     def state(self) -> ReplayState:
         return self
 
+    @property
+    def run(self) -> RunSpec | None:
+        return self.agent.run
+
+    @property
+    def graph(self) -> RelationModel:
+        return self.agent.graph()
+
     def apply(self, event: EventLike) -> None:
         """Fold one event; the scene graph last, so a plan sees the graph as it was before it."""
         kind, p = event.type, event.payload
-        if kind == "run_started":
-            self.run = RunSettings(
-                home=p["home"],
-                home_digest=p["home_digest"],
-                method=p["method"],
-                alpha=float(p["alpha"]),
-                update_mode=p["update_mode"],
-                seed=int(p["seed"]),
-                params=dict(p["params"]),
-            )
-        elif kind == "task_started":
+        if kind == "task_started":
             self.pose = _pose(p["pose"])
             self.task = TaskState(
                 task_id=str(getattr(event, "task_id", None) or ""),
@@ -94,8 +81,8 @@ class ReplayState:
                 self.task.scene,
                 self.task.plans_so_far + 1,
             )
-        elif kind == "task_ended":
+        elif kind in ("task_ended", "task_aborted"):
             self.task = None
-        self.graph.apply(event)
+        self.agent.apply(event)
         self.last_seq = event.seq
         self.last_time_ns = int(getattr(event, "time_ns", self.last_time_ns))

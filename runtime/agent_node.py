@@ -19,9 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.errors import ObjsearchError
-from objsearch.agent.policy import SearchConfig
 from objsearch.agent.scene_graph import EventLike, UpdateMode
 from objsearch.agent.session import Session, load_context
+from objsearch.agent.strategies import DEFAULT_ALPHA, DEFAULT_STRATEGY, RunSpec
 from objsearch.events import Event, read_log
 from objsearch.runtime import messages as m
 from objsearch.runtime.config import RuntimeConfig
@@ -36,24 +36,14 @@ log = logging.getLogger("objsearch.agent")
 
 
 class EventPublisher:
-    """A projection that publishes each appended event and tallies the metres of each task."""
+    """An observer that publishes each appended event on the events topic."""
 
     def __init__(self, node: Node, config: RuntimeConfig) -> None:
         self._pub = node.publisher(config.topics.events, m.EVENT, config.qos.events)
-        self.metres: dict[str, float] = {}
-        self.open_tasks: set[str] = set()
         self.published = 0
 
     def apply(self, event: EventLike) -> None:
         assert isinstance(event, Event)
-        if event.type == "task_started" and event.task_id:
-            self.open_tasks.add(event.task_id)
-        elif event.type == "task_ended":
-            self.open_tasks.discard(event.task_id or "")
-        if event.type == "moved" and event.task_id:
-            self.metres[event.task_id] = self.metres.get(event.task_id, 0.0) + float(
-                event.payload["metres"]
-            )
         try:
             self._pub.publish(m.event(event, event.time_ns))
             self.published += 1
@@ -85,9 +75,11 @@ class AgentNode:
         self,
         config: RuntimeConfig,
         log_dir: Path,
-        search: SearchConfig,
-        update_mode: UpdateMode = UpdateMode.ALL,
         *,
+        strategy: str = DEFAULT_STRATEGY,
+        alpha: float = DEFAULT_ALPHA,
+        seed: int = 0,
+        update_mode: UpdateMode = UpdateMode.ALL,
         live: Sequence[LiveSink] = (),
     ) -> None:
         """``live``: sinks of the live view (:mod:`objsearch.runtime.livesinks`); the node owns
@@ -108,12 +100,19 @@ class AgentNode:
             raise
         try:
             self.events = EventPublisher(self.node, config)
-            self.session = Session(
+            spec = RunSpec.of(
+                self.ctx.home.name,
+                self.ctx.home.digest,
+                strategy,
+                alpha=alpha,
+                seed=seed,
+                update_mode=update_mode,
+                params={"transport": config.transport.backend.value},
+            )
+            self.session = Session.start(
                 self.ctx,
                 log_dir,
-                search,
-                update_mode,
-                params={"transport": config.transport.backend.value},
+                spec,
                 observers=[self.events, *observers],
                 # A robot's runs never repeat: a new log gets a random run id, so no two robots'
                 # logs share event ids (a seeded simulation derives its id instead).
@@ -138,14 +137,15 @@ class AgentNode:
         except ObjsearchError as exc:
             return {"ok": False, "error": f"find request: field 'target': {exc}"}
         start = request.start or "robot"
-        task_id = f"task-{self.session.graph.tasks_folded + 1:05d}"
+        task_id = self.session.state.tasks.next_task_id()
         try:
             self.world.fresh_pose(self.config.timeouts.robot_s, request.not_before_ns)
             result = self.session.search(self.world, target, start, scene=request.scene)
         except RobotError as exc:
             log.error("%s: search for %s failed: %s", task_id, target, exc)
-            if task_id in self.events.open_tasks:
-                self._fail_task(task_id, target, str(exc))
+            open_task = self.session.state.tasks.open
+            if open_task is not None and open_task.task_id == task_id:
+                self._fail_task(task_id, target, str(exc), open_task.metres)
             return {"ok": False, "target": target, "task_id": task_id, "error": str(exc)}
         return {
             "ok": True,
@@ -157,7 +157,7 @@ class AgentNode:
             "plans": [[room, list(order)] for room, order in result.plans],
         }
 
-    def _fail_task(self, task_id: str, target: str, reason: str) -> None:
+    def _fail_task(self, task_id: str, target: str, reason: str, metres: float) -> None:
         now = self.world.now_ns()
         with self.session.log.batch():
             self.session.recorder.record(
@@ -168,7 +168,7 @@ class AgentNode:
                 {
                     "target": target,
                     "success": False,
-                    "path_length": round(self.events.metres.get(task_id, 0.0), 4),
+                    "path_length": round(metres, 4),
                 },
                 time_ns=now,
                 task_id=task_id,

@@ -3,6 +3,7 @@
 transport = "zenoh"            # or "dds": what the robot's RMW_IMPLEMENTATION speaks
 domain_id = 0                  # ROS_DOMAIN_ID
 home = "paper"
+strategy = "wpl"               # any of objsearch.agent.strategies (objsearch bench compares them)
 
 [zenoh]
 mode = "peer"                  # rmw_zenoh's sessions are peers of a router
@@ -120,6 +121,7 @@ class PoseSource:
 class RuntimeConfig:
     transport: TransportConfig = field(default_factory=TransportConfig)
     home: str = "paper"
+    strategy: str = "wpl"
     topics: Topics = Topics()
     qos: QosSettings = QosSettings()
     timeouts: Timeouts = Timeouts()
@@ -142,6 +144,7 @@ class RuntimeConfig:
             "transport",
             "domain_id",
             "home",
+            "strategy",
             "node",
             "zenoh",
             "dds",
@@ -172,9 +175,17 @@ class RuntimeConfig:
             peers=tuple(d.get("peers", base.peers)),
             interface=str(d.get("interface", base.interface)),
         )
+        from objsearch.agent.strategies import STRATEGIES
+
+        strategy = doc.get("strategy", "wpl")
+        if strategy not in STRATEGIES:
+            raise RuntimeConfigError(
+                f"{source}: strategy must be one of {', '.join(STRATEGIES)}, not {strategy!r}"
+            )
         return cls(
             transport=transport,
             home=str(doc.get("home", "paper")),
+            strategy=str(strategy),
             topics=_section(Topics(), doc.get("topics", {}), source, "topics", str),
             qos=_section(QosSettings(), doc.get("qos", {}), source, "qos", QoS.parse),
             timeouts=_section(Timeouts(), doc.get("timeouts", {}), source, "timeouts", None),

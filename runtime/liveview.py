@@ -21,8 +21,9 @@ from functools import lru_cache
 from typing import Any, Final, Protocol
 
 from objsearch.agent.geometry import Point, Pose, heading
-from objsearch.agent.scene_graph import EventLike, SceneGraphProjection
+from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.session import HomeContext
+from objsearch.agent.state import AgentState
 from objsearch.agent.world import Detection
 from objsearch.events import Event
 from objsearch.runtime import messages as m
@@ -296,7 +297,8 @@ class LiveView:
         self.ctx = ctx
         self.sinks = tuple(sinks)
         self.clock_offset_ns = clock_offset_ns
-        self.graph = SceneGraphProjection()
+        #: What the agent knew: the same fold (run spec, relation model, tasks) as everywhere.
+        self.agent = AgentState()
         self.pose: Pose | None = None
         self.task: _Task | None = None
         self.written: dict[str, int] = {}
@@ -305,12 +307,12 @@ class LiveView:
     def fold(self, events: Iterable[Event]) -> None:
         """Catch up with events already in the log without drawing them (an agent's restart)."""
         for event in events:
-            self.graph.apply(event)
+            self.agent.apply(event)
 
     def apply(self, event: EventLike) -> None:
         """Draw one event (a projection: ``Session(observers=[view])``)."""
         assert isinstance(event, Event)  # the log's events; EventLike is the fold's protocol
-        self.graph.apply(event)
+        self.agent.apply(event)
         stamp = self.clock_offset_ns + event.time_ns
         if not self._map_sent:
             self._map_sent = True
@@ -466,11 +468,12 @@ class LiveView:
 
     def _send_graph(self, event: Event, stamp: int, **extra: Any) -> None:
         task = self.task
-        table = self.graph.as_table()
+        model = self.agent.model
+        table = model.as_table() if model is not None else {}
         doc: dict[str, Any] = {
             "seq": event.seq,
             "event": event.type,
-            "tasks_folded": self.graph.tasks_folded,
+            "tasks_folded": self.agent.tasks.ended + self.agent.tasks.aborted,
             "task": None,
             "relations": table,
         }

@@ -11,8 +11,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from objsearch.agent.errors import ObjsearchError
-from objsearch.agent.policy import Method, SearchConfig
 from objsearch.agent.scene_graph import UpdateMode
+from objsearch.agent.session import load_context
+from objsearch.agent.strategies import DEFAULT_STRATEGY, RunSpec
 from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule
 from tqdm import tqdm
 
@@ -27,6 +28,7 @@ def run_demo(
     force: bool = False,
     progress: bool = True,
     baseline: bool = True,
+    strategy: str = DEFAULT_STRATEGY,
 ) -> int:
     modes = [UpdateMode.ALL, UpdateMode.NONE] if baseline else [UpdateMode.ALL]
     if out.exists() and any(out.iterdir()):
@@ -34,7 +36,8 @@ def run_demo(
             raise ObjsearchError(f"{out} already holds a demo; pass --force to replace it")
         shutil.rmtree(out)
     out.mkdir(parents=True)
-    config = SearchConfig(method=Method.WPL, alpha=10.0, seed=0)
+    ctx = load_context(home)
+    spec = RunSpec.of(home, ctx.home.digest, strategy, seed=0, schedule="table2")
     results: dict[UpdateMode, list[Trial]] = {}
     total = SCENES * len(TARGET_ORDER) * STARTS * len(modes)
     # Redrawn at most every 2 s when stderr is a file or a CI log, not a terminal.
@@ -45,7 +48,9 @@ def run_demo(
         for mode in modes:
             bar.set_description(f"updates={mode.value}")
             results[mode] = run_schedule(
-                home, out / f"log-{mode.value}", config, mode, on_trial=lambda _t: bar.update()
+                out / f"log-{mode.value}",
+                spec.with_changes(update_mode=mode),
+                on_trial=lambda _t: bar.update(),
             )
     write_csv(out / "path_lengths.csv", results)
     plot(out / "path_length_per_scene.png", results)

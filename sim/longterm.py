@@ -1,21 +1,27 @@
-"""The paper's long-term experiment (§6.1.2): every scene of a schedule, every target, every start."""
+"""The paper's long-term experiment (§6.1.2), and the one loop every long-term run goes through:
+every scene of a placement source, every target, every start, on one log.
+
+``objsearch demo``, ``objsearch record``, ``objsearch bench`` (experiments/runner.py) and the golden
+logs (replay/golden.py) all call :func:`run_schedule`; nothing else walks scenes × targets × starts.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from objsearch.agent.errors import DataFileError
-from objsearch.agent.planner import StopPlanner
-from objsearch.agent.policy import SearchConfig
-from objsearch.agent.relations import RelationModel
-from objsearch.agent.scene_graph import UpdateMode
+from objsearch.agent.geometry import Point
 from objsearch.agent.session import Session, load_context
+from objsearch.agent.strategies import RunSpec
+from objsearch.sim.schedule import Placements, base_placements, table1_removals
 from objsearch.sim.schedules import load_schedule
 from objsearch.sim.world import SimClock, SimWorld, WorldObserver
 
 TARGET_ORDER = ("Apple", "Cup", "Bowl", "Phone", "Laptop", "Pillow", "Vase", "ToiletPaper")
+#: Simulated time between two searches (s): the robot's clock moves on between tasks.
 PAUSE_BETWEEN_TASKS_S = 60.0
 
 
@@ -28,64 +34,71 @@ class Trial:
     path_length: float
     oracle_length: float
     task_id: str
+    route: tuple[Point, ...] = ()
+
+
+def scenes_of(home_name: str, source: str) -> dict[int, Placements]:
+    """Scene number → placements for a placement source: ``table1`` (the paper's Table I scene,
+    as scene 0), or any schedule ``sim/schedules.py`` knows (``table2``, ``stats-<seed>``,
+    ``rearr-<seed>``)."""
+    ctx = load_context(home_name)
+    if source == "table1":
+        return {0: base_placements(ctx.home, table1_removals(ctx.home))}
+    return dict(load_schedule(ctx.home, source).scenes)
 
 
 def run_schedule(
-    home_name: str,
     log_dir: Path,
-    config: SearchConfig,
-    update_mode: UpdateMode,
+    spec: RunSpec,
     *,
-    schedule_name: str = "table2",
     targets: Sequence[str] = TARGET_ORDER,
     scenes: Sequence[int] | None = None,
     starts: Sequence[str] | None = None,
+    placements: Mapping[int, Placements] | None = None,
+    skip_absent_targets: bool = False,
     on_trial: Callable[[Trial], None] | None = None,
     observer: WorldObserver | None = None,
-    params: Mapping[str, object] | None = None,
-    graph: RelationModel | None = None,
-    planner: StopPlanner | None = None,
+    keep_routes: bool = False,
+    **session_options: Any,
 ) -> list[Trial]:
     """Search every target from every start in every scene, in that order, on one log.
 
-    ``schedule_name`` is any schedule ``sim/schedules.py`` knows: ``table2``, ``stats-<seed>`` or
-    ``rearr-<seed>``. Each search is one task: the scene graph is updated (per ``update_mode``) when it ends, so the
-    next search, whatever its start, plans with what the previous ones saw. ``starts`` picks
-    start points by name (default: all of the home's); ``observer`` sees every pose and camera
-    frame (what ``objsearch record`` writes to a bag). ``params`` go into ``run_started`` beside
-    the schedule's name; ``graph`` and ``planner`` pick another strategy than the paper's
-    (``Session``'s defaults).
+    The placements come from ``placements`` (scene → placements) or else from the spec's
+    ``schedule`` (see :func:`scenes_of`). Each search is one task: the scene graph is updated
+    (per the spec's update mode) when it ends, so the next search, whatever its start, plans with
+    what the previous ones saw. ``starts`` picks start points by name (default: all of the
+    home's); with ``skip_absent_targets`` a target the scene does not hold is not searched for;
+    ``observer`` sees every pose and camera frame (what ``objsearch record`` writes to a bag).
+    ``session_options`` go to :meth:`Session.start` (``wall_clock``, ``stream``, ...).
     """
-    ctx = load_context(home_name)
-    schedule = load_schedule(ctx.home, schedule_name)
+    ctx = load_context(spec.home)
+    if placements is None:
+        if spec.schedule is None:
+            raise DataFileError("a long-term run needs placements or a schedule in its spec")
+        placements = scenes_of(spec.home, spec.schedule)
     all_starts = ctx.home.starts
     for name in starts or ():
         ctx.home.start(name)  # an unknown start fails before anything is written
     chosen = {name: all_starts[name] for name in starts} if starts else all_starts
-    unknown_scenes = sorted(set(scenes or ()) - set(schedule.scenes))
+    unknown_scenes = sorted(set(scenes or ()) - set(placements))
     if unknown_scenes:
         raise DataFileError(
-            f"schedule {schedule_name!r} has scenes {sorted(schedule.scenes)}, not {unknown_scenes}"
+            f"schedule {spec.schedule!r} has scenes {sorted(placements)}, not {unknown_scenes}"
         )
     trials: list[Trial] = []
-    session = Session(
-        ctx,
-        log_dir,
-        config,
-        update_mode,
-        params={"schedule": schedule_name, **(params or {})},
-        graph=graph,
-        planner=planner,
-    )
+    session = Session.start(ctx, log_dir, spec, **session_options)
     try:
         clock = SimClock(session.resume_time_ns)
-        for scene in scenes or sorted(schedule.scenes):
-            placements = schedule.scenes[scene]
+        for scene in scenes or sorted(placements):
+            scene_placements = placements[scene]
+            present = {p.cls for p in scene_placements.values()}
             for target in targets:
+                if skip_absent_targets and target not in present:
+                    continue
                 for start_name, pose in chosen.items():
                     clock.advance(PAUSE_BETWEEN_TASKS_S)
                     world = SimWorld(
-                        ctx.home, ctx.navmap, placements, pose, clock=clock, observer=observer
+                        ctx.home, ctx.navmap, scene_placements, pose, clock=clock, observer=observer
                     )
                     oracle = world.oracle_length(target)
                     result = session.search(world, target, start_name, scene=scene)
@@ -97,6 +110,7 @@ def run_schedule(
                         result.path_length,
                         oracle,
                         result.task_id,
+                        tuple(result.route) if keep_routes else (),
                     )
                     trials.append(trial)
                     if on_trial:

@@ -17,6 +17,7 @@ from objsearch.agent.policy import SearchConfig
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.semmap import MappedStatic, SemanticMap
 from objsearch.agent.session import HomeContext, Session
+from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
 from objsearch.sim.world import REACH_M, Placement, SimWorld
 
@@ -184,8 +185,16 @@ def search_cost(
     built_ctx = replace(ctx, semmap=built)
     out = []
     with tempfile.TemporaryDirectory(prefix="objsearch-mapcost-") as tmp:
+        spec = RunSpec.of(
+            ctx.home.name,
+            ctx.home.digest,
+            config.method.value,
+            seed=config.seed,
+            alpha=config.alpha,
+            update_mode=UpdateMode.NONE,
+        )
         sessions = {
-            name: Session(c, Path(tmp) / name, config, UpdateMode.NONE)
+            name: Session.start(c, Path(tmp) / name, spec)
             for name, c in (("truth", ctx), ("built", built_ctx))
         }
         try:

@@ -627,9 +627,8 @@ def record(
     seed: int = 0,
 ) -> Recording:
     """Run the searches and write the bag; the agent's own log goes to ``log_dir`` if given."""
-    from objsearch.agent.policy import Method, SearchConfig
-    from objsearch.agent.scene_graph import UpdateMode
     from objsearch.agent.session import load_context
+    from objsearch.agent.strategies import RunSpec
     from objsearch.sim.longterm import TARGET_ORDER, run_schedule
 
     topic_map = topic_map or TopicMap()
@@ -642,10 +641,8 @@ def record(
     try:
         timeline = Timeline()
         trials = run_schedule(
-            home,
             log,
-            SearchConfig(method=Method.WPL, alpha=10.0, seed=seed),
-            UpdateMode.ALL,
+            RunSpec.of(home, ctx.home.digest, "wpl", seed=seed, schedule="table2"),
             targets=chosen,
             scenes=scenes,
             starts=starts,

@@ -7,9 +7,10 @@ import itertools
 from pathlib import Path
 
 import pytest
-from objsearch.agent.policy import Method, SearchConfig
+from objsearch.agent.policy import Method
 from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
 from objsearch.agent.session import Session, load_context
+from objsearch.agent.strategies import RunSpec
 from objsearch.events import Event, fold, read_log
 from objsearch.replay.asof import scene_graph_at
 from objsearch.sim.longterm import TARGET_ORDER, run_schedule
@@ -22,7 +23,7 @@ HOME = "paper"
 def _search(log: Path, target: str, start: str, method: Method = Method.WPL) -> tuple[float, float]:
     ctx = load_context(HOME)
     placements = base_placements(ctx.home, table1_removals(ctx.home))
-    session = Session(ctx, log, SearchConfig(method=method), UpdateMode.ALL)
+    session = Session.start(ctx, log, RunSpec.for_home(ctx.home, method.value))
     try:
         world = SimWorld(
             ctx.home,
@@ -63,7 +64,8 @@ def test_search_finds_the_apple_and_logs_every_step_in_order(tmp_path: Path) -> 
 def test_every_target_is_found_from_every_start(tmp_path: Path, method: Method) -> None:
     ctx = load_context(HOME)
     placements = base_placements(ctx.home, table1_removals(ctx.home))
-    session = Session(ctx, tmp_path, SearchConfig(method=method), UpdateMode.NONE)
+    spec = RunSpec.for_home(ctx.home, method.value, update_mode=UpdateMode.NONE)
+    session = Session.start(ctx, tmp_path, spec)
     clock = SimClock(session.resume_time_ns)
     try:
         for start, pose in ctx.home.starts.items():
@@ -78,9 +80,8 @@ def test_every_target_is_found_from_every_start(tmp_path: Path, method: Method) 
 
 
 def _schedule(log: Path, mode: UpdateMode, scenes: tuple[int, ...] = (1, 2)) -> None:
-    run_schedule(
-        HOME, log, SearchConfig(), mode, scenes=list(scenes), targets=("Apple", "Cup", "Laptop")
-    )
+    spec = RunSpec.for_home(load_context(HOME).home, update_mode=mode, schedule="table2")
+    run_schedule(log, spec, scenes=list(scenes), targets=("Apple", "Cup", "Laptop"))
 
 
 @pytest.fixture(scope="module")
@@ -94,7 +95,7 @@ def test_rebuilding_from_scratch_equals_the_live_fold(schedule_log: Path) -> Non
     ctx = load_context(HOME)
     rebuilt = fold(read_log(schedule_log), SceneGraphProjection())
     # A session continuing the log folds it on open; its live graph then advances event by event.
-    session = Session(ctx, schedule_log, SearchConfig(), UpdateMode.ALL)
+    session = Session.start(ctx, schedule_log, RunSpec.for_home(ctx.home))
     try:
         assert session.graph.relations == rebuilt.relations
         world = SimWorld(
@@ -157,11 +158,16 @@ def test_same_inputs_give_the_same_log(tmp_path: Path) -> None:
 
 def test_sdp_room_order_depends_on_the_seed_only(tmp_path: Path) -> None:
     def rooms(seed: int, name: str) -> list[tuple[str, ...]]:
+        spec = RunSpec.for_home(
+            load_context(HOME).home,
+            "sdp",
+            seed=seed,
+            update_mode=UpdateMode.NONE,
+            schedule="table2",
+        )
         run_schedule(
-            HOME,
             tmp_path / name,
-            SearchConfig(method=Method.SDP, seed=seed),
-            UpdateMode.NONE,
+            spec,
             scenes=[1],
             targets=("Vase",),
         )

@@ -8,9 +8,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from objsearch.agent.policy import Method, SearchConfig
-from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
+from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.agent.session import Session, load_context
+from objsearch.agent.strategies import RunSpec
 from objsearch.events import (
     Event,
     EventLog,
@@ -120,8 +120,7 @@ def _rerun_fixture_searches(log_dir: Path) -> None:
     ctx = load_context("paper")
     schedule = Schedule.load(ctx.home, "table2")
     starts = list(ctx.home.starts.items())
-    config = SearchConfig(method=Method.WPL, alpha=10.0, seed=0)
-    session = Session(ctx, log_dir, config, UpdateMode.ALL)
+    session = Session.start(ctx, log_dir, RunSpec.for_home(ctx.home, "wpl"))
     try:
         clock = SimClock(session.resume_time_ns)
         for scene in (1, 2):

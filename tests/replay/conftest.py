@@ -6,9 +6,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from objsearch.agent.policy import Method, SearchConfig
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
+from objsearch.agent.strategies import RunSpec
 from objsearch.events.lake import Lake, compact_log
 from objsearch.sim.schedule import Schedule
 from objsearch.sim.world import SimClock, SimWorld
@@ -20,9 +20,10 @@ def write_targets_run(log_dir: Path) -> None:
     ctx = load_context("paper")
     schedule = Schedule.load(ctx.home, "table2")
     starts = list(ctx.home.starts.items())
-    config = SearchConfig(method=Method.RVP, alpha=10.0, seed=3)
-    session = Session(ctx, log_dir, config, UpdateMode.TARGETS, stream="targets")
-    session.log._wall_clock = lambda: 1_700_000_000_000_000_000
+    spec = RunSpec.for_home(ctx.home, "rvp", seed=3, update_mode=UpdateMode.TARGETS)
+    session = Session.start(
+        ctx, log_dir, spec, stream="targets", wall_clock=lambda: 1_700_000_000_000_000_000
+    )
     try:
         clock = SimClock(session.resume_time_ns)
         for scene in (3, 4):

@@ -101,22 +101,17 @@ def test_a_log_of_an_older_schema_version_replays_through_the_upcasters() -> Non
 def test_runs_of_other_strategies_replay_with_their_own_model_and_planner(
     tmp_path: Path, name: str
 ) -> None:
-    from objsearch.agent.scene_graph import UpdateMode
-    from objsearch.experiments.strategies import strategy
+    from objsearch.agent.session import load_context
+    from objsearch.agent.strategies import RunSpec
     from objsearch.sim.longterm import run_schedule
 
-    chosen = strategy(name)
+    spec = RunSpec.for_home(load_context("paper").home, name, schedule="table2")
     run_schedule(
-        "paper",
         tmp_path,
-        chosen.config(0),
-        UpdateMode.ALL,
+        spec,
         scenes=(1, 2),
         targets=("Apple", "Vase"),
         starts=("kitchen-2", "bedroom-1"),
-        params={"strategy": name},
-        graph=chosen.relations(),
-        planner=chosen.planner() if chosen.planner else None,
     )
     replayer = replay(read_log(tmp_path))
     assert len(replayer.decisions) >= 8

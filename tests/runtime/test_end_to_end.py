@@ -6,9 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from objsearch.agent.policy import SearchConfig
-from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
+from objsearch.agent.strategies import RunSpec
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 from objsearch.runtime.config import RuntimeConfig
@@ -30,7 +29,7 @@ def client_config(net: Net) -> RuntimeConfig:
 def in_process(log_dir: Path) -> list[dict[str, Any]]:
     ctx = load_context("paper")
     schedule = Schedule.load(ctx.home, "table2")
-    session = Session(ctx, log_dir, SearchConfig(), UpdateMode.ALL)
+    session = Session.start(ctx, log_dir, RunSpec.for_home(ctx.home))
     out = []
     try:
         for scene, target, start in TRIALS:

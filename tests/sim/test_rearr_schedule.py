@@ -8,8 +8,7 @@ from pathlib import Path
 import pytest
 from objsearch.agent.errors import DataFileError, ObjsearchError
 from objsearch.agent.home import load_home
-from objsearch.agent.policy import SearchConfig
-from objsearch.agent.scene_graph import UpdateMode
+from objsearch.agent.strategies import RunSpec
 from objsearch.experiments.homes import homes_jobs
 from objsearch.sim.longterm import run_schedule
 from objsearch.sim.rearr_schedule import RearrangementData, read_rearrangement, rearr_schedule
@@ -103,11 +102,8 @@ def test_a_malformed_file_is_a_clear_error(tmp_path: Path) -> None:
 
 def test_the_long_term_runner_accepts_rearr_schedules(tmp_path: Path) -> None:
     trials = run_schedule(
-        "ithor-01",
         tmp_path,
-        SearchConfig(),
-        UpdateMode.ALL,
-        schedule_name="rearr-0",
+        RunSpec.for_home(load_home("ithor-01"), schedule="rearr-0"),
         targets=["Cup", "Apple"],
         scenes=[1, 2],
         starts=["kitchen-1"],

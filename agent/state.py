@@ -1,0 +1,155 @@
+"""What an agent knows, as one projection of its log: the run's spec, its tasks, its memory.
+
+:class:`AgentState` is the fold every reader uses — the agent on restart, replay, audit, the live
+view, the report and the lake's derived tables — so they cannot disagree about what a log means:
+
+- ``run``: the latest ``run_started`` as a :class:`~objsearch.agent.strategies.RunSpec`;
+- ``model``: the relation model, built from the *first* run's spec (its model and parameters, as
+  recorded) and fed every event; later runs may change the planner, α or update mode, never the fold;
+- ``tasks``: the task ledger — task ids are numbered from the log (never from a counter inside
+  the model), and a task that was started and never ended or aborted is ``open``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from objsearch.agent.errors import ObjsearchError
+from objsearch.agent.relations import RelationModel
+from objsearch.agent.scene_graph import EventLike
+from objsearch.agent.strategies import RelationSpec, RunSpec
+
+_TASK_NUMBER = re.compile(r"task-(\d+)")
+
+
+@dataclass(frozen=True, slots=True)
+class OpenTask:
+    """A task started and not (yet) ended: in progress, or left open by a crash."""
+
+    task_id: str
+    target: str
+    metres: float
+
+
+@dataclass
+class TaskLedger:
+    """Task numbering and the task in progress, from ``task_started``/``task_ended``/``task_aborted``."""
+
+    last_number: int = 0
+    started: int = 0
+    ended: int = 0
+    aborted: int = 0
+    open: OpenTask | None = None
+
+    def apply(self, event: EventLike, task_id: str | None) -> None:
+        kind, payload = event.type, event.payload
+        if kind == "task_started" and task_id is not None:
+            match = _TASK_NUMBER.fullmatch(task_id)
+            if match:
+                self.last_number = max(self.last_number, int(match.group(1)))
+            self.started += 1
+            self.open = OpenTask(task_id, str(payload["target"]), 0.0)
+        elif kind == "moved" and self.open is not None and task_id == self.open.task_id:
+            self.open = OpenTask(
+                self.open.task_id, self.open.target, self.open.metres + float(payload["metres"])
+            )
+        elif kind in ("task_ended", "task_aborted") and self.open is not None:
+            if task_id == self.open.task_id:
+                self.open = None
+            if kind == "task_ended":
+                self.ended += 1
+            else:
+                self.aborted += 1
+
+    def next_task_id(self) -> str:
+        return f"task-{self.last_number + 1:05d}"
+
+
+@dataclass
+class AgentState:
+    """The projection of an agent's log (see the module docstring)."""
+
+    run: RunSpec | None = None
+    first_run: RunSpec | None = None
+    model: RelationModel | None = None
+    tasks: TaskLedger = field(default_factory=TaskLedger)
+    seeded: bool = False  # the Visual Genome prior was recorded (scene_graph_seeded)
+    #: Fold with this relation model instead of the run's: a counterfactual, never the agent's
+    #: own state (``objsearch replay --strategy``).
+    counterfactual: RelationSpec | None = None
+    last_seq: int = 0
+    last_time_ns: int = 0
+
+    snapshot_name: ClassVar[str] = "agent_state"
+    snapshot_version: ClassVar[int] = 1
+
+    @property
+    def state(self) -> AgentState:
+        return self
+
+    def apply(self, event: EventLike) -> None:
+        if event.type == "run_started":
+            self.run = RunSpec.from_payload(event.payload)
+            if self.model is None:
+                self.first_run = self.run
+                self.model = (self.counterfactual or self.run.relations).build()
+        elif event.type == "scene_graph_seeded":
+            self.seeded = True
+        if self.model is not None:
+            self.model.apply(event)
+        self.tasks.apply(event, getattr(event, "task_id", None))
+        self.last_seq = event.seq
+        self.last_time_ns = int(getattr(event, "time_ns", self.last_time_ns))
+
+    def graph(self) -> RelationModel:
+        """The relation model; an error if the log has no run yet."""
+        if self.model is None:
+            raise ObjsearchError("the log holds no run_started yet: there is no scene graph")
+        return self.model
+
+    def to_snapshot(self) -> dict[str, Any]:
+        model = self.model
+        to_snapshot = getattr(model, "to_snapshot", None)
+        if model is not None and to_snapshot is None:
+            raise ObjsearchError(f"{type(model).__name__} cannot be snapshotted")
+        open_task = self.tasks.open
+        return {
+            "run": None if self.run is None else self.run.payload(),
+            "first_run": None if self.first_run is None else self.first_run.payload(),
+            "model": None if to_snapshot is None else to_snapshot(),
+            "tasks": {
+                "last_number": self.tasks.last_number,
+                "started": self.tasks.started,
+                "ended": self.tasks.ended,
+                "aborted": self.tasks.aborted,
+                "open": None
+                if open_task is None
+                else [open_task.task_id, open_task.target, open_task.metres],
+            },
+            "seeded": self.seeded,
+            "last_time_ns": self.last_time_ns,
+        }
+
+    @classmethod
+    def from_snapshot(cls, state: dict[str, Any], last_seq: int) -> AgentState:
+        first = None if state["first_run"] is None else RunSpec.from_payload(state["first_run"])
+        model = None
+        if first is not None:
+            fresh = first.relation_model()
+            restore = getattr(type(fresh), "from_snapshot", None)
+            if restore is None:
+                raise ObjsearchError(f"{type(fresh).__name__} cannot be restored")
+            model = restore(state["model"], last_seq)
+        t = state["tasks"]
+        open_task = None if t["open"] is None else OpenTask(*t["open"])
+        return cls(
+            run=None if state["run"] is None else RunSpec.from_payload(state["run"]),
+            first_run=first,
+            model=model,
+            tasks=TaskLedger(t["last_number"], t["started"], t["ended"], t["aborted"], open_task),
+            seeded=bool(state["seeded"]),
+            last_seq=last_seq,
+            last_time_ns=int(state["last_time_ns"]),
+        )

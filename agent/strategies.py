@@ -1,0 +1,272 @@
+"""Search strategies by name, and the run spec that records one in the log.
+
+A strategy is a relation model (the fold of the log into Rel) and a stop planner, plus the room
+order of its method. The paper's three methods (SDP, RVP, WPL) use Eq. 4 and their own planners.
+Ours swap one seam each, never forking the policy: ``wpl-neg`` and ``wpl-neg-decay`` fold the same
+log into a Beta posterior (negative evidence, decay toward the prior); ``epl`` orders stops by
+expected path length; ``epl-neg-decay`` combines both.
+
+``run_started`` records the whole :class:`RunSpec` — the strategy's name, its relation model *with
+its parameters*, its planner, α, the update mode, the support radius, the schedule — and
+:meth:`RunSpec.relation_model` / :meth:`RunSpec.stop_planner` / :meth:`RunSpec.config` are the one
+place anything (the agent, replay, audit, the live view, the report, the lake) turns a log's spec
+into the objects that fold and plan. Nothing reads a strategy's parameters from today's code when
+the log has them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from objsearch.agent.errors import ObjsearchError
+from objsearch.agent.home import Home
+from objsearch.agent.planner import (
+    ExpectedPathPlanner,
+    RelationOrderPlanner,
+    StopPlanner,
+    WplPlanner,
+)
+from objsearch.agent.policy import Method, SearchConfig
+from objsearch.agent.relations import BetaRelations, RelationModel
+from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
+
+#: Pseudo-observations of the Visual Genome prior in the Beta model. Fixed a priori (a weak prior
+#: worth two searches), not tuned on any home.
+PRIOR_STRENGTH = 2.0
+#: Half-life of evidence, in tasks: 64 is one scene of the long-term protocol (8 targets × 8
+#: starts). Fixed a priori, not tuned.
+HALF_LIFE_TASKS = 64.0
+DEFAULT_ALPHA = 10.0
+DEFAULT_SUPPORT_RADIUS = 0.5
+
+RELATION_MODELS = ("eq4", "beta")
+PLANNERS = ("wpl", "rvp", "sdp", "epl")
+
+
+@dataclass(frozen=True, slots=True)
+class RelationSpec:
+    """Which fold turns the log into Rel, with every parameter it uses."""
+
+    model: str = "eq4"
+    prior_strength: float | None = None
+    half_life_tasks: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.model not in RELATION_MODELS:
+            raise ObjsearchError(
+                f"unknown relation model {self.model!r}; known: {', '.join(RELATION_MODELS)}"
+            )
+        if self.model == "beta" and not (self.prior_strength and self.prior_strength > 0):
+            raise ObjsearchError("the beta relation model needs a prior strength > 0")
+        if self.half_life_tasks is not None and self.half_life_tasks <= 0:
+            raise ObjsearchError(f"half-life must be positive, got {self.half_life_tasks}")
+
+    def build(self) -> RelationModel:
+        if self.model == "beta":
+            assert self.prior_strength is not None
+            return BetaRelations(
+                prior_strength=self.prior_strength, half_life_tasks=self.half_life_tasks
+            )
+        return SceneGraphProjection()
+
+    def payload(self) -> dict[str, Any]:
+        return {
+            "model": self.model,
+            "prior_strength": self.prior_strength,
+            "half_life_tasks": self.half_life_tasks,
+        }
+
+    @classmethod
+    def from_payload(cls, doc: Mapping[str, Any]) -> RelationSpec:
+        return cls(doc["model"], doc["prior_strength"], doc["half_life_tasks"])
+
+
+EQ4 = RelationSpec()
+
+
+@dataclass(frozen=True, slots=True)
+class Strategy:
+    """A named choice of room order (method), stop planner and relation model."""
+
+    name: str
+    method: Method
+    description: str
+    paper: bool
+    relations: RelationSpec = EQ4
+    planner: str | None = None  # None: the method's own (WPL, RVP; SDP is WPL with α = 0)
+
+    @property
+    def planner_name(self) -> str:
+        return self.planner or self.method.value
+
+    @property
+    def randomised(self) -> bool:
+        """Whether results depend on the seed (SDP's random room order)."""
+        return self.method is Method.SDP
+
+
+def _beta(half_life: float | None) -> RelationSpec:
+    return RelationSpec("beta", PRIOR_STRENGTH, half_life)
+
+
+STRATEGIES: dict[str, Strategy] = {
+    s.name: s
+    for s in (
+        Strategy("sdp", Method.SDP, "paper baseline: random rooms, nearest stops (α = 0)", True),
+        Strategy("rvp", Method.RVP, "paper baseline: rooms and stops by Rel", True),
+        Strategy("wpl", Method.WPL, "the paper's method: Eq. 3 with α = 10, Eq. 4 updates", True),
+        Strategy(
+            "wpl-neg",
+            Method.WPL,
+            "WPL on a Beta posterior with negative evidence",
+            False,
+            _beta(None),
+        ),
+        Strategy(
+            "wpl-neg-decay",
+            Method.WPL,
+            f"WPL on the Beta posterior, evidence half-life {HALF_LIFE_TASKS:g} tasks",
+            False,
+            _beta(HALF_LIFE_TASKS),
+        ),
+        Strategy(
+            "epl", Method.WPL, "expected-path-length planner, Eq. 4 updates", False, EQ4, "epl"
+        ),
+        Strategy(
+            "epl-neg-decay",
+            Method.WPL,
+            "expected-path-length planner on the Beta posterior with decay",
+            False,
+            _beta(HALF_LIFE_TASKS),
+            "epl",
+        ),
+    )
+}
+
+PAPER_STRATEGIES = ("sdp", "rvp", "wpl")
+DEFAULT_STRATEGY = "wpl"
+
+
+def strategy(name: str) -> Strategy:
+    try:
+        return STRATEGIES[name]
+    except KeyError:
+        raise ObjsearchError(
+            f"unknown strategy {name!r}; choose from {', '.join(STRATEGIES)}"
+        ) from None
+
+
+@dataclass(frozen=True, slots=True)
+class RunSpec:
+    """Everything ``run_started`` records: enough to fold and re-plan the run exactly."""
+
+    home: str
+    home_digest: str
+    strategy: str
+    method: Method
+    planner: str
+    relations: RelationSpec
+    alpha: float = DEFAULT_ALPHA
+    update_mode: UpdateMode = UpdateMode.ALL
+    seed: int = 0
+    support_radius: float = DEFAULT_SUPPORT_RADIUS
+    schedule: str | None = None
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.planner not in PLANNERS:
+            raise ObjsearchError(f"unknown planner {self.planner!r}; known: {', '.join(PLANNERS)}")
+
+    @classmethod
+    def of(
+        cls,
+        home: str,
+        home_digest: str,
+        strategy_name: str = DEFAULT_STRATEGY,
+        *,
+        seed: int = 0,
+        update_mode: UpdateMode = UpdateMode.ALL,
+        alpha: float = DEFAULT_ALPHA,
+        schedule: str | None = None,
+        params: Mapping[str, Any] | None = None,
+    ) -> RunSpec:
+        """The spec of running the registered strategy ``strategy_name`` on a home."""
+        chosen = strategy(strategy_name)
+        return cls(
+            home=home,
+            home_digest=home_digest,
+            strategy=chosen.name,
+            method=chosen.method,
+            planner=chosen.planner_name,
+            relations=chosen.relations,
+            alpha=alpha,
+            update_mode=update_mode,
+            seed=seed,
+            schedule=schedule,
+            params=dict(params or {}),
+        )
+
+    @classmethod
+    def for_home(cls, home: Home, strategy_name: str = DEFAULT_STRATEGY, **options: Any) -> RunSpec:
+        """:meth:`of` for a loaded home (its name and digest)."""
+        return cls.of(home.name, home.digest, strategy_name, **options)
+
+    def with_changes(self, **changes: Any) -> RunSpec:
+        return replace(self, **changes)
+
+    def config(self) -> SearchConfig:
+        return SearchConfig(
+            method=self.method,
+            alpha=self.alpha,
+            support_radius=self.support_radius,
+            seed=self.seed,
+        )
+
+    def relation_model(self) -> RelationModel:
+        """A fresh relation model of this spec (fold the log into it)."""
+        return self.relations.build()
+
+    def stop_planner(self) -> StopPlanner:
+        if self.planner == "epl":
+            return ExpectedPathPlanner()
+        if self.planner == "rvp":
+            return RelationOrderPlanner(alpha=self.alpha)
+        alpha = 0.0 if self.planner == "sdp" else self.alpha
+        return WplPlanner(alpha=alpha, name=self.planner)
+
+    def payload(self) -> dict[str, Any]:
+        """``run_started`` v2."""
+        return {
+            "home": self.home,
+            "home_digest": self.home_digest,
+            "strategy": self.strategy,
+            "method": self.method.value,
+            "planner": self.planner,
+            "relations": self.relations.payload(),
+            "alpha": self.alpha,
+            "update_mode": self.update_mode.value,
+            "seed": self.seed,
+            "support_radius": self.support_radius,
+            "schedule": self.schedule,
+            "params": dict(self.params),
+        }
+
+    @classmethod
+    def from_payload(cls, p: Mapping[str, Any]) -> RunSpec:
+        """From ``run_started`` v2 (older versions are upcast by ``read_log``)."""
+        return cls(
+            home=p["home"],
+            home_digest=p["home_digest"],
+            strategy=p["strategy"],
+            method=Method(p["method"]),
+            planner=p["planner"],
+            relations=RelationSpec.from_payload(p["relations"]),
+            alpha=float(p["alpha"]),
+            update_mode=UpdateMode(p["update_mode"]),
+            seed=int(p["seed"]),
+            support_radius=float(p["support_radius"]),
+            schedule=p["schedule"],
+            params=dict(p["params"]),
+        )
