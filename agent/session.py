@@ -116,6 +116,9 @@ class Session:
             stream,
             run_id=run_id,
             wall_clock=wall_clock if wall_clock is not None else time.time_ns,
+            # With a snapshot, a restart reads only what came after it and after the last clean
+            # close; every full reader (replay, lake add, log verify) still checks it all.
+            verify="all" if snapshot_dir is None else "since_close",
         )
         try:
             if snapshot_dir is not None:
@@ -227,7 +230,12 @@ class Session:
     def close(self) -> None:
         try:
             if self.snapshot_dir is not None and not self.log.closed and self.state.last_seq:
-                save_snapshot(self.snapshot_dir, self.state, log_dir=self.log.directory)
+                save_snapshot(
+                    self.snapshot_dir,
+                    self.state,
+                    log_dir=self.log.directory,
+                    position=self.log.position,
+                )
         finally:
             self.log.close()
 

@@ -91,12 +91,21 @@ class LogMeta:
 
 
 @dataclass(frozen=True, slots=True)
-class Durable:
-    """The durable high-water mark: where the log ended when its writer last closed."""
+class LogPosition:
+    """A point in a log: right after the record of ``seq``, which ends at byte ``offset`` on line
+    ``line`` with chain checksum ``checksum`` and ``time_ns``. The durable high-water mark is one;
+    so is where a snapshot was taken. A reader can resume there after checking that the record
+    ending at ``offset`` is still that record (:func:`read_log_after`)."""
 
     seq: int
     offset: int
     checksum: int
+    line: int
+    time_ns: int
+
+
+#: The durable high-water mark: where the log ended when its writer last closed.
+Durable = LogPosition
 
 
 @dataclass(frozen=True, slots=True)
@@ -141,7 +150,7 @@ class _Scan:
         registry: SchemaRegistry,
         durable: Durable | None = None,
         stop_after: int | None = None,
-        start: _Cursor | None = None,
+        start: _Cursor | LogPosition | None = None,
         ids: dict[str, int] | None = None,
     ) -> None:
         self.path = path
@@ -150,6 +159,8 @@ class _Scan:
         self.durable = durable
         self.stop_after = stop_after
         self.torn_tail: TornTail | None = None
+        if isinstance(start, LogPosition):
+            start = _Cursor(start.offset, start.line, start.seq, start.checksum, start.time_ns)
         self.at = start if start is not None else _Cursor(checksum=meta.genesis)
         #: when given, filled with event id → byte offset of its record (for idempotent appends)
         self.ids = ids
@@ -299,7 +310,7 @@ class EventLog:
         torn_tail: TornTail | None,
         registry: SchemaRegistry,
         wall_clock: Callable[[], int],
-        ids: dict[str, int],
+        ids: dict[str, int] | None,
     ) -> None:
         # Private: only open() knows how to reach a consistent state (lock, meta, recovery).
         self._directory = directory
@@ -311,7 +322,9 @@ class EventLog:
         self._torn_tail = torn_tail
         self._registry = registry
         self._wall_clock = wall_clock
-        self._ids = ids  # event id → byte offset of its record: what makes appends idempotent
+        # event id → byte offset of its record: what makes appends idempotent. None after a fast
+        # open (verify="since_close") until the first explicit id asks for it.
+        self._ids = ids
         self._batch_depth = 0
         self._unsynced = False
         self._closed = False
@@ -327,6 +340,7 @@ class EventLog:
         run_id: str | None = None,
         registry: SchemaRegistry | None = None,
         wall_clock: Callable[[], int] = time.time_ns,
+        verify: str = "all",
     ) -> EventLog:
         """Open ``directory`` for appending to ``stream``, creating it if allowed.
 
@@ -337,8 +351,13 @@ class EventLog:
         ``run_id`` is the id a log created by this call gets (a random UUID if None; pass one
         derived from a seed for reproducible logs); an existing log keeps its own.
         ``wall_clock`` stamps ``recorded_at_ns``; pass a fixed one for byte-identical logs.
+        ``verify="since_close"`` checks the record at the durable high-water mark and everything
+        after it, trusting the prefix its last writer verified and closed (an agent's fast
+        restart; ``read_log`` and ``objsearch log verify`` still check every record).
         """
         directory = Path(directory)
+        if verify not in ("all", "since_close"):
+            raise ValueError(f"verify must be 'all' or 'since_close', got {verify!r}")
         if not (isinstance(stream, str) and stream):
             raise ValueError(f"stream must be a non-empty string, got {stream!r}")
         if run_id is not None and str(_parse_uuid(run_id, "run_id")) != run_id:
@@ -373,7 +392,9 @@ class EventLog:
                 raise LogLockedError(
                     f"event log {log_path} was replaced while it was being opened; try again"
                 )
-            return cls._open_locked(directory, stream, fd, lock_fd, run_id, registry, wall_clock)
+            return cls._open_locked(
+                directory, stream, fd, lock_fd, run_id, registry, wall_clock, verify
+            )
         except BaseException:
             os.close(fd)
             if lock_fd >= 0:
@@ -390,6 +411,7 @@ class EventLog:
         run_id: str | None,
         registry: SchemaRegistry | None,
         wall_clock: Callable[[], int],
+        verify: str = "all",
     ) -> EventLog:
         # events.log is created (to be locked) before meta.json: a crash between the two leaves
         # an empty events.log without meta.json, which is still a log waiting to be created.
@@ -406,8 +428,13 @@ class EventLog:
             _fs.write_atomic(directory / META_FILE, data)
         registry = registry if registry is not None else default_registry()
         durable = read_durable(directory)
-        ids: dict[str, int] = {}
-        scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable, ids=ids)
+        ids: dict[str, int] | None = {}
+        if verify == "since_close" and durable is not None:
+            check_position(directory, meta, durable)
+            ids = None  # the prefix is not indexed: built on the first explicit event id
+            scan = _Scan(directory / LOG_FILE, meta, registry=registry, start=durable)
+        else:
+            scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable, ids=ids)
         for _ in scan:
             pass
         tail = scan.torn_tail
@@ -425,6 +452,12 @@ class EventLog:
             wall_clock=wall_clock,
             ids=ids,
         )
+
+    @property
+    def position(self) -> LogPosition:
+        """Where the log ends now (after the last appended record)."""
+        at = self._at
+        return LogPosition(at.seq, at.offset, at.checksum, at.line, at.time_ns)
 
     @property
     def directory(self) -> Path:
@@ -487,7 +520,10 @@ class EventLog:
             version = self._registry.latest_version(type)
         at = self._at
         seq = at.seq + 1
-        if event_id is not None and event_id in self._ids:
+        ids = self._ids
+        if ids is None and event_id is not None:
+            ids = self._index_ids()
+        if event_id is not None and ids is not None and event_id in ids:
             return self._existing(event_id, type, version, payload, time_ns, task_id)
         if expected_last_seq is not None and expected_last_seq != at.seq:
             raise WrongExpectedSeqError(
@@ -496,7 +532,9 @@ class EventLog:
             )
         if event_id is None:
             event_id = deterministic_event_id(self._meta.id_key(), seq)
-            if event_id in self._ids:
+            # After a fast open the prefix is not indexed; a default id is new by construction
+            # unless an explicit id copied it, which indexing on that explicit append catches.
+            if ids is not None and event_id in ids:
                 raise DuplicateEventError(
                     f"the default id {event_id} of seq {seq} is already used by an earlier "
                     f"event in {self._directory} (an explicit id copied from this stream?)"
@@ -525,7 +563,8 @@ class EventLog:
         record = encode_record(event, at.checksum if self._meta.chained else 0)
         offset = at.offset
         self._write(record)
-        self._ids[event.event_id] = offset
+        if ids is not None:
+            ids[event.event_id] = offset
         at.offset += len(record)
         at.line += 1
         at.seq = seq
@@ -537,6 +576,15 @@ class EventLog:
             self._sync()
         return event
 
+    def _index_ids(self) -> dict[str, int]:
+        ids: dict[str, int] = {}
+        scan = _Scan(self._directory / LOG_FILE, self._meta, registry=self._registry, ids=ids)
+        for _ in scan:
+            if scan.at.offset >= self._at.offset:
+                break
+        self._ids = ids
+        return ids
+
     def _existing(
         self,
         event_id: str,
@@ -547,6 +595,7 @@ class EventLog:
         task_id: str | None,
     ) -> Event:
         """The stored event with ``event_id``, if the new append asks for the same fact."""
+        assert self._ids is not None
         with (self._directory / LOG_FILE).open("rb") as f:
             f.seek(self._ids[event_id])
             line = f.readline()[:-1]
@@ -660,7 +709,7 @@ class EventLog:
 
     def _mark_durable(self) -> None:
         at = self._at
-        mark = Durable(seq=at.seq, offset=at.offset, checksum=at.checksum)
+        mark = self.position
         if at.seq == 0 or mark == self._durable:
             return
         write_durable(self._directory, mark)
@@ -902,12 +951,7 @@ def read_durable(directory: Path) -> Durable | None:
     except FileNotFoundError:
         return None
     try:
-        doc = json.loads(raw)
-        mark = Durable(seq=doc["seq"], offset=doc["offset"], checksum=int(doc["checksum"], 16))
-        if set(doc) != {"seq", "offset", "checksum"} or not all(
-            type(v) is int and v >= 0 for v in (mark.seq, mark.offset, mark.checksum)
-        ):
-            raise ValueError("unexpected keys or values")
+        mark = position_from_json(json.loads(raw))
     except (ValueError, KeyError, TypeError, AttributeError) as exc:
         raise CorruptLogError(
             f"corrupt event log {directory}: {path} is damaged ({exc}); the log was not changed "
@@ -920,5 +964,96 @@ def read_durable(directory: Path) -> Durable | None:
 
 
 def write_durable(directory: Path, mark: Durable) -> None:
-    doc = {"seq": mark.seq, "offset": mark.offset, "checksum": f"{mark.checksum:08x}"}
+    doc = position_to_json(mark)
     _fs.write_atomic(directory / DURABLE_FILE, json.dumps(doc, sort_keys=True).encode() + b"\n")
+
+
+def position_to_json(at: LogPosition) -> dict[str, Any]:
+    return {
+        "seq": at.seq,
+        "offset": at.offset,
+        "checksum": f"{at.checksum:08x}",
+        "line": at.line,
+        "time_ns": at.time_ns,
+    }
+
+
+def position_from_json(doc: Any) -> LogPosition:
+    """The inverse of :func:`position_to_json`; ``ValueError`` if ``doc`` is not one."""
+    if not isinstance(doc, dict) or set(doc) != {"seq", "offset", "checksum", "line", "time_ns"}:
+        raise ValueError("unexpected keys")
+    at = LogPosition(
+        seq=doc["seq"],
+        offset=doc["offset"],
+        checksum=int(doc["checksum"], 16),
+        line=doc["line"],
+        time_ns=doc["time_ns"],
+    )
+    if not all(type(v) is int and v >= 0 for v in (at.seq, at.offset, at.line, at.time_ns)):
+        raise ValueError("unexpected values")
+    return at
+
+
+def check_position(directory: Path, meta: LogMeta, at: LogPosition) -> None:
+    """Raise :class:`CorruptLogError` unless the record ending at ``at.offset`` is the one ``at``
+    names (its seq, stored checksum and time): then everything up to it can be resumed from."""
+    path = directory / LOG_FILE
+    if at.seq == 0:
+        return
+    problem = None
+    try:
+        with path.open("rb") as f:
+            size = f.seek(0, os.SEEK_END)
+            start = max(0, at.offset - (1 << 20))
+            f.seek(start)
+            window = f.read(at.offset - start)
+    except FileNotFoundError:
+        size, window = 0, b""
+    if size < at.offset:
+        problem = f"the file ends at byte {size}, before the record of seq {at.seq}"
+    elif not window.endswith(b"\n"):
+        problem = f"no record ends at byte {at.offset}"
+    else:
+        line = window[window.rfind(b"\n", 0, len(window) - 1) + 1 : -1]
+        body, _, crc = line.rpartition(b"\t")
+        try:
+            doc = json.loads(body)
+            same = (
+                isinstance(doc, dict)
+                and crc == b"%08x" % at.checksum
+                and doc.get("seq") == at.seq
+                and doc.get("time_ns") == at.time_ns
+                and doc.get("stream") == meta.stream
+            )
+        except ValueError:
+            same = False
+        if not same:
+            problem = f"the record ending at byte {at.offset} is not seq {at.seq} as recorded"
+    if problem is not None:
+        raise CorruptLogError(
+            f"corrupt event log {path}: line {at.line} (byte offset {at.offset}): {problem}; "
+            "the log was not changed (`objsearch log repair` keeps what it removes)",
+            path=str(path),
+            line=at.line,
+            offset=at.offset,
+        )
+
+
+def read_log_after(
+    directory: Path | str, position: LogPosition, *, upcast: bool = True
+) -> Iterator[Event]:
+    """The events after ``position`` (checked to be where it says), verified like
+    :func:`read_log` from there on; the prefix is not read (a restart from a snapshot)."""
+    directory = Path(directory)
+    meta = read_meta(directory)
+    check_position(directory, meta, position)
+    durable = read_durable(directory)
+    scan = _Scan(
+        directory / LOG_FILE,
+        meta,
+        registry=default_registry(),
+        durable=durable if durable is not None and durable.seq > position.seq else None,
+        start=position,
+    )
+    events: Iterator[Event] = iter(scan)
+    return _upcast_all(events) if upcast else events

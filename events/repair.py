@@ -17,8 +17,8 @@ from .log import (
     DURABLE_FILE,
     LOCK_FILE,
     LOG_FILE,
-    Durable,
     LogMeta,
+    LogPosition,
     _flock,
     _Scan,
     quarantine,
@@ -113,7 +113,8 @@ def _repair_locked(directory: Path, meta: LogMeta, fd: int) -> Repair:
     except CorruptLogError:
         quarantine(directory, "durable-damaged", (directory / DURABLE_FILE).read_bytes())
         durable = None
-    problem, end, last_seq, checksum, events = _clean_prefix(path, meta)
+    problem, mark, events = _clean_prefix(path, meta)
+    end, last_seq = mark.offset, mark.seq
     kept: Path | None = None
     if problem is not None and _is_crlf(data):
         converted = data.replace(b"\r\n", b"\n")
@@ -123,12 +124,12 @@ def _repair_locked(directory: Path, meta: LogMeta, fd: int) -> Repair:
             result = _clean_prefix(candidate, meta)
         finally:
             candidate.unlink()
-        if result[0] is None and result[1] == len(converted):
+        if result[0] is None and result[1].offset == len(converted):
             kept = quarantine(directory, "crlf", data)
             _fs.write_atomic(path, converted)
-            _, end, last_seq, checksum, events = result
-            write_durable(directory, Durable(seq=last_seq, offset=end, checksum=checksum))
-            return Repair(directory, True, events, last_seq, 0, 0, problem, kept, None)
+            _, mark, events = result
+            write_durable(directory, mark)
+            return Repair(directory, True, events, mark.seq, 0, 0, problem, kept, None)
     removed = data[end:]
     if removed:
         kept = quarantine(directory, f"repair-{end}", removed)
@@ -137,7 +138,6 @@ def _repair_locked(directory: Path, meta: LogMeta, fd: int) -> Repair:
     missing = None
     if durable is not None and durable.seq > last_seq:
         missing = (last_seq + 1, durable.seq)
-    mark = Durable(seq=last_seq, offset=end, checksum=checksum)
     changed = bool(removed) or (durable != mark and last_seq > 0)
     if changed and last_seq > 0:
         write_durable(directory, mark)
@@ -158,8 +158,8 @@ def _repair_locked(directory: Path, meta: LogMeta, fd: int) -> Repair:
     )
 
 
-def _clean_prefix(path: Path, meta: LogMeta) -> tuple[str | None, int, int, int, int]:
-    """(first problem, end offset, last seq, checksum, events) of the longest clean prefix."""
+def _clean_prefix(path: Path, meta: LogMeta) -> tuple[str | None, LogPosition, int]:
+    """(first problem, where the longest clean prefix ends, its events)."""
     scan = _Scan(path, meta, registry=default_registry())
     events = 0
     problem = None
@@ -170,7 +170,8 @@ def _clean_prefix(path: Path, meta: LogMeta) -> tuple[str | None, int, int, int,
         problem = str(exc)
     if problem is None and scan.torn_tail is not None:
         problem = f"unterminated fragment of {scan.torn_tail.length} byte(s) at the end"
-    return problem, scan.at.offset, scan.at.seq, scan.at.checksum, events
+    at = scan.at
+    return problem, LogPosition(at.seq, at.offset, at.checksum, at.line, at.time_ns), events
 
 
 def _is_crlf(data: bytes) -> bool:

@@ -23,7 +23,16 @@ from typing import Any, ClassVar, Final, Protocol, TypeVar
 
 from . import _fs
 from .envelope import Event
-from .log import read_log
+from .errors import EventStoreError
+from .log import (
+    LogPosition,
+    check_position,
+    position_from_json,
+    position_to_json,
+    read_log,
+    read_log_after,
+    read_meta,
+)
 from .projection import fold
 from .record import encode_record
 
@@ -66,15 +75,28 @@ def snapshot_path(directory: Path, name: str) -> Path:
     return directory / f"{name}.snapshot.json"
 
 
-def save_snapshot(directory: Path | str, projection: Snapshottable, *, log_dir: Path | str) -> Path:
-    """Write ``projection``'s snapshot (at its ``last_seq``) for the log at ``log_dir``."""
+def save_snapshot(
+    directory: Path | str,
+    projection: Snapshottable,
+    *,
+    log_dir: Path | str,
+    position: LogPosition | None = None,
+) -> Path:
+    """Write ``projection``'s snapshot (at its ``last_seq``) for the log at ``log_dir``.
+
+    ``position`` is where the log stands at that seq (a writer knows it: ``EventLog.position``);
+    with it the snapshot records the chain checksum there, which covers every record before, and
+    a restore resumes reading at that byte instead of reading the log from the start.
+    """
     directory = Path(directory)
     seq = projection.last_seq
-    at = (
-        next(iter(read_log(log_dir, from_seq=seq, to_seq=seq, upcast=False)), None) if seq else None
-    )
-    if seq and at is None:
-        raise ValueError(f"projection is at seq {seq}, beyond the end of {log_dir}")
+    if position is not None and position.seq != seq:
+        raise ValueError(f"position is at seq {position.seq}, the projection at {seq}")
+    at = None
+    if seq and position is None:
+        at = next(iter(read_log(log_dir, from_seq=seq, to_seq=seq, upcast=False)), None)
+        if at is None:
+            raise ValueError(f"projection is at seq {seq}, beyond the end of {log_dir}")
     body = {
         "format": SNAPSHOT_FORMAT,
         "projection": projection.snapshot_name,
@@ -82,6 +104,7 @@ def save_snapshot(directory: Path | str, projection: Snapshottable, *, log_dir: 
         "stream": _stream(log_dir),
         "seq": seq,
         "event": _fingerprint(at) if at else None,
+        "position": None if position is None else position_to_json(position),
         "state": projection.to_snapshot(),
     }
     text = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False)
@@ -107,16 +130,20 @@ def restore(
     rejected = None
     projection = fresh
     start = 0
+    position = None
     if path.exists():
         try:
-            state, seq = _load(path, fresh, log_dir)
+            state, seq, position = _load(path, fresh, log_dir)
             projection = from_snapshot(state, seq)
             start = seq
         except _Untrusted as exc:
             rejected = str(exc)
             _log.info("snapshot %s not used, rebuilding: %s", path, rejected)
     before = projection.last_seq
-    fold(read_log(log_dir, from_seq=start + 1), projection)
+    if position is not None:
+        fold(read_log_after(log_dir, position), projection)
+    else:
+        fold(read_log(log_dir, from_seq=start + 1), projection)
     if save and (projection.last_seq != start or rejected is not None or not path.exists()):
         save_snapshot(snapshot_dir, projection, log_dir=log_dir)
     return projection, Restored(start, projection.last_seq - before, rejected)
@@ -126,7 +153,9 @@ class _Untrusted(Exception):
     pass
 
 
-def _load(path: Path, fresh: Snapshottable, log_dir: Path | str) -> tuple[dict[str, Any], int]:
+def _load(
+    path: Path, fresh: Snapshottable, log_dir: Path | str
+) -> tuple[dict[str, Any], int, LogPosition | None]:
     raw = path.read_bytes().rstrip(b"\n")
     text, sep, crc = raw.rpartition(b',"crc32":"')
     if not sep or crc != b"%08x" % zlib.crc32(text + b"}") + b'"}':
@@ -149,11 +178,22 @@ def _load(path: Path, fresh: Snapshottable, log_dir: Path | str) -> tuple[dict[s
     seq = doc.get("seq")
     if not isinstance(seq, int) or seq < 0:
         raise _Untrusted(f"bad seq {seq!r}")
+    if doc.get("position") is not None:
+        try:
+            position = position_from_json(doc["position"])
+            if position.seq != seq:
+                raise ValueError(f"position at seq {position.seq}, snapshot at {seq}")
+            check_position(Path(log_dir), read_meta(Path(log_dir)), position)
+        except (ValueError, KeyError, TypeError, EventStoreError) as exc:
+            raise _Untrusted(
+                f"the log at the snapshot's position is not what it saw: {exc}"
+            ) from None
+        return doc["state"], seq, position
     if seq:
         at = next(iter(read_log(log_dir, from_seq=seq, to_seq=seq, upcast=False)), None)
         if at is None or _fingerprint(at) != doc.get("event"):
             raise _Untrusted(f"the log's event at seq {seq} is not the one the snapshot saw")
-    return doc["state"], seq
+    return doc["state"], seq, None
 
 
 def _fingerprint(event: Event) -> str:

@@ -11,10 +11,15 @@ EXAMPLES: dict[str, dict[str, Any]] = {
     "run_started": {
         "home": "paper-4room",
         "home_digest": "sha256:0123abcd",
+        "strategy": "wpl-neg-decay",
         "method": "wpl",
+        "planner": "wpl",
+        "relations": {"model": "beta", "prior_strength": 2.0, "half_life_tasks": 64.0},
         "alpha": 10.0,
         "update_mode": "targets",
         "seed": 7,
+        "support_radius": 0.5,
+        "schedule": "stats-3",
         "params": {"fov_deg": 90, "nested": {"ok": [1, 2]}},
     },
     "scene_graph_seeded": {
@@ -58,6 +63,7 @@ EXAMPLES: dict[str, dict[str, Any]] = {
     "target_found": {"instance_id": "Cup|3", "position": [1.0, 2.0, 0.9], "approach": POSE},
     "search_failed": {"reason": "all candidates visited"},
     "task_ended": {"target": "Cup", "success": True, "path_length": 12.5},
+    "task_aborted": {"target": "Cup", "reason": "restart", "path_length": 3.25},
     "pose_observed": {"pose": POSE, "frame_id": "map", "topic": "/odom"},
     "objects_detected": {
         "frame_id": "map",
@@ -77,6 +83,15 @@ EXAMPLES: dict[str, dict[str, Any]] = {
 #: Payloads of superseded versions, keyed (type, version); the upcast of each must equal
 #: ``EXAMPLES[type]`` where noted in the tests.
 OLD_EXAMPLES: dict[tuple[str, int], dict[str, Any]] = {
+    ("run_started", 1): {
+        "home": "paper-4room",
+        "home_digest": "sha256:0123abcd",
+        "method": "wpl",
+        "alpha": 10.0,
+        "update_mode": "targets",
+        "seed": 7,
+        "params": {"strategy": "wpl-neg-decay", "support_radius": 0.5, "schedule": "stats-3"},
+    },
     ("detection", 1): {
         "object_class": "Cup",
         "instance_id": "Cup|3",
@@ -89,4 +104,4 @@ OLD_EXAMPLES: dict[tuple[str, int], dict[str, Any]] = {
     },
 }
 
-LATEST: dict[str, int] = {t: 1 for t in EXAMPLES} | {"detection": 2}
+LATEST: dict[str, int] = {t: 1 for t in EXAMPLES} | {"detection": 2, "run_started": 2}
