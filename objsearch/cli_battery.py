@@ -172,14 +172,25 @@ def cases(
                 )
 
 
-def run_in_process(argv: Sequence[str]) -> Outcome:
-    """``objsearch.cli.main(argv)`` with its output captured; a traceback is caught and kept."""
+def run_in_process(argv: Sequence[str], *, guard: argparse.ArgumentParser | None = None) -> Outcome:
+    """``objsearch.cli.main(argv)`` with its output captured; a traceback is caught and kept.
+
+    With ``guard`` (a parser from ``build_parser``) a command line that parses is not run but
+    reported as ``other``: a malformed value that got through must not start a real search,
+    bench or server inside the battery."""
     import traceback
 
     from objsearch.cli import main
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        if guard is not None:
+            try:
+                guard.parse_args(list(argv))
+            except SystemExit:
+                pass
+            else:
+                return Outcome(0, "", "the command line parsed; not run")
         try:
             code = main(list(argv))
         except BaseException:

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch import cli_types as t
+from objsearch.agent.errors import ObjsearchError
 from objsearch.outdir import claim
 
 #: What bench paper and bench homes write into --out (an earlier run's files are replaced).
@@ -37,6 +38,11 @@ def cmd_bench_paper(args: argparse.Namespace) -> int:
     from objsearch.experiments.runner import TARGETS
 
     targets = args.targets or list(TARGETS)
+    unknown = [name for name in targets if name not in TARGETS]
+    if unknown:
+        raise ObjsearchError(
+            f"--targets: {', '.join(unknown)} not among the eight targets ({', '.join(TARGETS)})"
+        )
     out = Path(args.out)
     with claim(out, command="bench paper", owns=PAPER_OUTPUTS, replace_needs_force=False):
         summary = run_paper(

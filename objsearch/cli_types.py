@@ -11,7 +11,9 @@ from __future__ import annotations
 import argparse
 import ipaddress
 import math
+import os
 import re
+import stat
 from collections.abc import Callable
 from pathlib import Path
 from typing import NoReturn
@@ -138,73 +140,84 @@ def name_list(value: str) -> list[str]:
     return [text(p) for p in parts]
 
 
-def _path(value: str) -> Path:
+def _kind(value: str) -> str:
+    """``missing``, ``dir`` or ``file`` for a path given on the command line."""
     if not value.strip():
         raise argparse.ArgumentTypeError("the path is empty")
     if "\0" in value:
         raise argparse.ArgumentTypeError("the path holds a NUL character")
-    return Path(value)
+    try:
+        st = os.stat(value)
+    except FileNotFoundError:
+        return "missing"
+    except NotADirectoryError:
+        raise argparse.ArgumentTypeError(f"{value}: a part of it is a file, not a folder") from None
+    except OSError as exc:  # a name too long, a loop of links, no permission to look
+        raise argparse.ArgumentTypeError(f"{value[:200]}: {exc.strerror or exc}") from None
+    return "dir" if stat.S_ISDIR(st.st_mode) else "file"
 
 
-def _not_under_a_file(path: Path) -> None:
-    for parent in path.absolute().parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise argparse.ArgumentTypeError(f"{parent} is a file, not a folder")
+def _not_under_a_file(value: str) -> None:
+    for parent in Path(value).absolute().parents:
+        kind = _kind(str(parent))
+        if kind == "file":
+            raise argparse.ArgumentTypeError(f"{parent} is a file, not a folder")
+        if kind == "dir":
             return
 
 
 def existing_dir(value: str) -> str:
     """A folder that exists."""
-    path = _path(value)
-    if not path.exists():
+    kind = _kind(value)
+    if kind == "missing":
         raise argparse.ArgumentTypeError(f"no such folder: {value}")
-    if not path.is_dir():
+    if kind != "dir":
         raise argparse.ArgumentTypeError(f"{value} is a file, not a folder")
     return value
 
 
 def existing_file(value: str) -> str:
     """A file that exists (not a folder)."""
-    path = _path(value)
-    if not path.exists():
+    kind = _kind(value)
+    if kind == "missing":
         raise argparse.ArgumentTypeError(f"no such file: {value}")
-    if path.is_dir():
+    if kind == "dir":
         raise argparse.ArgumentTypeError(f"{value} is a folder, not a file")
     return value
 
 
 def existing_path(value: str) -> str:
     """A file or folder that exists (a ROS 1 bag is a file, a ROS 2 bag a folder)."""
-    if not _path(value).exists():
+    if _kind(value) == "missing":
         raise argparse.ArgumentTypeError(f"no such file or folder: {value}")
     return value
 
 
 def dir_path(value: str) -> str:
     """A folder to write or append to: it may not exist yet, but it is not a file."""
-    path = _path(value)
-    if path.exists() and not path.is_dir():
+    kind = _kind(value)
+    if kind == "file":
         raise argparse.ArgumentTypeError(f"{value} is a file, not a folder")
-    _not_under_a_file(path)
+    if kind == "missing":
+        _not_under_a_file(value)
     return value
 
 
 def file_path(value: str) -> str:
     """A file to write: it may not exist yet, but it is not a folder."""
-    path = _path(value)
-    if path.is_dir():
+    kind = _kind(value)
+    if kind == "dir":
         raise argparse.ArgumentTypeError(f"{value} is a folder, not a file")
-    _not_under_a_file(path)
+    if kind == "missing":
+        _not_under_a_file(value)
     return value
 
 
 def new_path(value: str) -> str:
     """A file or folder that does not exist yet (outputs that are never overwritten)."""
-    path = _path(value)
-    if path.exists():
+    if _kind(value) != "missing":
         raise argparse.ArgumentTypeError(f"{value} already exists; choose a new name")
-    _not_under_a_file(path)
+    _not_under_a_file(value)
     return value
 
 

@@ -73,8 +73,13 @@ class OutputDir:
         tmp.replace(self.path / MANIFEST)
 
     def finish(self) -> None:
-        """Record every file now under the owned entries as this command's."""
-        self._write_manifest(list(_files_under(self.path, self.owns)), complete=True)
+        """Record every file now under the owned entries as this command's; a run that wrote
+        nothing (it failed before its first file) gives the folder back."""
+        files = list(_files_under(self.path, self.owns))
+        if files:
+            self._write_manifest(files, complete=True)
+        else:
+            (self.path / MANIFEST).unlink(missing_ok=True)
 
     def __enter__(self) -> OutputDir:
         return self

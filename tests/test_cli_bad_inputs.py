@@ -42,11 +42,12 @@ def test_every_option_is_validated() -> None:
 def test_malformed_values_are_clear_errors(command: str, scratch: Path) -> None:
     wanted = {*CI_VALUES, *(str(scratch / p) for p in CI_PATHS)}
     tried, failures = 0, []
-    for case in battery.cases(build_parser(), scratch):
+    parser = build_parser()
+    for case in battery.cases(parser, scratch):
         if " ".join(case.command) != command or not case.invalid or case.value not in wanted:
             continue
         tried += 1
-        outcome = battery.run_in_process(case.argv)
+        outcome = battery.run_in_process(case.argv, guard=parser)
         if outcome.verdict != "clear error" or f"argument {case.option}" not in outcome.stderr:
             failures.append(f"{case.argv}: exit {outcome.code}: {outcome.stderr[-300:]}")
     assert not failures, "\n".join(failures)
@@ -82,6 +83,7 @@ def _run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedP
         (["agent", "run", "--log", "log", "--listen", "garbage"], "zenoh endpoint"),
         (["bench", "paper", "--scenes", "99"], "between 1 and 10, not 99"),
         (["demo", "--out", ""], "the path is empty"),
+        (["bench", "paper", "--targets", "Cat"], "Cat not among the eight targets"),
     ],
 )
 def test_bad_inputs_in_a_real_process(tmp_path: Path, args: list[str], message: str) -> None:
