@@ -39,6 +39,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/events.py $(BENCH_ARGS)
 	$(BIN)/python benchmarks/ingest.py
 	$(BIN)/python benchmarks/bench_paper.py
+	$(BIN)/python benchmarks/bad_inputs.py
 
 data: $(STAMP)
 	$(BIN)/objsearch data build --source $(SHARED)

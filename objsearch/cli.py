@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import io
 import json
 import logging
 import os
@@ -15,6 +16,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from objsearch import cli_types as t
 from objsearch.agent.errors import ObjsearchError
 
 if TYPE_CHECKING:
@@ -153,6 +155,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         force=args.force,
         progress=not args.no_progress,
         baseline=not args.no_baseline,
+        strategy=args.strategy,
     )
 
 
@@ -196,7 +199,7 @@ COMMAND_MODULES: tuple[str, ...] = (
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = t.Parser(
         prog="objsearch",
         description="Long-term object search with an incrementally updated scene graph.",
     )
@@ -205,11 +208,19 @@ def build_parser() -> argparse.ArgumentParser:
     data = sub.add_parser("data", help="derive the project's data from public sources")
     data_sub = data.add_subparsers(dest="data_command", required=True, metavar="SUBCOMMAND")
     build = data_sub.add_parser("build", help="convert ../shared/data into data/")
-    build.add_argument("--source", required=True, help="the shared data folder (../shared/data)")
-    build.add_argument("--out", default=str(_default_data_dir()), help="output folder (data/)")
+    build.add_argument(
+        "--source",
+        required=True,
+        type=t.existing_dir,
+        help="the shared data folder (../shared/data)",
+    )
+    build.add_argument(
+        "--out", default=str(_default_data_dir()), type=t.dir_path, help="output folder (data/)"
+    )
     build.add_argument(
         "--home",
         action="append",
+        type=t.text,
         metavar="NAME=K,L,B,W",
         help="a home from four iTHOR FloorPlans: kitchen, living room, bedroom, bathroom "
         "(default: paper=FloorPlan2,FloorPlan201,FloorPlan303,FloorPlan401)",
@@ -217,21 +228,26 @@ def build_parser() -> argparse.ArgumentParser:
     build.set_defaults(func=cmd_data_build)
 
     search = sub.add_parser("search", help="run one search in the simulated home")
-    search.add_argument("--target", required=True, help="object to find, e.g. Apple, phone, cup")
-    search.add_argument("--start", required=True, help="start point, e.g. kitchen-1")
+    search.add_argument(
+        "--target", required=True, type=t.text, help="object to find, e.g. Apple, phone, cup"
+    )
+    search.add_argument("--start", required=True, type=t.text, help="start point, e.g. kitchen-1")
     _search_options(search)
     search.add_argument(
         "--scene",
-        type=int,
+        type=t.SCENE,
         help="place objects as in this scene of the schedule "
         "(default: the home's own placements, with the paper's Table I removals)",
     )
     search.add_argument(
         "--schedule",
         default="table2",
+        type=t.text,
         help="placement schedule: table2, stats-<seed> or rearr-<seed> (table2)",
     )
-    search.add_argument("--log", help="event log folder to append to (default: a temporary one)")
+    search.add_argument(
+        "--log", type=t.dir_path, help="event log folder to append to (default: a temporary one)"
+    )
     search.add_argument(
         "--update-mode",
         default="all",
@@ -244,16 +260,29 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser(
         "demo", help="the long-term schedule (10 scenes × 8 targets × 8 starts) with updates"
     )
-    demo.add_argument("--out", default="out/demo", help="output folder (out/demo)")
-    demo.add_argument("--home", default="paper")
-    demo.add_argument("--force", action="store_true", help="replace an earlier demo in --out")
+    demo.add_argument("--out", default="out/demo", type=t.dir_path, help="output folder (out/demo)")
+    demo.add_argument("--home", default="paper", type=t.text, help="home in data/homes (paper)")
+    demo.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an earlier demo in --out (only the files that demo wrote; a folder holding "
+        "anything else is refused)",
+    )
     demo.add_argument("--no-progress", action="store_true", help="no progress bar")
     demo.add_argument("--no-baseline", action="store_true", help="skip the no-update baseline run")
+    demo.add_argument(
+        "--strategy",
+        default="wpl",
+        choices=_strategy_names(),
+        help="search strategy (wpl, the paper's method)",
+    )
     demo.set_defaults(func=cmd_demo)
 
     graph = sub.add_parser("graph", help="print the scene graph projection of a log")
-    graph.add_argument("--log", required=True, help="event log folder")
-    graph.add_argument("--at", type=int, help="as it was right after this sequence number")
+    graph.add_argument("--log", required=True, type=t.existing_dir, help="event log folder")
+    graph.add_argument(
+        "--at", type=t.int_range(0), help="as it was right after this sequence number"
+    )
     graph.add_argument("--json", action="store_true")
     graph.set_defaults(func=cmd_graph)
 
@@ -262,8 +291,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _strategy_names() -> list[str]:
+    from objsearch.agent.strategies import STRATEGIES
+
+    return list(STRATEGIES)
+
+
 def _search_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--home", default="paper", help="home in data/homes (paper)")
+    p.add_argument("--home", default="paper", type=t.text, help="home in data/homes (paper)")
     from objsearch.agent.strategies import DEFAULT_STRATEGY, STRATEGIES
 
     p.add_argument(
@@ -273,8 +308,8 @@ def _search_options(p: argparse.ArgumentParser) -> None:
         help=f"search strategy: the paper's wpl/rvp/sdp or ours ({DEFAULT_STRATEGY}); "
         "objsearch bench compares them",
     )
-    p.add_argument("--alpha", type=float, default=10.0, help="α of Eq. 3 (10)")
-    p.add_argument("--seed", type=int, default=0, help="seed (SDP's random room order)")
+    p.add_argument("--alpha", type=t.ALPHA, default=10.0, help="alpha of Eq. 3, 0-1000 (10)")
+    p.add_argument("--seed", type=t.SEED, default=0, help="seed (SDP's random room order)")
 
 
 def _default_data_dir() -> Path:
@@ -283,25 +318,55 @@ def _default_data_dir() -> Path:
     return data_dir()
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    from objsearch.events import EventStoreError, TornTailWarning
+def expected_errors() -> tuple[type[BaseException], ...]:
+    """The error roots that mean bad input or a bad environment, not a bug: the CLI reports them
+    as ``objsearch: error: …`` (exit 2); anything else still ends in a traceback."""
+    from objsearch.events import EventStoreError
+    from objsearch.pipeline.errors import BuildError
 
+    return (ObjsearchError, EventStoreError, BuildError)
+
+
+def _describe(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{exc.filename}: {exc.strerror}" if exc.filename else exc.strerror
+    return str(exc) or type(exc).__name__
+
+
+def _tolerate_narrow_terminals() -> None:
+    """Characters the terminal cannot show (α, →, ° on an ASCII-only one) are written as
+    escapes instead of ending the command with UnicodeEncodeError."""
+    for stream in (sys.stdout, sys.stderr):
+        if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
+            stream.reconfigure(errors="backslashreplace")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from objsearch.events import TornTailWarning
+
+    _tolerate_narrow_terminals()
     # The event store reports a cut torn tail through logging (for the robot's journal) and as a
     # warning (for library users); on the command line the log line alone is enough.
     logging.basicConfig(format="objsearch: %(levelname)s: %(message)s", level=logging.WARNING)
     warnings.filterwarnings("ignore", category=TornTailWarning)
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, or a bad option (already reported as objsearch: error:)
+        return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     try:
         code: int = args.func(args)
-    except (ObjsearchError, EventStoreError) as exc:
-        return _fail(str(exc))
+    except expected_errors() as exc:
+        return _fail(_describe(exc))
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:
         # Output piped into `head` and the like: stop quietly, as Unix tools do.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as exc:
+        # The machine said no (disk full, permission denied, a path that vanished): not a bug.
+        return _fail(_describe(exc))
     return code
 
 

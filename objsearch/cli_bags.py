@@ -7,6 +7,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from objsearch import cli_types as t
+
+#: Odometry rates a robot publishes at; faster ones only multiply the bag's size (1 kHz for the
+#: hour of a full schedule is millions of messages held in memory before they are written).
+ODOM_HZ = t.float_range(0.0, 200.0, lo_open=True)
+#: Views per room of a mapping sweep (each view is ~2.8 MB; objsearch map build uses 4).
+POINTS_PER_ROOM = t.int_range(1, 32)
+
 
 def _topic_map(args: argparse.Namespace) -> Any:
     from objsearch.pipeline.bags.topics import TopicMap
@@ -73,7 +81,9 @@ def cmd_ingest(args: argparse.Namespace) -> int:
     from objsearch.pipeline.bags.engines import make_engine
     from objsearch.pipeline.bags.ingest import IngestResult, ingest
 
-    engine = make_engine(args.engine, workers=args.workers, address=args.address)
+    # More workers than bags would only start idle processes.
+    workers = min(args.workers, len(args.bags))
+    engine = make_engine(args.engine, workers=workers, address=args.address)
     topic_map = _topic_map(args)
     failed = 0
 
@@ -107,19 +117,28 @@ def register(sub: Any) -> None:
         "record", help="run searches in the simulator and write them as a robot's ROS bag"
     )
     rec.add_argument(
-        "--out", required=True, help="bag to write: NAME.bag (ros1) or a directory (ros2)"
+        "--out",
+        required=True,
+        type=t.new_path,
+        help="bag to write: NAME.bag (ros1) or a directory (ros2); never overwritten",
     )
     rec.add_argument(
-        "--format", required=True, help="ros1, ros2-sqlite3 or ros2-mcap", metavar="FORMAT"
+        "--format",
+        required=True,
+        type=t.text,
+        help="ros1, ros2-sqlite3 or ros2-mcap",
+        metavar="FORMAT",
     )
-    rec.add_argument("--home", default="paper")
-    rec.add_argument("--scenes", type=int, nargs="+", help="scenes of the schedule (all)")
-    rec.add_argument("--targets", nargs="+", help="targets to search for (all eight)")
-    rec.add_argument("--starts", nargs="+", help="start points, e.g. kitchen-1 (all)")
-    rec.add_argument("--log", help="also keep the agent's own event log here")
-    rec.add_argument("--topics", help="topic map override (.toml or .json)")
-    rec.add_argument("--odom-hz", type=float, default=10.0, help="odometry rate (10)")
-    rec.add_argument("--seed", type=int, default=0)
+    rec.add_argument("--home", default="paper", type=t.text, help="home in data/homes (paper)")
+    rec.add_argument("--scenes", type=t.SCENE, nargs="+", help="scenes of the schedule (all)")
+    rec.add_argument("--targets", nargs="+", type=t.text, help="targets to search for (all eight)")
+    rec.add_argument("--starts", nargs="+", type=t.text, help="start points, e.g. kitchen-1 (all)")
+    rec.add_argument("--log", type=t.dir_path, help="also keep the agent's own event log here")
+    rec.add_argument("--topics", type=t.existing_file, help="topic map override (.toml or .json)")
+    rec.add_argument(
+        "--odom-hz", type=ODOM_HZ, default=10.0, help="odometry rate, above 0 and up to 200 (10)"
+    )
+    rec.add_argument("--seed", type=t.SEED, default=0, help="seed (0)")
     rec.add_argument(
         "--mapping-sweep",
         action="store_true",
@@ -127,23 +146,31 @@ def register(sub: Any) -> None:
         "instance masks (mono16 + the detections as label table), camera info and TF per view "
         "(large: ~2.8 MB a view; the paper home at 4 points per room is 128 views)",
     )
-    rec.add_argument("--rooms", nargs="+", help="rooms to sweep (all; with --mapping-sweep)")
+    rec.add_argument(
+        "--rooms", nargs="+", type=t.text, help="rooms to sweep (all; with --mapping-sweep)"
+    )
     rec.add_argument(
         "--points-per-room",
-        type=int,
-        help="sampling points per room (4, as objsearch map build; with --mapping-sweep)",
+        type=POINTS_PER_ROOM,
+        help="sampling points per room, 1-32 (4, as objsearch map build; with --mapping-sweep)",
     )
     rec.set_defaults(func=cmd_record)
 
     ing = sub.add_parser("ingest", help="read ROS bags (ROS 1, ROS 2 sqlite3, MCAP) into the lake")
-    ing.add_argument("bags", nargs="+", metavar="BAG", help=".bag files or ROS 2 bag directories")
-    ing.add_argument("--lake", required=True, help="the event lake directory")
+    ing.add_argument(
+        "bags",
+        nargs="+",
+        metavar="BAG",
+        type=t.existing_path,
+        help=".bag files or ROS 2 bag directories",
+    )
+    ing.add_argument("--lake", required=True, type=t.dir_path, help="the event lake directory")
     ing.add_argument(
         "--workers",
-        type=int,
+        type=t.int_range(1, t.MAX_WORKERS),
         default=1,
-        help="bags ingested in parallel (1); with --engine ray and no --address, the CPUs of "
-        "the local Ray instance",
+        help=f"bags ingested in parallel, 1-{t.MAX_WORKERS} and at most one per bag (1); with "
+        "--engine ray and no --address, the CPUs of the local Ray instance",
     )
     ing.add_argument(
         "--engine",
@@ -152,9 +179,13 @@ def register(sub: Any) -> None:
         help="local processes (default) or Ray tasks (needs objsearch[fleet])",
     )
     ing.add_argument(
-        "--address", help="Ray cluster address (e.g. ray://head:10001 or auto); --engine ray only"
+        "--address",
+        type=t.ray_address,
+        help="Ray cluster address (e.g. ray://head:10001 or auto); --engine ray only",
     )
-    ing.add_argument("--robot", default="robot", help="robot name, the lake's first partition")
-    ing.add_argument("--topics", help="topic map override (.toml or .json)")
+    ing.add_argument(
+        "--robot", default="robot", type=t.text, help="robot name, the lake's first partition"
+    )
+    ing.add_argument("--topics", type=t.existing_file, help="topic map override (.toml or .json)")
     ing.add_argument("--no-progress", action="store_true", help="no progress bar")
     ing.set_defaults(func=cmd_ingest)

@@ -8,6 +8,14 @@ import os
 from pathlib import Path
 from typing import Any
 
+from objsearch import cli_types as t
+from objsearch.agent.errors import ObjsearchError
+from objsearch.outdir import claim
+
+#: What bench paper and bench homes write into --out (an earlier run's files are replaced).
+PAPER_OUTPUTS = ("paper_trials.parquet", "paper_trials.csv", "summary.json", "tables.txt", "logs")
+HOMES_OUTPUTS = ("homes_trials.parquet", "homes_trials.csv", "summary.json", "tables.txt")
+
 
 def _strategies(text: str | None, default: str) -> list[str]:
     from objsearch.experiments.strategies import PAPER_STRATEGIES, STRATEGIES
@@ -21,6 +29,7 @@ def _strategies(text: str | None, default: str) -> list[str]:
 
 
 def _workers(args: argparse.Namespace) -> int:
+    # run_jobs also never starts more processes than there are jobs.
     return max(1, args.workers if args.workers else min(2, os.cpu_count() or 1))
 
 
@@ -28,17 +37,24 @@ def cmd_bench_paper(args: argparse.Namespace) -> int:
     from objsearch.experiments.paper import render, run_paper
     from objsearch.experiments.runner import TARGETS
 
-    targets = [t.strip() for t in args.targets.split(",")] if args.targets else list(TARGETS)
-    summary = run_paper(
-        Path(args.out),
-        strategies=_strategies(args.strategies, "all"),
-        sdp_seeds=args.sdp_seeds,
-        workers=_workers(args),
-        progress=not args.no_progress and not args.json,
-        targets=targets,
-        scenes=[int(s) for s in args.scenes.split(",")] if args.scenes else None,
-        keep_logs=args.keep_logs,
-    )
+    targets = args.targets or list(TARGETS)
+    unknown = [name for name in targets if name not in TARGETS]
+    if unknown:
+        raise ObjsearchError(
+            f"--targets: {', '.join(unknown)} not among the eight targets ({', '.join(TARGETS)})"
+        )
+    out = Path(args.out)
+    with claim(out, command="bench paper", owns=PAPER_OUTPUTS, replace_needs_force=False):
+        summary = run_paper(
+            out,
+            strategies=_strategies(args.strategies, "all"),
+            sdp_seeds=args.sdp_seeds,
+            workers=_workers(args),
+            progress=not args.no_progress and not args.json,
+            targets=targets,
+            scenes=args.scenes,
+            keep_logs=args.keep_logs,
+        )
     if args.json:
         print(json.dumps(_headline(summary), indent=2))
     else:
@@ -52,16 +68,18 @@ def cmd_bench_paper(args: argparse.Namespace) -> int:
 def cmd_bench_homes(args: argparse.Namespace) -> int:
     from objsearch.experiments.homes import render, run_homes
 
-    summary = run_homes(
-        Path(args.out),
-        homes=[h.strip() for h in args.homes.split(",")] if args.homes else None,
-        strategies=_strategies(args.strategies, "all"),
-        seeds=args.seeds,
-        scenes=args.scenes,
-        workers=_workers(args),
-        progress=not args.no_progress and not args.json,
-        schedules=[k.strip() for k in args.schedules.split(",") if k.strip()],
-    )
+    out = Path(args.out)
+    with claim(out, command="bench homes", owns=HOMES_OUTPUTS, replace_needs_force=False):
+        summary = run_homes(
+            out,
+            homes=args.homes,
+            strategies=_strategies(args.strategies, "all"),
+            seeds=args.seeds,
+            scenes=args.scenes,
+            workers=_workers(args),
+            progress=not args.no_progress and not args.json,
+            schedules=args.schedules,
+        )
     if args.json:
         print(json.dumps(_headline(summary), indent=2))
     else:
@@ -100,33 +118,61 @@ def register(sub: Any) -> None:
     bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="SUBCOMMAND")
 
     def common(p: argparse.ArgumentParser, out: str) -> None:
-        p.add_argument("--out", default=out, help=f"output folder ({out})")
+        p.add_argument("--out", default=out, type=t.dir_path, help=f"output folder ({out})")
         p.add_argument(
             "--strategies",
+            type=t.text,
             help="comma-separated names, 'paper' (sdp,rvp,wpl) or 'all' (default: all)",
         )
-        p.add_argument("--workers", type=int, default=0, help="processes (default: min(2, cores))")
+        p.add_argument(
+            "--workers",
+            type=t.int_range(0, t.MAX_WORKERS),
+            default=0,
+            help=f"processes, at most {t.MAX_WORKERS} and one per job "
+            "(0, the default: min(2, cores))",
+        )
         p.add_argument("--json", action="store_true", help="print a JSON summary per strategy")
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     paper = bsub.add_parser("paper", help="Table I and the long-term experiment on the paper home")
     common(paper, "out/bench-paper")
     paper.add_argument(
-        "--sdp-seeds", type=int, default=20, help="seeds for SDP's random rooms (20)"
+        "--sdp-seeds",
+        type=t.int_range(1, 1000),
+        default=20,
+        help="seeds for SDP's random rooms, 1-1000 (20)",
     )
-    paper.add_argument("--targets", help="comma-separated subset of the eight targets")
-    paper.add_argument("--scenes", help="comma-separated subset of Table II's scenes (1-10)")
+    paper.add_argument(
+        "--targets", type=t.name_list, help="comma-separated subset of the eight targets"
+    )
+    paper.add_argument(
+        "--scenes",
+        type=t.int_list(1, t.MAX_SCENE),
+        help=f"comma-separated subset of Table II's scenes (1-{t.MAX_SCENE})",
+    )
     paper.add_argument("--keep-logs", action="store_true", help="keep long-term event logs")
     paper.set_defaults(func=cmd_bench_paper)
 
     homes = bsub.add_parser("homes", help="every strategy on the held-out homes")
     common(homes, "out/bench-homes")
-    homes.add_argument("--homes", help="comma-separated home names (default: all but 'paper')")
-    homes.add_argument("--seeds", type=int, default=1, help="schedules per home, seeds 0..N-1 (1)")
-    homes.add_argument("--scenes", type=int, help="scenes per schedule (10)")
+    homes.add_argument(
+        "--homes", type=t.name_list, help="comma-separated home names (default: all but 'paper')"
+    )
+    homes.add_argument(
+        "--seeds",
+        type=t.int_range(1, 1000),
+        default=1,
+        help="schedules per home, seeds 0..N-1, N 1-1000 (1)",
+    )
+    homes.add_argument(
+        "--scenes",
+        type=t.int_range(1, t.MAX_SCENE),
+        help=f"scenes per schedule, 1-{t.MAX_SCENE} (10)",
+    )
     homes.add_argument(
         "--schedules",
         default="stats",
+        type=t.name_list,
         help="comma-separated schedule kinds, each run with seeds 0..N-1: stats (drawn from "
         "AI2-THOR placement statistics), rearr (real rearrangement episodes; iTHOR homes only) "
         "(stats)",
@@ -134,17 +180,27 @@ def register(sub: Any) -> None:
     homes.set_defaults(func=cmd_bench_homes)
 
     report = bsub.add_parser("report", help="write docs/results.md from bench outputs")
-    report.add_argument("--paper", default="out/bench-paper", help="bench paper output folder")
-    report.add_argument("--homes", default="out/bench-homes", help="bench homes output folder")
-    report.add_argument("--out", default="docs/results.md")
-    report.add_argument("--img", default="docs/img", help="folder for the PNG plots")
+    report.add_argument(
+        "--paper", default="out/bench-paper", type=t.dir_path, help="bench paper output folder"
+    )
+    report.add_argument(
+        "--homes", default="out/bench-homes", type=t.dir_path, help="bench homes output folder"
+    )
+    report.add_argument(
+        "--out", default="docs/results.md", type=t.file_path, help="the results page to write"
+    )
+    report.add_argument(
+        "--img", default="docs/img", type=t.dir_path, help="folder for the PNG plots"
+    )
     report.add_argument(
         "--rearr",
+        type=t.existing_dir,
         help="a bench homes output with --schedules rearr[,stats]: also write "
         "docs/results-rearrangement.md (results.md only if --paper and --homes outputs exist)",
     )
     report.add_argument(
         "--rearr-out",
+        type=t.file_path,
         help="where the rearrangement page goes (beside --out: results-rearrangement.md)",
     )
     report.set_defaults(func=cmd_bench_report)

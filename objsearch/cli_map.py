@@ -8,6 +8,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from objsearch import cli_types as t
+
 
 def register(sub: Any) -> None:
     smap = sub.add_parser("map", help="the semantic map: show the ground-truth one, or build one")
@@ -16,7 +18,7 @@ def register(sub: Any) -> None:
     show = msub.add_parser(
         "show", help="print the ground-truth semantic map and its agreement with ALFRED"
     )
-    show.add_argument("--home", default="paper", help="home in data/homes (paper)")
+    show.add_argument("--home", default="paper", type=t.text, help="home in data/homes (paper)")
     show.add_argument("--json", action="store_true", help="print JSON")
     show.set_defaults(func=cmd_map_show)
 
@@ -30,30 +32,43 @@ def register(sub: Any) -> None:
     build.add_argument(
         "--home",
         default="paper",
+        type=t.text,
         help="home in data/homes (paper); with --bag it gives the navigation map and the truth",
     )
     build.add_argument(
         "--bag",
+        type=t.existing_path,
         help="build from a bag's depth, instance images + detections, camera info and TF "
         "(objsearch record --mapping-sweep; ROS 1, ROS 2 sqlite3 or MCAP) instead of rendering",
     )
-    build.add_argument("--topics", help="topic map override for --bag (.toml or .json)")
-    build.add_argument("--out", help="write the map here (objsearch.semmap/1 JSON)")
+    build.add_argument(
+        "--topics", type=t.existing_file, help="topic map override for --bag (.toml or .json)"
+    )
+    build.add_argument(
+        "--out", type=t.file_path, help="write the map here (objsearch.semmap/1 JSON)"
+    )
     build.add_argument(
         "--points-per-room",
-        type=int,
+        type=t.int_range(1, 32),
         default=4,
-        help="sampling points per room: 1 is the paper's single median point (4; the bag's "
-        "views with --bag)",
+        help="sampling points per room, 1-32: 1 is the paper's single median point (4; the "
+        "bag's views with --bag)",
     )
-    build.add_argument("--voxel", type=float, default=0.05, help="voxel size, metres (0.05)")
+    build.add_argument(
+        "--voxel",
+        type=t.float_range(0.01, 0.5),
+        default=0.05,
+        help="voxel size, 0.01-0.5 m (0.05)",
+    )
     build.add_argument(
         "--model",
+        type=t.existing_file,
         help="detector model: a torch.export .pt2 or TorchScript file (forward(image) -> masks, labels, scores); "
         "default: the simulator's ground-truth masks",
     )
     build.add_argument(
         "--class-names",
+        type=t.name_list,
         help="comma-separated class names of the model's labels (default: its class_names)",
     )
     build.add_argument(
@@ -61,9 +76,9 @@ def register(sub: Any) -> None:
     )
     build.add_argument(
         "--threads",
-        type=int,
+        type=t.int_range(1, t.MAX_WORKERS),
         default=1,
-        help="torch CPU threads (1: on a shared 2-core CPU one thread fused 6× faster than two; "
+        help=f"torch CPU threads, 1-{t.MAX_WORKERS} (1: on a shared 2-core CPU one thread fused 6× faster than two; "
         "benchmarks/mapping.py)",
     )
     build.add_argument("--json", action="store_true", help="print the report as JSON")
@@ -126,12 +141,6 @@ def cmd_map_build(args: argparse.Namespace) -> int:
     from objsearch.sim.render import SimulatedCamera, SurveyFrames
     from objsearch.sim.schedule import base_placements, table1_removals
 
-    if args.points_per_room < 1:
-        return _fail(f"--points-per-room must be at least 1, not {args.points_per_room}")
-    if not 0.01 <= args.voxel <= 0.5:
-        return _fail(f"--voxel must be between 0.01 and 0.5 m, not {args.voxel}")
-    if args.threads < 1:
-        return _fail(f"--threads must be at least 1, not {args.threads}")
     if args.bag and args.model:
         return _fail("--model does not apply to --bag: the bag's recorded instance masks are used")
     if args.topics and not args.bag:
@@ -141,8 +150,7 @@ def cmd_map_build(args: argparse.Namespace) -> int:
     classes = ctx.vocabulary.names(Category.STATIC)
     detector: Detector
     if args.model:
-        names = args.class_names.split(",") if args.class_names else None
-        detector = TorchDetector(args.model, ctx.vocabulary, class_names=names)
+        detector = TorchDetector(args.model, ctx.vocabulary, class_names=args.class_names)
     else:
         detector = GroundTruthDetector(frozenset(classes))
     config = MappingConfig(voxel=args.voxel, points_per_room=args.points_per_room)

@@ -16,6 +16,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from objsearch import cli_types as t
+
 DEFAULT_LAKE = "out/lake"
 EXIT_USAGE = 2
 
@@ -179,15 +181,21 @@ def register(sub: Any) -> None:
         "See docs/analytics.md.",
     )
     query.add_argument(
-        "sql", help='the query, e.g. "SELECT target, avg(path_length) FROM searches GROUP BY 1"'
+        "sql",
+        type=t.sql,
+        help='the query, e.g. "SELECT target, avg(path_length) FROM searches GROUP BY 1"',
     )
     query.add_argument(
-        "--lake", default=_default_lake(), help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})"
+        "--lake",
+        default=_default_lake(),
+        type=t.dir_path,
+        help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})",
     )
     query.add_argument("--format", choices=["table", "csv", "json"], default="table")
     query.add_argument(
         "--out",
         metavar="PATH",
+        type=t.file_path,
         help="write the result to this file (not inside the lake) instead of stdout; SQL itself "
         "cannot write files",
     )
@@ -196,25 +204,35 @@ def register(sub: Any) -> None:
     lake = sub.add_parser("lake", help="put event logs into the analytics lake, list what it holds")
     lake_sub = lake.add_subparsers(dest="lake_command", required=True, metavar="SUBCOMMAND")
     add = lake_sub.add_parser("add", help="compact a sealed event log into the lake as one run")
-    add.add_argument("log", help="event log folder (its writer must have closed it)")
-    add.add_argument("--robot", required=True, help="robot name (partition)")
-    add.add_argument("--run", help="run name (default: the log's stream)")
-    add.add_argument("--date", help="YYYY-MM-DD (default: the UTC day of the first event)")
+    add.add_argument(
+        "log", type=t.existing_dir, help="event log folder (its writer must have closed it)"
+    )
+    add.add_argument("--robot", required=True, type=t.text, help="robot name (partition)")
+    add.add_argument("--run", type=t.text, help="run name (default: the log's stream)")
+    add.add_argument(
+        "--date", type=t.date, help="YYYY-MM-DD (default: the UTC day of the first event)"
+    )
     add.add_argument("--replace", action="store_true", help="replace the run if it differs")
     add.add_argument(
         "--wait",
-        type=float,
+        type=t.float_range(0.0, 3600.0),
         default=30.0,
         metavar="SECONDS",
         help="how long to wait for another commit to the lake to finish (30; 0: fail at once)",
     )
     add.add_argument(
-        "--lake", default=_default_lake(), help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})"
+        "--lake",
+        default=_default_lake(),
+        type=t.dir_path,
+        help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})",
     )
     add.set_defaults(func=cmd_lake_add)
     ls = lake_sub.add_parser("ls", help="list the runs in the lake")
     ls.add_argument(
-        "--lake", default=_default_lake(), help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})"
+        "--lake",
+        default=_default_lake(),
+        type=t.dir_path,
+        help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})",
     )
     ls.add_argument("--format", choices=["table", "csv", "json"], default="table")
     ls.set_defaults(func=cmd_lake_ls)
@@ -224,6 +242,9 @@ def register(sub: Any) -> None:
         "by older code lack; queries are correct without them, only slower",
     )
     upgrade.add_argument(
-        "--lake", default=_default_lake(), help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})"
+        "--lake",
+        default=_default_lake(),
+        type=t.dir_path,
+        help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})",
     )
     upgrade.set_defaults(func=cmd_lake_upgrade)

@@ -7,6 +7,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from objsearch import cli_types as t
+
 
 def register(sub: Any) -> None:
     rp = sub.add_parser(
@@ -16,13 +18,22 @@ def register(sub: Any) -> None:
         "task, pose) and plans again with today's code. Exit status 0 when every decision is "
         "the same, 1 when any differs.",
     )
-    rp.add_argument("log", metavar="LOG|LAKE", help="event log folder, or a lake (with --run)")
-    rp.add_argument("--run", help="the lake run to replay (objsearch lake ls lists them)")
-    rp.add_argument("--robot", help="the robot whose run it is, if run names repeat")
-    rp.add_argument("--until", type=int, metavar="SEQ", help="stop after this event")
-    rp.add_argument("--alpha", type=float, help="replay with another α (Eq. 3)")
+    rp.add_argument(
+        "log",
+        metavar="LOG|LAKE",
+        type=t.existing_dir,
+        help="event log folder, or a lake (with --run)",
+    )
+    rp.add_argument(
+        "--run", type=t.text, help="the lake run to replay (objsearch lake ls lists them)"
+    )
+    rp.add_argument("--robot", type=t.text, help="the robot whose run it is, if run names repeat")
+    rp.add_argument("--until", type=t.int_range(0), metavar="SEQ", help="stop after this event")
+    rp.add_argument("--alpha", type=t.ALPHA, help="replay with another alpha (Eq. 3), 0-1000")
     rp.add_argument("--method", choices=["wpl", "rvp", "sdp"], help="replay with another method")
-    rp.add_argument("--strategy", help="replay with a bench strategy (e.g. epl, wpl-neg-decay)")
+    rp.add_argument(
+        "--strategy", type=t.text, help="replay with a bench strategy (e.g. epl, wpl-neg-decay)"
+    )
     rp.add_argument("--json", action="store_true", help="print every decision as JSON")
     rp.add_argument("--all", action="store_true", help="list unchanged decisions too")
     rp.set_defaults(func=cmd_replay)
@@ -33,20 +44,39 @@ def register(sub: Any) -> None:
         description="Writes index.md and one Markdown file per task (with a route PNG for "
         "flagged tasks, or all with --plots all) to --out.",
     )
-    au.add_argument("log", metavar="LOG|LAKE", help="event log folder, or a lake (with --run)")
-    au.add_argument("--run", help="the lake run to audit")
-    au.add_argument("--robot", help="the robot whose run it is, if run names repeat")
-    au.add_argument("--out", default="out/audit", help="report folder (out/audit)")
-    au.add_argument("--plots", choices=["all", "flagged", "none"], default="flagged")
-    au.add_argument("--max-plots", type=int, default=25, help="at most this many PNGs (25)")
     au.add_argument(
-        "--oracle-ratio",
-        type=float,
-        default=5.0,
-        help="flag a task whose path exceeds this many times the oracle (5) ...",
+        "log",
+        metavar="LOG|LAKE",
+        type=t.existing_dir,
+        help="event log folder, or a lake (with --run)",
+    )
+    au.add_argument("--run", type=t.text, help="the lake run to audit")
+    au.add_argument("--robot", type=t.text, help="the robot whose run it is, if run names repeat")
+    au.add_argument(
+        "--out",
+        default="out/audit",
+        type=t.dir_path,
+        help="report folder (out/audit); an earlier report there is replaced, a folder holding "
+        "anything else where the report writes is refused",
+    )
+    au.add_argument("--plots", choices=["all", "flagged", "none"], default="flagged")
+    au.add_argument(
+        "--max-plots",
+        type=t.int_range(0, 10_000),
+        default=25,
+        help="at most this many PNGs, 0-10000 (25)",
     )
     au.add_argument(
-        "--oracle-excess", type=float, default=10.0, help="... and the oracle by this many m (10)"
+        "--oracle-ratio",
+        type=t.float_range(1.0, 1e6),
+        default=5.0,
+        help="flag a task whose path exceeds this many times the oracle (5; at least 1) ...",
+    )
+    au.add_argument(
+        "--oracle-excess",
+        type=t.float_range(0.0, 1e6),
+        default=10.0,
+        help="... and the oracle by this many m (10)",
     )
     au.add_argument("--json", action="store_true", help="print the anomalies as JSON")
     au.set_defaults(func=cmd_audit)

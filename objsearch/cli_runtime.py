@@ -12,23 +12,39 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from objsearch import cli_types as t
+
 if TYPE_CHECKING:
     from objsearch.runtime.config import RuntimeConfig
     from objsearch.runtime.liveview import LiveSink
 
 
 def _transport_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--config", help="robot.toml (transport, domain, endpoints, topics, QoS)")
-    p.add_argument("--transport", choices=["zenoh", "dds"], help="middleware (zenoh)")
-    p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (0)")
     p.add_argument(
-        "--connect", action="append", help="zenoh endpoint to connect to (tcp/127.0.0.1:7447)"
+        "--config",
+        type=t.existing_file,
+        help="robot.toml (transport, domain, endpoints, topics, QoS)",
     )
-    p.add_argument("--listen", action="append", help="zenoh endpoint to listen on")
+    p.add_argument("--transport", choices=["zenoh", "dds"], help="middleware (zenoh)")
+    p.add_argument("--domain-id", type=t.int_range(0, 232), help="ROS_DOMAIN_ID, 0-232 (0)")
+    p.add_argument(
+        "--connect",
+        action="append",
+        type=t.zenoh_endpoint,
+        help="zenoh endpoint to connect to (tcp/127.0.0.1:7447)",
+    )
+    p.add_argument(
+        "--listen",
+        action="append",
+        type=t.zenoh_endpoint,
+        help="zenoh endpoint to listen on (PROTO/HOST:PORT)",
+    )
     p.add_argument("--mode", choices=["peer", "client"], help="zenoh session mode (peer)")
-    p.add_argument("--peer", action="append", help="DDS unicast discovery peer (127.0.0.1)")
-    p.add_argument("--interface", help="DDS network interface (lo)")
-    p.add_argument("--home", help="home in data/homes (paper)")
+    p.add_argument(
+        "--peer", action="append", type=t.host, help="DDS unicast discovery peer (127.0.0.1)"
+    )
+    p.add_argument("--interface", type=t.text, help="DDS network interface (lo)")
+    p.add_argument("--home", type=t.text, help="home in data/homes (paper)")
 
 
 def runtime_config(args: argparse.Namespace) -> RuntimeConfig:
@@ -216,7 +232,7 @@ def register(sub: Any) -> None:
     agent_sub = agent.add_subparsers(dest="agent_command", required=True, metavar="SUBCOMMAND")
     run = agent_sub.add_parser("run", help="serve search requests, driving the robot")
     _transport_options(run)
-    run.add_argument("--log", required=True, help="the agent's event log folder")
+    run.add_argument("--log", required=True, type=t.dir_path, help="the agent's event log folder")
     from objsearch.agent.strategies import STRATEGIES
 
     run.add_argument(
@@ -224,26 +240,35 @@ def register(sub: Any) -> None:
         choices=list(STRATEGIES),
         help="search strategy (default: robot.toml's strategy, else wpl)",
     )
-    run.add_argument("--alpha", type=float, default=10.0)
-    run.add_argument("--seed", type=int, default=0)
+    run.add_argument("--alpha", type=t.ALPHA, default=10.0, help="alpha of Eq. 3, 0-1000 (10)")
+    run.add_argument("--seed", type=t.SEED, default=0, help="seed (0)")
     run.add_argument("--update-mode", default="all", choices=["none", "targets", "all"])
     run.add_argument(
         "--live",
         metavar="[HOST:]PORT",
+        type=t.optional_host_port,
         help="serve the live view to Foxglove on this WebSocket port (host 127.0.0.1 unless "
         "given; 0 picks a free port); off by default",
     )
     run.add_argument(
-        "--live-mcap", metavar="FILE", help="also write the live view's channels to FILE.mcap"
+        "--live-mcap",
+        metavar="FILE",
+        type=t.new_path,
+        help="also write the live view's channels to FILE.mcap",
     )
     run.set_defaults(func=cmd_agent_run)
 
     find = agent_sub.add_parser("find", help="ask the running agent to find an object")
-    find.add_argument("target", help="object class, e.g. Apple")
+    find.add_argument("target", type=t.text, help="object class, e.g. Apple")
     _transport_options(find)
-    find.add_argument("--start", help="a label for where the robot starts (recorded)")
-    find.add_argument("--scene", type=int, help="the schedule scene (recorded; the stand-in's)")
-    find.add_argument("--timeout", type=float, default=600.0, help="seconds to wait (600)")
+    find.add_argument("--start", type=t.text, help="a label for where the robot starts (recorded)")
+    find.add_argument("--scene", type=t.SCENE, help="the schedule scene (recorded; the stand-in's)")
+    find.add_argument(
+        "--timeout",
+        type=t.float_range(0.0, 86_400.0, lo_open=True),
+        default=600.0,
+        help="seconds to wait, up to a day (600)",
+    )
     find.add_argument("--json", action="store_true")
     find.set_defaults(func=cmd_agent_find)
 
@@ -251,19 +276,28 @@ def register(sub: Any) -> None:
     robot_sub = robot.add_subparsers(dest="robot_command", required=True, metavar="SUBCOMMAND")
     sim = robot_sub.add_parser("sim", help="the simulator behind a real robot's ROS 2 topics")
     _transport_options(sim)
-    sim.add_argument("--schedule", default="table2")
-    sim.add_argument("--scene", type=int, help="place objects as in this scene (default: Table I)")
-    sim.add_argument("--start", help="start point (the home's first)")
-    sim.add_argument("--drop-every", type=int, default=0, help="fault: drop every n-th message")
-    sim.add_argument("--exit-after", type=int, default=0, help="fault: vanish after n goals")
-    sim.add_argument("--malformed-after", type=int, default=0, help="fault: garbage after n goals")
+    fault_count = t.int_range(0, 1_000_000)
+    sim.add_argument("--schedule", default="table2", type=t.text, help="schedule (table2)")
+    sim.add_argument(
+        "--scene", type=t.SCENE, help="place objects as in this scene (default: Table I)"
+    )
+    sim.add_argument("--start", type=t.text, help="start point (the home's first)")
+    sim.add_argument(
+        "--drop-every", type=fault_count, default=0, help="fault: drop every n-th message"
+    )
+    sim.add_argument(
+        "--exit-after", type=fault_count, default=0, help="fault: vanish after n goals"
+    )
+    sim.add_argument(
+        "--malformed-after", type=fault_count, default=0, help="fault: garbage after n goals"
+    )
     for fault, what in (
         ("reject", "reject the n-th navigate_to_pose goal"),
         ("abort", "abort the n-th navigate_to_pose goal"),
         ("mute", "leave send_goal unanswered from the n-th goal on"),
         ("stall", "accept the n-th goal and never finish it"),
     ):
-        sim.add_argument(f"--{fault}-after", type=int, default=0, help=f"fault: {what}")
+        sim.add_argument(f"--{fault}-after", type=fault_count, default=0, help=f"fault: {what}")
     sim.set_defaults(func=cmd_robot_sim)
 
     view = sub.add_parser(
@@ -273,10 +307,21 @@ def register(sub: Any) -> None:
         "(map, static objects, plan, route, robot, detections, scene graph, events) and writes "
         "the channels to a ROS 2 MCAP file (rosbag2, CDR) that Foxglove and rosbags read.",
     )
-    view.add_argument("log", metavar="LOG|LAKE", help="event log folder, or a lake (with --run)")
-    view.add_argument("--mcap", required=True, metavar="FILE", help="the .mcap file to write")
-    view.add_argument("--run", help="the lake run to draw")
-    view.add_argument("--robot", help="the robot whose run it is, if run names repeat")
+    view.add_argument(
+        "log",
+        metavar="LOG|LAKE",
+        type=t.existing_dir,
+        help="event log folder, or a lake (with --run)",
+    )
+    view.add_argument(
+        "--mcap",
+        required=True,
+        metavar="FILE",
+        type=t.new_path,
+        help="the .mcap file to write (never overwritten)",
+    )
+    view.add_argument("--run", type=t.text, help="the lake run to draw")
+    view.add_argument("--robot", type=t.text, help="the robot whose run it is, if run names repeat")
     view.add_argument(
         "--robot-clock",
         dest="sim_clock",
@@ -287,5 +332,10 @@ def register(sub: Any) -> None:
     view.set_defaults(func=cmd_liveview)
 
     router = robot_sub.add_parser("router", help="a zenoh router (rmw_zenohd's role)")
-    router.add_argument("--listen", action="append", help="endpoint (tcp/127.0.0.1:7447)")
+    router.add_argument(
+        "--listen",
+        action="append",
+        type=t.zenoh_endpoint,
+        help="endpoint (tcp/127.0.0.1:7447)",
+    )
     router.set_defaults(func=cmd_robot_router)

@@ -23,6 +23,8 @@ from objsearch.agent.geometry import Point
 from objsearch.agent.session import load_context
 from objsearch.replay.state import ReplayState
 
+from objsearch.outdir import claim
+
 ORACLE_RATIO = 5.0
 ORACLE_EXCESS_M = 10.0
 REL_TOLERANCE = 1e-9
@@ -255,6 +257,10 @@ class Auditor:
             )
 
 
+#: What a report writes into its folder (an earlier report's are replaced).
+REPORT_FILES = ("index.md", "task-*.md", "task-*.png")
+
+
 def audit(events: Iterable[Any], **thresholds: float) -> Auditor:
     auditor = Auditor(**thresholds)
     auditor.feed(events)
@@ -271,9 +277,15 @@ def write_report(
 ) -> list[Path]:
     """Markdown per task, an index, and route PNGs (``plots``: all, flagged or none; at most
     ``max_plots`` of them, in log order, since each takes a noticeable fraction of a second)."""
-    out.mkdir(parents=True, exist_ok=True)
-    for stale in [*out.glob("task-*.md"), *out.glob("task-*.png"), out / "index.md"]:
-        stale.unlink(missing_ok=True)  # an earlier report's pages must not mix with this one
+    # An earlier report's pages must not mix with this one, so they go; nothing else in ``out`` is
+    # touched, and a folder holding anything else where the report writes is refused.
+    with claim(out, command="audit", owns=REPORT_FILES, replace_needs_force=False):
+        return _write_report(auditor, out, plots=plots, max_plots=max_plots, title=title)
+
+
+def _write_report(
+    auditor: Auditor, out: Path, *, plots: str, max_plots: int | None, title: str
+) -> list[Path]:
     written: list[Path] = []
     rows = []
     plotted = 0

@@ -4,21 +4,23 @@ from __future__ import annotations
 
 import csv
 import math
-import shutil
 import statistics
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
 from objsearch.agent.strategies import DEFAULT_STRATEGY, RunSpec
 from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule
 from tqdm import tqdm
 
+from objsearch.outdir import claim
+
 SCENES = 10
 STARTS = 8
+#: What the demo writes into its --out folder.
+OUTPUTS = ("log-all", "log-none", "path_lengths.csv", "path_length_per_scene.png")
 
 
 def run_demo(
@@ -31,11 +33,12 @@ def run_demo(
     strategy: str = DEFAULT_STRATEGY,
 ) -> int:
     modes = [UpdateMode.ALL, UpdateMode.NONE] if baseline else [UpdateMode.ALL]
-    if out.exists() and any(out.iterdir()):
-        if not force:
-            raise ObjsearchError(f"{out} already holds a demo; pass --force to replace it")
-        shutil.rmtree(out)
-    out.mkdir(parents=True)
+    # --force replaces only what an earlier demo wrote here; anything else in --out is refused.
+    with claim(out, command="demo", owns=OUTPUTS, force=force):
+        return _run(out, home, modes, progress, strategy)
+
+
+def _run(out: Path, home: str, modes: list[UpdateMode], progress: bool, strategy: str) -> int:
     ctx = load_context(home)
     spec = RunSpec.of(home, ctx.home.digest, strategy, seed=0, schedule="table2")
     results: dict[UpdateMode, list[Trial]] = {}

@@ -9,10 +9,11 @@ from typing import Any
 
 import pytest
 from objsearch.events import Event, EventLog, read_log
-from objsearch.replay.audit import audit
+from objsearch.replay.audit import REPORT_FILES, audit
 from objsearch.replay.golden import DEFAULT_DIR
 
 from objsearch.cli import main
+from objsearch.outdir import claim
 
 LOG = DEFAULT_DIR / "sim-wpl-updates"
 
@@ -128,8 +129,9 @@ def test_far_above_oracle_uses_the_thresholds() -> None:
 
 def test_audit_writes_the_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "report"
-    (out / "task-09999.md").parent.mkdir(parents=True)
-    (out / "task-09999.md").write_text("stale page from an earlier report")
+    with claim(out, command="audit", owns=REPORT_FILES, replace_needs_force=False):
+        (out / "task-09999.md").write_text("stale page from an earlier report")
+    (out / "notes.md").write_text("the analyst's own notes")
     assert main(["audit", str(LOG), "--out", str(out), "--plots", "all", "--max-plots", "2"]) == 0
     assert "8 tasks audited" in capsys.readouterr().out
     index = (out / "index.md").read_text()
@@ -138,3 +140,17 @@ def test_audit_writes_the_report(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert len(list(out.glob("task-*.png"))) == 2
     page = (out / "task-00001.md").read_text()
     assert "## Relation values behind each plan" in page and "Eq. 4 at seq" in page
+    assert not (out / "task-09999.md").exists()  # the earlier report's page went
+    assert (out / "notes.md").read_text() == "the analyst's own notes"  # nothing else did
+
+
+def test_audit_refuses_a_folder_it_did_not_write(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "thesis"
+    out.mkdir()
+    (out / "index.md").write_text("chapter 1")
+    assert main(["audit", str(LOG), "--out", str(out), "--plots", "none"]) == 2
+    assert "was not written by objsearch audit" in capsys.readouterr().err
+    assert [p.name for p in out.iterdir()] == ["index.md"]
+    assert (out / "index.md").read_text() == "chapter 1"

@@ -187,7 +187,7 @@ def test_cli_writes_the_mcap_and_never_overwrites(
     ("target", "message"),
     [
         ("view.bag", "must end in .mcap"),
-        ("afile/view.mcap", "cannot write the MCAP file"),
+        ("afile/view.mcap", "is a file, not a folder"),
     ],
 )
 def test_cli_bad_output_path(

@@ -75,8 +75,8 @@ def test_map_build_cli(tmp_path: Path) -> None:
     ("args", "message"),
     [
         (("map", "build", "--home", "nowhere"), "no home 'nowhere'"),
-        (("map", "build", "--model", "/nonexistent.pt", "--no-search"), "no detector model"),
-        (("map", "build", "--points-per-room", "0"), "at least 1"),
+        (("map", "build", "--model", "/nonexistent.pt", "--no-search"), "no such file"),
+        (("map", "build", "--points-per-room", "0"), "between 1 and 32, not 0"),
         (("map", "show", "--home", "nowhere"), "no home 'nowhere'"),
     ],
 )

@@ -89,6 +89,7 @@ def test_engine_ray_without_ray_says_what_to_install(
 ) -> None:
     monkeypatch.setitem(sys.modules, "ray", None)  # what `import ray` sees without the extra
     bag = tmp_path / "any.bag"
+    bag.write_bytes(b"")  # there, so the missing engine is the only thing wrong
     assert main(["ingest", str(bag), "--lake", str(tmp_path / "l"), "--engine", "ray"]) == 2
     assert "pip install 'objsearch[fleet]'" in capsys.readouterr().err
     assert not (tmp_path / "l").exists()

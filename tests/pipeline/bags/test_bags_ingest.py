@@ -66,7 +66,7 @@ def test_cli_ingest_reports_and_is_idempotent(
 
 def test_cli_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["ingest", str(tmp_path / "nope.bag"), "--lake", str(tmp_path / "l")]) == 2
-    assert "no bag at" in capsys.readouterr().err
+    assert "no such file or folder" in capsys.readouterr().err
     junk = tmp_path / "junk.bag"
     junk.write_bytes(b"\x00" * 100)
     assert main(["ingest", str(junk), "--lake", str(tmp_path / "l")]) == 2

@@ -202,7 +202,12 @@ def test_cli_records_a_sweep_and_builds_from_it(
 def test_cli_refuses_bad_combinations(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["map", "build", "--bag", str(tmp_path / "nope.bag"), "--no-search"]) == 2
     assert "nope.bag" in capsys.readouterr().err
-    assert main(["map", "build", "--bag", "x.bag", "--model", "m.pt"]) == 2
+    (tmp_path / "x.bag").write_bytes(b"")
+    (tmp_path / "m.pt").write_bytes(b"")
+    assert (
+        main(["map", "build", "--bag", str(tmp_path / "x.bag"), "--model", str(tmp_path / "m.pt")])
+        == 2
+    )
     assert "--model" in capsys.readouterr().err
     bag = str(tmp_path / "s.bag")
     assert (

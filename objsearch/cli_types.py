@@ -1,0 +1,340 @@
+"""argparse ``type=`` helpers: every option of every subcommand is checked before a command runs.
+
+Each helper returns a converter that raises :class:`argparse.ArgumentTypeError` with a message
+naming the valid range or form; :class:`Parser` turns that into ``objsearch: error: …`` and exit
+status 2. ``tests/objsearch/test_cli_types.py`` and the bad-input battery
+(``tests/objsearch/test_cli_bad_inputs.py``) check that every option uses one of these.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import math
+import os
+import re
+import stat
+from collections.abc import Callable
+from pathlib import Path
+from typing import NoReturn
+
+#: The most processes a command starts, whatever ``--workers`` says; the job count caps it too.
+MAX_WORKERS = 64
+#: Every schedule (Table II, stats-<seed>, rearr-<seed>) has scenes 1-10.
+MAX_SCENE = 10
+
+Converter = Callable[[str], object]
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors read ``objsearch: error: …`` (exit 2) in every subcommand."""
+
+    def error(self, message: str) -> NoReturn:
+        # The message first, as every other objsearch error; the full usage is one --help away.
+        where = self.prog.removeprefix("objsearch").strip()
+        self.exit(
+            2,
+            f"objsearch: error: {where + ': ' if where else ''}{message}\n"
+            f"(`{self.prog} --help` lists the options)\n",
+        )
+
+
+def _typed(name: str, convert: Callable[[str], object]) -> Callable[[str], object]:
+    # argparse names the type in "invalid <name> value" messages and the battery test reads
+    # __module__ to check that every option is validated here.
+    convert.__name__ = name
+    convert.__qualname__ = name
+    return convert
+
+
+def _bounds(lo: float | None, hi: float | None) -> str:
+    if lo is not None and hi is not None:
+        return f"between {lo:g} and {hi:g}"
+    if lo is not None:
+        return f"at least {lo:g}"
+    return f"at most {hi:g}"
+
+
+def int_range(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]:
+    """An integer in ``[lo, hi]`` (either end may be open)."""
+
+    def convert(text: str) -> int:
+        try:
+            value = int(text.strip())
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected a whole number {_bounds(lo, hi)}, not {text!r}"
+            ) from None
+        if (lo is not None and value < lo) or (hi is not None and value > hi):
+            raise argparse.ArgumentTypeError(f"must be {_bounds(lo, hi)}, not {value}")
+        return value
+
+    return _typed("int_range", convert)  # type: ignore[return-value]
+
+
+def float_range(
+    lo: float | None = None, hi: float | None = None, *, lo_open: bool = False
+) -> Callable[[str], float]:
+    """A finite number in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``); never NaN or infinite."""
+
+    def describe() -> str:
+        if lo_open and lo is not None:
+            return f"above {lo:g}" + (f" and at most {hi:g}" if hi is not None else "")
+        return _bounds(lo, hi)
+
+    def convert(text: str) -> float:
+        try:
+            value = float(text.strip())
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected a number {describe()}, not {text!r}"
+            ) from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"must be a finite number {describe()}, not {text}")
+        low_bad = lo is not None and (value <= lo if lo_open else value < lo)
+        if low_bad or (hi is not None and value > hi):
+            raise argparse.ArgumentTypeError(f"must be {describe()}, not {value:g}")
+        return value
+
+    return _typed("float_range", convert)  # type: ignore[return-value]
+
+
+def text(value: str) -> str:
+    """Non-empty text on one line (names, labels, SQL keeps its own newlines: see :func:`sql`)."""
+    if not value.strip():
+        raise argparse.ArgumentTypeError("must not be empty")
+    if any(ord(c) < 32 or ord(c) == 127 for c in value):
+        raise argparse.ArgumentTypeError(f"must not hold control characters: {value!r}")
+    return value
+
+
+def sql(value: str) -> str:
+    """A non-empty SQL text (newlines and tabs allowed)."""
+    if not value.strip():
+        raise argparse.ArgumentTypeError("the query is empty")
+    if "\0" in value:
+        raise argparse.ArgumentTypeError("the query holds a NUL character")
+    return value
+
+
+def int_list(lo: int | None = None, hi: int | None = None) -> Callable[[str], list[int]]:
+    """A comma-separated list of integers, each in ``[lo, hi]``."""
+    one = int_range(lo, hi)
+
+    def convert(value: str) -> list[int]:
+        parts = [p for p in value.split(",") if p.strip()]
+        if not parts:
+            raise argparse.ArgumentTypeError(f"expected numbers {_bounds(lo, hi)}, got nothing")
+        return [one(p) for p in parts]
+
+    return _typed("int_list", convert)  # type: ignore[return-value]
+
+
+def name_list(value: str) -> list[str]:
+    """A comma-separated list of non-empty names."""
+    parts = [p.strip() for p in value.split(",")]
+    if not any(parts):
+        raise argparse.ArgumentTypeError("expected comma-separated names, got nothing")
+    if not all(parts):
+        raise argparse.ArgumentTypeError(f"an empty name in {value!r}")
+    return [text(p) for p in parts]
+
+
+def _kind(value: str) -> str:
+    """``missing``, ``dir`` or ``file`` for a path given on the command line."""
+    if not value.strip():
+        raise argparse.ArgumentTypeError("the path is empty")
+    if "\0" in value:
+        raise argparse.ArgumentTypeError("the path holds a NUL character")
+    try:
+        st = os.stat(value)
+    except FileNotFoundError:
+        return "missing"
+    except NotADirectoryError:
+        raise argparse.ArgumentTypeError(f"{value}: a part of it is a file, not a folder") from None
+    except OSError as exc:  # a name too long, a loop of links, no permission to look
+        raise argparse.ArgumentTypeError(f"{value[:200]}: {exc.strerror or exc}") from None
+    return "dir" if stat.S_ISDIR(st.st_mode) else "file"
+
+
+def _not_under_a_file(value: str) -> None:
+    for parent in Path(value).absolute().parents:
+        kind = _kind(str(parent))
+        if kind == "file":
+            raise argparse.ArgumentTypeError(f"{parent} is a file, not a folder")
+        if kind == "dir":
+            return
+
+
+def existing_dir(value: str) -> str:
+    """A folder that exists."""
+    kind = _kind(value)
+    if kind == "missing":
+        raise argparse.ArgumentTypeError(f"no such folder: {value}")
+    if kind != "dir":
+        raise argparse.ArgumentTypeError(f"{value} is a file, not a folder")
+    return value
+
+
+def existing_file(value: str) -> str:
+    """A file that exists (not a folder)."""
+    kind = _kind(value)
+    if kind == "missing":
+        raise argparse.ArgumentTypeError(f"no such file: {value}")
+    if kind == "dir":
+        raise argparse.ArgumentTypeError(f"{value} is a folder, not a file")
+    return value
+
+
+def existing_path(value: str) -> str:
+    """A file or folder that exists (a ROS 1 bag is a file, a ROS 2 bag a folder)."""
+    if _kind(value) == "missing":
+        raise argparse.ArgumentTypeError(f"no such file or folder: {value}")
+    return value
+
+
+def dir_path(value: str) -> str:
+    """A folder to write or append to: it may not exist yet, but it is not a file."""
+    kind = _kind(value)
+    if kind == "file":
+        raise argparse.ArgumentTypeError(f"{value} is a file, not a folder")
+    if kind == "missing":
+        _not_under_a_file(value)
+    return value
+
+
+def file_path(value: str) -> str:
+    """A file to write: it may not exist yet, but it is not a folder."""
+    kind = _kind(value)
+    if kind == "dir":
+        raise argparse.ArgumentTypeError(f"{value} is a folder, not a file")
+    if kind == "missing":
+        _not_under_a_file(value)
+    return value
+
+
+def new_path(value: str) -> str:
+    """A file or folder that does not exist yet (outputs that are never overwritten)."""
+    if _kind(value) != "missing":
+        raise argparse.ArgumentTypeError(f"{value} already exists; choose a new name")
+    _not_under_a_file(value)
+    return value
+
+
+_DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
+
+
+def date(value: str) -> str:
+    """A calendar date, YYYY-MM-DD."""
+    import datetime as dt
+
+    try:
+        if not _DATE.fullmatch(value):
+            raise ValueError
+        dt.date.fromisoformat(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a date YYYY-MM-DD, not {value!r}") from None
+    return value
+
+
+_HOSTNAME = re.compile(r"[A-Za-z0-9](?:[A-Za-z0-9-]{0,62})(?:\.[A-Za-z0-9](?:[A-Za-z0-9-]{0,62}))*")
+
+
+def _host(value: str, whole: str) -> str:
+    try:
+        ipaddress.ip_address(value)
+    except ValueError:
+        if len(value) > 253 or not _HOSTNAME.fullmatch(value):
+            raise argparse.ArgumentTypeError(
+                f"{whole!r}: {value!r} is not a host name or IP address"
+            ) from None
+    return value
+
+
+def _port(value: str, whole: str) -> int:
+    if not value.isdigit() or not 0 <= int(value) <= 65535:
+        raise argparse.ArgumentTypeError(f"{whole!r}: the port must be a number 0-65535")
+    return int(value)
+
+
+def split_host_port(value: str, *, host_optional: bool = False) -> tuple[str | None, int]:
+    """``HOST:PORT``, ``[IPv6]:PORT`` (or ``PORT`` alone with ``host_optional``)."""
+    host, sep, port = value.rpartition(":")
+    if not sep:
+        if not host_optional:
+            raise argparse.ArgumentTypeError(f"expected HOST:PORT, not {value!r}")
+        return None, _port(port, value)
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+        try:
+            ipaddress.IPv6Address(host)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{value!r}: {host!r} is not an IPv6 address"
+            ) from None
+        return host, _port(port, value)
+    if not host or ":" in host:
+        raise argparse.ArgumentTypeError(
+            f"expected {'[HOST:]PORT' if host_optional else 'HOST:PORT'} "
+            f"(IPv6 as [addr]:PORT), not {value!r}"
+        )
+    return _host(host, value), _port(port, value)
+
+
+def host_port(value: str) -> str:
+    """``HOST:PORT`` (IPv6 as ``[addr]:PORT``)."""
+    split_host_port(value)
+    return value
+
+
+def optional_host_port(value: str) -> str:
+    """``PORT`` or ``HOST:PORT`` (IPv6 as ``[addr]:PORT``)."""
+    split_host_port(value, host_optional=True)
+    return value
+
+
+def host(value: str) -> str:
+    """A host name or an IP address."""
+    return _host(text(value), value)
+
+
+#: Zenoh locator protocols whose address is HOST:PORT.
+_IP_PROTOCOLS = frozenset({"tcp", "udp", "tls", "quic", "ws"})
+_OTHER_PROTOCOLS = frozenset({"unixsock-stream", "unixpipe", "serial", "vsock"})
+
+
+def zenoh_endpoint(value: str) -> str:
+    """A zenoh endpoint ``PROTO/ADDRESS`` such as ``tcp/127.0.0.1:7447`` or ``tcp/[::1]:7447``."""
+    proto, sep, rest = value.partition("/")
+    address = rest.split("?", 1)[0].split("#", 1)[0]
+    if not sep or not address:
+        raise argparse.ArgumentTypeError(
+            f"expected a zenoh endpoint PROTO/ADDRESS such as tcp/127.0.0.1:7447, not {value!r}"
+        )
+    if proto in _IP_PROTOCOLS:
+        split_host_port(address)
+    elif proto not in _OTHER_PROTOCOLS:
+        known = ", ".join(sorted(_IP_PROTOCOLS | _OTHER_PROTOCOLS))
+        raise argparse.ArgumentTypeError(f"{value!r}: unknown protocol {proto!r} (known: {known})")
+    return value
+
+
+def ray_address(value: str) -> str:
+    """A Ray cluster address: ``auto``, ``local``, ``HOST:PORT`` or ``ray://HOST:PORT``."""
+    if value in ("auto", "local"):
+        return value
+    rest = value.removeprefix("ray://")
+    split_host_port(rest)
+    return value
+
+
+#: Options several subcommands share.
+SEED = int_range(0, 2**32 - 1)
+#: Eq. 3's weight of the relation term; beyond 1000 it only magnifies rounding.
+ALPHA = float_range(0.0, 1000.0)
+SCENE = int_range(1, MAX_SCENE)
+
+
+def is_validated(convert: object) -> bool:
+    """Whether an argparse ``type`` comes from this module (the battery test checks every one)."""
+    return getattr(convert, "__module__", None) == __name__

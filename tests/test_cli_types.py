@@ -1,0 +1,109 @@
+"""The shared option types: what each accepts and how it says no."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pytest
+
+from objsearch import cli_types as t
+from objsearch.cli import expected_errors
+
+
+def _rejects(convert: object, value: str, match: str) -> None:
+    assert callable(convert)
+    with pytest.raises(argparse.ArgumentTypeError, match=match):
+        convert(value)
+
+
+def test_int_range() -> None:
+    workers = t.int_range(1, 64)
+    assert workers("1") == 1 and workers(" 64 ") == 64
+    _rejects(workers, "0", "between 1 and 64, not 0")
+    _rejects(workers, "300", "between 1 and 64, not 300")
+    _rejects(workers, "1.5", "whole number between 1 and 64")
+    _rejects(t.int_range(0), "-1", "at least 0")
+
+
+@pytest.mark.parametrize("bad", ["nan", "inf", "-inf", "1e400", "NaN", "Infinity"])
+def test_float_range_refuses_what_is_not_finite(bad: str) -> None:
+    _rejects(t.float_range(0, 10), bad, "finite")
+
+
+def test_float_range_bounds() -> None:
+    hz = t.float_range(0.0, 200.0, lo_open=True)
+    assert hz("0.5") == 0.5 and hz("200") == 200.0
+    _rejects(hz, "0", "above 0 and at most 200")
+    _rejects(hz, "1e9", r"not 1e\+09")
+    _rejects(hz, "fast", "expected a number")
+
+
+def test_text_and_lists() -> None:
+    assert t.text("Apple") == "Apple"
+    _rejects(t.text, "", "empty")
+    _rejects(t.text, "x\n", "control characters")
+    assert t.name_list(" Apple, Vase ") == ["Apple", "Vase"]
+    _rejects(t.name_list, ",", "nothing")
+    _rejects(t.name_list, "a,,b", "empty name")
+    assert t.int_list(1, 10)("1,3") == [1, 3]
+    _rejects(t.int_list(1, 10), "1,99", "not 99")
+    _rejects(t.sql, " \n", "empty")
+
+
+def test_paths(tmp_path: Path) -> None:
+    (tmp_path / "f").write_text("x")
+    folder, file, missing = str(tmp_path), str(tmp_path / "f"), str(tmp_path / "none")
+    assert t.existing_dir(folder) == folder
+    _rejects(t.existing_dir, file, "is a file, not a folder")
+    _rejects(t.existing_dir, missing, "no such folder")
+    assert t.existing_file(file) == file
+    _rejects(t.existing_file, folder, "is a folder, not a file")
+    _rejects(t.existing_path, missing, "no such file or folder")
+    assert t.dir_path(missing) == missing
+    _rejects(t.dir_path, file, "is a file")
+    _rejects(t.dir_path, str(tmp_path / "f" / "sub"), "is a file, not a folder")
+    _rejects(t.file_path, folder, "is a folder")
+    _rejects(t.new_path, file, "already exists")
+    for convert in (t.existing_dir, t.existing_file, t.dir_path, t.file_path, t.new_path):
+        _rejects(convert, "", "empty")
+
+
+def test_host_port_and_endpoints() -> None:
+    assert t.split_host_port("8765", host_optional=True) == (None, 8765)
+    assert t.split_host_port("[::1]:9000") == ("::1", 9000)
+    assert t.split_host_port("robot-1.local:7447") == ("robot-1.local", 7447)
+    _rejects(t.optional_host_port, "garbage", "port must be a number")
+    _rejects(t.optional_host_port, "70000", "0-65535")
+    _rejects(t.optional_host_port, "::1:9000", "IPv6")
+    _rejects(t.host_port, "7447", "HOST:PORT")
+    _rejects(t.host, "not a host", "not a host name")
+    assert t.zenoh_endpoint("tcp/127.0.0.1:7447") == "tcp/127.0.0.1:7447"
+    assert t.zenoh_endpoint("tcp/[::1]:0") == "tcp/[::1]:0"
+    assert t.zenoh_endpoint("unixsock-stream//tmp/z.sock") == "unixsock-stream//tmp/z.sock"
+    _rejects(t.zenoh_endpoint, "garbage", "PROTO/ADDRESS")
+    _rejects(t.zenoh_endpoint, "tcp/host", "HOST:PORT")
+    _rejects(t.zenoh_endpoint, "carrier-pigeon/1:2", "unknown protocol")
+    assert t.ray_address("auto") == "auto" and t.ray_address("ray://head:10001")
+    _rejects(t.ray_address, "ray://", "HOST:PORT")
+
+
+def test_dates() -> None:
+    assert t.date("2026-01-31") == "2026-01-31"
+    for bad in ("2026-02-30", "26-1-1", "today", "2026-01-31\n"):
+        _rejects(t.date, bad, "YYYY-MM-DD")
+
+
+def test_scenes_match_the_schedules() -> None:
+    from objsearch.sim.stats_schedule import SCENES
+
+    assert t.MAX_SCENE == SCENES
+
+
+def test_the_three_error_roots_are_expected() -> None:
+    from objsearch.agent.errors import ObjsearchError
+    from objsearch.events import EventStoreError
+    from objsearch.pipeline.errors import BuildError
+
+    assert set(expected_errors()) == {ObjsearchError, EventStoreError, BuildError}
+    assert not issubclass(RuntimeError, expected_errors())  # bugs keep their traceback
