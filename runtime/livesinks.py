@@ -8,7 +8,8 @@ bytes), so a channel looks the same live and in the file: encoding ``cdr``, sche
   rosbag2 MCAP that rosbags' ``Reader``/``AnyReader``, ``ros2 bag`` and Foxglove read. It needs no
   extra package.
 * :class:`FoxgloveSink` serves the channels with ``foxglove-sdk`` (the ``robot`` extra) on
-  127.0.0.1 unless told otherwise. A client that subscribes late gets the channel's last message
+  127.0.0.1 unless told otherwise, to clients that offer either name of the protocol,
+  ``foxglove.sdk.v1`` or ``foxglove.websocket.v1`` (:mod:`objsearch.runtime.wsfront`). A client that subscribes late gets the channel's last message
   again, so the map (sent once) is there whenever Foxglove connects.
 """
 
@@ -25,6 +26,7 @@ from typing import Any
 from objsearch.agent.errors import ObjsearchError
 from objsearch.runtime import messages as m
 from objsearch.runtime.liveview import LiveMessage
+from objsearch.runtime.wsfront import SubprotocolFront
 
 log = logging.getLogger("objsearch.liveview")
 
@@ -149,17 +151,28 @@ class FoxgloveSink:
             def on_subscribe(self, client: Any, channel: Any) -> None:
                 sink._resend(int(channel.id))
 
+        # The SDK listens on a loopback port of its own behind a front door that also accepts
+        # the protocol's earlier name, which Foxglove's published client offers (wsfront.py).
         try:
             self._server = foxglove.start_server(
-                name=name, host=host, port=port, context=self._context, server_listener=Latch()
+                name=name,
+                host="127.0.0.1",
+                port=0,
+                context=self._context,
+                server_listener=Latch(),
             )
         except RuntimeError as exc:
+            raise LiveViewError(f"cannot start the live view's Foxglove server: {exc}") from exc
+        try:
+            self._front = SubprotocolFront(host, port, int(self._server.port))
+        except OSError as exc:
+            self._server.stop()
             raise LiveViewError(
-                f"cannot serve the live view on {host}:{port}: {exc} "
+                f"cannot serve the live view on {host}:{port}: {exc.strerror or exc} "
                 "(choose another port with --live HOST:PORT, or 0 for a free one)"
             ) from exc
         self.host = host
-        self.port = int(self._server.port)
+        self.port = self._front.port
 
     def write(self, message: LiveMessage) -> None:
         with self._lock:
@@ -188,5 +201,6 @@ class FoxgloveSink:
             channel.log(data)
 
     def close(self) -> None:
+        self._front.close()
         with contextlib.suppress(Exception):  # already stopped
             self._server.stop()
