@@ -56,8 +56,20 @@ def parse_address(text: str) -> tuple[str, int]:
     return host, port
 
 
+def channel_qos(topic: str) -> Any:
+    """The QoS a live channel is recorded with: the map and the statics latched (sent once,
+    as a map server does), the event stream as the agent's, the rest rclcpp's default."""
+    from objsearch.pipeline.bags import bagqos
+    from objsearch.runtime import liveview as lv
+
+    if topic in (lv.MAP, lv.STATICS):
+        return bagqos.LATCHED
+    return bagqos.EVENTS if topic == lv.EVENTS else bagqos.DEFAULT
+
+
 class McapSink:
-    """A rosbag2 MCAP file at ``path`` (``*.mcap``), complete once :meth:`close` returns.
+    """A rosbag2 MCAP file at ``path`` (``*.mcap``), complete once :meth:`close` returns:
+    zstd chunks with CRCs unless ``compress`` is false, each channel with its QoS.
 
     rosbags writes a bag directory (``NAME/NAME.mcap`` + ``metadata.yaml``); it lives in a hidden
     sibling ``.NAME.mcap.*`` while the view runs and its ``.mcap`` is renamed to ``path`` on close,
@@ -65,8 +77,9 @@ class McapSink:
     that hidden folder (its chunks are readable; the summary is missing).
     """
 
-    def __init__(self, path: Path) -> None:
-        from rosbags.rosbag2 import StoragePlugin, Writer
+    def __init__(self, path: Path, *, compress: bool = True) -> None:
+        from objsearch.pipeline.bags.mcapstore import rosbag2_writer
+        from rosbags.rosbag2 import StoragePlugin
 
         if path.suffix != ".mcap":
             raise LiveViewError(f"the live view's MCAP file must end in .mcap; got {path}")
@@ -81,7 +94,7 @@ class McapSink:
                 f"cannot write the MCAP file {path}: {exc.strerror or exc}"
             ) from exc
         self._bag = self._tmp_root / path.stem
-        self._writer = Writer(self._bag, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._writer = rosbag2_writer(self._bag, StoragePlugin.MCAP, compress=compress)
         try:
             self._writer.open()
         except Exception as exc:
@@ -94,7 +107,12 @@ class McapSink:
     def write(self, message: LiveMessage) -> None:
         conn = self._connections.get(message.topic)
         if conn is None:
-            conn = self._writer.add_connection(message.topic, message.msgtype, typestore=m.store())
+            conn = self._writer.add_connection(
+                message.topic,
+                message.msgtype,
+                typestore=m.store(),
+                offered_qos_profiles=[channel_qos(message.topic)],
+            )
             self._connections[message.topic] = conn
         self._writer.write(conn, message.stamp_ns, message.data)
         self.counts[message.topic] = self.counts.get(message.topic, 0) + 1

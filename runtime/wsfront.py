@@ -219,11 +219,12 @@ class SubprotocolFront:
         except (OSError, ConnectionError, HandshakeRefused) as exc:
             log.warning("live view: connection of %s ended: %s", who, exc)
         finally:
-            for s in (client, backend):
-                if s is not None:
+            ends: list[socket.socket | None] = [client, backend]
+            for end in ends:
+                if end is not None:
                     with self._lock:
-                        self._open.discard(s)
-                    s.close()
+                        self._open.discard(end)
+                    end.close()
 
     def close(self) -> None:
         """Stop listening and drop every client."""
