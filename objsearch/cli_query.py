@@ -103,6 +103,19 @@ def cmd_lake_add(args: argparse.Namespace) -> int:
         date=args.date,
         replace=args.replace,
     )
+    if args.json:
+        doc = {
+            "path": str(info.path),
+            "robot": info.robot,
+            "date": info.date,
+            "run": info.run,
+            "events": info.events,
+            "rows": dict(info.rows),
+            "digest": info.digest,
+            "source": info.source,
+        }
+        print(json.dumps(doc, indent=2))
+        return 0
     print(f"{info.path}: {info.events} events in {len(info.rows)} tables ({info.digest[:19]}…)")
     return 0
 
@@ -154,6 +167,7 @@ def register(sub: Any) -> None:
     add.add_argument("--run", help="run name (default: the log's stream)")
     add.add_argument("--date", help="YYYY-MM-DD (default: the UTC day of the first event)")
     add.add_argument("--replace", action="store_true", help="replace the run if it differs")
+    add.add_argument("--json", action="store_true", help="print the committed run as JSON")
     add.add_argument(
         "--lake", default=_default_lake(), help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})"
     )
