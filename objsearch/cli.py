@@ -147,16 +147,50 @@ def cmd_search(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
+    import contextlib
+
     from objsearch.sim.demo import run_demo
 
-    return run_demo(
-        out=Path(args.out),
-        home=args.home,
-        force=args.force,
-        progress=not args.no_progress,
-        baseline=not args.no_baseline,
-        strategy=args.strategy,
-    )
+    # With --json the human report goes to stderr and stdout holds only the JSON summary.
+    with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
+        code = run_demo(
+            out=Path(args.out),
+            home=args.home,
+            force=args.force,
+            progress=not args.no_progress,
+            baseline=not args.no_baseline,
+            strategy=args.strategy,
+        )
+    if args.json and code == 0:
+        print(json.dumps(demo_summary(Path(args.out)), indent=2))
+    return code
+
+
+def demo_summary(out: Path) -> dict[str, Any]:
+    """``demo --json``: the demo's files and, per update mode, its searches from path_lengths.csv."""
+    import csv
+
+    modes: dict[str, dict[str, Any]] = {}
+    with (out / "path_lengths.csv").open(newline="", encoding="utf-8") as fh:
+        for row in csv.DictReader(fh):
+            m = modes.setdefault(row["update_mode"], {"searches": 0, "found": 0, "length": 0.0})
+            m["searches"] += 1
+            m["found"] += row["success"] == "True"
+            m["length"] += float(row["path_length"])
+    return {
+        "out": str(out),
+        "table": str(out / "path_lengths.csv"),
+        "plot": str(out / "path_length_per_scene.png"),
+        "logs": {mode: str(out / f"log-{mode}") for mode in modes},
+        "modes": {
+            mode: {
+                "searches": m["searches"],
+                "success_rate": round(m["found"] / m["searches"], 4),
+                "mean_path_length_m": round(m["length"] / m["searches"], 4),
+            }
+            for mode, m in modes.items()
+        },
+    }
 
 
 # -- graph ------------------------------------------------------------------------------------
@@ -203,6 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="objsearch",
         description="Long-term object search with an incrementally updated scene graph.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     data = sub.add_parser("data", help="derive the project's data from public sources")
@@ -276,6 +311,9 @@ def build_parser() -> argparse.ArgumentParser:
         choices=_strategy_names(),
         help="search strategy (wpl, the paper's method)",
     )
+    demo.add_argument(
+        "--json", action="store_true", help="print a JSON summary (the report goes to stderr)"
+    )
     demo.set_defaults(func=cmd_demo)
 
     graph = sub.add_parser("graph", help="print the scene graph projection of a log")
@@ -295,6 +333,18 @@ def _strategy_names() -> list[str]:
     from objsearch.agent.strategies import STRATEGIES
 
     return list(STRATEGIES)
+
+
+def _version() -> str:
+    """The installed distribution's version (the package's own if it is not installed)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    from objsearch import __version__
+
+    try:
+        return version("objsearch")
+    except PackageNotFoundError:
+        return __version__
 
 
 def _search_options(p: argparse.ArgumentParser) -> None:

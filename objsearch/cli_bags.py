@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -22,11 +23,68 @@ def _topic_map(args: argparse.Namespace) -> Any:
     return TopicMap.load(Path(args.topics)) if args.topics else TopicMap()
 
 
+def _recording_json(rec: Any, size: int, *, compress: bool, **extra: Any) -> str:
+    return json.dumps(
+        {
+            "path": str(rec.path),
+            "format": rec.format.value,
+            "bytes": size,
+            "compressed": rec.format.value == "ros2-mcap" and compress,
+            "searches": rec.tasks,
+            "events": rec.events,
+            "start_ns": rec.start_ns,
+            "end_ns": rec.end_ns,
+            "messages": dict(sorted(rec.messages.items())),
+            **extra,
+        },
+        indent=2,
+    )
+
+
+def _megabytes(n: int) -> str:
+    return f"{n / 1e6:,.0f} MB" if n >= 100e6 else f"{n / 1e6:.1f} MB"
+
+
+class _RecordProgress:
+    """``record``'s progress on stderr: one bar for the searches, one for the messages."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
+        self.bar: Any = None
+        self.stage = ""
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if not self.enabled:
+            return
+        from tqdm import tqdm
+
+        if stage != self.stage:
+            self.close()
+            self.stage = stage
+            unit = "search" if stage == "searches" else "msg"
+            interval = 0.1 if sys.stderr.isatty() else 5.0
+            self.bar = tqdm(
+                total=total, desc=stage, unit=unit, file=sys.stderr, mininterval=interval
+            )
+        self.bar.update(done - self.bar.n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
 def cmd_record(args: argparse.Namespace) -> int:
     from objsearch.pipeline.bags.formats import BagFormat, storage_files
-    from objsearch.pipeline.bags.record import record, record_mapping_sweep
+    from objsearch.pipeline.bags.record import (
+        expected_bytes,
+        planned_searches,
+        record,
+        record_mapping_sweep,
+    )
 
     fmt = BagFormat.parse(args.format)
+    compress = not args.no_compress
     if args.mapping_sweep:
         searches = [f"--{n}" for n in ("scenes", "targets", "starts", "log") if getattr(args, n)]
         if searches:
@@ -43,8 +101,12 @@ def cmd_record(args: argparse.Namespace) -> int:
             points_per_room=4 if args.points_per_room is None else args.points_per_room,
             topic_map=_topic_map(args),
             odom_hz=args.odom_hz,
+            compress=compress,
         )
         size = sum(f.stat().st_size for f in storage_files(rec.path))
+        if args.json:
+            print(_recording_json(rec, size, compress=compress, mapping_sweep=True))
+            return 0
         print(f"wrote {rec.path} ({rec.format.value}): mapping sweep, {size / 1e6:.1f} MB")
         _print_counts(rec.messages)
         return 0
@@ -53,19 +115,44 @@ def cmd_record(args: argparse.Namespace) -> int:
             "objsearch: error: --rooms and --points-per-room need --mapping-sweep", file=sys.stderr
         )
         return 2
-    rec = record(
-        Path(args.out),
-        fmt,
-        home=args.home,
-        scenes=args.scenes,
-        targets=args.targets,
-        starts=args.starts,
-        log_dir=Path(args.log) if args.log else None,
-        topic_map=_topic_map(args),
-        odom_hz=args.odom_hz,
-        seed=args.seed,
+    n_searches = planned_searches(
+        args.home, scenes=args.scenes, targets=args.targets, starts=args.starts
     )
-    print(f"wrote {rec.path} ({rec.format.value}): {rec.tasks} searches, {rec.events} agent events")
+    expected = expected_bytes(fmt, n_searches, compress=compress)
+    print(
+        f"objsearch record: {n_searches} searches into {args.out} ({fmt.value}"
+        + (", zstd" if compress and fmt is BagFormat.ROS2_MCAP else "")
+        + ")"
+        + (f", about {_megabytes(expected)}" if expected is not None else ""),
+        file=sys.stderr,
+        flush=True,
+    )
+    progress = _RecordProgress(not args.no_progress)
+    try:
+        rec = record(
+            Path(args.out),
+            fmt,
+            home=args.home,
+            scenes=args.scenes,
+            targets=args.targets,
+            starts=args.starts,
+            log_dir=Path(args.log) if args.log else None,
+            topic_map=_topic_map(args),
+            odom_hz=args.odom_hz,
+            seed=args.seed,
+            compress=compress,
+            progress=progress,
+        )
+    finally:
+        progress.close()
+    size = sum(f.stat().st_size for f in storage_files(rec.path))
+    if args.json:
+        print(_recording_json(rec, size, compress=compress, log=args.log))
+        return 0
+    print(
+        f"wrote {rec.path} ({rec.format.value}): {rec.tasks} searches, {rec.events} agent "
+        f"events, {size / 1e6:.1f} MB"
+    )
     _print_counts(rec.messages)
     if args.log:
         print(f"  the agent's own log: {args.log}")
@@ -89,6 +176,10 @@ def cmd_ingest(args: argparse.Namespace) -> int:
 
     def show(result: IngestResult) -> None:
         nonlocal failed
+        if args.json:
+            failed += result.error is not None
+            print(json.dumps(_ingest_json(result, args.lake), default=str), flush=True)
+            return
         if result.error is not None:
             failed += 1
             print(f"objsearch: error: {result.path}: {result.error}", file=sys.stderr)
@@ -110,6 +201,22 @@ def cmd_ingest(args: argparse.Namespace) -> int:
         on_result=show,
     )
     return 2 if failed else 0
+
+
+def _ingest_json(result: Any, lake: str) -> dict[str, Any]:
+    """One bag's outcome, a line of ``ingest --json`` (JSON Lines: one per bag, as they end)."""
+    import dataclasses
+
+    report: Any = result.report
+    return {
+        "path": result.path,
+        "lake": lake,
+        "ok": result.error is None,
+        "error": result.error,
+        "already": result.already,
+        "committed": result.committed,
+        "report": None if report is None else dataclasses.asdict(report),
+    }
 
 
 def register(sub: Any) -> None:
@@ -146,6 +253,13 @@ def register(sub: Any) -> None:
         "instance masks (mono16 + the detections as label table), camera info and TF per view "
         "(large: ~2.8 MB a view; the paper home at 4 points per room is 128 views)",
     )
+    rec.add_argument(
+        "--no-compress",
+        action="store_true",
+        help="write MCAP chunks uncompressed (ros2-mcap; by default zstd, as ros2 bag record)",
+    )
+    rec.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    rec.add_argument("--json", action="store_true", help="print what was written as JSON")
     rec.add_argument(
         "--rooms", nargs="+", type=t.text, help="rooms to sweep (all; with --mapping-sweep)"
     )
@@ -188,4 +302,9 @@ def register(sub: Any) -> None:
     )
     ing.add_argument("--topics", type=t.existing_file, help="topic map override (.toml or .json)")
     ing.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ing.add_argument(
+        "--json",
+        action="store_true",
+        help="print each bag's outcome and report as a line of JSON (JSON Lines), as it ends",
+    )
     ing.set_defaults(func=cmd_ingest)

@@ -144,6 +144,19 @@ def cmd_lake_add(args: argparse.Namespace) -> int:
         )
     except OSError as exc:
         return _fail(f"lake add: {exc.filename or args.lake}: {exc.strerror or exc}")
+    if args.json:
+        doc = {
+            "path": str(info.path),
+            "robot": info.robot,
+            "date": info.date,
+            "run": info.run,
+            "events": info.events,
+            "rows": dict(info.rows),
+            "digest": info.digest,
+            "source": info.source,
+        }
+        print(json.dumps(doc, indent=2))
+        return 0
     print(f"{info.path}: {info.events} events in {len(info.rows)} tables ({info.digest[:19]}…)")
     return 0
 
@@ -213,6 +226,7 @@ def register(sub: Any) -> None:
         "--date", type=t.date, help="YYYY-MM-DD (default: the UTC day of the first event)"
     )
     add.add_argument("--replace", action="store_true", help="replace the run if it differs")
+    add.add_argument("--json", action="store_true", help="print the committed run as JSON")
     add.add_argument(
         "--wait",
         type=t.float_range(0.0, 3600.0),

@@ -83,7 +83,7 @@ def _logging() -> None:
     logging.getLogger("objsearch").setLevel(logging.INFO)
 
 
-def live_sinks(live: str | None, live_mcap: str | None) -> list[LiveSink]:
+def live_sinks(live: str | None, live_mcap: str | None, *, compress: bool = True) -> list[LiveSink]:
     """The live view's sinks from ``--live [HOST:]PORT`` and ``--live-mcap FILE`` (none: off).
 
     If the second cannot start, the first is closed again before the error is raised."""
@@ -102,7 +102,7 @@ def live_sinks(live: str | None, live_mcap: str | None) -> list[LiveSink]:
                 flush=True,
             )
         if live_mcap is not None:
-            sinks.append(McapSink(Path(live_mcap)))
+            sinks.append(McapSink(Path(live_mcap), compress=compress))
     except BaseException:
         for sink in sinks:
             sink.close()
@@ -120,7 +120,7 @@ def cmd_agent_run(args: argparse.Namespace) -> int:
 
     _logging()
     config = runtime_config(args)  # bad options fail before a port is taken or a file made
-    sinks = live_sinks(args.live, args.live_mcap)
+    sinks = live_sinks(args.live, args.live_mcap, compress=not args.no_compress)
     node = AgentNode(
         config,
         Path(args.log),
@@ -143,7 +143,7 @@ def cmd_liveview(args: argparse.Namespace) -> int:
 
     events, name = open_events(Path(args.log), run=args.run, robot=args.robot)
     started = time.perf_counter()
-    sink = McapSink(Path(args.mcap))
+    sink = McapSink(Path(args.mcap), compress=not args.no_compress)
     try:
         render(events, [sink], clock_offset_ns=DEFAULT_START_NS if args.sim_clock else 0)
     except BaseException:
@@ -152,6 +152,22 @@ def cmd_liveview(args: argparse.Namespace) -> int:
     sink.close()
     seconds = time.perf_counter() - started
     total = sum(sink.counts.values())
+    if args.json:
+        doc = {
+            "mcap": args.mcap,
+            "source": name,
+            "bytes": Path(args.mcap).stat().st_size,
+            "compressed": not args.no_compress,
+            "messages": total,
+            "seconds": round(seconds, 3),
+            "channels": {
+                topic: {"type": CHANNELS[topic], "messages": sink.counts[topic]}
+                for topic in CHANNELS
+                if topic in sink.counts
+            },
+        }
+        print(json.dumps(doc, indent=2))
+        return 0
     print(
         f"{args.mcap}: {total} messages on {len(sink.counts)} channels from {name} "
         f"in {seconds:.2f} s ({Path(args.mcap).stat().st_size / 1e6:.1f} MB)"
@@ -162,13 +178,49 @@ def cmd_liveview(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Seconds ``agent find`` waits before it says that nobody can hear it.
+NO_ANSWER_HINT_S = 3.0
+
+
+def nobody_hears(config: RuntimeConfig, transport: Any, timeout_s: float) -> str | None:
+    """Why a request cannot be answered and what to start, if the transport can tell: a zenoh
+    session connected to no router and no peer. None when someone may be listening (an agent
+    answers a find only when its search ends, so silence alone says nothing)."""
+    t = config.transport
+    reachable = getattr(transport, "reachable", None)
+    if t.backend.value != "zenoh" or reachable is None or reachable() > 0:
+        return None
+    return (
+        f"nobody answers: no zenoh router or peer is reachable at "
+        f"{', '.join(t.connect) or '(no --connect endpoint)'}. Start a router with "
+        "`objsearch robot router` (rmw_zenoh's robots run `ros2 run rmw_zenoh_cpp rmw_zenohd`), "
+        "then the agent with `objsearch agent run --log LOG`; still waiting up to "
+        f"{timeout_s:g} s (--timeout)"
+    )
+
+
 def cmd_agent_find(args: argparse.Namespace) -> int:
+    import threading
+
     from objsearch.runtime.client import AgentClient
 
-    with AgentClient(runtime_config(args)) as client:
-        result = client.find(
-            args.target, start=args.start, scene=args.scene, timeout_s=args.timeout
-        )
+    config = runtime_config(args)
+    with AgentClient(config) as client:
+
+        def hint_if_alone() -> None:
+            why = nobody_hears(config, client.node.transport, args.timeout)
+            if why is not None:
+                print(f"objsearch agent find: {why}", file=sys.stderr, flush=True)
+
+        hint = threading.Timer(NO_ANSWER_HINT_S, hint_if_alone)
+        hint.daemon = True
+        hint.start()
+        try:
+            result = client.find(
+                args.target, start=args.start, scene=args.scene, timeout_s=args.timeout
+            )
+        finally:
+            hint.cancel()
     if args.json:
         print(json.dumps(result, indent=2, sort_keys=True))
     elif not result.get("ok"):
@@ -256,6 +308,11 @@ def register(sub: Any) -> None:
         type=t.new_path,
         help="also write the live view's channels to FILE.mcap",
     )
+    run.add_argument(
+        "--no-compress",
+        action="store_true",
+        help="write --live-mcap's chunks uncompressed (by default zstd, as ros2 bag record)",
+    )
     run.set_defaults(func=cmd_agent_run)
 
     find = agent_sub.add_parser("find", help="ask the running agent to find an object")
@@ -322,6 +379,13 @@ def register(sub: Any) -> None:
     )
     view.add_argument("--run", type=t.text, help="the lake run to draw")
     view.add_argument("--robot", type=t.text, help="the robot whose run it is, if run names repeat")
+    view.add_argument(
+        "--no-compress",
+        action="store_true",
+        help="write the MCAP's chunks uncompressed (by default zstd with CRCs, as ros2 bag "
+        "record; about 15 times larger)",
+    )
+    view.add_argument("--json", action="store_true", help="print what was written as JSON")
     view.add_argument(
         "--robot-clock",
         dest="sim_clock",

@@ -360,31 +360,40 @@ def _task_markdown(task: TaskAudit, png: Path | None) -> str:
 
 
 def _plot_route(task: TaskAudit, path: Path) -> bool:
+    """The task's route on the home's map, readable by someone who was not there: rooms and
+    static objects named, stops numbered in travel order with arrows between them, a legend, and
+    the figure cut to the home's extent."""
     if not task.home or len(task.route) < 2:
         return False
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch, Rectangle
 
     ctx = load_context(task.home)
-    fig, ax = plt.subplots(figsize=(12, 4), dpi=90)
     vps = list(ctx.navmap.room_of)
-    ax.scatter([p.x for p in vps], [p.y for p in vps], s=2, c="#cccccc", zorder=1)
+    xs = [p.x for p in vps] + [s.box.center[0] for s in ctx.semmap.statics]
+    ys = [p.y for p in vps] + [s.box.center[1] for s in ctx.semmap.statics]
+    margin = 0.6
+    x0, x1, y0, y1 = min(xs) - margin, max(xs) + margin, min(ys) - margin, max(ys) + margin
+    width = 12.0
+    # The map's own aspect, plus room for the title and the legend below it.
+    fig, ax = plt.subplots(figsize=(width, width * (y1 - y0) / (x1 - x0) + 1.6), dpi=100)
+    ax.scatter([p.x for p in vps], [p.y for p in vps], s=2, c="#d0d0d0", zorder=1)
+    for room in ctx.home.rooms:
+        cx = sum(p.x for p in room.viewpoints) / len(room.viewpoints)
+        cy = max(p.y for p in room.viewpoints) + 0.25
+        ax.text(cx, cy, room.name, ha="center", va="bottom", fontsize=11, weight="bold",
+                color="#444444", zorder=6)  # fmt: skip
     for s in ctx.semmap.statics:
         (cx, cy, _), (sx, sy, _) = s.box.center, s.box.size
+        colour = "#1f77b4" if s.container else "#888888"
         ax.add_patch(
-            Rectangle(
-                (cx - sx / 2, cy - sy / 2),
-                sx,
-                sy,
-                fill=False,
-                ec="#1f77b4" if s.container else "#888888",
-                lw=0.8,
-                zorder=2,
-            )
+            Rectangle((cx - sx / 2, cy - sy / 2), sx, sy, fill=False, ec=colour, lw=0.8, zorder=2)
         )
+        ax.text(cx, cy, s.cls, ha="center", va="center", fontsize=6, color=colour, zorder=2)
     # Each move is redrawn along the map's shortest path (what the robot walked, unless the
     # map changed since); a teleport between doors starts a new line.
     segments: list[list[Point]] = []
@@ -406,18 +415,65 @@ def _plot_route(task: TaskAudit, path: Path) -> bool:
         segments.append(current)
     for seg in segments:
         ax.plot([p.x for p in seg], [p.y for p in seg], c="#d62728", lw=1.5, zorder=3)
+        # An arrow on every other step shows the direction of travel.
+        for u, v in list(itertools.pairwise(seg))[::2]:
+            ax.annotate(
+                "",
+                xy=((u.x + v.x) / 2 + (v.x - u.x) * 0.15, (u.y + v.y) / 2 + (v.y - u.y) * 0.15),
+                xytext=((u.x + v.x) / 2, (u.y + v.y) / 2),
+                arrowprops={"arrowstyle": "-|>", "color": "#d62728", "lw": 1.0},
+                zorder=3,
+            )
+    # Stops (where each move ended), numbered in travel order; a stop visited twice shows both.
+    labels: dict[Point, list[str]] = {}
+    for i, p in enumerate(task.route[1:], start=1):
+        labels.setdefault(p, []).append(str(i))
+    for p, numbers in labels.items():
+        ax.scatter([p.x], [p.y], s=16, c="#d62728", zorder=4)
+        ax.annotate(
+            ",".join(numbers),
+            (p.x, p.y),
+            xytext=(4, 4),
+            textcoords="offset points",
+            fontsize=7,
+            color="#8b0000",
+            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8},
+            zorder=7,
+        )
     start = task.route[0]
-    ax.scatter([start.x], [start.y], marker="o", s=40, c="green", zorder=4, label="start")
+    ax.scatter([start.x], [start.y], marker="o", s=70, c="green", ec="k", zorder=5)
     if task.found_at is not None:
         ax.scatter(
-            [task.found_at.x], [task.found_at.y], marker="*", s=120, c="gold", ec="k", zorder=4
+            [task.found_at.x], [task.found_at.y], marker="*", s=220, c="gold", ec="k", zorder=5
         )
+    handles = [
+        Line2D([], [], color="#d62728", lw=1.5, marker=">", label="route (arrows: direction)"),
+        Line2D([], [], color="#d62728", lw=0, marker="o", ms=4, label="stop n (travel order)"),
+        Line2D([], [], color="green", lw=0, marker="o", mec="k", ms=8, label=f"start ({task.start})"),
+        Line2D([], [], color="gold", lw=0, marker="*", mec="k", ms=12,
+               label=f"{task.target} found" if task.found_at else f"{task.target} not found"),
+        Patch(fill=False, ec="#888888", label="static object"),
+        Patch(fill=False, ec="#1f77b4", label="container (opened to look inside)"),
+        Line2D([], [], color="#d0d0d0", lw=0, marker="o", ms=3, label="viewpoint (0.25 m grid)"),
+    ]  # fmt: skip
+    ax.legend(
+        handles=handles,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.16),
+        ncol=4,
+        fontsize=8,
+        frameon=False,
+    )
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
     ax.set_aspect("equal")
-    ax.set_title(f"{task.task_id}: {task.target} from {task.start}")
+    length = f", {task.path_length:.1f} m" if task.path_length is not None else ""
+    ax.set_title(
+        f"{task.task_id}: find {task.target} from {task.start}{length}, {len(task.route) - 1} stops"
+    )
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    fig.tight_layout()
-    fig.savefig(path)
+    fig.savefig(path, bbox_inches="tight", pad_inches=0.1)
     plt.close(fig)
     return True
 

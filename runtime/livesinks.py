@@ -8,7 +8,8 @@ bytes), so a channel looks the same live and in the file: encoding ``cdr``, sche
   rosbag2 MCAP that rosbags' ``Reader``/``AnyReader``, ``ros2 bag`` and Foxglove read. It needs no
   extra package.
 * :class:`FoxgloveSink` serves the channels with ``foxglove-sdk`` (the ``robot`` extra) on
-  127.0.0.1 unless told otherwise. A client that subscribes late gets the channel's last message
+  127.0.0.1 unless told otherwise, to clients that offer either name of the protocol,
+  ``foxglove.sdk.v1`` or ``foxglove.websocket.v1`` (:mod:`objsearch.runtime.wsfront`). A client that subscribes late gets the channel's last message
   again, so the map (sent once) is there whenever Foxglove connects.
 """
 
@@ -25,6 +26,7 @@ from typing import Any
 from objsearch.agent.errors import ObjsearchError
 from objsearch.runtime import messages as m
 from objsearch.runtime.liveview import LiveMessage
+from objsearch.runtime.wsfront import SubprotocolFront
 
 log = logging.getLogger("objsearch.liveview")
 
@@ -54,8 +56,20 @@ def parse_address(text: str) -> tuple[str, int]:
     return host, port
 
 
+def channel_qos(topic: str) -> Any:
+    """The QoS a live channel is recorded with: the map and the statics latched (sent once,
+    as a map server does), the event stream as the agent's, the rest rclcpp's default."""
+    from objsearch.pipeline.bags import bagqos
+    from objsearch.runtime import liveview as lv
+
+    if topic in (lv.MAP, lv.STATICS):
+        return bagqos.LATCHED
+    return bagqos.EVENTS if topic == lv.EVENTS else bagqos.DEFAULT
+
+
 class McapSink:
-    """A rosbag2 MCAP file at ``path`` (``*.mcap``), complete once :meth:`close` returns.
+    """A rosbag2 MCAP file at ``path`` (``*.mcap``), complete once :meth:`close` returns:
+    zstd chunks with CRCs unless ``compress`` is false, each channel with its QoS.
 
     rosbags writes a bag directory (``NAME/NAME.mcap`` + ``metadata.yaml``); it lives in a hidden
     sibling ``.NAME.mcap.*`` while the view runs and its ``.mcap`` is renamed to ``path`` on close,
@@ -63,8 +77,9 @@ class McapSink:
     that hidden folder (its chunks are readable; the summary is missing).
     """
 
-    def __init__(self, path: Path) -> None:
-        from rosbags.rosbag2 import StoragePlugin, Writer
+    def __init__(self, path: Path, *, compress: bool = True) -> None:
+        from objsearch.pipeline.bags.mcapstore import rosbag2_writer
+        from rosbags.rosbag2 import StoragePlugin
 
         if path.suffix != ".mcap":
             raise LiveViewError(f"the live view's MCAP file must end in .mcap; got {path}")
@@ -79,7 +94,7 @@ class McapSink:
                 f"cannot write the MCAP file {path}: {exc.strerror or exc}"
             ) from exc
         self._bag = self._tmp_root / path.stem
-        self._writer = Writer(self._bag, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._writer = rosbag2_writer(self._bag, StoragePlugin.MCAP, compress=compress)
         try:
             self._writer.open()
         except Exception as exc:
@@ -92,7 +107,12 @@ class McapSink:
     def write(self, message: LiveMessage) -> None:
         conn = self._connections.get(message.topic)
         if conn is None:
-            conn = self._writer.add_connection(message.topic, message.msgtype, typestore=m.store())
+            conn = self._writer.add_connection(
+                message.topic,
+                message.msgtype,
+                typestore=m.store(),
+                offered_qos_profiles=[channel_qos(message.topic)],
+            )
             self._connections[message.topic] = conn
         self._writer.write(conn, message.stamp_ns, message.data)
         self.counts[message.topic] = self.counts.get(message.topic, 0) + 1
@@ -149,17 +169,28 @@ class FoxgloveSink:
             def on_subscribe(self, client: Any, channel: Any) -> None:
                 sink._resend(int(channel.id))
 
+        # The SDK listens on a loopback port of its own behind a front door that also accepts
+        # the protocol's earlier name, which Foxglove's published client offers (wsfront.py).
         try:
             self._server = foxglove.start_server(
-                name=name, host=host, port=port, context=self._context, server_listener=Latch()
+                name=name,
+                host="127.0.0.1",
+                port=0,
+                context=self._context,
+                server_listener=Latch(),
             )
         except RuntimeError as exc:
+            raise LiveViewError(f"cannot start the live view's Foxglove server: {exc}") from exc
+        try:
+            self._front = SubprotocolFront(host, port, int(self._server.port))
+        except OSError as exc:
+            self._server.stop()
             raise LiveViewError(
-                f"cannot serve the live view on {host}:{port}: {exc} "
+                f"cannot serve the live view on {host}:{port}: {exc.strerror or exc} "
                 "(choose another port with --live HOST:PORT, or 0 for a free one)"
             ) from exc
         self.host = host
-        self.port = int(self._server.port)
+        self.port = self._front.port
 
     def write(self, message: LiveMessage) -> None:
         with self._lock:
@@ -188,5 +219,6 @@ class FoxgloveSink:
             channel.log(data)
 
     def close(self) -> None:
+        self._front.close()
         with contextlib.suppress(Exception):  # already stopped
             self._server.stop()

@@ -203,6 +203,12 @@ class ZenohTransport:
             self, topic_key(self.config.domain_id, service, srvtype), self._gid(entity)
         )
 
+    def reachable(self) -> int:
+        """How many zenoh routers and peers this session is connected to right now (0: nobody
+        to talk to, e.g. no router at the ``connect`` endpoints)."""
+        info = self.session.info
+        return len(list(info.routers_zid())) + len(list(info.peers_zid()))
+
     def _gid(self, entity: int) -> bytes:
         return (self.session_id.encode() + entity.to_bytes(4, "little") + os.urandom(16))[:GID_SIZE]
 

@@ -27,7 +27,7 @@ import json
 import math
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -38,6 +38,7 @@ from objsearch.agent.geometry import Pose
 from objsearch.agent.world import Detection
 from objsearch.events import Event, read_log
 from objsearch.events.record import encode_record
+from objsearch.pipeline.bags import bagqos
 from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.topics import Role, TopicMap
@@ -50,6 +51,7 @@ if TYPE_CHECKING:
     from objsearch.agent.detect import Detector, MaskDetection
     from objsearch.agent.frames import RGBDFrame
     from objsearch.sim.render import SimulatedCamera
+    from rosbags.interfaces import Qos
     from rosbags.typesys.store import Typestore
 
 #: camera_link (x forward, z up) → its optical frame (x right, y down, z forward), REP 103:
@@ -76,6 +78,22 @@ MSG_TYPES = {
     Role.INSTANCES: "sensor_msgs/msg/Image",
     Role.DETECTIONS: "vision_msgs/msg/Detection2DArray",
     Role.EVENTS: "objsearch_msgs/msg/Event",
+}
+
+
+#: The QoS each topic's publisher offers on a ROS 2 robot (recorded as rosbag2 does, so that
+#: ``ros2 bag play`` latches /tf_static): camera topics reliable like the rest (a reliable offer
+#: serves best-effort subscribers too).
+ROLE_QOS: dict[Role, Qos] = {
+    Role.ODOMETRY: bagqos.DEFAULT,
+    Role.TF: bagqos.TF,
+    Role.TF_STATIC: bagqos.TF_STATIC,
+    Role.CAMERA_INFO: bagqos.DEFAULT,
+    Role.IMAGE: bagqos.DEFAULT,
+    Role.DEPTH: bagqos.DEFAULT,
+    Role.INSTANCES: bagqos.DEFAULT,
+    Role.DETECTIONS: bagqos.DEFAULT,
+    Role.EVENTS: bagqos.EVENTS,
 }
 
 
@@ -377,8 +395,9 @@ def bag_messages(
     start_ns: int = DEFAULT_START_NS,
     odom_hz: float = DEFAULT_ODOM_HZ,
     camera: Camera | None = None,
-) -> Iterator[tuple[int, Role, Any]]:
-    """(bag time, role, message) for everything the robot publishes, in time order."""
+) -> _Schedule:
+    """(bag time, role, message) for everything the robot publishes, in time order (an
+    iterable whose ``len`` is the number of messages)."""
     camera = camera or Camera()
     m = _Messages(distro, topic_map, camera)
     f = camera.focal_px
@@ -394,7 +413,7 @@ def bag_messages(
         out.add(t, Role.DETECTIONS, partial(m.detections, stamp, pose, dets))
     for e in events:
         out.add(e.time_ns, Role.EVENTS, partial(m.event, start_ns + e.time_ns, e))
-    return iter(out)
+    return out
 
 
 class _Schedule:
@@ -420,6 +439,9 @@ class _Schedule:
             self.add(t, Role.ODOMETRY, partial(m.odometry, stamp, pose, twist))
             self.add(t, Role.TF, partial(m.tf, stamp, pose))
 
+    def __len__(self) -> int:
+        return len(self.items)
+
     def __iter__(self) -> Iterator[tuple[int, Role, Any]]:
         self.items.sort(key=lambda item: (item[0], item[1]))
         for stamp, _, role, make in self.items:
@@ -435,7 +457,7 @@ def sweep_messages(
     *,
     start_ns: int = DEFAULT_START_NS,
     odom_hz: float = DEFAULT_ODOM_HZ,
-) -> Iterator[tuple[int, Role, Any]]:
+) -> _Schedule:
     """(bag time, role, message) of a mapping sweep: one rendered view per (room, pose)."""
     m = _Messages(distro, topic_map)
     timeline = Timeline()
@@ -458,7 +480,7 @@ def sweep_messages(
         for role in (Role.IMAGE, Role.DEPTH, Role.INSTANCES):
             out.add(t, role, partial(views.image, m, stamp, i, role))
         out.add(t, Role.DETECTIONS, partial(views.detections, m, stamp, i))
-    return iter(out)
+    return out
 
 
 class _Views:
@@ -542,22 +564,31 @@ class _Views:
 def write_bag(
     path: Path,
     fmt: BagFormat,
-    messages: Iterator[tuple[int, Role, Any]],
+    messages: Iterable[tuple[int, Role, Any]],
     topic_map: TopicMap,
     *,
     chunk_bytes: int | None = None,
+    compress: bool = True,
+    progress: Callable[[int], None] | None = None,
 ) -> dict[str, int]:
     """Write ``messages`` with the rosbags writer of ``fmt``; returns messages per topic.
 
     Written into a temporary sibling and renamed into place, so ``path`` never holds half a bag.
-    ``chunk_bytes`` sets ROS 1's chunk size (rosbags' default is 1 MiB).
+    ``chunk_bytes`` sets the chunk size of ROS 1 and MCAP bags (1 MiB). An MCAP bag has zstd
+    chunks and CRCs unless ``compress`` is false (:mod:`~objsearch.pipeline.bags.mcapstore`).
+    ROS 1 connections store the full ``.msg`` text of their types (:mod:`.ros1defs`), ROS 2 ones
+    the QoS the robot's publishers offer (:data:`ROLE_QOS`). ``progress`` is called with the
+    number of messages written so far, every 10 000 and at the end.
     """
+    from objsearch.pipeline.bags.ros1defs import full_definition
+
     if path.exists():
         raise BagError(f"{path} already exists; choose a new --out (bags are never overwritten)")
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp_root = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
     tmp = tmp_root / path.name
     counts: dict[str, int] = {}
+    written = 0
     store = typestore(fmt.distro)
     try:
         if fmt is BagFormat.ROS1:
@@ -571,34 +602,47 @@ def write_bag(
                 for stamp, role, msg in messages:
                     msgtype = MSG_TYPES[role]
                     if role not in conns1:
+                        msgdef, md5sum = store.generate_msgdef(msgtype)
                         conns1[role] = w1.add_connection(
                             topic_map.topic_for(role),
                             msgtype,
-                            typestore=store,
+                            msgdef=full_definition(store, msgtype) or msgdef,
+                            md5sum=md5sum,
                             latching=1 if role is Role.TF_STATIC else None,
                         )
                     w1.write(conns1[role], stamp, bytes(store.serialize_ros1(msg, msgtype)))
                     topic = topic_map.topic_for(role)
                     counts[topic] = counts.get(topic, 0) + 1
+                    written += 1
+                    if progress is not None and written % 10_000 == 0:
+                        progress(written)
         else:
+            from objsearch.pipeline.bags.mcapstore import rosbag2_writer
             from rosbags.rosbag2 import StoragePlugin
-            from rosbags.rosbag2 import Writer as Writer2
 
             plugin = StoragePlugin.MCAP if fmt is BagFormat.ROS2_MCAP else StoragePlugin.SQLITE3
-            with Writer2(tmp, version=9, storage_plugin=plugin) as w2:
+            with rosbag2_writer(tmp, plugin, compress=compress, chunk_bytes=chunk_bytes) as w2:
                 conns2: dict[Role, Any] = {}
                 for stamp, role, msg in messages:
                     msgtype = MSG_TYPES[role]
                     if role not in conns2:
                         conns2[role] = w2.add_connection(
-                            topic_map.topic_for(role), msgtype, typestore=store
+                            topic_map.topic_for(role),
+                            msgtype,
+                            typestore=store,
+                            offered_qos_profiles=[ROLE_QOS[role]],
                         )
                     w2.write(conns2[role], stamp, bytes(store.serialize_cdr(msg, msgtype)))
                     topic = topic_map.topic_for(role)
                     counts[topic] = counts.get(topic, 0) + 1
+                    written += 1
+                    if progress is not None and written % 10_000 == 0:
+                        progress(written)
         tmp.rename(path)
     finally:
         shutil.rmtree(tmp_root, ignore_errors=True)
+    if progress is not None:
+        progress(written)
     return counts
 
 
@@ -609,6 +653,45 @@ def _check_out(out: Path, fmt: BagFormat) -> None:
         raise BagError(f"a ROS 2 bag is a directory; give --out a directory name, not {out.name}")
     if out.exists():
         raise BagError(f"{out} already exists; choose a new --out (bags are never overwritten)")
+
+
+#: ``progress(stage, done, total)`` of :func:`record`.
+Progress = Callable[[str, int, int], None]
+
+#: Bytes a search of the paper home's schedule takes in each format, measured on the full
+#: schedule (640 searches; docs/pipeline.md, "Compression"): ``objsearch record`` says up front
+#: how large a recording will be.
+BYTES_PER_SEARCH: dict[tuple[BagFormat, bool], int] = {
+    (BagFormat.ROS2_MCAP, True): 94_039,  # 60.2 MB for 640 searches, zstd
+    (BagFormat.ROS2_MCAP, False): 1_313_026,  # 840.3 MB, --no-compress
+    (BagFormat.ROS1, False): 1_312_833,  # 840.2 MB (ROS 1 bags are not compressed)
+}
+
+
+def planned_searches(
+    home: str,
+    *,
+    scenes: Sequence[int] | None = None,
+    targets: Sequence[str] | None = None,
+    starts: Sequence[str] | None = None,
+    schedule: str = "table2",
+) -> int:
+    """How many searches :func:`record` runs for these choices (all of each by default)."""
+    from objsearch.agent.session import load_context
+    from objsearch.sim.longterm import TARGET_ORDER
+    from objsearch.sim.schedules import load_schedule
+
+    ctx = load_context(home)
+    n_scenes = len(scenes) if scenes else len(load_schedule(ctx.home, schedule).scenes)
+    n_targets = len(targets) if targets else len(TARGET_ORDER)
+    n_starts = len(starts) if starts else len(ctx.home.starts)
+    return n_scenes * n_targets * n_starts
+
+
+def expected_bytes(fmt: BagFormat, searches: int, *, compress: bool = True) -> int | None:
+    """The size a recording of ``searches`` searches is expected to have (None: not measured)."""
+    per = BYTES_PER_SEARCH.get((fmt, compress and fmt is BagFormat.ROS2_MCAP))
+    return None if per is None else per * searches
 
 
 def record(
@@ -625,8 +708,13 @@ def record(
     odom_hz: float = DEFAULT_ODOM_HZ,
     chunk_bytes: int | None = None,
     seed: int = 0,
+    compress: bool = True,
+    progress: Progress | None = None,
 ) -> Recording:
-    """Run the searches and write the bag; the agent's own log goes to ``log_dir`` if given."""
+    """Run the searches and write the bag; the agent's own log goes to ``log_dir`` if given.
+
+    ``progress(stage, done, total)`` hears of each search (stage ``"searches"``) and of the
+    messages written (``"messages"``)."""
     from objsearch.agent.session import load_context
     from objsearch.agent.strategies import RunSpec
     from objsearch.sim.longterm import TARGET_ORDER, run_schedule
@@ -638,6 +726,15 @@ def record(
     tmp = None if log_dir is not None else Path(tempfile.mkdtemp(prefix="objsearch-record-"))
     log = log_dir if log_dir is not None else tmp
     assert log is not None
+    total = planned_searches(home, scenes=scenes, targets=chosen, starts=starts)
+    done = 0
+
+    def searched(_: object) -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress("searches", done, total)
+
     try:
         timeline = Timeline()
         trials = run_schedule(
@@ -647,12 +744,22 @@ def record(
             scenes=scenes,
             starts=starts,
             observer=timeline,
+            on_trial=searched,
         )
         events = list(read_log(log))
         messages = bag_messages(
             timeline, events, fmt.distro, topic_map, start_ns=start_ns, odom_hz=odom_hz
         )
-        counts = write_bag(out, fmt, messages, topic_map, chunk_bytes=chunk_bytes)
+        n = len(messages)
+        counts = write_bag(
+            out,
+            fmt,
+            messages,
+            topic_map,
+            chunk_bytes=chunk_bytes,
+            compress=compress,
+            progress=None if progress is None else (lambda k: progress("messages", k, n)),
+        )
     finally:
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
@@ -679,6 +786,7 @@ def record_mapping_sweep(
     start_ns: int = DEFAULT_START_NS,
     odom_hz: float = DEFAULT_ODOM_HZ,
     chunk_bytes: int | None = None,
+    compress: bool = True,
 ) -> Recording:
     """Write the §4.3 mapping survey as RGB-D: the views ``objsearch map build`` renders, with
     the simulator's masks of every object (the home's movable objects where the data has them)."""
@@ -710,7 +818,7 @@ def record_mapping_sweep(
         start_ns=start_ns,
         odom_hz=odom_hz,
     )
-    counts = write_bag(out, fmt, messages, topic_map, chunk_bytes=chunk_bytes)
+    counts = write_bag(out, fmt, messages, topic_map, chunk_bytes=chunk_bytes, compress=compress)
     return Recording(
         path=out,
         format=fmt,

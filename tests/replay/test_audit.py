@@ -154,3 +154,45 @@ def test_audit_refuses_a_folder_it_did_not_write(
     assert "was not written by objsearch audit" in capsys.readouterr().err
     assert [p.name for p in out.iterdir()] == ["index.md"]
     assert (out / "index.md").read_text() == "chapter 1"
+
+
+def test_route_png_is_cut_to_the_home_and_labelled(tmp_path: Path) -> None:
+    """The PNG spans the home (not a fixed canvas ~40 % blank) and carries the names a reader
+    needs: the test draws one and reads its text objects back through matplotlib's own hook."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from matplotlib.figure import Figure
+    from objsearch.agent.session import load_context
+    from objsearch.replay.audit import _plot_route, audit
+    from objsearch.replay.source import open_events
+
+    events, _ = open_events(LOG)
+    task = next(t for t in audit(events).tasks if len(t.route) > 3)
+    texts: list[str] = []
+    original = Figure.savefig
+
+    def keep_texts(fig: Figure, *args: object, **kwargs: object) -> None:
+        for ax in fig.axes:
+            texts.extend(t.get_text() for t in ax.texts)
+            legend = ax.get_legend()
+            if legend is not None:
+                texts.extend(t.get_text() for t in legend.get_texts())
+        original(fig, *args, **kwargs)  # type: ignore[arg-type]
+
+    Figure.savefig = keep_texts  # type: ignore[method-assign]
+    try:
+        assert _plot_route(task, tmp_path / "route.png")
+    finally:
+        Figure.savefig = original  # type: ignore[method-assign]
+    ctx = load_context(task.home)
+    assert {r.name for r in ctx.home.rooms} <= set(texts)  # room names
+    assert {s.cls for s in ctx.semmap.statics} <= set(texts)  # static object labels
+    stops = len(task.route) - 1
+    assert {str(i) for i in range(1, stops + 1)} <= {n for t in texts for n in t.split(",")}
+    assert any(t.startswith("route") for t in texts) and any("start" in t for t in texts)
+    pixels = np.asarray(plt.imread(tmp_path / "route.png"))[..., :3]
+    blank_rows = float(np.mean((pixels > 0.98).all(axis=(1, 2))))
+    assert blank_rows < 0.2, blank_rows

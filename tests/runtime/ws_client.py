@@ -16,18 +16,37 @@ from typing import Any
 
 #: The subprotocol foxglove-sdk 0.30 speaks (the older ws-protocol servers use foxglove.websocket.v1).
 SUBPROTOCOL = "foxglove.sdk.v1"
+
+
+class HandshakeRefused(ConnectionError):
+    """The server answered the opening handshake with something other than 101."""
+
+    def __init__(self, status_line: str, body: str) -> None:
+        super().__init__(f"handshake refused: {status_line}: {body}")
+        self.status_line, self.body = status_line, body
+
+
 _GUID = "258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
 
 
 class FoxgloveClient:
-    def __init__(self, host: str, port: int, *, timeout_s: float = 10.0) -> None:
+    def __init__(
+        self,
+        host: str,
+        port: int,
+        *,
+        timeout_s: float = 10.0,
+        subprotocols: str | None = SUBPROTOCOL,
+    ) -> None:
         self.sock = socket.create_connection((host, port), timeout=timeout_s)
         key = base64.b64encode(os.urandom(16)).decode()
         self.sock.sendall(
             (
                 f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\n"
                 f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
-                f"Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: {SUBPROTOCOL}\r\n\r\n"
+                f"Sec-WebSocket-Version: 13\r\n"
+                + (f"Sec-WebSocket-Protocol: {subprotocols}\r\n" if subprotocols else "")
+                + "\r\n"
             ).encode()
         )
         self._buf = b""
@@ -39,7 +58,13 @@ class FoxgloveClient:
         head, self._buf = self._buf.split(b"\r\n\r\n", 1)
         lines = head.decode("latin-1").split("\r\n")
         if " 101 " not in lines[0]:
-            raise ConnectionError(f"handshake refused: {lines[0]}")
+            self.sock.settimeout(1.0)
+            try:
+                while chunk := self.sock.recv(65536):
+                    self._buf += chunk
+            except OSError:
+                pass
+            raise HandshakeRefused(lines[0], self._buf.decode("utf-8", "replace").strip())
         headers = {k.strip().lower(): v.strip() for k, v in (x.split(":", 1) for x in lines[1:])}
         accept = base64.b64encode(hashlib.sha1((key + _GUID).encode()).digest()).decode()
         if headers.get("sec-websocket-accept") != accept:

@@ -1,0 +1,113 @@
+"""The command line as a newcomer meets it: --version, --json on the commands that write things,
+record's progress and size up front, and agent find telling that nobody can hear it."""
+
+from __future__ import annotations
+
+import json
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from objsearch import __version__
+from objsearch.cli import demo_summary, main
+
+REPO = Path(__file__).resolve().parents[1]
+GOLDEN = REPO / "tests" / "replay" / "golden" / "sim-wpl-updates"
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out.strip() == f"objsearch {__version__}"
+
+
+def test_record_says_what_it_will_write_and_prints_json(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "bag"
+    args = ["record", "--out", str(out), "--format", "ros2-mcap", "--scenes", "1"]
+    args += ["--targets", "Apple", "--starts", "kitchen-1", "--json"]
+    assert main(args) == 0
+    captured = capsys.readouterr()
+    assert "1 searches into" in captured.err and "zstd" in captured.err
+    assert "about 0.1 MB" in captured.err  # the expected size, before anything runs
+    assert "searches:" in captured.err and "messages:" in captured.err  # progress bars
+    doc = json.loads(captured.out)
+    assert doc["searches"] == 1 and doc["compressed"] is True
+    assert doc["bytes"] == (out / "bag.mcap").stat().st_size
+    assert doc["messages"]["/objsearch/events"] == doc["events"]
+
+    # ingest --json: one JSON line per bag; lake add --json: the committed run.
+    lake = tmp_path / "lake"
+    assert main(["ingest", str(out), "--lake", str(lake), "--no-progress", "--json"]) == 0
+    (line,) = capsys.readouterr().out.strip().splitlines()
+    ingested = json.loads(line)
+    assert ingested["ok"] and not ingested["already"] and ingested["committed"] > 0
+    assert ingested["report"]["format"] == "ros2-mcap"
+    assert main(["lake", "add", str(GOLDEN), "--robot", "sim", "--lake", str(lake), "--json"]) == 0
+    added = json.loads(capsys.readouterr().out)
+    assert added["robot"] == "sim" and added["events"] == sum(added["rows"].values())
+
+
+def test_liveview_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    mcap = tmp_path / "view.mcap"
+    assert main(["liveview", str(GOLDEN), "--mcap", str(mcap), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["bytes"] == mcap.stat().st_size and doc["compressed"] is True
+    assert doc["messages"] == sum(c["messages"] for c in doc["channels"].values())
+
+
+def test_demo_summary_reads_the_demos_table(tmp_path: Path) -> None:
+    """``demo --json`` summarises the table the demo writes (a small real run of it here; the
+    full demo is 1280 searches)."""
+    from objsearch.agent.policy import Method, SearchConfig
+    from objsearch.agent.scene_graph import UpdateMode
+    from objsearch.sim.demo import write_csv
+    from objsearch.sim.longterm import run_schedule
+
+    config = SearchConfig(method=Method.WPL, alpha=10.0, seed=0)
+    trials = run_schedule(
+        "paper", tmp_path / "log-all", config, UpdateMode.ALL, targets=["Apple", "Cup"],
+        scenes=[1], starts=["kitchen-1"],
+    )  # fmt: skip
+    write_csv(tmp_path / "path_lengths.csv", {UpdateMode.ALL: trials})
+    doc = demo_summary(tmp_path)
+    (mode,) = doc["modes"].values()
+    assert mode["searches"] == 2
+    assert mode["mean_path_length_m"] == pytest.approx(
+        sum(t.path_length for t in trials) / 2, abs=1e-3
+    )
+    assert doc["logs"] == {"all": str(tmp_path / "log-all")}
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_agent_find_without_a_router_says_so_within_seconds() -> None:
+    pytest.importorskip("zenoh")
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"  # nobody listens there
+    started = time.monotonic()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "objsearch.cli", "agent", "find", "Apple", "--connect", endpoint,
+         "--timeout", "30"],
+        stderr=subprocess.PIPE,
+        text=True,
+    )  # fmt: skip
+    try:
+        assert proc.stderr is not None
+        line = proc.stderr.readline()
+        waited = time.monotonic() - started
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+    assert "nobody answers: no zenoh router or peer is reachable at " + endpoint in line
+    assert "objsearch robot router" in line and "rmw_zenohd" in line
+    assert waited < 15, waited  # told within seconds, not at the 30 s timeout
