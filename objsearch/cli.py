@@ -32,6 +32,7 @@ def _fail(message: str) -> int:
 
 
 def cmd_data_build(args: argparse.Namespace) -> int:
+    from objsearch.paths import build_output_dir
     from objsearch.pipeline.build import build_data, parse_home_arg
     from objsearch.pipeline.errors import BuildError
 
@@ -39,7 +40,7 @@ def cmd_data_build(args: argparse.Namespace) -> int:
         homes = dict(parse_home_arg(spec) for spec in args.home) if args.home else None
         report = build_data(
             Path(args.source),
-            Path(args.out),
+            build_output_dir(args.out),
             homes=homes,
             progress=lambda line: print(line, file=sys.stderr),
         )
@@ -195,7 +196,10 @@ def build_parser() -> argparse.ArgumentParser:
     data_sub = data.add_subparsers(dest="data_command", required=True, metavar="SUBCOMMAND")
     build = data_sub.add_parser("build", help="convert ../shared/data into data/")
     build.add_argument("--source", required=True, help="the shared data folder (../shared/data)")
-    build.add_argument("--out", default=str(_default_data_dir()), help="output folder (data/)")
+    build.add_argument(
+        "--out",
+        help="output folder (default: $OBJSEARCH_DATA, else data/ of the checkout objsearch runs from)",
+    )
     build.add_argument(
         "--home",
         action="append",
@@ -256,12 +260,6 @@ def _search_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", default="wpl", choices=["wpl", "rvp", "sdp"], help="planner (wpl)")
     p.add_argument("--alpha", type=float, default=10.0, help="α of Eq. 3 (10)")
     p.add_argument("--seed", type=int, default=0, help="seed (SDP's random room order)")
-
-
-def _default_data_dir() -> Path:
-    from objsearch.paths import data_dir
-
-    return data_dir()
 
 
 def main(argv: Sequence[str] | None = None) -> int:

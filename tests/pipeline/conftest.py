@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 from objsearch.pipeline.build import BuildReport, build_data
 
-from objsearch.paths import REPO_ROOT
+REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
 def _shared_data() -> Path | None:
