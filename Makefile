@@ -44,8 +44,9 @@ data: $(STAMP)
 	$(BIN)/objsearch data build --source $(SHARED)
 
 # Re-record the golden logs after a change that is meant to alter decisions (tests/replay).
+GOLDEN ?= tests/replay/golden
 bless: $(STAMP)
-	$(BIN)/python -m objsearch.replay.golden
+	$(BIN)/python -m objsearch.replay.golden $(GOLDEN)
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache

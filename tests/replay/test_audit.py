@@ -10,11 +10,10 @@ from typing import Any
 import pytest
 from objsearch.events import Event, EventLog, read_log
 from objsearch.replay.audit import audit
-from objsearch.replay.golden import DEFAULT_DIR
 
 from objsearch.cli import main
 
-LOG = DEFAULT_DIR / "sim-wpl-updates"
+LOG = Path(__file__).resolve().parent / "golden" / "sim-wpl-updates"
 
 
 def _rewrite(events: Iterable[Event], out: Path) -> Path:
@@ -42,7 +41,12 @@ def test_a_clean_run_has_no_integrity_anomalies() -> None:
     tasks = audit(read_log(LOG)).tasks
     assert len(tasks) == 8
     assert all(t.success and t.oracle_length is not None for t in tasks)
-    assert all(t.path_length is not None and t.path_length >= t.oracle_length - 1e-9 for t in tasks)
+    assert all(
+        t.path_length is not None
+        and t.oracle_length is not None
+        and t.path_length >= t.oracle_length - 1e-9
+        for t in tasks
+    )
 
 
 def _task_found_by_looking() -> tuple[str, str, int]:
