@@ -95,8 +95,10 @@ def test_rebuilding_from_scratch_equals_the_live_fold(schedule_log: Path) -> Non
     rebuilt = fold(read_log(schedule_log), SceneGraphProjection())
     # A session continuing the log folds it on open; its live graph then advances event by event.
     session = Session(ctx, schedule_log, SearchConfig(), UpdateMode.ALL)
+    graph = session.graph
+    assert isinstance(graph, SceneGraphProjection)
     try:
-        assert session.graph.relations == rebuilt.relations
+        assert graph.relations == rebuilt.relations
         world = SimWorld(
             ctx.home,
             ctx.navmap,
@@ -105,7 +107,7 @@ def test_rebuilding_from_scratch_equals_the_live_fold(schedule_log: Path) -> Non
             clock=SimClock(session.resume_time_ns),
         )
         session.search(world, "Pillow", "bedroom-1")
-        live = dict(session.graph.relations)
+        live = dict(graph.relations)
     finally:
         session.close()
     assert live != rebuilt.relations  # the extra task changed something

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import duckdb
 import polars as pl
@@ -182,7 +183,7 @@ def test_a_failed_commit_leaves_nothing(tmp_path: Path, monkeypatch: pytest.Monk
     ],
 )
 def test_bad_partition_values_are_refused(
-    tmp_path: Path, kwargs: dict[str, str], message: str
+    tmp_path: Path, kwargs: dict[str, Any], message: str
 ) -> None:
     with pytest.raises(LakeError, match=message):
         compact_log(small_log(tmp_path / "log"), Lake(tmp_path / "lake"), **kwargs)

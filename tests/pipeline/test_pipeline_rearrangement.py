@@ -96,7 +96,11 @@ def test_attribution_names_the_parent_class_on_the_metadata_poses(shared_data: P
                     continue
                 held = attribute((o.box.center[0], o.box.center[1], o.box.lo[2]), room.statics)
                 total += 1
-                agree += held is not None and held[0].cls == by_id[o.support].cls
+                agree += (
+                    held is not None
+                    and o.support is not None
+                    and held[0].cls == by_id[o.support].cls
+                )
     assert total > 40
     assert agree / total >= 0.95
 

@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from bag_fixtures import Recorded
 from objsearch.pipeline.bags.engines import (
     InlineEngine,
     ProcessEngine,
@@ -22,6 +21,8 @@ from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import BagLake
 
 from objsearch.cli import main
+
+from .bag_fixtures import Recorded
 
 
 @pytest.fixture(scope="module")
