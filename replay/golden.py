@@ -139,7 +139,10 @@ def bless(directory: Path) -> list[Path]:
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 1:
-        print("usage: python -m objsearch.replay.golden DIR  (make bless: tests/replay/golden)")
+        print(
+            "usage: python -m objsearch.replay.golden DIR  (make bless: tests/replay/golden)",
+            file=sys.stderr,
+        )
         return 2
     for path in bless(Path(args[0])):
         print(f"blessed {path}")
