@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
+
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.geometry import Point, Pose, heading, wrap_angle
 from objsearch.agent.home import Vec3

@@ -19,7 +19,6 @@ from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode, seed_r
 from objsearch.agent.semmap import SemanticMap
 from objsearch.agent.world import World
 from objsearch.events import EventLog, read_log
-
 from objsearch.paths import data_dir
 
 PRIOR_FILE = "priors/visual_genome.json"

@@ -34,6 +34,7 @@ from typing import Any
 
 import duckdb
 import pyarrow as pa
+
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.events import Event, EventLog, fold, read_log
 from objsearch.events.arrow import events_to_tables

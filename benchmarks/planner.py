@@ -16,6 +16,7 @@ from collections.abc import Callable
 from typing import TypeVar
 
 import numpy as np
+
 from objsearch.agent.planner import wpl_enumerate, wpl_exact
 
 T = TypeVar("T")

@@ -10,6 +10,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from tqdm import tqdm
+
 from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import HomeContext, Session, load_context
@@ -17,7 +19,6 @@ from objsearch.experiments.strategies import strategy
 from objsearch.sim.schedule import Placements, base_placements, table1_removals
 from objsearch.sim.schedules import load_schedule
 from objsearch.sim.world import SimClock, SimWorld
-from tqdm import tqdm
 
 TARGETS = ("Apple", "Cup", "Bowl", "Phone", "Laptop", "Pillow", "Vase", "ToiletPaper")
 PAUSE_BETWEEN_TASKS_S = 60.0

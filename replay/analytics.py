@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Final
 
 import duckdb
+
 from objsearch.events.derived import (
     DERIVED_DIR,
     DERIVED_TABLES,

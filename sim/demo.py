@@ -10,11 +10,12 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from tqdm import tqdm
+
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.policy import Method, SearchConfig
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule
-from tqdm import tqdm
 
 SCENES = 10
 STARTS = 8

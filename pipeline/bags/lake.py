@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import pyarrow as pa
+
 from objsearch.events import Event, EventStoreError
 from objsearch.events.lake import Lake
 from objsearch.pipeline.bags.errors import LakeError

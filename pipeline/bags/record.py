@@ -47,10 +47,11 @@ from objsearch.sim.perception import IMAGE_HEIGHT, IMAGE_WIDTH, Camera
 if TYPE_CHECKING:
     import numpy as np
     import numpy.typing as npt
+    from rosbags.typesys.store import Typestore
+
     from objsearch.agent.detect import Detector, MaskDetection
     from objsearch.agent.frames import RGBDFrame
     from objsearch.sim.render import SimulatedCamera
-    from rosbags.typesys.store import Typestore
 
 #: camera_link (x forward, z up) → its optical frame (x right, y down, z forward), REP 103:
 #: the quaternion (x, y, z, w) of the rotation whose columns are the optical axes in camera_link.
@@ -512,6 +513,7 @@ class _Views:
         tuple[str, str, float, tuple[float, float, float, float], tuple[float, float, float]]
     ]:
         import numpy as np
+
         from objsearch.agent.detect import locate
 
         frame, dets = self._view(i)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.detect import (
     CLASS_NAMES_FILE,

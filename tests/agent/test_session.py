@@ -7,6 +7,7 @@ import itertools
 from pathlib import Path
 
 import pytest
+
 from objsearch.agent.policy import Method, SearchConfig
 from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
 from objsearch.agent.session import Session, load_context

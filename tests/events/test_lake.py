@@ -11,6 +11,7 @@ import pyarrow as pa
 import pyarrow.dataset as ds
 import pyarrow.parquet as pq
 import pytest
+
 from objsearch.events import EventLog, default_registry, read_log
 from objsearch.events.arrow import event_schema, events_to_tables
 from objsearch.events.derived import DERIVED_DIR, DERIVED_TABLES

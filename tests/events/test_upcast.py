@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from objsearch.agent.policy import Method, SearchConfig
 from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
 from objsearch.agent.session import Session, load_context

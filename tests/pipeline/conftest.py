@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from objsearch.pipeline.build import BuildReport, build_data
 
 REPO_ROOT = Path(__file__).resolve().parents[2]

@@ -8,10 +8,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from objsearch.events import Event, EventLog, read_log
-from objsearch.replay.audit import audit
 
 from objsearch.cli import main
+from objsearch.events import Event, EventLog, read_log
+from objsearch.replay.audit import audit
 
 LOG = Path(__file__).resolve().parent / "golden" / "sim-wpl-updates"
 

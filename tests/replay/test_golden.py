@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from objsearch.replay.decisions import replay
 from objsearch.replay.golden import BAG_LAKE, GOLDEN_RUNS
 from objsearch.replay.source import open_events

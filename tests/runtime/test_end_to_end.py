@@ -9,14 +9,13 @@ from typing import Any
 from objsearch.agent.policy import SearchConfig
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
+from objsearch.cli import build_parser
+from objsearch.cli_runtime import runtime_config
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.sim.schedule import Schedule
 from objsearch.sim.world import SimClock, SimWorld
-
-from objsearch.cli import build_parser
-from objsearch.cli_runtime import runtime_config
 
 from .runtime_fixtures import Net, objsearch, stop
 

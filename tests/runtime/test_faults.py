@@ -7,6 +7,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 

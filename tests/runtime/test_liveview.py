@@ -12,18 +12,18 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import Reader
+
 from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.agent.session import load_context
+from objsearch.cli import main
 from objsearch.events import Event, fold, read_log
 from objsearch.pipeline.bags.record import DEFAULT_START_NS
 from objsearch.runtime import liveview as lv
 from objsearch.runtime import messages as m
 from objsearch.runtime.livesinks import FoxgloveSink, LiveViewError, McapSink, parse_address
-from rosbags.highlevel import AnyReader
-from rosbags.rosbag2 import Reader
-
-from objsearch.cli import main
 
 GOLDEN = Path(__file__).resolve().parents[1] / "replay" / "golden" / "sim-wpl-updates"
 
@@ -315,10 +315,9 @@ def test_agent_run_serves_and_records_the_live_view(net: Any, tmp_path: Path) ->
     """``agent run --live PORT --live-mcap FILE`` against the stand-in robot: a client sees the
     channels while it runs; after SIGTERM the MCAP holds the search the log holds."""
     pytest.importorskip("foxglove")
-    from objsearch.runtime.client import AgentClient
-
     from objsearch.cli import build_parser
     from objsearch.cli_runtime import runtime_config
+    from objsearch.runtime.client import AgentClient
 
     from .runtime_fixtures import free_port, objsearch, stop
     from .ws_client import FoxgloveClient

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 

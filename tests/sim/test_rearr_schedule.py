@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+
 from objsearch.agent.errors import DataFileError, ObjsearchError
 from objsearch.agent.home import load_home
 from objsearch.agent.policy import SearchConfig

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+
 from objsearch.agent.frames import (
     DEFAULT_INTRINSICS,
     CameraIntrinsics,

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from objsearch.pipeline.bags.formats import BagFormat
 
 from .bag_fixtures import SHARED_BAGS, Recorded, record_run

@@ -8,6 +8,7 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+
 from objsearch.events import Event
 from objsearch.pipeline.bags.formats import BagFormat, storage_files
 from objsearch.pipeline.bags.read import BagContents, read_bag

@@ -9,6 +9,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
+from objsearch.cli import main
 from objsearch.pipeline.bags.engines import (
     InlineEngine,
     ProcessEngine,
@@ -19,8 +21,6 @@ from objsearch.pipeline.bags.engines import (
 from objsearch.pipeline.bags.errors import BagConfigError
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import BagLake
-
-from objsearch.cli import main
 
 from .bag_fixtures import Recorded
 

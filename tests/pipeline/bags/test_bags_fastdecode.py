@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from objsearch.pipeline.bags import fastdecode
 from objsearch.pipeline.bags.formats import detect
 from objsearch.pipeline.bags.posetrack import odometry_fields, transform_fields

@@ -5,10 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from objsearch.pipeline.bags.ingest import ingest
-from objsearch.pipeline.bags.lake import BagLake
 
 from objsearch.cli import main
+from objsearch.pipeline.bags.ingest import ingest
+from objsearch.pipeline.bags.lake import BagLake
 
 from .bag_fixtures import Recorded
 

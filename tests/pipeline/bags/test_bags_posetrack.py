@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 import pytest
+
 from objsearch.agent.geometry import Pose
 from objsearch.events.arrow import events_to_tables
 from objsearch.pipeline.bags import posetrack
