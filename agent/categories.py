@@ -10,7 +10,6 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.errors import DataFileError, NotATargetError, UnknownObjectClassError
-
 from objsearch.paths import data_dir
 
 

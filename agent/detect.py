@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
+
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.errors import ObjsearchError, UnknownObjectClassError
 from objsearch.agent.frames import BoolArray, RGBDFrame

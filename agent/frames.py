@@ -17,6 +17,7 @@ from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
+
 from objsearch.agent.geometry import Pose
 
 FloatArray = npt.NDArray[np.float32]

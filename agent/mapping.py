@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 import torch
+
 from objsearch.agent.detect import Detector, MaskDetection
 from objsearch.agent.frames import CameraIntrinsics, Float64Array, FloatArray, RGBDFrame
 from objsearch.agent.geometry import Point, Pose, heading

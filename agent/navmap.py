@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import networkx as nx
+
 from objsearch.agent.geometry import Point
 from objsearch.agent.home import Home
 

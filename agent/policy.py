@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
+
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point, Pose, heading, wrap_angle

@@ -25,7 +25,6 @@ from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import World
 from objsearch.events import EventLog, fold, read_log
 from objsearch.events.snapshot import restore, save_snapshot
-
 from objsearch.paths import data_dir
 
 PRIOR_FILE = "priors/visual_genome.json"

@@ -27,10 +27,8 @@ from objsearch.pipeline.bags.battery import account, ingest_cli, variants
 from objsearch.pipeline.bags.formats import BagFormat, detect
 from objsearch.pipeline.bags.record import record
 
-from objsearch.paths import REPO_ROOT
-
 COLUMNS = ("complete", "loss-reported", "error", "traceback", "silent-loss", "over-reported")
-SHARED_BAGS = REPO_ROOT.parent / "shared" / "data" / "bags"
+SHARED_BAGS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bags"
 
 
 def real_bags() -> list[Path]:

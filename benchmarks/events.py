@@ -33,7 +33,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import duckdb
 import pyarrow as pa
+
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.events import Event, EventLog, fold, read_log
 from objsearch.events.arrow import events_to_tables
@@ -55,6 +57,11 @@ def median_time(fn: Callable[[], Any], reps: int) -> tuple[float, Any]:
         out = fn()
         times.append(time.perf_counter() - t0)
     return statistics.median(times), out
+
+
+def fetching(con: duckdb.DuckDBPyConnection, sql: str) -> Callable[[], list[Any]]:
+    """One query as a call to time (``sql`` bound now, not when the loop has moved on)."""
+    return lambda: con.execute(sql).fetchall()
 
 
 def synthetic_run(n: int, seed: int = 0, stream: str = "bench") -> list[Event]:
@@ -171,7 +178,7 @@ def bench_projection(n: int, reps: int, root: Path) -> list[Event]:
             f"SELECT dynamic, static, rel FROM scene_graph_at_seq({events[-1].seq})",
         ),
     ):
-        t_sql, rows = median_time(lambda query=query: con.execute(query).fetchall(), reps)
+        t_sql, rows = median_time(fetching(con, query), reps)
         sql = {(d, s): r for d, s, r in rows}
         diff = max(abs(sql[k] - v) for k, v in graph.relations.items())
         print(f"{name:44} {t_sql:9.3f} {t_sql / t_py:7.2f}   max |SQL − fold| = {diff:.2e}")
@@ -255,7 +262,7 @@ def bench_queries(events: list[Event], copies: int, reps: int, root: Path) -> No
     for number, title, sql in re.findall(
         r"### (\d+)\. ([^\n]*)\n.*?```sql\n(.*?)```", DOC.read_text(), re.S
     ):
-        t, _ = median_time(lambda sql=sql: con.execute(sql).fetchall(), reps)
+        t, _ = median_time(fetching(con, sql), reps)
         print(f"{'Q' + number + ' ' + title[:40]:44} {t:9.3f} {t / t_base:7.1f}")
     for name, query in (
         ("scene_graph (derived at commit, every run)", "SELECT * FROM scene_graph"),
@@ -264,7 +271,7 @@ def bench_queries(events: list[Event], copies: int, reps: int, root: Path) -> No
             "SELECT * FROM scene_graph_at_seq(1000000000)",
         ),
     ):
-        t, _ = median_time(lambda query=query: con.execute(query).fetchall(), reps)
+        t, _ = median_time(fetching(con, query), reps)
         print(f"{name:44} {t:9.3f} {t / t_base:7.1f}")
 
 

@@ -74,7 +74,13 @@ def main() -> None:
             ray_engine = RayEngine()
         except ImportError:
             print("(Ray is not installed: no --engine ray figures)")
-        raw_t, ing_t, one_t, two_t, ray_t, ship_t, commit_t = [], [], [], [], [], [], []
+        raw_t: list[float] = []
+        ing_t: list[float] = []
+        one_t: list[float] = []
+        two_t: list[float] = []
+        ray_t: list[float] = []
+        ship_t: list[float] = []
+        commit_t: list[float] = []
         for rep in range(args.reps):
             t0 = time.perf_counter()
             n = sum(1 for _ in iter_raw(bag))

@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 import torch
+
 from objsearch.agent.categories import Category
 from objsearch.agent.detect import GroundTruthDetector
 from objsearch.agent.frames import RGBDFrame, backproject

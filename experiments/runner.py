@@ -10,12 +10,13 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from tqdm import tqdm
+
 from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.sim.longterm import TARGET_ORDER, run_schedule, scenes_of
-from tqdm import tqdm
 
 TARGETS = TARGET_ORDER
 

@@ -34,6 +34,7 @@ def _fail(message: str) -> int:
 
 
 def cmd_data_build(args: argparse.Namespace) -> int:
+    from objsearch.paths import build_output_dir
     from objsearch.pipeline.build import build_data, parse_home_arg
     from objsearch.pipeline.errors import BuildError
 
@@ -41,7 +42,7 @@ def cmd_data_build(args: argparse.Namespace) -> int:
         homes = dict(parse_home_arg(spec) for spec in args.home) if args.home else None
         report = build_data(
             Path(args.source),
-            Path(args.out),
+            build_output_dir(args.out),
             homes=homes,
             progress=lambda line: print(line, file=sys.stderr),
         )
@@ -250,7 +251,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="the shared data folder (../shared/data)",
     )
     build.add_argument(
-        "--out", default=str(_default_data_dir()), type=t.dir_path, help="output folder (data/)"
+        "--out",
+        type=t.dir_path,
+        help="output folder (default: $OBJSEARCH_DATA, else data/ of the checkout objsearch runs from)",
     )
     build.add_argument(
         "--home",
@@ -360,12 +363,6 @@ def _search_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--alpha", type=t.ALPHA, default=10.0, help="alpha of Eq. 3, 0-1000 (10)")
     p.add_argument("--seed", type=t.SEED, default=0, help="seed (SDP's random room order)")
-
-
-def _default_data_dir() -> Path:
-    from objsearch.paths import data_dir
-
-    return data_dir()
 
 
 def expected_errors() -> tuple[type[BaseException], ...]:

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any, Final
 
 import duckdb
+
 from objsearch.events import EventStoreError
 from objsearch.events.derived import (
     DERIVED_DIR,

@@ -21,9 +21,8 @@ from typing import Any
 
 from objsearch.agent.geometry import Point
 from objsearch.agent.session import load_context
-from objsearch.replay.state import ReplayState
-
 from objsearch.outdir import claim
+from objsearch.replay.state import ReplayState
 
 ORACLE_RATIO = 5.0
 ORACLE_EXCESS_M = 10.0

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point
 from objsearch.agent.planner import wpl_terms

@@ -1,7 +1,8 @@
 """Golden logs: small recorded runs whose decisions today's code must still make.
 
-``python -m objsearch.replay.golden [DIR]`` (or ``make bless``) re-records them after an intended
-change; ``tests/replay/test_golden.py`` replays them and fails with the decisions that changed.
+``python -m objsearch.replay.golden DIR`` (``make bless`` passes ``tests/replay/golden``) re-records
+them after an intended change; ``tests/replay/test_golden.py`` replays them and fails with the
+decisions that changed. The folder is always the caller's: an installed package has no tests.
 Each golden is a simulated run of the paper home with a fixed seed and a fixed wall clock, so
 re-blessing unchanged code rewrites the same bytes.
 """
@@ -20,7 +21,6 @@ from objsearch.agent.session import load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.sim.longterm import run_schedule
 
-DEFAULT_DIR = Path(__file__).resolve().parent.parent / "tests" / "replay" / "golden"
 #: A lake holding one ingested bag: the path a real robot's recording takes.
 BAG_LAKE = "lake-from-bag"
 BAG_ROBOT = "sim"
@@ -103,7 +103,7 @@ def record_bag_lake(lake_dir: Path) -> None:
             raise RuntimeError(f"ingesting the golden bag failed: {result.error}")
 
 
-def bless(directory: Path = DEFAULT_DIR) -> list[Path]:
+def bless(directory: Path) -> list[Path]:
     """Re-record every golden log (and the bag lake) under ``directory``; returns what was
     written."""
     written = []
@@ -128,8 +128,13 @@ def bless(directory: Path = DEFAULT_DIR) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
-    directory = Path(args[0]) if args else DEFAULT_DIR
-    for path in bless(directory):
+    if len(args) != 1:
+        print(
+            "usage: python -m objsearch.replay.golden DIR  (make bless: tests/replay/golden)",
+            file=sys.stderr,
+        )
+        return 2
+    for path in bless(Path(args[0])):
         print(f"blessed {path}")
     return 0
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
 from objsearch.runtime import messages as m
 from objsearch.runtime.interfaces import CANCEL_GOAL
 from objsearch.runtime.node import Node

@@ -78,8 +78,9 @@ class McapSink:
     """
 
     def __init__(self, path: Path, *, compress: bool = True) -> None:
-        from objsearch.pipeline.bags.mcapstore import rosbag2_writer
         from rosbags.rosbag2 import StoragePlugin
+
+        from objsearch.pipeline.bags.mcapstore import rosbag2_writer
 
         if path.suffix != ".mcap":
             raise LiveViewError(f"the live view's MCAP file must end in .mcap; got {path}")

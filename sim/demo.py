@@ -9,13 +9,13 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from tqdm import tqdm
+
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
 from objsearch.agent.strategies import DEFAULT_STRATEGY, RunSpec
-from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule
-from tqdm import tqdm
-
 from objsearch.outdir import claim
+from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule
 
 SCENES = 10
 STARTS = 8

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+
 from objsearch.agent.frames import (
     CAMERA_HEIGHT_M,
     DEFAULT_INTRINSICS,

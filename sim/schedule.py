@@ -10,9 +10,8 @@ from typing import Any
 from objsearch.agent.categories import read_json
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.home import Box, Home
-from objsearch.sim.world import Placement
-
 from objsearch.paths import data_dir
+from objsearch.sim.world import Placement
 
 Placements = Mapping[str, Placement]
 

@@ -28,10 +28,9 @@ from typing import Any
 from objsearch.agent.categories import read_json
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.home import Box, Home, StaticObject, home_path
+from objsearch.paths import data_dir
 from objsearch.sim.schedule import Placements, Schedule
 from objsearch.sim.world import Placement
-
-from objsearch.paths import data_dir
 
 SCENES = 10
 PLACEMENTS_FILE = "priors/ai2thor_placements.json"

@@ -11,9 +11,9 @@ import sys
 from pathlib import Path
 
 import pytest
-from objsearch.events import read_log
 
 from objsearch.cli import main
+from objsearch.events import read_log
 from objsearch.paths import data_dir
 
 

@@ -10,10 +10,10 @@ import shutil
 from pathlib import Path
 
 import pytest
-from objsearch.events.killtest import tree
-from objsearch.events.lake import Lake
 
 from objsearch.cli import main
+from objsearch.events.killtest import tree
+from objsearch.events.lake import Lake
 
 
 @pytest.fixture(scope="module")

@@ -65,16 +65,16 @@ def test_liveview_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
 def test_demo_summary_reads_the_demos_table(tmp_path: Path) -> None:
     """``demo --json`` summarises the table the demo writes (a small real run of it here; the
     full demo is 1280 searches)."""
-    from objsearch.agent.policy import Method, SearchConfig
+    from objsearch.agent.home import load_home
     from objsearch.agent.scene_graph import UpdateMode
+    from objsearch.agent.strategies import RunSpec
     from objsearch.sim.demo import write_csv
     from objsearch.sim.longterm import run_schedule
 
-    config = SearchConfig(method=Method.WPL, alpha=10.0, seed=0)
+    spec = RunSpec.for_home(load_home("paper"), schedule="table2")
     trials = run_schedule(
-        "paper", tmp_path / "log-all", config, UpdateMode.ALL, targets=["Apple", "Cup"],
-        scenes=[1], starts=["kitchen-1"],
-    )  # fmt: skip
+        tmp_path / "log-all", spec, targets=["Apple", "Cup"], scenes=[1], starts=["kitchen-1"]
+    )
     write_csv(tmp_path / "path_lengths.csv", {UpdateMode.ALL: trials})
     doc = demo_summary(tmp_path)
     (mode,) = doc["modes"].values()

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 from typing import Final
 
-from objsearch.runtime import qos as rq
 from rosbags.interfaces import (
     Qos,
     QosDurability,
@@ -32,6 +31,8 @@ from rosbags.interfaces import (
     QosReliability,
     QosTime,
 )
+
+from objsearch.runtime import qos as rq
 
 INFINITE: Final = QosTime(9_223_372_036, 854_775_807)
 

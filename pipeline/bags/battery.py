@@ -186,9 +186,8 @@ def _renames(bag: Path, fmt: BagFormat) -> list[Variant]:
 
 def ingest_cli(bag: Path, lake: Path) -> Ingested:
     """``objsearch ingest BAG --lake LAKE`` in this process, its output captured."""
-    from objsearch.pipeline.bags.lake import MANIFESTS, BagLake
-
     from objsearch.cli import main
+    from objsearch.pipeline.bags.lake import MANIFESTS, BagLake
 
     out, err = io.StringIO(), io.StringIO()
     code: int | None

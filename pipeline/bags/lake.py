@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import pyarrow as pa
+
 from objsearch.events import Event, EventStoreError, _fs
 from objsearch.events.lake import Lake
 from objsearch.pipeline.bags.errors import LakeError

@@ -32,6 +32,7 @@ from typing import Any, Final
 import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
+
 from objsearch.events import Event, EventStoreError, deterministic_event_id
 from objsearch.events.arrow import event_schema
 from objsearch.events.upcast import default_upcaster

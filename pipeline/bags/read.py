@@ -32,6 +32,7 @@ from typing import Any, Final, Protocol, TypeVar
 
 import numpy as np
 import pyarrow as pa
+
 from objsearch.events import Event, InvalidEventError, default_registry, deterministic_event_id
 from objsearch.events.arrow import events_to_tables
 from objsearch.events.record import encode_record

@@ -48,11 +48,12 @@ from objsearch.sim.perception import IMAGE_HEIGHT, IMAGE_WIDTH, Camera
 if TYPE_CHECKING:
     import numpy as np
     import numpy.typing as npt
+    from rosbags.interfaces import Qos
+    from rosbags.typesys.store import Typestore
+
     from objsearch.agent.detect import Detector, MaskDetection
     from objsearch.agent.frames import RGBDFrame
     from objsearch.sim.render import SimulatedCamera
-    from rosbags.interfaces import Qos
-    from rosbags.typesys.store import Typestore
 
 #: camera_link (x forward, z up) → its optical frame (x right, y down, z forward), REP 103:
 #: the quaternion (x, y, z, w) of the rotation whose columns are the optical axes in camera_link.
@@ -534,6 +535,7 @@ class _Views:
         tuple[str, str, float, tuple[float, float, float, float], tuple[float, float, float]]
     ]:
         import numpy as np
+
         from objsearch.agent.detect import locate
 
         frame, dets = self._view(i)
@@ -617,8 +619,9 @@ def write_bag(
                     if progress is not None and written % 10_000 == 0:
                         progress(written)
         else:
-            from objsearch.pipeline.bags.mcapstore import rosbag2_writer
             from rosbags.rosbag2 import StoragePlugin
+
+            from objsearch.pipeline.bags.mcapstore import rosbag2_writer
 
             plugin = StoragePlugin.MCAP if fmt is BagFormat.ROS2_MCAP else StoragePlugin.SQLITE3
             with rosbag2_writer(tmp, plugin, compress=compress, chunk_bytes=chunk_bytes) as w2:

@@ -30,6 +30,7 @@ from typing import Any, Final
 
 import numpy as np
 import numpy.typing as npt
+
 from objsearch.agent.detect import MaskDetection
 from objsearch.agent.frames import CameraIntrinsics, FloatArray
 from objsearch.agent.mapping import BuiltMap, MappingConfig, MaskedDepth, SemanticMapBuilder

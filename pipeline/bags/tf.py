@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+
 from objsearch.pipeline.bags.errors import BagError
 
 Vec = npt.NDArray[np.float64]

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.detect import (
     CLASS_NAMES_FILE,
@@ -70,9 +71,9 @@ def save(model: torch.nn.Module, path: Path, how: str, names: list[str] | None =
         extra = {CLASS_NAMES_FILE: json.dumps(names)} if names is not None else None
         torch.export.save(program, path, extra_files=extra)
     elif how == "script":
-        torch.jit.script(model).save(str(path))
+        torch.jit.script(model).save(str(path))  # type: ignore[no-untyped-call]
     else:
-        torch.jit.trace(model, torch.zeros(3, *K.shape)).save(str(path))
+        torch.jit.trace(model, torch.zeros(3, *K.shape)).save(str(path))  # type: ignore[no-untyped-call]
     return path
 
 
@@ -133,7 +134,7 @@ class WrongShape(torch.nn.Module):
 
 def test_a_model_returning_the_wrong_shapes_is_reported(tmp_path: Path, vocab: Vocabulary) -> None:
     path = tmp_path / "w.pt"
-    torch.jit.script(WrongShape()).save(str(path))
+    torch.jit.script(WrongShape()).save(str(path))  # type: ignore[no-untyped-call]
     with pytest.raises(DetectorError, match="expected"):
         TorchDetector(path, vocab).detect(frame(two_patches()))
 

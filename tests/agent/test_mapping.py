@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 import torch
+
 from objsearch.agent.categories import Category
 from objsearch.agent.detect import GroundTruthDetector
 from objsearch.agent.frames import backproject

@@ -7,6 +7,7 @@ import math
 
 import networkx as nx
 import pytest
+
 from objsearch.agent.geometry import Point
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.session import load_context

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+
 from objsearch.agent.planner import (
     MAX_EXACT_STOPS,
     ExpectedPathPlanner,

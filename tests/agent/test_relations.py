@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import pytest
+
 from objsearch.agent.relations import BetaRelations
 from objsearch.agent.scene_graph import SceneGraphProjection
 

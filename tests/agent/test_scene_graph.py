@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import pytest
+
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.scene_graph import SceneGraphProjection, apply_eq4, seed_relations
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
+
 from objsearch.agent.geometry import wrap_angle
 from objsearch.agent.semmap import compare_with_alfred
 from objsearch.agent.session import load_context

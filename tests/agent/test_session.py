@@ -7,6 +7,7 @@ import itertools
 from pathlib import Path
 
 import pytest
+
 from objsearch.agent.policy import Method
 from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
 from objsearch.agent.session import Session, load_context
@@ -96,8 +97,10 @@ def test_rebuilding_from_scratch_equals_the_live_fold(schedule_log: Path) -> Non
     rebuilt = fold(read_log(schedule_log), SceneGraphProjection())
     # A session continuing the log folds it on open; its live graph then advances event by event.
     session = Session.start(ctx, schedule_log, RunSpec.for_home(ctx.home))
+    graph = session.graph
+    assert isinstance(graph, SceneGraphProjection)
     try:
-        assert session.graph.relations == rebuilt.relations
+        assert graph.relations == rebuilt.relations
         world = SimWorld(
             ctx.home,
             ctx.navmap,
@@ -106,7 +109,7 @@ def test_rebuilding_from_scratch_equals_the_live_fold(schedule_log: Path) -> Non
             clock=SimClock(session.resume_time_ns),
         )
         session.search(world, "Pillow", "bedroom-1")
-        live = dict(session.graph.relations)
+        live = dict(graph.relations)
     finally:
         session.close()
     assert live != rebuilt.relations  # the extra task changed something
@@ -119,6 +122,7 @@ def test_graph_at_seq_is_the_fold_up_to_that_event(schedule_log: Path) -> None:
     first_end = next(e for e in events if e.type == "task_ended")
     before = scene_graph_at(schedule_log, first_end.seq - 1)
     after = scene_graph_at(schedule_log, first_end.seq)
+    assert isinstance(before, SceneGraphProjection) and isinstance(after, SceneGraphProjection)
     prior = {(v["dynamic"], v["static"]): v["rel"] for v in seeded.payload["values"]}
     assert before.relations == prior
     assert after.relations != prior
@@ -129,10 +133,12 @@ def test_graph_at_seq_is_the_fold_up_to_that_event(schedule_log: Path) -> None:
 
 
 def test_update_modes_change_only_what_they_promise(tmp_path: Path) -> None:
-    graphs = {}
+    graphs: dict[UpdateMode, SceneGraphProjection] = {}
     for mode in UpdateMode:
         _schedule(tmp_path / mode.value, mode, scenes=(1,))
-        graphs[mode] = scene_graph_at(tmp_path / mode.value)
+        graph = scene_graph_at(tmp_path / mode.value)
+        assert isinstance(graph, SceneGraphProjection)
+        graphs[mode] = graph
     seeded = next(e for e in read_log(tmp_path / "none") if e.type == "scene_graph_seeded")
     prior = {(v["dynamic"], v["static"]): v["rel"] for v in seeded.payload["values"]}
     assert graphs[UpdateMode.NONE].relations == prior

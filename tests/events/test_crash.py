@@ -7,6 +7,7 @@ import warnings
 from pathlib import Path
 
 import pytest
+
 from objsearch.events import CorruptLogError, EventLog, TornTailWarning, read_log
 from objsearch.events.crashtest import CrashReport, CrashTestFailure, _check, run_crash_test
 

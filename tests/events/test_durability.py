@@ -15,6 +15,7 @@ import warnings
 from pathlib import Path
 
 import pytest
+
 from objsearch.events import EventLog, LogLockedError, TornTailWarning, read_log
 
 WRITER = r"""

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+
 from objsearch.events import EVENT_ID_NAMESPACE, Event, InvalidEventError, deterministic_event_id
 
 

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
+
 from objsearch.events import CorruptLogError, EventLog, follow_log, read_log
 
 WRITER = r"""

@@ -6,6 +6,7 @@ import uuid
 from pathlib import Path
 
 import pytest
+
 from objsearch.events import (
     DuplicateEventError,
     EventLog,

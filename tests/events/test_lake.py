@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import duckdb
 import polars as pl
@@ -10,6 +11,7 @@ import pyarrow as pa
 import pyarrow.dataset as ds
 import pyarrow.parquet as pq
 import pytest
+
 from objsearch.events import EventLog, default_registry, read_log
 from objsearch.events.arrow import event_schema, events_to_tables
 from objsearch.events.derived import DERIVED_DIR, DERIVED_TABLES
@@ -185,7 +187,7 @@ def test_a_failed_commit_leaves_nothing(tmp_path: Path, monkeypatch: pytest.Monk
     ],
 )
 def test_bad_partition_values_are_refused(
-    tmp_path: Path, kwargs: dict[str, str], message: str
+    tmp_path: Path, kwargs: dict[str, Any], message: str
 ) -> None:
     with pytest.raises(LakeError, match=message):
         compact_log(small_log(tmp_path / "log"), Lake(tmp_path / "lake"), **kwargs)

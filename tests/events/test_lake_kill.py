@@ -12,7 +12,8 @@ import sys
 from pathlib import Path
 
 from objsearch.events import EventLog
-from objsearch.events.killtest import KILL_AFTER_STEP_ENV, KillServer, tree
+from objsearch.events._fs import KILL_AFTER_STEP_ENV
+from objsearch.events.killtest import KillServer, tree
 from objsearch.events.lake import STAGING, Lake
 
 from .payloads import EXAMPLES
@@ -39,7 +40,7 @@ def _sweep(
     reference: dict[str, bytes | None],
 ) -> list[int]:
     """Kill ``argv`` after step 1, 2, … until it completes; returns the steps killed at."""
-    killed = []
+    killed: list[int] = []
     n = 0
     while True:
         n += 1

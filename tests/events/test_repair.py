@@ -5,10 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from objsearch.events import CorruptLogError, EventLog, LogLockedError, read_log
-from objsearch.events.repair import repair_log, verify_log
 
 from objsearch.cli import main
+from objsearch.events import CorruptLogError, EventLog, LogLockedError, read_log
+from objsearch.events.repair import repair_log, verify_log
 
 RUN = "00000000-0000-4000-8000-0000000000bb"
 

@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 from jsonschema import Draft202012Validator
+
 from objsearch.events import EventStoreError, InvalidEventError, SchemaRegistry, default_registry
 from objsearch.events.schemas import schema_id
 

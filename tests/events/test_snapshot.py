@@ -7,6 +7,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.events import EventLog, fold, read_log
 from objsearch.events.snapshot import restore, save_snapshot, snapshot_path

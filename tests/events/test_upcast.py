@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec

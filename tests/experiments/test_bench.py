@@ -7,10 +7,10 @@ from pathlib import Path
 
 import polars as pl
 import pytest
-from objsearch.experiments.metrics import spl_term, summarise
-from objsearch.experiments.runner import Job, Row, run_job
 
 from objsearch.cli import main
+from objsearch.experiments.metrics import spl_term, summarise
+from objsearch.experiments.runner import Job, Row, run_job
 
 
 def test_tiny_bench_paper_writes_outputs_and_json(

@@ -8,9 +8,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from objsearch.pipeline.build import BuildReport, build_data
 
-from objsearch.paths import REPO_ROOT
+REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
 def _shared_data() -> Path | None:

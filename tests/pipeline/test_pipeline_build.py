@@ -6,10 +6,10 @@ import os
 from pathlib import Path
 
 import pytest
-from objsearch.pipeline.build import PAPER_HOME, BuildReport, build_data, parse_home_arg
-from objsearch.pipeline.errors import HomeSpecError, SourceDataError
 
 from objsearch.paths import data_dir
+from objsearch.pipeline.build import PAPER_HOME, BuildReport, build_data, parse_home_arg
+from objsearch.pipeline.errors import HomeSpecError, SourceDataError
 
 EXPECTED = {
     "vocabulary.json",

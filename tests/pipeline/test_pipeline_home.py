@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from objsearch.pipeline.build import PAPER_HOME
 from objsearch.pipeline.geometry import RoomFrame
 from objsearch.pipeline.rooms import obstacle_footprints

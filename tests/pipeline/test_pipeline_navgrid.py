@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
+
 from objsearch.pipeline import navgrid
 from objsearch.pipeline.navgrid import Footprint
 

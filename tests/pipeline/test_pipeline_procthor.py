@@ -8,6 +8,7 @@ from pathlib import Path
 
 import networkx as nx
 import pytest
+
 from objsearch.agent.home import load_home
 from objsearch.agent.navmap import NavigationMap
 from objsearch.pipeline.procthor import MAX_LINK_M, build_procthor_home

@@ -10,14 +10,14 @@ from pathlib import Path
 import duckdb
 import pyarrow.parquet as pq
 import pytest
+
 from objsearch.agent.scene_graph import SceneGraphProjection
+from objsearch.cli import main
 from objsearch.events import fold, read_log
 from objsearch.events.arrow import events_to_tables
 from objsearch.events.derived import DERIVED_DIR, DERIVED_TABLES, EQ4_UPDATES
 from objsearch.events.lake import Lake
 from objsearch.replay.analytics import open_analytics
-
-from objsearch.cli import main
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "analytics.md"
 QUESTIONS = re.findall(r"### (\d+)\. [^\n]*\n.*?```sql\n(.*?)```", DOC.read_text(), re.S)

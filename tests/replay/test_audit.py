@@ -8,14 +8,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from objsearch.events import Event, EventLog, read_log
-from objsearch.replay.audit import REPORT_FILES, audit
-from objsearch.replay.golden import DEFAULT_DIR
 
 from objsearch.cli import main
+from objsearch.events import Event, EventLog, read_log
 from objsearch.outdir import claim
+from objsearch.replay.audit import REPORT_FILES, audit
 
-LOG = DEFAULT_DIR / "sim-wpl-updates"
+LOG = Path(__file__).resolve().parent / "golden" / "sim-wpl-updates"
 
 
 def _rewrite(events: Iterable[Event], out: Path) -> Path:
@@ -43,7 +42,12 @@ def test_a_clean_run_has_no_integrity_anomalies() -> None:
     tasks = audit(read_log(LOG)).tasks
     assert len(tasks) == 8
     assert all(t.success and t.oracle_length is not None for t in tasks)
-    assert all(t.path_length is not None and t.path_length >= t.oracle_length - 1e-9 for t in tasks)
+    assert all(
+        t.path_length is not None
+        and t.oracle_length is not None
+        and t.path_length >= t.oracle_length - 1e-9
+        for t in tasks
+    )
 
 
 def _task_found_by_looking() -> tuple[str, str, int]:
@@ -165,6 +169,7 @@ def test_route_png_is_cut_to_the_home_and_labelled(tmp_path: Path) -> None:
     import matplotlib.pyplot as plt
     import numpy as np
     from matplotlib.figure import Figure
+
     from objsearch.agent.session import load_context
     from objsearch.replay.audit import _plot_route, audit
     from objsearch.replay.source import open_events
@@ -182,7 +187,7 @@ def test_route_png_is_cut_to_the_home_and_labelled(tmp_path: Path) -> None:
                 texts.extend(t.get_text() for t in legend.get_texts())
         original(fig, *args, **kwargs)  # type: ignore[arg-type]
 
-    Figure.savefig = keep_texts  # type: ignore[method-assign]
+    Figure.savefig = keep_texts  # type: ignore[method-assign, assignment]
     try:
         assert _plot_route(task, tmp_path / "route.png")
     finally:

@@ -6,17 +6,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.planner import wpl_plan
 from objsearch.agent.session import load_context
+from objsearch.cli import main
 from objsearch.events import read_log
 from objsearch.replay.decisions import Overrides, replay
-from objsearch.replay.golden import DEFAULT_DIR
 from objsearch.replay.state import ReplayState
 
-from objsearch.cli import main
-
-LOG = DEFAULT_DIR / "sim-wpl-updates"
+LOG = Path(__file__).resolve().parent / "golden" / "sim-wpl-updates"
 
 
 def _independent_orders(alpha: float) -> dict[int, tuple[str, ...]]:

@@ -9,11 +9,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from objsearch.replay.decisions import replay
-from objsearch.replay.golden import BAG_LAKE, DEFAULT_DIR, GOLDEN_RUNS
+from objsearch.replay.golden import BAG_LAKE, GOLDEN_RUNS
 from objsearch.replay.source import open_events
 
-GOLDEN = sorted(p for p in DEFAULT_DIR.iterdir() if p.is_dir() and not p.name.startswith("."))
+GOLDEN_DIR = Path(__file__).resolve().parent / "golden"  # `make bless` writes here
+GOLDEN = sorted(p for p in GOLDEN_DIR.iterdir() if p.is_dir() and not p.name.startswith("."))
 
 
 def test_every_golden_is_committed() -> None:

@@ -1,3 +1,3 @@
-from runtime_fixtures import net
+from .runtime_fixtures import net
 
 __all__ = ["net"]

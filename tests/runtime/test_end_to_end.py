@@ -8,15 +8,15 @@ from typing import Any
 
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
+from objsearch.cli import build_parser
+from objsearch.cli_runtime import runtime_config
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.sim.schedule import Schedule
 from objsearch.sim.world import SimClock, SimWorld
-from runtime_fixtures import Net, objsearch, stop
 
-from objsearch.cli import build_parser
-from objsearch.cli_runtime import runtime_config
+from .runtime_fixtures import Net, objsearch, stop
 
 # Scene 1 of Table II, in the long-term runner's order (scene → target → start), cut short for CI.
 TRIALS = [(1, "Apple", "kitchen-1"), (1, "Apple", "bedroom-1"), (1, "Cup", "living-1")]

@@ -3,13 +3,16 @@ resumes (or fails the search cleanly, saying why)."""
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
 import pytest
+
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
-from runtime_fixtures import Net, objsearch, stop
-from test_end_to_end import client_config
+
+from .runtime_fixtures import Net, objsearch, stop
+from .test_end_to_end import client_config
 
 FAST = "[timeouts]\nrobot_s = 3.0\narrival_s = 1.5\nattempts = 3\ndetections_s = 1.5\n"
 
@@ -25,7 +28,7 @@ def zenoh_only(net: Net) -> Net:
     return net
 
 
-def _agent(net: Net, tmp_path: Path, name: str = "agent") -> object:
+def _agent(net: Net, tmp_path: Path, name: str = "agent") -> subprocess.Popen[bytes]:
     config = tmp_path / "robot.toml"
     config.write_text(FAST)
     return objsearch(
@@ -96,8 +99,8 @@ def test_dropped_and_malformed_messages(zenoh_only: Net, tmp_path: Path) -> None
     finally:
         stop(agent)
         stop(robot)
-    import test_end_to_end
-    from test_end_to_end import in_process
+    from . import test_end_to_end
+    from .test_end_to_end import in_process
 
     test_end_to_end.TRIALS, saved = [(1, "Apple", "bedroom-1")], test_end_to_end.TRIALS
     try:

@@ -7,6 +7,7 @@ import time
 from typing import Any
 
 import pytest
+
 from objsearch.agent.geometry import Pose
 from objsearch.agent.world import Detection
 from objsearch.runtime import messages as m
@@ -152,8 +153,9 @@ PUBLISHED_SERVICE_HASHES = {
 
 
 def _test_store() -> object:
-    from objsearch.runtime import interfaces
     from rosbags.typesys import Stores, get_typestore
+
+    from objsearch.runtime import interfaces
 
     store = get_typestore(Stores.ROS2_HUMBLE)
     b = interfaces._Builder()

@@ -12,18 +12,18 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import Reader
+
 from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.agent.session import load_context
+from objsearch.cli import main
 from objsearch.events import Event, fold, read_log
 from objsearch.pipeline.bags.record import DEFAULT_START_NS
 from objsearch.runtime import liveview as lv
 from objsearch.runtime import messages as m
 from objsearch.runtime.livesinks import FoxgloveSink, LiveViewError, McapSink, parse_address
-from rosbags.highlevel import AnyReader
-from rosbags.rosbag2 import Reader
-
-from objsearch.cli import main
 
 GOLDEN = Path(__file__).resolve().parents[1] / "replay" / "golden" / "sim-wpl-updates"
 
@@ -70,7 +70,7 @@ def test_mcap_is_a_ros2_bag_with_every_channel(drawn: Path, events: list[Event])
         types = {c.topic: c.msgtype for c in reader.connections}
         counts = {c.topic: c.msgcount for c in reader.connections}
     assert types == dict(lv.CHANNELS)
-    kinds = defaultdict(int)
+    kinds: defaultdict[str, int] = defaultdict(int)
     for e in events:
         kinds[e.type] += 1
     assert counts[lv.EVENTS] == len(events)
@@ -108,7 +108,7 @@ def test_plan_follows_the_plan_events_order(drawn: Path, events: list[Event]) ->
     for (stamp, msg), plan in zip(drawn_plans, plans, strict=True):
         assert stamp == DEFAULT_START_NS + plan.time_ns
         vp = {c["static_id"]: tuple(c["viewpoint"]) for c in plan.payload["candidates"]}
-        expected = []
+        expected: list[tuple[Any, ...]] = []
         for sid in plan.payload["order"]:
             if not expected or expected[-1] != vp[sid]:
                 expected.append(vp[sid])
@@ -241,7 +241,7 @@ def test_parse_address() -> None:
 
 def test_server_binds_loopback_and_streams_the_channels(events: list[Event]) -> None:
     pytest.importorskip("foxglove")
-    from ws_client import FoxgloveClient
+    from .ws_client import FoxgloveClient
 
     sink = FoxgloveSink(port=0)
     try:
@@ -315,12 +315,12 @@ def test_agent_run_serves_and_records_the_live_view(net: Any, tmp_path: Path) ->
     """``agent run --live PORT --live-mcap FILE`` against the stand-in robot: a client sees the
     channels while it runs; after SIGTERM the MCAP holds the search the log holds."""
     pytest.importorskip("foxglove")
-    from objsearch.runtime.client import AgentClient
-    from runtime_fixtures import free_port, objsearch, stop
-    from ws_client import FoxgloveClient
-
     from objsearch.cli import build_parser
     from objsearch.cli_runtime import runtime_config
+    from objsearch.runtime.client import AgentClient
+
+    from .runtime_fixtures import free_port, objsearch, stop
+    from .ws_client import FoxgloveClient
 
     port, mcap, log = free_port(), tmp_path / "live.mcap", tmp_path / "log"
     robot = objsearch("robot", "sim", *net.args, log=tmp_path / "robot.txt")

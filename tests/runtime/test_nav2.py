@@ -8,10 +8,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
-from runtime_fixtures import Net, objsearch, stop
-from test_end_to_end import TRIALS, client_config, in_process
+
+from .runtime_fixtures import Net, objsearch, stop
+from .test_end_to_end import TRIALS, client_config, in_process
 
 ACTION = '[navigation]\ninterface = "navigate_to_pose"\n'
 TF = '[pose]\nsource = "tf"\n'
@@ -83,7 +85,7 @@ def test_rejected_aborted_and_stuck_goals(net: Net, tmp_path: Path) -> None:
         stop(robot)
     assert not rejected["ok"] and "rejected the /navigate_to_pose goal" in rejected["error"]
     assert not aborted["ok"] and "ended aborted" in aborted["error"], aborted
-    import test_end_to_end
+    from . import test_end_to_end
 
     test_end_to_end.TRIALS, saved = [(1, "Apple", "bedroom-1")], test_end_to_end.TRIALS
     try:

@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.requestfuzz import (
     RECEIVER,

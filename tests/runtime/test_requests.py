@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
+
 from objsearch.runtime.errors import MessageError
 from objsearch.runtime.requests import (
     FindRequest,
@@ -108,7 +109,7 @@ def test_results() -> None:
         ({"id": "o", "ok": "yes"}, "ok"),
     ]:
         with pytest.raises(RequestError) as caught:
-            parse_open_result(bad)
+            parse_open_result(bad)  # type: ignore[arg-type]
         assert caught.value.field == field
     found = {
         "id": "f",

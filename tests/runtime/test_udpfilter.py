@@ -7,6 +7,7 @@ import socket
 import sys
 
 import pytest
+
 from objsearch.runtime.errors import TransportError
 from objsearch.runtime.udpfilter import attach, attached, interface_address, program, udp_sockets
 

@@ -13,6 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
 from objsearch.agent.session import load_context
 from objsearch.events import Event, read_log
 from objsearch.runtime import liveview as lv

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.semmap import SemanticMap
 from objsearch.agent.session import load_context

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+
 from objsearch.agent.errors import DataFileError, ObjsearchError
 from objsearch.agent.home import load_home
 from objsearch.agent.strategies import RunSpec
@@ -59,6 +60,7 @@ def test_placements_are_real_episode_poses_alternating_target_and_start() -> Non
                 and pose.support == p.support
             ]
             assert matches, f"scene {scene}: {p.instance_id} is not at any {phase} pose"
+            assert p.support is not None
             assert p.room == room.name == home.statics[p.support].room
             assert p.inside == home.statics[p.support].container
             if scene % 2 == 0:

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+
 from objsearch.agent.frames import (
     DEFAULT_INTRINSICS,
     CameraIntrinsics,
@@ -97,7 +98,7 @@ def backproject_one(depth: np.ndarray, pixel: tuple[int, int], t: np.ndarray) ->
     frame = RGBDFrame(np.zeros((*depth.shape, 3), np.uint8), depth, K, t)
     mask = np.zeros(depth.shape, bool)
     mask[pixel] = True
-    return backproject(frame, mask)[0]
+    return np.asarray(backproject(frame, mask)[0])
 
 
 def test_back_projection_and_projection_round_trip_on_a_rendered_kitchen() -> None:
@@ -123,7 +124,7 @@ def test_back_projection_and_projection_round_trip_on_a_rendered_kitchen() -> No
         pts = backproject(frame, truth.instance == k)
         box = statics[truth.ids[k]].box
         inflated = Box(box.center, tuple(s + 2e-3 for s in box.size))  # type: ignore[arg-type]
-        assert max(inflated.distance_to(tuple(p)) for p in pts) == 0.0  # type: ignore[arg-type]
+        assert max(inflated.distance_to(tuple(p)) for p in pts) == 0.0
 
 
 def test_rendering_is_deterministic_and_an_opened_container_shows_its_inside() -> None:

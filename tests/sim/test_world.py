@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
+
 from objsearch.agent.geometry import Pose
 from objsearch.agent.home import Box
 from objsearch.agent.session import load_context

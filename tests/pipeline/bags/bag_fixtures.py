@@ -1,4 +1,4 @@
-"""Helpers shared by the bag tests (importable by name: tests/pipeline/bags is on sys.path)."""
+"""Helpers shared by the bag tests."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from objsearch.events import Event, read_log
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.record import Recording, record
 
-from objsearch.paths import REPO_ROOT
+REPO_ROOT = Path(__file__).resolve().parents[3]
 
 SHARED_BAGS = REPO_ROOT.parent / "shared" / "data" / "bags"
 

@@ -5,8 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from bag_fixtures import SHARED_BAGS, Recorded, record_run
+
 from objsearch.pipeline.bags.formats import BagFormat
+
+from .bag_fixtures import SHARED_BAGS, Recorded, record_run
 
 
 @pytest.fixture(scope="session", params=[f.value for f in BagFormat])

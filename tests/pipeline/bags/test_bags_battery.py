@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 from bag_fixtures import Recorded
+
 from objsearch.pipeline.bags.battery import Ingested, account, ingest_cli, variants
 
 PER_KIND = 3  # variants per kind of damage and format; seeded

@@ -7,6 +7,7 @@ import struct
 from pathlib import Path
 
 from bag_fixtures import Recorded
+
 from objsearch.pipeline.bags.battery import ZERO_BLOCK, chunk_spans
 from objsearch.pipeline.bags.census import take_census
 from objsearch.pipeline.bags.formats import BagFormat, storage_files

@@ -8,10 +8,12 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-from bag_fixtures import Recorded
+
 from objsearch.events import Event
 from objsearch.pipeline.bags.formats import BagFormat, storage_files
 from objsearch.pipeline.bags.read import BagContents, read_bag
+
+from .bag_fixtures import Recorded
 
 CASES = 12  # per format and kind of damage; seeded
 

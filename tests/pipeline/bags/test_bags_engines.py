@@ -9,7 +9,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from bag_fixtures import Recorded
+
+from objsearch.cli import main
 from objsearch.pipeline.bags.engines import (
     InlineEngine,
     ProcessEngine,
@@ -21,7 +22,7 @@ from objsearch.pipeline.bags.errors import BagConfigError
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import BagLake
 
-from objsearch.cli import main
+from .bag_fixtures import Recorded
 
 
 @pytest.fixture(scope="module")

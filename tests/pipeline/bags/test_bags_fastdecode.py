@@ -5,12 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from bag_fixtures import Recorded
+
 from objsearch.pipeline.bags import fastdecode
 from objsearch.pipeline.bags.formats import detect
 from objsearch.pipeline.bags.posetrack import odometry_fields, transform_fields
 from objsearch.pipeline.bags.topics import ACCEPTED_TYPES, Role
 from objsearch.pipeline.bags.types import typestore
+
+from .bag_fixtures import Recorded
 
 ODOM = ACCEPTED_TYPES[Role.ODOMETRY]
 TF = ACCEPTED_TYPES[Role.TF]

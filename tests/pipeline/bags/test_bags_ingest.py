@@ -5,11 +5,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from bag_fixtures import Recorded
+
+from objsearch.cli import main
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import BagLake
 
-from objsearch.cli import main
+from .bag_fixtures import Recorded
 
 
 def test_a_failed_commit_leaves_nothing(

@@ -8,6 +8,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+
 from objsearch.events.killtest import KillServer, tree
 from objsearch.events.lake import STAGING
 from objsearch.pipeline.bags.formats import BagFormat

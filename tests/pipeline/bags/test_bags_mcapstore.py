@@ -9,10 +9,11 @@ from typing import Any
 
 import pytest
 from bag_fixtures import SHARED_BAGS, Recorded, record_run
-from objsearch.pipeline.bags.formats import BagFormat
-from objsearch.pipeline.bags.mcapstore import METADATA_VERSION
 from rosbags.highlevel import AnyReader
 from ruamel.yaml import YAML
+
+from objsearch.pipeline.bags.formats import BagFormat
+from objsearch.pipeline.bags.mcapstore import METADATA_VERSION
 
 
 def load_yaml(text: str) -> Any:
@@ -40,7 +41,7 @@ def raw(tmp_path_factory: pytest.TempPathFactory) -> Recorded:
 
 
 def mcap_file(rec: Recorded) -> Path:
-    return rec.bag / f"{rec.bag.name}.mcap"
+    return Path(rec.bag) / f"{Path(rec.bag).name}.mcap"
 
 
 def records(path: Path) -> list[Any]:
@@ -91,7 +92,7 @@ def test_every_message_decodes_with_mcap_ros2(zstd: Recorded) -> None:
 def test_rosbags_reads_the_bag_it_did_not_write(zstd: Recorded) -> None:
     with AnyReader([zstd.bag]) as reader:
         assert sum(1 for _ in reader.messages()) == sum(zstd.recording.messages.values())
-        qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}  # type: ignore[attr-defined]
+        qos = {c.topic: getattr(c.ext, "offered_qos_profiles") for c in reader.connections}  # noqa: B009
     (tf_static,) = qos["/tf_static"]
     assert (tf_static.durability.name, tf_static.reliability.name) == (
         "TRANSIENT_LOCAL",

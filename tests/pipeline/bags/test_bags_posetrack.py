@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 import pytest
-from bag_fixtures import Recorded
+
 from objsearch.agent.geometry import Pose
 from objsearch.events.arrow import events_to_tables
 from objsearch.pipeline.bags import posetrack
@@ -19,6 +19,8 @@ from objsearch.pipeline.bags.record import _Messages
 from objsearch.pipeline.bags.salvage import RawConnection
 from objsearch.pipeline.bags.topics import TopicMap
 from objsearch.pipeline.bags.types import Distro, typestore
+
+from .bag_fixtures import Recorded
 
 
 def _assert_tables_are_the_events_tables(contents: BagContents) -> None:

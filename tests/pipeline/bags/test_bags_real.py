@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.read import read_bag
 from objsearch.pipeline.bags.topics import TopicMap

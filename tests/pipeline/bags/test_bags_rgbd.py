@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 import torch
+
 from objsearch.agent.categories import Category
 from objsearch.agent.detect import GroundTruthDetector
 from objsearch.agent.frames import DEFAULT_INTRINSICS
@@ -23,6 +24,7 @@ from objsearch.agent.mapping import (
     survey_poses,
 )
 from objsearch.agent.session import HomeContext, load_context
+from objsearch.cli import main
 from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.read import read_bag
@@ -32,8 +34,6 @@ from objsearch.pipeline.bags.topics import Role, TopicMap
 from objsearch.pipeline.bags.types import typestore
 from objsearch.sim.render import SimulatedCamera, SurveyFrames
 from objsearch.sim.schedule import base_placements, table1_removals
-
-from objsearch.cli import main
 
 ROOMS = ["bathroom"]
 CPU = torch.device("cpu")

@@ -6,10 +6,11 @@ import json
 from collections import Counter
 from pathlib import Path
 
-from bag_fixtures import Recorded
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import BagLake
 from objsearch.pipeline.bags.read import read_bag
+
+from .bag_fixtures import Recorded
 
 
 def test_bag_holds_what_a_robot_records(recorded: Recorded) -> None:

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+
 from objsearch.agent.frames import camera_to_map
 from objsearch.agent.geometry import Pose
 from objsearch.pipeline.bags.record import OPTICAL_ROTATION

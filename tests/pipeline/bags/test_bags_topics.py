@@ -3,6 +3,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from objsearch.pipeline.bags.errors import BagConfigError
 from objsearch.pipeline.bags.topics import DEFAULT_TOPICS, Role, TopicMap
 from objsearch.pipeline.bags.types import Distro, message_definitions, typestore
