@@ -10,9 +10,10 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-from bag_fixtures import Recorded
 
 from objsearch.pipeline.bags.battery import Ingested, account, ingest_cli, variants
+
+from .bag_fixtures import Recorded
 
 PER_KIND = 3  # variants per kind of damage and format; seeded
 SEED = 12

@@ -6,12 +6,12 @@ import shutil
 import struct
 from pathlib import Path
 
-from bag_fixtures import Recorded
-
 from objsearch.pipeline.bags.battery import ZERO_BLOCK, chunk_spans
 from objsearch.pipeline.bags.census import take_census
 from objsearch.pipeline.bags.formats import BagFormat, storage_files
 from objsearch.pipeline.bags.read import read_bag
+
+from .bag_fixtures import Recorded
 
 
 def _copy(recorded: Recorded, dest: Path) -> tuple[Path, Path]:

@@ -8,12 +8,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from bag_fixtures import SHARED_BAGS, Recorded, record_run
 from rosbags.highlevel import AnyReader
 from ruamel.yaml import YAML
 
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.mcapstore import METADATA_VERSION
+
+from .bag_fixtures import SHARED_BAGS, Recorded, record_run
 
 
 def load_yaml(text: str) -> Any:

@@ -6,7 +6,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from bag_fixtures import SHARED_BAGS, record_run
 from rosbags.rosbag1 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -14,6 +13,8 @@ from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.record import MSG_TYPES
 from objsearch.pipeline.bags.ros1defs import SEPARATOR, full_definition
 from objsearch.pipeline.bags.types import Distro, typestore
+
+from .bag_fixtures import SHARED_BAGS, record_run
 
 
 def test_every_type_we_record_has_its_msg_text() -> None:
