@@ -13,7 +13,7 @@ from rosbags.highlevel import AnyReader
 from ruamel.yaml import YAML
 
 from objsearch.pipeline.bags.formats import BagFormat
-from objsearch.pipeline.bags.mcapstore import METADATA_VERSION
+from objsearch.ros.mcapstore import METADATA_VERSION
 
 
 def load_yaml(text: str) -> Any:

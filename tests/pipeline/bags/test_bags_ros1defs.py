@@ -13,7 +13,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.record import MSG_TYPES
 from objsearch.pipeline.bags.ros1defs import SEPARATOR, full_definition
-from objsearch.pipeline.bags.types import Distro, typestore
+from objsearch.ros.types import Distro, typestore
 
 
 def test_every_type_we_record_has_its_msg_text() -> None:
