@@ -50,7 +50,7 @@ data: $(STAMP)
 # Re-record the golden logs after a change that is meant to alter decisions (tests/replay).
 GOLDEN ?= tests/replay/golden
 bless: $(STAMP)
-	$(BIN)/python -m objsearch.replay.golden $(GOLDEN)
+	$(BIN)/python -m objsearch.experiments.golden $(GOLDEN)
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError, NotATargetError, UnknownObjectClassError
-from objsearch.paths import data_dir
 
 
 class Category(enum.Enum):

@@ -12,9 +12,9 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.categories import read_json
+from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError, UnknownStartError
 from objsearch.agent.geometry import Point, Pose
-from objsearch.paths import data_dir
 
 Vec3 = tuple[float, float, float]
 

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.categories import Vocabulary, read_json
+from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.navmap import NavigationMap
@@ -25,7 +26,6 @@ from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import World
 from objsearch.events import EventLog, fold, read_log
 from objsearch.events.snapshot import restore, save_snapshot
-from objsearch.paths import data_dir
 
 PRIOR_FILE = "priors/visual_genome.json"
 # uuid5(NAMESPACE_URL, "urn:objsearch:runs"); fixed forever, like the event id namespace.

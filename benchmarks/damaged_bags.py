@@ -23,6 +23,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from objsearch.cli import main as cli_main
 from objsearch.pipeline.bags.battery import account, ingest_cli, variants
 from objsearch.pipeline.bags.formats import BagFormat, detect
 from objsearch.pipeline.bags.record import record
@@ -67,7 +68,7 @@ def main() -> None:
         flagged: list[str] = []
         for label, bag in bags:
             fmt = detect(bag)
-            intact = ingest_cli(bag, work / "intact" / label.replace("/", "_"))
+            intact = ingest_cli(bag, work / "intact" / label.replace("/", "_"), cli_main)
             if intact.code != 0 or account(intact, intact).outcome != "complete":
                 flagged.append(f"{label}: the intact bag does not ingest cleanly: {intact.stderr}")
                 continue
@@ -75,7 +76,7 @@ def main() -> None:
             for i, v in enumerate(variants(bag, fmt, args.seed, args.per_kind)):
                 where = work / "v" / f"{i}"
                 damaged = v.make(where / "bag")
-                verdict = account(intact, ingest_cli(damaged, where / "lake"))
+                verdict = account(intact, ingest_cli(damaged, where / "lake", cli_main))
                 row["tried"] += 1
                 row[verdict.outcome] += 1
                 if verdict.outcome in ("traceback", "silent-loss", "over-reported"):

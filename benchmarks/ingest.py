@@ -35,7 +35,7 @@ from objsearch.pipeline.bags.ingest import BagTask, commit_converted, convert_ba
 from objsearch.pipeline.bags.lake import BagLake
 from objsearch.pipeline.bags.read import iter_raw
 from objsearch.pipeline.bags.record import DEFAULT_START_NS, record
-from objsearch.pipeline.bags.topics import TopicMap
+from objsearch.ros.topics import TopicMap
 
 
 def size_of(bag: Path) -> int:

@@ -1,4 +1,4 @@
-"""The derived data, shipped as package data (``objsearch.data``); see ``objsearch/paths.py``.
+"""The derived data, shipped as package data (``objsearch.data``); see ``agent/datapaths.py``.
 
 Everything else in this folder is written by ``objsearch data build`` (``PROVENANCE.md``).
 """

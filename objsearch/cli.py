@@ -34,7 +34,7 @@ def _fail(message: str) -> int:
 
 
 def cmd_data_build(args: argparse.Namespace) -> int:
-    from objsearch.paths import build_output_dir
+    from objsearch.agent.datapaths import build_output_dir
     from objsearch.pipeline.build import build_data, parse_home_arg
     from objsearch.pipeline.errors import BuildError
 

@@ -18,7 +18,7 @@ POINTS_PER_ROOM = t.int_range(1, 32)
 
 
 def _topic_map(args: argparse.Namespace) -> Any:
-    from objsearch.pipeline.bags.topics import TopicMap
+    from objsearch.ros.topics import TopicMap
 
     return TopicMap.load(Path(args.topics)) if args.topics else TopicMap()
 

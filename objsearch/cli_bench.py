@@ -10,7 +10,7 @@ from typing import Any
 
 from objsearch import cli_types as t
 from objsearch.agent.errors import ObjsearchError
-from objsearch.outdir import claim
+from objsearch.agent.outdir import claim
 
 #: What bench paper and bench homes write into --out (an earlier run's files are replaced).
 PAPER_OUTPUTS = ("paper_trials.parquet", "paper_trials.csv", "summary.json", "tables.txt", "logs")

@@ -162,7 +162,7 @@ def cmd_map_build(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if args.bag:
         from objsearch.pipeline.bags.rgbd import build_map_from_bag
-        from objsearch.pipeline.bags.topics import TopicMap
+        from objsearch.ros.topics import TopicMap
 
         topic_map = TopicMap.load(Path(args.topics)) if args.topics else TopicMap()
         built, bag_report = build_map_from_bag(

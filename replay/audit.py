@@ -20,8 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.geometry import Point
+from objsearch.agent.outdir import claim
 from objsearch.agent.session import load_context
-from objsearch.outdir import claim
 from objsearch.replay.state import ReplayState
 
 ORACLE_RATIO = 5.0

@@ -18,10 +18,10 @@ from typing import Any
 
 import numpy as np
 
+from objsearch.ros.qos import ACTION_STATUS, DEFAULT
 from objsearch.runtime import messages as m
 from objsearch.runtime.interfaces import CANCEL_GOAL
 from objsearch.runtime.node import Node
-from objsearch.runtime.qos import ACTION_STATUS, DEFAULT
 
 # action_msgs/msg/GoalStatus
 STATUS_UNKNOWN = 0

@@ -44,8 +44,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from objsearch.ros.errors import QosError
+from objsearch.ros.qos import DEFAULT, EVENTS, TF, TF_STATIC, QoS
 from objsearch.runtime.errors import RuntimeConfigError
-from objsearch.runtime.qos import DEFAULT, EVENTS, TF, TF_STATIC, QoS
 from objsearch.runtime.transport import Backend, TransportConfig
 
 
@@ -187,11 +188,18 @@ class RuntimeConfig:
             home=str(doc.get("home", "paper")),
             strategy=str(strategy),
             topics=_section(Topics(), doc.get("topics", {}), source, "topics", str),
-            qos=_section(QosSettings(), doc.get("qos", {}), source, "qos", QoS.parse),
+            qos=_section(QosSettings(), doc.get("qos", {}), source, "qos", _qos),
             timeouts=_section(Timeouts(), doc.get("timeouts", {}), source, "timeouts", None),
             navigation=_section(Navigation(), doc.get("navigation", {}), source, "navigation", str),
             pose=_section(PoseSource(), doc.get("pose", {}), source, "pose", str),
         )
+
+
+def _qos(text: str) -> QoS:
+    try:
+        return QoS.parse(text)
+    except QosError as exc:
+        raise RuntimeConfigError(str(exc)) from None
 
 
 def _section(default: Any, values: dict[str, Any], source: str, name: str, conv: Any) -> Any:

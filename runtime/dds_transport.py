@@ -27,9 +27,9 @@ from functools import cache
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
+from objsearch.ros.qos import SERVICES, Durability, QoS, Reliability
 from objsearch.runtime.errors import MessageError, TransportError
 from objsearch.runtime.messages import dds_type_name, store
-from objsearch.runtime.qos import SERVICES, Durability, QoS, Reliability
 from objsearch.runtime.transport import Handler, ServiceHandler, TransportConfig
 from objsearch.runtime.udpfilter import interface_address, restrict, udp_sockets
 

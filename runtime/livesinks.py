@@ -59,7 +59,7 @@ def parse_address(text: str) -> tuple[str, int]:
 def channel_qos(topic: str) -> Any:
     """The QoS a live channel is recorded with: the map and the statics latched (sent once,
     as a map server does), the event stream as the agent's, the rest rclcpp's default."""
-    from objsearch.pipeline.bags import bagqos
+    from objsearch.ros import bagqos
     from objsearch.runtime import liveview as lv
 
     if topic in (lv.MAP, lv.STATICS):
@@ -80,7 +80,7 @@ class McapSink:
     def __init__(self, path: Path, *, compress: bool = True) -> None:
         from rosbags.rosbag2 import StoragePlugin
 
-        from objsearch.pipeline.bags.mcapstore import rosbag2_writer
+        from objsearch.ros.mcapstore import rosbag2_writer
 
         if path.suffix != ".mcap":
             raise LiveViewError(f"the live view's MCAP file must end in .mcap; got {path}")

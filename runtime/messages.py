@@ -1,8 +1,9 @@
 """The one message layer both transports share: rosbags' ROS 2 types, CDR bytes, ROS 2 names.
 
 The types are the ROS 2 Humble store plus the repository's own ``.msg`` definitions
-(``objsearch.pipeline.bags.types``), so the agent's events and detections travel as the same
-``objsearch_msgs/msg/Event`` and ``vision_msgs/msg/Detection2DArray`` the bag pipeline records.
+(``objsearch.ros.types``), and events and detections are built by ``objsearch.ros.builder``, so
+they travel as the same ``objsearch_msgs/msg/Event`` and ``vision_msgs/msg/Detection2DArray`` the
+bag pipeline records.
 A backend only ever moves the CDR bytes :func:`encode` returns; the names and hashes each
 middleware needs come from here.
 """
@@ -18,7 +19,9 @@ from typing import TYPE_CHECKING, Any
 from objsearch.agent.geometry import Pose
 from objsearch.agent.world import Detection
 from objsearch.events import Event
-from objsearch.pipeline.bags.types import Distro, typestore
+from objsearch.ros.builder import DEFAULT_BOX_CAMERA, BoxCamera, MessageBuilder
+from objsearch.ros.topics import TopicMap
+from objsearch.ros.types import Distro, typestore
 from objsearch.runtime.errors import MessageError
 
 if TYPE_CHECKING:
@@ -156,14 +159,13 @@ def json_string(doc: dict[str, Any]) -> Any:
     return string(json.dumps(doc, sort_keys=True, separators=(",", ":")))
 
 
-def detections(ns: int, pose: Pose, dets: Sequence[Detection]) -> Any:
+def detections(
+    ns: int, pose: Pose, dets: Sequence[Detection], camera: BoxCamera = DEFAULT_BOX_CAMERA
+) -> Any:
     """The bag pipeline's encoding (``objsearch record``): class and instance in the hypothesis
-    and id, the 3-D position (map frame) as the hypothesis pose, the mask area as the box area."""
-    from objsearch.pipeline.bags.record import _Messages
-    from objsearch.pipeline.bags.topics import TopicMap
-    from objsearch.sim.perception import Camera
-
-    return _Messages(Distro.ROS2, TopicMap(), Camera()).detections(ns, pose, dets)
+    and id, the 3-D position (map frame) as the hypothesis pose, the mask area as the box area
+    (drawn in ``camera``)."""
+    return MessageBuilder(Distro.ROS2, TopicMap(), camera).detections(ns, pose, dets)
 
 
 def detections_of(msg: Any) -> tuple[Detection, ...]:
@@ -184,11 +186,7 @@ def detections_of(msg: Any) -> tuple[Detection, ...]:
 
 
 def event(e: Event, ns: int) -> Any:
-    from objsearch.pipeline.bags.record import _Messages
-    from objsearch.pipeline.bags.topics import TopicMap
-    from objsearch.sim.perception import Camera
-
-    return _Messages(Distro.ROS2, TopicMap(), Camera()).event(ns, e)
+    return MessageBuilder(Distro.ROS2, TopicMap()).event(ns, e)
 
 
 # -- TF: what the stand-in publishes and how the agent reads map → base_link --------------------

@@ -17,10 +17,10 @@ from collections import OrderedDict, deque
 from collections.abc import Callable, Mapping
 from typing import Any, Generic, Protocol, TypeVar
 
+from objsearch.ros.qos import QoS
 from objsearch.runtime import messages as m
 from objsearch.runtime import requests as rq
 from objsearch.runtime.errors import MessageError, RobotError
-from objsearch.runtime.qos import QoS
 from objsearch.runtime.transport import Publisher, ServiceClient, Transport
 
 log = logging.getLogger("objsearch.runtime")

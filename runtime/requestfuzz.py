@@ -404,28 +404,9 @@ RESULT_KEYS = ("success", "path_length", "found", "plans")
 def simulated(log_dir: Path) -> dict[str, Any]:
     """:data:`CHECK_SEARCH` in the in-process simulator on a fresh log: what the agent, after
     the cases, must answer (its first task, as no case may start one)."""
-    from objsearch.agent.session import Session, load_context
-    from objsearch.agent.strategies import RunSpec
-    from objsearch.sim.schedule import Schedule
-    from objsearch.sim.world import SimClock, SimWorld
+    from objsearch.runtime.standin import in_process_search
 
-    scene, target, start = CHECK_SEARCH
-    ctx = load_context("paper")
-    placements = Schedule.load(ctx.home, "table2").scenes[scene]
-    session = Session.start(ctx, log_dir, RunSpec.of(ctx.home.name, ctx.home.digest))
-    try:
-        world = SimWorld(ctx.home, ctx.navmap, placements, ctx.home.start(start), clock=SimClock())
-        r = session.search(world, target, start, scene=scene)
-    finally:
-        session.close()
-    plans = [[room, list(order)] for room, order in r.plans]
-    return {
-        "success": r.success,
-        "path_length": r.path_length,
-        "found": r.found_instance,
-        "plans": plans,
-        "task_id": r.task_id,
-    }
+    return in_process_search(log_dir, *CHECK_SEARCH)
 
 
 def fuzz_rig(

@@ -31,7 +31,8 @@ from typing import Any
 from objsearch.agent.geometry import Point, Pose, heading, wrap_angle
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
-from objsearch.pipeline.bags.tf import TransformBuffer, TransformError
+from objsearch.ros.errors import TransformError
+from objsearch.ros.tf import TransformBuffer
 from objsearch.runtime import messages as m
 from objsearch.runtime.action import STATUS_NAMES, STATUS_SUCCEEDED, ActionClient, new_goal_id
 from objsearch.runtime.config import RuntimeConfig

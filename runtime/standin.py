@@ -27,11 +27,13 @@ import logging
 import queue
 import threading
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point, Pose
-from objsearch.agent.session import load_context
+from objsearch.agent.session import Session, load_context
+from objsearch.agent.strategies import RunSpec
 from objsearch.runtime import messages as m
 from objsearch.runtime.action import STATUS_ABORTED, STATUS_CANCELED, STATUS_SUCCEEDED, ActionServer
 from objsearch.runtime.config import RuntimeConfig
@@ -46,7 +48,7 @@ from objsearch.runtime.requests import (
 )
 from objsearch.runtime.transport import open_transport
 from objsearch.sim.longterm import PAUSE_BETWEEN_TASKS_S
-from objsearch.sim.schedule import Placements, base_placements, table1_removals
+from objsearch.sim.schedule import Placements, Schedule, base_placements, table1_removals
 from objsearch.sim.schedules import load_schedule
 from objsearch.sim.world import SimClock, SimWorld
 
@@ -294,3 +296,24 @@ class StandInRobot:
         finally:
             self.node.close()
         return 0
+
+
+def in_process_search(log_dir: Path, scene: int, target: str, start: str) -> dict[str, Any]:
+    """One search of Table II's ``scene`` in the in-process simulator on a fresh log: what the
+    agent behind a stand-in must answer for it (``runtime.requestfuzz`` checks this)."""
+    ctx = load_context("paper")
+    placements = Schedule.load(ctx.home, "table2").scenes[scene]
+    session = Session.start(ctx, log_dir, RunSpec.of(ctx.home.name, ctx.home.digest))
+    try:
+        world = SimWorld(ctx.home, ctx.navmap, placements, ctx.home.start(start), clock=SimClock())
+        r = session.search(world, target, start, scene=scene)
+    finally:
+        session.close()
+    plans = [[room, list(order)] for room, order in r.plans]
+    return {
+        "success": r.success,
+        "path_length": r.path_length,
+        "found": r.found_instance,
+        "plans": plans,
+        "task_id": r.task_id,
+    }

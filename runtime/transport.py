@@ -14,8 +14,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
+from objsearch.ros.qos import QoS
 from objsearch.runtime.errors import RuntimeConfigError
-from objsearch.runtime.qos import QoS
 
 #: Called with the CDR bytes of each message, on a middleware thread.
 Handler = Callable[[bytes], None]

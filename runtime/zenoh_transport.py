@@ -20,9 +20,9 @@ import threading
 import time
 from typing import Any
 
+from objsearch.ros.qos import SERVICES, QoS
 from objsearch.runtime.errors import TransportError
 from objsearch.runtime.messages import dds_type_name, type_hash
-from objsearch.runtime.qos import SERVICES, QoS
 from objsearch.runtime.transport import Handler, ServiceHandler, TransportConfig
 
 GID_SIZE = 16

@@ -11,10 +11,10 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from objsearch.agent.outdir import claim
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
 from objsearch.agent.strategies import DEFAULT_STRATEGY, RunSpec
-from objsearch.outdir import claim
 from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule
 
 SCENES = 10

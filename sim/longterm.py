@@ -2,7 +2,7 @@
 every scene of a placement source, every target, every start, on one log.
 
 ``objsearch demo``, ``objsearch record``, ``objsearch bench`` (experiments/runner.py) and the golden
-logs (replay/golden.py) all call :func:`run_schedule`; nothing else walks scenes × targets × starts.
+logs (experiments/golden.py) all call :func:`run_schedule`; nothing else walks scenes × targets × starts.
 """
 
 from __future__ import annotations

@@ -31,9 +31,9 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.categories import read_json
+from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.home import Box, Home
-from objsearch.paths import data_dir
 from objsearch.sim.schedule import Placements, Schedule
 from objsearch.sim.stats_schedule import SCENES, stats_schedule
 from objsearch.sim.world import Placement

@@ -8,9 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.categories import read_json
+from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.home import Box, Home
-from objsearch.paths import data_dir
 from objsearch.sim.world import Placement
 
 Placements = Mapping[str, Placement]

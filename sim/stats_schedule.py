@@ -26,9 +26,9 @@ from functools import cache
 from typing import Any
 
 from objsearch.agent.categories import read_json
+from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.home import Box, Home, StaticObject, home_path
-from objsearch.paths import data_dir
 from objsearch.sim.schedule import Placements, Schedule
 from objsearch.sim.world import Placement
 

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.datapaths import data_dir
 from objsearch.cli import main
 from objsearch.events import read_log
-from objsearch.paths import data_dir
 
 
 def _run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:

@@ -127,7 +127,7 @@ def test_a_search_runs_from_the_installed_wheel(installed: Installed) -> None:
         [
             str(installed.bin / "python"),
             "-c",
-            "from objsearch.paths import data_dir; print(data_dir())",
+            "from objsearch.agent.datapaths import data_dir; print(data_dir())",
         ],
         cwd=installed.elsewhere,
         env=installed.env,

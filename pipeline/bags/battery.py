@@ -35,7 +35,7 @@ from typing import Any
 
 from objsearch.pipeline.bags.census import take_census
 from objsearch.pipeline.bags.formats import BagFormat, storage_files
-from objsearch.pipeline.bags.topics import Role, TopicMap
+from objsearch.ros.topics import Role, TopicMap
 
 ZERO_BLOCK = 4096
 KINDS = ("cut", "flip", "zero", "no-metadata", "extension")
@@ -184,9 +184,9 @@ def _renames(bag: Path, fmt: BagFormat) -> list[Variant]:
     ]
 
 
-def ingest_cli(bag: Path, lake: Path) -> Ingested:
-    """``objsearch ingest BAG --lake LAKE`` in this process, its output captured."""
-    from objsearch.cli import main
+def ingest_cli(bag: Path, lake: Path, main: Callable[[list[str]], int]) -> Ingested:
+    """``objsearch ingest BAG --lake LAKE`` in this process through the CLI's ``main`` (the
+    caller's: the pipeline does not import the CLI), its output captured."""
     from objsearch.pipeline.bags.lake import MANIFESTS, BagLake
 
     out, err = io.StringIO(), io.StringIO()

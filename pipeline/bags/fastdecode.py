@@ -28,7 +28,7 @@ from typing import Final
 import numpy as np
 import numpy.typing as npt
 
-from objsearch.pipeline.bags.types import Distro
+from objsearch.ros.types import Distro
 
 #: (frame_id, x, y, qx, qy, qz, qw): an odometry message's header frame and planar pose.
 OdomFields = tuple[str, float, float, float, float, float, float]

@@ -6,7 +6,7 @@ import enum
 from pathlib import Path
 
 from objsearch.pipeline.bags.errors import BagError
-from objsearch.pipeline.bags.types import Distro
+from objsearch.ros.types import Distro
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
 MCAP_MAGIC = b"\x89MCAP0\r\n"

@@ -21,7 +21,7 @@ from objsearch.pipeline.bags.engines import Engine, InlineEngine, ProcessEngine,
 from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.lake import BagLake, LakeWriter, run_name
 from objsearch.pipeline.bags.read import BagReport, bag_identity, read_bag
-from objsearch.pipeline.bags.topics import TopicMap
+from objsearch.ros.topics import TopicMap
 
 
 @dataclass(frozen=True, slots=True)

@@ -43,7 +43,7 @@ from objsearch.pipeline.bags.fastdecode import (
     TransformFields,
     decode_batch,
 )
-from objsearch.pipeline.bags.topics import Frames
+from objsearch.ros.topics import Frames
 
 MAX_COORD_M: Final = 1e5  # a pose or position farther than this from the origin is damage
 ROTATION_TOLERANCE: Final = 1e-3

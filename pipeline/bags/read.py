@@ -48,8 +48,8 @@ from objsearch.pipeline.bags.posetrack import (
     coord,
 )
 from objsearch.pipeline.bags.salvage import Loss, RawConnection, Scan, scan_bag
-from objsearch.pipeline.bags.topics import ACCEPTED_TYPES, CONVERTED, Role, TopicMap
-from objsearch.pipeline.bags.types import Distro, typestore
+from objsearch.ros.topics import ACCEPTED_TYPES, CONVERTED, Role, TopicMap
+from objsearch.ros.types import Distro, typestore
 
 PROGRESS_MIN_MESSAGES = 20_000
 MAX_REASONS = 3

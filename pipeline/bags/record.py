@@ -23,7 +23,6 @@ The simulator's map and odom frames coincide (no drift), so map → odom is the 
 from __future__ import annotations
 
 import bisect
-import json
 import math
 import shutil
 import tempfile
@@ -37,27 +36,23 @@ from objsearch.agent.frames import CameraIntrinsics
 from objsearch.agent.geometry import Pose
 from objsearch.agent.world import Detection
 from objsearch.events import Event, read_log
-from objsearch.events.record import encode_record
-from objsearch.pipeline.bags import bagqos
 from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.formats import BagFormat
-from objsearch.pipeline.bags.topics import Role, TopicMap
-from objsearch.pipeline.bags.types import Distro, typestore
+from objsearch.ros import bagqos
+from objsearch.ros.builder import BoxCamera, MessageBuilder
+from objsearch.ros.topics import Role, TopicMap
+from objsearch.ros.types import Distro, typestore
 from objsearch.sim.perception import IMAGE_HEIGHT, IMAGE_WIDTH, Camera
 
 if TYPE_CHECKING:
     import numpy as np
     import numpy.typing as npt
     from rosbags.interfaces import Qos
-    from rosbags.typesys.store import Typestore
 
     from objsearch.agent.detect import Detector, MaskDetection
     from objsearch.agent.frames import RGBDFrame
     from objsearch.sim.render import SimulatedCamera
 
-#: camera_link (x forward, z up) → its optical frame (x right, y down, z forward), REP 103:
-#: the quaternion (x, y, z, w) of the rotation whose columns are the optical axes in camera_link.
-OPTICAL_ROTATION = (-0.5, 0.5, -0.5, 0.5)
 #: Sweep timing: a view every 2 s; the robot holds still for the first second and the images are
 #: stamped 0.55 s in, off the 10 Hz TF grid, so a reader must interpolate TF (as with a real camera).
 SWEEP_VIEW_NS = 2_000_000_000
@@ -146,245 +141,9 @@ class Recording:
     end_ns: int
 
 
-class _Messages:
-    """Builds the messages of one distro (ROS 1 headers carry ``seq``; ROS 2 ones do not)."""
-
-    def __init__(self, distro: Distro, topic_map: TopicMap, camera: Camera | None = None) -> None:
-        self.distro = distro
-        self.camera = camera or Camera()  # the search's geometric camera model
-        self.store: Typestore = typestore(distro)
-        self.t = self.store.types
-        self.frames = topic_map.frames
-        self._seq = 0
-
-    def header(self, stamp_ns: int, frame: str) -> Any:
-        stamp = self.t["builtin_interfaces/msg/Time"](
-            sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9
-        )
-        if self.distro is Distro.ROS1:
-            self._seq += 1
-            return self.t["std_msgs/msg/Header"](seq=self._seq, stamp=stamp, frame_id=frame)
-        return self.t["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
-
-    def _quat(self, yaw: float) -> Any:
-        return self._rotation((0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)))
-
-    def _rotation(self, q: tuple[float, float, float, float]) -> Any:
-        return self.t["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3])
-
-    def _vec(self, x: float, y: float, z: float) -> Any:
-        return self.t["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)
-
-    def _transform(
-        self,
-        stamp: int,
-        parent: str,
-        child: str,
-        xyz: tuple[float, float, float],
-        q: tuple[float, float, float, float],
-    ) -> Any:
-        return self.t["geometry_msgs/msg/TransformStamped"](
-            header=self.header(stamp, parent),
-            child_frame_id=child,
-            transform=self.t["geometry_msgs/msg/Transform"](
-                translation=self._vec(*xyz), rotation=self._rotation(q)
-            ),
-        )
-
-    def tf(self, stamp: int, pose: Pose) -> Any:
-        f = self.frames
-        return self.t["tf2_msgs/msg/TFMessage"](
-            transforms=[
-                self._transform(stamp, f.map, f.odom, (0.0, 0.0, 0.0), _yaw_q(0.0)),
-                self._transform(stamp, f.odom, f.base, (pose.x, pose.y, 0.0), _yaw_q(pose.yaw)),
-            ]
-        )
-
-    def tf_static(
-        self, stamp: int, height: float, *, pitch: float = 0.0, optical: bool = False
-    ) -> Any:
-        """base → camera (``height`` up, tilted down by ``pitch``: a turn about its y axis) and,
-        with ``optical``, camera → its optical frame."""
-        f = self.frames
-        tilt = (0.0, math.sin(pitch / 2), 0.0, math.cos(pitch / 2))
-        transforms = [self._transform(stamp, f.base, f.camera, (0.0, 0.0, height), tilt)]
-        if optical:
-            transforms.append(
-                self._transform(
-                    stamp, f.camera, f.camera_optical, (0.0, 0.0, 0.0), OPTICAL_ROTATION
-                )
-            )
-        return self.t["tf2_msgs/msg/TFMessage"](transforms=transforms)
-
-    def odometry(self, stamp: int, pose: Pose, twist: tuple[float, float]) -> Any:
-        import numpy as np
-
-        t = self.t
-        return t["nav_msgs/msg/Odometry"](
-            header=self.header(stamp, self.frames.odom),
-            child_frame_id=self.frames.base,
-            pose=t["geometry_msgs/msg/PoseWithCovariance"](
-                pose=t["geometry_msgs/msg/Pose"](
-                    position=t["geometry_msgs/msg/Point"](x=pose.x, y=pose.y, z=0.0),
-                    orientation=self._quat(pose.yaw),
-                ),
-                covariance=np.zeros(36, dtype=np.float64),
-            ),
-            twist=t["geometry_msgs/msg/TwistWithCovariance"](
-                twist=t["geometry_msgs/msg/Twist"](
-                    linear=self._vec(twist[0], 0.0, 0.0), angular=self._vec(0.0, 0.0, twist[1])
-                ),
-                covariance=np.zeros(36, dtype=np.float64),
-            ),
-        )
-
-    def camera_info(self, stamp: int, k: CameraIntrinsics, frame: str) -> Any:
-        """A distortion-free pinhole; K's principal point in OpenCV pixel coordinates (pixel
-        centres at integers), the convention of ``CameraIntrinsics`` too."""
-        import numpy as np
-
-        fx, fy, cx, cy = k.fx, k.fy, k.cx, k.cy
-        kk = np.array([fx, 0, cx, 0, fy, cy, 0, 0, 1], dtype=np.float64)
-        r = np.eye(3, dtype=np.float64).ravel()
-        p = np.array([fx, 0, cx, 0, 0, fy, cy, 0, 0, 0, 1, 0], dtype=np.float64)
-        roi = self.t["sensor_msgs/msg/RegionOfInterest"](
-            x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
-        )
-        fields: dict[str, Any] = {
-            "header": self.header(stamp, frame),
-            "height": k.height,
-            "width": k.width,
-            "distortion_model": "plumb_bob",
-            "binning_x": 0,
-            "binning_y": 0,
-            "roi": roi,
-        }
-        if self.distro is Distro.ROS1:
-            fields |= {"D": np.zeros(5, dtype=np.float64), "K": kk, "R": r, "P": p}
-        else:
-            fields |= {"d": np.zeros(5, dtype=np.float64), "k": kk, "r": r, "p": p}
-        return self.t["sensor_msgs/msg/CameraInfo"](**fields)
-
-    def image(self, stamp: int, encoding: str, pixels: npt.NDArray[Any]) -> Any:
-        """A ``sensor_msgs/Image`` in the optical frame, little-endian, rows packed."""
-        import numpy as np
-
-        little = pixels.astype(pixels.dtype.newbyteorder("<"), copy=False)
-        data = np.ascontiguousarray(little).view(np.uint8).ravel()
-        height, width = pixels.shape[:2]
-        return self.t["sensor_msgs/msg/Image"](
-            header=self.header(stamp, self.frames.camera_optical),
-            height=height,
-            width=width,
-            encoding=encoding,
-            is_bigendian=0,
-            step=len(data) // height,
-            data=data,
-        )
-
-    def detections(self, stamp: int, pose: Pose, dets: Sequence[Detection]) -> Any:
-        """The search's detections: boxes from the geometric camera model (``project``)."""
-        return self.detection_array(
-            stamp,
-            self.frames.camera,
-            [
-                (d.instance_id, d.object_class, 1.0, project(self.camera, pose, d), d.position)
-                for d in dets
-            ],
-        )
-
-    def detection_array(
-        self,
-        stamp: int,
-        frame: str,
-        dets: Sequence[
-            tuple[str, str, float, tuple[float, float, float, float], tuple[float, float, float]]
-        ],
-    ) -> Any:
-        """(instance id, class, score, box (u, v, w, h) in pixels, map-frame position) each."""
-        import numpy as np
-
-        t = self.t
-        items = []
-        for instance_id, cls, score, (u, v, w, h), position in dets:
-            items.append(
-                t["vision_msgs/msg/Detection2D"](
-                    header=self.header(stamp, frame),
-                    results=[
-                        t["vision_msgs/msg/ObjectHypothesisWithPose"](
-                            hypothesis=t["vision_msgs/msg/ObjectHypothesis"](
-                                class_id=cls, score=score
-                            ),
-                            # The 3-D position is in the map frame, as the agent uses it.
-                            pose=t["geometry_msgs/msg/PoseWithCovariance"](
-                                pose=t["geometry_msgs/msg/Pose"](
-                                    position=t["geometry_msgs/msg/Point"](
-                                        x=float(position[0]),
-                                        y=float(position[1]),
-                                        z=float(position[2]),
-                                    ),
-                                    orientation=self._quat(0.0),
-                                ),
-                                covariance=np.zeros(36, dtype=np.float64),
-                            ),
-                        )
-                    ],
-                    bbox=t["vision_msgs/msg/BoundingBox2D"](
-                        center=t["vision_msgs/msg/Pose2D"](
-                            position=t["vision_msgs/msg/Point2D"](x=u, y=v), theta=0.0
-                        ),
-                        size_x=w,
-                        size_y=h,
-                    ),
-                    id=instance_id,
-                )
-            )
-        return t["vision_msgs/msg/Detection2DArray"](
-            header=self.header(stamp, self.frames.map), detections=items
-        )
-
-    def event(self, stamp: int, e: Event) -> Any:
-        return self.t["objsearch_msgs/msg/Event"](
-            header=self.header(stamp, self.frames.map),
-            event_id=e.event_id,
-            stream=e.stream,
-            seq=e.seq,
-            time_ns=e.time_ns,
-            recorded_at_ns=e.recorded_at_ns,
-            type=e.type,
-            version=e.version,
-            task_id=e.task_id or "",
-            payload_json=json.dumps(
-                dict(e.payload), sort_keys=True, separators=(",", ":"), ensure_ascii=False
-            ),
-            crc32=event_crc32(e),
-        )
-
-
-def _yaw_q(yaw: float) -> tuple[float, float, float, float]:
-    return (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
-
-
-def event_crc32(e: Event) -> int:
-    """The checksum events.log stores for ``e`` (CRC-32 of its canonical JSON)."""
-    return int(encode_record(e)[-9:-1], 16)
-
-
-def project(camera: Camera, pose: Pose, d: Detection) -> tuple[float, float, float, float]:
-    """Centre (u, v) and size (w, h) in pixels of a detection whose mask area is known.
-
-    The box has the camera model's aspect (the object's widest side × its height) scaled to
-    the reported mask area, centred on the projection of the object's centre.
-    """
-    dx, dy = d.position[0] - pose.x, d.position[1] - pose.y
-    bearing = math.atan2(dy, dx) - pose.yaw
-    bearing = math.atan2(math.sin(bearing), math.cos(bearing))
-    ahead = max(math.hypot(dx, dy) * math.cos(bearing), 0.1)
-    f = camera.focal_px
-    u = IMAGE_WIDTH / 2 - f * math.tan(bearing)
-    v = IMAGE_HEIGHT / 2 - f * (d.position[2] - camera.height) / ahead
-    side = math.sqrt(max(d.mask_area, 0.0))
-    return u, v, side, side
+def box_camera(camera: Camera) -> BoxCamera:
+    """The simulator's camera as the pinhole the detection boxes are drawn in."""
+    return BoxCamera(camera.focal_px, camera.height, IMAGE_WIDTH, IMAGE_HEIGHT)
 
 
 def bag_messages(
@@ -400,7 +159,7 @@ def bag_messages(
     """(bag time, role, message) for everything the robot publishes, in time order (an
     iterable whose ``len`` is the number of messages)."""
     camera = camera or Camera()
-    m = _Messages(distro, topic_map, camera)
+    m = MessageBuilder(distro, topic_map, box_camera(camera))
     f = camera.focal_px
     # The geometric camera model's image centre, as sim/perception.py projects with it.
     k = CameraIntrinsics(IMAGE_WIDTH, IMAGE_HEIGHT, f, f, IMAGE_WIDTH / 2, IMAGE_HEIGHT / 2)
@@ -427,7 +186,7 @@ class _Schedule:
     def add(self, sim_ns: int, role: Role, make: Callable[[], Any]) -> None:
         self.items.append((self.start_ns + sim_ns, len(self.items), role, make))
 
-    def add_motion(self, m: _Messages, timeline: Timeline, odom_hz: float) -> None:
+    def add_motion(self, m: MessageBuilder, timeline: Timeline, odom_hz: float) -> None:
         """Odometry and TF at every pose change and at ``odom_hz`` in between."""
         previous: tuple[int, Pose] | None = None
         for t, pose in timeline.samples(odom_hz):
@@ -460,7 +219,7 @@ def sweep_messages(
     odom_hz: float = DEFAULT_ODOM_HZ,
 ) -> _Schedule:
     """(bag time, role, message) of a mapping sweep: one rendered view per (room, pose)."""
-    m = _Messages(distro, topic_map)
+    m = MessageBuilder(distro, topic_map)
     timeline = Timeline()
     for i, (_, pose) in enumerate(poses):
         timeline.pose_changed(i * SWEEP_VIEW_NS, pose)
@@ -505,7 +264,7 @@ class _Views:
             self._held = (i, frame, self.detector.detect(frame))
         return self._held[1], self._held[2]
 
-    def image(self, m: _Messages, stamp: int, i: int, role: Role) -> Any:
+    def image(self, m: MessageBuilder, stamp: int, i: int, role: Role) -> Any:
         """RGB ``rgb8``, depth ``32FC1`` (metres, REP 118) or the instance image ``mono16``."""
         frame = self._view(i)[0]
         if role is Role.IMAGE:
@@ -514,7 +273,7 @@ class _Views:
             return m.image(stamp, "32FC1", frame.depth)
         return m.image(stamp, "mono16", self._instances(i))
 
-    def detections(self, m: _Messages, stamp: int, i: int) -> Any:
+    def detections(self, m: MessageBuilder, stamp: int, i: int) -> Any:
         """The instance image's label table: detection k is pixel value k + 1."""
         return m.detection_array(stamp, m.frames.camera_optical, self._table(i))
 
@@ -577,7 +336,7 @@ def write_bag(
 
     Written into a temporary sibling and renamed into place, so ``path`` never holds half a bag.
     ``chunk_bytes`` sets the chunk size of ROS 1 and MCAP bags (1 MiB). An MCAP bag has zstd
-    chunks and CRCs unless ``compress`` is false (:mod:`~objsearch.pipeline.bags.mcapstore`).
+    chunks and CRCs unless ``compress`` is false (:mod:`~objsearch.ros.mcapstore`).
     ROS 1 connections store the full ``.msg`` text of their types (:mod:`.ros1defs`), ROS 2 ones
     the QoS the robot's publishers offer (:data:`ROLE_QOS`). ``progress`` is called with the
     number of messages written so far, every 10 000 and at the end.
@@ -621,7 +380,7 @@ def write_bag(
         else:
             from rosbags.rosbag2 import StoragePlugin
 
-            from objsearch.pipeline.bags.mcapstore import rosbag2_writer
+            from objsearch.ros.mcapstore import rosbag2_writer
 
             plugin = StoragePlugin.MCAP if fmt is BagFormat.ROS2_MCAP else StoragePlugin.SQLITE3
             with rosbag2_writer(tmp, plugin, compress=compress, chunk_bytes=chunk_bytes) as w2:

@@ -11,7 +11,7 @@ What a view needs, by topic role (``topics.py``; the defaults are what ``objsear
   mask's class and score;
 * ``camera_info``: K of a pinhole (distortion is not undone; a note says so when D ≠ 0);
 * ``tf`` / ``tf_static``: map → … → the images' ``frame_id`` at the images' stamp
-  (:class:`~objsearch.pipeline.bags.tf.TransformBuffer`, interpolated, never extrapolated).
+  (:class:`~objsearch.ros.tf.TransformBuffer`, interpolated, never extrapolated).
 
 Parts of a view are matched by header stamp. A view waits until TF has reached its stamp (as a
 tf2 message filter does), at most :data:`MAX_PENDING` views at a time, so memory stays bounded.
@@ -39,8 +39,9 @@ from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.formats import detect
 from objsearch.pipeline.bags.read import Deserialize, hypothesis_score, read_messages, unrecovered
 from objsearch.pipeline.bags.salvage import Loss, RawConnection
-from objsearch.pipeline.bags.tf import TransformBuffer, TransformError
-from objsearch.pipeline.bags.topics import ACCEPTED_TYPES, Role, TopicMap
+from objsearch.ros.errors import TransformError
+from objsearch.ros.tf import TransformBuffer
+from objsearch.ros.topics import ACCEPTED_TYPES, Role, TopicMap
 
 #: Views held while waiting for TF or a missing part; the oldest is dropped beyond this.
 MAX_PENDING: Final = 32

@@ -15,7 +15,7 @@ from functools import cache
 from importlib import resources
 from typing import TYPE_CHECKING, Any
 
-from objsearch.pipeline.bags.types import message_definitions
+from objsearch.ros.types import message_definitions
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore

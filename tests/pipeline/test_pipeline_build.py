@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from objsearch.paths import data_dir
+from objsearch.agent.datapaths import data_dir
 from objsearch.pipeline.build import PAPER_HOME, BuildReport, build_data, parse_home_arg
 from objsearch.pipeline.errors import HomeSpecError, SourceDataError
 

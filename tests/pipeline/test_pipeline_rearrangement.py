@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from objsearch.paths import data_dir
+from objsearch.agent.datapaths import data_dir
 from objsearch.pipeline import jsonio
 from objsearch.pipeline.build import PAPER_HOME
 from objsearch.pipeline.errors import SourceDataError

@@ -9,9 +9,9 @@ from typing import Any
 
 import pytest
 
+from objsearch.agent.outdir import claim
 from objsearch.cli import main
 from objsearch.events import Event, EventLog, read_log
-from objsearch.outdir import claim
 from objsearch.replay.audit import REPORT_FILES, audit
 
 LOG = Path(__file__).resolve().parent / "golden" / "sim-wpl-updates"

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.experiments.golden import BAG_LAKE, GOLDEN_RUNS
 from objsearch.replay.decisions import replay
-from objsearch.replay.golden import BAG_LAKE, GOLDEN_RUNS
 from objsearch.replay.source import open_events
 
 GOLDEN_DIR = Path(__file__).resolve().parent / "golden"  # `make bless` writes here

@@ -10,9 +10,9 @@ import pytest
 
 from objsearch.agent.geometry import Pose
 from objsearch.agent.world import Detection
+from objsearch.ros.qos import DEFAULT, QoS, Reliability
 from objsearch.runtime import messages as m
 from objsearch.runtime.errors import MessageError
-from objsearch.runtime.qos import DEFAULT, QoS, Reliability
 from objsearch.runtime.zenoh_transport import (
     attachment,
     liveliness_key,
@@ -233,7 +233,7 @@ def test_dds_request_header_keeps_the_message_bytes() -> None:
 def test_tf_composes_map_odom_base() -> None:
     """The stand-in's /tf (map → odom offset, odom → base_link) read through the TF buffer gives
     the robot's map pose; odom → base_link alone would not."""
-    from objsearch.pipeline.bags.tf import TransformBuffer
+    from objsearch.ros.tf import TransformBuffer
 
     pose = Pose(2.25, -1.5, 0.75)
     msg = m.decode(m.encode(m.tf(pose, 7_000), m.TF), m.TF)

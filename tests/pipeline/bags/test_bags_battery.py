@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.cli import main
 from objsearch.pipeline.bags.battery import Ingested, account, ingest_cli, variants
 
 from .bag_fixtures import Recorded
@@ -22,7 +23,7 @@ SEED = 12
 @pytest.fixture(scope="module")
 def intact_ingest(recorded: Recorded, tmp_path_factory: pytest.TempPathFactory) -> Ingested:
     lake = tmp_path_factory.mktemp("intact-lake")
-    return ingest_cli(recorded.bag, lake)
+    return ingest_cli(recorded.bag, lake, main)
 
 
 def test_intact_bag_is_complete(recorded: Recorded, intact_ingest: Ingested) -> None:
@@ -48,7 +49,7 @@ def test_every_damaged_variant_is_accounted_for(
     for i, v in enumerate(variants(recorded.bag, fmt, SEED, PER_KIND)):
         where = tmp_path / f"v{i}"
         bag = v.make(where / "bag")
-        verdict = account(intact_ingest, ingest_cli(bag, where / "lake"))
+        verdict = account(intact_ingest, ingest_cli(bag, where / "lake", main))
         outcomes[f"{v.kind}:{verdict.outcome}"] += 1
         if verdict.outcome not in ("complete", "loss-reported", "error"):
             problems.append(f"{v.name}: {verdict.outcome}: {'; '.join(verdict.problems)}")

@@ -9,8 +9,8 @@ import pytest
 from objsearch.pipeline.bags import fastdecode
 from objsearch.pipeline.bags.formats import detect
 from objsearch.pipeline.bags.posetrack import odometry_fields, transform_fields
-from objsearch.pipeline.bags.topics import ACCEPTED_TYPES, Role
-from objsearch.pipeline.bags.types import typestore
+from objsearch.ros.topics import ACCEPTED_TYPES, Role
+from objsearch.ros.types import typestore
 
 from .bag_fixtures import Recorded
 

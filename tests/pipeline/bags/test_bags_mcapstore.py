@@ -12,7 +12,7 @@ from rosbags.highlevel import AnyReader
 from ruamel.yaml import YAML
 
 from objsearch.pipeline.bags.formats import BagFormat
-from objsearch.pipeline.bags.mcapstore import METADATA_VERSION
+from objsearch.ros.mcapstore import METADATA_VERSION
 
 from .bag_fixtures import SHARED_BAGS, Recorded, record_run
 

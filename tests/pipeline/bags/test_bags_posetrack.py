@@ -15,10 +15,10 @@ from objsearch.agent.geometry import Pose
 from objsearch.events.arrow import events_to_tables
 from objsearch.pipeline.bags import posetrack
 from objsearch.pipeline.bags.read import BagContents, Converter, read_bag
-from objsearch.pipeline.bags.record import _Messages
 from objsearch.pipeline.bags.salvage import RawConnection
-from objsearch.pipeline.bags.topics import TopicMap
-from objsearch.pipeline.bags.types import Distro, typestore
+from objsearch.ros.builder import MessageBuilder
+from objsearch.ros.topics import TopicMap
+from objsearch.ros.types import Distro, typestore
 
 from .bag_fixtures import Recorded
 
@@ -113,7 +113,7 @@ TF = RawConnection(2, "/tf", "tf2_msgs/msg/TFMessage", "", "")
 
 def _messages() -> list[tuple[RawConnection, int, Any]]:
     """Odometry and TF with every case the rules tell apart."""
-    m = _Messages(Distro.ROS2, TopicMap())
+    m = MessageBuilder(Distro.ROS2, TopicMap())
     t = 1_700_000_000 * 10**9
     out: list[tuple[RawConnection, int, Any]] = []
     for i in range(40):

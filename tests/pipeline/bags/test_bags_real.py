@@ -8,7 +8,7 @@ import pytest
 
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.read import read_bag
-from objsearch.pipeline.bags.topics import TopicMap
+from objsearch.ros.topics import TopicMap
 
 
 def _bags(root: Path) -> list[Path]:

@@ -30,8 +30,8 @@ from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.read import read_bag
 from objsearch.pipeline.bags.record import record_mapping_sweep, sweep_messages, write_bag
 from objsearch.pipeline.bags.rgbd import build_map_from_bag, decode_image, intrinsics_of
-from objsearch.pipeline.bags.topics import Role, TopicMap
-from objsearch.pipeline.bags.types import typestore
+from objsearch.ros.topics import Role, TopicMap
+from objsearch.ros.types import typestore
 from objsearch.sim.render import SimulatedCamera, SurveyFrames
 from objsearch.sim.schedule import base_placements, table1_removals
 

@@ -12,7 +12,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.record import MSG_TYPES
 from objsearch.pipeline.bags.ros1defs import SEPARATOR, full_definition
-from objsearch.pipeline.bags.types import Distro, typestore
+from objsearch.ros.types import Distro, typestore
 
 from .bag_fixtures import SHARED_BAGS, record_run
 

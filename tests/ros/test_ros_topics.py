@@ -4,9 +4,9 @@ from pathlib import Path
 
 import pytest
 
-from objsearch.pipeline.bags.errors import BagConfigError
-from objsearch.pipeline.bags.topics import DEFAULT_TOPICS, Role, TopicMap
-from objsearch.pipeline.bags.types import Distro, message_definitions, typestore
+from objsearch.ros.errors import TopicMapError
+from objsearch.ros.topics import DEFAULT_TOPICS, Role, TopicMap
+from objsearch.ros.types import Distro, message_definitions, typestore
 
 
 def test_msg_files_are_package_data_and_register() -> None:
@@ -50,7 +50,7 @@ def test_toml_and_json_overrides(tmp_path: Path) -> None:
 def test_bad_topic_maps_are_refused(tmp_path: Path, text: str, match: str) -> None:
     path = tmp_path / "bad.toml"
     path.write_text(text)
-    with pytest.raises(BagConfigError, match=match):
+    with pytest.raises(TopicMapError, match=match):
         TopicMap.load(path)
-    with pytest.raises(BagConfigError, match="cannot read"):
+    with pytest.raises(TopicMapError, match="cannot read"):
         TopicMap.load(tmp_path / "missing.toml")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-from objsearch.runtime.errors import RuntimeConfigError
+from objsearch.ros.errors import QosError
 
 
 class Reliability(enum.Enum):
@@ -28,7 +28,7 @@ class QoS:
 
     def __post_init__(self) -> None:
         if self.depth < 1:
-            raise RuntimeConfigError(f"QoS depth must be >= 1, got {self.depth}")
+            raise QosError(f"QoS depth must be >= 1, got {self.depth}")
 
     @classmethod
     def parse(cls, text: str) -> QoS:
@@ -42,7 +42,7 @@ class QoS:
             elif part in {d.value for d in Durability}:
                 dur = Durability(part)
             else:
-                raise RuntimeConfigError(
+                raise QosError(
                     f"unknown QoS setting {part!r} in {text!r}; use reliable|best_effort, "
                     "volatile|transient_local and a depth"
                 )

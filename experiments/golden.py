@@ -1,6 +1,6 @@
 """Golden logs: small recorded runs whose decisions today's code must still make.
 
-``python -m objsearch.replay.golden DIR`` (``make bless`` passes ``tests/replay/golden``) re-records
+``python -m objsearch.experiments.golden DIR`` (``make bless`` passes ``tests/replay/golden``) re-records
 them after an intended change; ``tests/replay/test_golden.py`` replays them and fails with the
 decisions that changed. The folder is always the caller's: an installed package has no tests.
 Each golden is a simulated run of the paper home with a fixed seed and a fixed wall clock, so
@@ -130,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 1:
         print(
-            "usage: python -m objsearch.replay.golden DIR  (make bless: tests/replay/golden)",
+            "usage: python -m objsearch.experiments.golden DIR  (make bless: tests/replay/golden)",
             file=sys.stderr,
         )
         return 2

@@ -4,12 +4,12 @@
 bag says its publishers offered (``offered_qos_profiles`` in ``metadata.yaml`` and in each MCAP
 channel's metadata). A topic recorded with none (``[]``) is played volatile: ``/tf_static`` then
 never reaches a tf2 listener that starts after its one message. So every topic we write carries
-the profile the robot's publisher uses (:mod:`objsearch.runtime.qos`, tf2_ros's and rclcpp's
+the profile the robot's publisher uses (:mod:`objsearch.ros.qos`, tf2_ros's and rclcpp's
 defaults).
 
 rosbags writes them in the format of the bag's metadata version: version 9 (Jazzy) names the
 policies (``keep_last``, ``reliable``, ``transient_local``) in a YAML list; version 8 (ours,
-:data:`~objsearch.pipeline.bags.mcapstore.METADATA_VERSION`) and earlier a YAML string with rmw's
+:data:`~objsearch.ros.mcapstore.METADATA_VERSION`) and earlier a YAML string with rmw's
 enum values (history keep_last 1, reliability reliable 1 / best_effort 2, durability
 transient_local 1 / volatile 2, liveliness automatic 1), as the bags in rosbag2's own tests.
 Durations not set are rmw's infinite duration (``RMW_DURATION_INFINITE``: 9223372036 s
@@ -32,7 +32,7 @@ from rosbags.interfaces import (
     QosTime,
 )
 
-from objsearch.runtime import qos as rq
+from objsearch.ros import qos as rq
 
 INFINITE: Final = QosTime(9_223_372_036, 854_775_807)
 

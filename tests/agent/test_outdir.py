@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.outdir import MANIFEST, OutputDirError, claim
 from objsearch.cli import main
-from objsearch.outdir import MANIFEST, OutputDirError, claim
 
 OWNS = ("log-all", "table.csv")
 

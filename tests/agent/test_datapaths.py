@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from objsearch.paths import (
+from objsearch.agent.datapaths import (
     DATA_ENV,
     DataLocationError,
     build_output_dir,
@@ -16,7 +16,7 @@ from objsearch.paths import (
     packaged_data_dir,
 )
 
-REPO_DATA = Path(__file__).resolve().parents[1] / "data"
+REPO_DATA = Path(__file__).resolve().parents[2] / "data"
 
 
 def test_the_packaged_data_is_the_checkouts_data_folder(monkeypatch: pytest.MonkeyPatch) -> None:

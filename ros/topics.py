@@ -26,7 +26,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Final
 
-from objsearch.pipeline.bags.errors import BagConfigError
+from objsearch.ros.errors import TopicMapError
 
 
 class Role(enum.Enum):
@@ -107,7 +107,7 @@ class TopicMap:
         for topic, r in self.topics.items():
             if r is role:
                 return topic
-        raise BagConfigError(f"the topic map has no topic for role {role.value!r}")
+        raise TopicMapError(f"the topic map has no topic for role {role.value!r}")
 
     @classmethod
     def load(cls, path: Path) -> TopicMap:
@@ -115,11 +115,11 @@ class TopicMap:
         try:
             raw = path.read_bytes()
         except OSError as exc:
-            raise BagConfigError(f"cannot read topic map {path}: {exc.strerror or exc}") from exc
+            raise TopicMapError(f"cannot read topic map {path}: {exc.strerror or exc}") from exc
         try:
             doc = json.loads(raw) if path.suffix == ".json" else tomllib.loads(raw.decode("utf-8"))
         except (ValueError, UnicodeDecodeError) as exc:
-            raise BagConfigError(
+            raise TopicMapError(
                 f"topic map {path} is not valid {path.suffix[1:] or 'TOML'}: {exc}"
             ) from exc
         return cls.from_mapping(doc, source=str(path))
@@ -127,33 +127,31 @@ class TopicMap:
     @classmethod
     def from_mapping(cls, doc: Any, *, source: str = "topic map") -> TopicMap:
         if not isinstance(doc, dict):
-            raise BagConfigError(f"{source}: expected a table/object at the top")
+            raise TopicMapError(f"{source}: expected a table/object at the top")
         unknown = sorted(set(doc) - {"topics", "frames"})
         if unknown:
-            raise BagConfigError(f"{source}: unknown section(s) {unknown}; expected topics, frames")
+            raise TopicMapError(f"{source}: unknown section(s) {unknown}; expected topics, frames")
         topics = dict(DEFAULT_TOPICS)
         roles = {r.value: r for r in Role}
         for topic, role in dict(doc.get("topics", {})).items():
             if not (isinstance(topic, str) and topic.startswith("/")):
-                raise BagConfigError(
-                    f"{source}: topic {topic!r} must be a string starting with '/'"
-                )
+                raise TopicMapError(f"{source}: topic {topic!r} must be a string starting with '/'")
             if role == IGNORE:
                 topics.pop(topic, None)
             elif role in roles:
                 topics[topic] = roles[role]
             else:
-                raise BagConfigError(
+                raise TopicMapError(
                     f"{source}: topic {topic!r} has unknown role {role!r}; "
                     f"known: {', '.join([*roles, IGNORE])}"
                 )
         frames_doc = doc.get("frames", {})
         if not isinstance(frames_doc, dict):
-            raise BagConfigError(f"{source}: frames must be a table/object")
+            raise TopicMapError(f"{source}: frames must be a table/object")
         known = set(Frames.__dataclass_fields__)
         bad = sorted(set(frames_doc) - known)
         if bad or not all(isinstance(v, str) and v for v in frames_doc.values()):
-            raise BagConfigError(
+            raise TopicMapError(
                 f"{source}: frames takes non-empty strings for {sorted(known)}; got {frames_doc!r}"
             )
         return cls(topics=topics, frames=replace(Frames(), **frames_doc))

@@ -15,13 +15,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from objsearch.pipeline.bags.errors import BagError
+from objsearch.ros.errors import TransformError
 
 Vec = npt.NDArray[np.float64]
-
-
-class TransformError(BagError):
-    """A transform cannot be looked up: frames not connected, or the stamp is out of range."""
 
 
 def quaternion_matrix(q: Vec) -> Vec:

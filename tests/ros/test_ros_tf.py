@@ -9,8 +9,9 @@ import pytest
 
 from objsearch.agent.frames import camera_to_map
 from objsearch.agent.geometry import Pose
-from objsearch.pipeline.bags.record import OPTICAL_ROTATION
-from objsearch.pipeline.bags.tf import TransformBuffer, TransformError, quaternion_matrix
+from objsearch.ros.builder import OPTICAL_ROTATION
+from objsearch.ros.errors import TransformError
+from objsearch.ros.tf import TransformBuffer, quaternion_matrix
 
 ZERO = np.zeros(3)
 IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])

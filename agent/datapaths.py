@@ -84,7 +84,8 @@ def _inside_installation(path: Path) -> bool:
     roots = {sysconfig.get_path("purelib"), sysconfig.get_path("platlib"), *site.getsitepackages()}
     if user := site.getusersitepackages():
         roots.add(user)
-    package = Path(__file__).resolve().parent
-    if not (package.parent / "pyproject.toml").is_file():  # a wheel, not a checkout
+    # agent/ in a checkout; site-packages/objsearch/agent in a wheel, whose parent is objsearch
+    package = Path(__file__).resolve().parent.parent
+    if not (package / "pyproject.toml").is_file():  # a wheel, not a checkout
         roots.add(str(package))
     return any(resolved.is_relative_to(Path(r).resolve()) for r in roots if r)

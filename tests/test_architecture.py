@@ -1,0 +1,257 @@
+"""Which part of objsearch may import which: every import of every module, checked against the rules.
+
+The parts are the folders of pyproject's ``[tool.setuptools.package-dir]`` (``objsearch.agent`` is
+``agent/`` …); the modules under ``objsearch/`` are the CLI. Every ``import`` and ``from … import``
+counts, at module level, inside functions and under ``TYPE_CHECKING`` alike, relative ones resolved.
+Dependencies point one way::
+
+    events ← agent ← ros ← sim, runtime, replay ← pipeline ← experiments ← cli
+
+with these rules (``ALLOWED`` lists each part's permitted imports; anything else fails):
+
+* ``events`` imports nothing of objsearch; ``agent`` imports only ``events``;
+* ``ros`` (the ROS message layer) imports only ``events`` and ``agent``;
+* ``runtime`` imports neither ``pipeline`` nor ``sim`` — except the stand-in robot
+  (``runtime/standin.py``), which *is* the simulator behind ROS 2 topics and never runs on a robot;
+* ``replay`` imports neither ``experiments`` nor ``sim`` nor ``pipeline``;
+* nothing but the CLI imports the CLI package (``objsearch.cli*`` and the rest of ``objsearch/``);
+  the root ``objsearch`` itself (only ``__version__``) may be imported by any part but ``events``
+  and ``agent``.
+
+``python tests/test_architecture.py`` prints the import graph (the table in ``docs/architecture.md``).
+"""
+
+from __future__ import annotations
+
+import ast
+import sys
+import tomllib
+from collections import defaultdict
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+ROOT = "objsearch"
+#: The modules under ``objsearch/`` other than the root: the command line.
+CLI = "cli"
+
+#: Each part and the parts it may import (the root ``objsearch`` is :data:`ROOT`).
+ALLOWED: Mapping[str, frozenset[str]] = {
+    "events": frozenset(),
+    "data": frozenset(),
+    "agent": frozenset({"events"}),
+    "ros": frozenset({"events", "agent", ROOT}),
+    "sim": frozenset({"events", "agent", ROOT}),
+    "runtime": frozenset({"events", "agent", "ros", ROOT}),
+    "replay": frozenset({"events", "agent", ROOT}),
+    # objsearch record runs the simulator to write bags
+    "pipeline": frozenset({"events", "agent", "ros", "sim", ROOT}),
+    "experiments": frozenset({"events", "agent", "ros", "sim", "replay", "pipeline", ROOT}),
+    ROOT: frozenset(),
+}
+#: (module, part it may import although its part may not), each with the reason.
+EXCEPTIONS: Mapping[tuple[str, str], str] = {
+    ("objsearch.runtime.standin", "sim"): (
+        "the stand-in robot is the simulator behind the robot's ROS 2 topics; it never runs on a "
+        "robot, and nothing on the robot's path imports it"
+    ),
+}
+
+
+@dataclass(frozen=True, slots=True)
+class Import:
+    module: str  # the importing module
+    target: str  # the imported module (or the package a name was taken from)
+    line: int
+
+
+def package_dirs(pyproject: Path = REPO / "pyproject.toml") -> dict[str, str]:
+    doc = tomllib.loads(pyproject.read_text(encoding="utf-8"))
+    mapping: dict[str, str] = doc["tool"]["setuptools"]["package-dir"]
+    return mapping
+
+
+def modules(root: Path = REPO) -> dict[str, Path]:
+    """Every module of the package, by its import name."""
+    found: dict[str, Path] = {}
+    for package, folder in package_dirs(root / "pyproject.toml").items():
+        base = root / folder
+        for path in sorted(base.rglob("*.py")):
+            rel = path.relative_to(base).with_suffix("").parts
+            if rel[-1] == "__init__":
+                rel = rel[:-1]
+            name = ".".join((package, *rel))
+            found.setdefault(name, path)  # objsearch.agent comes from agent/, not objsearch/agent
+    return found
+
+
+def imports_of(
+    module: str, source: str, *, is_package: bool, known: frozenset[str]
+) -> Iterator[Import]:
+    """The objsearch imports in ``source`` (all of them, wherever they stand in the module)."""
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield Import(module, alias.name, node.lineno)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = module.split(".")
+                if not is_package:
+                    base = base[:-1]
+                base = base[: len(base) - node.level + 1]
+                origin = ".".join([*base, *([node.module] if node.module else [])])
+            else:
+                origin = node.module or ""
+            for alias in node.names:
+                # ``from objsearch.runtime import messages`` imports the module
+                # objsearch.runtime.messages; ``from objsearch import __version__`` the root.
+                sub = f"{origin}.{alias.name}"
+                yield Import(module, sub if sub in known else origin, node.lineno)
+
+
+def part(module: str) -> str | None:
+    """``objsearch.agent.home`` → ``agent``; ``objsearch.cli_bags`` → ``cli``; ``objsearch`` → the
+    root; anything outside objsearch → ``None``."""
+    if module == ROOT:
+        return ROOT
+    if not module.startswith(ROOT + "."):
+        return None
+    head = module.split(".")[1]
+    return head if head in ALLOWED else CLI
+
+
+def all_imports(root: Path = REPO) -> list[Import]:
+    found = modules(root)
+    known = frozenset(found)
+    out: list[Import] = []
+    for name, path in sorted(found.items()):
+        source = path.read_text(encoding="utf-8")
+        out.extend(
+            i
+            for i in imports_of(name, source, is_package=path.name == "__init__.py", known=known)
+            if part(i.target) is not None
+        )
+    return out
+
+
+def violations(imports: list[Import]) -> list[str]:
+    bad = []
+    for i in imports:
+        src, dst = part(i.module), part(i.target)
+        if src is None or dst is None or src in (dst, CLI):
+            continue
+        if dst in ALLOWED[src] or (i.module, dst) in EXCEPTIONS:
+            continue
+        bad.append(f"{i.module}:{i.line} imports {i.target} ({src} may not import {dst})")
+    return bad
+
+
+def graph(imports: list[Import]) -> dict[str, dict[str, int]]:
+    """part → {imported part: how many of its modules import it}."""
+    users: dict[tuple[str, str], set[str]] = defaultdict(set)
+    for i in imports:
+        src, dst = part(i.module), part(i.target)
+        if src is not None and dst is not None and src != dst:
+            users[(src, dst)].add(i.module)
+    out: dict[str, dict[str, int]] = defaultdict(dict)
+    for (src, dst), mods in users.items():
+        out[src][dst] = len(mods)
+    return out
+
+
+ORDER = ("events", "agent", "ros", "sim", "runtime", "replay", "pipeline", "experiments", CLI, ROOT)
+
+
+def table(imports: list[Import]) -> str:
+    """The import graph as a Markdown table: each part, what it imports (modules doing so)."""
+    g = graph(imports)
+    lines = ["| part | imports (number of its modules that do) |", "|---|---|"]
+    for src in ORDER:
+        targets = g.get(src, {})
+        cells = [f"{dst} ({targets[dst]})" for dst in ORDER if dst in targets]
+        lines.append(f"| `{src}` | {', '.join(cells) or '—'} |")
+    return "\n".join(lines)
+
+
+# -- the tests ----------------------------------------------------------------------------------
+
+
+def test_every_import_follows_the_rules() -> None:
+    assert violations(all_imports()) == []
+
+
+def test_every_part_has_rules() -> None:
+    parts = {part(name) for name in modules()}
+    assert parts - {CLI} <= set(ALLOWED)
+    assert set(ORDER) >= set(ALLOWED) - {"data"} | {CLI}
+
+
+def test_exceptions_are_still_needed() -> None:
+    """An exception nothing uses any more is removed, so it cannot hide a new import."""
+    used = {(i.module, part(i.target)) for i in all_imports()}
+    assert set(EXCEPTIONS) <= used
+
+
+def test_function_level_and_relative_imports_are_seen() -> None:
+    source = (
+        "from typing import TYPE_CHECKING\n"
+        "if TYPE_CHECKING:\n"
+        "    from objsearch.sim.world import SimWorld\n"
+        "def f():\n"
+        "    import objsearch.pipeline.bags.read\n"
+        "    from ..cli import main\n"
+        "    from . import messages\n"
+    )
+    known = frozenset({"objsearch.runtime.messages", "objsearch.cli"})
+    found = list(imports_of("objsearch.runtime.node", source, is_package=False, known=known))
+    assert [i.target for i in found if part(i.target)] == [
+        "objsearch.sim.world",
+        "objsearch.pipeline.bags.read",
+        "objsearch.cli",
+        "objsearch.runtime.messages",
+    ]
+    assert violations(found) == [
+        "objsearch.runtime.node:3 imports objsearch.sim.world (runtime may not import sim)",
+        "objsearch.runtime.node:5 imports objsearch.pipeline.bags.read (runtime may not import pipeline)",
+        "objsearch.runtime.node:6 imports objsearch.cli (runtime may not import cli)",
+    ]
+
+
+def test_each_rule_fails_an_import_against_it() -> None:
+    cases = {
+        ("objsearch.events.log", "objsearch.agent.geometry"): "events may not import agent",
+        ("objsearch.events.log", "objsearch"): "events may not import objsearch",
+        ("objsearch.agent.home", "objsearch.sim.world"): "agent may not import sim",
+        ("objsearch.agent.home", "objsearch.ros.types"): "agent may not import ros",
+        ("objsearch.runtime.rosworld", "objsearch.sim.world"): "runtime may not import sim",
+        (
+            "objsearch.replay.audit",
+            "objsearch.experiments.runner",
+        ): "replay may not import experiments",
+        ("objsearch.sim.demo", "objsearch.cli_types"): "sim may not import cli",
+        ("objsearch.ros.builder", "objsearch.pipeline.bags.read"): "ros may not import pipeline",
+    }
+    for (module, target), message in cases.items():
+        (found,) = violations([Import(module, target, 1)])
+        assert found.endswith(f"({message})"), found
+    assert violations([Import("objsearch.runtime.standin", "objsearch.sim.world", 1)]) == []
+    assert violations([Import("objsearch.cli_bags", "objsearch.pipeline.bags.read", 1)]) == []
+
+
+def test_the_documented_graph_is_the_real_one() -> None:
+    doc = (REPO / "docs" / "architecture.md").read_text(encoding="utf-8")
+    assert table(all_imports()) in doc, "regenerate it: python tests/test_architecture.py"
+
+
+def main() -> int:
+    imports = all_imports()
+    print(table(imports))
+    bad = violations(imports)
+    for line in bad:
+        print(line, file=sys.stderr)
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
