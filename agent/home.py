@@ -13,10 +13,8 @@ from typing import Any
 
 from objsearch.agent.categories import read_json
 from objsearch.agent.errors import DataFileError, UnknownStartError
-from objsearch.agent.geometry import Point, Pose
+from objsearch.agent.geometry import Point, Pose, Vec3
 from objsearch.paths import data_dir
-
-Vec3 = tuple[float, float, float]
 
 
 @dataclass(frozen=True, slots=True)

@@ -11,6 +11,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from objsearch.events import _fs
+
 from . import jsonio
 from .errors import HomeSpecError, SourceDataError
 from .home import Home, build_home, normalise_floorplan
@@ -21,8 +23,8 @@ from .provenance import provenance_md, sha256
 from .rearrangement import REARRANGEMENT, SUPPORT_TOLERANCE_M, load_episodes, rearrangement_json
 from .room_objects import SUPPORT_RADIUS_M
 from .scenario import table1
-from .schedule import table2
 from .sources import VG_MATRIX, load_cooccurrence, load_scene
+from .table2 import table2
 from .vg_prior import vg_prior_json
 from .vocabulary import vocabulary_json
 
@@ -157,7 +159,8 @@ def build_data(
     for rel, text in outputs.items():
         path = out / rel
         say(f"write {path}")
-        jsonio.write_atomic(path, text.encode("utf-8"))
+        _fs.make_dirs(path.parent)
+        _fs.write_atomic(path, text.encode("utf-8"))
         written.append(path)
     return BuildReport(files=tuple(written), notes=tuple(notes))
 

@@ -29,8 +29,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.geometry import Vec3
+
 from .errors import SourceDataError
-from .frames import Vec3
 from .geometry import RoomFrame
 from .home import Home
 from .room_objects import SUPPORT_RADIUS_M, Static

@@ -406,7 +406,7 @@ def simulated(log_dir: Path) -> dict[str, Any]:
     the cases, must answer (its first task, as no case may start one)."""
     from objsearch.agent.session import Session, load_context
     from objsearch.agent.strategies import RunSpec
-    from objsearch.sim.schedule import Schedule
+    from objsearch.sim.placements import Schedule
     from objsearch.sim.world import SimClock, SimWorld
 
     scene, target, start = CHECK_SEARCH

@@ -33,7 +33,7 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from objsearch.agent.frames import CameraIntrinsics
+from objsearch.agent.camera_frames import CameraIntrinsics
 from objsearch.agent.geometry import Pose
 from objsearch.agent.world import Detection
 from objsearch.events import Event, read_log
@@ -51,8 +51,8 @@ if TYPE_CHECKING:
     from rosbags.interfaces import Qos
     from rosbags.typesys.store import Typestore
 
+    from objsearch.agent.camera_frames import RGBDFrame
     from objsearch.agent.detect import Detector, MaskDetection
-    from objsearch.agent.frames import RGBDFrame
     from objsearch.sim.render import SimulatedCamera
 
 #: camera_link (x forward, z up) → its optical frame (x right, y down, z forward), REP 103:
@@ -682,7 +682,7 @@ def planned_searches(
     """How many searches :func:`record` runs for these choices (all of each by default)."""
     from objsearch.agent.session import load_context
     from objsearch.sim.longterm import TARGET_ORDER
-    from objsearch.sim.schedules import load_schedule
+    from objsearch.sim.schedule_names import load_schedule
 
     ctx = load_context(home)
     n_scenes = len(scenes) if scenes else len(load_schedule(ctx.home, schedule).scenes)
@@ -797,8 +797,8 @@ def record_mapping_sweep(
     from objsearch.agent.errors import ObjsearchError
     from objsearch.agent.mapping import survey_poses
     from objsearch.agent.session import load_context
+    from objsearch.sim.placements import base_placements, table1_removals
     from objsearch.sim.render import SimulatedCamera
-    from objsearch.sim.schedule import base_placements, table1_removals
 
     topic_map = topic_map or TopicMap()
     _check_out(out, fmt)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from objsearch.agent.frames import camera_to_map
+from objsearch.agent.camera_frames import camera_to_map
 from objsearch.agent.geometry import Pose
 from objsearch.pipeline.bags.record import OPTICAL_ROTATION
 from objsearch.pipeline.bags.tf import TransformBuffer, TransformError, quaternion_matrix

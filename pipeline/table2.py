@@ -6,8 +6,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from objsearch.agent.geometry import Vec3
+
 from .errors import BuildError
-from .frames import Vec3
 from .home import Home
 from .room_objects import Static
 from .scenario import Scenario
