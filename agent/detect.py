@@ -20,9 +20,9 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
+from objsearch.agent.camera_frames import BoolArray, RGBDFrame
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.errors import ObjsearchError, UnknownObjectClassError
-from objsearch.agent.frames import BoolArray, RGBDFrame
 from objsearch.agent.geometry import Point, Pose, heading
 from objsearch.agent.navmap import NavigationMap
 
@@ -237,7 +237,7 @@ def _attr_names(model: torch.jit.ScriptModule) -> list[str] | None:
 def locate(frame: RGBDFrame, det: MaskDetection) -> tuple[float, float, float] | None:
     """Local 3-D reconstruction of one detection (§5.1): the centre of mass of its mask's
     back-projected depth, map frame; None when no pixel of the mask has depth."""
-    from objsearch.agent.frames import backproject
+    from objsearch.agent.camera_frames import backproject
 
     points = backproject(frame, det.mask)
     if len(points) == 0:

@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-
-class ObjsearchError(Exception):
-    """Base of every error objsearch reports to a user (the CLI turns them into exit code 2)."""
+# The project's one error root; defined in events, which imports nothing of objsearch.
+from objsearch.events.errors import ObjsearchError as ObjsearchError
 
 
 class UnknownObjectClassError(ObjsearchError, KeyError):

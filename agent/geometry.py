@@ -5,6 +5,10 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+#: Three coordinates (x, y, z): a point in space or a box's size, in whichever frame the caller
+#: says (the ``map`` frame unless named otherwise). The project's one 3-vector type.
+Vec3 = tuple[float, float, float]
+
 
 class Point(NamedTuple):
     """A position on the floor."""

@@ -14,9 +14,7 @@ from typing import Any
 from objsearch.agent.categories import read_json
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError, UnknownStartError
-from objsearch.agent.geometry import Point, Pose
-
-Vec3 = tuple[float, float, float]
+from objsearch.agent.geometry import Point, Pose, Vec3
 
 
 @dataclass(frozen=True, slots=True)

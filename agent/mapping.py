@@ -29,8 +29,8 @@ import numpy as np
 import numpy.typing as npt
 import torch
 
+from objsearch.agent.camera_frames import CameraIntrinsics, Float64Array, FloatArray, RGBDFrame
 from objsearch.agent.detect import Detector, MaskDetection
-from objsearch.agent.frames import CameraIntrinsics, Float64Array, FloatArray, RGBDFrame
 from objsearch.agent.geometry import Point, Pose, heading
 from objsearch.agent.home import Box
 from objsearch.agent.navmap import NavigationMap

@@ -18,8 +18,7 @@ import numpy as np
 
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.errors import ObjsearchError
-from objsearch.agent.geometry import Point, Pose, heading, wrap_angle
-from objsearch.agent.home import Vec3
+from objsearch.agent.geometry import Point, Pose, Vec3, heading, wrap_angle
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.planner import (
     Ordering,
@@ -228,6 +227,24 @@ class SearchAgent:
         )
         return self.planner.plan(PlanProblem(start, dist, rel, to_exit, rest_mass))
 
+    def plan_room(
+        self,
+        here: Point,
+        room: str,
+        later: Sequence[str],
+        room_stops: Mapping[str, Sequence[Stop]],
+    ) -> Ordering:
+        """Order ``room``'s stops as a search does: from ``here``, with the entry of the next room
+        to search (the first of ``later``) and the Rel its candidates and the rest still hold.
+        ``room_stops`` maps ``room`` and every room of ``later`` to its :meth:`stops`. The one
+        statement of the planner's inputs: the search and replay's re-planning both call it."""
+        return self.order_stops(
+            here,
+            room_stops[room],
+            next_entry=self.navmap.doors[later[0]] if later else None,
+            rest_mass=math.fsum(s.rel for r in later for s in room_stops[r]),
+        )
+
     # -- acting -------------------------------------------------------------------------------
 
     def search(
@@ -253,13 +270,7 @@ class SearchAgent:
         for i, room in enumerate(rooms):
             stops = room_stops[room]
             here = world.pose().point
-            later = rooms[i + 1 :]
-            ordering = self.order_stops(
-                here,
-                stops,
-                next_entry=self.navmap.doors[later[0]] if later else None,
-                rest_mass=math.fsum(s.rel for r in later for s in room_stops[r]),
-            )
+            ordering = self.plan_room(here, room, rooms[i + 1 :], room_stops)
             ordered = [stops[k] for k in ordering.order]
             run.emit("plan_computed", self._plan_payload(room, rooms[i:], stops, ordering))
             result.plans.append((room, tuple(s.key for s in ordered)))

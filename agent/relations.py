@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, ClassVar, Protocol
 
-from objsearch.agent.scene_graph import EventLike, Pair, UpdateMode
+from objsearch.agent.scene_graph import EventLike, Pair, UpdateMode, experience_to_fold
 
 
 class RelationModel(Protocol):
@@ -116,12 +116,7 @@ class BetaRelations:
 
     def _end_task(self) -> None:
         known = {d for d, _ in self.prior}
-        if self.update_mode is UpdateMode.ALL:
-            chosen = {d: s for d, s in self._seen_at.items() if d in known}
-        elif self.update_mode is UpdateMode.TARGETS and self._target in self._seen_at:
-            chosen = {self._target: self._seen_at[self._target]}
-        else:
-            chosen = {}
+        chosen = experience_to_fold(self.update_mode, self._target, self._seen_at, known)
         for d, statics in chosen.items():
             for s in statics:
                 if (d, s) in self.prior:

@@ -10,7 +10,7 @@ operations in the same order.
 from __future__ import annotations
 
 import enum
-from collections.abc import Iterable, Mapping
+from collections.abc import Container, Iterable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, ClassVar, Protocol
@@ -35,6 +35,22 @@ class UpdateMode(enum.Enum):
     NONE = "none"  # never update: the prior stays
     TARGETS = "targets"  # only pairs of the task's target
     ALL = "all"  # every semi-dynamic object seen during the task
+
+
+def experience_to_fold(
+    mode: UpdateMode,
+    target: str | None,
+    seen_at: Mapping[str, set[str]],
+    known: Container[str],
+) -> dict[str, set[str]]:
+    """The part of a task's experience (each semi-dynamic class seen → the static classes it was
+    seen at) that the update folds in under ``mode``: every ``known`` class, only the target, or
+    nothing. The one Python statement of the choice; the lake's derived SQL restates it."""
+    if mode is UpdateMode.ALL:
+        return {d: s for d, s in seen_at.items() if d in known}
+    if mode is UpdateMode.TARGETS and target is not None and target in seen_at:
+        return {target: seen_at[target]}
+    return {}
 
 
 def seed_relations(prior: Mapping[str, Any], vocabulary: Vocabulary) -> dict[Pair, float]:
@@ -130,12 +146,9 @@ class SceneGraphProjection:
         self.last_seq = event.seq
 
     def _end_task(self) -> None:
-        if self.update_mode is UpdateMode.ALL:
-            chosen = {d: s for d, s in self._experience.items() if d in self._pairs_of}
-        elif self.update_mode is UpdateMode.TARGETS and self._target in self._experience:
-            chosen = {self._target: self._experience[self._target]}
-        else:
-            chosen = {}
+        chosen = experience_to_fold(
+            self.update_mode, self._target, self._experience, self._pairs_of
+        )
         if chosen:
             self.relations = _apply_eq4(self.relations, chosen, self._pairs_of)
         self._target = None

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from objsearch.agent.errors import DataFileError
-from objsearch.agent.geometry import Point, heading, wrap_angle
-from objsearch.agent.home import Box, Home, Vec3
+from objsearch.agent.geometry import Point, Vec3, heading, wrap_angle
+from objsearch.agent.home import Box, Home
 from objsearch.agent.navmap import NavigationMap
 
 SEMMAP_FORMAT = "objsearch.semmap/1"

@@ -10,8 +10,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from objsearch.agent.geometry import Point, Pose
-from objsearch.agent.home import Vec3
+from objsearch.agent.geometry import Point, Pose, Vec3
 
 
 @dataclass(frozen=True, slots=True)

@@ -17,9 +17,9 @@ import time
 import numpy as np
 import torch
 
+from objsearch.agent.camera_frames import RGBDFrame, backproject
 from objsearch.agent.categories import Category
 from objsearch.agent.detect import GroundTruthDetector
-from objsearch.agent.frames import RGBDFrame, backproject
 from objsearch.agent.mapping import (
     GridSpec,
     MappingConfig,

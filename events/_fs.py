@@ -65,18 +65,29 @@ def make_dirs(directory: Path) -> None:
 
 
 def write_atomic(path: Path, data: bytes) -> None:
-    """Replace ``path`` with ``data`` so a crash leaves either the old file or the new one."""
-    tmp = path.with_name(path.name + ".tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_CLOEXEC, 0o644)
+    """Replace ``path`` with ``data`` so a crash or an error leaves either the old file or the new
+    one, never a truncated one, and the new one is durable when this returns.
+
+    The one atomic write of the project (the log's metadata, snapshots, lake manifests, the data
+    build's files). The temporary file is hidden and named per process, so two writers never share
+    one, and it is removed if anything fails. Permissions are left to the umask, as ``open()``
+    would. The parent folder must exist (:func:`make_dirs` creates it durably).
+    """
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        view = memoryview(data)
-        while view:
-            view = view[os.write(fd, view) :]
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-    _step()
-    os.replace(tmp, path)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_CLOEXEC, 0o666)
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view) :]
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        _step()
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     _step()
     fsync_dir(path.parent)
 

@@ -99,7 +99,8 @@ LEFT JOIN modes r
 # One row per (task end, semi-dynamic class) where Eq. 4 updates the class, whatever the scene
 # graph then holds: the class's experience since the task began (accepted detections after the
 # last task start or end), chosen by the update mode of the latest run_started (all: every class
-# seen; targets: the task's target if seen; none: nothing). ``n`` numbers a class's updates
+# seen; targets: the task's target if seen; none: nothing — the SQL twin of the agent's
+# ``scene_graph.experience_to_fold``; change both together). ``n`` numbers a class's updates
 # 1, 2, … within the run, so the closed form can age them for any cut-off and any seed without
 # ranking them again; ``statics`` are the static classes the class was seen at. Which classes the
 # prior knows, and which updates fall after the seed in force, depend on the cut-off and are

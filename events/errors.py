@@ -3,12 +3,21 @@
 Every error derives from :class:`EventStoreError`, so a caller can catch the store's failures in
 one place; several also derive from the built-in they refine (``ValueError``,
 ``FileNotFoundError``) so generic handlers keep working.
+
+:class:`ObjsearchError`, the root of every error the project raises on purpose, lives here because
+``events`` is the package every other one may import and it imports none of them: the agent, the
+pipeline, the runtime and the CLI derive their errors from it (``objsearch.agent.errors``
+re-exports it), and the CLI catches that one class.
 """
 
 from __future__ import annotations
 
 
-class EventStoreError(Exception):
+class ObjsearchError(Exception):
+    """Base of every error objsearch reports to a user (the CLI turns them into exit code 2)."""
+
+
+class EventStoreError(ObjsearchError):
     """Base class of every error raised by ``objsearch.events``."""
 
 

@@ -17,7 +17,7 @@ from objsearch.experiments.metrics import mean_std, summarise
 from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, write_rows
 from objsearch.experiments.strategies import STRATEGIES, strategy
 from objsearch.sim.rearr_schedule import homes_with_rearrangement
-from objsearch.sim.schedules import SEEDED_KINDS, UnknownScheduleError
+from objsearch.sim.schedule_names import SEEDED_KINDS, UnknownScheduleError
 
 
 def heldout_homes() -> tuple[str, ...]:

@@ -77,7 +77,7 @@ def plot_route(
     from objsearch.agent.scene_graph import UpdateMode
     from objsearch.agent.session import Session, load_context
     from objsearch.agent.strategies import RunSpec
-    from objsearch.sim.schedule import base_placements, table1_removals
+    from objsearch.sim.placements import base_placements, table1_removals
     from objsearch.sim.world import SimWorld
 
     ctx = load_context(home_name)

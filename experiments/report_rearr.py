@@ -14,7 +14,7 @@ from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import load_home
 from objsearch.experiments.homes import homes_summary, schedule_kind
 from objsearch.experiments.runner import Row
-from objsearch.sim.schedules import load_schedule
+from objsearch.sim.schedule_names import load_schedule
 
 RESULTS_FILE = "results-rearrangement.md"
 

@@ -25,7 +25,7 @@ TARGETS = TARGET_ORDER
 class Job:
     """``placements``: ``table1`` (the paper's Table I scene), ``table2`` (its Table II schedule),
     ``stats-<seed>`` (a schedule drawn from AI2-THOR placement statistics with that seed) or
-    ``rearr-<seed>`` (one taken from real AI2-THOR rearrangement episodes, ``sim/schedules.py``)."""
+    ``rearr-<seed>`` (one taken from real AI2-THOR rearrangement episodes, ``sim/schedule_names.py``)."""
 
     experiment: str
     home: str

@@ -76,8 +76,8 @@ def run_spec(args: argparse.Namespace, home: Any, **extra: Any) -> Any:
 
 def cmd_search(args: argparse.Namespace) -> int:
     from objsearch.agent.session import Session, load_context
-    from objsearch.sim.schedule import base_placements, table1_removals
-    from objsearch.sim.schedules import load_schedule
+    from objsearch.sim.placements import base_placements, table1_removals
+    from objsearch.sim.schedule_names import load_schedule
     from objsearch.sim.world import SimClock, SimWorld
 
     ctx = load_context(args.home)
@@ -366,12 +366,10 @@ def _search_options(p: argparse.ArgumentParser) -> None:
 
 
 def expected_errors() -> tuple[type[BaseException], ...]:
-    """The error roots that mean bad input or a bad environment, not a bug: the CLI reports them
-    as ``objsearch: error: …`` (exit 2); anything else still ends in a traceback."""
-    from objsearch.events import EventStoreError
-    from objsearch.pipeline.errors import BuildError
-
-    return (ObjsearchError, EventStoreError, BuildError)
+    """The error root that means bad input or a bad environment, not a bug: the CLI reports it
+    as ``objsearch: error: …`` (exit 2); anything else still ends in a traceback. The event
+    store's and the data converter's errors derive from it too."""
+    return (ObjsearchError,)
 
 
 def _describe(exc: BaseException) -> str:

@@ -138,8 +138,8 @@ def cmd_map_build(args: argparse.Namespace) -> int:
     from objsearch.cli import _fail
     from objsearch.sim.longterm import TARGET_ORDER
     from objsearch.sim.mapeval import compare, cost_summary, search_cost
+    from objsearch.sim.placements import base_placements, table1_removals
     from objsearch.sim.render import SimulatedCamera, SurveyFrames
-    from objsearch.sim.schedule import base_placements, table1_removals
 
     if args.bag and args.model:
         return _fail("--model does not apply to --bag: the bag's recorded instance masks are used")

@@ -7,9 +7,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.geometry import Vec3
+
 from . import navgrid
 from .errors import SourceDataError
-from .frames import Vec3
 from .geometry import RoomFrame
 from .navgrid import Cell
 from .room_objects import Static

@@ -11,9 +11,11 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from objsearch.events import _fs
+
 from . import jsonio
 from .errors import HomeSpecError, SourceDataError
-from .home import Home, build_home, normalise_floorplan
+from .home import SourceHome, build_home, normalise_floorplan
 from .more_homes import HELDOUT_SEED, PROCTHOR_FILES, heldout_ithor_homes
 from .placement_stats import placement_stats_json
 from .procthor import build_procthor_home
@@ -21,8 +23,8 @@ from .provenance import provenance_md, sha256
 from .rearrangement import REARRANGEMENT, SUPPORT_TOLERANCE_M, load_episodes, rearrangement_json
 from .room_objects import SUPPORT_RADIUS_M
 from .scenario import table1
-from .schedule import table2
 from .sources import VG_MATRIX, load_cooccurrence, load_scene
+from .table2 import table2
 from .vg_prior import vg_prior_json
 from .vocabulary import vocabulary_json
 
@@ -51,7 +53,7 @@ def parse_home_arg(text: str) -> tuple[str, tuple[str, ...]]:
     return name.strip(), tuple(normalise_floorplan(s) for s in scenes.split(","))
 
 
-def _room_notes(home: Home) -> list[str]:
+def _room_notes(home: SourceHome) -> list[str]:
     notes = []
     for r in home.rooms:
         grid_points = len(r.viewpoints) + r.removed_viewpoints
@@ -124,7 +126,7 @@ def build_data(
         vg_prior_json(matrix, sha256(source / VG_MATRIX))
     )
 
-    built: dict[str, Home] = {}
+    built: dict[str, SourceHome] = {}
     for name, scenes in wanted.items():
         home = build_home(source, name, scenes, say)
         built[name] = home
@@ -157,7 +159,8 @@ def build_data(
     for rel, text in outputs.items():
         path = out / rel
         say(f"write {path}")
-        jsonio.write_atomic(path, text.encode("utf-8"))
+        _fs.make_dirs(path.parent)
+        _fs.write_atomic(path, text.encode("utf-8"))
         written.append(path)
     return BuildReport(files=tuple(written), notes=tuple(notes))
 
@@ -168,7 +171,7 @@ def _more_homes(
     notes: list[str],
     homes: Mapping[str, Sequence[str]],
     say: Callable[[str], None],
-    built: Mapping[str, Home],
+    built: Mapping[str, SourceHome],
 ) -> tuple[list[str], dict[str, list[Path]]]:
     """Held-out iTHOR homes, ProcTHOR houses, placement statistics and rearrangement placements
     (for ``built`` and the held-out iTHOR homes); provenance lines."""
@@ -237,7 +240,7 @@ def _more_homes(
 
 def _rearrangement(
     source: Path,
-    homes: Sequence[Home],
+    homes: Sequence[SourceHome],
     outputs: dict[str, str],
     notes: list[str],
     say: Callable[[str], None],

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from objsearch.events.errors import ObjsearchError
 
-class BuildError(Exception):
+
+class BuildError(ObjsearchError):
     """Base of every error the converter raises on purpose."""
 
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .frames import (
-    Vec3,
+from objsearch.agent.geometry import Vec3
+
+from .coordinate_frames import (
     unity_floor_to_ros,
     unity_size_to_ros,
     unity_to_ros,

@@ -32,7 +32,10 @@ NOTES = (
 
 
 @dataclass(frozen=True)
-class Home:
+class SourceHome:
+    """A home as the converter assembles it from AI2-THOR scenes, before it is written to
+    ``data/homes/`` (the agent's :class:`objsearch.agent.home.Home` reads it from there)."""
+
     name: str
     rooms: tuple[Room, ...]
 
@@ -84,7 +87,7 @@ def build_home(
     name: str,
     floorplans: Sequence[str],
     progress: Callable[[str], None] | None = None,
-) -> Home:
+) -> SourceHome:
     scenes = check_home_spec(name, floorplans)
     rooms: list[Room] = []
     min_x = 0.0
@@ -108,4 +111,4 @@ def build_home(
         room = build_room(src, slot, min_x)
         rooms.append(room)
         min_x = room.extent_max[0] + ROOM_GAP_M
-    return Home(name=name, rooms=tuple(rooms))
+    return SourceHome(name=name, rooms=tuple(rooms))

@@ -1,12 +1,10 @@
-"""Canonical JSON and atomic writes: a rebuild must be byte-identical and never half-written."""
+"""Canonical JSON: a rebuild must be byte-identical (``events._fs.write_atomic`` keeps it whole)."""
 
 from __future__ import annotations
 
 import json
 import math
-import os
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 DECIMALS = 4
@@ -53,23 +51,3 @@ def _dump_rows(value: Any, level: int) -> str:
     if isinstance(value, list) and any(isinstance(v, (dict, list)) for v in value):
         return "[\n" + ",\n".join(f"{inner}{_dump_rows(v, level + 1)}" for v in value) + f"\n{pad}]"
     return json.dumps(value, allow_nan=False)
-
-
-def write_atomic(path: Path, content: bytes) -> None:
-    """Write ``content`` to ``path`` via a temporary file in the same folder and a rename.
-
-    A crash or an error leaves either the old file or the new one, never a truncated file.
-    """
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    # os.open with 0o666 lets the umask decide permissions, as a plain open() would.
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(content)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise

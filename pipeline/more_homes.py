@@ -13,7 +13,7 @@ import random
 from collections.abc import Callable
 from pathlib import Path
 
-from .home import Home, build_home
+from .home import SourceHome, build_home
 
 HELDOUT_SEED = 3
 HELDOUT_HOMES = 10
@@ -41,11 +41,11 @@ def heldout_candidates(paper: tuple[str, ...]) -> list[list[str]]:
 
 def heldout_ithor_homes(
     source: Path, paper: tuple[str, ...], progress: Callable[[str], None] | None = None
-) -> tuple[list[Home], list[str]]:
+) -> tuple[list[SourceHome], list[str]]:
     """Build the held-out iTHOR homes ``ithor-01`` … by the rule in the module doc."""
     lists = heldout_candidates(paper)
     cursor = [0, 0, 0, 0]
-    homes: list[Home] = []
+    homes: list[SourceHome] = []
     notes: list[str] = []
     for i in range(1, HELDOUT_HOMES + 1):
         name = f"ithor-{i:02d}"

@@ -15,9 +15,9 @@ import statistics
 from pathlib import Path
 from typing import Any
 
+from .coordinate_frames import unity_size_to_ros
 from .errors import SourceDataError
-from .frames import unity_size_to_ros
-from .schedule import TABLE2
+from .table2 import TABLE2
 from .vocabulary import SEMI_DYNAMIC_BY_THOR_TYPE, STATIC_BY_THOR_TYPE
 
 RECEPTACLES = Path("ai2thor/procthor_db/receptacles.json")

@@ -29,10 +29,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.geometry import Vec3
+
 from .errors import SourceDataError
-from .frames import Vec3
 from .geometry import RoomFrame
-from .home import Home
+from .home import SourceHome
 from .room_objects import SUPPORT_RADIUS_M, Static
 from .rooms import Room
 from .sources import ThorObject, ThorScene
@@ -188,7 +189,7 @@ def _room_json(
 
 
 def rearrangement_json(
-    home: Home, scenes: Mapping[str, ThorScene], episodes: Episodes, source: Path
+    home: SourceHome, scenes: Mapping[str, ThorScene], episodes: Episodes, source: Path
 ) -> tuple[dict[str, Any], RoomCounts]:
     """The derived file for one iTHOR home; ``scenes`` maps FloorPlan -> its metadata."""
     rooms = []

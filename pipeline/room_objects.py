@@ -6,7 +6,8 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any
 
-from .frames import Vec3
+from objsearch.agent.geometry import Vec3
+
 from .geometry import Box, RoomFrame
 from .sources import ThorObject, ThorScene
 from .vocabulary import SEMI_DYNAMIC_BY_THOR_TYPE, STATIC_BY_THOR_TYPE

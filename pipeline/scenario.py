@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .errors import BuildError
-from .home import Home
+from .home import SourceHome
 from .vocabulary import SEMI_DYNAMIC_NAMES
 
 # "we removed the bowl, laptop, and pillow in the living room, phone, and vase in the bedroom and
@@ -47,7 +47,7 @@ class Scenario:
         }
 
 
-def table1(home: Home) -> Scenario:
+def table1(home: SourceHome) -> Scenario:
     by_room_cls: dict[tuple[str, str], list[str]] = defaultdict(list)
     for room in home.rooms:
         for obj in room.objects:

@@ -15,8 +15,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from objsearch.agent.geometry import Vec3
+
 from .errors import SourceDataError
-from .frames import Vec3
 
 ITHOR_SCENES = Path("ai2thor/ithor_scenes")
 ALFRED_LAYOUTS = Path("ai2thor/alfred_layouts")

@@ -176,13 +176,9 @@ class Replayer:
         # the next room is entered and how much Rel the rooms still to come hold.
         position = task.plans_so_far
         later = rooms[position + 1 :] if rooms[position : position + 1] == [p["room"]] else []
-        stops = agent.stops(p["room"], task.target)
-        ordering = agent.order_stops(
-            here,
-            stops,
-            next_entry=ctx.navmap.doors[later[0]] if later else None,
-            rest_mass=math.fsum(s.rel for r in later for s in agent.stops(r, task.target)),
-        )
+        room_stops = {r: agent.stops(r, task.target) for r in (p["room"], *later)}
+        stops = room_stops[p["room"]]
+        ordering = agent.plan_room(here, p["room"], later, room_stops)
         replayed_order = tuple(stops[k].key for k in ordering.order)
         recorded_order = tuple(p["order"])
         today = _value_of(agent, config, here, stops, recorded_order)

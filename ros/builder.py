@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from objsearch.agent.frames import CameraIntrinsics
+from objsearch.agent.camera_frames import CameraIntrinsics
 from objsearch.agent.geometry import Pose
 from objsearch.agent.world import Detection
 from objsearch.events import Event

@@ -28,7 +28,8 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from objsearch.agent.geometry import Point, Pose, heading, wrap_angle
+from objsearch.agent.geometry import Point, Pose, wrap_angle
+from objsearch.agent.navigation import walk_path
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
 from objsearch.ros.errors import TransformError
@@ -326,32 +327,17 @@ class RosWorld:
         on_detection: DetectionHandler | None = None,
         final_yaw: float | None = None,
     ) -> Navigation:
-        here = self.pose()
-        path = self.navmap.path(here.point, goal)
-        walked = [path[0]]
-        rooms = [self.navmap.room_of[path[0]]]
-        metres = 0.0
-        yaw = here.yaw
-        interrupted = False
-        for a, b in itertools.pairwise(path):
-            if self.navmap.is_teleport(a, b):
-                rooms.append(self.navmap.room_of[b])
-            else:
-                yaw = heading(a, b)
-                metres += self.navmap.graph.edges[a, b]["weight"]
-            dets = self._drive(Pose(b.x, b.y, yaw), view=True)
-            walked.append(b)
-            pose = Pose(b.x, b.y, yaw)
-            if on_detection is not None:
-                stops = [on_detection(det, pose) for det in dets]
-                if any(stops):
-                    interrupted = True
-                    break
-        end = Pose(walked[-1].x, walked[-1].y, yaw)
-        if final_yaw is not None and not interrupted:
-            self._drive(Pose(end.x, end.y, final_yaw), view=False)
-            end = Pose(end.x, end.y, final_yaw)
-        return Navigation(tuple(walked), metres, end, tuple(rooms), interrupted)
+        return walk_path(
+            self.navmap,
+            self.pose(),
+            goal,
+            self._step,
+            on_detection=on_detection,
+            final_yaw=final_yaw,
+        )
+
+    def _step(self, pose: Pose, metres: float, *, view: bool) -> tuple[Detection, ...]:
+        return self._drive(pose, view=view)
 
     def look(self, yaw: float) -> tuple[Detection, ...]:
         here = self.pose()

@@ -48,8 +48,8 @@ from objsearch.runtime.requests import (
 )
 from objsearch.runtime.transport import open_transport
 from objsearch.sim.longterm import PAUSE_BETWEEN_TASKS_S
-from objsearch.sim.schedule import Placements, Schedule, base_placements, table1_removals
-from objsearch.sim.schedules import load_schedule
+from objsearch.sim.placements import Placements, Schedule, base_placements, table1_removals
+from objsearch.sim.schedule_names import load_schedule
 from objsearch.sim.world import SimClock, SimWorld
 
 log = logging.getLogger("objsearch.robot")

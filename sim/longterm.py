@@ -16,8 +16,8 @@ from objsearch.agent.errors import DataFileError
 from objsearch.agent.geometry import Point
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
-from objsearch.sim.schedule import Placements, base_placements, table1_removals
-from objsearch.sim.schedules import load_schedule
+from objsearch.sim.placements import Placements, base_placements, table1_removals
+from objsearch.sim.schedule_names import load_schedule
 from objsearch.sim.world import SimClock, SimWorld, WorldObserver
 
 TARGET_ORDER = ("Apple", "Cup", "Bowl", "Phone", "Laptop", "Pillow", "Vase", "ToiletPaper")
@@ -39,7 +39,7 @@ class Trial:
 
 def scenes_of(home_name: str, source: str) -> dict[int, Placements]:
     """Scene number → placements for a placement source: ``table1`` (the paper's Table I scene,
-    as scene 0), or any schedule ``sim/schedules.py`` knows (``table2``, ``stats-<seed>``,
+    as scene 0), or any schedule ``sim/schedule_names.py`` knows (``table2``, ``stats-<seed>``,
     ``rearr-<seed>``)."""
     ctx = load_context(home_name)
     if source == "table1":

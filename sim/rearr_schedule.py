@@ -33,18 +33,20 @@ from typing import Any
 from objsearch.agent.categories import read_json
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError
+from objsearch.agent.geometry import Vec3
 from objsearch.agent.home import Box, Home
-from objsearch.sim.schedule import Placements, Schedule
+from objsearch.sim.placements import Placements, Schedule
 from objsearch.sim.stats_schedule import SCENES, stats_schedule
 from objsearch.sim.world import Placement
 
 REARRANGEMENT_DIR = "rearrangement"
 FORMAT = "objsearch.rearrangement/1"
-Vec3 = tuple[float, float, float]
 
 
 @dataclass(frozen=True)
-class Pose:
+class RestingPlace:
+    """Where one object rests in one episode: its centre, the static it rests on, how far from it."""
+
     center: Vec3
     support: str  # static id
     distance: float  # from the object's bottom centre to the static's box (m)
@@ -53,8 +55,8 @@ class Pose:
 @dataclass(frozen=True)
 class Episode:
     index: int
-    target: tuple[Pose | None, ...]  # per object of the room; None: on no static, or absent
-    start: tuple[Pose | None, ...]
+    target: tuple[RestingPlace | None, ...]  # per object of the room; None: on no static, or absent
+    start: tuple[RestingPlace | None, ...]
 
 
 @dataclass(frozen=True)
@@ -118,11 +120,11 @@ def read_rearrangement(path: Path, home_name: str) -> RearrangementData:
     return RearrangementData(home=home_name, rooms=rooms)
 
 
-def _pose(row: Sequence[Any] | None, statics: Sequence[str]) -> Pose | None:
+def _resting_place(row: Sequence[Any] | None, statics: Sequence[str]) -> RestingPlace | None:
     if row is None:
         return None
     x, y, z, s, d = row
-    return Pose((float(x), float(y), float(z)), statics[int(s)], float(d))
+    return RestingPlace((float(x), float(y), float(z)), statics[int(s)], float(d))
 
 
 def _room(doc: Mapping[str, Any]) -> RoomEpisodes:
@@ -137,10 +139,10 @@ def _room(doc: Mapping[str, Any]) -> RoomEpisodes:
     )
     episodes = []
     for e in doc["episodes"]:
-        target = tuple(_pose(r, statics) for r in e["target"])
+        target = tuple(_resting_place(r, statics) for r in e["target"])
         if len(target) != len(objects):
             raise ValueError(f"episode {e['index']} of {doc['name']} has {len(target)} rows")
-        moved = {int(k): _pose(r, statics) for k, r in e["moved"].items()}
+        moved = {int(k): _resting_place(r, statics) for k, r in e["moved"].items()}
         start = tuple(moved[k] if k in moved else target[k] for k in range(len(objects)))
         episodes.append(Episode(int(e["index"]), target, start))
     return RoomEpisodes(str(doc["name"]), str(doc["source_scene"]), objects, tuple(episodes))

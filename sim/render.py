@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from objsearch.agent.frames import (
+from objsearch.agent.camera_frames import (
     CAMERA_HEIGHT_M,
     DEFAULT_INTRINSICS,
     CameraIntrinsics,
@@ -238,7 +238,7 @@ class SimulatedCamera:
 
 @dataclass(frozen=True)
 class SurveyFrames:
-    """A :class:`~objsearch.agent.frames.FrameSource` over a survey's poses, rendered lazily."""
+    """A :class:`~objsearch.agent.camera_frames.FrameSource` over a survey's poses, rendered lazily."""
 
     camera: SimulatedCamera
     poses: tuple[tuple[str, Pose], ...]  # (room, pose)

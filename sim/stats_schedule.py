@@ -29,7 +29,7 @@ from objsearch.agent.categories import read_json
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.home import Box, Home, StaticObject, home_path
-from objsearch.sim.schedule import Placements, Schedule
+from objsearch.sim.placements import Placements, Schedule
 from objsearch.sim.world import Placement
 
 SCENES = 10

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
 from objsearch.agent.geometry import Point, Pose, distance, heading
 from objsearch.agent.home import Box, Home
+from objsearch.agent.navigation import walk_path
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
 from objsearch.sim.perception import Camera
@@ -116,32 +116,19 @@ class SimWorld:
         on_detection: DetectionHandler | None = None,
         final_yaw: float | None = None,
     ) -> Navigation:
-        here = self._pose
-        path = self.navmap.path(here.point, goal)
-        walked: list[Point] = [path[0]]
-        rooms = [self.navmap.room_of[path[0]]]
-        metres = 0.0
-        yaw = here.yaw
-        interrupted = False
-        for a, b in itertools.pairwise(path):
-            step = self.navmap.graph.edges[a, b]["weight"]
-            if self.navmap.is_teleport(a, b):
-                rooms.append(self.navmap.room_of[b])
-            else:
-                yaw = heading(a, b)
-                metres += step
-                self.clock.advance(step / SPEED_M_PER_S)
-            walked.append(b)
-            self._set_pose(Pose(b.x, b.y, yaw))
-            if on_detection is not None:
-                # Every detection of the view reaches the agent, even after one asked to stop.
-                stops = [on_detection(det, self._pose) for det in self._view(self._pose)]
-                if any(stops):
-                    interrupted = True
-                    break
-        if final_yaw is not None and not interrupted:
-            self._set_pose(Pose(self._pose.x, self._pose.y, final_yaw))
-        return Navigation(tuple(walked), metres, self._pose, tuple(rooms), interrupted)
+        return walk_path(
+            self.navmap,
+            self._pose,
+            goal,
+            self._step,
+            on_detection=on_detection,
+            final_yaw=final_yaw,
+        )
+
+    def _step(self, pose: Pose, metres: float, *, view: bool) -> tuple[Detection, ...]:
+        self.clock.advance(metres / SPEED_M_PER_S)
+        self._set_pose(pose)
+        return self._view(pose) if view else ()
 
     def oracle_length(self, cls: str) -> float:
         """Shortest walk from here to the nearest viewpoint of the closest ``cls`` object: the

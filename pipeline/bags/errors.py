@@ -13,5 +13,5 @@ class BagConfigError(ObjsearchError):
     """A topic map or option is invalid."""
 
 
-class LakeError(ObjsearchError):
+class BagCommitError(ObjsearchError):
     """The lake refused or failed a commit (nothing of the bag was committed)."""

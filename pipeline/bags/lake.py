@@ -31,7 +31,7 @@ import pyarrow as pa
 
 from objsearch.events import Event, EventStoreError, _fs
 from objsearch.events.lake import Lake
-from objsearch.pipeline.bags.errors import LakeError
+from objsearch.pipeline.bags.errors import BagCommitError
 
 MANIFESTS = "_bags"
 RUN_PREFIX = "bag-"
@@ -122,7 +122,9 @@ class BagLake:
                 )
                 self._write_report(bag_id, data)
         except (OSError, EventStoreError) as exc:
-            raise LakeError(f"committing bag {bag_id[:16]} to {self.root} failed: {exc}") from exc
+            raise BagCommitError(
+                f"committing bag {bag_id[:16]} to {self.root} failed: {exc}"
+            ) from exc
         return Commit(bag_id, info.path, events, new=True)
 
     def restore_report(self, bag_id: str) -> bool:
@@ -138,7 +140,9 @@ class BagLake:
                     return False
                 self._write_report(bag_id, (runs[0].parent / RUN_REPORT).read_bytes())
         except (OSError, EventStoreError) as exc:
-            raise LakeError(f"restoring the report of bag {bag_id[:16]} failed: {exc}") from exc
+            raise BagCommitError(
+                f"restoring the report of bag {bag_id[:16]} failed: {exc}"
+            ) from exc
         _log.warning(
             "%s: restored the missing report of bag %s from its run", self.root, bag_id[:16]
         )

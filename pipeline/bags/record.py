@@ -32,7 +32,7 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from objsearch.agent.frames import CameraIntrinsics
+from objsearch.agent.camera_frames import CameraIntrinsics
 from objsearch.agent.geometry import Pose
 from objsearch.agent.world import Detection
 from objsearch.events import Event, read_log
@@ -49,8 +49,8 @@ if TYPE_CHECKING:
     import numpy.typing as npt
     from rosbags.interfaces import Qos
 
+    from objsearch.agent.camera_frames import RGBDFrame
     from objsearch.agent.detect import Detector, MaskDetection
-    from objsearch.agent.frames import RGBDFrame
     from objsearch.sim.render import SimulatedCamera
 
 #: Sweep timing: a view every 2 s; the robot holds still for the first second and the images are
@@ -441,7 +441,7 @@ def planned_searches(
     """How many searches :func:`record` runs for these choices (all of each by default)."""
     from objsearch.agent.session import load_context
     from objsearch.sim.longterm import TARGET_ORDER
-    from objsearch.sim.schedules import load_schedule
+    from objsearch.sim.schedule_names import load_schedule
 
     ctx = load_context(home)
     n_scenes = len(scenes) if scenes else len(load_schedule(ctx.home, schedule).scenes)
@@ -556,8 +556,8 @@ def record_mapping_sweep(
     from objsearch.agent.errors import ObjsearchError
     from objsearch.agent.mapping import survey_poses
     from objsearch.agent.session import load_context
+    from objsearch.sim.placements import base_placements, table1_removals
     from objsearch.sim.render import SimulatedCamera
-    from objsearch.sim.schedule import base_placements, table1_removals
 
     topic_map = topic_map or TopicMap()
     _check_out(out, fmt)

@@ -31,8 +31,8 @@ from typing import Any, Final
 import numpy as np
 import numpy.typing as npt
 
+from objsearch.agent.camera_frames import CameraIntrinsics, FloatArray
 from objsearch.agent.detect import MaskDetection
-from objsearch.agent.frames import CameraIntrinsics, FloatArray
 from objsearch.agent.mapping import BuiltMap, MappingConfig, MaskedDepth, SemanticMapBuilder
 from objsearch.agent.navmap import NavigationMap
 from objsearch.pipeline.bags.errors import BagError

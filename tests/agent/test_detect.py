@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 
+from objsearch.agent.camera_frames import CameraIntrinsics, GroundTruth, RGBDFrame, camera_to_map
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.detect import (
     CLASS_NAMES_FILE,
@@ -19,7 +20,6 @@ from objsearch.agent.detect import (
     TorchDetector,
     accepted,
 )
-from objsearch.agent.frames import CameraIntrinsics, GroundTruth, RGBDFrame, camera_to_map
 from objsearch.agent.geometry import Pose
 
 K = CameraIntrinsics.from_hfov(32, 24, math.pi / 2)
@@ -159,8 +159,8 @@ def test_ground_truth_detector_reads_the_simulators_masks() -> None:
 def test_a_rendered_target_is_located_and_approached() -> None:
     from objsearch.agent.detect import approach, locate
     from objsearch.agent.session import load_context
+    from objsearch.sim.placements import base_placements, table1_removals
     from objsearch.sim.render import SimulatedCamera
-    from objsearch.sim.schedule import base_placements, table1_removals
 
     ctx = load_context("paper")
     placements = base_placements(ctx.home, table1_removals(ctx.home))

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import torch
 
+from objsearch.agent.camera_frames import backproject
 from objsearch.agent.categories import Category
 from objsearch.agent.detect import GroundTruthDetector
-from objsearch.agent.frames import backproject
 from objsearch.agent.geometry import Pose
 from objsearch.agent.mapping import (
     BuiltMap,

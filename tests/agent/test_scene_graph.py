@@ -8,7 +8,13 @@ from typing import Any
 import pytest
 
 from objsearch.agent.categories import Vocabulary
-from objsearch.agent.scene_graph import SceneGraphProjection, apply_eq4, seed_relations
+from objsearch.agent.scene_graph import (
+    SceneGraphProjection,
+    UpdateMode,
+    apply_eq4,
+    experience_to_fold,
+    seed_relations,
+)
 
 VOCAB = Vocabulary.from_dict(
     {
@@ -128,3 +134,16 @@ def test_failed_search_with_nothing_seen_changes_nothing() -> None:
     graph.apply(Ev(3, "task_started", {"target": "Apple"}))
     graph.apply(Ev(4, "task_ended", {}))
     assert graph.relations == before
+
+
+def test_the_update_mode_chooses_which_experience_is_folded() -> None:
+    seen = {"Apple": {"Fridge"}, "Cup": {"Sink"}, "Ghost": {"Table"}}
+    known = {"Apple", "Cup"}
+    assert experience_to_fold(UpdateMode.ALL, "Apple", seen, known) == {
+        "Apple": {"Fridge"},
+        "Cup": {"Sink"},
+    }
+    assert experience_to_fold(UpdateMode.TARGETS, "Apple", seen, known) == {"Apple": {"Fridge"}}
+    assert experience_to_fold(UpdateMode.TARGETS, "Bowl", seen, known) == {}
+    assert experience_to_fold(UpdateMode.TARGETS, None, seen, known) == {}
+    assert experience_to_fold(UpdateMode.NONE, "Apple", seen, known) == {}

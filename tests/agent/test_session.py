@@ -15,7 +15,7 @@ from objsearch.agent.strategies import RunSpec
 from objsearch.events import Event, fold, read_log
 from objsearch.replay.asof import scene_graph_at
 from objsearch.sim.longterm import TARGET_ORDER, run_schedule
-from objsearch.sim.schedule import base_placements, table1_removals
+from objsearch.sim.placements import base_placements, table1_removals
 from objsearch.sim.world import SimClock, SimWorld
 
 HOME = "paper"

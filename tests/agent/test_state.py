@@ -17,7 +17,7 @@ from objsearch.replay.audit import audit
 from objsearch.replay.decisions import replay
 from objsearch.runtime.liveview import LiveView
 from objsearch.sim.longterm import run_schedule
-from objsearch.sim.schedule import Schedule
+from objsearch.sim.placements import Schedule
 from objsearch.sim.world import SimClock, SimWorld
 
 HOME = "paper"

@@ -24,7 +24,7 @@ from objsearch.events import (
     read_log,
 )
 from objsearch.events.upcast import STEPS
-from objsearch.sim.schedule import Schedule
+from objsearch.sim.placements import Schedule
 from objsearch.sim.world import SimClock, SimWorld
 
 from .payloads import EXAMPLES, LATEST, OLD_EXAMPLES

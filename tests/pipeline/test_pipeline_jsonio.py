@@ -1,9 +1,6 @@
-"""Canonical JSON and atomic writes."""
+"""Canonical JSON."""
 
 from __future__ import annotations
-
-import os
-from pathlib import Path
 
 import pytest
 
@@ -20,19 +17,3 @@ def test_canonical_rounds_sorts_and_ends_with_newline() -> None:
 def test_non_finite_numbers_are_refused() -> None:
     with pytest.raises(ValueError, match="non-finite"):
         jsonio.dumps({"x": float("nan")})
-
-
-def test_failed_write_keeps_the_old_file_and_leaves_no_temporary(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    target = tmp_path / "sub" / "f.json"
-    jsonio.write_atomic(target, b"old\n")
-
-    def broken_replace(src: object, dst: object) -> None:
-        raise OSError("disk full")
-
-    monkeypatch.setattr(os, "replace", broken_replace)
-    with pytest.raises(OSError, match="disk full"):
-        jsonio.write_atomic(target, b"new\n")
-    assert target.read_bytes() == b"old\n"
-    assert sorted(p.name for p in target.parent.iterdir()) == ["f.json"]

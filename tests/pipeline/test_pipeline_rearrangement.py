@@ -13,7 +13,7 @@ from objsearch.pipeline import jsonio
 from objsearch.pipeline.build import PAPER_HOME
 from objsearch.pipeline.errors import SourceDataError
 from objsearch.pipeline.geometry import RoomFrame
-from objsearch.pipeline.home import Home, build_home
+from objsearch.pipeline.home import SourceHome, build_home
 from objsearch.pipeline.more_homes import heldout_candidates
 from objsearch.pipeline.rearrangement import (
     REARRANGEMENT,
@@ -35,7 +35,7 @@ LIVING_LAPTOP = "living/Laptop|-01.70|+00.68|+01.66"
 LIVING_TABLE = "living/DiningTable|-02.27|-00.02|+01.42"
 
 
-def _paper(shared_data: Path) -> Home:
+def _paper(shared_data: Path) -> SourceHome:
     return build_home(shared_data, "paper", PAPER_HOME)
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.pipeline.build import BuildReport
-from objsearch.pipeline.schedule import TABLE2
+from objsearch.pipeline.table2 import TABLE2
 from objsearch.pipeline.vocabulary import SEMI_DYNAMIC_NAMES, STATIC_NAMES
 
 Built = tuple[Path, BuildReport]

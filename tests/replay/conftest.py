@@ -11,7 +11,7 @@ from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.events.lake import Lake, compact_log
-from objsearch.sim.schedule import Schedule
+from objsearch.sim.placements import Schedule
 from objsearch.sim.world import SimClock, SimWorld
 
 V1_LOG = Path(__file__).resolve().parents[1] / "events" / "fixtures" / "v1-log"

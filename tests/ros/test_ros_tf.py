@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from objsearch.agent.frames import camera_to_map
+from objsearch.agent.camera_frames import camera_to_map
 from objsearch.agent.geometry import Pose
 from objsearch.ros.builder import OPTICAL_ROTATION
 from objsearch.ros.errors import TransformError

@@ -13,7 +13,7 @@ from objsearch.cli_runtime import runtime_config
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 from objsearch.runtime.config import RuntimeConfig
-from objsearch.sim.schedule import Schedule
+from objsearch.sim.placements import Schedule
 from objsearch.sim.world import SimClock, SimWorld
 
 from .runtime_fixtures import Net, objsearch, stop

@@ -14,7 +14,7 @@ from objsearch.agent.errors import DataFileError
 from objsearch.agent.semmap import SemanticMap
 from objsearch.agent.session import load_context
 from objsearch.sim.mapeval import compare, cost_summary, search_cost
-from objsearch.sim.schedule import base_placements, table1_removals
+from objsearch.sim.placements import base_placements, table1_removals
 
 
 def test_the_truth_matches_itself() -> None:

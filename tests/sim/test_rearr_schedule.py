@@ -13,7 +13,7 @@ from objsearch.agent.strategies import RunSpec
 from objsearch.experiments.homes import homes_jobs
 from objsearch.sim.longterm import run_schedule
 from objsearch.sim.rearr_schedule import RearrangementData, read_rearrangement, rearr_schedule
-from objsearch.sim.schedules import UnknownScheduleError, load_schedule
+from objsearch.sim.schedule_names import UnknownScheduleError, load_schedule
 from objsearch.sim.stats_schedule import SCENES, stats_schedule
 
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from objsearch.agent.frames import (
+from objsearch.agent.camera_frames import (
     DEFAULT_INTRINSICS,
     CameraIntrinsics,
     backproject,
@@ -93,7 +93,7 @@ def test_camera_pose_is_a_rotation_and_pitch_looks_down() -> None:
 
 
 def backproject_one(depth: np.ndarray, pixel: tuple[int, int], t: np.ndarray) -> np.ndarray:
-    from objsearch.agent.frames import RGBDFrame
+    from objsearch.agent.camera_frames import RGBDFrame
 
     frame = RGBDFrame(np.zeros((*depth.shape, 3), np.uint8), depth, K, t)
     mask = np.zeros(depth.shape, bool)

@@ -10,7 +10,7 @@ from objsearch.agent.geometry import Pose
 from objsearch.agent.home import Box
 from objsearch.agent.session import load_context
 from objsearch.sim.perception import Camera
-from objsearch.sim.schedule import Schedule, base_placements
+from objsearch.sim.placements import Schedule, base_placements
 from objsearch.sim.world import OPEN_S, SPEED_M_PER_S, Placement, SimClock, SimWorld
 
 

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 import torch
 
+from objsearch.agent.camera_frames import DEFAULT_INTRINSICS
 from objsearch.agent.categories import Category
 from objsearch.agent.detect import GroundTruthDetector
-from objsearch.agent.frames import DEFAULT_INTRINSICS
 from objsearch.agent.mapping import (
     BuiltMap,
     MappingConfig,
@@ -32,8 +32,8 @@ from objsearch.pipeline.bags.record import record_mapping_sweep, sweep_messages,
 from objsearch.pipeline.bags.rgbd import build_map_from_bag, decode_image, intrinsics_of
 from objsearch.ros.topics import Role, TopicMap
 from objsearch.ros.types import typestore
+from objsearch.sim.placements import base_placements, table1_removals
 from objsearch.sim.render import SimulatedCamera, SurveyFrames
-from objsearch.sim.schedule import base_placements, table1_removals
 
 ROOMS = ["bathroom"]
 CPU = torch.device("cpu")

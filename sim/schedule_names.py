@@ -10,8 +10,8 @@ from __future__ import annotations
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home
+from objsearch.sim.placements import Schedule
 from objsearch.sim.rearr_schedule import rearr_schedule
-from objsearch.sim.schedule import Schedule
 from objsearch.sim.stats_schedule import SCENES, stats_schedule
 
 #: Seeded schedule kinds: ``<kind>-<seed>``.

@@ -6,9 +6,10 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from objsearch.agent.geometry import Vec3
+
 from .errors import BuildError
-from .frames import Vec3
-from .home import Home
+from .home import SourceHome
 from .room_objects import Static
 from .scenario import Scenario
 from .vocabulary import SEMI_DYNAMIC_NAMES, STATIC_NAMES
@@ -86,7 +87,7 @@ def place_on(support: Static, obj_height: float, previous: Vec3) -> Vec3:
     return (c[0], c[1], c[2] + s[2] / 2 + half)
 
 
-def table2(home: Home, scenario: Scenario) -> dict[str, Any]:
+def table2(home: SourceHome, scenario: Scenario) -> dict[str, Any]:
     _check_table()
     objects = {o.id: o for o in home.objects}
     where = {cls: objects[oid].box.center for cls, oid in scenario.targets.items()}

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-Vec3 = tuple[float, float, float]
+from objsearch.agent.geometry import Vec3
 
 
 def wrap_angle(angle: float) -> float:
