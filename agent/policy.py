@@ -133,6 +133,8 @@ class SearchResult:
     start: str
     success: bool
     path_length: float
+    #: Metres from the start to the detection (the paper's path length); None if not found.
+    path_to_discovery: float | None = None
     route: list[Point] = field(default_factory=list)
     found_instance: str | None = None
     plans: list[tuple[str, tuple[str, ...]]] = field(default_factory=list)
@@ -284,6 +286,16 @@ class SearchAgent:
             run.emit("search_failed", {"reason": f"{target} not found in any room"})
         else:
             arrived = world.pose()
+            result.path_to_discovery = result.path_length
+            run.emit(
+                "target_detected",
+                {
+                    "instance_id": found.instance_id,
+                    "position": _round_vec(found.position),
+                    "pose": arrived.as_dict(),
+                    "path_length": round(result.path_length, 4),
+                },
+            )
             room = self.navmap.room_at(arrived.x, arrived.y)
             goal = self.navmap.nearest_viewpoint(found.position[0], found.position[1], room)
             run.go(goal, result, watch=False, final_yaw=heading(goal, Point(*found.position[:2])))

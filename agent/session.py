@@ -28,6 +28,13 @@ from objsearch.events import EventLog, fold, read_log
 from objsearch.events.snapshot import restore, save_snapshot
 
 PRIOR_FILE = "priors/visual_genome.json"
+#: The readings of Eq. 2 ``objsearch data build`` writes (pipeline/vg_prior.py; docs/paper-readings.md).
+PRIOR_FILES = {
+    "vg-cooccurrence": PRIOR_FILE,
+    "vg-single-name": "priors/vg_single_name.json",
+    "vg-hoz-masked": "priors/vg_hoz_masked.json",
+}
+DEFAULT_PRIOR = "vg-cooccurrence"
 # uuid5(NAMESPACE_URL, "urn:objsearch:runs"); fixed forever, like the event id namespace.
 RUN_ID_NAMESPACE = uuid.uuid5(uuid.NAMESPACE_URL, "urn:objsearch:runs")
 
@@ -49,20 +56,38 @@ def load_context(home_name: str) -> HomeContext:
     return HomeContext(home, Vocabulary.load(), navmap, SemanticMap.from_home(home, navmap))
 
 
-def prior_values(vocabulary: Vocabulary) -> tuple[str, list[dict[str, Any]]]:
-    path = data_dir() / PRIOR_FILE
-    prior = read_json(path, "the Visual Genome prior")
+def prior_file(name: str) -> str:
+    try:
+        return PRIOR_FILES[name]
+    except KeyError:
+        raise ObjsearchError(
+            f"unknown prior {name!r}; choose from {', '.join(PRIOR_FILES)}"
+        ) from None
+
+
+def prior_values(
+    vocabulary: Vocabulary, name: str = DEFAULT_PRIOR
+) -> tuple[str, list[dict[str, Any]]]:
+    """The ``scene_graph_seeded`` source and values of a named prior. The source names the
+    reading of Eq. 2 (``vg-hoz-masked: vg/VSGM/…``), except for the default, which keeps the
+    source string older logs carry; the values are in the log, so nothing re-reads the file."""
+    rel_path = prior_file(name)
+    prior = read_json(data_dir() / rel_path, f"the {name} prior")
     relations = seed_relations(prior, vocabulary)
     values = [
         {"dynamic": d, "static": s, "rel": round(v, 12)} for (d, s), v in sorted(relations.items())
     ]
-    return str(prior.get("source", PRIOR_FILE)), values
+    source = str(prior.get("source", rel_path))
+    return (source if name == DEFAULT_PRIOR else f"{name}: {source}"), values
 
 
 def derived_run_id(stream: str, spec: RunSpec) -> str:
     """A run id that is a function of the stream and the run's spec (its seed included): a
     seeded simulation writes the same log every time, and two different runs never share ids."""
-    text = json.dumps({"stream": stream, **spec.payload()}, sort_keys=True, separators=(",", ":"))
+    doc = {"stream": stream, **spec.payload()}
+    if spec.prior != DEFAULT_PRIOR:  # the default leaves the ids of existing logs as they were
+        doc["prior"] = spec.prior
+    text = json.dumps(doc, sort_keys=True, separators=(",", ":"))
     return str(uuid.uuid5(RUN_ID_NAMESPACE, text))
 
 
@@ -184,7 +209,7 @@ class Session:
             )
         # Everything that can fail on bad data is read before the first append: a run that
         # cannot start leaves the log as it was.
-        prior = None if self.state.seeded else prior_values(self.ctx.vocabulary)
+        prior = None if self.state.seeded else prior_values(self.ctx.vocabulary, spec.prior)
         at = self.resume_time_ns
         self.recorder.record("run_started", spec.payload(), time_ns=at)
         if prior is not None:

@@ -174,6 +174,10 @@ class RunSpec:
     support_radius: float = DEFAULT_SUPPORT_RADIUS
     schedule: str | None = None
     params: Mapping[str, Any] = field(default_factory=dict)
+    #: The reading of Eq. 2 the scene graph is seeded with (agent/session.py PRIOR_FILES). Not a
+    #: run_started field: the first run of a log records it in scene_graph_seeded's source with
+    #: the values themselves, which is all a fold or a replay reads.
+    prior: str = "vg-cooccurrence"
 
     def __post_init__(self) -> None:
         if self.planner not in PLANNERS:
@@ -191,6 +195,7 @@ class RunSpec:
         alpha: float = DEFAULT_ALPHA,
         schedule: str | None = None,
         params: Mapping[str, Any] | None = None,
+        prior: str = "vg-cooccurrence",
     ) -> RunSpec:
         """The spec of running the registered strategy ``strategy_name`` on a home."""
         chosen = strategy(strategy_name)
@@ -206,6 +211,7 @@ class RunSpec:
             seed=seed,
             schedule=schedule,
             params=dict(params or {}),
+            prior=prior,
         )
 
     @classmethod

@@ -63,7 +63,7 @@ _MODES: Final = """
 
 SEARCHES: Final = DerivedTable(
     "searches",
-    2,
+    3,
     f"""
 WITH plans_per_task AS (
     SELECT robot, run, task_id, count(*) AS rooms_planned FROM plan_computed GROUP BY ALL
@@ -81,7 +81,13 @@ SELECT s.robot, s.date, s.run, s.task_id,
        s.target, s.start, s.scene, r.method, r.update_mode, r.alpha,
        s.seq AS start_seq, e.seq AS end_seq, s.time_ns AS start_ns, e.time_ns AS end_ns,
        (e.time_ns - s.time_ns) / 1e9 AS duration_s,
-       e.success, e.path_length, e.aborted,
+       e.success, e.path_length,
+       -- the paper's metric: metres to the detection; a failed or aborted search never
+       -- discovered it, so its whole path counts; NULL for a success logged before v3 of this
+       -- table (no target_detected event then), rather than a guess
+       coalesce(t.path_length, CASE WHEN NOT e.success THEN e.path_length END)
+           AS path_to_discovery,
+       e.aborted,
        coalesce(p.rooms_planned, 0) AS rooms_planned,
        coalesce(d.detections, 0) AS detections,
        f.instance_id AS found_instance
@@ -90,6 +96,7 @@ LEFT JOIN ends e USING (robot, run, task_id)
 LEFT JOIN plans_per_task p USING (robot, run, task_id)
 LEFT JOIN detections_per_task d USING (robot, run, task_id)
 LEFT JOIN target_found f USING (robot, run, task_id)
+LEFT JOIN target_detected t USING (robot, run, task_id)
 LEFT JOIN modes r
   ON s.robot = r.robot AND s.run = r.run AND s.seq > r.seq
  AND (r.next_seq IS NULL OR s.seq < r.next_seq)

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.session import DEFAULT_PRIOR
 from objsearch.experiments.metrics import mean_std, summarise
 from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, write_rows
 from objsearch.experiments.strategies import PAPER_STRATEGIES, strategy
@@ -54,6 +55,8 @@ def paper_jobs(
     targets: Sequence[str] = TARGETS,
     scenes: Sequence[int] | None = None,
     log_root: Path | None = None,
+    prior: str = DEFAULT_PRIOR,
+    home: str = HOME,
 ) -> list[Job]:
     for name in strategies:
         strategy(name)  # unknown names fail here, before any work
@@ -62,7 +65,10 @@ def paper_jobs(
         if name not in strategies:
             continue
         seeds = range(sdp_seeds) if strategy(name).randomised else range(1)
-        jobs += [Job("table1", HOME, "table1", name, "none", s, tuple(targets)) for s in seeds]
+        jobs += [
+            Job("table1", home, "table1", name, "none", s, tuple(targets), prior=prior)
+            for s in seeds
+        ]
     for name in strategies:
         if strategy(name).randomised or name == "rvp":
             continue  # the paper runs its long-term experiment with its own method
@@ -72,7 +78,7 @@ def paper_jobs(
             jobs.append(
                 Job(
                     "longterm",
-                    HOME,
+                    home,
                     "table2",
                     name,
                     mode,
@@ -80,9 +86,15 @@ def paper_jobs(
                     tuple(targets),
                     tuple(scenes) if scenes else None,
                     log_dir=log,
+                    prior=prior,
                 )
             )
     return jobs
+
+
+def discovery(row: Row) -> float:
+    """The paper's path length: metres to the detection (the whole path if never found)."""
+    return row.path_length if row.path_to_discovery is None else row.path_to_discovery
 
 
 def _cell(v: float | None) -> str:
@@ -96,11 +108,11 @@ def table1_summary(rows: Sequence[Row]) -> dict[str, Any]:
     for name in dict.fromkeys(r.strategy for r in t1):
         mine = [r for r in t1 if r.strategy == name]
         seeds = sorted({r.seed for r in mine})
-        per_seed = [statistics.fmean(r.path_length for r in mine if r.seed == s) for s in seeds]
+        per_seed = [statistics.fmean(discovery(r) for r in mine if r.seed == s) for s in seeds]
         per_target = {}
         for t in targets:
             vals = [
-                statistics.fmean(r.path_length for r in mine if r.seed == s and r.target == t)
+                statistics.fmean(discovery(r) for r in mine if r.seed == s and r.target == t)
                 for s in seeds
             ]
             m, sd = mean_std(vals)
@@ -108,6 +120,8 @@ def table1_summary(rows: Sequence[Row]) -> dict[str, Any]:
         m, sd = mean_std(per_seed)
         out[name] = {
             **summarise(mine),
+            "mean_path_to_discovery": m,
+            "mean_approach": statistics.fmean(r.path_length - discovery(r) for r in mine),
             "seeds": seeds,
             "avg_std_over_seeds": sd,
             "avg_min_max_over_seeds": [min(per_seed), max(per_seed)],
@@ -121,22 +135,22 @@ def longterm_summary(rows: Sequence[Row]) -> dict[str, Any]:
     lt = [r for r in rows if r.experiment == "longterm"]
     out: dict[str, Any] = {}
     base_rows = [r for r in lt if r.strategy == "wpl" and r.update_mode == "none"]
-    base = statistics.fmean(r.path_length for r in base_rows) if base_rows else math.nan
+    base = statistics.fmean(discovery(r) for r in base_rows) if base_rows else math.nan
     for key in dict.fromkeys((r.strategy, r.update_mode) for r in lt):
         mine = [r for r in lt if (r.strategy, r.update_mode) == key]
         scenes = sorted({r.scene for r in mine})
         s = summarise(mine)
+        to_discovery = statistics.fmean(discovery(r) for r in mine)
         out[f"{key[0]}/{key[1]}"] = {
             **s,
+            "mean_path_to_discovery": to_discovery,
             "strategy": key[0],
             "update_mode": key[1],
             "per_scene": {
-                str(sc): statistics.fmean(r.path_length for r in mine if r.scene == sc)
+                str(sc): statistics.fmean(discovery(r) for r in mine if r.scene == sc)
                 for sc in scenes
             },
-            "change_vs_wpl_none_pct": 100 * (s["mean_path_length"] - base) / base
-            if base == base
-            else None,
+            "change_vs_wpl_none_pct": 100 * (to_discovery - base) / base if base == base else None,
         }
     return out
 
@@ -147,10 +161,13 @@ def render(summary: dict[str, Any]) -> str:
     if t1:
         targets = [t for t in TARGETS if t in next(iter(t1.values()))["per_target"]]
         lines.append(
-            "Table I — path length (m) per target, mean over 8 starts (paper's figures in brackets)"
+            "Table I — path length to discovery (m; the paper's metric) per target, mean over 8 "
+            "starts (paper's figures in brackets); 'path+appr' adds the approach to the target"
         )
         lines.append(
-            f"{'strategy':10}" + "".join(f"{t[:11]:>19}" for t in targets) + f"{'avg':>19}"
+            f"{'strategy':10}"
+            + "".join(f"{t[:11]:>19}" for t in targets)
+            + f"{'avg':>19}{'path+appr':>11}"
         )
         for name, s in t1.items():
             paper = s["paper"] or {}
@@ -161,17 +178,22 @@ def render(summary: dict[str, Any]) -> str:
                     f"±{pt['std_over_seeds']:.2f}" if len(s["seeds"]) > 1 else ""
                 )
                 cells.append(f"{v} [{_cell(paper.get(t))}]" if paper else v)
-            avg = f"{s['mean_path_length']:.2f}" + (
+            avg = f"{s['mean_path_to_discovery']:.2f}" + (
                 f"±{s['avg_std_over_seeds']:.2f}" if len(s["seeds"]) > 1 else ""
             )
             cells.append(f"{avg} [{_cell(paper.get('avg'))}]" if paper else avg)
-            lines.append(f"{name:10}" + "".join(f"{c:>19}" for c in cells))
+            lines.append(
+                f"{name:10}"
+                + "".join(f"{c:>19}" for c in cells)
+                + f"{s['mean_path_length']:>11.2f}"
+            )
         lines.append("")
     lt = summary["longterm"]
     if lt:
         scenes = list(next(iter(lt.values()))["per_scene"])
         lines.append(
-            "Long-term (Table II schedule) — mean path length (m) per scene over 8 targets × 8 starts"
+            "Long-term (Table II schedule) — mean path length to discovery (m) per scene over "
+            "8 targets × 8 starts"
         )
         lines.append(
             f"{'strategy/updates':22}"
@@ -183,7 +205,7 @@ def render(summary: dict[str, Any]) -> str:
             lines.append(
                 f"{key:22}"
                 + "".join(f"{s['per_scene'][sc]:7.2f}" for sc in scenes)
-                + f"{s['mean_path_length']:8.2f}"
+                + f"{s['mean_path_to_discovery']:8.2f}"
                 + (f"{ch:+9.2f}%" if ch is not None else "")
             )
         lines.append(f"(the paper reports {PAPER_REDUCTION_PCT:+.2f} % with updates)")
@@ -212,6 +234,7 @@ def run_paper(
     targets: Sequence[str] = TARGETS,
     scenes: Sequence[int] | None = None,
     keep_logs: bool = False,
+    prior: str = DEFAULT_PRIOR,
 ) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     jobs = paper_jobs(
@@ -220,6 +243,7 @@ def run_paper(
         targets=targets,
         scenes=scenes,
         log_root=out / "logs" if keep_logs else None,
+        prior=prior,
     )
     started = time.perf_counter()
     rows = run_jobs(jobs, workers=workers, progress=progress, label="bench paper")
@@ -227,7 +251,9 @@ def run_paper(
     parquet, csv = write_rows(rows, out, "paper_trials")
     summary = {
         "home": HOME,
-        "command": "objsearch bench paper",
+        "command": "objsearch bench paper"
+        + ("" if prior == DEFAULT_PRIOR else f" --prior {prior}"),
+        "prior": prior,
         "sdp_seeds": sdp_seeds,
         "workers": workers,
         "elapsed_s": round(elapsed, 1),

@@ -37,6 +37,7 @@ class Job:
     scenes: tuple[int, ...] | None = None
     log_dir: str | None = None
     keep_routes: bool = False
+    prior: str = "vg-cooccurrence"
 
 
 @dataclass(frozen=True)
@@ -55,6 +56,9 @@ class Row:
     oracle_length: float
     task_id: str
     route: tuple[tuple[float, float], ...] = field(default=(), compare=False)
+    #: The paper's path length: metres to the detection (the whole path if never found);
+    #: ``path_length`` adds the approach to the target's viewpoint.
+    path_to_discovery: float | None = None
 
     def record(self) -> dict[str, object]:
         d = asdict(self)
@@ -72,6 +76,7 @@ def run_job(job: Job) -> list[Row]:
         seed=job.seed,
         update_mode=UpdateMode(job.update_mode),
         schedule=job.placements,
+        prior=job.prior,
     )
     scenes = scenes_of(job.home, job.placements)
     with tempfile.TemporaryDirectory(prefix="objsearch-bench-") as tmp:
@@ -100,6 +105,7 @@ def run_job(job: Job) -> list[Row]:
             round(t.oracle_length, 4),
             t.task_id,
             tuple((p.x, p.y) for p in t.route),
+            None if t.path_to_discovery is None else round(t.path_to_discovery, 4),
         )
         for t in trials
     ]

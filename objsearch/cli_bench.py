@@ -54,6 +54,7 @@ def cmd_bench_paper(args: argparse.Namespace) -> int:
             targets=targets,
             scenes=args.scenes,
             keep_logs=args.keep_logs,
+            prior=args.prior,
         )
     if args.json:
         print(json.dumps(_headline(summary), indent=2))
@@ -151,6 +152,14 @@ def register(sub: Any) -> None:
         help=f"comma-separated subset of Table II's scenes (1-{t.MAX_SCENE})",
     )
     paper.add_argument("--keep-logs", action="store_true", help="keep long-term event logs")
+    paper.add_argument(
+        "--prior",
+        type=t.text,
+        choices=("vg-cooccurrence", "vg-single-name", "vg-hoz-masked"),
+        default="vg-cooccurrence",
+        help="the reading of Eq. 2 the scene graph is seeded with (docs/paper-readings.md) "
+        "(vg-cooccurrence)",
+    )
     paper.set_defaults(func=cmd_bench_paper)
 
     homes = bsub.add_parser("homes", help="every strategy on the held-out homes")

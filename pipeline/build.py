@@ -23,9 +23,15 @@ from .provenance import provenance_md, sha256
 from .rearrangement import REARRANGEMENT, SUPPORT_TOLERANCE_M, load_episodes, rearrangement_json
 from .room_objects import SUPPORT_RADIUS_M
 from .scenario import table1
-from .sources import VG_MATRIX, load_cooccurrence, load_scene
+from .sources import HOZ_ADJACENCY, VG_MATRIX, load_cooccurrence, load_scene
 from .table2 import table2
-from .vg_prior import vg_prior_json
+from .vg_prior import (
+    PRIOR_FILES,
+    hoz_masked_prior_json,
+    load_adjacency,
+    single_name_prior_json,
+    vg_prior_json,
+)
 from .vocabulary import vocabulary_json
 
 PAPER_HOME: tuple[str, str, str, str] = (
@@ -122,8 +128,13 @@ def build_data(
 
     say("Visual Genome prior")
     matrix = load_cooccurrence(source, "the Visual Genome prior (priors/visual_genome.json)")
-    outputs["priors/visual_genome.json"] = jsonio.dumps(
-        vg_prior_json(matrix, sha256(source / VG_MATRIX))
+    vg_sha = sha256(source / VG_MATRIX)
+    outputs[PRIOR_FILES["vg-cooccurrence"]] = jsonio.dumps(vg_prior_json(matrix, vg_sha))
+    outputs[PRIOR_FILES["vg-single-name"]] = jsonio.dumps(single_name_prior_json(matrix, vg_sha))
+    say("Visual Genome prior masked by the HOZ adjacency")
+    graph = load_adjacency(source, f"the {PRIOR_FILES['vg-hoz-masked']} prior")
+    outputs[PRIOR_FILES["vg-hoz-masked"]] = jsonio.dumps(
+        hoz_masked_prior_json(matrix, graph, vg_sha, sha256(source / HOZ_ADJACENCY))
     )
 
     built: dict[str, SourceHome] = {}

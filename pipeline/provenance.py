@@ -10,7 +10,7 @@ from pathlib import Path
 from .room_objects import OPENABLE_NOT_CONTAINER, PREFERRED_PART, SUPPORT_RADIUS_M
 from .rooms import FLOOR_CONTACT_M, NOT_OBSTACLES
 from .sourceinfo import ALL_SOURCES, EXTRA_SOURCES, REARRANGEMENT, SourceInfo
-from .sources import VG_MATRIX, layout_path, openable_path, scene_path
+from .sources import HOZ_ADJACENCY, VG_MATRIX, layout_path, openable_path, scene_path
 
 
 def sha256(path: Path) -> str:
@@ -26,6 +26,7 @@ def used_files(source: Path, homes: Mapping[str, Sequence[str]]) -> dict[str, li
             files["alfred"].add(layout_path(source, fp).relative_to(source))
             files["alfred"].add(openable_path(source, fp).relative_to(source))
     files["vsgm"].add(VG_MATRIX)
+    files["hoz"].add(HOZ_ADJACENCY)
     return {k: sorted(v) for k, v in files.items()}
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from .sources import ALFRED_LAYOUTS, ITHOR_SCENES, VG_MATRIX
+from .sources import ALFRED_LAYOUTS, HOZ_ADJACENCY, ITHOR_SCENES, VG_MATRIX
 
 
 @dataclass(frozen=True)
@@ -60,7 +60,19 @@ VSGM = SourceInfo(
     copyright="Copyright (c) [2021] [Cheng-Yu Tsai and others]",
 )
 
-ALL_SOURCES: tuple[SourceInfo, ...] = (ITHOR, ALFRED, VSGM)
+HOZ = SourceInfo(
+    key="hoz",
+    local=HOZ_ADJACENCY,
+    repo="sx-zhang/HOZ",
+    revision="commit 4add8e74fcfbcac3f009a51dddd40a6b6e17e2ac",
+    commit="4add8e74fcfbcac3f009a51dddd40a6b6e17e2ac",
+    upstream_path="adjmat_83x83.csv (binary object adjacency over the AI2-THOR 1.0 vocabulary)",
+    licence="MIT",
+    licence_file=HOZ_ADJACENCY.parent / "LICENSE.HOZ",
+    copyright="Copyright (c) 2021 JJJJasper",
+)
+
+ALL_SOURCES: tuple[SourceInfo, ...] = (ITHOR, ALFRED, VSGM, HOZ)
 
 PROCTHOR_HOUSES = SourceInfo(
     key="procthor_houses",

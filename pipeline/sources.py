@@ -22,6 +22,7 @@ from .errors import SourceDataError
 ITHOR_SCENES = Path("ai2thor/ithor_scenes")
 ALFRED_LAYOUTS = Path("ai2thor/alfred_layouts")
 VG_MATRIX = Path("vg/VSGM/relationship_matrics_with_word.csv")
+HOZ_ADJACENCY = Path("vg/HOZ/adjmat_83x83.csv")
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,9 @@ class Trial:
     oracle_length: float
     task_id: str
     route: tuple[Point, ...] = ()
+    #: Metres from the start to the detection of the target (the paper's path length); the
+    #: whole path when the target was never found.
+    path_to_discovery: float | None = None
 
 
 def scenes_of(home_name: str, source: str) -> dict[int, Placements]:
@@ -111,6 +114,9 @@ def run_schedule(
                         oracle,
                         result.task_id,
                         tuple(result.route) if keep_routes else (),
+                        result.path_length
+                        if result.path_to_discovery is None
+                        else result.path_to_discovery,
                     )
                     trials.append(trial)
                     if on_trial:

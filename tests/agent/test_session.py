@@ -53,6 +53,14 @@ def test_search_finds_the_apple_and_logs_every_step_in_order(tmp_path: Path) -> 
     assert kinds[:3] == ["run_started", "scene_graph_seeded", "task_started"]
     assert kinds[-2:] == ["target_found", "task_ended"]
     assert kinds.index("plan_computed") < kinds.index("target_found")
+    # The paper's metric: the mileage when the target was detected, before the approach.
+    detected = next(e for e in events if e.type == "target_detected")
+    assert kinds.index("target_detected") < kinds.index("target_found")
+    moved_before = sum(
+        e.payload["metres"] for e in events if e.type == "moved" and e.seq < detected.seq
+    )
+    assert detected.payload["path_length"] == pytest.approx(moved_before, abs=1e-3)
+    assert detected.payload["path_length"] <= length + 1e-9
     ended = events[-1].payload
     assert ended["success"] is True
     assert ended["path_length"] == pytest.approx(length, abs=1e-4)
@@ -198,3 +206,25 @@ def test_a_continued_log_keeps_its_sequence_and_clock(tmp_path: Path) -> None:
     # The prior is seeded once per log, not once per run.
     assert sum(e.type == "scene_graph_seeded" for e in events) == 1
     assert events[-1].task_id == "task-00002"
+
+
+def test_a_named_prior_is_recorded_in_the_seed_and_changes_the_values(tmp_path: Path) -> None:
+    ctx = load_context(HOME)
+    seeded = {}
+    for prior in ("vg-cooccurrence", "vg-hoz-masked"):
+        spec = RunSpec.for_home(ctx.home, "wpl", prior=prior)
+        session = Session.start(ctx, tmp_path / prior, spec)
+        session.close()
+        (seed,) = [e for e in read_log(tmp_path / prior) if e.type == "scene_graph_seeded"]
+        seeded[prior] = seed.payload
+    assert seeded["vg-hoz-masked"]["source"].startswith("vg-hoz-masked: ")
+    assert not seeded["vg-cooccurrence"]["source"].startswith("vg-")
+    rel = {
+        p: {(v["dynamic"], v["static"]): v["rel"] for v in doc["values"]}
+        for p, doc in seeded.items()
+    }
+    # HOZ links no AI2-THOR type of Apple with a Bathtub: the masked reading says 0.
+    assert rel["vg-cooccurrence"][("Apple", "Bathtub")] > 0
+    assert rel["vg-hoz-masked"][("Apple", "Bathtub")] == 0
+    # A class HOZ does not know (Sofa) keeps its co-occurrence.
+    assert rel["vg-hoz-masked"][("Apple", "Sofa")] == rel["vg-cooccurrence"][("Apple", "Sofa")]

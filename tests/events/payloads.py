@@ -60,6 +60,12 @@ EXAMPLES: dict[str, dict[str, Any]] = {
         "accepted": True,
         "support": {"static_id": "Table|1", "static_class": "Table", "at": True},
     },
+    "target_detected": {
+        "instance_id": "Cup|3",
+        "position": [1.0, 2.0, 0.9],
+        "pose": POSE,
+        "path_length": 10.25,
+    },
     "target_found": {"instance_id": "Cup|3", "position": [1.0, 2.0, 0.9], "approach": POSE},
     "search_failed": {"reason": "all candidates visited"},
     "task_ended": {"target": "Cup", "success": True, "path_length": 12.5},

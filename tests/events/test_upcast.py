@@ -166,7 +166,12 @@ def test_todays_code_writes_v2_and_decides_as_the_upcast_v1_log(tmp_path: Path) 
     today = list(read_log(tmp_path / "today", upcast=False))
     assert {e.version for e in today if e.type == "detection"} == {2}
     old = [_decision_facts(e) for e in read_log(V1_LOG)]
-    assert [_decision_facts(e) for e in today] == old
+    # target_detected (the paper's metric) is newer than the fixture; without it, and so
+    # without the seq numbers it shifts, today's log is the fixture's.
+    now = [_decision_facts(e) for e in today if e.type != "target_detected"]
+    for d in (*now, *old):
+        del d["seq"]
+    assert now == old
 
 
 def test_a_v1_log_can_be_continued_by_todays_writer(tmp_path: Path) -> None:

@@ -14,6 +14,8 @@ from objsearch.pipeline.errors import HomeSpecError, SourceDataError
 EXPECTED = {
     "vocabulary.json",
     "priors/visual_genome.json",
+    "priors/vg_single_name.json",
+    "priors/vg_hoz_masked.json",
     "homes/paper.json",
     "scenarios/table1.json",
     "schedules/table2.json",
@@ -152,3 +154,15 @@ def test_home_names_are_checked_whole(name: str) -> None:
     with pytest.raises(HomeSpecError, match="home name"):
         check_home_spec(name, PAPER_HOME)
     assert check_home_spec("home", PAPER_HOME) == PAPER_HOME
+
+
+def test_every_named_prior_is_built_where_the_agent_reads_it(
+    built: tuple[Path, BuildReport],
+) -> None:
+    from objsearch.agent.session import PRIOR_FILES as READ
+    from objsearch.pipeline.vg_prior import PRIOR_FILES as WRITTEN
+
+    out, report = built
+    assert READ == WRITTEN
+    written = {p.relative_to(out).as_posix() for p in report.files}
+    assert set(WRITTEN.values()) <= written
