@@ -8,6 +8,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from objsearch import cli_types as t
+
 
 def register(sub: Any) -> None:
     log = sub.add_parser("log", help="check an event log end to end, or repair a damaged one")
@@ -17,7 +19,7 @@ def register(sub: Any) -> None:
         "verify",
         help="read and check every record (exit 0 clean, 2 damaged; nothing is changed)",
     )
-    verify.add_argument("log", metavar="LOG", help="event log folder")
+    verify.add_argument("log", metavar="LOG", type=t.existing_dir, help="event log folder")
     verify.add_argument("--json", action="store_true", help="print the result as JSON")
     verify.set_defaults(func=cmd_log_verify)
 
@@ -29,7 +31,7 @@ def register(sub: Any) -> None:
         "beside the log and keeps the clean prefix. Nothing is deleted. Reports acknowledged "
         "records the file had already lost (a log cut short before its high-water mark).",
     )
-    repair.add_argument("log", metavar="LOG", help="event log folder")
+    repair.add_argument("log", metavar="LOG", type=t.existing_dir, help="event log folder")
     repair.add_argument("--json", action="store_true", help="print the result as JSON")
     repair.set_defaults(func=cmd_log_repair)
 

@@ -101,3 +101,28 @@ def test_a_writer_whose_log_is_deleted_stops_acknowledging(tmp_path: Path) -> No
         (tmp_path / "events.log").unlink()
         with pytest.raises(LogClosedError, match="deleted"):
             log.append("search_failed", {"reason": "lost"}, time_ns=5)
+
+
+@pytest.mark.parametrize("damage", ["crlf", "flip-last", "cut-at-record"])
+def test_a_search_on_a_damaged_log_is_refused_and_changes_nothing(
+    tmp_path: Path, damage: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = tmp_path / "log"
+    assert main(["search", "--target", "Apple", "--start", "kitchen-1", "--log", str(log)]) == 0
+    data = (log / "events.log").read_bytes()
+    lines = data.splitlines(keepends=True)
+    if damage == "crlf":
+        damaged = data.replace(b"\n", b"\r\n")
+    elif damage == "flip-last":
+        last = bytearray(lines[-1])
+        last[10] ^= 0x04
+        damaged = b"".join(lines[:-1]) + bytes(last)
+    else:
+        damaged = b"".join(lines[:-3])
+    (log / "events.log").write_bytes(damaged)
+    before = {p.name: p.read_bytes() for p in log.iterdir()}
+    capsys.readouterr()
+    assert main(["search", "--target", "Cup", "--start", "kitchen-1", "--log", str(log)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("objsearch: error: corrupt event log") and "byte offset" in err
+    assert {p.name: p.read_bytes() for p in log.iterdir()} == before
