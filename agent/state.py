@@ -16,6 +16,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+from objsearch.agent.catalogue import Moved, TaskStarted, decode
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import EventLike
@@ -44,16 +45,16 @@ class TaskLedger:
     open: OpenTask | None = None
 
     def apply(self, event: EventLike, task_id: str | None) -> None:
-        kind, payload = event.type, event.payload
+        kind = event.type
         if kind == "task_started" and task_id is not None:
             match = _TASK_NUMBER.fullmatch(task_id)
             if match:
                 self.last_number = max(self.last_number, int(match.group(1)))
             self.started += 1
-            self.open = OpenTask(task_id, str(payload["target"]), 0.0)
+            self.open = OpenTask(task_id, decode(event, TaskStarted).target, 0.0)
         elif kind == "moved" and self.open is not None and task_id == self.open.task_id:
             self.open = OpenTask(
-                self.open.task_id, self.open.target, self.open.metres + float(payload["metres"])
+                self.open.task_id, self.open.target, self.open.metres + decode(event, Moved).metres
             )
         elif kind in ("task_ended", "task_aborted") and self.open is not None:
             if task_id == self.open.task_id:

@@ -5,7 +5,10 @@
     python benchmarks/events.py --kills 1000         # plus a longer crash test
 
 1. append: durable per-event appends and batched appends vs writing the same rows with pyarrow
-   (IPC file + one fsync): events/s and the ratio.
+   (IPC file + one fsync): events/s and the ratio. Then batched appends of the agent's own mix
+   (moves, views, detections) with dict payloads validated by jsonschema (before typed records),
+   with the typed records' check (msgspec) in front of jsonschema, and built from records;
+   with a profile of where an append's time goes.
 2. projection: the scene graph of a synthetic run of --fold-events events (a realistic mix of
    tasks, detections and moves), folded in Python (events in memory; and read_log + fold, as a
    rate) vs the SQL closed form over the lake; the two must agree.
@@ -20,8 +23,10 @@ than its baseline. Targets (issue 4): fold ≤ 1 s at 1 M events; aggregates ≤
 from __future__ import annotations
 
 import argparse
+import cProfile
 import json
 import os
+import pstats
 import random
 import re
 import shutil
@@ -31,14 +36,24 @@ import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 import duckdb
 import pyarrow as pa
 
+from objsearch.agent.catalogue import (
+    Detected,
+    Moved,
+    PlanarPose,
+    Record,
+    Support,
+    ViewTaken,
+    encode,
+)
 from objsearch.agent.scene_graph import SceneGraphProjection
-from objsearch.events import Event, EventLog, fold, read_log
+from objsearch.events import Event, EventLog, SchemaRegistry, fold, read_log
 from objsearch.events.arrow import events_to_tables
+from objsearch.events.catalogue import installed
 from objsearch.events.crashtest import run_crash_test
 from objsearch.events.lake import Lake
 from objsearch.replay.analytics import open_analytics
@@ -154,6 +169,108 @@ def bench_append(n_each: int, reps: int, root: Path) -> None:
         print(f"{name:24} {r:12,.0f} {base / r:16.1f}")
     t_read, _ = median_time(lambda: fold(read_log(log_dir), SceneGraphProjection()), reps)
     print(f"read_log + fold of the batched log: {n_each * 10 / t_read:,.0f} events/s")
+
+
+def _mix_records(n: int, seed: int = 0) -> list[Record]:
+    """The agent's append mix (detections with supports, moves, views) as typed records."""
+    rng = random.Random(seed)
+    pose = PlanarPose(x=1.0, y=2.0, yaw=0.0)
+    out: list[Record] = []
+    for i in range(n):
+        static = STATIC[i % len(STATIC)]
+        if i % 3 == 0:
+            out.append(Moved(start=pose, end=pose, metres=rng.random() * 5, rooms=("kitchen",),
+                             interrupted=False))  # fmt: skip
+        elif i % 3 == 1:
+            out.append(ViewTaken(pose=pose, static_id=f"{static}|1", reason="look"))
+        else:
+            support = Support(static_id=f"{static}|1", static_class=static, at=rng.random() < 0.5)
+            out.append(Detected(object_class=DYNAMIC[i % len(DYNAMIC)], instance_id="i",
+                                mask_area=900.0, position=(1.0, 2.0, 0.5),
+                                accepted=rng.random() < 0.8, support=support))  # fmt: skip
+    return out
+
+
+def bench_typed_append(n: int, reps: int, root: Path) -> None:
+    """Batched appends of the agent's mix: dict payloads + jsonschema vs typed records."""
+    print(f"\n## typed append ({n} events of the agent's mix, 500/fsync; median of {reps})")
+    records = _mix_records(n)
+    dicts = [(r.TYPE, encode(r)) for r in records]
+    catalogue = installed()
+    schema_only = SchemaRegistry.from_directory(catalogue.schemas)  # today: jsonschema on each
+    with_records = SchemaRegistry.from_directory(catalogue.schemas, accepts=catalogue.accepts)
+
+    def write(registry: SchemaRegistry, typed: bool) -> None:
+        d = Path(tempfile.mkdtemp(dir=root))
+        with EventLog.open(d, "a", registry=registry) as log:
+            for start in range(0, n, 500):
+                with log.batch():
+                    for i in range(start, min(start + 500, n)):
+                        if typed:
+                            record = records[i]
+                            log.append(record.TYPE, encode(record), time_ns=i)
+                        else:
+                            event_type, payload = dicts[i]
+                            log.append(event_type, payload, time_ns=i)
+
+    def ipc() -> None:
+        table = pa.Table.from_pylist([{"type": t, "payload": json.dumps(p)} for t, p in dicts])
+        path = Path(tempfile.mkdtemp(dir=root)) / "rows.arrow"
+        with pa.OSFile(str(path), "wb") as sink, pa.ipc.new_file(sink, table.schema) as writer:
+            writer.write_table(table)
+        fd = os.open(path, os.O_RDONLY)
+        os.fsync(fd)
+        os.close(fd)
+
+    runs = {
+        "dicts + jsonschema (before)": lambda: write(schema_only, typed=False),
+        "dicts + record check": lambda: write(with_records, typed=False),
+        "records + record check": lambda: write(with_records, typed=True),
+        "pyarrow IPC (baseline)": ipc,
+    }
+    rate = {name: n / median_time(fn, reps)[0] for name, fn in runs.items()}
+    base = rate["pyarrow IPC (baseline)"]
+    print(f"{'writer':30} {'events/s':>12} {'baseline / this':>16}")
+    for name, r in rate.items():
+        print(f"{name:30} {r:12,.0f} {base / r:16.1f}")
+    for name, registry, typed in (
+        ("before", schema_only, False),
+        ("after (records + record check)", with_records, True),
+    ):
+        profile = cProfile.Profile()
+        profile.runcall(write, registry, typed)
+        print(f"where the time goes, {name} (share of cumulative time in the append loop):")
+        _print_shares(pstats.Stats(profile))
+
+
+#: (label, function names whose cumulative time is that share): disjoint parts of one append.
+_PARTS: Final = (
+    ("validate (jsonschema, or record check)", ("validate",)),
+    ("record check (msgspec.convert)", ("accepts",)),
+    ("encode record -> dict (msgspec)", ("encode",)),
+    ("Event(): envelope + payload copy", ("__post_init__",)),
+    ("record line: json.dumps + crc", ("encode_record",)),
+    ("write", ("_write",)),
+    ("fsync", ("_sync",)),
+)
+
+
+def _print_shares(stats: pstats.Stats) -> None:
+    table: dict[Any, Any] = stats.stats  # type: ignore[attr-defined]
+    total = sum(tt for (_, _, tt, _, _) in table.values())
+    for label, names in _PARTS:
+        cum = sum(
+            ct
+            for (file, _, func), (_, _, _, ct, _) in table.items()
+            if func in names and _is_ours(file)
+        )
+        print(f"  {label:36} {cum:7.3f} s  {100 * cum / total:5.1f} %")
+    print(f"  {'total (profiled)':36} {total:7.3f} s")
+
+
+def _is_ours(file: str) -> bool:
+    parts = ("catalogue.py", "schemas.py", "envelope.py", "record.py", "log.py")
+    return file.endswith(parts)
 
 
 def bench_projection(n: int, reps: int, root: Path) -> list[Event]:
@@ -293,6 +410,7 @@ def main() -> None:
     try:
         if args.only in (None, "append"):
             bench_append(args.append_events, args.reps, root)
+            bench_typed_append(args.append_events * 10, args.reps, root)
         if args.only in (None, "projection", "query"):
             events = bench_projection(args.fold_events, args.reps, root)
             if args.only != "projection":

@@ -4,6 +4,7 @@ projection plumbing. Knows nothing of robots.
 See ``docs/events.md`` for the on-disk format and the guarantees.
 """
 
+from .catalogue import Catalogue, install
 from .envelope import EVENT_ID_NAMESPACE, Event, deterministic_event_id
 from .errors import (
     CorruptLogError,
@@ -26,6 +27,7 @@ from .upcast import Upcaster, default_upcaster
 
 __all__ = [
     "EVENT_ID_NAMESPACE",
+    "Catalogue",
     "CorruptLogError",
     "DuplicateEventError",
     "Event",
@@ -49,5 +51,6 @@ __all__ = [
     "deterministic_event_id",
     "fold",
     "follow_log",
+    "install",
     "read_log",
 ]

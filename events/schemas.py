@@ -21,6 +21,7 @@ from typing import Any, Final
 from jsonschema import Draft202012Validator
 from jsonschema.exceptions import SchemaError, ValidationError, best_match
 
+from .catalogue import PayloadCheck, installed
 from .envelope import Event
 from .errors import EventStoreError, InvalidEventError
 
@@ -36,7 +37,13 @@ def schema_id(event_type: str, version: int) -> str:
 class SchemaRegistry:
     """All known (type, version) schemas, with compiled validators."""
 
-    def __init__(self, schemas: Mapping[tuple[str, int], Mapping[str, Any]]) -> None:
+    def __init__(
+        self,
+        schemas: Mapping[tuple[str, int], Mapping[str, Any]],
+        *,
+        accepts: PayloadCheck | None = None,
+    ) -> None:
+        self._accepts = accepts
         self._schemas: dict[tuple[str, int], dict[str, Any]] = {}
         self._validators: dict[tuple[str, int], Draft202012Validator] = {}
         self._latest: dict[str, int] = {}
@@ -59,7 +66,9 @@ class SchemaRegistry:
             self._latest[event_type] = max(version, self._latest.get(event_type, 0))
 
     @classmethod
-    def from_directory(cls, directory: Path | Traversable) -> SchemaRegistry:
+    def from_directory(
+        cls, directory: Path | Traversable, *, accepts: PayloadCheck | None = None
+    ) -> SchemaRegistry:
         """Load each ``<type>.v<version>.json`` file; other ``*.json`` names are errors."""
         schemas: dict[tuple[str, int], dict[str, Any]] = {}
         for entry in sorted(directory.iterdir(), key=lambda e: e.name):
@@ -80,7 +89,7 @@ class SchemaRegistry:
             if not isinstance(schema, dict):
                 raise EventStoreError(f"schema file {entry.name!r} is not a JSON object")
             schemas[match["type"], int(match["version"])] = schema
-        return cls(schemas)
+        return cls(schemas, accepts=accepts)
 
     @classmethod
     def from_package(cls) -> SchemaRegistry:
@@ -113,8 +122,13 @@ class SchemaRegistry:
         ``payload`` must hold plain JSON types (as :class:`Event` normalises them to): jsonschema
         does not count a tuple as an array.
         """
-        validator = self._validators[self._require(event_type, version)]
+        key = self._require(event_type, version)
         instance = payload if isinstance(payload, dict) else dict(payload)
+        # The catalogue's fast check (typed records) vouches for most payloads; the schema has
+        # the last word on the rest and words the error.
+        if self._accepts is not None and self._accepts(event_type, version, instance):
+            return
+        validator = self._validators[key]
         errors: list[ValidationError] = list(validator.iter_errors(instance))
         if not errors:
             return
@@ -159,8 +173,9 @@ class SchemaRegistry:
 
 @functools.cache
 def default_registry() -> SchemaRegistry:
-    """The package's schemas, loaded once per process."""
-    return SchemaRegistry.from_package()
+    """The installed catalogue's schemas (and fast check), loaded once per process."""
+    catalogue = installed()
+    return SchemaRegistry.from_directory(catalogue.schemas, accepts=catalogue.accepts)
 
 
 def _json_path(root: str, parts: Iterable[str | int]) -> str:

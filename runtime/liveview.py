@@ -20,6 +20,18 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any, Final, Protocol
 
+from objsearch.agent.catalogue import (
+    ContainerOpened,
+    Moved,
+    PlanarPose,
+    RunStarted,
+    SearchFailed,
+    TargetFound,
+    TaskEnded,
+    TaskStarted,
+    ViewTaken,
+    decode,
+)
 from objsearch.agent.geometry import Point, Pose, heading
 from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.session import HomeContext
@@ -261,8 +273,8 @@ def path_pose(points: Sequence[Point | Pose], i: int, stamp_ns: int) -> Any:
     return m.pose_stamped(Pose(p[0], p[1], yaw), stamp_ns)
 
 
-def _pose_of(doc: Mapping[str, Any]) -> Pose:
-    return Pose(float(doc["x"]), float(doc["y"]), float(doc["yaw"]))
+def _pose_of(pose: PlanarPose) -> Pose:
+    return Pose(pose.x, pose.y, pose.yaw)
 
 
 # -- the projection ----------------------------------------------------------------------------
@@ -329,9 +341,9 @@ class LiveView:
         self._send_graph(event, stamp)
 
     def _on_task_started(self, event: Event, stamp: int) -> None:
-        p = event.payload
-        self.pose = _pose_of(p["pose"])
-        self.task = _Task(event.task_id or "", str(p["target"]), route=[self._on_grid(self.pose)])
+        started = decode(event, TaskStarted)
+        self.pose = _pose_of(started.pose)
+        self.task = _Task(event.task_id or "", started.target, route=[self._on_grid(self.pose)])
         self.task.route_poses = [path_pose(self.task.route, 0, stamp)]
         self._send(ROBOT, stamp, m.pose_stamped(self.pose, stamp))
         self._send(ROUTE, stamp, path(self.task.route, stamp))
@@ -367,7 +379,8 @@ class LiveView:
         self._send_graph(event, stamp)
 
     def _on_moved(self, event: Event, stamp: int) -> None:
-        start, end = _pose_of(event.payload["start"]), _pose_of(event.payload["end"])
+        moved = decode(event, Moved)
+        start, end = _pose_of(moved.start), _pose_of(moved.end)
         self.pose = end
         if self.task is not None:
             a, b = self._on_grid(start), self._on_grid(end)
@@ -387,7 +400,9 @@ class LiveView:
         self._send(ROBOT, stamp, m.pose_stamped(end, stamp))
 
     def _on_view_taken(self, event: Event, stamp: int) -> None:
-        self.pose = _pose_of(event.payload["pose"])
+        looked = decode(event)
+        assert isinstance(looked, ViewTaken | ContainerOpened)
+        self.pose = _pose_of(looked.pose)
         self._send(ROBOT, stamp, m.pose_stamped(self.pose, stamp))
 
     def _on_container_opened(self, event: Event, stamp: int) -> None:
@@ -408,7 +423,7 @@ class LiveView:
 
     def _on_target_found(self, event: Event, stamp: int) -> None:
         if self.task is not None:
-            self.task.found = str(event.payload["instance_id"])
+            self.task.found = decode(event, TargetFound).instance_id
             self.task.status = "found"
             self.task.detection_markers.clear()  # the found one changes colour: redraw
             self._send(DETECTION_MARKERS, stamp, self._detection_markers(stamp))
@@ -416,14 +431,14 @@ class LiveView:
 
     def _on_search_failed(self, event: Event, stamp: int) -> None:
         if self.task is not None:
-            self.task.status = f"failed: {event.payload['reason']}"
+            self.task.status = f"failed: {decode(event, SearchFailed).reason}"
         self._send_graph(event, stamp)
 
     def _on_task_ended(self, event: Event, stamp: int) -> None:
         # The graph has folded the task's experience (Eq. 4) by now: show the updated values.
         if self.task is not None and self.task.status == "searching":
             self.task.status = "ended"
-        self._send_graph(event, stamp, path_length=float(event.payload["path_length"]))
+        self._send_graph(event, stamp, path_length=decode(event, TaskEnded).path_length)
 
     # -- helpers ------------------------------------------------------------------------------
 
@@ -510,7 +525,8 @@ def render(
     view: LiveView | None = None
     for event in events:
         if event.type == "run_started":
-            home = str(event.payload["home"])
+            spec = decode(event, RunStarted)
+            home = spec.home
             if view is not None and view.ctx.home.name != home:
                 raise ObjsearchError(
                     f"event {event.seq}: the log changes home from {view.ctx.home.name!r} "
@@ -518,12 +534,12 @@ def render(
                 )
             if view is None:
                 ctx = load_context(home)
-                if ctx.home.digest != event.payload["home_digest"]:
+                if ctx.home.digest != spec.home_digest:
                     log.warning(
                         "home %r has changed since the log was written (digest %s, now %s): "
                         "the map drawn is today's",
                         home,
-                        event.payload["home_digest"],
+                        spec.home_digest,
                         ctx.home.digest,
                     )
                 view = LiveView(ctx, sinks, clock_offset_ns=clock_offset_ns)

@@ -12,6 +12,7 @@ import pytest
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
+from objsearch.agent.upcasters import STEPS
 from objsearch.events import (
     Event,
     EventLog,
@@ -23,7 +24,6 @@ from objsearch.events import (
     fold,
     read_log,
 )
-from objsearch.events.upcast import STEPS
 from objsearch.sim.placements import Schedule
 from objsearch.sim.world import SimClock, SimWorld
 

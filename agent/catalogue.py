@@ -1,0 +1,369 @@
+"""The domain's event catalogue: one typed record per event type and version, and the codec.
+
+Each record is a frozen ``msgspec.Struct`` whose fields are exactly its JSON Schema's
+(``events/schema/<type>.v<version>.json``; ``tests/agent/test_catalogue.py`` checks every field,
+type, nullability, enum and bound against the schema files). Records are built with keywords and
+are immutable. :func:`encode` turns one into the payload dict the log stores; :func:`decode` turns
+an event (latest version, as ``read_log`` upcasts it) back into its record, validating it on the
+way. The upcast steps for old versions live in :mod:`objsearch.agent.upcasters`;
+:data:`CATALOGUE` hands both to the event store (:mod:`objsearch.events.catalogue`).
+
+Why msgspec rather than frozen dataclasses: ``msgspec.convert`` checks a payload dict against the
+record's types and bounds in C, about as strict as the JSON Schema (no coercion of strings to
+numbers, unknown fields refused) and one to two orders of magnitude faster than ``jsonschema``,
+which lets the store trust it instead of the schema validator (see ``docs/events.md``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from importlib import resources
+from typing import (
+    Annotated,
+    Any,
+    ClassVar,
+    Final,
+    Literal,
+    Protocol,
+    TypeAlias,
+    TypeVar,
+    overload,
+)
+
+import msgspec
+
+from objsearch.agent.upcasters import STEPS
+from objsearch.events.catalogue import Catalogue
+from objsearch.events.errors import InvalidEventError
+
+NonNegative: TypeAlias = Annotated[float, msgspec.Meta(ge=0)]
+Probability: TypeAlias = Annotated[float, msgspec.Meta(ge=0, le=1)]
+Positive: TypeAlias = Annotated[float, msgspec.Meta(gt=0)]
+XY: TypeAlias = tuple[float, float]
+XYZ: TypeAlias = tuple[float, float, float]
+Box: TypeAlias = tuple[float, float, float, float]
+
+
+class Record(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """A payload of one event type and version (``TYPE``, ``VERSION``)."""
+
+    TYPE: ClassVar[str]
+    VERSION: ClassVar[int]
+
+
+class Part(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """A nested object of a payload."""
+
+
+class PlanarPose(Part, frozen=True):
+    """Planar robot pose in the map frame (REP-103): metres, yaw in radians from +x."""
+
+    x: float
+    y: float
+    yaw: float
+
+
+class Support(Part, frozen=True):
+    static_id: str
+    static_class: str
+    at: bool
+
+
+class Candidate(Part, frozen=True):
+    static_id: str
+    static_class: str
+    viewpoint: XY
+    rel: Probability
+
+
+class Detection2D(Part, frozen=True):
+    instance_id: str
+    class_id: str
+    score: float
+    bbox: Box
+    position: XYZ | None
+
+
+class RelationsSpec(Part, frozen=True):
+    model: Literal["eq4", "beta"]
+    prior_strength: Positive | None
+    half_life_tasks: Positive | None
+
+
+class SeedValue(Part, frozen=True):
+    dynamic: str
+    static: str
+    rel: Probability
+
+
+class ContainerOpened(Record, frozen=True):
+    TYPE: ClassVar[str] = "container_opened"
+    VERSION: ClassVar[int] = 1
+    static_id: str
+    pose: PlanarPose
+
+
+class DetectionV1(Record, frozen=True):
+    TYPE: ClassVar[str] = "detection"
+    VERSION: ClassVar[int] = 1
+    object_class: str
+    instance_id: str
+    mask_area: NonNegative
+    position: XYZ
+    accepted: bool
+    nearest_static_id: str | None
+    nearest_static_class: str | None
+    at_static: bool
+
+
+class Detected(Record, frozen=True):
+    TYPE: ClassVar[str] = "detection"
+    VERSION: ClassVar[int] = 2
+    object_class: str
+    instance_id: str
+    mask_area: NonNegative
+    position: XYZ
+    accepted: bool
+    support: Support | None
+
+
+class Moved(Record, frozen=True):
+    TYPE: ClassVar[str] = "moved"
+    VERSION: ClassVar[int] = 1
+    start: PlanarPose
+    end: PlanarPose
+    metres: NonNegative
+    rooms: tuple[str, ...]
+    interrupted: bool
+
+
+class ObjectsDetected(Record, frozen=True):
+    TYPE: ClassVar[str] = "objects_detected"
+    VERSION: ClassVar[int] = 1
+    frame_id: str
+    topic: str
+    detections: tuple[Detection2D, ...]
+
+
+class PlanComputed(Record, frozen=True):
+    TYPE: ClassVar[str] = "plan_computed"
+    VERSION: ClassVar[int] = 1
+    room: str
+    room_order: tuple[str, ...]
+    objective: str
+    alpha: float
+    candidates: tuple[Candidate, ...]
+    order: tuple[str, ...]
+    terms: tuple[float, ...]
+    value: float
+
+
+class PoseObserved(Record, frozen=True):
+    TYPE: ClassVar[str] = "pose_observed"
+    VERSION: ClassVar[int] = 1
+    pose: PlanarPose
+    frame_id: str
+    topic: str
+
+
+class RunStartedV1(Record, frozen=True):
+    TYPE: ClassVar[str] = "run_started"
+    VERSION: ClassVar[int] = 1
+    home: str
+    home_digest: str
+    method: Literal["wpl", "rvp", "sdp", "epl"]
+    alpha: NonNegative
+    update_mode: Literal["none", "targets", "all"]
+    seed: int
+    params: dict[str, Any]
+
+
+class RunStarted(Record, frozen=True):
+    TYPE: ClassVar[str] = "run_started"
+    VERSION: ClassVar[int] = 2
+    home: str
+    home_digest: str
+    strategy: str
+    method: Literal["wpl", "rvp", "sdp"]
+    planner: Literal["wpl", "rvp", "sdp", "epl"]
+    relations: RelationsSpec
+    alpha: NonNegative
+    update_mode: Literal["none", "targets", "all"]
+    seed: int
+    support_radius: NonNegative
+    schedule: str | None
+    params: dict[str, Any]
+
+
+class SceneGraphSeeded(Record, frozen=True):
+    TYPE: ClassVar[str] = "scene_graph_seeded"
+    VERSION: ClassVar[int] = 1
+    source: str
+    values: tuple[SeedValue, ...]
+
+
+class SearchFailed(Record, frozen=True):
+    TYPE: ClassVar[str] = "search_failed"
+    VERSION: ClassVar[int] = 1
+    reason: str
+
+
+class TargetFound(Record, frozen=True):
+    TYPE: ClassVar[str] = "target_found"
+    VERSION: ClassVar[int] = 1
+    instance_id: str
+    position: XYZ
+    approach: PlanarPose
+
+
+class TaskAborted(Record, frozen=True):
+    TYPE: ClassVar[str] = "task_aborted"
+    VERSION: ClassVar[int] = 1
+    target: str
+    reason: str
+    path_length: NonNegative
+
+
+class TaskEnded(Record, frozen=True):
+    TYPE: ClassVar[str] = "task_ended"
+    VERSION: ClassVar[int] = 1
+    target: str
+    success: bool
+    path_length: NonNegative
+
+
+class TaskStarted(Record, frozen=True):
+    TYPE: ClassVar[str] = "task_started"
+    VERSION: ClassVar[int] = 1
+    target: str
+    start: str
+    pose: PlanarPose
+    scene: int | None
+
+
+class ViewTaken(Record, frozen=True):
+    TYPE: ClassVar[str] = "view_taken"
+    VERSION: ClassVar[int] = 1
+    pose: PlanarPose
+    static_id: str | None
+    reason: Literal["look", "inside", "on_the_way"]
+
+
+#: Every record, old versions included, by (type, version).
+RECORDS: Final[Mapping[tuple[str, int], type[Record]]] = {
+    (r.TYPE, r.VERSION): r
+    for r in (
+        ContainerOpened,
+        DetectionV1,
+        Detected,
+        Moved,
+        ObjectsDetected,
+        PlanComputed,
+        PoseObserved,
+        RunStartedV1,
+        RunStarted,
+        SceneGraphSeeded,
+        SearchFailed,
+        TargetFound,
+        TaskAborted,
+        TaskEnded,
+        TaskStarted,
+        ViewTaken,
+    )
+}
+#: The record of each type's latest version: what :func:`decode` returns for that type.
+LATEST: Final[Mapping[str, type[Record]]] = {
+    t: RECORDS[t, max(v for tt, v in RECORDS if tt == t)] for t, _ in RECORDS
+}
+
+R = TypeVar("R", bound=Record)
+_json_encode: Final = msgspec.json.Encoder().encode
+_json_decode: Final = msgspec.json.Decoder(dict[str, Any]).decode
+
+
+class _Typed(Protocol):
+    """What :func:`decode` reads: an :class:`~objsearch.events.Event` or any event-like."""
+
+    @property
+    def type(self) -> str: ...
+    @property
+    def payload(self) -> Mapping[str, Any]: ...
+
+
+def encode(record: Record) -> dict[str, Any]:
+    """The payload dict of ``record`` (JSON types only: tuples become lists)."""
+    # to_builtins keeps tuples; the JSON round trip (both halves in C) gives what a reader gets.
+    payload: dict[str, Any] = _json_decode(_json_encode(record))
+    return payload
+
+
+@overload
+def decode(event: _Typed, as_type: type[R]) -> R: ...
+@overload
+def decode(event: _Typed, as_type: None = None) -> Record: ...
+def decode(event: _Typed, as_type: type[R] | None = None) -> Record:
+    """The record of an event at its type's latest version (read through ``read_log``).
+
+    With ``as_type``, the event must be of that record's type: a reader that already matched on
+    ``event.type`` gets the precise class back. Raises :class:`InvalidEventError` on a payload
+    that does not fit the record (the log validated it, so this means a schema/record mismatch).
+    """
+    record_type = LATEST.get(event.type) if as_type is None else as_type
+    if record_type is None or event.type != record_type.TYPE:
+        raise InvalidEventError(
+            f"no record for event type {event.type!r}"
+            + ("" if as_type is None else f" as {as_type.__name__}"),
+            event_type=event.type,
+            reason="no record",
+        )
+    return _convert(record_type, event.payload)
+
+
+def decode_payload(record_type: type[R], payload: Mapping[str, Any]) -> R:
+    """``payload`` (of ``record_type``'s type and version) as that record."""
+    return _convert(record_type, payload)
+
+
+def _convert(record_type: type[R], payload: Mapping[str, Any]) -> R:
+    try:
+        return msgspec.convert(
+            payload if type(payload) is dict else dict(payload), record_type, strict=True
+        )
+    except msgspec.ValidationError as exc:
+        where = f"{record_type.TYPE} v{record_type.VERSION}"
+        raise InvalidEventError(
+            f"invalid {where} event: {exc}",
+            event_type=record_type.TYPE,
+            version=record_type.VERSION,
+            reason=str(exc),
+        ) from exc
+
+
+def accepts(event_type: str, version: int, payload: Mapping[str, Any]) -> bool:
+    """Whether ``payload`` fits its record: the store's fast check before ``jsonschema``.
+
+    True means valid (the agreement test holds the records to their schemas); False means "not
+    known valid": the store then asks the JSON Schema, which has the last word and the error text.
+    """
+    record_type = RECORDS.get((event_type, version))
+    if record_type is None:
+        return False
+    try:
+        msgspec.convert(
+            payload if type(payload) is dict else dict(payload), record_type, strict=True
+        )
+    except msgspec.ValidationError:
+        return False
+    return True
+
+
+def _catalogue() -> Catalogue:
+    return Catalogue(
+        schemas=resources.files("objsearch.events").joinpath("schema"),
+        upcasters=STEPS,
+        accepts=accepts,
+    )
+
+
+#: The domain's catalogue: the schema files, the upcasters and the records' fast check.
+CATALOGUE: Final = _catalogue()

@@ -1,0 +1,62 @@
+"""Upcast steps of the domain's events: a version-N payload → the version-N+1 payload.
+
+Steps are pure functions on plain dicts (the store deep-copies the payload first) and are
+append-only, like the schema files: a released version's step never changes. The store chains
+them on read (:class:`objsearch.events.upcast.Upcaster`), so readers only see latest versions.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from types import MappingProxyType
+from typing import Any, Final
+
+from objsearch.events.catalogue import UpcastStep
+
+
+def detection_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
+    # v1 had three loose fields that could disagree (a class without an id); v2 makes "the nearest
+    # static object, or none" one nullable object.
+    static_id = payload.pop("nearest_static_id")
+    static_class = payload.pop("nearest_static_class")
+    at_static = payload.pop("at_static")
+    if static_id is None or static_class is None:
+        payload["support"] = None
+    else:
+        payload["support"] = {"static_id": static_id, "static_class": static_class, "at": at_static}
+    return payload
+
+
+def run_started_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
+    # What a v1 run *was*, with the defaults of the code that wrote it. v1 recorded the method and
+    # α; bench runs put the strategy's name in params; the Beta model's parameters were constants
+    # of that code (prior strength 2, half-life 64 tasks) and are frozen here, so a v1 log folds
+    # as it did whatever today's registry (objsearch.agent.strategies) says.
+    params = dict(payload.pop("params"))
+    name = params.pop("strategy", None)
+    method = payload["method"]
+    relations: dict[str, Any] = {"model": "eq4", "prior_strength": None, "half_life_tasks": None}
+    if name in ("wpl-neg", "wpl-neg-decay", "epl-neg-decay"):
+        half_life = None if name == "wpl-neg" else 64.0
+        relations = {"model": "beta", "prior_strength": 2.0, "half_life_tasks": half_life}
+    planner = "epl" if name in ("epl", "epl-neg-decay") or method == "epl" else method
+    if method == "epl":  # v1 allowed it as a method; its rooms were ordered as WPL's
+        payload["method"] = "wpl"
+    payload["strategy"] = name if isinstance(name, str) else method
+    payload["planner"] = planner
+    payload["relations"] = relations
+    radius = params.pop("support_radius", 0.5)
+    payload["support_radius"] = float(radius) if isinstance(radius, int | float) else 0.5
+    schedule = params.pop("schedule", None)
+    payload["schedule"] = schedule if isinstance(schedule, str) else None
+    payload["params"] = params
+    return payload
+
+
+#: (type, from_version) → step to from_version + 1. Append-only, like the schema files.
+STEPS: Final[Mapping[tuple[str, int], UpcastStep]] = MappingProxyType(
+    {
+        ("detection", 1): detection_v1_to_v2,
+        ("run_started", 1): run_started_v1_to_v2,
+    }
+)
