@@ -216,6 +216,15 @@ class TargetFound(Record, frozen=True):
     approach: PlanarPose
 
 
+class TargetDetected(Record, frozen=True):
+    TYPE: ClassVar[str] = "target_detected"
+    VERSION: ClassVar[int] = 1
+    instance_id: str
+    position: XYZ
+    pose: PlanarPose
+    path_length: NonNegative
+
+
 class TaskAborted(Record, frozen=True):
     TYPE: ClassVar[str] = "task_aborted"
     VERSION: ClassVar[int] = 1
@@ -265,6 +274,7 @@ RECORDS: Final[Mapping[tuple[str, int], type[Record]]] = {
         SceneGraphSeeded,
         SearchFailed,
         TargetFound,
+        TargetDetected,
         TaskAborted,
         TaskEnded,
         TaskStarted,
