@@ -64,11 +64,21 @@ def _run_started_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
     return payload
 
 
+def _run_started_v2_to_v3(payload: dict[str, Any]) -> dict[str, Any]:
+    # v3 added a room order (ecost) and relation models (memory, dist-oracle) with one parameter
+    # of their own; a v2 run used none of them.
+    relations = dict(payload["relations"])
+    relations["recent_weight"] = None
+    payload["relations"] = relations
+    return payload
+
+
 #: (type, from_version) → step to from_version + 1. Append-only, like the schema files.
 STEPS: Final[Mapping[tuple[str, int], UpcastStep]] = MappingProxyType(
     {
         ("detection", 1): _detection_v1_to_v2,
         ("run_started", 1): _run_started_v1_to_v2,
+        ("run_started", 2): _run_started_v2_to_v3,
     }
 )
 

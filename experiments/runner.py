@@ -16,7 +16,9 @@ from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
 from objsearch.agent.strategies import RunSpec
-from objsearch.sim.longterm import TARGET_ORDER, run_schedule, scenes_of
+from objsearch.events.log import read_log
+from objsearch.experiments.decompose import Excess, decompose
+from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule, scenes_of
 
 TARGETS = TARGET_ORDER
 
@@ -55,6 +57,11 @@ class Row:
     oracle_length: float
     task_id: str
     route: tuple[tuple[float, float], ...] = field(default=(), compare=False)
+    #: Where the excess over the oracle went (experiments/decompose.py); None for a failed search.
+    wrong_rooms_m: float | None = None
+    start_room_m: float | None = None
+    right_room_m: float | None = None
+    approach_m: float | None = None
 
     def record(self) -> dict[str, object]:
         d = asdict(self)
@@ -84,25 +91,31 @@ def run_job(job: Job) -> list[Row]:
             skip_absent_targets=True,
             keep_routes=job.keep_routes,
         )
-    return [
-        Row(
-            job.experiment,
-            job.home,
-            job.placements,
-            job.strategy,
-            job.update_mode,
-            job.seed,
-            t.scene,
-            t.target,
-            t.start,
-            t.success,
-            round(t.path_length, 4),
-            round(t.oracle_length, 4),
-            t.task_id,
-            tuple((p.x, p.y) for p in t.route),
-        )
-        for t in trials
-    ]
+        parts = decompose(read_log(Path(job.log_dir) if job.log_dir else Path(tmp)), ctx.navmap)
+    return [_row(job, t, parts.get(t.task_id)) for t in trials]
+
+
+def _row(job: Job, t: Trial, excess: Excess | None) -> Row:
+    return Row(
+        job.experiment,
+        job.home,
+        job.placements,
+        job.strategy,
+        job.update_mode,
+        job.seed,
+        t.scene,
+        t.target,
+        t.start,
+        t.success,
+        round(t.path_length, 4),
+        round(t.oracle_length, 4),
+        t.task_id,
+        tuple((p.x, p.y) for p in t.route),
+        None if excess is None else round(excess.wrong_rooms, 4),
+        None if excess is None else round(excess.start_room, 4),
+        None if excess is None else round(excess.right_room(t.oracle_length), 4),
+        None if excess is None else round(excess.approach, 4),
+    )
 
 
 def _count(job: Job) -> int:
