@@ -13,7 +13,13 @@ from typing import Any
 
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import available_homes
-from objsearch.experiments.learning import learning_summary, plot_curves, render_learning
+from objsearch.experiments.learning import (
+    learning_summary,
+    paired_bootstrap,
+    plot_curves,
+    render_learning,
+    render_paired,
+)
 from objsearch.experiments.metrics import mean_std, summarise
 from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, write_rows
 from objsearch.experiments.strategies import STRATEGIES, strategy
@@ -223,8 +229,10 @@ def run_homes(
     summary["strategies"] = {k: {m: s[m] for m in keys} for k, s in summary["overall"].items()}
     learning = learning_summary(rows)
     summary["learning"] = learning
+    summary["paired_vs_wpl"] = paired_bootstrap(rows) if "wpl" in strategies else {}
     summary["plots"] = [p.name for p in plot_curves(learning, out)]
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-    tables = render(summary) + "\n" + render_learning(learning) + "\n"
+    tables = render(summary) + "\n" + render_learning(learning)
+    tables += "\n" + render_paired(summary["paired_vs_wpl"]) + "\n"
     (out / "tables.txt").write_text(tables, encoding="utf-8")
     return summary

@@ -77,6 +77,51 @@ def learning_summary(rows: Sequence[Row], *, after: int = 10) -> dict[str, Any]:
     return out
 
 
+def render_paired(paired: dict[str, dict[str, float]], base: str = "wpl") -> str:
+    lines = [
+        f"\npath length minus {base}'s, per (home, schedule) run (m), paired bootstrap 95 % CI"
+    ]
+    for k, d in paired.items():
+        lines.append(
+            f"  {k:22}{d['mean_diff_m']:+8.2f}  [{d['ci_low']:+.2f}, {d['ci_high']:+.2f}]"
+            f"  runs {d['runs']:g}"
+        )
+    return "\n".join(lines)
+
+
+def paired_bootstrap(
+    rows: Sequence[Row], *, base: str = "wpl", resamples: int = 10_000, seed: int = 0
+) -> dict[str, dict[str, float]]:
+    """Per strategy: the mean over (home, schedule) runs of (its run mean path − ``base``'s), with
+    a paired bootstrap 95 % CI over runs (resampling runs with replacement, seeded)."""
+    import random
+
+    means: dict[tuple[str, str, str], list[float]] = {}
+    for r in rows:
+        means.setdefault((key(r), r.home, r.placements), []).append(r.path_length)
+    run_mean = {k: math.fsum(v) / len(v) for k, v in means.items()}
+    out: dict[str, dict[str, float]] = {}
+    rng = random.Random(seed)
+    for k in dict.fromkeys(key(r) for r in rows):
+        diffs = [
+            m - run_mean[(base, home, spec)]
+            for (kk, home, spec), m in sorted(run_mean.items())
+            if kk == k and (base, home, spec) in run_mean
+        ]
+        if not diffs or k == base:
+            continue
+        boot = sorted(
+            math.fsum(rng.choice(diffs) for _ in diffs) / len(diffs) for _ in range(resamples)
+        )
+        out[k] = {
+            "runs": len(diffs),
+            "mean_diff_m": math.fsum(diffs) / len(diffs),
+            "ci_low": boot[int(0.025 * resamples)],
+            "ci_high": boot[int(0.975 * resamples) - 1],
+        }
+    return out
+
+
 def render_learning(summary: dict[str, Any], *, after: int = 10) -> str:
     lines: list[str] = []
     for kind, per in summary.items():
