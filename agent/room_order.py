@@ -1,7 +1,7 @@
 """Room choice by expected cost: which room to search first, second, … (and whether the start room
 comes first at all), over all orders at once.
 
-The model (docs/paper-readings.md, "Room order by expected cost"): the target is at exactly one
+The model (a reading beyond the paper; not yet in docs/paper-readings.md): the target is at exactly one
 candidate stop, with probability ∝ its relation value, so room r holds it with P(r) = its share.
 Searching room r costs its *tour* t_r — a nearest-neighbour walk from where the room is entered
 (its door; the robot's position for the start room) through its stops — plus the walk to its door
