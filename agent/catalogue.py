@@ -84,10 +84,17 @@ class Detection2D(Part, frozen=True):
     position: XYZ | None
 
 
-class RelationsSpec(Part, frozen=True):
+class RelationsSpecV2(Part, frozen=True):
     model: Literal["eq4", "beta"]
     prior_strength: Positive | None
     half_life_tasks: Positive | None
+
+
+class RelationsSpec(Part, frozen=True):
+    model: Literal["eq4", "beta", "memory", "dist-oracle"]
+    prior_strength: Positive | None
+    half_life_tasks: Positive | None
+    recent_weight: NonNegative | None
 
 
 class SeedValue(Part, frozen=True):
@@ -178,13 +185,30 @@ class RunStartedV1(Record, frozen=True):
     params: dict[str, Any]
 
 
-class RunStarted(Record, frozen=True):
+class RunStartedV2(Record, frozen=True):
     TYPE: ClassVar[str] = "run_started"
     VERSION: ClassVar[int] = 2
     home: str
     home_digest: str
     strategy: str
     method: Literal["wpl", "rvp", "sdp"]
+    planner: Literal["wpl", "rvp", "sdp", "epl"]
+    relations: RelationsSpecV2
+    alpha: NonNegative
+    update_mode: Literal["none", "targets", "all"]
+    seed: int
+    support_radius: NonNegative
+    schedule: str | None
+    params: dict[str, Any]
+
+
+class RunStarted(Record, frozen=True):
+    TYPE: ClassVar[str] = "run_started"
+    VERSION: ClassVar[int] = 3
+    home: str
+    home_digest: str
+    strategy: str
+    method: Literal["wpl", "rvp", "sdp", "ecost"]
     planner: Literal["wpl", "rvp", "sdp", "epl"]
     relations: RelationsSpec
     alpha: NonNegative
@@ -270,6 +294,7 @@ RECORDS: Final[Mapping[tuple[str, int], type[Record]]] = {
         PlanComputed,
         PoseObserved,
         RunStartedV1,
+        RunStartedV2,
         RunStarted,
         SceneGraphSeeded,
         SearchFailed,

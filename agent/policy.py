@@ -27,7 +27,8 @@ from objsearch.agent.planner import (
     StopPlanner,
     WplPlanner,
 )
-from objsearch.agent.relations import RelationModel
+from objsearch.agent.relations import RelationModel, instance_value, per_instance
+from objsearch.agent.room_order import expected_cost_order
 from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.semmap import MappedStatic, SemanticMap
 from objsearch.agent.world import Detection, Navigation, World
@@ -41,6 +42,7 @@ class Method(enum.Enum):
     WPL = "wpl"  # the paper's method: rooms by Σ Rel, objects by minimum WPL (α = 10)
     RVP = "rvp"  # relation value priority: rooms by Σ Rel, objects by Rel
     SDP = "sdp"  # shortest distance priority: random rooms, objects by WPL with α = 0
+    ECOST = "ecost"  # ours: rooms by minimum expected cost over all orders (agent/room_order.py)
 
 
 @dataclass(frozen=True)
@@ -150,6 +152,19 @@ def _round_vec(v: Sequence[float]) -> list[float]:
     return [round(float(c), 4) for c in v]
 
 
+def stop_value(graph: RelationModel, target: str, statics: Sequence[MappedStatic]) -> float:
+    """A stop's value: Rel(target, class), or, for a per-instance model, the summed values of its
+    instances (capped at 1). The one rule; the agent and the audit both use it."""
+    if not per_instance(graph):
+        return graph.rel(target, statics[0].cls)
+    return min(1.0, math.fsum(instance_value(graph, target, s.id, s.cls) for s in statics))
+
+
+def stop_statics(semmap: SemanticMap, room: str, key: MappedStatic) -> list[MappedStatic]:
+    """The statics grouped into the stop whose first instance is ``key``."""
+    return [s for s in semmap.in_room(room) if s.viewpoint == key.viewpoint and s.cls == key.cls]
+
+
 class SearchAgent:
     """Runs one search task after another in a world, recording every step."""
 
@@ -180,14 +195,18 @@ class SearchAgent:
     # -- planning -----------------------------------------------------------------------------
 
     def stops(self, room: str, target: str) -> list[Stop]:
-        """Static objects related to the target (Rel > 0), grouped by (viewpoint, class)."""
+        """Static objects related to the target (value > 0), grouped by (viewpoint, class).
+
+        A stop's value is Rel(target, class), or, for a model with per-instance values
+        (:class:`~objsearch.agent.relations.InstanceRelations`), the sum over its instances
+        (capped at 1)."""
         groups: dict[tuple[Point, str], list[MappedStatic]] = {}
         for s in self.semmap.in_room(room):
-            if self.graph.rel(target, s.cls) > 0:
+            if instance_value(self.graph, target, s.id, s.cls) > 0:
                 groups.setdefault((s.viewpoint, s.cls), []).append(s)
         stops = [
-            Stop(tuple(sorted(g, key=lambda s: s.id)), self.graph.rel(target, cls))
-            for (_, cls), g in groups.items()
+            Stop(tuple(sorted(g, key=lambda s: s.id)), stop_value(self.graph, target, g))
+            for g in groups.values()
         ]
         return sorted(stops, key=lambda st: st.key)
 
@@ -196,7 +215,19 @@ class SearchAgent:
         classes = {s.cls for s in self.semmap.in_room(room)}
         return math.fsum(self.graph.rel(target, c) for c in sorted(classes))
 
-    def room_order(self, start_room: str, target: str, task_id: str) -> list[str]:
+    def room_order(
+        self, start_room: str, target: str, task_id: str, *, here: Point | None = None
+    ) -> list[str]:
+        """Rooms in search order; ``here`` (the start pose) matters to the expected-cost order."""
+        if self.config.method is Method.ECOST:
+            return expected_cost_order(
+                self.rooms,
+                start_room,
+                here or self.navmap.doors[start_room],
+                self.navmap.doors,
+                {r: [(s.viewpoint, s.rel) for s in self.stops(r, target)] for r in self.rooms},
+                self.navmap.distance,
+            )
         rest = [r for r in self.rooms if r != start_room]
         if self.config.method is Method.SDP:
             random.Random(f"{self.config.seed}:{task_id}").shuffle(rest)
@@ -266,7 +297,7 @@ class SearchAgent:
             {"target": target, "start": start, "pose": pose.as_dict(), "scene": scene},
         )
         start_room = self.navmap.room_at(pose.x, pose.y)
-        rooms = self.room_order(start_room, target, task_id)
+        rooms = self.room_order(start_room, target, task_id, here=pose.point)
         found: _Found | None = None
         room_stops = {room: self.stops(room, target) for room in rooms}
         for i, room in enumerate(rooms):

@@ -195,3 +195,22 @@ class BetaRelations:
         for (d, s), value in self.relations.items():
             table.setdefault(d, {})[s] = value
         return table
+
+
+class InstanceRelations(Protocol):
+    """A relation model that also values each static *instance* (the memory, the distribution
+    oracle): the planner then weighs a stop by its instances, not by their class."""
+
+    def instance_rel(self, dynamic: str, static_id: str, static_class: str) -> float: ...
+
+
+def per_instance(model: object) -> bool:
+    return callable(getattr(model, "instance_rel", None))
+
+
+def instance_value(model: RelationModel, dynamic: str, static_id: str, static_class: str) -> float:
+    """The instance's value under ``model``: its own for an instance model, else its class's Rel."""
+    if per_instance(model):
+        own: InstanceRelations = model  # type: ignore[assignment]
+        return own.instance_rel(dynamic, static_id, static_class)
+    return model.rel(dynamic, static_class)

@@ -41,7 +41,12 @@ HALF_LIFE_TASKS = 64.0
 DEFAULT_ALPHA = 10.0
 DEFAULT_SUPPORT_RADIUS = 0.5
 
-RELATION_MODELS = ("eq4", "beta")
+#: The memory model's recent evidence: half-life 8 tasks (one target's eight searches of a scene)
+#: and weight 10 against long-run counts. Fixed a priori (docs/results.md), not tuned.
+MEMORY_HALF_LIFE_TASKS = 8.0
+MEMORY_RECENT_WEIGHT = 10.0
+
+RELATION_MODELS = ("eq4", "beta", "memory", "dist-oracle")
 PLANNERS = ("wpl", "rvp", "sdp", "epl")
 
 
@@ -52,18 +57,39 @@ class RelationSpec:
     model: str = "eq4"
     prior_strength: float | None = None
     half_life_tasks: float | None = None
+    recent_weight: float | None = None
 
     def __post_init__(self) -> None:
         if self.model not in RELATION_MODELS:
             raise ObjsearchError(
                 f"unknown relation model {self.model!r}; known: {', '.join(RELATION_MODELS)}"
             )
-        if self.model == "beta" and not (self.prior_strength and self.prior_strength > 0):
-            raise ObjsearchError("the beta relation model needs a prior strength > 0")
+        if self.model in ("beta", "memory") and not (
+            self.prior_strength and self.prior_strength > 0
+        ):
+            raise ObjsearchError(f"the {self.model} relation model needs a prior strength > 0")
+        if self.model == "memory" and (
+            self.half_life_tasks is None or self.recent_weight is None or self.recent_weight < 0
+        ):
+            raise ObjsearchError("the memory model needs a half-life and a recent weight >= 0")
         if self.half_life_tasks is not None and self.half_life_tasks <= 0:
             raise ObjsearchError(f"half-life must be positive, got {self.half_life_tasks}")
 
     def build(self) -> RelationModel:
+        if self.model == "memory":
+            from objsearch.agent.memory import InstanceMemory
+
+            assert self.prior_strength is not None and self.half_life_tasks is not None
+            return InstanceMemory(
+                prior_strength=self.prior_strength,
+                half_life_tasks=self.half_life_tasks,
+                recent_weight=self.recent_weight or 0.0,
+            )
+        if self.model == "dist-oracle":
+            # A reference searcher, never a default: it reads the run's schedule generator.
+            from objsearch.sim.distribution_oracle import DistributionOracle
+
+            return DistributionOracle()
         if self.model == "beta":
             assert self.prior_strength is not None
             return BetaRelations(
@@ -76,14 +102,19 @@ class RelationSpec:
             "model": self.model,
             "prior_strength": self.prior_strength,
             "half_life_tasks": self.half_life_tasks,
+            "recent_weight": self.recent_weight,
         }
 
     @classmethod
     def from_payload(cls, doc: Mapping[str, Any]) -> RelationSpec:
-        return cls(doc["model"], doc["prior_strength"], doc["half_life_tasks"])
+        # Snapshots of v2 runs hold relations without recent_weight.
+        return cls(
+            doc["model"], doc["prior_strength"], doc["half_life_tasks"], doc.get("recent_weight")
+        )
 
 
 EQ4 = RelationSpec()
+MEMORY = RelationSpec("memory", PRIOR_STRENGTH, MEMORY_HALF_LIFE_TASKS, MEMORY_RECENT_WEIGHT)
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,6 +131,11 @@ class Strategy:
     @property
     def planner_name(self) -> str:
         return self.planner or self.method.value
+
+    @property
+    def reference(self) -> bool:
+        """A reference searcher that knows what a robot cannot (never a default)."""
+        return self.relations.model == "dist-oracle"
 
     @property
     def randomised(self) -> bool:
@@ -140,6 +176,30 @@ STRATEGIES: dict[str, Strategy] = {
             "expected-path-length planner on the Beta posterior with decay",
             False,
             _beta(HALF_LIFE_TASKS),
+            "epl",
+        ),
+        Strategy(
+            "ecost",
+            Method.ECOST,
+            "rooms by minimum expected cost (exact DP), stops by EPL, Eq. 4 updates",
+            False,
+            EQ4,
+            "epl",
+        ),
+        Strategy(
+            "ecost-memory",
+            Method.ECOST,
+            "rooms by expected cost, stops by EPL, on a per-instance memory",
+            False,
+            MEMORY,
+            "epl",
+        ),
+        Strategy(
+            "dist-oracle",
+            Method.ECOST,
+            "REFERENCE: knows the schedule's placement distribution (not today's draw)",
+            False,
+            RelationSpec("dist-oracle"),
             "epl",
         ),
     )
@@ -243,7 +303,7 @@ class RunSpec:
         return WplPlanner(alpha=alpha, name=self.planner)
 
     def payload(self) -> dict[str, Any]:
-        """``run_started`` v2."""
+        """``run_started`` v3."""
         return {
             "home": self.home,
             "home_digest": self.home_digest,
@@ -261,7 +321,7 @@ class RunSpec:
 
     @classmethod
     def from_payload(cls, p: Mapping[str, Any]) -> RunSpec:
-        """From ``run_started`` v2 (older versions are upcast by ``read_log``)."""
+        """From ``run_started`` v3 (older versions are upcast by ``read_log``)."""
         return cls(
             home=p["home"],
             home_digest=p["home_digest"],

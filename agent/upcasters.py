@@ -54,9 +54,19 @@ def run_started_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
 
 
 #: (type, from_version) → step to from_version + 1. Append-only, like the schema files.
+def run_started_v2_to_v3(payload: dict[str, Any]) -> dict[str, Any]:
+    # v3 added a room order (ecost) and relation models (memory, dist-oracle) with one parameter
+    # of their own; a v2 run used none of them.
+    relations = dict(payload["relations"])
+    relations["recent_weight"] = None
+    payload["relations"] = relations
+    return payload
+
+
 STEPS: Final[Mapping[tuple[str, int], UpcastStep]] = MappingProxyType(
     {
         ("detection", 1): detection_v1_to_v2,
         ("run_started", 1): run_started_v1_to_v2,
+        ("run_started", 2): run_started_v2_to_v3,
     }
 )

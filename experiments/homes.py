@@ -13,6 +13,13 @@ from typing import Any
 
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import available_homes
+from objsearch.experiments.learning import (
+    learning_summary,
+    paired_bootstrap,
+    plot_curves,
+    render_learning,
+    render_paired,
+)
 from objsearch.experiments.metrics import mean_std, summarise
 from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, write_rows
 from objsearch.experiments.strategies import STRATEGIES, strategy
@@ -211,7 +218,7 @@ def run_homes(
         "homes": homes,
         "seeds": list(range(seeds)),
         "schedules": list(schedules),
-        "scenes": scenes or 10,
+        "scenes": scenes or "each kind's own (10; habit 30)",
         "workers": workers,
         "elapsed_s": round(elapsed, 1),
         "searches": len(rows),
@@ -220,6 +227,12 @@ def run_homes(
     }
     keys = ("mean_path_length", "success_rate", "spl", "oracle_ratio")
     summary["strategies"] = {k: {m: s[m] for m in keys} for k, s in summary["overall"].items()}
+    learning = learning_summary(rows)
+    summary["learning"] = learning
+    summary["paired_vs_wpl"] = paired_bootstrap(rows) if "wpl" in strategies else {}
+    summary["plots"] = [p.name for p in plot_curves(learning, out)]
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-    (out / "tables.txt").write_text(render(summary) + "\n", encoding="utf-8")
+    tables = render(summary) + "\n" + render_learning(learning)
+    tables += "\n" + render_paired(summary["paired_vs_wpl"]) + "\n"
+    (out / "tables.txt").write_text(tables, encoding="utf-8")
     return summary

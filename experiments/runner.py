@@ -16,7 +16,9 @@ from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
 from objsearch.agent.strategies import RunSpec
-from objsearch.sim.longterm import TARGET_ORDER, run_schedule, scenes_of
+from objsearch.events.log import read_log
+from objsearch.experiments.decompose import Excess, decompose
+from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule, scenes_of
 
 TARGETS = TARGET_ORDER
 
@@ -59,6 +61,11 @@ class Row:
     #: The paper's path length: metres to the detection (the whole path if never found);
     #: ``path_length`` adds the approach to the target's viewpoint.
     path_to_discovery: float | None = None
+    #: Where the excess over the oracle went (experiments/decompose.py); None for a failed search.
+    wrong_rooms_m: float | None = None
+    start_room_m: float | None = None
+    right_room_m: float | None = None
+    approach_m: float | None = None
 
     def record(self) -> dict[str, object]:
         d = asdict(self)
@@ -89,26 +96,32 @@ def run_job(job: Job) -> list[Row]:
             skip_absent_targets=True,
             keep_routes=job.keep_routes,
         )
-    return [
-        Row(
-            job.experiment,
-            job.home,
-            job.placements,
-            job.strategy,
-            job.update_mode,
-            job.seed,
-            t.scene,
-            t.target,
-            t.start,
-            t.success,
-            round(t.path_length, 4),
-            round(t.oracle_length, 4),
-            t.task_id,
-            tuple((p.x, p.y) for p in t.route),
-            None if t.path_to_discovery is None else round(t.path_to_discovery, 4),
-        )
-        for t in trials
-    ]
+        parts = decompose(read_log(Path(job.log_dir) if job.log_dir else Path(tmp)), ctx.navmap)
+    return [_row(job, t, parts.get(t.task_id)) for t in trials]
+
+
+def _row(job: Job, t: Trial, excess: Excess | None) -> Row:
+    return Row(
+        job.experiment,
+        job.home,
+        job.placements,
+        job.strategy,
+        job.update_mode,
+        job.seed,
+        t.scene,
+        t.target,
+        t.start,
+        t.success,
+        round(t.path_length, 4),
+        round(t.oracle_length, 4),
+        t.task_id,
+        tuple((p.x, p.y) for p in t.route),
+        path_to_discovery=None if t.path_to_discovery is None else round(t.path_to_discovery, 4),
+        wrong_rooms_m=None if excess is None else round(excess.wrong_rooms, 4),
+        start_room_m=None if excess is None else round(excess.start_room, 4),
+        right_room_m=None if excess is None else round(excess.right_room(t.oracle_length), 4),
+        approach_m=None if excess is None else round(excess.approach, 4),
+    )
 
 
 def _count(job: Job) -> int:

@@ -230,6 +230,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "objsearch.cli_query",
     "objsearch.cli_replay",
     "objsearch.cli_runtime",
+    "objsearch.cli_where",
 )
 
 

@@ -175,8 +175,9 @@ def register(sub: Any) -> None:
     )
     homes.add_argument(
         "--scenes",
-        type=t.int_range(1, t.MAX_SCENE),
-        help=f"scenes per schedule, 1-{t.MAX_SCENE} (10)",
+        type=t.int_range(1, t.MAX_HABIT_SCENES),
+        help=f"scenes per schedule, 1-{t.MAX_HABIT_SCENES} (each kind's own: 10, habit 30); "
+        "stats and rearr schedules can be drawn longer than 10",
     )
     homes.add_argument(
         "--schedules",

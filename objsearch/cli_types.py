@@ -22,6 +22,8 @@ from typing import NoReturn
 MAX_WORKERS = 64
 #: Every schedule (Table II, stats-<seed>, rearr-<seed>) has scenes 1-10.
 MAX_SCENE = 10
+#: Longest seeded schedule ``bench homes --scenes`` asks for (a habit schedule has 30 scenes).
+MAX_HABIT_SCENES = 30
 
 Converter = Callable[[str], object]
 

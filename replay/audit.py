@@ -21,6 +21,8 @@ from typing import Any
 
 from objsearch.agent.geometry import Point
 from objsearch.agent.outdir import claim
+from objsearch.agent.policy import stop_statics, stop_value
+from objsearch.agent.relations import instance_value, per_instance
 from objsearch.agent.session import load_context
 from objsearch.replay.state import ReplayState
 
@@ -105,14 +107,29 @@ class Auditor:
         self.tasks.append(holder)
         return holder
 
-    def _check_plan(self, task: TaskAudit, event: Any) -> None:
+    def _value(self, task: TaskAudit, room: str, candidate: Any) -> float:
+        """What the graph says the candidate stop is worth now (per instance where it can)."""
         graph = self.state.graph
+        if not per_instance(graph):
+            return graph.rel(task.target, candidate["static_class"])
+        semmap = load_context(task.home).semmap
+        key = next((s for s in semmap.in_room(room) if s.id == candidate["static_id"]), None)
+        if key is None:
+            return graph.rel(task.target, candidate["static_class"])
+        group = [
+            s
+            for s in stop_statics(semmap, room, key)
+            if instance_value(graph, task.target, s.id, s.cls) > 0
+        ]
+        return stop_value(graph, task.target, group or [key])
+
+    def _check_plan(self, task: TaskAudit, event: Any) -> None:
         p = event.payload
+        now = [(c, self._value(task, p["room"], c)) for c in p["candidates"]]
         stale = [
-            f"{c['static_class']}: logged {float(c['rel']):.4f}, graph "
-            f"{graph.rel(task.target, c['static_class']):.4f}"
-            for c in p["candidates"]
-            if abs(float(c["rel"]) - graph.rel(task.target, c["static_class"])) > REL_TOLERANCE
+            f"{c['static_class']}: logged {float(c['rel']):.4f}, graph {value:.4f}"
+            for c, value in now
+            if abs(float(c["rel"]) - value) > REL_TOLERANCE
         ]
         if stale:
             task.flag(

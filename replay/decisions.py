@@ -168,7 +168,9 @@ class Replayer:
         rooms = self._room_orders.get(task.task_id)
         if rooms is None:
             start_room = ctx.navmap.room_at(task.start_pose.x, task.start_pose.y)
-            rooms = agent.room_order(start_room, task.target, task.task_id)
+            rooms = agent.room_order(
+                start_room, task.target, task.task_id, here=task.start_pose.point
+            )
             self._room_orders = {task.task_id: rooms}
         p = event.payload
         here = st.pose.point

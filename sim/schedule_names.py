@@ -2,7 +2,8 @@
 
 - ``table2`` (and any other ``data/schedules/<name>.json``): a schedule written by the converter;
 - ``stats-<seed>``: drawn from AI2-THOR placement statistics (``sim/stats_schedule.py``);
-- ``rearr-<seed>``: taken from real AI2-THOR rearrangement episodes (``sim/rearr_schedule.py``).
+- ``rearr-<seed>``: taken from real AI2-THOR rearrangement episodes (``sim/rearr_schedule.py``);
+- ``habit-<seed>``: objects with habits, 30 scenes (``sim/habit_schedule.py``).
 """
 
 from __future__ import annotations
@@ -10,12 +11,13 @@ from __future__ import annotations
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home
+from objsearch.sim.habit_schedule import HABIT_SCENES, habit_schedule
 from objsearch.sim.placements import Schedule
 from objsearch.sim.rearr_schedule import rearr_schedule
 from objsearch.sim.stats_schedule import SCENES, stats_schedule
 
 #: Seeded schedule kinds: ``<kind>-<seed>``.
-SEEDED_KINDS = ("stats", "rearr")
+SEEDED_KINDS = ("stats", "rearr", "habit")
 
 
 class UnknownScheduleError(ObjsearchError, ValueError):
@@ -46,11 +48,15 @@ def parse_seeded(name: str) -> tuple[str, int] | None:
     return kind, value
 
 
-def load_schedule(home: Home, name: str, *, scenes: int = SCENES) -> Schedule:
-    """The schedule ``name`` for ``home`` (``scenes`` applies to the seeded kinds only)."""
+def load_schedule(home: Home, name: str, *, scenes: int | None = None) -> Schedule:
+    """The schedule ``name`` for ``home`` (``scenes`` applies to the seeded kinds only; default:
+    the kind's own length, 10 scenes, 30 for ``habit``)."""
     seeded = parse_seeded(name)
     if seeded is not None:
         kind, seed = seeded
+        if kind == "habit":
+            return habit_schedule(home, seed, scenes=scenes or HABIT_SCENES)
+        scenes = scenes or SCENES
         if kind == "stats":
             return stats_schedule(home, seed, scenes=scenes)
         return rearr_schedule(home, seed, scenes=scenes)

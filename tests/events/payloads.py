@@ -14,7 +14,12 @@ EXAMPLES: dict[str, dict[str, Any]] = {
         "strategy": "wpl-neg-decay",
         "method": "wpl",
         "planner": "wpl",
-        "relations": {"model": "beta", "prior_strength": 2.0, "half_life_tasks": 64.0},
+        "relations": {
+            "model": "beta",
+            "prior_strength": 2.0,
+            "half_life_tasks": 64.0,
+            "recent_weight": None,
+        },
         "alpha": 10.0,
         "update_mode": "targets",
         "seed": 7,
@@ -98,6 +103,20 @@ OLD_EXAMPLES: dict[tuple[str, int], dict[str, Any]] = {
         "seed": 7,
         "params": {"strategy": "wpl-neg-decay", "support_radius": 0.5, "schedule": "stats-3"},
     },
+    ("run_started", 2): {
+        "home": "paper-4room",
+        "home_digest": "sha256:0123abcd",
+        "strategy": "wpl-neg-decay",
+        "method": "wpl",
+        "planner": "wpl",
+        "relations": {"model": "beta", "prior_strength": 2.0, "half_life_tasks": 64.0},
+        "alpha": 10.0,
+        "update_mode": "targets",
+        "seed": 7,
+        "support_radius": 0.5,
+        "schedule": "stats-3",
+        "params": {},
+    },
     ("detection", 1): {
         "object_class": "Cup",
         "instance_id": "Cup|3",
@@ -110,4 +129,4 @@ OLD_EXAMPLES: dict[tuple[str, int], dict[str, Any]] = {
     },
 }
 
-LATEST: dict[str, int] = {t: 1 for t in EXAMPLES} | {"detection": 2, "run_started": 2}
+LATEST: dict[str, int] = {t: 1 for t in EXAMPLES} | {"detection": 2, "run_started": 3}

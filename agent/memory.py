@@ -1,0 +1,223 @@
+"""Memory of where things are: a belief per (target, static *instance*), folded from the log.
+
+Per (object class d, static instance s) it keeps
+
+- ``seen``: long-run count of tasks in which d was seen at s (a ``detection`` with its support
+  ``at`` s) — the frequency of a place;
+- ``missed``: long-run count of tasks that looked at s (``view_taken``) for target d and did not
+  find it there — negative evidence;
+- ``recent_seen`` / ``recent_missed``: the same counts fading with a half-life of h tasks —
+  recency: an object does not move during a scene, so what the last searches saw counts most;
+
+and values s for d as the posterior mean of a Beta whose prior is the class-level belief
+(:class:`~objsearch.agent.relations.BetaRelations` over the same log, seeded from Visual Genome;
+statics never seen or looked at keep exactly that value):
+
+    a = k·p₀ + seen + W·recent_seen,   b = k·(1 − p₀) + missed + W·recent_missed,   value = a/(a+b)
+
+k (prior strength), h and W are recorded in the run spec (``RelationSpec("memory", k, h, W)``).
+:meth:`rel` (per class) is the class-level belief, so anything that asks per class still works.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from objsearch.agent.relations import BetaRelations
+from objsearch.agent.scene_graph import EventLike, Pair, UpdateMode
+
+Key = tuple[str, str]  # (object class, static id)
+
+
+@dataclass(frozen=True, slots=True)
+class Sighting:
+    """Where a class was last seen: the static instance and its class, the room, when."""
+
+    static_id: str
+    static_class: str
+    task_id: str | None
+    time_ns: int
+    scene: int | None
+
+
+@dataclass
+class InstanceMemory:
+    prior_strength: float = 2.0
+    half_life_tasks: float = 8.0
+    recent_weight: float = 10.0
+    classes: BetaRelations = field(default_factory=BetaRelations)
+    last_seq: int = 0
+    tasks_folded: int = 0
+    seen: dict[Key, float] = field(default_factory=dict)
+    missed: dict[Key, float] = field(default_factory=dict)
+    recent_seen: dict[Key, float] = field(default_factory=dict)
+    recent_missed: dict[Key, float] = field(default_factory=dict)
+    static_class: dict[str, str] = field(default_factory=dict)
+    last_seen: dict[str, Sighting] = field(default_factory=dict)
+    update_mode: UpdateMode = UpdateMode.ALL
+    _target: str | None = None
+    _task_id: str | None = None
+    _scene: int | None = None
+    _seen_at: dict[str, set[str]] = field(default_factory=dict)
+    _viewed: set[str] = field(default_factory=set)
+    _sightings: dict[str, Sighting] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.prior_strength <= 0 or self.half_life_tasks <= 0 or self.recent_weight < 0:
+            raise ValueError("memory needs prior strength > 0, half-life > 0, recent weight >= 0")
+        self.classes.prior_strength = self.prior_strength
+
+    def apply(self, event: EventLike) -> None:
+        self.classes.apply(event)
+        kind, payload = event.type, event.payload
+        if kind == "run_started":
+            self.update_mode = UpdateMode(payload["update_mode"])
+        elif kind == "task_started":
+            self._target = payload["target"]
+            self._task_id = getattr(event, "task_id", None)
+            self._scene = payload.get("scene")
+            self._reset_task()
+            factor = 0.5 ** (1.0 / self.half_life_tasks)
+            self.recent_seen = {k: v * factor for k, v in self.recent_seen.items() if v > 1e-6}
+            self.recent_missed = {k: v * factor for k, v in self.recent_missed.items() if v > 1e-6}
+        elif kind == "plan_computed":
+            for c in payload["candidates"]:
+                self.static_class[c["static_id"]] = c["static_class"]
+        elif kind == "view_taken":
+            self._viewed.add(payload["static_id"])
+        elif kind == "detection" and payload["accepted"]:
+            support = payload["support"]
+            if support is not None and support["at"]:
+                d, sid = payload["object_class"], support["static_id"]
+                self.static_class[sid] = support["static_class"]
+                self._seen_at.setdefault(d, set()).add(sid)
+                self._sightings[d] = Sighting(
+                    sid,
+                    support["static_class"],
+                    self._task_id,
+                    int(getattr(event, "time_ns", 0)),
+                    self._scene,
+                )
+        elif kind == "task_ended":
+            self._end_task()
+        elif kind == "task_aborted":
+            self._reset_task()
+        self.last_seq = event.seq
+
+    def _reset_task(self) -> None:
+        self._seen_at = {}
+        self._viewed = set()
+        self._sightings = {}
+
+    def _end_task(self) -> None:
+        if self.update_mode is UpdateMode.ALL:
+            chosen = dict(self._seen_at)
+        elif self.update_mode is UpdateMode.TARGETS and self._target in self._seen_at:
+            chosen = {self._target: self._seen_at[self._target]}
+        else:
+            chosen = {}
+        for d, statics in chosen.items():
+            for sid in statics:
+                self.seen[(d, sid)] = self.seen.get((d, sid), 0.0) + 1.0
+                self.recent_seen[(d, sid)] = self.recent_seen.get((d, sid), 0.0) + 1.0
+        target = self._target
+        if self.update_mode is not UpdateMode.NONE and target is not None:
+            found = self._seen_at.get(target, set())
+            for sid in self._viewed - found:
+                self.missed[(target, sid)] = self.missed.get((target, sid), 0.0) + 1.0
+                self.recent_missed[(target, sid)] = self.recent_missed.get((target, sid), 0.0) + 1.0
+        self.last_seen.update(self._sightings)  # a fact, whatever the update mode
+        self._target = None
+        self._reset_task()
+        self.tasks_folded += 1
+
+    # -- values -------------------------------------------------------------------------------
+
+    def instance_rel(self, dynamic: str, static_id: str, static_class: str) -> float:
+        p0 = self.classes.rel(dynamic, static_class)
+        key = (dynamic, static_id)
+        if p0 <= 0 and key not in self.seen:
+            return 0.0  # never plausible, never seen: not a candidate
+        k, w = self.prior_strength, self.recent_weight
+        a = k * p0 + self.seen.get(key, 0.0) + w * self.recent_seen.get(key, 0.0)
+        b = k * (1 - p0) + self.missed.get(key, 0.0) + w * self.recent_missed.get(key, 0.0)
+        return a / (a + b)
+
+    def rel(self, dynamic: str, static: str) -> float:
+        return self.classes.rel(dynamic, static)
+
+    @property
+    def state(self) -> Mapping[Pair, float]:
+        return self.classes.state
+
+    def as_table(self) -> dict[str, dict[str, float]]:
+        return self.classes.as_table()
+
+    def instances(self, dynamic: str) -> dict[str, float]:
+        """Every static instance the log knows, with its value for ``dynamic``."""
+        return {
+            sid: self.instance_rel(dynamic, sid, cls)
+            for sid, cls in sorted(self.static_class.items())
+        }
+
+    # -- snapshots ------------------------------------------------------------------------------
+
+    snapshot_name: ClassVar[str] = "instance_memory"
+    snapshot_version: ClassVar[int] = 1
+
+    def to_snapshot(self) -> dict[str, Any]:
+        def rows(d: Mapping[Key, float]) -> list[list[Any]]:
+            return [[a, b, v] for (a, b), v in sorted(d.items())]
+
+        return {
+            "prior_strength": self.prior_strength,
+            "half_life_tasks": self.half_life_tasks,
+            "recent_weight": self.recent_weight,
+            "classes": self.classes.to_snapshot(),
+            "tasks_folded": self.tasks_folded,
+            "seen": rows(self.seen),
+            "missed": rows(self.missed),
+            "recent_seen": rows(self.recent_seen),
+            "recent_missed": rows(self.recent_missed),
+            "static_class": dict(sorted(self.static_class.items())),
+            "last_seen": {d: list(_sighting_row(s)) for d, s in sorted(self.last_seen.items())},
+            "update_mode": self.update_mode.value,
+            "task": [self._target, self._task_id, self._scene],
+            "seen_at": {d: sorted(s) for d, s in sorted(self._seen_at.items())},
+            "viewed": sorted(self._viewed),
+            "sightings": {d: list(_sighting_row(s)) for d, s in sorted(self._sightings.items())},
+        }
+
+    @classmethod
+    def from_snapshot(cls, state: Mapping[str, Any], last_seq: int) -> InstanceMemory:
+        def rows(r: list[list[Any]]) -> dict[Key, float]:
+            return {(a, b): float(v) for a, b, v in r}
+
+        target, task_id, scene = state["task"]
+        return cls(
+            prior_strength=float(state["prior_strength"]),
+            half_life_tasks=float(state["half_life_tasks"]),
+            recent_weight=float(state["recent_weight"]),
+            classes=BetaRelations.from_snapshot(state["classes"], last_seq),
+            last_seq=last_seq,
+            tasks_folded=int(state["tasks_folded"]),
+            seen=rows(state["seen"]),
+            missed=rows(state["missed"]),
+            recent_seen=rows(state["recent_seen"]),
+            recent_missed=rows(state["recent_missed"]),
+            static_class=dict(state["static_class"]),
+            last_seen={d: Sighting(*r) for d, r in state["last_seen"].items()},
+            update_mode=UpdateMode(state["update_mode"]),
+            _target=target,
+            _task_id=task_id,
+            _scene=scene,
+            _seen_at={d: set(s) for d, s in state["seen_at"].items()},
+            _viewed=set(state["viewed"]),
+            _sightings={d: Sighting(*r) for d, r in state["sightings"].items()},
+        )
+
+
+def _sighting_row(s: Sighting) -> tuple[str, str, str | None, int, int | None]:
+    return (s.static_id, s.static_class, s.task_id, s.time_ns, s.scene)

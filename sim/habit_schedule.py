@@ -1,0 +1,136 @@
+"""Schedules with a past: every object has habits (``habit-<seed>``).
+
+Stats schedules redraw placements independently, so across days there is nothing to remember but
+the distribution. Here each target class gets, once per (home, seed), drawn from the *same valid
+placements* the stats schedules use (a receptacle type weighted by the AI2-THOR placement counts,
+then an instance uniformly, ``stats_schedule._draw_static``):
+
+- a **usual place** (one static instance),
+- ``ALTERNATES`` **alternate places** (other instances, drawn the same way without repeats),
+
+and then, every scene independently:
+
+- with ``P_USUAL`` the object is at its usual place,
+- with ``P_ALTERNATE`` at one of the alternates (uniformly),
+- with ``P_ANYWHERE`` at a fresh draw from the stats distribution over *all* valid statics.
+
+The parameters were fixed before any run (docs/results.md, "Schedules with a past") and are not
+tuned. If a home has too few valid statics for two alternates, an alternate's share goes to the
+usual place. :func:`habit_distribution` is that per-scene distribution (the distribution oracle's
+knowledge); it is exact, because scenes are independent given the habits.
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+from objsearch.agent.home import Home, StaticObject
+from objsearch.sim.placements import Placements, Schedule
+from objsearch.sim.stats_schedule import (
+    PlacementStats,
+    _draw_static,
+    _place,
+    _receptacle_type,
+)
+from objsearch.sim.world import Placement
+
+#: Scenes of a habit schedule: long enough to learn from.
+HABIT_SCENES = 30
+P_USUAL = 0.7
+P_ALTERNATE = 0.2
+P_ANYWHERE = 0.1
+ALTERNATES = 2
+
+
+@dataclass(frozen=True, slots=True)
+class Habit:
+    """Where one class usually is, and where it sometimes is."""
+
+    usual: str
+    alternates: tuple[str, ...]
+
+
+def _statics(home: Home) -> list[StaticObject]:
+    return sorted(home.statics.values(), key=lambda s: s.id)
+
+
+def habits(home: Home, seed: int) -> dict[str, Habit]:
+    """Each placeable class's usual place and alternates for (home, seed)."""
+    stats = PlacementStats.load()
+    rng = random.Random(f"habit-schedule:habits:{home.name}:{seed}")
+    statics = _statics(home)
+    out: dict[str, Habit] = {}
+    for cls in sorted(stats.counts):
+        usual = _draw_static(rng, stats.counts[cls], statics, None)
+        if usual is None:
+            continue
+        taken = {usual.id}
+        alternates: list[str] = []
+        for _ in range(ALTERNATES):
+            rest = [s for s in statics if s.id not in taken]
+            alt = _draw_static(rng, stats.counts[cls], rest, None)
+            if alt is None:
+                break
+            taken.add(alt.id)
+            alternates.append(alt.id)
+        out[cls] = Habit(usual.id, tuple(alternates))
+    return out
+
+
+def stats_distribution(
+    weights: Mapping[str, float], statics: Sequence[StaticObject]
+) -> dict[str, float]:
+    """P(static instance) of one ``_draw_static`` draw: a type by its count, an instance uniformly."""
+    by_type: dict[str, list[str]] = {}
+    for s in statics:
+        if weights.get(_receptacle_type(s), 0) > 0:
+            by_type.setdefault(_receptacle_type(s), []).append(s.id)
+    total = sum(weights[t] for t in by_type)
+    return {sid: weights[t] / total / len(ids) for t, ids in sorted(by_type.items()) for sid in ids}
+
+
+def habit_distribution(home: Home, seed: int) -> dict[str, dict[str, float]]:
+    """class → static id → P(the object is there in any one scene)."""
+    stats = PlacementStats.load()
+    statics = _statics(home)
+    out: dict[str, dict[str, float]] = {}
+    for cls, habit in habits(home, seed).items():
+        dist = {
+            sid: P_ANYWHERE * p for sid, p in stats_distribution(stats.counts[cls], statics).items()
+        }
+        share = P_ALTERNATE / ALTERNATES
+        dist[habit.usual] = dist.get(habit.usual, 0.0) + P_USUAL
+        for k in range(ALTERNATES):
+            where = habit.alternates[k] if k < len(habit.alternates) else habit.usual
+            dist[where] = dist.get(where, 0.0) + share
+        out[cls] = dist
+    return out
+
+
+def habit_schedule(home: Home, seed: int, *, scenes: int = HABIT_SCENES) -> Schedule:
+    """A schedule for ``home`` where objects keep habits (see the module doc)."""
+    stats = PlacementStats.load()
+    rng = random.Random(f"habit-schedule:scenes:{home.name}:{seed}")
+    statics = _statics(home)
+    by_id = home.statics
+    table = habits(home, seed)
+    out: dict[int, Placements] = {}
+    for scene in range(1, scenes + 1):
+        placed: dict[str, Placement] = {}
+        for cls in sorted(table):
+            habit = table[cls]
+            u = rng.random()
+            if u < P_USUAL:
+                where: StaticObject | None = by_id[habit.usual]
+            elif u < P_USUAL + P_ALTERNATE:
+                k = rng.randrange(ALTERNATES)
+                where = by_id[habit.alternates[k] if k < len(habit.alternates) else habit.usual]
+            else:
+                where = _draw_static(rng, stats.counts[cls], statics, None)
+            assert where is not None  # the usual place was drawn from the same statics
+            p = _place(rng, home, cls, stats.sizes[cls], where)
+            placed[p.instance_id] = p
+        out[scene] = placed
+    return Schedule(name=f"habit-{seed}", home=home.name, scenes=out)

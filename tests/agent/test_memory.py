@@ -1,0 +1,128 @@
+"""The per-instance memory, end to end on a habit schedule: folded from the log, replayed the same,
+asked with ``objsearch where``; and the excess decomposition sums to path − oracle."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from objsearch.agent.memory import InstanceMemory
+from objsearch.agent.session import load_context
+from objsearch.agent.state import AgentState
+from objsearch.agent.strategies import RunSpec
+from objsearch.cli import main
+from objsearch.events.log import read_log
+from objsearch.events.projection import fold
+from objsearch.experiments.decompose import decompose
+from objsearch.sim.longterm import Trial, run_schedule
+from objsearch.sim.world import Placement
+
+HOME = "ithor-01"
+
+
+def _run(log: Path, strategy: str, scenes: tuple[int, ...] = (1, 2, 3)) -> list[Trial]:
+    ctx = load_context(HOME)
+    spec = RunSpec.for_home(ctx.home, strategy, schedule="habit-0")
+    starts = sorted(ctx.home.starts)[:3]
+    return run_schedule(
+        log, spec, targets=("Cup", "Apple"), scenes=scenes, starts=starts, skip_absent_targets=True
+    )
+
+
+@pytest.fixture(scope="module")
+def memory_log(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Trial]]:
+    log = tmp_path_factory.mktemp("memory") / "log"
+    return log, _run(log, "ecost-memory")
+
+
+def test_the_spec_records_the_memory_and_the_fold_rebuilds_it(
+    memory_log: tuple[Path, list[Trial]],
+) -> None:
+    log, trials = memory_log
+    assert all(t.success for t in trials)
+    state = fold(read_log(log), AgentState())
+    assert state.run is not None and state.run.relations.model == "memory"
+    assert state.run.method.value == "ecost"
+    model = state.graph()
+    assert isinstance(model, InstanceMemory)
+    assert model.tasks_folded == len(trials)
+    again = InstanceMemory.from_snapshot(
+        json.loads(json.dumps(model.to_snapshot())), model.last_seq
+    )
+    assert again.instances("Cup") == model.instances("Cup")
+
+
+def test_a_place_seen_rises_above_its_class_and_a_miss_falls_below(
+    memory_log: tuple[Path, list[Trial]],
+) -> None:
+    log, _ = memory_log
+    model = fold(read_log(log), AgentState()).graph()
+    assert isinstance(model, InstanceMemory)
+    (d, sid), _ = max(model.seen.items(), key=lambda kv: kv[1])
+    cls = model.static_class[sid]
+    assert model.instance_rel(d, sid, cls) > model.rel(d, cls)
+    missed = [(k, v) for k, v in model.missed.items() if k not in model.seen]
+    assert missed
+    (d2, sid2), _ = missed[0]
+    assert model.instance_rel(d2, sid2, model.static_class[sid2]) < model.rel(
+        d2, model.static_class[sid2]
+    )
+
+
+def test_later_searches_of_a_scene_walk_less_than_the_first(
+    memory_log: tuple[Path, list[Trial]],
+) -> None:
+    _, trials = memory_log
+    first = [
+        t
+        for i, t in enumerate(trials)
+        if i == 0 or trials[i - 1].target != t.target or trials[i - 1].scene != t.scene
+    ]
+    later = [t for t in trials if t not in first]
+
+    def excess(ts: list[Trial]) -> float:
+        return sum(t.path_length - t.oracle_length for t in ts) / len(ts)
+
+    assert excess(later) < excess(first)
+
+
+def test_where_answers_from_the_log(
+    memory_log: tuple[Path, list[Trial]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    log, trials = memory_log
+    assert main(["where", "Cup", "--log", str(log), "--json"]) == 0
+    answer = json.loads(capsys.readouterr().out)
+    placements: dict[int, dict[str, Placement]] = {}
+    from objsearch.sim.longterm import scenes_of
+
+    placements = {k: dict(v) for k, v in scenes_of(HOME, "habit-0").items()}
+    last_scene = max(t.scene for t in trials if t.target == "Cup")
+    truth = next(p for p in placements[last_scene].values() if p.cls == "Cup")
+    assert answer["last_seen"]["static_id"] == truth.support
+    assert answer["last_seen"]["room"] == truth.room
+    assert answer["most_likely_now"][0]["static_id"] == truth.support
+    assert main(["where", "Cup", "--log", str(log)]) == 0
+    assert "last seen" in capsys.readouterr().out
+    assert main(["where", "Unicorn", "--log", str(log)]) != 0
+
+
+def test_excess_decomposition_sums_to_path_minus_oracle(
+    memory_log: tuple[Path, list[Trial]],
+) -> None:
+    log, trials = memory_log
+    parts = decompose(read_log(log), load_context(HOME).navmap)
+    for t in trials:
+        e = parts[t.task_id]
+        assert e.start_room <= e.wrong_rooms + 1e-9
+        assert e.wrong_rooms + e.right_room(t.oracle_length) + e.approach == pytest.approx(
+            t.path_length - t.oracle_length, abs=1e-3
+        )
+
+
+def test_distribution_oracle_is_a_reference_that_runs(tmp_path: Path) -> None:
+    trials = _run(tmp_path / "log", "dist-oracle", scenes=(1,))
+    assert all(t.success for t in trials)
+    state = fold(read_log(tmp_path / "log"), AgentState())
+    assert state.run is not None and state.run.relations.model == "dist-oracle"
