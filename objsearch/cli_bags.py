@@ -183,8 +183,9 @@ def cmd_ingest(args: argparse.Namespace) -> int:
         if result.error is not None:
             failed += 1
             print(f"objsearch: error: {result.path}: {result.error}", file=sys.stderr)
-        elif result.already and result.report is None:
-            print(f"{result.path}: already in the lake; nothing to do")
+        elif result.already:
+            why = f" ({result.note})" if result.note else ""
+            print(f"{result.path}: already in the lake; nothing to do{why}")
         else:
             assert result.report is not None
             print(result.report.render())
