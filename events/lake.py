@@ -37,6 +37,7 @@ into it, and other importers (e.g. ROS bags) call :meth:`Lake.commit_events` or
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import hashlib
 import json
@@ -60,7 +61,7 @@ from .arrow import event_schema, events_to_tables, tables_to_events
 from .derived import DERIVED_DIR, DERIVED_TABLES, DerivedTable, derive_run
 from .envelope import Event
 from .errors import EventStoreError
-from .log import LOCK_FILE, read_log
+from .log import LOCK_FILE, read_log, read_meta
 from .upcast import default_upcaster
 
 LAKE_FORMAT: Final = "objsearch.lake/1"
@@ -105,6 +106,10 @@ class RunInfo:
     rows: Mapping[str, int]  # event type → rows
     digest: str
     source: str
+    #: What the run is a record of, when the importer knows: ``run_id`` (the agent run's id, from
+    #: an event log's meta.json or proven by a bag's events) and ``first_event_id``. The lake
+    #: uses it to refuse the same agent run under a second name.
+    identity: Mapping[str, str] = dataclasses.field(default_factory=dict)
 
     @property
     def events(self) -> int:
@@ -212,6 +217,7 @@ class Lake:
         date: str | dt.date | None = None,
         source: str = "",
         replace: bool = False,
+        identity: Mapping[str, str] | None = None,
     ) -> RunInfo:
         """Commit events (any versions; upcast to latest) as one run.
 
@@ -231,7 +237,13 @@ class Lake:
                 raise LakeError("an empty run needs an explicit date")
             date = dt.datetime.fromtimestamp(first[0].recorded_at_ns / 1e9, dt.UTC).date()
         return self.commit_tables(
-            tables, robot=robot, run=run, date=date, source=source, replace=replace
+            tables,
+            robot=robot,
+            run=run,
+            date=date,
+            source=source,
+            replace=replace,
+            identity=identity,
         )
 
     def commit_tables(
@@ -244,12 +256,14 @@ class Lake:
         source: str = "",
         replace: bool = False,
         attachments: Mapping[str, bytes] | None = None,
+        identity: Mapping[str, str] | None = None,
     ) -> RunInfo:
         """Commit one table per event type as one run, atomically. Tables must match
         :func:`event_schema` of their type (columns may be cast, not missing).
 
         ``attachments`` are files (name → bytes, names starting with ``_``) committed in the run's
         folder with it, e.g. an importer's report; they are not part of the digest.
+        ``identity`` (see :attr:`RunInfo.identity`) goes into the manifest.
         """
         attachments = attachments or {}
         _check_name("robot", robot)
@@ -285,6 +299,8 @@ class Lake:
                 "digest": digest,
                 "source": source,
             }
+            if identity:
+                manifest["identity"] = dict(sorted(identity.items()))
             _fs.make_dirs(staged)
             try:
                 _stage(staged, checked, manifest, attachments)
@@ -307,6 +323,25 @@ class Lake:
                 _fs.write_atomic(intent_path, _json_bytes(intent))
                 self._roll_forward(intent_path)
             return _read_run_file(final / RUN_FILE)
+
+    def remove_run(self, info: RunInfo) -> None:
+        """Take a committed run out of the lake (e.g. a piece merged into its session's run):
+        renamed into ``.staging`` (readers stop seeing it at once), then deleted; a kill
+        between the two leaves it to :meth:`recover`."""
+        with self.locked():
+            trash = self.root / STAGING / f"removed-{uuid.uuid4().hex}"
+            _fs.make_dirs(trash.parent)
+            _fs.rename(info.path, trash)
+            _fs.fsync_dir(info.path.parent)
+            _fs.fsync_dir(trash.parent)
+            shutil.rmtree(trash)
+            _fs.fsync_dir(trash.parent)
+
+    def holding(self, identity: Mapping[str, str]) -> list[RunInfo]:
+        """The runs whose recorded identity shares a value with ``identity`` (the same agent
+        run, or the same first event)."""
+        wanted = {(k, v) for k, v in identity.items() if v}
+        return [r for r in self.runs() if wanted & set(r.identity.items())]
 
     # -- the lock and recovery ------------------------------------------------------------------
 
@@ -451,6 +486,18 @@ def compact_log(
     first = next(events, None)
     if first is None:
         raise LakeError(f"event log {log_dir} is empty; there is nothing to compact")
+    run = run or first.stream
+    identity = {"first_event_id": first.event_id}
+    meta = read_meta(log_dir)
+    if meta.run_id is not None:
+        identity["run_id"] = meta.run_id
+    for other in lake.holding(identity):
+        if (other.robot, other.run) != (robot, run):
+            raise LakeError(
+                f"event log {log_dir} (agent run {meta.run_id or first.stream}) is already in "
+                f"the lake as run {other.run!r} of robot {other.robot!r} ({other.path}, from "
+                f"{other.source}); adding it again would count its events twice"
+            )
 
     def all_events() -> Iterable[Event]:
         yield first
@@ -459,10 +506,11 @@ def compact_log(
     return lake.commit_events(
         all_events(),
         robot=robot,
-        run=run or first.stream,
+        run=run,
         date=date,
         source=f"event log {log_dir.resolve()}",
         replace=replace,
+        identity=identity,
     )
 
 
@@ -611,6 +659,7 @@ def _read_run_file(path: Path) -> RunInfo:
             rows={str(t): int(n) for t, n in dict(doc["rows"]).items()},
             digest=str(doc["digest"]),
             source=str(doc["source"]),
+            identity={str(k): str(v) for k, v in dict(doc.get("identity") or {}).items()},
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise LakeError(f"{path}: run manifest lacks or mistypes {exc}") from exc

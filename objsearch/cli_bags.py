@@ -184,11 +184,15 @@ def cmd_ingest(args: argparse.Namespace) -> int:
             failed += 1
             print(f"objsearch: error: {result.path}: {result.error}", file=sys.stderr)
         elif result.already:
-            print(f"{result.path}: already in the lake; nothing to do")
+            why = f" ({result.note})" if result.note else ""
+            print(f"{result.path}: already in the lake; nothing to do{why}")
         else:
             assert result.report is not None
             print(result.report.render())
-            print(f"  committed {result.committed} events to {args.lake}")
+            if result.note:
+                print(f"  {result.note}")
+            if result.committed or not result.note:
+                print(f"  committed {result.committed} events to {args.lake}")
         sys.stdout.flush()
 
     ingest(
@@ -198,6 +202,7 @@ def cmd_ingest(args: argparse.Namespace) -> int:
         robot=args.robot,
         engine=engine,
         progress=not args.no_progress,
+        reingest=args.reingest,
         on_result=show,
     )
     return 2 if failed else 0
@@ -215,6 +220,7 @@ def _ingest_json(result: Any, lake: str) -> dict[str, Any]:
         "error": result.error,
         "already": result.already,
         "committed": result.committed,
+        "note": result.note,
         "report": None if report is None else dataclasses.asdict(report),
     }
 
@@ -302,6 +308,12 @@ def register(sub: Any) -> None:
     )
     ing.add_argument("--topics", type=t.existing_file, help="topic map override (.toml or .json)")
     ing.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ing.add_argument(
+        "--reingest",
+        action="store_true",
+        help="read bags the lake already holds again and replace their rows (a changed topic "
+        "map or converter version does this by itself)",
+    )
     ing.add_argument(
         "--json",
         action="store_true",

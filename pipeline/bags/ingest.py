@@ -19,8 +19,9 @@ import pyarrow as pa
 
 from objsearch.pipeline.bags.engines import Engine, InlineEngine, ProcessEngine, TaskFailed
 from objsearch.pipeline.bags.errors import BagError
-from objsearch.pipeline.bags.lake import BagLake, LakeWriter, run_name
+from objsearch.pipeline.bags.lake import BagLake, LakeWriter, Piece
 from objsearch.pipeline.bags.read import BagReport, bag_identity, read_bag
+from objsearch.pipeline.bags.session import FirstEvent, converter_key, first_event, run_id_of
 from objsearch.ros.topics import TopicMap
 
 
@@ -31,6 +32,7 @@ class IngestResult:
     committed: int  # events written by this run (0 for a no-op)
     already: bool
     error: str | None = None
+    note: str = ""  # where the bag went when that is news (merged into a session, a duplicate)
 
 
 @dataclass(frozen=True, slots=True)
@@ -39,8 +41,11 @@ class BagTask:
 
     path: Path
     topic_map: TopicMap
-    known: frozenset[str] = frozenset()  # run names of the bags already in the lake
+    #: Bag id → converter key of the bags already in the lake: a bag listed with this task's
+    #: key is not read again; one read with another topic map or converter version is.
+    known: Mapping[str, str] = field(default_factory=dict)
     progress: bool = False
+    reingest: bool = False  # read it again even if the lake has it with this key
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,6 +58,10 @@ class Converted:
     tables: Mapping[str, pa.Table] = field(default_factory=dict)
     already: bool = False
     error: str | None = None
+    converter: str = ""
+    run_id: str | None = None
+    first: FirstEvent | None = None
+    reingest: bool = False
 
 
 def convert_bag(task: BagTask) -> Converted:
@@ -62,10 +71,20 @@ def convert_bag(task: BagTask) -> Converted:
         if not task.path.exists():
             raise BagError(f"no bag at {task.path}: no such file or directory")
         identity = bag_identity(task.path)
-        if run_name(identity[0]) in task.known:
+        key = converter_key(task.topic_map)
+        if task.known.get(identity[0]) == key and not task.reingest:
             return Converted(path, identity[0], None, already=True)
         contents = read_bag(task.path, task.topic_map, progress=task.progress, identity=identity)
-        return Converted(path, identity[0], contents.report, contents.tables())
+        return Converted(
+            path,
+            identity[0],
+            contents.report,
+            contents.tables(),
+            converter=key,
+            run_id=run_id_of(contents.agent, ()),
+            first=first_event(contents.agent),
+            reingest=task.reingest,
+        )
     except Exception as exc:
         return Converted(path, "", None, error=str(exc) or repr(exc))
 
@@ -81,18 +100,33 @@ def commit_converted(lake: LakeWriter, converted: Converted, robot: str) -> Inge
     if converted.error is not None or converted.report is None:
         return IngestResult(converted.path, None, 0, converted.already, converted.error)
     report = converted.report
-    try:
-        commit = lake.commit_bag(
-            report.bag_id,
-            converted.tables,
-            robot=robot,
-            start_ns=report.start_ns,
-            report=dataclasses.asdict(report),
+    if report.events == 0:
+        # A piece with nothing the lake keeps (e.g. a split's last seconds with no converted
+        # topic) makes no run: an empty run would only show up as a session of its own.
+        return IngestResult(
+            converted.path,
+            report,
+            0,
+            already=False,
+            note="no events to keep; nothing committed (no run is made from an empty bag)",
         )
+    piece = Piece(
+        report.bag_id,
+        converted.tables,
+        dataclasses.asdict(report),
+        report.start_ns,
+        report.end_ns,
+        converted.converter,
+        converted.run_id,
+        converted.first,
+        converted.reingest,
+    )
+    try:
+        commit = lake.commit_piece(piece, robot=robot)
     except Exception as exc:
         return IngestResult(converted.path, None, 0, already=False, error=str(exc) or repr(exc))
     return IngestResult(
-        converted.path, report, commit.events if commit.new else 0, already=not commit.new
+        converted.path, report, commit.events, already=not commit.new, note=commit.note
     )
 
 
@@ -105,19 +139,24 @@ def ingest(
     workers: int = 1,
     engine: Engine | None = None,
     progress: bool = False,
+    reingest: bool = False,
     on_result: Callable[[IngestResult], None] | None = None,
 ) -> list[IngestResult]:
     """Ingest every bag (duplicates by path once); results in the order of ``bags``.
 
     ``engine`` defaults to this process for one worker and ``workers`` local processes otherwise.
+    A bag the lake holds is read again when its topic map or the converter version changed, or
+    with ``reingest``; its rows in its session's run are replaced.
     """
     topic_map = topic_map or TopicMap()
     unique = list(dict.fromkeys(Path(b) for b in bags))
     if engine is None:
         engine = InlineEngine() if workers <= 1 or len(unique) <= 1 else ProcessEngine(workers)
     lake = BagLake(lake_dir)
-    known = lake.known_runs()
-    tasks = [BagTask(bag, topic_map, known, progress and engine.in_process) for bag in unique]
+    known = lake.known_pieces()
+    tasks = [
+        BagTask(bag, topic_map, known, progress and engine.in_process, reingest) for bag in unique
+    ]
     results: dict[int, IngestResult] = {}
     for i, outcome in engine.run(convert_bag, tasks):
         if isinstance(outcome, TaskFailed):

@@ -25,7 +25,7 @@ import json
 import math
 import sys
 from collections import Counter
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final, Protocol, TypeVar
@@ -148,6 +148,8 @@ class BagReport:
     notes: tuple[str, ...] = ()
     #: Whether the bag's claims cover all of it; if not, the per-topic ``lost`` are lower bounds.
     claims_complete: bool = True
+    #: Added to the agent events' ``time_ns`` to put them on the bag's clock (0: not moved).
+    clock_offset_ns: int = 0
 
     @property
     def damaged(self) -> bool:
@@ -278,6 +280,8 @@ class Converter:
         #: The pose track and the other derived events, numbered: made by end_of_messages().
         self.numbered: tuple[PoseTrack, list[Event]] | None = None
         self.agent: dict[str, Event] = {}
+        #: event id → the events topic's header stamp (ns), where the message had one
+        self.stamps: dict[str, int] = {}
         self.duplicates = 0
         self.start_ns: int | None = None
         self.end_ns: int | None = None
@@ -481,13 +485,27 @@ class Converter:
             self.duplicates += 1
             return 0
         self.agent[event.event_id] = event
+        stamp = getattr(getattr(msg, "header", None), "stamp", None)
+        if stamp is not None:
+            stamp_ns = int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+            if stamp_ns > 0:
+                self.stamps[event.event_id] = stamp_ns
         return 1
 
     def finish(self) -> Finished:
-        """All events (the agent's in (stream, seq) order, then derived), gaps as losses."""
+        """All events (the agent's in (stream, seq) order, then derived), gaps as losses.
+
+        The agent's events are moved onto the bag's clock (see :func:`clock_offset`)."""
         agent = sorted(self.agent.values(), key=lambda e: (e.stream, e.seq))
         losses: list[Loss] = []
         notes: list[str] = []
+        offset = clock_offset(agent, self.stamps)
+        if offset:
+            agent = [_shifted(e, offset) for e in agent]
+            notes.append(
+                f"agent events moved onto the bag's clock: time_ns + {offset} ns "
+                f"(their header stamps less their own time_ns; the simulator's 0 is {_iso(offset)})"
+            )
         by_stream: dict[str, list[int]] = {}
         for e in agent:
             by_stream.setdefault(e.stream, []).append(e.seq)
@@ -506,7 +524,24 @@ class Converter:
         self.end_of_messages()
         assert self.numbered is not None
         poses, derived = self.numbered
-        return Finished(tuple(agent), tuple(derived), poses, losses, notes)
+        return Finished(tuple(agent), tuple(derived), poses, losses, notes, offset)
+
+
+def clock_offset(agent: Sequence[Event], stamps: Mapping[str, int]) -> int:
+    """What to add to the agent's ``time_ns`` to put it on the bag's clock: the header stamp of
+    the events topic less the event's own ``time_ns``, from the lowest-seq event with a stamp
+    (the recorder stamps each event at its simulated time on the bag's clock; ``rosbag
+    record`` of a playback keeps the stamps). 0 if no event has a stamp."""
+    for e in agent:
+        if e.event_id in stamps:
+            return stamps[e.event_id] - e.time_ns
+    return 0
+
+
+def _shifted(event: Event, offset: int) -> Event:
+    doc = event.to_json_dict()
+    doc["time_ns"] += offset
+    return Event._adopt(doc)
 
 
 @dataclass(frozen=True, slots=True)
@@ -516,6 +551,7 @@ class Finished:
     poses: PoseTrack
     losses: list[Loss]
     notes: list[str]
+    clock_offset_ns: int = 0
 
     def event_types(self) -> Counter[str]:
         types = Counter(e.type for e in self.agent)
@@ -915,6 +951,7 @@ def read_bag(
         event_types=dict(types),
         notes=tuple(notes),
         claims_complete=outcome.claims_complete,
+        clock_offset_ns=done.clock_offset_ns,
     )
     return BagContents(report, done.agent, done.derived, done.poses, conv.stream)
 

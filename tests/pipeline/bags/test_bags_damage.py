@@ -86,7 +86,11 @@ def test_late_cut_loses_only_the_tail(recorded: Recorded, tmp_path: Path) -> Non
         fh.truncate(int(_messages_end(data) * 0.7))
     contents = read_bag(bag)
     agent = [e for e in contents.events if not e.stream.startswith("bag:")]
-    logged = list(recorded.log)
+    shift = contents.report.clock_offset_ns  # agent events on the bag's clock
+    logged = [
+        Event.from_json_dict({**e.to_json_dict(), "time_ns": e.time_ns + shift})
+        for e in recorded.log
+    ]
     # What survives of the agent's log is a gap-free prefix of it.
     assert agent == logged[: len(agent)]
     assert 0 < len(agent) < len(logged) or recorded.recording.format is BagFormat.ROS2_SQLITE3

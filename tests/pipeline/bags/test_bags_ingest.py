@@ -48,8 +48,10 @@ def test_two_workers_give_the_same_lake_as_one(recorded: Recorded, tmp_path: Pat
     bags = [recorded.bag, cut]
     one = ingest(bags, tmp_path / "one", workers=1)
     two = ingest(bags, tmp_path / "two", workers=2)
-    assert all(r.error is None and r.committed > 0 for r in two)
-    assert [r.committed for r in one] == [r.committed for r in two]
+    # One recording session: the cut adds nothing to the whole (or the whole completes the
+    # cut, if the cut is committed first); either way the lake is the same.
+    assert all(r.error is None for r in two)
+    assert sum(r.committed for r in one) == sum(r.committed for r in two) > 0
     assert [r.report for r in one] == [r.report for r in two]
     assert list(BagLake(tmp_path / "one").events()) == list(BagLake(tmp_path / "two").events())
 

@@ -6,6 +6,7 @@ import json
 from collections import Counter
 from pathlib import Path
 
+from objsearch.events import Event
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import BagLake
 from objsearch.pipeline.bags.read import read_bag
@@ -29,7 +30,14 @@ def test_round_trip_through_the_lake_equals_the_agents_log(
     assert result.report.reader == "AnyReader" and not result.report.damaged
     lake_events = list(BagLake(tmp_path / "lake").events())
     agent = sorted((e for e in lake_events if not e.stream.startswith("bag:")), key=lambda e: e.seq)
-    assert agent == list(recorded.log)  # every field, recorded_at_ns included
+    # Every field, recorded_at_ns included; time_ns moved onto the bag's clock (one per run).
+    offset = result.report.clock_offset_ns
+    assert offset == 1_767_225_600_000_000_000  # the recorder's 2026-01-01T00:00Z
+    shifted = [
+        Event.from_json_dict({**e.to_json_dict(), "time_ns": e.time_ns + offset})
+        for e in recorded.log
+    ]
+    assert agent == shifted
     # Same decisions and path lengths, said the way an analyst would check them.
     ended = [e.payload["path_length"] for e in agent if e.type == "task_ended"]
     assert ended == [e.payload["path_length"] for e in recorded.log if e.type == "task_ended"]

@@ -1,0 +1,180 @@
+"""Which recording session a bag belongs to, and how its pieces become one run.
+
+A session is one run of the agent. Real robots record it in pieces (``rosbag record --split``,
+``ros2 bag record --max-bag-duration``, several storage files), and the same session may be
+ingested in more than one format. Every piece that carries agent events names its session
+through them: the agent's events have ids ``uuid5(run id/seq)``
+(:func:`~objsearch.events.envelope.deterministic_event_id`), and a run id derived from the run's
+spec (:func:`objsearch.agent.session.derived_run_id`, what ``record`` and seeded runs use) can be
+recomputed from the ``run_started`` event. So:
+
+* a piece holding ``run_started`` proves its run id (recomputed, then checked against the
+  event's id);
+* any other piece is matched against the run ids the lake (or this ingest) already knows: one
+  event id that equals ``uuid5(candidate/seq)`` proves it belongs;
+* a piece that cannot be placed yet (a later piece ingested before the first) is a
+  provisional run of its own, absorbed when its session's run id becomes known.
+
+Merging keeps the agent's events once (by id) and the derived ones (poses, detections) once by
+content, then numbers the derived ones again in the session's own stream in (time, type, seq)
+order, so the run is the same whatever order the pieces came in.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import uuid
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Final
+
+import polars as pl
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from objsearch.events import Event
+from objsearch.events.envelope import deterministic_event_id
+from objsearch.ros.topics import TopicMap
+
+#: Bump when a change to the conversion changes what a bag gives: bags ingested by an older
+#: converter are read again on the next ingest.
+CONVERTER_VERSION: Final = 2
+DERIVED_PREFIX: Final = "bag:"
+#: uuid.uuid5(uuid.NAMESPACE_URL, "urn:objsearch:runs"), as objsearch.agent.session defines it
+#: (not imported: the pipeline must not load the agent).
+RUN_ID_NAMESPACE: Final = uuid.uuid5(uuid.NAMESPACE_URL, "urn:objsearch:runs")
+_ENVELOPE_IDS: Final = ("event_id", "stream", "seq")
+
+
+def converter_key(topic_map: TopicMap) -> str:
+    """What decides how a bag converts: the topic map (topics and frames) and this version."""
+    doc = {
+        "version": CONVERTER_VERSION,
+        "topics": {t: r.value for t, r in sorted(topic_map.topics.items())},
+        "frames": repr(topic_map.frames),
+    }
+    text = json.dumps(doc, sort_keys=True, separators=(",", ":"))
+    return f"v{CONVERTER_VERSION}:" + hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True, slots=True)
+class FirstEvent:
+    """The lowest-seq agent event of a piece: what places a provisional piece later."""
+
+    stream: str
+    seq: int
+    event_id: str
+
+
+def first_event(agent: Sequence[Event]) -> FirstEvent | None:
+    if not agent:
+        return None
+    e = min(agent, key=lambda e: (e.stream, e.seq))
+    return FirstEvent(e.stream, e.seq, e.event_id)
+
+
+def derived_run_id(stream: str, payload: Mapping[str, object]) -> str:
+    text = json.dumps({"stream": stream, **payload}, sort_keys=True, separators=(",", ":"))
+    return str(uuid.uuid5(RUN_ID_NAMESPACE, text))
+
+
+def belongs(run_id: str, first: FirstEvent) -> bool:
+    return deterministic_event_id(run_id, first.seq) == first.event_id
+
+
+def run_id_of(agent: Sequence[Event], candidates: Iterable[str]) -> str | None:
+    """The agent run these events prove they belong to, or None (see the module docstring)."""
+    for e in agent:
+        if e.type == "run_started":
+            rid = derived_run_id(e.stream, dict(e.payload))
+            if deterministic_event_id(rid, e.seq) == e.event_id:
+                return rid
+    first = first_event(agent)
+    if first is None:
+        return None
+    return next((c for c in candidates if belongs(c, first)), None)
+
+
+def session_run_name(run_id: str) -> str:
+    """The lake run of an identified session: ``bag-`` and the run id's first 16 hex digits."""
+    return "bag-" + run_id.replace("-", "")[:16]
+
+
+def merge_tables(
+    parts: Sequence[Mapping[str, pa.Table]], stream: str, drop: Sequence[tuple[int, int]] = ()
+) -> dict[str, pa.Table]:
+    """One session's tables from several pieces' (earlier pieces win ties).
+
+    ``drop`` are time ranges whose derived rows are removed first from every part but the last
+    (a piece read again with another topic map or converter replaces its rows).
+    """
+    types = sorted({t for p in parts for t in p})
+    merged: dict[str, pl.DataFrame] = {}
+    for event_type in types:
+        frames = []
+        for i, part in enumerate(parts):
+            if event_type not in part:
+                continue
+            df = pl.from_arrow(part[event_type])
+            assert isinstance(df, pl.DataFrame)
+            if drop and i < len(parts) - 1:
+                derived = pl.col("stream").str.starts_with(DERIVED_PREFIX)
+                inside = pl.any_horizontal([pl.col("time_ns").is_between(a, b) for a, b in drop])
+                df = df.filter(~(derived & inside))
+            frames.append(df)
+        merged[event_type] = pl.concat(frames, how="vertical_relaxed")
+    agent_frames: dict[str, pl.DataFrame] = {}
+    derived_frames: dict[str, pl.DataFrame] = {}
+    for event_type, df in merged.items():
+        is_derived = pl.col("stream").str.starts_with(DERIVED_PREFIX)
+        agent_frames[event_type] = df.filter(~is_derived).unique(
+            subset=["event_id"], keep="first", maintain_order=True
+        )
+        content = [c for c in df.columns if c not in _ENVELOPE_IDS]
+        derived_frames[event_type] = df.filter(is_derived).unique(
+            subset=content, keep="first", maintain_order=True
+        )
+    # Number the derived rows again, across types, in the session's stream.
+    keys = [
+        df.select("time_ns", "seq").with_columns(
+            pl.lit(event_type).alias("type"), pl.int_range(pl.len()).alias("row")
+        )
+        for event_type, df in derived_frames.items()
+        if df.height
+    ]
+    new_seq: dict[str, pl.Series] = {}
+    if keys:
+        order = pl.concat(keys).sort(["time_ns", "type", "seq"], maintain_order=True)
+        order = order.with_columns(pl.int_range(1, pl.len() + 1, dtype=pl.Int64).alias("new"))
+        for event_type in derived_frames:
+            rows = order.filter(pl.col("type") == event_type).sort("row")
+            new_seq[event_type] = rows["new"]
+    out: dict[str, pa.Table] = {}
+    for event_type in types:
+        renumbered = derived_frames[event_type]
+        if renumbered.height:
+            seqs = new_seq[event_type]
+            ids = [deterministic_event_id(stream, s) for s in seqs.to_list()]
+            renumbered = renumbered.with_columns(
+                pl.Series("seq", seqs, dtype=renumbered.schema["seq"]),
+                pl.lit(stream).alias("stream"),
+                pl.Series("event_id", ids),
+            ).sort("seq")
+        table = pl.concat([agent_frames[event_type], renumbered], how="vertical_relaxed").to_arrow()
+        schema = parts_schema(parts, event_type)
+        out[event_type] = table.select(schema.names).cast(schema)
+    return out
+
+
+def parts_schema(parts: Sequence[Mapping[str, pa.Table]], event_type: str) -> pa.Schema:
+    return next(p[event_type].schema for p in parts if event_type in p)
+
+
+def rows_of(tables: Mapping[str, pa.Table], agent: bool) -> int:
+    """Agent (or derived) rows in a set of tables."""
+    n = 0
+    for table in tables.values():
+        derived = pc.starts_with(table["stream"], DERIVED_PREFIX)
+        n += pc.sum(pc.invert(derived) if agent else derived).as_py() or 0
+    return n
