@@ -70,6 +70,11 @@ def parquet_source(
     return f"read_parquet({files}, hive_partitioning = true, hive_types = {HIVE_TYPES}{extra})"
 
 
+# ``time``: the run's one clock (time_ns) as a real TIMESTAMP (UTC, microseconds). A bag run is on
+# the bag's clock (epoch); a simulated log's clock starts at 0, i.e. 1970-01-01.
+_TIME = "make_timestamp(time_ns // 1000) AS time"
+
+
 def create_type_views(
     con: duckdb.DuckDBPyConnection, lake: Lake, runs: Sequence[RunInfo] | None = None
 ) -> None:
@@ -84,17 +89,19 @@ def create_type_views(
             else None
         )
         if source is not None:
-            con.execute(f"CREATE OR REPLACE VIEW {view} AS SELECT * FROM {source}")
+            con.execute(f"CREATE OR REPLACE VIEW {view} AS SELECT *, {_TIME} FROM {source}")
         else:
             empty = pa.Table.from_pylist([], schema=event_schema(event_type))
             name = f"_empty_{event_type}"
             con.register(name, empty)
             partitions = ", ".join(f"NULL::{t} AS {n}" for n, t in PARTITION_COLUMNS)
             con.execute(
-                f"CREATE OR REPLACE VIEW {view} AS SELECT *, {partitions} FROM {quote_ident(name)}"
+                f"CREATE OR REPLACE VIEW {view} AS SELECT *, {partitions}, {_TIME} "
+                f"FROM {quote_ident(name)}"
             )
         parts.append(
-            f"SELECT robot, date, run, {envelope}, {quote_literal(event_type)} AS type FROM {view}"
+            f"SELECT robot, date, run, {envelope}, time, {quote_literal(event_type)} AS type "
+            f"FROM {view}"
         )
     con.execute("CREATE OR REPLACE VIEW events AS " + "\nUNION ALL ".join(parts))
 

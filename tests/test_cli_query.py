@@ -200,3 +200,20 @@ def test_lake_add_checks_the_whole_name(
     assert main(["lake", "add", str(log), "--robot", name, "--lake", str(tmp_path / "l")]) == 2
     assert capsys.readouterr().err.startswith(f"objsearch: error: robot name {name!r}")
     assert not list(tmp_path.glob("l/robot=*"))
+
+
+def test_every_event_has_its_time_as_a_timestamp(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from objsearch.cli import main as cli
+
+    log, lake = tmp_path / "log", tmp_path / "lake"
+    assert cli(["search", "--target", "Apple", "--start", "kitchen-1", "--log", str(log)]) == 0
+    assert cli(["lake", "add", str(log), "--robot", "r", "--lake", str(lake)]) == 0
+    capsys.readouterr()
+    sql = (
+        "SELECT DISTINCT typeof(time), bool_and(epoch_us(time) = time_ns // 1000) "
+        "FROM events GROUP BY ALL"
+    )
+    assert cli(["query", "--lake", str(lake), "--format", "csv", sql]) == 0
+    assert capsys.readouterr().out.splitlines()[1:] == ["TIMESTAMP,true"]
