@@ -148,3 +148,50 @@ def test_a_log_keeps_the_relation_model_of_its_first_run(tmp_path: Path) -> None
         Session.start(ctx, tmp_path, RunSpec.for_home(ctx.home, "wpl-neg"))
     with EventLog.open(tmp_path, "robot") as log:  # and the refused run wrote nothing
         assert log.last_seq == 3  # run_started, scene_graph_seeded, run_started
+
+
+SCHEDULE_RUNNER = r"""
+import sys
+from pathlib import Path
+from objsearch.agent.session import load_context
+from objsearch.agent.strategies import RunSpec
+from objsearch.sim.longterm import run_schedule
+
+spec = RunSpec.for_home(load_context("paper").home, schedule="table2")
+print("ready", flush=True)
+run_schedule(Path(sys.argv[1]), spec, scenes=(1, 2, 3))
+"""
+
+
+@pytest.mark.parametrize("delay_s", [0.7, 1.6, 2.9])
+def test_sigkill_mid_schedule_then_restart_never_repeats_a_task(
+    tmp_path: Path, delay_s: float
+) -> None:
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    log = tmp_path / "log"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", SCHEDULE_RUNNER, str(log)], stdout=subprocess.PIPE, text=True
+    )
+    assert proc.stdout is not None and proc.stdout.readline() == "ready\n"
+    time.sleep(delay_s)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+
+    ctx = load_context(HOME)
+    spec = RunSpec.for_home(ctx.home, schedule="table2")
+    run_schedule(log, spec, scenes=(4,), targets=("Cup",), starts=("kitchen-1", "bedroom-1"))
+    events = list(read_log(log))
+    started = [e.task_id for e in events if e.type == "task_started"]
+    closed = [e.task_id for e in events if e.type in ("task_ended", "task_aborted")]
+    assert len(started) == len(set(started))  # no task id ever repeats
+    assert sorted(closed) == sorted(started)  # every task ends exactly once, aborted or not
+    lake = Lake(tmp_path / "lake")
+    compact_log(log, lake, robot="sim", run="r")
+    rows = open_analytics(lake.root).execute(
+        "SELECT count(*), count(DISTINCT task_id) FROM searches"
+    )
+    assert rows.fetchone() == (len(started), len(started))
