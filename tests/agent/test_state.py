@@ -185,8 +185,8 @@ def test_sigkill_mid_schedule_then_restart_never_repeats_a_task(
     spec = RunSpec.for_home(ctx.home, schedule="table2")
     run_schedule(log, spec, scenes=(4,), targets=("Cup",), starts=("kitchen-1", "bedroom-1"))
     events = list(read_log(log))
-    started = [e.task_id for e in events if e.type == "task_started"]
-    closed = [e.task_id for e in events if e.type in ("task_ended", "task_aborted")]
+    started = [str(e.task_id) for e in events if e.type == "task_started"]
+    closed = [str(e.task_id) for e in events if e.type in ("task_ended", "task_aborted")]
     assert len(started) == len(set(started))  # no task id ever repeats
     assert sorted(closed) == sorted(started)  # every task ends exactly once, aborted or not
     lake = Lake(tmp_path / "lake")
