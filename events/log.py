@@ -680,10 +680,8 @@ class EventLog:
             )
 
     def _write(self, data: bytes) -> None:
-        view = memoryview(data)
         try:
-            while view:
-                view = view[os.write(self._fd, view) :]
+            _fs.write_all(self._fd, data)
         except BaseException as exc:
             # A partial line left in place would turn the next append into mid-file corruption.
             try:
@@ -879,15 +877,7 @@ def quarantine(directory: Path, label: str, data: bytes) -> Path:
     while path.exists():
         n += 1
         path = directory / f"{QUARANTINE_PREFIX}{label}.{n}"
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o644)
-    try:
-        view = memoryview(data)
-        while view:
-            view = view[os.write(fd, view) :]
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-    _fs.fsync_dir(directory)
+    _fs.write_new(path, data)
     return path
 
 
