@@ -42,6 +42,11 @@ Positive: TypeAlias = Annotated[float, msgspec.Meta(gt=0)]
 XY: TypeAlias = tuple[float, float]
 XYZ: TypeAlias = tuple[float, float, float]
 Box: TypeAlias = tuple[float, float, float, float]
+MethodName: TypeAlias = Literal["wpl", "rvp", "sdp", "ecost"]
+PlannerName: TypeAlias = Literal["wpl", "rvp", "sdp", "epl"]
+UpdateModeName: TypeAlias = Literal["none", "targets", "all"]
+RelationModelName: TypeAlias = Literal["eq4", "beta", "memory", "dist-oracle"]
+ViewReason: TypeAlias = Literal["look", "inside", "on_the_way"]
 
 
 class Record(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
@@ -91,7 +96,7 @@ class RelationsSpecV2(Part, frozen=True):
 
 
 class RelationsSpec(Part, frozen=True):
-    model: Literal["eq4", "beta", "memory", "dist-oracle"]
+    model: RelationModelName
     prior_strength: Positive | None
     half_life_tasks: Positive | None
     recent_weight: NonNegative | None
@@ -208,11 +213,11 @@ class RunStarted(Record, frozen=True):
     home: str
     home_digest: str
     strategy: str
-    method: Literal["wpl", "rvp", "sdp", "ecost"]
-    planner: Literal["wpl", "rvp", "sdp", "epl"]
+    method: MethodName
+    planner: PlannerName
     relations: RelationsSpec
     alpha: NonNegative
-    update_mode: Literal["none", "targets", "all"]
+    update_mode: UpdateModeName
     seed: int
     support_radius: NonNegative
     schedule: str | None
@@ -279,7 +284,7 @@ class ViewTaken(Record, frozen=True):
     VERSION: ClassVar[int] = 1
     pose: PlanarPose
     static_id: str | None
-    reason: Literal["look", "inside", "on_the_way"]
+    reason: ViewReason
 
 
 #: Every record, old versions included, by (type, version).

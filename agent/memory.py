@@ -25,6 +25,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+from objsearch.agent.catalogue import (
+    Detected,
+    PlanComputed,
+    RunStarted,
+    TaskStarted,
+    ViewTaken,
+    decode,
+)
 from objsearch.agent.relations import BetaRelations
 from objsearch.agent.scene_graph import EventLike, Pair, UpdateMode
 
@@ -71,31 +79,35 @@ class InstanceMemory:
 
     def apply(self, event: EventLike) -> None:
         self.classes.apply(event)
-        kind, payload = event.type, event.payload
+        kind = event.type
         if kind == "run_started":
-            self.update_mode = UpdateMode(payload["update_mode"])
+            self.update_mode = UpdateMode(decode(event, RunStarted).update_mode)
         elif kind == "task_started":
-            self._target = payload["target"]
+            started = decode(event, TaskStarted)
+            self._target = started.target
             self._task_id = getattr(event, "task_id", None)
-            self._scene = payload.get("scene")
+            self._scene = started.scene
             self._reset_task()
             factor = 0.5 ** (1.0 / self.half_life_tasks)
             self.recent_seen = {k: v * factor for k, v in self.recent_seen.items() if v > 1e-6}
             self.recent_missed = {k: v * factor for k, v in self.recent_missed.items() if v > 1e-6}
         elif kind == "plan_computed":
-            for c in payload["candidates"]:
-                self.static_class[c["static_id"]] = c["static_class"]
+            for c in decode(event, PlanComputed).candidates:
+                self.static_class[c.static_id] = c.static_class
         elif kind == "view_taken":
-            self._viewed.add(payload["static_id"])
-        elif kind == "detection" and payload["accepted"]:
-            support = payload["support"]
-            if support is not None and support["at"]:
-                d, sid = payload["object_class"], support["static_id"]
-                self.static_class[sid] = support["static_class"]
+            static_id = decode(event, ViewTaken).static_id
+            if static_id is not None:
+                self._viewed.add(static_id)
+        elif kind == "detection":
+            detected = decode(event, Detected)
+            support = detected.support
+            if detected.accepted and support is not None and support.at:
+                d, sid = detected.object_class, support.static_id
+                self.static_class[sid] = support.static_class
                 self._seen_at.setdefault(d, set()).add(sid)
                 self._sightings[d] = Sighting(
                     sid,
-                    support["static_class"],
+                    support.static_class,
                     self._task_id,
                     int(getattr(event, "time_ns", 0)),
                     self._scene,

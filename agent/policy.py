@@ -16,6 +16,26 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from objsearch.agent.catalogue import (
+    XY,
+    XYZ,
+    Candidate,
+    ContainerOpened,
+    Detected,
+    Moved,
+    PlanarPose,
+    PlanComputed,
+    Record,
+    SearchFailed,
+    Support,
+    TargetDetected,
+    TargetFound,
+    TaskEnded,
+    TaskStarted,
+    ViewReason,
+    ViewTaken,
+    encode,
+)
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point, Pose, Vec3, heading, wrap_angle
@@ -107,6 +127,10 @@ class Recorder:
             projection.apply(event)
         return event
 
+    def emit(self, record: Record, *, time_ns: int, task_id: str | None = None) -> EventLike:
+        """:meth:`record` of a typed record (its type, its payload)."""
+        return self.record(record.TYPE, encode(record), time_ns=time_ns, task_id=task_id)
+
 
 @dataclass(frozen=True, slots=True)
 class Stop:
@@ -148,8 +172,17 @@ class _Found:
     position: Vec3
 
 
-def _round_vec(v: Sequence[float]) -> list[float]:
-    return [round(float(c), 4) for c in v]
+def _planar(pose: Pose) -> PlanarPose:
+    """A pose as events record it: to 0.1 mm and 0.1 mrad (as ``Pose.as_dict``)."""
+    return PlanarPose(x=round(pose.x, 4), y=round(pose.y, 4), yaw=round(pose.yaw, 4))
+
+
+def _xy(v: Sequence[float]) -> XY:
+    return (round(float(v[0]), 4), round(float(v[1]), 4))
+
+
+def _xyz(v: Sequence[float]) -> XYZ:
+    return (round(float(v[0]), 4), round(float(v[1]), 4), round(float(v[2]), 4))
 
 
 def stop_value(graph: RelationModel, target: str, statics: Sequence[MappedStatic]) -> float:
@@ -292,10 +325,7 @@ class SearchAgent:
         )
         pose = world.pose()
         result.route.append(pose.point)
-        run.emit(
-            "task_started",
-            {"target": target, "start": start, "pose": pose.as_dict(), "scene": scene},
-        )
+        run.emit(TaskStarted(target=target, start=start, pose=_planar(pose), scene=scene))
         start_room = self.navmap.room_at(pose.x, pose.y)
         rooms = self.room_order(start_room, target, task_id, here=pose.point)
         found: _Found | None = None
@@ -305,7 +335,7 @@ class SearchAgent:
             here = world.pose().point
             ordering = self.plan_room(here, room, rooms[i + 1 :], room_stops)
             ordered = [stops[k] for k in ordering.order]
-            run.emit("plan_computed", self._plan_payload(room, rooms[i:], stops, ordering))
+            run.emit(self._plan(room, rooms[i:], stops, ordering))
             result.plans.append((room, tuple(s.key for s in ordered)))
             for stop in ordered:
                 found = run.go(stop.viewpoint, result) or run.inspect(stop)
@@ -314,64 +344,59 @@ class SearchAgent:
             if found:
                 break
         if found is None:
-            run.emit("search_failed", {"reason": f"{target} not found in any room"})
+            run.emit(SearchFailed(reason=f"{target} not found in any room"))
         else:
             arrived = world.pose()
             result.path_to_discovery = result.path_length
             run.emit(
-                "target_detected",
-                {
-                    "instance_id": found.instance_id,
-                    "position": _round_vec(found.position),
-                    "pose": arrived.as_dict(),
-                    "path_length": round(result.path_length, 4),
-                },
+                TargetDetected(
+                    instance_id=found.instance_id,
+                    position=_xyz(found.position),
+                    pose=_planar(arrived),
+                    path_length=round(result.path_length, 4),
+                )
             )
             room = self.navmap.room_at(arrived.x, arrived.y)
             goal = self.navmap.nearest_viewpoint(found.position[0], found.position[1], room)
             run.go(goal, result, watch=False, final_yaw=heading(goal, Point(*found.position[:2])))
             run.emit(
-                "target_found",
-                {
-                    "instance_id": found.instance_id,
-                    "position": _round_vec(found.position),
-                    "approach": world.pose().as_dict(),
-                },
+                TargetFound(
+                    instance_id=found.instance_id,
+                    position=_xyz(found.position),
+                    approach=_planar(world.pose()),
+                )
             )
             result.success = True
             result.found_instance = found.instance_id
         run.emit(
-            "task_ended",
-            {
-                "target": target,
-                "success": result.success,
-                "path_length": round(result.path_length, 4),
-            },
+            TaskEnded(
+                target=target, success=result.success, path_length=round(result.path_length, 4)
+            )
         )
         return result
 
-    def _plan_payload(
+    def _plan(
         self, room: str, room_order: Sequence[str], stops: Sequence[Stop], ordering: Ordering
-    ) -> dict[str, Any]:
+    ) -> PlanComputed:
         objective = self.planner.name + ("" if ordering.exact else "-truncated")
-        return {
-            "room": room,
-            "room_order": list(room_order),
-            "objective": objective,
-            "alpha": self.planner.alpha,
-            "candidates": [
-                {
-                    "static_id": s.key,
-                    "static_class": s.cls,
-                    "viewpoint": _round_vec(s.viewpoint),
-                    "rel": round(s.rel, 12),
-                }
+        return PlanComputed(
+            room=room,
+            room_order=tuple(room_order),
+            objective=objective,
+            alpha=self.planner.alpha,
+            candidates=tuple(
+                Candidate(
+                    static_id=s.key,
+                    static_class=s.cls,
+                    viewpoint=_xy(s.viewpoint),
+                    rel=round(s.rel, 12),
+                )
                 for s in stops
-            ],
-            "order": [stops[k].key for k in ordering.order],
-            "terms": [round(t, 6) for t in ordering.terms],
-            "value": round(ordering.value, 6),
-        }
+            ),
+            order=tuple(stops[k].key for k in ordering.order),
+            terms=tuple(round(t, 6) for t in ordering.terms),
+            value=round(ordering.value, 6),
+        )
 
 
 class _Task:
@@ -383,8 +408,8 @@ class _Task:
         self.task_id = task_id
         self.target = target
 
-    def emit(self, type: str, payload: Mapping[str, Any]) -> None:
-        self.agent.recorder.record(type, payload, time_ns=self.world.now_ns(), task_id=self.task_id)
+    def emit(self, record: Record) -> None:
+        self.agent.recorder.emit(record, time_ns=self.world.now_ns(), task_id=self.task_id)
 
     def detection(self, det: Detection, room: str) -> bool:
         """Record one detection; True if it is the target and passes its class's threshold."""
@@ -393,19 +418,18 @@ class _Task:
         nearest = self.agent.semmap.nearest(det.position, room)
         at_static = nearest is not None and nearest[1] <= self.agent.config.support_radius
         self.emit(
-            "detection",
-            {
-                "object_class": det.object_class,
-                "instance_id": det.instance_id,
-                "mask_area": round(det.mask_area, 2),
-                "position": _round_vec(det.position),
-                "accepted": accepted,
-                "support": (
-                    {"static_id": nearest[0].id, "static_class": nearest[0].cls, "at": at_static}
+            Detected(
+                object_class=det.object_class,
+                instance_id=det.instance_id,
+                mask_area=round(det.mask_area, 2),
+                position=_xyz(det.position),
+                accepted=accepted,
+                support=(
+                    Support(static_id=nearest[0].id, static_class=nearest[0].cls, at=at_static)
                     if nearest
                     else None
                 ),
-            },
+            )
         )
         return accepted and det.object_class == self.target
 
@@ -440,14 +464,13 @@ class _Task:
         result.path_length += nav.metres
         result.route.extend(nav.path[1:])
         self.emit(
-            "moved",
-            {
-                "start": start.as_dict(),
-                "end": nav.end.as_dict(),
-                "metres": round(nav.metres, 4),
-                "rooms": list(nav.rooms),
-                "interrupted": nav.interrupted,
-            },
+            Moved(
+                start=_planar(start),
+                end=_planar(nav.end),
+                metres=round(nav.metres, 4),
+                rooms=tuple(nav.rooms),
+                interrupted=nav.interrupted,
+            )
         )
         return found[0] if found else None
 
@@ -459,7 +482,7 @@ class _Task:
             if s.container:
                 dets = self.world.open(s.id)
                 pose = self.world.pose()
-                self.emit("container_opened", {"static_id": s.id, "pose": pose.as_dict()})
+                self.emit(ContainerOpened(static_id=s.id, pose=_planar(pose)))
                 hit = self._view(pose, s.id, "inside", dets, room)
                 if hit:
                     return hit
@@ -476,9 +499,14 @@ class _Task:
         return None
 
     def _view(
-        self, pose: Pose, static_id: str, reason: str, dets: Sequence[Detection], room: str
+        self,
+        pose: Pose,
+        static_id: str,
+        reason: ViewReason,
+        dets: Sequence[Detection],
+        room: str,
     ) -> _Found | None:
-        self.emit("view_taken", {"pose": pose.as_dict(), "static_id": static_id, "reason": reason})
+        self.emit(ViewTaken(pose=_planar(pose), static_id=static_id, reason=reason))
         found: _Found | None = None
         for det in dets:
             if self.detection(det, room) and found is None:

@@ -26,6 +26,15 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, ClassVar, Protocol
 
+from objsearch.agent.catalogue import (
+    Detected,
+    PlanComputed,
+    RunStarted,
+    SceneGraphSeeded,
+    TaskStarted,
+    ViewTaken,
+    decode,
+)
 from objsearch.agent.scene_graph import EventLike, Pair, UpdateMode, experience_to_fold
 
 
@@ -74,31 +83,36 @@ class BetaRelations:
         return 1.0 if self.half_life_tasks is None else 0.5 ** (1.0 / self.half_life_tasks)
 
     def apply(self, event: EventLike) -> None:
-        kind, payload = event.type, event.payload
+        kind = event.type
         if kind == "run_started":
-            self.update_mode = UpdateMode(payload["update_mode"])
+            self.update_mode = UpdateMode(decode(event, RunStarted).update_mode)
         elif kind == "scene_graph_seeded":
-            self.prior = {(v["dynamic"], v["static"]): float(v["rel"]) for v in payload["values"]}
+            self.prior = {
+                (v.dynamic, v.static): v.rel for v in decode(event, SceneGraphSeeded).values
+            }
             self.positive = {}
             self.negative = {}
         elif kind == "task_started":
-            self._target = payload["target"]
+            self._target = decode(event, TaskStarted).target
             self._seen_at = {}
             self._viewed = set()
             self._static_class = {}
             self._fade()
         elif kind == "plan_computed":
-            for c in payload["candidates"]:
-                self._static_class[c["static_id"]] = c["static_class"]
+            for c in decode(event, PlanComputed).candidates:
+                self._static_class[c.static_id] = c.static_class
         elif kind == "view_taken":
-            cls = self._static_class.get(payload["static_id"])
+            static_id = decode(event, ViewTaken).static_id
+            cls = None if static_id is None else self._static_class.get(static_id)
             if cls is not None:
                 self._viewed.add(cls)
-        elif kind == "detection" and payload["accepted"]:
-            statics = self._seen_at.setdefault(payload["object_class"], set())
-            support = payload["support"]
-            if support is not None and support["at"]:
-                statics.add(support["static_class"])
+        elif kind == "detection":
+            detected = decode(event, Detected)
+            if detected.accepted:
+                statics = self._seen_at.setdefault(detected.object_class, set())
+                support = detected.support
+                if support is not None and support.at:
+                    statics.add(support.static_class)
         elif kind == "task_ended":
             self._end_task()
         elif kind == "task_aborted":  # a search cut short by a crash folds nothing

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, ClassVar, Protocol
 
+from objsearch.agent.catalogue import Detected, RunStarted, SceneGraphSeeded, TaskStarted, decode
 from objsearch.agent.categories import Category, Vocabulary
 
 Pair = tuple[str, str]  # (semi-dynamic class, static class)
@@ -119,23 +120,26 @@ class SceneGraphProjection:
         self._pairs_of = _pairs_by_dynamic(self.relations)
 
     def apply(self, event: EventLike) -> None:
-        kind, payload = event.type, event.payload
+        # Only the types this fold reads are decoded: the rest pass on their ``type`` alone.
+        kind = event.type
         if kind == "run_started":
-            self.update_mode = UpdateMode(payload["update_mode"])
+            self.update_mode = UpdateMode(decode(event, RunStarted).update_mode)
         elif kind == "scene_graph_seeded":
             self.relations = {
-                (v["dynamic"], v["static"]): float(v["rel"]) for v in payload["values"]
+                (v.dynamic, v.static): v.rel for v in decode(event, SceneGraphSeeded).values
             }
             self._pairs_of = _pairs_by_dynamic(self.relations)
         elif kind == "task_started":
-            self._target = payload["target"]
+            self._target = decode(event, TaskStarted).target
             self._experience = {}
-        elif kind == "detection" and payload["accepted"]:
+        elif kind == "detection":
             # detection v2; older versions are upcast by read_log before they get here.
-            statics = self._experience.setdefault(payload["object_class"], set())
-            support = payload["support"]
-            if support is not None and support["at"]:
-                statics.add(support["static_class"])
+            detected = decode(event, Detected)
+            if detected.accepted:
+                statics = self._experience.setdefault(detected.object_class, set())
+                support = detected.support
+                if support is not None and support.at:
+                    statics.add(support.static_class)
         elif kind == "task_ended":
             self._end_task()
         elif kind == "task_aborted":

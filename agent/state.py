@@ -16,7 +16,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from objsearch.agent.catalogue import Moved, TaskStarted, decode
+from objsearch.agent.catalogue import Moved, RunStarted, TaskStarted, decode
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import EventLike
@@ -92,7 +92,7 @@ class AgentState:
 
     def apply(self, event: EventLike) -> None:
         if event.type == "run_started":
-            self.run = RunSpec.from_payload(event.payload)
+            self.run = RunSpec.from_record(decode(event, RunStarted))
             if self.model is None:
                 self.first_run = self.run
                 self.model = (self.counterfactual or self.run.relations).build()

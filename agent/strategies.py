@@ -18,8 +18,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Final, cast
 
+from objsearch.agent.catalogue import (
+    PlannerName,
+    RelationModelName,
+    RelationsSpec,
+    RunStarted,
+    decode_payload,
+    encode,
+)
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home
 from objsearch.agent.planner import (
@@ -31,6 +39,8 @@ from objsearch.agent.planner import (
 from objsearch.agent.policy import Method, SearchConfig
 from objsearch.agent.relations import BetaRelations, RelationModel
 from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
+from objsearch.agent.upcasters import STEPS
+from objsearch.events.errors import InvalidEventError
 
 #: Pseudo-observations of the Visual Genome prior in the Beta model. Fixed a priori (a weak prior
 #: worth two searches), not tuned on any home.
@@ -45,6 +55,8 @@ DEFAULT_SUPPORT_RADIUS = 0.5
 #: and weight 10 against long-run counts. Fixed a priori (docs/results.md), not tuned.
 MEMORY_HALF_LIFE_TASKS = 8.0
 MEMORY_RECENT_WEIGHT = 10.0
+
+_RUN_STARTED_V2_TO_V3: Final = STEPS["run_started", 2]
 
 RELATION_MODELS = ("eq4", "beta", "memory", "dist-oracle")
 PLANNERS = ("wpl", "rvp", "sdp", "epl")
@@ -97,19 +109,19 @@ class RelationSpec:
             )
         return SceneGraphProjection()
 
-    def payload(self) -> dict[str, Any]:
-        return {
-            "model": self.model,
-            "prior_strength": self.prior_strength,
-            "half_life_tasks": self.half_life_tasks,
-            "recent_weight": self.recent_weight,
-        }
+    def record(self) -> RelationsSpec:
+        """As ``run_started`` v3 records it."""
+        return RelationsSpec(
+            model=cast(RelationModelName, self.model),
+            prior_strength=self.prior_strength,
+            half_life_tasks=self.half_life_tasks,
+            recent_weight=self.recent_weight,
+        )
 
     @classmethod
-    def from_payload(cls, doc: Mapping[str, Any]) -> RelationSpec:
-        # Snapshots of v2 runs hold relations without recent_weight.
+    def from_record(cls, record: RelationsSpec) -> RelationSpec:
         return cls(
-            doc["model"], doc["prior_strength"], doc["half_life_tasks"], doc.get("recent_weight")
+            record.model, record.prior_strength, record.half_life_tasks, record.recent_weight
         )
 
 
@@ -302,37 +314,53 @@ class RunSpec:
         alpha = 0.0 if self.planner == "sdp" else self.alpha
         return WplPlanner(alpha=alpha, name=self.planner)
 
+    def record(self) -> RunStarted:
+        """The ``run_started`` record of this spec."""
+        return RunStarted(
+            home=self.home,
+            home_digest=self.home_digest,
+            strategy=self.strategy,
+            method=self.method.value,
+            planner=cast(PlannerName, self.planner),
+            relations=self.relations.record(),
+            alpha=self.alpha,
+            update_mode=self.update_mode.value,
+            seed=self.seed,
+            support_radius=self.support_radius,
+            schedule=self.schedule,
+            params=dict(self.params),
+        )
+
     def payload(self) -> dict[str, Any]:
         """``run_started`` v3."""
-        return {
-            "home": self.home,
-            "home_digest": self.home_digest,
-            "strategy": self.strategy,
-            "method": self.method.value,
-            "planner": self.planner,
-            "relations": self.relations.payload(),
-            "alpha": self.alpha,
-            "update_mode": self.update_mode.value,
-            "seed": self.seed,
-            "support_radius": self.support_radius,
-            "schedule": self.schedule,
-            "params": dict(self.params),
-        }
+        return encode(self.record())
 
     @classmethod
-    def from_payload(cls, p: Mapping[str, Any]) -> RunSpec:
-        """From ``run_started`` v3 (older versions are upcast by ``read_log``)."""
+    def from_record(cls, record: RunStarted) -> RunSpec:
         return cls(
-            home=p["home"],
-            home_digest=p["home_digest"],
-            strategy=p["strategy"],
-            method=Method(p["method"]),
-            planner=p["planner"],
-            relations=RelationSpec.from_payload(p["relations"]),
-            alpha=float(p["alpha"]),
-            update_mode=UpdateMode(p["update_mode"]),
-            seed=int(p["seed"]),
-            support_radius=float(p["support_radius"]),
-            schedule=p["schedule"],
-            params=dict(p["params"]),
+            home=record.home,
+            home_digest=record.home_digest,
+            strategy=record.strategy,
+            method=Method(record.method),
+            planner=record.planner,
+            relations=RelationSpec.from_record(record.relations),
+            alpha=float(record.alpha),
+            update_mode=UpdateMode(record.update_mode),
+            seed=record.seed,
+            support_radius=float(record.support_radius),
+            schedule=record.schedule,
+            params=dict(record.params),
         )
+
+    @classmethod
+    def from_payload(cls, payload: Mapping[str, Any]) -> RunSpec:
+        """From a ``run_started`` v3 payload (a snapshot's copy of one), or v2: snapshots of runs
+        written before v3 hold relations without ``recent_weight``."""
+        try:
+            record = decode_payload(RunStarted, payload)
+        except InvalidEventError as not_v3:
+            try:
+                record = decode_payload(RunStarted, _RUN_STARTED_V2_TO_V3(dict(payload)))
+            except (InvalidEventError, KeyError, TypeError):
+                raise not_v3 from None
+        return cls.from_record(record)

@@ -42,6 +42,7 @@ import duckdb
 import pyarrow as pa
 
 from objsearch.agent.catalogue import (
+    LATEST,
     Detected,
     Moved,
     PlanarPose,
@@ -51,6 +52,7 @@ from objsearch.agent.catalogue import (
     encode,
 )
 from objsearch.agent.scene_graph import SceneGraphProjection
+from objsearch.agent.strategies import RunSpec
 from objsearch.events import Event, EventLog, SchemaRegistry, fold, read_log
 from objsearch.events.arrow import events_to_tables
 from objsearch.events.catalogue import installed
@@ -94,14 +96,13 @@ def synthetic_run(n: int, seed: int = 0, stream: str = "bench") -> list[Event]:
                 time_ns=seq * 1_000_000,
                 recorded_at_ns=1_700_000_000_000_000_000 + seq,
                 type=type_,
-                version=2 if type_ == "detection" else 1,
+                version=LATEST[type_].VERSION,  # in memory, as read_log hands them out
                 task_id=task,
                 payload=payload,
             )
         )
 
-    add("run_started", {"home": "paper", "home_digest": "x", "method": "wpl", "alpha": 10.0,
-                        "update_mode": "all", "seed": seed, "params": {}}, None)  # fmt: skip
+    add("run_started", RunSpec.of("paper", "x", seed=seed).payload(), None)
     values = [{"dynamic": d, "static": s, "rel": rng.random()} for d in DYNAMIC for s in STATIC]
     add("scene_graph_seeded", {"source": "synthetic", "values": values}, None)
     task = 0

@@ -21,6 +21,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from objsearch.agent.catalogue import Moved, PlanarPose, TargetFound, TaskStarted, decode
 from objsearch.agent.navmap import NavigationMap
 
 
@@ -46,8 +47,8 @@ class Excess:
         return self.right_room_walk - oracle
 
 
-def _room(navmap: NavigationMap, pose: Mapping[str, Any]) -> str:
-    return navmap.room_at(float(pose["x"]), float(pose["y"]))
+def _room(navmap: NavigationMap, pose: PlanarPose) -> str:
+    return navmap.room_at(pose.x, pose.y)
 
 
 def decompose(events: Iterable[EventLike], navmap: NavigationMap) -> dict[str, Excess]:
@@ -60,11 +61,12 @@ def decompose(events: Iterable[EventLike], navmap: NavigationMap) -> dict[str, E
             continue
         if e.type == "task_started":
             legs = []
-            start_room = _room(navmap, e.payload["pose"])
+            start_room = _room(navmap, decode(e, TaskStarted).pose)
         elif e.type == "moved":
-            legs.append((_room(navmap, e.payload["end"]), float(e.payload["metres"])))
+            moved = decode(e, Moved)
+            legs.append((_room(navmap, moved.end), moved.metres))
         elif e.type == "target_found":
-            found_room = _room(navmap, e.payload["approach"])
+            found_room = _room(navmap, decode(e, TargetFound).approach)
             approach = legs[-1][1] if legs else 0.0
             wrong = sum(m for r, m in legs if r != found_room)
             start = sum(m for r, m in legs if r != found_room and r == start_room)

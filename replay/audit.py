@@ -19,6 +19,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.catalogue import (
+    Candidate,
+    ContainerOpened,
+    Detected,
+    Moved,
+    PlanComputed,
+    SearchFailed,
+    TargetFound,
+    TaskAborted,
+    TaskEnded,
+    TaskStarted,
+    ViewTaken,
+    decode,
+)
 from objsearch.agent.geometry import Point
 from objsearch.agent.outdir import claim
 from objsearch.agent.policy import stop_statics, stop_value
@@ -107,15 +121,15 @@ class Auditor:
         self.tasks.append(holder)
         return holder
 
-    def _value(self, task: TaskAudit, room: str, candidate: Any) -> float:
+    def _value(self, task: TaskAudit, room: str, candidate: Candidate) -> float:
         """What the graph says the candidate stop is worth now (per instance where it can)."""
         graph = self.state.graph
         if not per_instance(graph):
-            return graph.rel(task.target, candidate["static_class"])
+            return graph.rel(task.target, candidate.static_class)
         semmap = load_context(task.home).semmap
-        key = next((s for s in semmap.in_room(room) if s.id == candidate["static_id"]), None)
+        key = next((s for s in semmap.in_room(room) if s.id == candidate.static_id), None)
         if key is None:
-            return graph.rel(task.target, candidate["static_class"])
+            return graph.rel(task.target, candidate.static_class)
         group = [
             s
             for s in stop_statics(semmap, room, key)
@@ -124,18 +138,18 @@ class Auditor:
         return stop_value(graph, task.target, group or [key])
 
     def _check_plan(self, task: TaskAudit, event: Any) -> None:
-        p = event.payload
-        now = [(c, self._value(task, p["room"], c)) for c in p["candidates"]]
+        plan = decode(event, PlanComputed)
+        now = [(c, self._value(task, plan.room, c)) for c in plan.candidates]
         stale = [
-            f"{c['static_class']}: logged {float(c['rel']):.4f}, graph {value:.4f}"
+            f"{c.static_class}: logged {c.rel:.4f}, graph {value:.4f}"
             for c, value in now
-            if abs(float(c["rel"]) - value) > REL_TOLERANCE
+            if abs(c.rel - value) > REL_TOLERANCE
         ]
         if stale:
             task.flag(
                 "stale-plan",
                 event.seq,
-                f"plan for {p['room']} used relation values the scene graph no longer had: "
+                f"plan for {plan.room} used relation values the scene graph no longer had: "
                 + "; ".join(stale),
             )
         if task._target_seen_at is not None:
@@ -151,16 +165,17 @@ class Auditor:
         task._target_seen_at = None
 
     def _after(self, event: Any) -> None:
-        kind, p = event.type, event.payload
+        kind = event.type
         if kind == "task_started":
+            started = decode(event, TaskStarted)
             if self._current is not None:
                 self._current.flag("out-of-order", event.seq, "a new task started before it ended")
                 self._finish(self._current)
             run = self.state.run
             self._current = TaskAudit(
                 task_id=str(event.task_id),
-                target=p["target"],
-                start=p["start"],
+                target=started.target,
+                start=started.start,
                 home=run.home if run else "",
                 first_seq=event.seq,
             )
@@ -168,7 +183,7 @@ class Auditor:
             if pose is not None:
                 self._current.route.append(pose.point)
             self._current.timeline.append(
-                f"{event.seq}: task started — find {p['target']} from {p['start']}"
+                f"{event.seq}: task started — find {started.target} from {started.start}"
             )
             return
         task = self._current
@@ -180,45 +195,55 @@ class Auditor:
             return
         task.last_seq = event.seq
         if kind == "plan_computed":
-            task.plans.append(dict(p, seq=event.seq))
-            order = " → ".join(k.split("/", 1)[1].split("|")[0] for k in p["order"]) or "nothing"
-            task.timeline.append(f"{event.seq}: plan {p['room']} ({p['objective']}): {order}")
+            plan = decode(event, PlanComputed)
+            task.plans.append(dict(event.payload, seq=event.seq))
+            order = " → ".join(k.split("/", 1)[1].split("|")[0] for k in plan.order) or "nothing"
+            task.timeline.append(f"{event.seq}: plan {plan.room} ({plan.objective}): {order}")
         elif kind == "moved":
-            task._moved_metres += float(p["metres"])
-            task.route.append(Point(float(p["end"]["x"]), float(p["end"]["y"])))
+            moved = decode(event, Moved)
+            task._moved_metres += moved.metres
+            task.route.append(Point(moved.end.x, moved.end.y))
             task.timeline.append(
-                f"{event.seq}: moved {float(p['metres']):.2f} m"
-                + (" (stopped: target seen)" if p["interrupted"] else "")
+                f"{event.seq}: moved {moved.metres:.2f} m"
+                + (" (stopped: target seen)" if moved.interrupted else "")
             )
         elif kind in ("view_taken", "container_opened"):
             # A view's event precedes its detections, so a view after the sighting is a new one.
             if task._target_seen_at is not None:
                 self._not_acted_on(task, event.seq, f"went on to {kind.replace('_', ' ')}")
-            what = "opened" if kind == "container_opened" else f"looked ({p['reason']}) at"
-            task.timeline.append(f"{event.seq}: {what} {p['static_id'].split('/', 1)[1]}")
+            if kind == "container_opened":
+                what, static_id = "opened", decode(event, ContainerOpened).static_id
+            else:
+                view = decode(event, ViewTaken)
+                what, static_id = f"looked ({view.reason}) at", view.static_id or "/nothing"
+            task.timeline.append(f"{event.seq}: {what} {static_id.split('/', 1)[1]}")
         elif kind == "detection":
-            if p["accepted"]:
-                support = p["support"]
-                at = support is not None and support["at"]
-                where = support["static_class"] if at else "no static object"
-                task.timeline.append(f"{event.seq}: saw {p['object_class']} at {where}")
-                if at:
-                    learned = task.learned.setdefault(p["object_class"], [])
-                    if support["static_class"] not in learned:
-                        learned.append(support["static_class"])
-                if p["object_class"] == task.target and task._target_seen_at is None:
+            detected = decode(event, Detected)
+            if detected.accepted:
+                support = detected.support if detected.support and detected.support.at else None
+                where = "no static object" if support is None else support.static_class
+                task.timeline.append(f"{event.seq}: saw {detected.object_class} at {where}")
+                if support is not None:
+                    learned = task.learned.setdefault(detected.object_class, [])
+                    if support.static_class not in learned:
+                        learned.append(support.static_class)
+                if detected.object_class == task.target and task._target_seen_at is None:
                     task._target_seen_at = event.seq
         elif kind == "target_found":
             task._target_seen_at = None
-            task.found_at = Point(float(p["position"][0]), float(p["position"][1]))
-            task.timeline.append(f"{event.seq}: found {p['instance_id']}")
+            found = decode(event, TargetFound)
+            task.found_at = Point(found.position[0], found.position[1])
+            task.timeline.append(f"{event.seq}: found {found.instance_id}")
         elif kind == "search_failed":
             if task._target_seen_at is not None:
                 self._not_acted_on(task, event.seq, "reported the search failed")
-            task.timeline.append(f"{event.seq}: search failed — {p['reason']}")
+            task.timeline.append(
+                f"{event.seq}: search failed — {decode(event, SearchFailed).reason}"
+            )
         elif kind == "task_ended":
-            task.success = bool(p["success"])
-            task.path_length = float(p["path_length"])
+            ended = decode(event, TaskEnded)
+            task.success = ended.success
+            task.path_length = ended.path_length
             if abs(task._moved_metres - task.path_length) > 1e-3:
                 task.flag(
                     "out-of-order",
@@ -244,9 +269,10 @@ class Auditor:
             self._current = None
         elif kind == "task_aborted":
             task.success = False
-            task.path_length = float(p["path_length"])
+            aborted = decode(event, TaskAborted)
+            task.path_length = aborted.path_length
             task.timeline.append(
-                f"{event.seq}: task aborted ({p['reason']}) after {task.path_length:.2f} m; "
+                f"{event.seq}: task aborted ({aborted.reason}) after {task.path_length:.2f} m; "
                 "nothing of it is folded into the scene graph"
             )
             self._finish(task)

@@ -10,12 +10,13 @@ inputs changed (relation values, candidates, viewpoints, α, the method, the hom
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from objsearch.agent.catalogue import PlanComputed, decode
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point
 from objsearch.agent.planner import wpl_terms
@@ -172,28 +173,28 @@ class Replayer:
                 start_room, task.target, task.task_id, here=task.start_pose.point
             )
             self._room_orders = {task.task_id: rooms}
-        p = event.payload
+        p = decode(event, PlanComputed)
         here = st.pose.point
         # Exactly as the agent plans: the room's stops, plus (for planners that use them) where
         # the next room is entered and how much Rel the rooms still to come hold.
         position = task.plans_so_far
-        later = rooms[position + 1 :] if rooms[position : position + 1] == [p["room"]] else []
-        room_stops = {r: agent.stops(r, task.target) for r in (p["room"], *later)}
-        stops = room_stops[p["room"]]
-        ordering = agent.plan_room(here, p["room"], later, room_stops)
+        later = rooms[position + 1 :] if rooms[position : position + 1] == [p.room] else []
+        room_stops = {r: agent.stops(r, task.target) for r in (p.room, *later)}
+        stops = room_stops[p.room]
+        ordering = agent.plan_room(here, p.room, later, room_stops)
         replayed_order = tuple(stops[k].key for k in ordering.order)
-        recorded_order = tuple(p["order"])
+        recorded_order = p.order
         today = _value_of(agent, config, here, stops, recorded_order)
         decision = DecisionReplay(
             seq=event.seq,
             task_id=task.task_id,
             target=task.target,
-            room=p["room"],
-            recorded_rooms=tuple(p["room_order"]),
+            room=p.room,
+            recorded_rooms=p.room_order,
             replayed_rooms=tuple(rooms[task.plans_so_far :]),
             recorded_order=recorded_order,
             replayed_order=replayed_order,
-            recorded_value=float(p["value"]),
+            recorded_value=p.value,
             recorded_value_today=today,
             replayed_value=ordering.value,
         )
@@ -231,7 +232,7 @@ def _value_of(
 
 
 def _reasons(
-    payload: Mapping[str, Any],
+    plan: PlanComputed,
     run: RunSpec,
     config: SearchConfig,
     stops: Sequence[Stop],
@@ -239,19 +240,19 @@ def _reasons(
 ) -> Iterator[str]:
     if config.method is not run.method:
         yield f"method {run.method.value} → {config.method.value}"
-    if config.effective_alpha != float(payload["alpha"]):
-        yield f"α {payload['alpha']} → {config.effective_alpha}"
-    recorded = {c["static_id"]: c for c in payload["candidates"]}
+    if config.effective_alpha != plan.alpha:
+        yield f"α {plan.alpha} → {config.effective_alpha}"
+    recorded = {c.static_id: c for c in plan.candidates}
     today = {s.key: s for s in stops}
     for key in sorted(recorded.keys() - today.keys()):
-        yield f"candidate {key} dropped (Rel({task.target}, {recorded[key]['static_class']}) is 0)"
+        yield f"candidate {key} dropped (Rel({task.target}, {recorded[key].static_class}) is 0)"
     for key in sorted(today.keys() - recorded.keys()):
         yield f"candidate {key} added (Rel({task.target}, {today[key].cls}) = {today[key].rel:.4f})"
     for key in sorted(recorded.keys() & today.keys()):
-        before, now = float(recorded[key]["rel"]), today[key].rel
+        before, now = recorded[key].rel, today[key].rel
         if abs(before - now) > REL_TOLERANCE:
             yield f"Rel({task.target}, {today[key].cls}) at {key}: {before:.4f} → {now:.4f}"
-        vp = [float(v) for v in recorded[key]["viewpoint"]]
+        vp = recorded[key].viewpoint
         now_vp = today[key].viewpoint
         if abs(vp[0] - now_vp.x) > 1e-6 or abs(vp[1] - now_vp.y) > 1e-6:
             yield f"viewpoint of {key}: ({vp[0]}, {vp[1]}) → ({now_vp.x}, {now_vp.y})"

@@ -8,8 +8,16 @@ start room, and the robot's last known pose.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
+from objsearch.agent.catalogue import (
+    ContainerOpened,
+    Moved,
+    PlanarPose,
+    TargetFound,
+    TaskStarted,
+    ViewTaken,
+    decode,
+)
 from objsearch.agent.geometry import Pose
 from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import EventLike
@@ -27,8 +35,8 @@ class TaskState:
     plans_so_far: int = 0
 
 
-def _pose(doc: Any) -> Pose:
-    return Pose(float(doc["x"]), float(doc["y"]), float(doc["yaw"]))
+def _pose(pose: PlanarPose) -> Pose:
+    return Pose(pose.x, pose.y, pose.yaw)
 
 
 @dataclass
@@ -56,22 +64,25 @@ class ReplayState:
 
     def apply(self, event: EventLike) -> None:
         """Fold one event; the scene graph last, so a plan sees the graph as it was before it."""
-        kind, p = event.type, event.payload
+        kind = event.type
         if kind == "task_started":
-            self.pose = _pose(p["pose"])
+            started = decode(event, TaskStarted)
+            self.pose = _pose(started.pose)
             self.task = TaskState(
                 task_id=str(getattr(event, "task_id", None) or ""),
-                target=p["target"],
-                start=p["start"],
+                target=started.target,
+                start=started.start,
                 start_pose=self.pose,
-                scene=p["scene"],
+                scene=started.scene,
             )
         elif kind == "moved":
-            self.pose = _pose(p["end"])
-        elif kind in ("view_taken", "container_opened"):
-            self.pose = _pose(p["pose"])
+            self.pose = _pose(decode(event, Moved).end)
+        elif kind == "view_taken":
+            self.pose = _pose(decode(event, ViewTaken).pose)
+        elif kind == "container_opened":
+            self.pose = _pose(decode(event, ContainerOpened).pose)
         elif kind == "target_found":
-            self.pose = _pose(p["approach"])
+            self.pose = _pose(decode(event, TargetFound).approach)
         elif kind == "plan_computed" and self.task is not None:
             self.task = TaskState(
                 self.task.task_id,

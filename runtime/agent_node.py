@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.catalogue import SearchFailed, TaskEnded
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.scene_graph import EventLike, UpdateMode
 from objsearch.agent.session import Session, load_context
@@ -160,16 +161,10 @@ class AgentNode:
     def _fail_task(self, task_id: str, target: str, reason: str, metres: float) -> None:
         now = self.world.now_ns()
         with self.session.log.batch():
-            self.session.recorder.record(
-                "search_failed", {"reason": f"robot: {reason}"}, time_ns=now, task_id=task_id
-            )
-            self.session.recorder.record(
-                "task_ended",
-                {
-                    "target": target,
-                    "success": False,
-                    "path_length": round(metres, 4),
-                },
+            recorder = self.session.recorder
+            recorder.emit(SearchFailed(reason=f"robot: {reason}"), time_ns=now, task_id=task_id)
+            recorder.emit(
+                TaskEnded(target=target, success=False, path_length=round(metres, 4)),
                 time_ns=now,
                 task_id=task_id,
             )

@@ -22,8 +22,10 @@ from typing import Any, Final, Protocol
 
 from objsearch.agent.catalogue import (
     ContainerOpened,
+    Detected,
     Moved,
     PlanarPose,
+    PlanComputed,
     RunStarted,
     SearchFailed,
     TargetFound,
@@ -286,7 +288,7 @@ class _Task:
     target: str
     route: list[Point] = field(default_factory=list)
     plan: dict[str, Any] | None = None
-    detections: list[Mapping[str, Any]] = field(default_factory=list)
+    detections: list[Detected] = field(default_factory=list)
     # Built messages, kept so that each new message (the whole route, every detection of the
     # task: a late viewer needs only the last one) costs the new parts, not all of them again.
     route_poses: list[Any] = field(default_factory=list)
@@ -352,27 +354,23 @@ class LiveView:
         self._send_graph(event, stamp)
 
     def _on_plan_computed(self, event: Event, stamp: int) -> None:
-        p = event.payload
-        viewpoint = {c["static_id"]: Point(*c["viewpoint"]) for c in p["candidates"]}
+        plan = decode(event, PlanComputed)
+        viewpoint = {c.static_id: Point(*c.viewpoint) for c in plan.candidates}
         stops: list[Point] = []
-        for static_id in p["order"]:
+        for static_id in plan.order:
             vp = viewpoint[static_id]
             if not stops or stops[-1] != vp:  # statics sharing a viewpoint are one stop
                 stops.append(vp)
         if self.task is not None:
             self.task.plan = {
-                "room": p["room"],
-                "room_order": list(p["room_order"]),
-                "objective": p["objective"],
-                "order": list(p["order"]),
-                "value": p["value"],
+                "room": plan.room,
+                "room_order": list(plan.room_order),
+                "objective": plan.objective,
+                "order": list(plan.order),
+                "value": plan.value,
                 "candidates": [
-                    {
-                        "static_id": c["static_id"],
-                        "static_class": c["static_class"],
-                        "rel": c["rel"],
-                    }
-                    for c in p["candidates"]
+                    {"static_id": c.static_id, "static_class": c.static_class, "rel": c.rel}
+                    for c in plan.candidates
                 ],
             }
         self._send(PLAN, stamp, path(stops, stamp))
@@ -409,16 +407,13 @@ class LiveView:
         self._on_view_taken(event, stamp)
 
     def _on_detection(self, event: Event, stamp: int) -> None:
-        p = event.payload
+        detected = decode(event, Detected)
         det = Detection(
-            str(p["object_class"]),
-            str(p["instance_id"]),
-            float(p["mask_area"]),
-            (float(p["position"][0]), float(p["position"][1]), float(p["position"][2])),
+            detected.object_class, detected.instance_id, detected.mask_area, detected.position
         )
         self._send(DETECTIONS, stamp, m.detections(stamp, self.pose or Pose(0, 0, 0), [det]))
         if self.task is not None:
-            self.task.detections.append(p)
+            self.task.detections.append(detected)
             self._send(DETECTION_MARKERS, stamp, self._detection_markers(stamp))
 
     def _on_target_found(self, event: Event, stamp: int) -> None:
@@ -455,15 +450,15 @@ class LiveView:
         built = task.detection_markers
         for i in range(len(built), len(task.detections)):
             d = task.detections[i]
-            x, y, z = d["position"]
-            if d["instance_id"] == task.found:
-                color, label = _color(0.1, 0.9, 0.1), f"{d['object_class']} (found)"
-            elif d["object_class"] == task.target:
-                color, label = _color(1.0, 0.6, 0.0), f"{d['object_class']} (target, not accepted)"
-            elif d["accepted"]:
-                color, label = _color(0.9, 0.9, 0.2), str(d["object_class"])
+            x, y, z = d.position
+            if d.instance_id == task.found:
+                color, label = _color(0.1, 0.9, 0.1), f"{d.object_class} (found)"
+            elif d.object_class == task.target:
+                color, label = _color(1.0, 0.6, 0.0), f"{d.object_class} (target, not accepted)"
+            elif d.accepted:
+                color, label = _color(0.9, 0.9, 0.2), d.object_class
             else:
-                color, label = _color(0.5, 0.5, 0.5), f"{d['object_class']} (below threshold)"
+                color, label = _color(0.5, 0.5, 0.5), f"{d.object_class} (below threshold)"
             sphere = marker(
                 stamp, "detections", 2 * i + 1, SPHERE, pose=_pose(x, y, z), color=color
             )

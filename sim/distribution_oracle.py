@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, ClassVar
 
+from objsearch.agent.catalogue import RunStarted, decode
 from objsearch.agent.home import load_home
 from objsearch.agent.scene_graph import EventLike, Pair
 from objsearch.sim.habit_schedule import habit_distribution, stats_distribution
@@ -48,7 +49,8 @@ class DistributionOracle:
 
     def apply(self, event: EventLike) -> None:
         if event.type == "run_started" and self.home is None:
-            self._load(event.payload["home"], event.payload["schedule"])
+            run = decode(event, RunStarted)
+            self._load(run.home, run.schedule)
         elif event.type == "task_ended":
             self.tasks_folded += 1
         self.last_seq = event.seq

@@ -7,8 +7,20 @@ from typing import Any
 
 import pytest
 
+from objsearch.agent.catalogue import (
+    Candidate,
+    Detected,
+    PlanarPose,
+    PlanComputed,
+    Support,
+    TaskEnded,
+    TaskStarted,
+    ViewTaken,
+    encode,
+)
 from objsearch.agent.relations import BetaRelations
-from objsearch.agent.scene_graph import SceneGraphProjection
+from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
+from objsearch.agent.strategies import RunSpec
 
 
 @dataclass(frozen=True)
@@ -27,36 +39,52 @@ PRIOR = [
 ]
 
 
+POSE = PlanarPose(x=0.0, y=0.0, yaw=0.0)
+
+
 def det(cls: str, static: str | None) -> dict[str, Any]:
-    return {
-        "object_class": cls,
-        "accepted": True,
-        "support": None
-        if static is None
-        else {"static_id": f"{static}|1", "static_class": static, "at": True},
-    }
+    return encode(
+        Detected(
+            object_class=cls,
+            instance_id=f"{cls}|1",
+            mask_area=900.0,
+            position=(0.0, 0.0, 0.0),
+            accepted=True,
+            support=None
+            if static is None
+            else Support(static_id=f"{static}|1", static_class=static, at=True),
+        )
+    )
 
 
 def task(
     seq: int, target: str, viewed: list[tuple[str, str]], seen: list[tuple[str, str | None]]
 ) -> list[Ev]:
     """One task: a plan naming the viewed statics, a view of each, then the detections."""
-    evs = [
-        Ev(seq, "task_started", {"target": target}),
-        Ev(
-            seq + 1,
-            "plan_computed",
-            {"candidates": [{"static_id": sid, "static_class": c} for sid, c in viewed]},
+    plan = PlanComputed(
+        room="kitchen-1",
+        room_order=("kitchen-1",),
+        objective="wpl",
+        alpha=10.0,
+        candidates=tuple(
+            Candidate(static_id=sid, static_class=c, viewpoint=(0.0, 0.0), rel=0.5)
+            for sid, c in viewed
         ),
-    ]
+        order=tuple(sid for sid, _ in viewed),
+        terms=(),
+        value=0.0,
+    )
+    started = TaskStarted(target=target, start="kitchen-1", pose=POSE, scene=None)
+    evs = [Ev(seq, "task_started", encode(started)), Ev(seq + 1, "plan_computed", encode(plan))]
     n = seq + 2
     for sid, _ in viewed:
-        evs.append(Ev(n, "view_taken", {"static_id": sid}))
+        evs.append(Ev(n, "view_taken", encode(ViewTaken(pose=POSE, static_id=sid, reason="look"))))
         n += 1
     for cls, static in seen:
         evs.append(Ev(n, "detection", det(cls, static)))
         n += 1
-    evs.append(Ev(n, "task_ended", {}))
+    ended = TaskEnded(target=target, success=True, path_length=0.0)
+    evs.append(Ev(n, "task_ended", encode(ended)))
     return evs
 
 
@@ -68,8 +96,8 @@ def fold(model: Any, events: list[Ev]) -> Any:
 
 def start(mode: str = "all") -> list[Ev]:
     return [
-        Ev(1, "run_started", {"update_mode": mode}),
-        Ev(2, "scene_graph_seeded", {"values": PRIOR}),
+        Ev(1, "run_started", RunSpec.of("paper", "x", update_mode=UpdateMode(mode)).payload()),
+        Ev(2, "scene_graph_seeded", {"source": "test", "values": PRIOR}),
     ]
 
 
@@ -100,12 +128,8 @@ def test_negative_evidence_needs_an_update_mode_and_a_view() -> None:
     events = start("none") + task(10, "Apple", [("s1", "Sink")], [])
     assert fold(BetaRelations(), events).rel("Apple", "Sink") == pytest.approx(0.2)
     # A candidate that was planned but never looked at teaches nothing.
-    events = [
-        *start(),
-        Ev(10, "task_started", {"target": "Apple"}),
-        Ev(11, "plan_computed", {"candidates": [{"static_id": "s1", "static_class": "Sink"}]}),
-        Ev(12, "task_ended", {}),
-    ]
+    planned = task(10, "Apple", [("s1", "Sink")], [])
+    events = [*start(), *(e for e in planned if e.type != "view_taken")]
     assert fold(BetaRelations(), events).rel("Apple", "Sink") == pytest.approx(0.2)
 
 

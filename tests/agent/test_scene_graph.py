@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 
+from objsearch.agent.catalogue import Detected, PlanarPose, Support, TaskEnded, TaskStarted, encode
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.scene_graph import (
     SceneGraphProjection,
@@ -15,6 +16,7 @@ from objsearch.agent.scene_graph import (
     experience_to_fold,
     seed_relations,
 )
+from objsearch.agent.strategies import RunSpec
 
 VOCAB = Vocabulary.from_dict(
     {
@@ -64,7 +66,7 @@ def seeded_events(mode: str) -> list[Ev]:
         {"dynamic": "Cup", "static": "Table", "rel": 0.1},
     ]
     return [
-        Ev(1, "run_started", {"update_mode": mode}),
+        Ev(1, "run_started", RunSpec.of("paper", "x", update_mode=UpdateMode(mode)).payload()),
         Ev(2, "scene_graph_seeded", {"source": "test", "values": values}),
     ]
 
@@ -73,24 +75,40 @@ def detection(seq: int, cls: str, static: str | None, *, accepted: bool = True) 
     return Ev(
         seq,
         "detection",
-        {
-            "object_class": cls,
-            "accepted": accepted,
-            "support": None
-            if static is None
-            else {"static_id": f"{static}|1", "static_class": static, "at": True},
-        },
+        encode(
+            Detected(
+                object_class=cls,
+                instance_id=f"{cls}|1",
+                mask_area=900.0,
+                position=(0.0, 0.0, 0.0),
+                accepted=accepted,
+                support=None
+                if static is None
+                else Support(static_id=f"{static}|1", static_class=static, at=True),
+            )
+        ),
     )
+
+
+def started(seq: int) -> Ev:
+    pose = PlanarPose(x=0.0, y=0.0, yaw=0.0)
+    return Ev(
+        seq, "task_started", encode(TaskStarted(target="Apple", start="k", pose=pose, scene=None))
+    )
+
+
+def ended(seq: int) -> Ev:
+    return Ev(seq, "task_ended", encode(TaskEnded(target="Apple", success=True, path_length=0.0)))
 
 
 def task(seq: int) -> list[Ev]:
     # Looking for an apple: sees a cup at the table, then the apple at the sink.
     return [
-        Ev(seq, "task_started", {"target": "Apple"}),
+        started(seq),
         detection(seq + 1, "Cup", "Table"),
         detection(seq + 2, "Apple", None, accepted=False),  # below threshold: not seen
         detection(seq + 3, "Apple", "Sink"),
-        Ev(seq + 4, "task_ended", {}),
+        ended(seq + 4),
     ]
 
 
@@ -131,8 +149,8 @@ def test_failed_search_with_nothing_seen_changes_nothing() -> None:
     for ev in seeded_events("all"):
         graph.apply(ev)
     before = dict(graph.relations)
-    graph.apply(Ev(3, "task_started", {"target": "Apple"}))
-    graph.apply(Ev(4, "task_ended", {}))
+    graph.apply(started(3))
+    graph.apply(ended(4))
     assert graph.relations == before
 
 
