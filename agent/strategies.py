@@ -16,7 +16,7 @@ the log has them.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any, Final, cast
 
@@ -58,6 +58,16 @@ MEMORY_RECENT_WEIGHT = 10.0
 
 _RUN_STARTED_V2_TO_V3: Final = STEPS["run_started", 2]
 
+#: Relation models registered by other parts, by name: the agent cannot import them (dist-oracle
+#: reads the simulator's schedule generator; ``objsearch.sim`` registers it when imported).
+EXTERNAL_MODELS: dict[str, Callable[[], RelationModel]] = {}
+
+
+def register_relation_model(name: str, build: Callable[[], RelationModel]) -> None:
+    """Make ``RelationSpec(name).build()`` call ``build`` (a reference model outside the agent)."""
+    EXTERNAL_MODELS[name] = build
+
+
 RELATION_MODELS = ("eq4", "beta", "memory", "dist-oracle")
 PLANNERS = ("wpl", "rvp", "sdp", "epl")
 
@@ -97,11 +107,14 @@ class RelationSpec:
                 half_life_tasks=self.half_life_tasks,
                 recent_weight=self.recent_weight or 0.0,
             )
+        if self.model in EXTERNAL_MODELS:
+            return EXTERNAL_MODELS[self.model]()
         if self.model == "dist-oracle":
-            # A reference searcher, never a default: it reads the run's schedule generator.
-            from objsearch.sim.distribution_oracle import DistributionOracle
-
-            return DistributionOracle()
+            raise ObjsearchError(
+                "the dist-oracle relation model is a simulation reference that reads the "
+                "schedule's generator; it is registered by objsearch.sim (import it to fold "
+                "such a run)"
+            )
         if self.model == "beta":
             assert self.prior_strength is not None
             return BetaRelations(

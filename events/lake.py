@@ -434,7 +434,13 @@ class Lake:
                     "%s: removed %d unfinished commit(s) from %s", self.root, len(stale), STAGING
                 )
                 _fs.fsync_dir(staging)
-        for tmp in self.root.glob(f"robot=*/date=*/run=*/{DERIVED_DIR}/.*.tmp"):
+        # Temporary files of atomic writes a dead writer left: in derived tables, and in the
+        # folders other writers keep at the lake's top level (e.g. the bag reports, _bags/).
+        leftovers = [
+            *self.root.glob(f"robot=*/date=*/run=*/{DERIVED_DIR}/.*.tmp"),
+            *self.root.glob("_*/.*.tmp"),
+        ]
+        for tmp in leftovers:
             tmp.unlink()
 
     def _roll_forward(self, intent_path: Path) -> None:

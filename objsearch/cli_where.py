@@ -14,7 +14,7 @@ def register(sub: Any) -> None:
     where = sub.add_parser(
         "where", help="where an object was last seen, where it usually is, how sure (from a log)"
     )
-    where.add_argument("target", metavar="TARGET", help="object class, e.g. Cup")
+    where.add_argument("target", metavar="TARGET", type=t.text, help="object class, e.g. Cup")
     where.add_argument("--log", required=True, type=t.existing_dir, help="event log folder")
     where.add_argument("--json", action="store_true", help="print the answer as JSON")
     where.set_defaults(func=cmd_where)

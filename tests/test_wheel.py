@@ -152,7 +152,10 @@ def test_objsearch_data_overrides_the_shipped_data(installed: Installed, tmp_pat
 
 
 def test_data_build_will_not_write_into_the_installed_package(installed: Installed) -> None:
-    source = str(installed.elsewhere / "shared-data")  # never read: the target is refused first
+    # An (empty) source folder: the option must name a folder, but it is never read, the target
+    # is refused first.
+    (installed.elsewhere / "shared-data").mkdir(exist_ok=True)
+    source = str(installed.elsewhere / "shared-data")
     proc = installed.run("data", "build", "--source", source)
     assert proc.returncode == 2
     assert "no checkout to build into" in proc.stderr

@@ -102,7 +102,12 @@ def commit_converted(lake: LakeWriter, converted: Converted, robot: str) -> Inge
     report = converted.report
     if report.events == 0:
         # A piece with nothing the lake keeps (e.g. a split's last seconds with no converted
-        # topic) makes no run: an empty run would only show up as a session of its own.
+        # topic) makes no run: an empty run would only show up as a session of its own. Its
+        # report is kept all the same: what the bag claimed and lost stays accounted for.
+        try:
+            lake.record_without_run(report.bag_id, dataclasses.asdict(report))
+        except Exception as exc:
+            return IngestResult(converted.path, None, 0, already=False, error=str(exc) or repr(exc))
         return IngestResult(
             converted.path,
             report,

@@ -25,10 +25,10 @@ def _row(scene: int, target: str, task: int, path: float, oracle: float, wrong: 
         oracle,
         f"task-{task:05d}",
         (),
-        wrong,
-        wrong / 2,
-        right,
-        1.0,
+        wrong_rooms_m=wrong,
+        start_room_m=wrong / 2,
+        right_room_m=right,
+        approach_m=1.0,
     )
 
 

@@ -251,17 +251,16 @@ def test_lake_add_and_ls(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     lake = str(tmp_path / "lake")
     assert main(["lake", "add", str(V1_LOG), "--robot", "r1", "--lake", lake]) == 0
     assert "812 events" in capsys.readouterr().out
+    # The same log under a second run name would count its events twice: refused, named.
     assert (
-        main(["lake", "add", str(V1_LOG), "--robot", "r1", "--run", "again", "--lake", lake]) == 0
+        main(["lake", "add", str(V1_LOG), "--robot", "r1", "--run", "again", "--lake", lake]) == 2
     )
-    capsys.readouterr()
+    assert "already" in capsys.readouterr().err
     assert main(["lake", "ls", "--lake", lake, "--format", "json"]) == 0
     listed = json.loads(capsys.readouterr().out)
-    assert [(r["robot"], r["run"], r["events"]) for r in listed] == [
-        ("r1", "again", 812),
-        ("r1", "robot", 812),
-    ]
-    assert main(["lake", "add", str(V1_LOG), "--robot", "bad/name", "--lake", lake]) == 2
+    assert [(r["robot"], r["run"], r["events"]) for r in listed] == [("r1", "robot", 812)]
+    other = str(tmp_path / "other")
+    assert main(["lake", "add", str(V1_LOG), "--robot", "bad/name", "--lake", other]) == 2
     assert "robot name 'bad/name'" in capsys.readouterr().err
 
 

@@ -85,7 +85,7 @@ def serving(events: list[Event]) -> Iterator[int]:
     [(LEGACY_SUBPROTOCOL, LEGACY_SUBPROTOCOL), (SDK_SUBPROTOCOL, SDK_SUBPROTOCOL)],
 )
 def test_both_names_get_the_stream(serving: int, offered: str, chosen: str) -> None:
-    from ws_client import FoxgloveClient
+    from .ws_client import FoxgloveClient
 
     client = FoxgloveClient("127.0.0.1", serving, subprotocols=offered)
     try:
@@ -107,8 +107,8 @@ def test_both_names_get_the_stream(serving: int, offered: str, chosen: str) -> N
 def test_a_refused_handshake_is_answered_and_logged_with_its_reason(
     serving: int, caplog: pytest.LogCaptureFixture
 ) -> None:
-    from ws_client import FoxgloveClient
-    from ws_client import HandshakeRefused as Refused
+    from .ws_client import FoxgloveClient
+    from .ws_client import HandshakeRefused as Refused
 
     with caplog.at_level(logging.WARNING, logger="objsearch.liveview"):
         with pytest.raises(Refused) as refused:
