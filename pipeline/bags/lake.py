@@ -278,16 +278,6 @@ class BagLake:
         except (OSError, EventStoreError) as exc:
             raise BagCommitError(f"writing the report of bag {bag_id[:16]} failed: {exc}") from exc
 
-    def record_without_run(self, bag_id: str, report: dict[str, Any]) -> None:
-        """Keep the report of a bag that made no run (nothing in it to keep): what it claimed and
-        lost is still accounted for in ``_bags/<bag id>.json``, with ``run`` null."""
-        doc = {"bag_id": bag_id, "robot": None, "run": None, "events": 0, "report": report}
-        try:
-            with self.lake.locked():
-                self._write_report(bag_id, _json(doc))
-        except (OSError, EventStoreError) as exc:
-            raise BagCommitError(f"writing the report of bag {bag_id[:16]} failed: {exc}") from exc
-
     def restore_report(self, bag_id: str) -> bool:
         """Write ``_bags/<bag id>.json`` from the run's record if a crash left it out; returns
         whether it did."""
