@@ -287,6 +287,10 @@ Schedules taken from real AI2-THOR rearrangement episodes (`rearr-<seed>`, iTHOR
 their own generated page: [results-rearrangement.md](results-rearrangement.md)
 (`objsearch bench report --rearr <bench homes output>`).
 
+Table I over a seeded sample of the FloorPlan sets that satisfy the paper's removal rule, with
+the paper's figures and our paper home placed in the distribution, has its own page:
+[results-table1.md](results-table1.md) (`objsearch bench table1 --sets 100 --seed 1`).
+
 ## Route and scene graph
 {route}.
 

@@ -91,6 +91,32 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_table1(args: argparse.Namespace) -> int:
+    from objsearch.experiments.runner import TARGETS
+    from objsearch.experiments.table1_sets import OUTPUTS, render, run_table1_sets
+
+    targets = args.targets or list(TARGETS)
+    unknown = [name for name in targets if name not in TARGETS]
+    if unknown:
+        raise ObjsearchError(
+            f"--targets: {', '.join(unknown)} not among the eight targets ({', '.join(TARGETS)})"
+        )
+    out = Path(args.out)
+    with claim(out, command="bench table1", owns=OUTPUTS, replace_needs_force=False):
+        summary = run_table1_sets(
+            out,
+            source=Path(args.source),
+            sets=args.sets,
+            seed=args.seed,
+            workers=_workers(args),
+            targets=targets,
+            progress=not args.no_progress,
+        )
+    print(render(summary))
+    print(f"\nresults in {args.out} (summary.md, summary.json, table1_sets.csv)")
+    return 0
+
+
 def cmd_bench_report(args: argparse.Namespace) -> int:
     from objsearch.experiments.report import write_report
 
@@ -188,6 +214,41 @@ def register(sub: Any) -> None:
         "(stats)",
     )
     homes.set_defaults(func=cmd_bench_homes)
+
+    table1 = bsub.add_parser(
+        "table1",
+        help="Table I over a seeded sample of FloorPlan sets that satisfy the paper's removal rule "
+        "(docs/results-table1.md)",
+    )
+    table1.add_argument(
+        "--out",
+        default="out/bench-table1",
+        type=t.dir_path,
+        help="output folder (out/bench-table1)",
+    )
+    table1.add_argument(
+        "--source",
+        default="../shared/data",
+        type=t.existing_dir,
+        help="the shared raw data the homes are built from (../shared/data)",
+    )
+    table1.add_argument(
+        "--sets", type=t.int_range(1, 100000), default=100, help="sampled FloorPlan sets (100)"
+    )
+    table1.add_argument(
+        "--seed", type=t.int_range(0, 2**31 - 1), default=1, help="seed of the sample order (1)"
+    )
+    table1.add_argument(
+        "--targets", type=t.name_list, help="comma-separated subset of the eight targets"
+    )
+    table1.add_argument(
+        "--workers",
+        type=t.int_range(0, t.MAX_WORKERS),
+        default=0,
+        help=f"processes, at most {t.MAX_WORKERS} (0, the default: min(2, cores))",
+    )
+    table1.add_argument("--no-progress", action="store_true", help="no progress output")
+    table1.set_defaults(func=cmd_bench_table1)
 
     report = bsub.add_parser("report", help="write docs/results.md from bench outputs")
     report.add_argument(

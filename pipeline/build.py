@@ -14,7 +14,7 @@ from pathlib import Path
 from objsearch.events import _fs
 
 from . import jsonio
-from .errors import HomeSpecError, SourceDataError
+from .errors import BuildError, HomeSpecError, SourceDataError
 from .home import SourceHome, build_home, normalise_floorplan
 from .more_homes import HELDOUT_SEED, PROCTHOR_FILES, heldout_ithor_homes
 from .placement_stats import placement_stats_json
@@ -143,6 +143,16 @@ def build_data(
         built[name] = home
         outputs[f"homes/{name}.json"] = jsonio.dumps(home.to_json())
         notes += _room_notes(home)
+
+    for name, home in built.items():
+        if name == PAPER_HOME_NAME:
+            continue
+        try:
+            own = table1(home)
+        except BuildError as exc:
+            notes.append(f"{name}: no Table I scenario ({exc})")
+            continue
+        outputs[f"scenarios/table1-{name}.json"] = jsonio.dumps(own.to_json())
 
     paper = built.get(PAPER_HOME_NAME)
     if paper is None:

@@ -25,9 +25,16 @@ def base_placements(home: Home, removed: frozenset[str] = frozenset()) -> dict[s
     }
 
 
+def table1_scenario_path(home_name: str) -> Path:
+    """``scenarios/table1-<home>.json`` when the build derived one for that home (any home that
+    satisfies the paper's removal rule), else the paper home's ``scenarios/table1.json``."""
+    own = data_dir() / "scenarios" / f"table1-{home_name}.json"
+    return own if own.is_file() else data_dir() / "scenarios" / "table1.json"
+
+
 def table1_removals(home: Home, path: Path | None = None) -> frozenset[str]:
     """The paper's Table I removals (one instance per target), checked against the home."""
-    path = path or data_dir() / "scenarios" / "table1.json"
+    path = path or table1_scenario_path(home.name)
     doc = read_json(path, "the Table I scenario")
     removed = frozenset(doc["removed"])
     unknown = removed - set(home.objects)

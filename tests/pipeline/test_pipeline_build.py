@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -166,3 +167,15 @@ def test_every_named_prior_is_built_where_the_agent_reads_it(
     assert READ == WRITTEN
     written = {p.relative_to(out).as_posix() for p in report.files}
     assert set(WRITTEN.values()) <= written
+
+
+def test_a_home_that_satisfies_the_removal_rule_gets_its_own_table1(
+    shared_data: Path, tmp_path: Path
+) -> None:
+    good = ("FloorPlan3", "FloorPlan203", "FloorPlan310", "FloorPlan402")  # satisfies the rule
+    bad = ("FloorPlan1", "201", "FloorPlan316", "402")  # a target left twice or not at all
+    report = build_data(shared_data, tmp_path, homes={"good": good, "bad": bad})
+    own = json.loads((tmp_path / "scenarios" / "table1-good.json").read_text())
+    assert own["home"] == "good" and len(own["targets"]) == 8
+    assert not (tmp_path / "scenarios" / "table1-bad.json").exists()
+    assert any(n.startswith("bad: no Table I scenario") for n in report.notes)
