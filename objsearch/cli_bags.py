@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -284,7 +285,12 @@ def register(sub: Any) -> None:
         type=t.existing_path,
         help=".bag files or ROS 2 bag directories",
     )
-    ing.add_argument("--lake", required=True, type=t.dir_path, help="the event lake directory")
+    ing.add_argument(
+        "--lake",
+        default=os.environ.get("OBJSEARCH_LAKE", "out/lake"),
+        type=t.dir_path,
+        help="the event lake directory ($OBJSEARCH_LAKE or out/lake, as query and lake use)",
+    )
     ing.add_argument(
         "--workers",
         type=t.int_range(1, t.MAX_WORKERS),

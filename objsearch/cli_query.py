@@ -177,6 +177,10 @@ def cmd_lake_upgrade(args: argparse.Namespace) -> int:
 def cmd_lake_ls(args: argparse.Namespace) -> int:
     from objsearch.events.lake import Lake
 
+    if not Path(args.lake).is_dir():  # as query says: listing nothing would hide a wrong path
+        return _fail(
+            f"no lake at {args.lake} (add runs with `objsearch lake add LOG --lake {args.lake}`)"
+        )
     runs, damaged = Lake(args.lake).scan()
     for run in damaged:
         print(f"objsearch: warning: {run.path}: damaged run: {run.reason}", file=sys.stderr)

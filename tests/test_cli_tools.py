@@ -109,3 +109,24 @@ def test_agent_find_without_a_router_says_so_within_seconds() -> None:
     assert "nobody answers: no zenoh router or peer is reachable at " + endpoint in line
     assert "objsearch robot router" in line and "rmw_zenohd" in line
     assert waited < 15, waited  # told within seconds, not at the 30 s timeout
+
+
+def test_lake_ls_of_a_missing_lake_is_an_error_like_query(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    missing = str(tmp_path / "no-lake")
+    assert main(["lake", "ls", "--lake", missing]) == 2
+    assert main(["query", "--lake", missing, "SELECT 1"]) == 2
+    assert capsys.readouterr().err.count("objsearch: error: no lake at") == 2
+
+
+def test_ingest_takes_its_lake_from_objsearch_lake(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from objsearch.cli import build_parser
+
+    monkeypatch.setenv("OBJSEARCH_LAKE", str(tmp_path / "site-lake"))
+    bag = tmp_path / "x.bag"
+    bag.write_bytes(b"")
+    args = build_parser().parse_args(["ingest", str(bag)])
+    assert args.lake == str(tmp_path / "site-lake")
