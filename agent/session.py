@@ -6,7 +6,7 @@ import contextlib
 import json
 import time
 import uuid
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -81,10 +81,14 @@ def prior_values(
     return (source if name == DEFAULT_PRIOR else f"{name}: {source}"), values
 
 
-def derived_run_id(stream: str, spec: RunSpec) -> str:
-    """A run id that is a function of the stream and the run's spec (its seed included): a
-    seeded simulation writes the same log every time, and two different runs never share ids."""
-    doc = {"stream": stream, **spec.payload()}
+def derived_run_id(stream: str, spec: RunSpec, inputs: Mapping[str, Any] | None = None) -> str:
+    """A run id that is a function of everything that decides the run's facts: the stream, the
+    spec (its seed included) and ``inputs`` — what it is asked to do (the searches: targets,
+    starts, scenes). A seeded simulation writes the same log every time; two runs asked for
+    different things never share ids."""
+    doc: dict[str, Any] = {"stream": stream, **spec.payload()}
+    if inputs:
+        doc["inputs"] = dict(inputs)
     if spec.prior != DEFAULT_PRIOR:  # the default leaves the ids of existing logs as they were
         doc["prior"] = spec.prior
     text = json.dumps(doc, sort_keys=True, separators=(",", ":"))
@@ -171,10 +175,12 @@ class Session:
         *,
         stream: str = "robot",
         run_id: str | None = None,
+        inputs: Mapping[str, Any] | None = None,
         **kwargs: Any,
     ) -> Session:
-        """:meth:`open` then :meth:`start_run`; a new log's run id is derived from ``spec``."""
-        chosen = run_id if run_id is not None else derived_run_id(stream, spec)
+        """:meth:`open` then :meth:`start_run`; a new log's run id is derived from ``spec`` and
+        ``inputs`` (what the run will be asked to do) unless ``run_id`` is given."""
+        chosen = run_id if run_id is not None else derived_run_id(stream, spec, inputs)
         session = cls.open(ctx, log_dir, stream=stream, run_id=chosen, **kwargs)
         try:
             session.start_run(spec)
@@ -211,7 +217,12 @@ class Session:
         # cannot start leaves the log as it was.
         prior = None if self.state.seeded else prior_values(self.ctx.vocabulary, spec.prior)
         at = self.resume_time_ns
-        self.recorder.record("run_started", spec.payload(), time_ns=at)
+        payload = spec.payload()
+        if self.log.run_id is not None:
+            # The log's run id, so a reader holding only some events (a split bag's piece) can
+            # prove which run they belong to: event ids are uuid5(run id, seq).
+            payload["params"] = {**payload["params"], "run_id": self.log.run_id}
+        self.recorder.record("run_started", payload, time_ns=at)
         if prior is not None:
             source, values = prior
             self.recorder.record(

@@ -97,7 +97,8 @@ def cmd_search(args: argparse.Namespace) -> int:
     log_dir = Path(args.log or tmp or ".")
     try:
         spec = run_spec(args, ctx.home, schedule=None if args.scene is None else args.schedule)
-        session = Session.start(ctx, log_dir, spec)
+        inputs = {"target": target, "start": args.start, "scene": args.scene}
+        session = Session.start(ctx, log_dir, spec, inputs=inputs)
         try:
             world = SimWorld(
                 ctx.home, ctx.navmap, placements, pose, clock=SimClock(session.resume_time_ns)

@@ -89,6 +89,13 @@ def run_schedule(
             f"schedule {spec.schedule!r} has scenes {sorted(placements)}, not {unknown_scenes}"
         )
     trials: list[Trial] = []
+    inputs = {
+        "targets": list(targets),
+        "scenes": None if scenes is None else list(scenes),
+        "starts": None if starts is None else list(starts),
+        "skip_absent_targets": skip_absent_targets,
+    }
+    session_options.setdefault("inputs", inputs)
     session = Session.start(ctx, log_dir, spec, **session_options)
     try:
         clock = SimClock(session.resume_time_ns)

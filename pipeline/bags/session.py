@@ -74,11 +74,6 @@ def first_event(agent: Sequence[Event]) -> FirstEvent | None:
     return FirstEvent(e.stream, e.seq, e.event_id)
 
 
-def derived_run_id(stream: str, payload: Mapping[str, object]) -> str:
-    text = json.dumps({"stream": stream, **payload}, sort_keys=True, separators=(",", ":"))
-    return str(uuid.uuid5(RUN_ID_NAMESPACE, text))
-
-
 def belongs(run_id: str, first: FirstEvent) -> bool:
     return deterministic_event_id(run_id, first.seq) == first.event_id
 
@@ -87,8 +82,11 @@ def run_id_of(agent: Sequence[Event], candidates: Iterable[str]) -> str | None:
     """The agent run these events prove they belong to, or None (see the module docstring)."""
     for e in agent:
         if e.type == "run_started":
-            rid = derived_run_id(e.stream, dict(e.payload))
-            if deterministic_event_id(rid, e.seq) == e.event_id:
+            # The agent records its log's run id in run_started's params; the event's own id
+            # (uuid5(run id, seq)) proves it.
+            params = e.payload.get("params")
+            rid = params.get("run_id") if isinstance(params, Mapping) else None
+            if isinstance(rid, str) and deterministic_event_id(rid, e.seq) == e.event_id:
                 return rid
     first = first_event(agent)
     if first is None:

@@ -157,6 +157,8 @@ def _decision_facts(event: Event) -> dict[str, Any]:
     # Ids differ by design: a format-1 log derived them from its stream, today's from its run id.
     d = _facts(event)
     del d["event_id"]
+    if d["type"] == "run_started":  # today's writer records its log's run id; v1 had none
+        d["payload"]["params"].pop("run_id", None)
     if d["type"] == "detection":
         d["payload"] = {k: v for k, v in d["payload"].items() if k not in ("mask_area", "accepted")}
     return d
