@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import time
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -26,6 +27,8 @@ from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import World
 from objsearch.events import EventLog, fold, read_log
 from objsearch.events.snapshot import restore, save_snapshot
+
+_log = logging.getLogger(__name__)
 
 PRIOR_FILE = "priors/visual_genome.json"
 #: The readings of Eq. 2 ``objsearch data build`` writes (pipeline/vg_prior.py; docs/paper-readings.md).
@@ -265,12 +268,16 @@ class Session:
     def close(self) -> None:
         try:
             if self.snapshot_dir is not None and not self.log.closed and self.state.last_seq:
-                save_snapshot(
-                    self.snapshot_dir,
-                    self.state,
-                    log_dir=self.log.directory,
-                    position=self.log.position,
-                )
+                try:
+                    save_snapshot(
+                        self.snapshot_dir,
+                        self.state,
+                        log_dir=self.log.directory,
+                        position=self.log.position,
+                    )
+                except (ObjsearchError, OSError, ValueError) as exc:
+                    # The log is the record; a missing snapshot only makes the next start fold it.
+                    _log.warning("snapshot not written (%s); the next start folds the log", exc)
         finally:
             self.log.close()
 

@@ -35,6 +35,9 @@ from objsearch.runtime.transport import open_transport
 
 log = logging.getLogger("objsearch.agent")
 
+#: Beside the log: the agent's state at its last shutdown (objsearch.events.snapshot).
+SNAPSHOT_DIR = "snapshots"
+
 
 class EventPublisher:
     """An observer that publishes each appended event on the events topic."""
@@ -118,6 +121,8 @@ class AgentNode:
                 # A robot's runs never repeat: a new log gets a random run id, so no two robots'
                 # logs share event ids (a seeded simulation derives its id instead).
                 run_id=str(uuid.uuid4()),
+                # A restart reads only what came after the snapshot taken at the last shutdown.
+                snapshot_dir=log_dir / SNAPSHOT_DIR,
             )
         except BaseException:
             self.node.close()
