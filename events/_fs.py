@@ -98,19 +98,34 @@ def try_lock(path: Path) -> int | None:
     processes lock two different inodes of the same name.
     """
     fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        os.close(fd)
+    if not _flock_or_close(fd):
         return None
-    except BaseException:
-        os.close(fd)
-        raise
     # The holder's pid is only a hint for the "locked" error message.
     with contextlib.suppress(OSError):
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode())
     return fd
+
+
+def flock_nb(fd: int) -> bool:
+    """Take an exclusive, non-blocking ``flock`` on ``fd``; False if someone else holds it."""
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    return True
+
+
+def _flock_or_close(fd: int) -> bool:
+    # The descriptor is closed unless the lock was taken, whatever goes wrong.
+    try:
+        locked = flock_nb(fd)
+    except BaseException:
+        os.close(fd)
+        raise
+    if not locked:
+        os.close(fd)
+    return locked
 
 
 def lock_holder_hint(path: Path) -> str:
@@ -150,14 +165,8 @@ def try_lock_dir(directory: Path) -> int | None:
     entries, unlike a lock file, so a careless ``rm`` cannot let a second writer in.
     """
     fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        os.close(fd)
+    if not _flock_or_close(fd):
         return None
-    except BaseException:
-        os.close(fd)
-        raise
     return fd
 
 

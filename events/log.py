@@ -21,7 +21,6 @@ noticing (it checks the file is still linked at every fsync).
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import json
 import logging
 import os
@@ -380,7 +379,7 @@ class EventLog:
         try:
             if created:
                 _fs.fsync_dir(directory)
-            hint_fd = _fs.try_lock(directory / LOCK_FILE) if _flock(fd) else None
+            hint_fd = _fs.try_lock(directory / LOCK_FILE) if _fs.flock_nb(fd) else None
             if hint_fd is None:
                 raise LogLockedError(
                     f"event log {directory} is already open for writing (its lock is held"
@@ -719,14 +718,6 @@ def _non_empty(path: Path) -> bool:
         return path.stat().st_size > 0
     except FileNotFoundError:
         return False
-
-
-def _flock(fd: int) -> bool:
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        return False
-    return True
 
 
 def _parse_uuid(value: object, what: str) -> uuid.UUID:

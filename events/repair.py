@@ -19,7 +19,6 @@ from .log import (
     LOG_FILE,
     LogMeta,
     LogPosition,
-    _flock,
     _Scan,
     quarantine,
     read_durable,
@@ -92,7 +91,7 @@ def repair_log(directory: Path | str) -> Repair:
     path = directory / LOG_FILE
     fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
     try:
-        lock_fd = _fs.try_lock(directory / LOCK_FILE) if _flock(fd) else None
+        lock_fd = _fs.try_lock(directory / LOCK_FILE) if _fs.flock_nb(fd) else None
         if lock_fd is None:
             raise LogLockedError(
                 f"event log {directory} is open for writing; stop its writer first"

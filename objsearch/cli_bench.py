@@ -33,8 +33,8 @@ def _workers(args: argparse.Namespace) -> int:
     return max(1, args.workers if args.workers else min(2, os.cpu_count() or 1))
 
 
-def cmd_bench_paper(args: argparse.Namespace) -> int:
-    from objsearch.experiments.paper import render, run_paper
+def _targets(args: argparse.Namespace) -> list[str]:
+    """``--targets`` (default: all eight), each checked against the eight."""
     from objsearch.experiments.runner import TARGETS
 
     targets = args.targets or list(TARGETS)
@@ -43,6 +43,13 @@ def cmd_bench_paper(args: argparse.Namespace) -> int:
         raise ObjsearchError(
             f"--targets: {', '.join(unknown)} not among the eight targets ({', '.join(TARGETS)})"
         )
+    return list(targets)
+
+
+def cmd_bench_paper(args: argparse.Namespace) -> int:
+    from objsearch.experiments.paper import render, run_paper
+
+    targets = _targets(args)
     out = Path(args.out)
     with claim(out, command="bench paper", owns=PAPER_OUTPUTS, replace_needs_force=False):
         summary = run_paper(
@@ -92,15 +99,9 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_table1(args: argparse.Namespace) -> int:
-    from objsearch.experiments.runner import TARGETS
     from objsearch.experiments.table1_sets import OUTPUTS, render, run_table1_sets
 
-    targets = args.targets or list(TARGETS)
-    unknown = [name for name in targets if name not in TARGETS]
-    if unknown:
-        raise ObjsearchError(
-            f"--targets: {', '.join(unknown)} not among the eight targets ({', '.join(TARGETS)})"
-        )
+    targets = _targets(args)
     out = Path(args.out)
     with claim(out, command="bench table1", owns=OUTPUTS, replace_needs_force=False):
         summary = run_table1_sets(
