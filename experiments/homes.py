@@ -44,6 +44,7 @@ def homes_jobs(
     scenes: int | None = None,
     targets: Sequence[str] = TARGETS,
     schedules: Sequence[str] = ("stats",),
+    starts_per_search: int | None = None,
 ) -> list[Job]:
     known = set(available_homes())
     unknown = [h for h in homes if h not in known]
@@ -76,11 +77,31 @@ def homes_jobs(
                 spec = f"{kind}-{seed}"
                 for name in strategies:
                     jobs.append(
-                        Job("homes", home, spec, name, "all", seed, tuple(targets), scene_ids)
+                        Job(
+                            "homes",
+                            home,
+                            spec,
+                            name,
+                            "all",
+                            seed,
+                            tuple(targets),
+                            scene_ids,
+                            starts_per_search=starts_per_search,
+                        )
                     )
                 if "wpl" in strategies:
                     jobs.append(
-                        Job("homes", home, spec, "wpl", "none", seed, tuple(targets), scene_ids)
+                        Job(
+                            "homes",
+                            home,
+                            spec,
+                            "wpl",
+                            "none",
+                            seed,
+                            tuple(targets),
+                            scene_ids,
+                            starts_per_search=starts_per_search,
+                        )
                     )
     return jobs
 
@@ -204,11 +225,19 @@ def run_homes(
     workers: int = 2,
     progress: bool = True,
     schedules: Sequence[str] = ("stats",),
+    starts_per_search: int | None = None,
 ) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     homes = list(homes) if homes else list(heldout_homes())
     strategies = list(strategies) if strategies else list(STRATEGIES)
-    jobs = homes_jobs(homes, strategies, seeds, scenes=scenes, schedules=schedules)
+    jobs = homes_jobs(
+        homes,
+        strategies,
+        seeds,
+        scenes=scenes,
+        schedules=schedules,
+        starts_per_search=starts_per_search,
+    )
     started = time.perf_counter()
     rows = run_jobs(jobs, workers=workers, progress=progress, label="bench homes")
     elapsed = time.perf_counter() - started
@@ -219,6 +248,7 @@ def run_homes(
         "seeds": list(range(seeds)),
         "schedules": list(schedules),
         "scenes": scenes or "each kind's own (10; habit 30)",
+        "starts_per_search": starts_per_search or "every start",
         "workers": workers,
         "elapsed_s": round(elapsed, 1),
         "searches": len(rows),

@@ -40,6 +40,8 @@ class Job:
     log_dir: str | None = None
     keep_routes: bool = False
     prior: str = "vg-cooccurrence"
+    #: Search each target from this many seeded start points per scene (None: from every start).
+    starts_per_search: int | None = None
 
 
 @dataclass(frozen=True)
@@ -92,6 +94,7 @@ def run_job(job: Job) -> list[Row]:
             spec,
             targets=job.targets,
             scenes=job.scenes,
+            starts_per_search=job.starts_per_search,
             placements=scenes,
             skip_absent_targets=True,
             keep_routes=job.keep_routes,
@@ -129,6 +132,8 @@ def _count(job: Job) -> int:
     scenes = scenes_of(job.home, job.placements)
     wanted = job.scenes or tuple(sorted(scenes))
     starts = len(ctx.home.starts)
+    if job.starts_per_search:
+        starts = min(starts, job.starts_per_search)
     return sum(
         starts * sum(1 for t in job.targets if t in {p.cls for p in scenes[s].values()})
         for s in wanted

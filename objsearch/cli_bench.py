@@ -87,6 +87,7 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
             workers=_workers(args),
             progress=not args.no_progress and not args.json,
             schedules=args.schedules,
+            starts_per_search=args.starts,
         )
     if args.json:
         print(json.dumps(_headline(summary), indent=2))
@@ -213,6 +214,12 @@ def register(sub: Any) -> None:
         help="comma-separated schedule kinds, each run with seeds 0..N-1: stats (drawn from "
         "AI2-THOR placement statistics), rearr (real rearrangement episodes; iTHOR homes only) "
         "(stats)",
+    )
+    homes.add_argument(
+        "--starts",
+        type=t.int_range(1, 100),
+        help="search each target from this many start points per scene, drawn per (seed, scene, "
+        "target), 1-100 (default: from every start point, as the paper)",
     )
     homes.set_defaults(func=cmd_bench_homes)
 

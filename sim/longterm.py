@@ -7,13 +7,14 @@ logs (experiments/golden.py) all call :func:`run_schedule`; nothing else walks s
 
 from __future__ import annotations
 
+import random
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from objsearch.agent.errors import DataFileError
-from objsearch.agent.geometry import Point
+from objsearch.agent.geometry import Point, Pose
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.sim.placements import Placements, base_placements, table1_removals
@@ -57,6 +58,7 @@ def run_schedule(
     targets: Sequence[str] = TARGET_ORDER,
     scenes: Sequence[int] | None = None,
     starts: Sequence[str] | None = None,
+    starts_per_search: int | None = None,
     placements: Mapping[int, Placements] | None = None,
     skip_absent_targets: bool = False,
     on_trial: Callable[[Trial], None] | None = None,
@@ -70,7 +72,9 @@ def run_schedule(
     ``schedule`` (see :func:`scenes_of`). Each search is one task: the scene graph is updated
     (per the spec's update mode) when it ends, so the next search, whatever its start, plans with
     what the previous ones saw. ``starts`` picks start points by name (default: all of the
-    home's); with ``skip_absent_targets`` a target the scene does not hold is not searched for;
+    home's); ``starts_per_search`` instead searches each target from that many of them per scene,
+    drawn anew for each (scene, target) from the spec's seed (:func:`day_starts`); with
+    ``skip_absent_targets`` a target the scene does not hold is not searched for;
     ``observer`` sees every pose and camera frame (what ``objsearch record`` writes to a bag).
     ``session_options`` go to :meth:`Session.start` (``wall_clock``, ``stream``, ...).
     """
@@ -93,6 +97,7 @@ def run_schedule(
         "targets": list(targets),
         "scenes": None if scenes is None else list(scenes),
         "starts": None if starts is None else list(starts),
+        **({"starts_per_search": starts_per_search} if starts_per_search else {}),
         "skip_absent_targets": skip_absent_targets,
     }
     session_options.setdefault("inputs", inputs)
@@ -105,7 +110,12 @@ def run_schedule(
             for target in targets:
                 if skip_absent_targets and target not in present:
                     continue
-                for start_name, pose in chosen.items():
+                todays = (
+                    day_starts(chosen, starts_per_search, spec.seed, scene, target)
+                    if starts_per_search
+                    else chosen
+                )
+                for start_name, pose in todays.items():
                     clock.advance(PAUSE_BETWEEN_TASKS_S)
                     world = SimWorld(
                         ctx.home, ctx.navmap, scene_placements, pose, clock=clock, observer=observer
@@ -131,3 +141,16 @@ def run_schedule(
     finally:
         session.close()
     return trials
+
+
+def day_starts(
+    starts: Mapping[str, Pose], count: int, seed: int, scene: int, target: str
+) -> dict[str, Pose]:
+    """``count`` of ``starts`` (all if fewer), in the order they are searched from: a seeded draw
+    per (seed, scene, target), so every strategy of a run searches from the same points and the
+    first of them is the first search of the day."""
+    if count < 1:
+        raise ValueError(f"starts per search must be at least 1, not {count}")
+    rng = random.Random(f"day-starts/{seed}/{scene}/{target}")
+    picked = rng.sample(sorted(starts), min(count, len(starts)))
+    return {name: starts[name] for name in picked}
