@@ -84,6 +84,15 @@ def prior_values(
     return (source if name == DEFAULT_PRIOR else f"{name}: {source}"), values
 
 
+def prior_of_source(source: str) -> str:
+    """The name of the prior a ``scene_graph_seeded`` source was written by (:func:`prior_values`:
+    every prior but the default prefixes its name)."""
+    for name in PRIOR_FILES:
+        if name != DEFAULT_PRIOR and source.startswith(f"{name}: "):
+            return name
+    return DEFAULT_PRIOR
+
+
 def derived_run_id(stream: str, spec: RunSpec, inputs: Mapping[str, Any] | None = None) -> str:
     """A run id that is a function of everything that decides the run's facts: the stream, the
     spec (its seed included) and ``inputs`` — what it is asked to do (the searches: targets,
@@ -215,6 +224,14 @@ class Session:
             raise ObjsearchError(
                 f"this log's memory is folded by {first.relations.model} "
                 f"({first.strategy}); a {spec.strategy} run ({spec.relations.model}) needs a new log"
+            )
+        seeded = self.state.seeded_source
+        if seeded is not None and prior_of_source(seeded) != spec.prior:
+            # The seed is recorded once, by the first run; a later run with another prior would
+            # silently plan with the first one's values.
+            raise ObjsearchError(
+                f"this log's scene graph was seeded with the {prior_of_source(seeded)} prior "
+                f"({seeded}); a run with the {spec.prior} prior needs a new log"
             )
         # Everything that can fail on bad data is read before the first append: a run that
         # cannot start leaves the log as it was.

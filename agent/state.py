@@ -77,6 +77,8 @@ class AgentState:
     model: RelationModel | None = None
     tasks: TaskLedger = field(default_factory=TaskLedger)
     seeded: bool = False  # the Visual Genome prior was recorded (scene_graph_seeded)
+    #: That event's ``source``: which reading of Eq. 2 the log's scene graph started from.
+    seeded_source: str | None = None
     #: Fold with this relation model instead of the run's: a counterfactual, never the agent's
     #: own state (``objsearch replay --strategy``).
     counterfactual: RelationSpec | None = None
@@ -98,6 +100,7 @@ class AgentState:
                 self.model = (self.counterfactual or self.run.relations).build()
         elif event.type == "scene_graph_seeded":
             self.seeded = True
+            self.seeded_source = str(event.payload.get("source", ""))
         if self.model is not None:
             self.model.apply(event)
         self.tasks.apply(event, getattr(event, "task_id", None))
@@ -130,6 +133,7 @@ class AgentState:
                 else [open_task.task_id, open_task.target, open_task.metres],
             },
             "seeded": self.seeded,
+            "seeded_source": self.seeded_source,
             "last_time_ns": self.last_time_ns,
         }
 
@@ -151,6 +155,8 @@ class AgentState:
             model=model,
             tasks=TaskLedger(t["last_number"], t["started"], t["ended"], t["aborted"], open_task),
             seeded=bool(state["seeded"]),
+            # Snapshots written before the source was kept lack it: unknown, not checked.
+            seeded_source=state.get("seeded_source"),
             last_seq=last_seq,
             last_time_ns=int(state["last_time_ns"]),
         )

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.policy import Method
 from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
 from objsearch.agent.session import Session, load_context
@@ -228,3 +229,20 @@ def test_a_named_prior_is_recorded_in_the_seed_and_changes_the_values(tmp_path: 
     assert rel["vg-hoz-masked"][("Apple", "Bathtub")] == 0
     # A class HOZ does not know (Sofa) keeps its co-occurrence.
     assert rel["vg-hoz-masked"][("Apple", "Sofa")] == rel["vg-cooccurrence"][("Apple", "Sofa")]
+
+
+@pytest.mark.parametrize(
+    ("first", "then"), [("vg-hoz-masked", "vg-cooccurrence"), ("vg-cooccurrence", "vg-single-name")]
+)
+def test_a_log_continued_with_another_prior_is_refused(
+    tmp_path: Path, first: str, then: str
+) -> None:
+    ctx = load_context(HOME)
+    Session.start(ctx, tmp_path, RunSpec.for_home(ctx.home, "wpl", prior=first)).close()
+    before = (tmp_path / "events.log").read_bytes()
+    with pytest.raises(ObjsearchError, match=f"seeded with the {first} prior.*{then} prior"):
+        Session.start(ctx, tmp_path, RunSpec.for_home(ctx.home, "wpl", prior=then))
+    assert (tmp_path / "events.log").read_bytes() == before
+    # The same prior continues the log (and is not seeded again).
+    Session.start(ctx, tmp_path, RunSpec.for_home(ctx.home, "wpl", prior=first)).close()
+    assert sum(e.type == "scene_graph_seeded" for e in read_log(tmp_path)) == 1
