@@ -154,9 +154,11 @@ def _data_folder(path: Path) -> Iterator[None]:
         load_context.cache_clear()
 
 
-def table1_jobs(homes: Sequence[str], targets: Sequence[str] = TARGETS) -> list[Job]:
+def table1_jobs(
+    homes: Sequence[str], targets: Sequence[str] = TARGETS, prior: str = DEFAULT_PRIOR
+) -> list[Job]:
     return [
-        Job("table1", home, "table1", name, "none", seed, tuple(targets), prior=DEFAULT_PRIOR)
+        Job("table1", home, "table1", name, "none", seed, tuple(targets), prior=prior)
         for home in homes
         for name, seeds in STRATEGY_SEEDS
         for seed in seeds
@@ -319,6 +321,7 @@ def run_table1_sets(
     targets: Sequence[str] = TARGETS,
     with_paper_set: bool = True,
     progress: bool = True,
+    prior: str = DEFAULT_PRIOR,
 ) -> dict[str, Any]:
     def say(msg: str) -> None:
         if progress:
@@ -346,7 +349,7 @@ def run_table1_sets(
     started = time.perf_counter()
     with _data_folder(data):
         rows = run_jobs(
-            table1_jobs(list(homes), targets),
+            table1_jobs(list(homes), targets, prior),
             workers=workers,
             progress=progress,
             label="bench table1",
@@ -378,12 +381,14 @@ def run_table1_sets(
     command = f"objsearch bench table1 --sets {sets} --seed {seed} --out {out} --workers {workers}"
     if tuple(targets) != TARGETS:
         command += f" --targets {','.join(targets)}"
+    if prior != DEFAULT_PRIOR:
+        command += f" --prior {prior}"
     summary: dict[str, Any] = {
         "command": command,
         "seed": seed,
         "sets": sets,
         "workers": workers,
-        "prior": DEFAULT_PRIOR,
+        "prior": prior,
         "targets": list(targets),
         "strategy_seeds": {name: list(s) for name, s in STRATEGY_SEEDS},
         "eligibility": {

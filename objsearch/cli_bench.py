@@ -113,6 +113,7 @@ def cmd_bench_table1(args: argparse.Namespace) -> int:
             workers=_workers(args),
             targets=targets,
             progress=not args.no_progress,
+            prior=args.prior,
         )
     print(render(summary))
     print(f"\nresults in {args.out} (summary.md, summary.json, table1_sets.csv)")
@@ -140,6 +141,19 @@ def cmd_bench_report(args: argparse.Namespace) -> int:
 def _headline(summary: dict[str, Any]) -> dict[str, Any]:
     keys = ("command", "elapsed_s", "searches", "strategies", "files")
     return {k: summary[k] for k in keys if k in summary}
+
+
+def _prior_option(p: argparse.ArgumentParser) -> None:
+    from objsearch.agent.session import DEFAULT_PRIOR, PRIOR_FILES
+
+    p.add_argument(
+        "--prior",
+        type=t.text,
+        choices=tuple(PRIOR_FILES),
+        default=DEFAULT_PRIOR,
+        help="the reading of Eq. 2 the scene graph is seeded with (docs/paper-readings.md) "
+        f"({DEFAULT_PRIOR})",
+    )
 
 
 def register(sub: Any) -> None:
@@ -180,14 +194,7 @@ def register(sub: Any) -> None:
         help=f"comma-separated subset of Table II's scenes (1-{t.MAX_SCENE})",
     )
     paper.add_argument("--keep-logs", action="store_true", help="keep long-term event logs")
-    paper.add_argument(
-        "--prior",
-        type=t.text,
-        choices=("vg-cooccurrence", "vg-single-name", "vg-hoz-masked"),
-        default="vg-cooccurrence",
-        help="the reading of Eq. 2 the scene graph is seeded with (docs/paper-readings.md) "
-        "(vg-cooccurrence)",
-    )
+    _prior_option(paper)
     paper.set_defaults(func=cmd_bench_paper)
 
     homes = bsub.add_parser("homes", help="every strategy on the held-out homes")
@@ -255,6 +262,7 @@ def register(sub: Any) -> None:
         default=0,
         help=f"processes, at most {t.MAX_WORKERS} (0, the default: min(2, cores))",
     )
+    _prior_option(table1)
     table1.add_argument("--no-progress", action="store_true", help="no progress output")
     table1.set_defaults(func=cmd_bench_table1)
 

@@ -88,12 +88,14 @@ def test_bench_table1_on_two_sets(
     before = os.environ.get(DATA_ENV)
     argv = ["bench", "table1", "--sets", "2", "--seed", "1", "--out", str(out)]
     argv += ["--source", str(shared), "--targets", "Cup,Vase", "--workers", "1", "--no-progress"]
+    argv += ["--prior", "vg-hoz-masked"]
     assert main(argv) == 0
     assert os.environ.get(DATA_ENV) == before  # the temporary data folder is not left set
     printed = capsys.readouterr().out
     assert "WPL ≤ RVP < SDP" in printed
     summary = json.loads((out / "summary.json").read_text())
     assert summary["summary"]["sets"] == 2
+    assert summary["prior"] == "vg-hoz-masked" and "--prior vg-hoz-masked" in summary["command"]
     assert len(summary["sample"]) == 2
     sets = pl.read_csv(out / "table1_sets.csv")
     # the two sampled sets and the paper's set (unless sampled)
