@@ -71,11 +71,16 @@ def normalise_floorplan(text: str) -> str:
     return f"FloorPlan{match.group(1)}"
 
 
-def check_home_spec(name: str, floorplans: Sequence[str]) -> tuple[str, ...]:
+def check_home_name(name: str) -> str:
     if not _HOME_NAME.fullmatch(name):
         raise HomeSpecError(
             f"home name {name!r} must be lower-case letters, digits, '-' or '_' (it names a file)"
         )
+    return name
+
+
+def check_home_spec(name: str, floorplans: Sequence[str]) -> tuple[str, ...]:
+    check_home_name(name)
     if isinstance(floorplans, str) or len(floorplans) != len(ROOM_SLOTS):
         order = ", ".join(s.name for s in ROOM_SLOTS)
         raise HomeSpecError(f"home {name!r} needs exactly {len(ROOM_SLOTS)} scenes ({order})")

@@ -83,13 +83,19 @@ class Room:
     viewpoints: tuple[Cell, ...]
     removed_inside_furniture: tuple[tuple[Cell, str], ...]  # cell (world) and the obstacle's id
     removed_disconnected: int
-    walkable_components: int
+    # Sizes of the pieces the viewpoints fall into when diagonal steps must not cut corners,
+    # largest first; more than one means part of the room cannot be walked to.
+    walkable_piece_sizes: tuple[int, ...]
     door: Cell
     starts: tuple[Start, Start]
     statics: tuple[Static, ...]
     merged_statics: tuple[tuple[str, str], ...]  # (dropped fixture id, kept basin id)
     objects: tuple[PlacedObject, ...]
     alfred_poses: tuple[AlfredPose, ...]
+
+    @property
+    def walkable_components(self) -> int:
+        return len(self.walkable_piece_sizes)
 
     @property
     def removed_viewpoints(self) -> int:
@@ -217,7 +223,7 @@ def build_room(src: RoomSource, slot: RoomSlot, min_x: float) -> Room:
             sorted(((i + di, j + dj), f"{slot.name}/{label}") for (i, j), label in inside.items())
         ),
         removed_disconnected=sum(len(p) for p in pieces[1:]),
-        walkable_components=navgrid.walkable_components(viewpoints),
+        walkable_piece_sizes=tuple(len(p) for p in navgrid.walkable_pieces(viewpoints)),
         door=navgrid.door(viewpoints),
         starts=(starts[0], starts[1]),
         statics=statics,
