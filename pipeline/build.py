@@ -18,10 +18,13 @@ from .accepted import COMMITTED_FINDINGS
 from .errors import BuildError, HomeSpecError, SourceDataError
 from .findings import (
     FINDING_KINDS,
+    SPLIT_ROOMS,
     Finding,
     FindingsError,
+    SplitRoomError,
     counts_text,
     ithor_findings,
+    split_rooms,
     unaccepted,
 )
 from .home import SourceHome, build_home, check_home_name, check_home_spec, normalise_floorplan
@@ -173,7 +176,8 @@ def build_data(
     file, ``heldout_ithor`` numbers held-out iTHOR homes by the seeded rule. The Table I scenario
     and Table II schedule are derived for the home named ``paper`` when there is one.
 
-    A room in pieces raises ``SplitRoomError``; findings (``pipeline/findings.py``) of a kind not in
+    A room in pieces raises ``SplitRoomError`` unless ``accept`` holds ``split-rooms`` (then the
+    room keeps its largest piece); other findings (``pipeline/findings.py``) of a kind not in
     ``accept`` (nor, for the default build, in ``pipeline/accepted.py``) raise ``FindingsError``.
     Either way nothing is written. When ``out`` already holds a ``PROVENANCE.md`` and this is not
     the default build, its lines are kept and this build's are appended.
@@ -208,7 +212,12 @@ def build_data(
     built: dict[str, SourceHome] = {}
     for name, scenes in wanted.ithor.items():
         home = build_home(source, name, scenes, say)
-        findings += ithor_findings(home)
+        split = split_rooms(home)
+        if split:
+            if SPLIT_ROOMS not in accept:
+                raise SplitRoomError(name, split)
+            home = build_home(source, name, scenes, say, largest_walkable_piece=True)
+        findings += [*split, *ithor_findings(home)]
         built[name] = home
         outputs[f"homes/{name}.json"] = jsonio.dumps(home.to_json())
         notes += _room_notes(home)

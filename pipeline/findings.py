@@ -3,9 +3,9 @@
 A home can convert without an error and still be a poor place to search: a room that lost most of
 its grid points to furniture, a ProcTHOR room cut off from the rest of the house, a room without a
 single static object to search at. The build names each as a :class:`Finding` and refuses to write
-anything while one is not accepted (``objsearch data build --accept KIND,...``); a room whose
-viewpoints fall into pieces is always refused (:class:`SplitRoomError`), because every search there
-would fail.
+anything while one is not accepted (``objsearch data build --accept KIND,...``). A room whose
+viewpoints fall into pieces is refused with its own error (:class:`SplitRoomError`), because every
+search there would fail; accepted, the room keeps only its largest piece.
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ if TYPE_CHECKING:  # the CLI reads FINDING_KINDS at start-up; the converter stay
 LOST_GRID_POINTS = "lost-grid-points"
 DROPPED_ROOMS = "dropped-rooms"
 EMPTY_ROOMS = "empty-rooms"
-FINDING_KINDS: tuple[str, ...] = (LOST_GRID_POINTS, DROPPED_ROOMS, EMPTY_ROOMS)
+SPLIT_ROOMS = "split-rooms"
+FINDING_KINDS: tuple[str, ...] = (LOST_GRID_POINTS, DROPPED_ROOMS, EMPTY_ROOMS, SPLIT_ROOMS)
 
 #: An iTHOR room that loses more than this share of its ALFRED grid points is reported. ALFRED's
 #: grid already holds only the places AI2-THOR's agent could stand, so every point we drop is our
@@ -110,24 +111,39 @@ def empty_room(home: str, room: str, source: str, statics: int) -> Finding | Non
     )
 
 
+def split_rooms(home: SourceHome) -> list[Finding]:
+    """One finding per room whose viewpoints fall into pieces the robot cannot walk between."""
+    return [
+        Finding(
+            SPLIT_ROOMS,
+            home.name,
+            r.name,
+            r.source_scene,
+            f"viewpoints in {len(r.walkable_piece_sizes)} pieces of "
+            f"{' and '.join(str(n) for n in r.walkable_piece_sizes)} that the robot cannot walk "
+            "between (a diagonal step would cut a corner)",
+        )
+        for r in home.rooms
+        if r.walkable_components != 1
+    ]
+
+
 class SplitRoomError(BuildError):
-    """A room whose viewpoints fall into pieces the robot cannot walk between."""
+    """Rooms whose viewpoints fall into pieces the robot cannot walk between."""
+
+    def __init__(self, home: str, split: Collection[Finding]) -> None:
+        self.findings = tuple(split)
+        rooms = "; ".join(f"the {f.room} ({f.source}): {f.detail}" for f in self.findings)
+        super().__init__(
+            f"home {home!r}: {rooms}; every search in such a room would fail. Pick another "
+            "FloorPlan for that room (the held-out rule skips such scenes too), or build it with "
+            "--accept split-rooms, which keeps only the largest piece (the others' viewpoints "
+            "are dropped)"
+        )
 
 
 def ithor_findings(home: SourceHome) -> list[Finding]:
-    """The findings of an iTHOR home; :class:`SplitRoomError` if a room is in pieces."""
-    split = [r for r in home.rooms if r.walkable_components != 1]
-    if split:
-        rooms = "; ".join(
-            f"the {r.name} ({r.source_scene}): {len(r.walkable_piece_sizes)} pieces of "
-            f"{' and '.join(str(n) for n in r.walkable_piece_sizes)} viewpoints"
-            for r in split
-        )
-        raise SplitRoomError(
-            f"home {home.name!r}: viewpoints fall into pieces the robot cannot walk between "
-            f"(a diagonal step would cut a corner), so every search there would fail: {rooms}. "
-            "Pick another FloorPlan for that room (the held-out rule skips such scenes too)"
-        )
+    """Lost grid points and empty rooms of an iTHOR home (:func:`split_rooms` is checked first)."""
     found: list[Finding] = []
     for r in home.rooms:
         lost = lost_grid_points(

@@ -92,7 +92,10 @@ def build_home(
     name: str,
     floorplans: Sequence[str],
     progress: Callable[[str], None] | None = None,
+    *,
+    largest_walkable_piece: bool = False,
 ) -> SourceHome:
+    """``largest_walkable_piece``: see :func:`build_room` (only for split rooms a user accepted)."""
     scenes = check_home_spec(name, floorplans)
     rooms: list[Room] = []
     min_x = 0.0
@@ -113,7 +116,7 @@ def build_home(
             openable=load_openable(source, floorplan, f"the ALFRED interaction poses of {purpose}"),
             source=source,
         )
-        room = build_room(src, slot, min_x)
+        room = build_room(src, slot, min_x, largest_walkable_piece=largest_walkable_piece)
         rooms.append(room)
         min_x = room.extent_max[0] + ROOM_GAP_M
     return SourceHome(name=name, rooms=tuple(rooms))

@@ -62,7 +62,7 @@ def test_number_spans_and_subsets() -> None:
         "dropped-rooms",
         "lost-grid-points",
     ]
-    _rejects(kinds, "split-rooms", "unknown split-rooms; expected a comma-separated subset of")
+    _rejects(kinds, "everything", "unknown everything; expected a comma-separated subset of")
 
 
 def test_paths(tmp_path: Path) -> None:

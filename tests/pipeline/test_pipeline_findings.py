@@ -16,6 +16,7 @@ from objsearch.pipeline.findings import (
     EMPTY_ROOMS,
     LOST_GRID_POINTS,
     LOST_SHARE_ITHOR,
+    SPLIT_ROOMS,
     FindingsError,
     SplitRoomError,
     lost_grid_points,
@@ -35,8 +36,31 @@ def test_a_room_in_pieces_is_refused_naming_room_pieces_and_remedy(
         build_data(shared_data, tmp_path / "out", homes={"split": SPLIT_BATHROOM})
     text = str(info.value)
     assert "'split'" in text and "bathroom (FloorPlan408)" in text
-    assert "2 pieces of 34 and 3 viewpoints" in text and "Pick another FloorPlan" in text
+    assert "2 pieces of 34 and 3 that the robot cannot walk between" in text
+    assert "Pick another FloorPlan" in text and "--accept split-rooms" in text
     assert not (tmp_path / "out").exists()
+
+
+def test_an_accepted_room_in_pieces_keeps_its_largest_piece_and_searches_there_work(
+    shared_data: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    out = tmp_path / "out"
+    report = build_data(shared_data, out, homes={"split": SPLIT_BATHROOM}, accept=[SPLIT_ROOMS])
+    assert [f.key for f, _ in report.findings] == [(SPLIT_ROOMS, "split", "bathroom")]
+    (bathroom,) = [
+        r
+        for r in json.loads((out / "homes" / "split.json").read_text())["rooms"]
+        if r["name"] == "bathroom"
+    ]
+    assert len(bathroom["viewpoints"]) == 34 and bathroom["walkable_components"] == 1
+    monkeypatch.setenv("OBJSEARCH_DATA", str(out))
+    for start in ("bathroom-1", "bathroom-2"):
+        argv = ["search", "--home", "split", "--target", "ToiletPaper", "--start", start]
+        assert main([*argv, "--scene", "1", "--schedule", "stats-0", "--json"]) == 0
+        assert json.loads(capsys.readouterr().out)["success"]
 
 
 def test_the_cli_refuses_a_room_in_pieces_with_exit_2(
@@ -129,8 +153,8 @@ def test_the_default_build_accepts_exactly_the_committed_findings(
 
 
 def test_unknown_kinds_cannot_be_accepted(shared_data: Path, tmp_path: Path) -> None:
-    with pytest.raises(BuildError, match="cannot accept split-rooms"):
-        build_data(shared_data, tmp_path, homes={"p": PAPER_HOME}, accept=["split-rooms"])
+    with pytest.raises(BuildError, match="cannot accept everything"):
+        build_data(shared_data, tmp_path, homes={"p": PAPER_HOME}, accept=["everything"])
 
 
 def test_the_lost_share_is_a_strict_threshold() -> None:
