@@ -167,7 +167,8 @@ def build_data(
 ) -> BuildReport:
     """Derive ``vocabulary.json``, ``priors/``, ``homes/``, ``scenarios/``, ``schedules/``,
     ``rearrangement/`` and ``PROVENANCE.md`` under ``out`` from the raw public data under
-    ``source``: a data folder ``search``, ``demo`` and ``bench homes`` can run on.
+    ``source``: a data folder ``search`` and ``bench homes`` run on (``demo`` and ``bench paper``
+    too when a home is named ``paper``).
 
     Without ``homes``, ``procthor`` and ``heldout_ithor`` it builds the committed ``data/``: the
     paper's home, the held-out iTHOR homes ``ithor-01`` … ``ithor-10`` and the ProcTHOR houses of
