@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.errors import ObjsearchError
-from objsearch.agent.home import available_homes
+from objsearch.agent.home import available_homes, load_home
 from objsearch.experiments.learning import (
     learning_summary,
     paired_bootstrap,
@@ -23,7 +23,7 @@ from objsearch.experiments.learning import (
 from objsearch.experiments.metrics import mean_std, summarise
 from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, write_rows
 from objsearch.experiments.strategies import STRATEGIES, strategy
-from objsearch.sim.rearr_schedule import homes_with_rearrangement
+from objsearch.sim.rearr_schedule import homes_with_rearrangement, why_no_rearrangement
 from objsearch.sim.schedule_names import SEEDED_KINDS, UnknownScheduleError
 
 
@@ -64,10 +64,10 @@ def homes_jobs(
         have = set(homes_with_rearrangement())
         missing = [h for h in homes if h not in have]
         if missing:
+            why = "; ".join(why_no_rearrangement(load_home(h)) for h in missing)
             raise ObjsearchError(
-                f"home(s) {', '.join(missing)} have no rearrangement data (the AI2-THOR "
-                "rearrangement episodes cover iTHOR FloorPlans only); homes with data: "
-                f"{', '.join(sorted(have))}; use --schedules stats for the others"
+                f"home(s) {', '.join(missing)} have no rearrangement data: {why}; homes with "
+                f"data: {', '.join(sorted(have)) or 'none'}; use --schedules stats for the others"
             )
     scene_ids = tuple(range(1, scenes + 1)) if scenes else None
     jobs = []

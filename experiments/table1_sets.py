@@ -32,6 +32,7 @@ from objsearch.agent.session import DEFAULT_PRIOR, load_context
 from objsearch.experiments.paper import PAPER_TABLE1, discovery
 from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, write_rows
 from objsearch.pipeline.build import PAPER_HOME, build_data
+from objsearch.pipeline.findings import EMPTY_ROOMS, LOST_GRID_POINTS
 from objsearch.pipeline.home import build_home
 from objsearch.pipeline.more_homes import TYPE_BASES
 from objsearch.pipeline.rooms import Room
@@ -341,7 +342,9 @@ def run_table1_sets(
         homes.setdefault(paper_name, PAPER_HOME)
     say(f"{len(elig.eligible)} eligible sets; building {len(homes)} homes")
     data = out / "data"
-    build_data(source, data, homes=homes, more_homes=False)
+    # The sample is every set the removal rule admits (sets with a room in pieces are not
+    # eligible); a room that lost grid points stays in it, recorded in the data's PROVENANCE.md.
+    build_data(source, data, homes=homes, accept=[LOST_GRID_POINTS, EMPTY_ROOMS])
     missing = [h for h in homes if not (data / "scenarios" / f"table1-{h}.json").is_file()]
     if missing:  # the per-room rule and the build's rule disagree: a bug, not a skip
         raise ObjsearchError(f"the build derived no Table I scenario for {', '.join(missing)}")

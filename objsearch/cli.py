@@ -23,6 +23,8 @@ if TYPE_CHECKING:
     from objsearch.sim.world import Placement
 
 EXIT_USAGE = 2
+#: Each room type has 25 iTHOR scenes, one of them the paper's: at most 24 held-out homes.
+HELDOUT_ITHOR_MAX = 24
 
 
 def _fail(message: str) -> int:
@@ -35,21 +37,41 @@ def _fail(message: str) -> int:
 
 def cmd_data_build(args: argparse.Namespace) -> int:
     from objsearch.agent.datapaths import build_output_dir
-    from objsearch.pipeline.build import build_data, parse_home_arg
+    from objsearch.pipeline.build import build_data, parse_home_arg, parse_procthor_arg
     from objsearch.pipeline.errors import BuildError
+    from objsearch.pipeline.findings import FindingsError
 
     try:
         homes = dict(parse_home_arg(spec) for spec in args.home) if args.home else None
+        houses = dict(parse_procthor_arg(spec) for spec in args.procthor) if args.procthor else None
         report = build_data(
             Path(args.source),
             build_output_dir(args.out),
             homes=homes,
-            progress=lambda line: print(line, file=sys.stderr),
+            procthor=houses,
+            heldout_ithor=args.heldout_ithor or (),
+            accept=args.accept or (),
+            progress=None if args.json else lambda line: print(line, file=sys.stderr),
         )
+    except FindingsError as exc:
+        if args.json:
+            refused = [f.to_json() for f in exc.findings]
+            print(json.dumps({"written": [], "refused": refused}, indent=2))
+        return _fail(str(exc))
     except BuildError as exc:
         return _fail(str(exc))
+    if args.json:
+        doc = {
+            "written": [str(p) for p in report.files],
+            "notes": list(report.notes),
+            "accepted": [{**f.to_json(), "reason": why} for f, why in report.findings],
+        }
+        print(json.dumps(doc, indent=2))
+        return 0
     for note in report.notes:
         print(note)
+    for finding, why in report.findings:
+        print(f"accepted {finding.text()} ({why})")
     for path in report.files:
         print(f"wrote {path}")
     return 0
@@ -236,6 +258,8 @@ COMMAND_MODULES: tuple[str, ...] = (
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from objsearch.pipeline.findings import FINDING_KINDS
+
     parser = t.Parser(
         prog="objsearch",
         description="Long-term object search with an incrementally updated scene graph.",
@@ -263,8 +287,30 @@ def build_parser() -> argparse.ArgumentParser:
         type=t.text,
         metavar="NAME=K,L,B,W",
         help="a home from four iTHOR FloorPlans: kitchen, living room, bedroom, bathroom "
-        "(default: paper=FloorPlan2,FloorPlan201,FloorPlan303,FloorPlan401)",
+        "(repeatable). Without --home, --procthor and --heldout-ithor: the committed set (paper="
+        "FloorPlan2,FloorPlan201,FloorPlan303,FloorPlan401, ithor-01..10, the ProcTHOR houses)",
     )
+    build.add_argument(
+        "--procthor",
+        action="append",
+        type=t.text,
+        metavar="NAME=HOUSE.json",
+        help="a home from a ProcTHOR house file, relative to --source or absolute (repeatable)",
+    )
+    build.add_argument(
+        "--heldout-ithor",
+        type=t.number_spans(1, HELDOUT_ITHOR_MAX),
+        metavar="N[-M],...",
+        help="held-out iTHOR homes ithor-N by the seeded rule of pipeline/more_homes.py, e.g. 11-14",
+    )
+    build.add_argument(
+        "--accept",
+        type=t.subset_of(FINDING_KINDS),
+        metavar="KIND,...",
+        help="go ahead despite these findings (recorded in PROVENANCE.md): "
+        + ", ".join(FINDING_KINDS),
+    )
+    build.add_argument("--json", action="store_true", help="the build report as JSON")
     build.set_defaults(func=cmd_data_build)
 
     search = sub.add_parser("search", help="run one search in the simulated home")

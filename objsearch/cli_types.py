@@ -142,6 +142,45 @@ def name_list(value: str) -> list[str]:
     return [text(p) for p in parts]
 
 
+def number_spans(lo: int, hi: int) -> Callable[[str], list[int]]:
+    """Comma-separated numbers or ``A-B`` spans (``11-14``, ``2,5-6``), each in ``[lo, hi]``;
+    sorted, without repeats."""
+    one = int_range(lo, hi)
+
+    def convert(value: str) -> list[int]:
+        parts = [p.strip() for p in value.split(",")]
+        if not all(parts):
+            raise argparse.ArgumentTypeError(
+                f"expected numbers or spans like 11-14 {_bounds(lo, hi)}, got {value!r}"
+            )
+        found: set[int] = set()
+        for part in parts:
+            first, sep, last = part.partition("-")
+            a, b = one(first), one(last) if sep else one(first)
+            if b < a:
+                raise argparse.ArgumentTypeError(f"the span {part!r} runs backwards")
+            found.update(range(a, b + 1))
+        return sorted(found)
+
+    return _typed("number_spans", convert)  # type: ignore[return-value]
+
+
+def subset_of(choices: tuple[str, ...]) -> Callable[[str], list[str]]:
+    """A comma-separated subset of ``choices``, in the order given, without repeats."""
+
+    def convert(value: str) -> list[str]:
+        names = name_list(value)
+        bad = [n for n in names if n not in choices]
+        if bad:
+            raise argparse.ArgumentTypeError(
+                f"unknown {', '.join(bad)}; expected a comma-separated subset of "
+                f"{', '.join(choices)}"
+            )
+        return list(dict.fromkeys(names))
+
+    return _typed("subset_of", convert)  # type: ignore[return-value]
+
+
 def _kind(value: str) -> str:
     """``missing``, ``dir`` or ``file`` for a path given on the command line."""
     if not value.strip():

@@ -7,19 +7,31 @@ atomically, so a failed build leaves the previous files untouched.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from objsearch.events import _fs
 
 from . import jsonio
+from .accepted import COMMITTED_FINDINGS
 from .errors import BuildError, HomeSpecError, SourceDataError
-from .home import SourceHome, build_home, normalise_floorplan
-from .more_homes import HELDOUT_SEED, PROCTHOR_FILES, heldout_ithor_homes
+from .findings import (
+    FINDING_KINDS,
+    SPLIT_ROOMS,
+    Finding,
+    FindingsError,
+    SplitRoomError,
+    counts_text,
+    ithor_findings,
+    split_rooms,
+    unaccepted,
+)
+from .home import SourceHome, build_home, check_home_name, check_home_spec, normalise_floorplan
+from .more_homes import HELDOUT_HOMES, HELDOUT_SEED, PROCTHOR_FILES, heldout_ithor_homes
 from .placement_stats import placement_stats_json
 from .procthor import build_procthor_home
-from .provenance import provenance_md, sha256
+from .provenance import build_command, merge_provenance, provenance_md, sha256
 from .rearrangement import REARRANGEMENT, SUPPORT_TOLERANCE_M, load_episodes, rearrangement_json
 from .room_objects import SUPPORT_RADIUS_M
 from .scenario import table1
@@ -49,6 +61,9 @@ PAPER_HOME_NAME = "paper"
 class BuildReport:
     files: tuple[Path, ...]
     notes: tuple[str, ...]
+    #: Every finding of the build (all accepted, else the build raised ``FindingsError``), with
+    #: the reason it was accepted.
+    findings: tuple[tuple[Finding, str], ...] = ()
 
 
 def parse_home_arg(text: str) -> tuple[str, tuple[str, ...]]:
@@ -57,6 +72,18 @@ def parse_home_arg(text: str) -> tuple[str, tuple[str, ...]]:
     if not sep or not name.strip():
         raise HomeSpecError(f"--home expects NAME=KITCHEN,LIVING,BEDROOM,BATHROOM, got {text!r}")
     return name.strip(), tuple(normalise_floorplan(s) for s in scenes.split(","))
+
+
+def parse_procthor_arg(text: str) -> tuple[str, Path]:
+    """``"name=procthor_houses/houses_20/house_3.json"`` -> (name, path); a relative path is
+    relative to the source folder."""
+    name, sep, path = text.partition("=")
+    if not sep or not name.strip() or not path.strip():
+        raise HomeSpecError(
+            f"--procthor expects NAME=HOUSE.json (a ProcTHOR house file, relative to --source or "
+            f"absolute), got {text!r}"
+        )
+    return name.strip(), Path(path.strip())
 
 
 def _room_notes(home: SourceHome) -> list[str]:
@@ -73,23 +100,59 @@ def _room_notes(home: SourceHome) -> list[str]:
         notes.append(
             f"{home.name}/{r.name} ({r.source_scene}): {grid_points} ALFRED grid points -> "
             f"{len(r.viewpoints)} viewpoints ({len(r.removed_inside_furniture)} inside furniture"
-            + (
-                f" [{', '.join(f'{k} {v}' for k, v in sorted(obstacles.items()))}]"
-                if obstacles
-                else ""
-            )
+            + (f" [{counts_text(obstacles)}]" if obstacles else "")
             + f", {r.removed_disconnected} disconnected); "
-            f"statics: {', '.join(f'{k} {v}' for k, v in sorted(statics.items())) or 'none'}; "
-            f"objects: {', '.join(f'{k} {v}' for k, v in sorted(objects.items())) or 'none'}; "
+            f"statics: {counts_text(statics) or 'none'}; "
+            f"objects: {counts_text(objects) or 'none'}; "
             f"ALFRED poses {len(r.alfred_poses)} ({matched} matched to a static, {off} off the "
             f"viewpoints); merged fixtures {len(r.merged_statics)}"
         )
-        if r.walkable_components != 1:
-            notes.append(
-                f"{home.name}/{r.name}: warning: the viewpoints are 8-connected but fall into "
-                f"{r.walkable_components} pieces when diagonal steps must not cut corners"
-            )
     return notes
+
+
+@dataclass(frozen=True)
+class _Wanted:
+    """The homes one build derives."""
+
+    ithor: Mapping[str, tuple[str, ...]]  # asked for by name: four FloorPlans each
+    heldout: tuple[int, ...]  # held-out iTHOR homes by number (pipeline/more_homes.py)
+    procthor: Mapping[str, Path]  # house file, relative to the source or absolute
+    default: bool  # the build of the committed data/
+
+    def names(self) -> list[str]:
+        return [*self.ithor, *(f"ithor-{i:02d}" for i in self.heldout), *self.procthor]
+
+
+def _wanted(
+    homes: Mapping[str, Sequence[str]] | None,
+    procthor: Mapping[str, Path] | None,
+    heldout_ithor: Sequence[int],
+) -> _Wanted:
+    if homes is None and procthor is None and not heldout_ithor:
+        return _Wanted(
+            {PAPER_HOME_NAME: PAPER_HOME},
+            tuple(range(1, HELDOUT_HOMES + 1)),
+            {name: Path(rel) for name, rel in PROCTHOR_FILES},
+            default=True,
+        )
+    wanted = _Wanted(
+        {name: check_home_spec(name, scenes) for name, scenes in (homes or {}).items()},
+        tuple(sorted(set(heldout_ithor))),
+        dict(procthor or {}),
+        default=False,
+    )
+    names = wanted.names()
+    if not names:
+        raise HomeSpecError("no home to build")
+    for name in wanted.procthor:
+        check_home_name(name)
+    twice = sorted(n for n, k in Counter(names).items() if k > 1)
+    if twice:
+        raise HomeSpecError(
+            f"home name(s) {', '.join(twice)} asked for twice (--home, --procthor and "
+            "--heldout-ithor name the files they write); give each home its own name"
+        )
+    return wanted
 
 
 def build_data(
@@ -97,31 +160,41 @@ def build_data(
     out: Path,
     *,
     homes: Mapping[str, Sequence[str]] | None = None,
+    procthor: Mapping[str, Path] | None = None,
+    heldout_ithor: Sequence[int] = (),
+    accept: Collection[str] = (),
     progress: Callable[[str], None] | None = None,
-    more_homes: bool | None = None,
 ) -> BuildReport:
-    """Derive ``vocabulary.json``, ``priors/``, ``homes/``, ``scenarios/``, ``schedules/`` and
-    ``PROVENANCE.md`` under ``out`` from the raw public data under ``source``.
+    """Derive ``vocabulary.json``, ``priors/``, ``homes/``, ``scenarios/``, ``schedules/``,
+    ``rearrangement/`` and ``PROVENANCE.md`` under ``out`` from the raw public data under
+    ``source``: a data folder ``search`` and ``bench homes`` run on (``demo`` and ``bench paper``
+    too when a home is named ``paper``).
 
-    ``homes`` maps a home name to four iTHOR scenes (kitchen, living room, bedroom, bathroom);
-    default ``{"paper": PAPER_HOME}``. The Table I scenario and Table II schedule are derived for
-    the home named ``paper`` when there is one.
+    Without ``homes``, ``procthor`` and ``heldout_ithor`` it builds the committed ``data/``: the
+    paper's home, the held-out iTHOR homes ``ithor-01`` … ``ithor-10`` and the ProcTHOR houses of
+    ``pipeline/more_homes.py``. Otherwise exactly the homes asked for: ``homes`` maps a name to four
+    iTHOR scenes (kitchen, living room, bedroom, bathroom), ``procthor`` a name to a ProcTHOR house
+    file, ``heldout_ithor`` numbers held-out iTHOR homes by the seeded rule. The Table I scenario
+    and Table II schedule are derived for the home named ``paper`` when there is one.
 
-    ``more_homes`` (default: when ``homes`` is not given) also derives the held-out homes
-    (``pipeline/more_homes.py``: ten iTHOR combinations by a seeded rule and the ProcTHOR houses)
-    and the AI2-THOR placement statistics their schedules are drawn from.
+    A room in pieces raises ``SplitRoomError`` unless ``accept`` holds ``split-rooms`` (then the
+    room keeps its largest piece); other findings (``pipeline/findings.py``) of a kind not in
+    ``accept`` (nor, for the default build, in ``pipeline/accepted.py``) raise ``FindingsError``.
+    Either way nothing is written. When ``out`` already holds a ``PROVENANCE.md`` and this is not
+    the default build, its lines are kept and this build's are appended.
     """
     say = progress or (lambda _msg: None)
     source, out = Path(source), Path(out)
-    default = {PAPER_HOME_NAME: PAPER_HOME}
-    wanted = dict(homes) if homes is not None else default
-    if not wanted:
-        raise HomeSpecError("no home to build")
+    wanted = _wanted(homes, procthor, heldout_ithor)
     if not source.is_dir():
         raise SourceDataError(source, "every derived file", "source folder not found")
+    bad = sorted(set(accept) - set(FINDING_KINDS))
+    if bad:
+        raise BuildError(f"cannot accept {', '.join(bad)}: findings are {', '.join(FINDING_KINDS)}")
 
     outputs: dict[str, str] = {}
     notes: list[str] = []
+    findings: list[Finding] = []
 
     say("vocabulary")
     outputs["vocabulary.json"] = jsonio.dumps(vocabulary_json())
@@ -138,8 +211,14 @@ def build_data(
     )
 
     built: dict[str, SourceHome] = {}
-    for name, scenes in wanted.items():
+    for name, scenes in wanted.ithor.items():
         home = build_home(source, name, scenes, say)
+        split = split_rooms(home)
+        if split:
+            if SPLIT_ROOMS not in accept:
+                raise SplitRoomError(name, split)
+            home = build_home(source, name, scenes, say, largest_walkable_piece=True)
+        findings += [*split, *ithor_findings(home)]
         built[name] = home
         outputs[f"homes/{name}.json"] = jsonio.dumps(home.to_json())
         notes += _room_notes(home)
@@ -167,14 +246,28 @@ def build_data(
             + ", ".join(f"{c} {i}" for c, i in scenario.targets.items())
         )
 
-    normalised = {n: tuple(normalise_floorplan(s) for s in v) for n, v in wanted.items()}
-    extra: list[str] = []
-    extra_files: dict[str, list[Path]] = {}
-    if more_homes if more_homes is not None else homes is None:
-        extra, extra_files = _more_homes(source, outputs, notes, normalised, say, built)
-    outputs["PROVENANCE.md"] = provenance_md(
-        source, normalised, default, sorted(outputs), extra=extra, extra_files=extra_files
+    extra, extra_files = _more_homes(source, outputs, notes, findings, wanted, say, built)
+    accepted = _accepted(findings, accept, wanted.default)
+    extra += _accepted_lines(accepted)
+    command = build_command(
+        {} if wanted.default else wanted.ithor,
+        {} if wanted.default else wanted.procthor,
+        () if wanted.default else wanted.heldout,
+        sorted(accept),
     )
+    provenance = provenance_md(
+        source,
+        wanted.ithor,
+        command,
+        sorted(outputs),
+        extra=extra,
+        extra_files=extra_files,
+        paper_tables=paper is not None,
+    )
+    existing = out / "PROVENANCE.md"
+    if not wanted.default and existing.is_file():
+        provenance = merge_provenance(existing.read_text(encoding="utf-8"), provenance, command)
+    outputs["PROVENANCE.md"] = provenance
 
     written = []
     for rel, text in outputs.items():
@@ -183,14 +276,46 @@ def build_data(
         _fs.make_dirs(path.parent)
         _fs.write_atomic(path, text.encode("utf-8"))
         written.append(path)
-    return BuildReport(files=tuple(written), notes=tuple(notes))
+    return BuildReport(files=tuple(written), notes=tuple(notes), findings=tuple(accepted))
+
+
+def _accepted(
+    findings: Sequence[Finding], accept: Collection[str], default: bool
+) -> list[tuple[Finding, str]]:
+    """Each finding with the reason it is accepted; ``FindingsError`` if one is not."""
+    known = COMMITTED_FINDINGS if default else {}
+    refused = unaccepted(findings, accept, known)
+    if refused:
+        raise FindingsError(refused)
+    return [(f, known.get(f.key, f"by --accept {f.kind}")) for f in findings]
+
+
+def _accepted_lines(accepted: Sequence[tuple[Finding, str]]) -> list[str]:
+    if not accepted:
+        return []
+    return [
+        "- Findings the build went ahead with (thresholds and kinds: `docs/pipeline.md`; the "
+        "committed homes' in `pipeline/accepted.py`):",
+        *(f"  - {f.text()}; accepted: {why}" for f, why in accepted),
+    ]
+
+
+def _procthor_path(source: Path, path: Path) -> Path:
+    """The house file as the home records it: relative to ``source`` when it lies under it."""
+    if not path.is_absolute():
+        return path
+    try:
+        return path.resolve().relative_to(source.resolve())
+    except ValueError:
+        return path
 
 
 def _more_homes(
     source: Path,
     outputs: dict[str, str],
     notes: list[str],
-    homes: Mapping[str, Sequence[str]],
+    findings: list[Finding],
+    wanted: _Wanted,
     say: Callable[[str], None],
     built: Mapping[str, SourceHome],
 ) -> tuple[list[str], dict[str, list[Path]]]:
@@ -198,30 +323,40 @@ def _more_homes(
     (for ``built`` and the held-out iTHOR homes); provenance lines."""
     from .placement_stats import ASSETS, RECEPTACLES
 
-    say("held-out iTHOR homes")
-    paper = tuple(homes.get(PAPER_HOME_NAME, PAPER_HOME))
-    heldout, skipped = heldout_ithor_homes(source, paper, say)
-    notes += skipped
-    lines = [
-        "- held-out iTHOR homes (`pipeline/more_homes.py`, seed "
-        f"{HELDOUT_SEED}: per room type, scenes 1-25 minus the paper's, shuffled; home i takes "
-        "the i-th of each list; scenes whose walking graph is in pieces are skipped):"
-    ]
-    for home in heldout:
-        outputs[f"homes/{home.name}.json"] = jsonio.dumps(home.to_json())
-        notes.extend(_room_notes(home))
-        scenes = [r.source_scene for r in home.rooms]
-        lines.append(f"  - `homes/{home.name}.json`: {', '.join(scenes)}")
-    lines.append(
-        "- ProcTHOR homes (`pipeline/procthor.py`): navigation grid from the floor polygons minus "
-        "furniture footprints, rooms joined by doorways and open walls and walked (no teleport):"
-    )
-    for name, rel in PROCTHOR_FILES:
-        doc = build_procthor_home(source, name, Path(rel), say)
-        outputs[f"homes/{name}.json"] = jsonio.dumps(doc)
+    lines: list[str] = []
+    heldout: list[SourceHome] = []
+    if wanted.heldout:
+        say("held-out iTHOR homes")
+        paper = tuple(wanted.ithor.get(PAPER_HOME_NAME, PAPER_HOME))
+        heldout, skipped = heldout_ithor_homes(source, paper, say, wanted.heldout)
+        notes += skipped
         lines.append(
-            f"  - `homes/{name}.json`: `{rel}` ({len(doc['rooms'])} rooms, "
-            f"{len(doc['links'])} door/open-wall steps)"
+            "- held-out iTHOR homes (`pipeline/more_homes.py`, seed "
+            f"{HELDOUT_SEED}: per room type, scenes 1-25 minus the paper's, shuffled; home i takes "
+            "the i-th of each list; scenes whose walking graph is in pieces are skipped):"
+        )
+        for home in heldout:
+            findings.extend(ithor_findings(home))
+            outputs[f"homes/{home.name}.json"] = jsonio.dumps(home.to_json())
+            notes.extend(_room_notes(home))
+            scenes = [r.source_scene for r in home.rooms]
+            lines.append(f"  - `homes/{home.name}.json`: {', '.join(scenes)}")
+    houses = {name: _procthor_path(source, path) for name, path in wanted.procthor.items()}
+    if houses:
+        lines.append(
+            "- ProcTHOR homes (`pipeline/procthor.py`): navigation grid from the floor polygons "
+            "minus furniture footprints, rooms joined by doorways and open walls and walked (no "
+            "teleport):"
+        )
+    for name, rel in houses.items():
+        house = build_procthor_home(source, name, rel, say)
+        findings.extend(house.findings)
+        outputs[f"homes/{name}.json"] = jsonio.dumps(house.doc)
+        lines.append(
+            f"  - `homes/{name}.json`: `{rel.as_posix()}` ({len(house.doc['rooms'])} rooms, "
+            f"{len(house.doc['links'])} door/open-wall steps)"
+            # A house from outside the source folder has no source section to give its hash.
+            + (f", sha256 `{sha256(rel)}`" if rel.is_absolute() else "")
         )
     say("AI2-THOR placement statistics")
     outputs["priors/ai2thor_placements.json"] = jsonio.dumps(placement_stats_json(source))
@@ -232,12 +367,7 @@ def _more_homes(
     )
     files = {
         "ithor": sorted(
-            {
-                p
-                for h in heldout
-                for r in h.rooms
-                for p in (Path(f"ai2thor/ithor_scenes/{r.source_scene}.json"),)
-            }
+            {Path(f"ai2thor/ithor_scenes/{r.source_scene}.json") for h in heldout for r in h.rooms}
         ),
         "alfred": sorted(
             {
@@ -250,13 +380,14 @@ def _more_homes(
                 )
             }
         ),
-        "procthor_houses": sorted(Path(rel) for _, rel in PROCTHOR_FILES),
+        "procthor_houses": sorted(p for p in houses.values() if not p.is_absolute()),
         "procthor_db": [ASSETS, RECEPTACLES],
     }
-    rearr_lines, files["rearrangement"] = _rearrangement(
-        source, [*built.values(), *heldout], outputs, notes, say
-    )
-    return [*lines, *rearr_lines], files
+    ithor = [*built.values(), *heldout]
+    if ithor:
+        rearr_lines, files["rearrangement"] = _rearrangement(source, ithor, outputs, notes, say)
+        lines += rearr_lines
+    return lines, files
 
 
 def _rearrangement(
@@ -278,6 +409,13 @@ def _rearrangement(
         f"{SUPPORT_RADIUS_M} m; poses near no static are dropped (`pipeline/rearrangement.py`):",
     ]
     for home in homes:
+        uncovered = [r.source_scene for r in home.rooms if r.source_scene not in episodes.by_scene]
+        if uncovered:
+            # The schedules that need this file name the home's FloorPlans when it is missing.
+            notes.append(
+                f"rearrangement/{home.name}: not derived, no episodes for {', '.join(uncovered)}"
+            )
+            continue
         scenes = {
             r.source_scene: load_scene(source, r.source_scene, f"the rearrangement of {home.name}")
             for r in home.rooms

@@ -71,11 +71,16 @@ def normalise_floorplan(text: str) -> str:
     return f"FloorPlan{match.group(1)}"
 
 
-def check_home_spec(name: str, floorplans: Sequence[str]) -> tuple[str, ...]:
+def check_home_name(name: str) -> str:
     if not _HOME_NAME.fullmatch(name):
         raise HomeSpecError(
             f"home name {name!r} must be lower-case letters, digits, '-' or '_' (it names a file)"
         )
+    return name
+
+
+def check_home_spec(name: str, floorplans: Sequence[str]) -> tuple[str, ...]:
+    check_home_name(name)
     if isinstance(floorplans, str) or len(floorplans) != len(ROOM_SLOTS):
         order = ", ".join(s.name for s in ROOM_SLOTS)
         raise HomeSpecError(f"home {name!r} needs exactly {len(ROOM_SLOTS)} scenes ({order})")
@@ -87,7 +92,10 @@ def build_home(
     name: str,
     floorplans: Sequence[str],
     progress: Callable[[str], None] | None = None,
+    *,
+    largest_walkable_piece: bool = False,
 ) -> SourceHome:
+    """``largest_walkable_piece``: see :func:`build_room` (only for split rooms a user accepted)."""
     scenes = check_home_spec(name, floorplans)
     rooms: list[Room] = []
     min_x = 0.0
@@ -108,7 +116,7 @@ def build_home(
             openable=load_openable(source, floorplan, f"the ALFRED interaction poses of {purpose}"),
             source=source,
         )
-        room = build_room(src, slot, min_x)
+        room = build_room(src, slot, min_x, largest_walkable_piece=largest_walkable_piece)
         rooms.append(room)
         min_x = room.extent_max[0] + ROOM_GAP_M
     return SourceHome(name=name, rooms=tuple(rooms))

@@ -163,18 +163,27 @@ def farthest_pair(
     return nodes[a], nodes[b], best
 
 
-def walkable_components(cells: frozenset[Cell] | set[Cell]) -> int:
-    """How many pieces the walking graph (corner-cutting diagonals excluded) has."""
+def walkable_pieces(cells: frozenset[Cell] | set[Cell]) -> list[frozenset[Cell]]:
+    """The pieces of the walking graph (corner-cutting diagonals excluded), largest first; equal
+    sizes ordered by their smallest cell."""
     todo = set(cells)
-    count = 0
+    found: list[frozenset[Cell]] = []
     while todo:
-        count += 1
-        stack = [todo.pop()]
+        seed = min(todo)
+        todo.discard(seed)
+        stack, part = [seed], {seed}
         while stack:
             c = stack.pop()
             for step in NEIGHBOURS_8:
                 nb = (c[0] + step[0], c[1] + step[1])
                 if nb in todo and _step_allowed(cells, c, step):
                     todo.discard(nb)
+                    part.add(nb)
                     stack.append(nb)
-    return count
+        found.append(frozenset(part))
+    return sorted(found, key=lambda c: (-len(c), min(c)))
+
+
+def walkable_components(cells: frozenset[Cell] | set[Cell]) -> int:
+    """How many pieces the walking graph (corner-cutting diagonals excluded) has."""
+    return len(walkable_pieces(cells))

@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import math
 import statistics
+from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache
@@ -30,6 +31,14 @@ from pathlib import Path
 from typing import Any
 
 from .errors import HomeSpecError, SourceDataError
+from .findings import (
+    DROPPED_ROOMS,
+    LOST_SHARE_PROCTHOR,
+    Finding,
+    counts_text,
+    empty_room,
+    lost_grid_points,
+)
 from .navgrid import GRID_M, farthest_pair
 from .room_objects import OPENABLE_NOT_CONTAINER, SUPPORT_RADIUS_M
 from .rooms import FLOOR_CONTACT_M, NOT_OBSTACLES
@@ -250,9 +259,17 @@ def _grid_edges(cells: set[Cell]) -> dict[Cell, set[Cell]]:
     return edges
 
 
+@dataclass(frozen=True)
+class ProcthorHome:
+    """One house converted: the home JSON, and what the conversion found wrong with its rooms."""
+
+    doc: dict[str, Any]
+    findings: tuple[Finding, ...]
+
+
 def build_procthor_home(
     source: Path, name: str, house_file: Path, progress: Callable[[str], None] | None = None
-) -> dict[str, Any]:
+) -> ProcthorHome:
     """The home JSON (``objsearch.home/1`` with ``links`` and ``teleport: false``) of one house."""
     path = source / house_file
     if progress:
@@ -289,6 +306,9 @@ def build_procthor_home(
         and o.center_u[1] - o.asset.size[1] / 2 < FLOOR_CONTACT_M
     ]
     room_of: dict[Cell, str] = {}
+    # Per room, the type of the obstacle over each grid point it covers (not counting the points
+    # too near a wall, which no room keeps): what the findings report as lost.
+    covered: dict[str, list[str]] = {rid: [] for rid in polys}
     for rid in sorted(polys):
         poly = polys[rid]
         xs = [x for x, _ in poly]
@@ -305,7 +325,12 @@ def build_procthor_home(
                     for a, b in _polygon_edges(poly)
                 ):
                     continue
-                if any(o.footprint_contains(xu, zu, FURNITURE_CLEARANCE_M) for o in obstacles):
+                blocker = next(
+                    (o for o in obstacles if o.footprint_contains(xu, zu, FURNITURE_CLEARANCE_M)),
+                    None,
+                )
+                if blocker is not None:
+                    covered[rid].append(blocker.asset.object_type)
                     continue
                 room_of[(i, j)] = rid
     edges: dict[Cell, set[Cell]] = {c: set() for c in room_of}
@@ -425,15 +450,40 @@ def build_procthor_home(
 
     rooms_json: list[dict[str, Any]] = []
     notes: list[str] = []
+    findings: list[Finding] = []
     for rid in sorted(polys, key=lambda r: names[r]):
         cells = {c for c in keep if room_of[c] == rid}
-        if len(cells) < 2:
-            notes.append(f"{names[rid]} dropped: fewer than 2 reachable viewpoints")
-            continue
+        cut_off = sum(r == rid for r in room_of.values()) - len(cells)
+        where = f"{house_file.as_posix()}#{rid}"
         ends = sorted({c for link in links for c in link if room_of[c] == rid})
-        if not ends:
-            notes.append(f"{names[rid]} dropped: no doorway reached")
+        why = (
+            "fewer than 2 reachable viewpoints"
+            if len(cells) < 2
+            else "no doorway reached"
+            if not ends
+            else None
+        )
+        if why is not None:
+            notes.append(f"{names[rid]} dropped: {why}")
+            blockers = Counter(covered[rid])
+            findings.append(
+                Finding(
+                    DROPPED_ROOMS,
+                    name,
+                    names[rid],
+                    where,
+                    f"dropped ({why}): of its {len(cells) + cut_off + len(covered[rid])} grid "
+                    f"points {len(covered[rid])} lie inside furniture"
+                    + (f" [{counts_text(blockers)}]" if blockers else "")
+                    + f", {cut_off} are cut off from the rest of the house (furniture across "
+                    f"its doorway?), {len(cells)} are reachable",
+                )
+            )
             continue
+        lost = lost_grid_points(
+            name, names[rid], where, len(cells), covered[rid], cut_off, LOST_SHARE_PROCTHOR
+        )
+        findings += [lost] if lost else []
         mx = statistics.median(c[0] for c in ends)
         my = statistics.median(c[1] for c in ends)
         door = min(ends, key=lambda c: (math.hypot(c[0] - mx, c[1] - my), c))
@@ -452,6 +502,8 @@ def build_procthor_home(
         room_statics = sorted(
             (s for k, s in statics.items() if static_room[k] == rid), key=lambda s: s["id"]
         )
+        empty = empty_room(name, names[rid], where, len(room_statics))
+        findings += [empty] if empty else []
         for s in room_statics:
             s["rest_points"] = sorted(s["rest_points"])
         rooms_json.append(
@@ -468,7 +520,7 @@ def build_procthor_home(
             }
         )
     kept_rooms = {r["source_scene"].split("#")[1] for r in rooms_json}
-    return {
+    doc = {
         "format": "objsearch.home/1",
         "name": name,
         "grid": GRID_M,
@@ -482,6 +534,7 @@ def build_procthor_home(
         ),
         "rooms": rooms_json,
     }
+    return ProcthorHome(doc, tuple(findings))
 
 
 def _nearest_static(

@@ -30,10 +30,20 @@ def used_files(source: Path, homes: Mapping[str, Sequence[str]]) -> dict[str, li
     return {k: sorted(v) for k, v in files.items()}
 
 
-def build_command(homes: Mapping[str, Sequence[str]], default: Mapping[str, Sequence[str]]) -> str:
+def build_command(
+    homes: Mapping[str, Sequence[str]],
+    procthor: Mapping[str, Path],
+    heldout_ithor: Sequence[int],
+    accept: Sequence[str],
+) -> str:
+    """The command line of a build; the default build's takes no home option."""
     cmd = "objsearch data build --source ../shared/data"
-    if {k: tuple(v) for k, v in homes.items()} != {k: tuple(v) for k, v in default.items()}:
-        cmd += "".join(f" --home {name}={','.join(scenes)}" for name, scenes in homes.items())
+    cmd += "".join(f" --home {name}={','.join(scenes)}" for name, scenes in homes.items())
+    cmd += "".join(f" --procthor {name}={path.as_posix()}" for name, path in procthor.items())
+    if heldout_ithor:
+        cmd += f" --heldout-ithor {','.join(str(i) for i in heldout_ithor)}"
+    if accept:
+        cmd += f" --accept {','.join(accept)}"
     return cmd
 
 
@@ -53,14 +63,17 @@ def _source_section(info: SourceInfo, files: list[Path], source: Path) -> list[s
 def provenance_md(
     source: Path,
     homes: Mapping[str, Sequence[str]],
-    default_homes: Mapping[str, Sequence[str]],
+    command: str,
     outputs: Sequence[str],
     *,
     extra: Sequence[str] = (),
     extra_files: Mapping[str, Sequence[Path]] | None = None,
+    paper_tables: bool = True,
 ) -> str:
-    """``extra``: more lines for "How they were made"; ``extra_files``: source key → more files read
-    (keys of ``ALL_SOURCES`` or ``EXTRA_SOURCES``)."""
+    """``homes``: the iTHOR homes asked for by name; ``command``: the build's command line;
+    ``extra``: more lines for "How they were made"; ``extra_files``: source key → more files read
+    (keys of ``ALL_SOURCES`` or ``EXTRA_SOURCES``); ``paper_tables``: whether the Table I / Table
+    II files of home ``paper`` were derived."""
     files = used_files(source, homes)
     for key, more in (extra_files or {}).items():
         files[key] = sorted(set(files.get(key, [])) | set(more))
@@ -69,7 +82,7 @@ def provenance_md(
         f"bathroom {s[3]}"
         for name, s in homes.items()
     ]
-    cmd = build_command(homes, default_homes)
+    cmd = command
     lines = [
         "# Provenance of `data/`",
         "",
@@ -108,9 +121,16 @@ def provenance_md(
         f"within {SUPPORT_RADIUS_M} m. Openable but not a container: "
         f"{', '.join(sorted(OPENABLE_NOT_CONTAINER))}.",
         *home_lines,
-        "- `scenarios/table1.json`: the paper's section 6.1.1 removals applied to home `paper`.",
-        "- `schedules/table2.json`: the paper's Table II resolved to static instances of home "
-        "`paper` (nearest instance of the class to the object's previous position).",
+        *(
+            [
+                "- `scenarios/table1.json`: the paper's section 6.1.1 removals applied to home "
+                "`paper`.",
+                "- `schedules/table2.json`: the paper's Table II resolved to static instances of "
+                "home `paper` (nearest instance of the class to the object's previous position).",
+            ]
+            if paper_tables
+            else []
+        ),
         *extra,
         "",
         "## Sources",
@@ -146,3 +166,26 @@ def provenance_md(
         "",
     ]
     return "\n".join(lines)
+
+
+def merge_provenance(old: str, new: str, command: str) -> str:
+    """``old`` (a folder's PROVENANCE.md) unchanged, followed by what ``new`` (this build's) adds.
+
+    Adding homes to a data folder must not lose what the folder's provenance says about the
+    files already there: every old line stays, byte for byte, and the lines of ``new`` that
+    ``old`` lacks follow under a heading naming the command, grouped by the section they come from.
+    """
+    have = set(old.splitlines())
+    groups: dict[str, list[str]] = {}
+    heading = ""
+    for line in new.splitlines():
+        if line.startswith("#"):
+            heading = line
+        elif line.strip() and line not in have and not heading.startswith("# "):
+            groups.setdefault(heading, []).append(line)
+    if not groups:
+        return old
+    out = ["", f"## Added by `{command}`", ""]
+    for head, lines in groups.items():
+        out += [f"#{head}", "", *lines, ""]
+    return old + ("" if old.endswith("\n") else "\n") + "\n".join(out)

@@ -83,13 +83,19 @@ class Room:
     viewpoints: tuple[Cell, ...]
     removed_inside_furniture: tuple[tuple[Cell, str], ...]  # cell (world) and the obstacle's id
     removed_disconnected: int
-    walkable_components: int
+    # Sizes of the pieces the viewpoints fall into when diagonal steps must not cut corners,
+    # largest first; more than one means part of the room cannot be walked to.
+    walkable_piece_sizes: tuple[int, ...]
     door: Cell
     starts: tuple[Start, Start]
     statics: tuple[Static, ...]
     merged_statics: tuple[tuple[str, str], ...]  # (dropped fixture id, kept basin id)
     objects: tuple[PlacedObject, ...]
     alfred_poses: tuple[AlfredPose, ...]
+
+    @property
+    def walkable_components(self) -> int:
+        return len(self.walkable_piece_sizes)
 
     @property
     def removed_viewpoints(self) -> int:
@@ -170,8 +176,14 @@ def _snap_up(value: float) -> float:
     return math.ceil(value / GRID_M - 1e-9) * GRID_M + 0.0
 
 
-def build_room(src: RoomSource, slot: RoomSlot, min_x: float) -> Room:
-    """Convert one room and place it so that its extent starts at ``min_x`` (rounded up) and y=0."""
+def build_room(
+    src: RoomSource, slot: RoomSlot, min_x: float, *, largest_walkable_piece: bool = False
+) -> Room:
+    """Convert one room and place it so that its extent starts at ``min_x`` (rounded up) and y=0.
+
+    ``largest_walkable_piece``: keep only the largest piece of the walking graph (diagonal steps
+    may not cut corners), for a room in pieces the user accepted (``--accept split-rooms``); the
+    other pieces' points count as disconnected."""
     scene = src.scene
     local = RoomFrame()
     cells = _grid_cells(src)
@@ -184,6 +196,10 @@ def build_room(src: RoomSource, slot: RoomSlot, min_x: float) -> Room:
             "every grid point lies inside furniture",
         )
     main = pieces[0]
+    cut = 0
+    if largest_walkable_piece:
+        walkable = navgrid.walkable_pieces(main)
+        main, cut = walkable[0], sum(len(p) for p in walkable[1:])
 
     local_statics, _ = statics_of(scene, slot.name, local)
     floor = local.box(scene.floor_center, scene.floor_size)
@@ -216,8 +232,8 @@ def build_room(src: RoomSource, slot: RoomSlot, min_x: float) -> Room:
         removed_inside_furniture=tuple(
             sorted(((i + di, j + dj), f"{slot.name}/{label}") for (i, j), label in inside.items())
         ),
-        removed_disconnected=sum(len(p) for p in pieces[1:]),
-        walkable_components=navgrid.walkable_components(viewpoints),
+        removed_disconnected=sum(len(p) for p in pieces[1:]) + cut,
+        walkable_piece_sizes=tuple(len(p) for p in navgrid.walkable_pieces(viewpoints)),
         door=navgrid.door(viewpoints),
         starts=(starts[0], starts[1]),
         statics=statics,

@@ -18,7 +18,8 @@ our targets, each pose attributed to the static it rests on or in. A schedule ``
   ``sim/stats_schedule.py`` places them, and listed in ``Schedule.fallback``.
 
 Homes built from ProcTHOR houses have no rearrangement data (the episodes are iTHOR FloorPlans):
-asking for ``rearr-<seed>`` there is an error that says to use ``stats-<seed>``.
+asking for ``rearr-<seed>`` there is an error that says to use ``stats-<seed>``; for an iTHOR home
+without the file it names the home's FloorPlans (:func:`why_no_rearrangement`).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from objsearch.agent.categories import read_json
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.geometry import Vec3
-from objsearch.agent.home import Box, Home
+from objsearch.agent.home import Box, Home, load_home
 from objsearch.sim.placements import Placements, Schedule
 from objsearch.sim.stats_schedule import SCENES, stats_schedule
 from objsearch.sim.world import Placement
@@ -95,14 +96,31 @@ def homes_with_rearrangement() -> tuple[str, ...]:
     return tuple(sorted(p.stem for p in folder.glob("*.json")))
 
 
+def why_no_rearrangement(home: Home) -> str:
+    """Why ``home`` has no rearrangement data, naming what it was built from."""
+    scenes = [r.source_scene for r in home.rooms]
+    if not home.teleport:
+        houses = sorted({s.partition("#")[0] for s in scenes})
+        return (
+            f"{home.name} is a ProcTHOR house ({', '.join(houses)}); the rearrangement episodes "
+            "are of iTHOR FloorPlans only"
+        )
+    return (
+        f"{home.name}: no rearrangement episodes were derived for its FloorPlans "
+        f"{', '.join(scenes)} ({REARRANGEMENT_DIR}/{home.name}.json is missing; `objsearch data "
+        "build` derives it for every iTHOR home whose FloorPlans the episodes cover and names "
+        "the ones they do not)"
+    )
+
+
 @cache
 def _load(home_name: str, data_root: str) -> RearrangementData:
     path = Path(data_root) / REARRANGEMENT_DIR / f"{home_name}.json"
     if not path.is_file():
         have = ", ".join(homes_with_rearrangement()) or "none"
         raise DataFileError(
-            f"home {home_name!r} has no rearrangement data ({path} is missing): the AI2-THOR "
-            f"rearrangement episodes cover iTHOR FloorPlans only (homes with data: {have}); "
+            f"home {home_name!r} has no rearrangement data: "
+            f"{why_no_rearrangement(load_home(home_name))} (homes with data: {have}); "
             "use a stats-<seed> schedule for this home"
         )
     return read_rearrangement(path, home_name)

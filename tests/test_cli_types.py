@@ -51,6 +51,20 @@ def test_text_and_lists() -> None:
     _rejects(t.sql, " \n", "empty")
 
 
+def test_number_spans_and_subsets() -> None:
+    spans = t.number_spans(1, 24)
+    assert spans("11-14") == [11, 12, 13, 14] and spans("5,2,4-5") == [2, 4, 5]
+    _rejects(spans, "14-11", "runs backwards")
+    _rejects(spans, "20-25", "not 25")
+    _rejects(spans, "1,,2", "spans like 11-14")
+    kinds = t.subset_of(("lost-grid-points", "dropped-rooms"))
+    assert kinds("dropped-rooms,lost-grid-points,dropped-rooms") == [
+        "dropped-rooms",
+        "lost-grid-points",
+    ]
+    _rejects(kinds, "everything", "unknown everything; expected a comma-separated subset of")
+
+
 def test_paths(tmp_path: Path) -> None:
     (tmp_path / "f").write_text("x")
     folder, file, missing = str(tmp_path), str(tmp_path / "f"), str(tmp_path / "none")

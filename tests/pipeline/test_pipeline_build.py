@@ -129,15 +129,20 @@ def test_malformed_homes_are_refused(
 
 def test_other_homes_build_without_paper_tables(shared_data: Path, tmp_path: Path) -> None:
     report = build_data(
-        shared_data, tmp_path, homes={"second": ("FloorPlan1", "201", "FloorPlan316", "402")}
+        shared_data,
+        tmp_path,
+        homes={"second": ("FloorPlan1", "201", "FloorPlan316", "402")},
+        accept=["lost-grid-points"],
     )
     names = {p.relative_to(tmp_path).as_posix() for p in report.files}
     assert "homes/second.json" in names and "scenarios/table1.json" not in names
     assert any("FloorPlan316" in n and "23 inside furniture" in n for n in report.notes)
+    provenance = (tmp_path / "PROVENANCE.md").read_text()
     assert (
-        "--home second=FloorPlan1,FloorPlan201,FloorPlan316,FloorPlan402"
-        in (tmp_path / "PROVENANCE.md").read_text()
+        "--home second=FloorPlan1,FloorPlan201,FloorPlan316,FloorPlan402 --accept lost-grid-points"
+        in provenance
     )
+    assert "schedules/table2.json" not in provenance  # it describes only what it wrote
 
 
 def test_parse_home_arg() -> None:
@@ -174,7 +179,9 @@ def test_a_home_that_satisfies_the_removal_rule_gets_its_own_table1(
 ) -> None:
     good = ("FloorPlan3", "FloorPlan203", "FloorPlan310", "FloorPlan402")  # satisfies the rule
     bad = ("FloorPlan1", "201", "FloorPlan316", "402")  # a target left twice or not at all
-    report = build_data(shared_data, tmp_path, homes={"good": good, "bad": bad})
+    report = build_data(
+        shared_data, tmp_path, homes={"good": good, "bad": bad}, accept=["lost-grid-points"]
+    )
     own = json.loads((tmp_path / "scenarios" / "table1-good.json").read_text())
     assert own["home"] == "good" and len(own["targets"]) == 8
     assert not (tmp_path / "scenarios" / "table1-bad.json").exists()

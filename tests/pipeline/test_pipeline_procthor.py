@@ -18,7 +18,7 @@ HOUSE = Path("procthor_houses/houses_20/house_0.json")
 
 @pytest.fixture(scope="module")
 def home_file(shared_data: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    doc = build_procthor_home(shared_data, "house0", HOUSE)
+    doc = build_procthor_home(shared_data, "house0", HOUSE).doc
     path = tmp_path_factory.mktemp("procthor") / "house0.json"
     path.write_text(json.dumps(doc), encoding="utf-8")
     return path
