@@ -1,5 +1,6 @@
 """The long-running on-robot agent: search requests in, robot commands out, every event logged
-and published.
+and published; and questions about its memory (``where``) answered on a thread of their own from
+the live projection (:class:`~objsearch.agent.where.LiveMemory`), even during a search.
 
 Each event is appended to the durable log first, then published on the events topic as an
 ``objsearch_msgs/Event`` (so the robot's bag records it); a publish that fails is reported and
@@ -23,13 +24,19 @@ from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.scene_graph import EventLike, UpdateMode
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import DEFAULT_ALPHA, DEFAULT_STRATEGY, RunSpec
+from objsearch.agent.where import LiveMemory
 from objsearch.events import Event, read_log
 from objsearch.runtime import messages as m
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import RobotError
 from objsearch.runtime.liveview import LiveSink, LiveView
 from objsearch.runtime.node import Node, Server
-from objsearch.runtime.requests import FindRequest, parse_find_request
+from objsearch.runtime.requests import (
+    FindRequest,
+    WhereRequest,
+    parse_find_request,
+    parse_where_request,
+)
 from objsearch.runtime.rosworld import RobotLink, RosWorld
 from objsearch.runtime.transport import open_transport
 
@@ -92,10 +99,14 @@ class AgentNode:
         self.live_sinks = tuple(live)
         try:
             self.ctx = load_context(config.home)
-            observers: list[Any] = []
+            restart = (log_dir / "meta.json").exists()
+            # Folded once here (the session itself may start from a snapshot of another model's
+            # state), then kept current as an observer: no question re-reads the log.
+            self.memory = LiveMemory(read_log(log_dir) if restart else (), self.ctx.home)
+            observers: list[Any] = [self.memory]
             if self.live_sinks:
                 view = LiveView(self.ctx, self.live_sinks)
-                if (log_dir / "meta.json").exists():
+                if restart:
                     view.fold(read_log(log_dir))  # a restart: the graph so far, not redrawn
                 observers.append(GuardedLiveView(view))
             self.node = Node(open_transport(config.transport))
@@ -134,7 +145,30 @@ class AgentNode:
         self.requests = Server(
             self.node, t.find, t.find_result, config.qos.requests, parse_find_request
         )
+        self.questions = Server(
+            self.node, t.where, t.where_result, config.qos.requests, parse_where_request
+        )
         self._stop = threading.Event()
+        self._answering = threading.Thread(target=self._answer_questions, name="where", daemon=True)
+
+    def answer_where(self, request: WhereRequest) -> dict[str, Any]:
+        """The memory's answer; ``request`` is checked field by field already (:mod:`requests`)."""
+        try:
+            return {"ok": True, "answer": self.memory.answer(request.target)}
+        except ObjsearchError as exc:
+            return {"ok": False, "error": f"where request: field 'target': {exc}"}
+
+    def _answer_questions(self) -> None:
+        while not self._stop.is_set():
+            request = self.questions.next(0.2)
+            if request is None:
+                continue
+            try:
+                result = self.answer_where(request)
+            except Exception as exc:  # a bug in answering must not leave the client waiting
+                log.exception("where %s: %s", request.target, exc)
+                result = {"ok": False, "error": f"where request failed: {exc}"}
+            self.questions.answer(request, result)
 
     def handle(self, request: FindRequest) -> dict[str, Any]:
         """One search; ``request`` is checked field by field already (:mod:`requests`)."""
@@ -181,12 +215,15 @@ class AgentNode:
         log.info(
             "agent up: %s, log %s", self.config.transport.backend.value, self.session.log.directory
         )
+        self._answering.start()
         try:
             while not self._stop.is_set():
                 request = self.requests.next(0.2)
                 if request is not None:
                     self.requests.answer(request, self.handle(request))
         finally:
+            self._stop.set()
+            self._answering.join()
             self.close()
         return 0
 
