@@ -142,9 +142,9 @@ def render_learning(summary: dict[str, Any], *, after: int = 10) -> str:
     return "\n".join(lines)
 
 
-def plot_curves(summary: dict[str, Any], out: Path) -> list[Path]:
-    """One PNG per schedule kind: oracle ratio per scene, first search of the day (solid) and all
-    searches (dashed), per strategy."""
+def plot_curves(summary: dict[str, Any], out: Path, *, prefix: str = "learning") -> list[Path]:
+    """One PNG per schedule kind (``<prefix>_<kind>.png``): oracle ratio per scene, first search
+    of the day (solid) and all searches (dashed), per strategy."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -169,7 +169,7 @@ def plot_curves(summary: dict[str, Any], out: Path) -> list[Path]:
         ax.set_title(f"{kind} schedules: first search of the day (solid) vs all (dashed)")
         ax.legend(fontsize=6, ncol=2)
         fig.tight_layout()
-        path = out / f"learning_{kind}.png"
+        path = out / f"{prefix}_{kind}.png"
         fig.savefig(path, dpi=110)
         plt.close(fig)
         paths.append(path)
