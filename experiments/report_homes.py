@@ -94,11 +94,11 @@ def excess_table(rows: Sequence[Row]) -> list[str]:
 
 
 def paired_table(rows: Sequence[Row]) -> list[str]:
-    paired = paired_bootstrap(rows)
+    paired = paired_bootstrap(rows, metric=discovery)
     if not paired:
         return ["(no `wpl` runs to pair with: run bench homes with wpl among --strategies)"]
     lines = [
-        "| strategy | Δ path vs wpl m | 95 % CI | runs |",
+        "| strategy | Δ path to discovery vs wpl m | 95 % CI | runs |",
         "|---|---|---|---|",
     ]
     for k, d in paired.items():

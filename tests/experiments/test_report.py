@@ -12,6 +12,8 @@ from pathlib import Path
 import pytest
 
 from objsearch.cli import main
+from objsearch.experiments.learning import paired_bootstrap
+from objsearch.experiments.paper import discovery
 from objsearch.experiments.report_homes import failure_lines, update_regressions
 from objsearch.experiments.report_paper import cameras_section
 from objsearch.experiments.runner import read_rows
@@ -85,7 +87,7 @@ def test_without_optional_inputs_their_sections_say_how_to_produce_them(
         "| strategy | path to discovery m | full path m | oracle× all | oracle× first of day",
         "| strategy | excess m | wrong rooms m | of which start room m | right room m | approach m",
         "![homes_stats](img/homes_stats.png)",
-        "| strategy | Δ path vs wpl m | 95 % CI | runs |",
+        "| strategy | Δ path to discovery vs wpl m | 95 % CI | runs |",
         "updates made it longer than wpl/none in **",
         "Success 100.00 % (768 of 768 searches); no failures.",
         "### Home family: ithor",
@@ -177,3 +179,21 @@ def test_report_dirs_are_checked(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert main([*argv, "--out", str(tmp_path / "r.md")]) == 2
     assert "no bench summary" in capsys.readouterr().err
     assert not os.path.exists(tmp_path / "r.md")
+
+
+def test_the_paired_difference_is_in_the_paper_metric(runs: dict[str, Path]) -> None:
+    rows = read_rows(runs["homes"] / "homes_trials.parquet")
+    paired = paired_bootstrap(rows, metric=discovery)["epl"]
+    per_run = {}
+    for strategy in ("wpl", "epl"):
+        for home in ("ithor-01", "procthor-00"):
+            mine = [
+                discovery(r)
+                for r in rows
+                if (r.strategy, r.update_mode, r.home) == (strategy, "all", home)
+            ]
+            per_run[strategy, home] = sum(mine) / len(mine)
+    diffs = [per_run["epl", h] - per_run["wpl", h] for h in ("ithor-01", "procthor-00")]
+    assert paired["runs"] == 2
+    assert paired["mean_diff_m"] == pytest.approx(sum(diffs) / 2)
+    assert paired["ci_low"] <= paired["mean_diff_m"] <= paired["ci_high"]
