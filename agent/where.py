@@ -15,6 +15,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Iterable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from objsearch.agent.errors import ObjsearchError
@@ -24,7 +25,9 @@ from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import MEMORY
 from objsearch.events.envelope import Event
+from objsearch.events.log import LogPosition
 from objsearch.events.projection import fold
+from objsearch.events.snapshot import restore, save_snapshot
 
 
 @dataclass(frozen=True, slots=True)
@@ -37,7 +40,7 @@ class Place:
 
 def memory_state(events: Iterable[Event]) -> AgentState:
     """The projection ``where`` answers from: ``events`` folded with the memory model."""
-    return fold(events, AgentState(counterfactual=MEMORY))
+    return fold(events, _fresh())
 
 
 def where(events: Iterable[Event], target: str, *, top: int = 3) -> dict[str, Any]:
@@ -107,15 +110,32 @@ def answer(state: AgentState, target: str, home: Home, *, top: int = 3) -> dict[
 
 
 class LiveMemory:
-    """The ``where`` projection kept live beside a running agent: folded from its log once at
-    start, then fed every event the agent appends (an observer of its session), and asked from
-    another thread (the request server's) under a lock — so a question never re-reads the log
-    and is answered even while a search is running."""
+    """The ``where`` projection kept live beside a running agent: restored once at start (from
+    its snapshot and the events after it, like the agent's own state), then fed every event the
+    agent appends (an observer of its session), and asked from another thread (the request
+    server's) under a lock — so a question never re-reads the log and is answered even while a
+    search is running."""
 
-    def __init__(self, events: Iterable[Event], home: Home) -> None:
-        self._state = memory_state(events)
+    def __init__(self, state: AgentState, home: Home) -> None:
+        self._state = state
         self._home = home
         self._lock = threading.Lock()
+
+    @classmethod
+    def restore(cls, log_dir: Path, home: Home, snapshot_dir: Path) -> LiveMemory:
+        """From the snapshot in ``snapshot_dir`` (if trusted) and the log after it; a log that
+        does not exist yet starts empty."""
+        if not (log_dir / "meta.json").exists():
+            return cls(_fresh(), home)
+        state, _ = restore(
+            log_dir, _fresh, AgentState.from_snapshot, snapshot_dir=snapshot_dir, save=False
+        )
+        return cls(state, home)
+
+    def save(self, snapshot_dir: Path, *, log_dir: Path, position: LogPosition | None) -> None:
+        """A snapshot for the next :meth:`restore` (``position``: where the log stands now)."""
+        with self._lock:
+            save_snapshot(snapshot_dir, self._state, log_dir=log_dir, position=position)
 
     @property
     def last_seq(self) -> int:
@@ -135,6 +155,10 @@ class LiveMemory:
             if self._state.run is None:
                 raise ObjsearchError("the agent has not started a run yet")
             return answer(self._state, target, self._home)
+
+
+def _fresh() -> AgentState:
+    return AgentState(counterfactual=MEMORY)
 
 
 def render(answer: dict[str, Any]) -> str:

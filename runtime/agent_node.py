@@ -44,6 +44,8 @@ log = logging.getLogger("objsearch.agent")
 
 #: Beside the log: the agent's state at its last shutdown (objsearch.events.snapshot).
 SNAPSHOT_DIR = "snapshots"
+#: Beside it: the ``where`` memory's (a fold with the memory model, whatever the run's model).
+WHERE_SNAPSHOT_DIR = f"{SNAPSHOT_DIR}/where"
 
 
 class EventPublisher:
@@ -99,14 +101,13 @@ class AgentNode:
         self.live_sinks = tuple(live)
         try:
             self.ctx = load_context(config.home)
-            restart = (log_dir / "meta.json").exists()
-            # Folded once here (the session itself may start from a snapshot of another model's
-            # state), then kept current as an observer: no question re-reads the log.
-            self.memory = LiveMemory(read_log(log_dir) if restart else (), self.ctx.home)
+            # Restored once here, like the session's own state (from its snapshot and the log
+            # after it), then kept current as an observer: no question re-reads the log.
+            self.memory = LiveMemory.restore(log_dir, self.ctx.home, log_dir / WHERE_SNAPSHOT_DIR)
             observers: list[Any] = [self.memory]
             if self.live_sinks:
                 view = LiveView(self.ctx, self.live_sinks)
-                if restart:
+                if (log_dir / "meta.json").exists():
                     view.fold(read_log(log_dir))  # a restart: the graph so far, not redrawn
                 observers.append(GuardedLiveView(view))
             self.node = Node(open_transport(config.transport))
@@ -229,10 +230,26 @@ class AgentNode:
 
     def close(self) -> None:
         try:
+            self._save_memory()
             self.session.close()
             self.node.close()
         finally:
             self._close_live()
+
+    def _save_memory(self) -> None:
+        """The where memory's snapshot, beside the session's; one that cannot be written is
+        logged, never fatal (the next start folds the log instead)."""
+        log_ = self.session.log
+        if log_.closed or not self.memory.last_seq:
+            return
+        try:
+            self.memory.save(
+                log_.directory / WHERE_SNAPSHOT_DIR, log_dir=log_.directory, position=log_.position
+            )
+        except (ObjsearchError, OSError, ValueError) as exc:
+            log.warning(
+                "where memory: snapshot not written (%s); the next start folds the log", exc
+            )
 
     def _close_live(self) -> None:
         for sink in self.live_sinks:

@@ -11,10 +11,12 @@ import pytest
 from objsearch.agent.memory import InstanceMemory
 from objsearch.agent.session import load_context
 from objsearch.agent.state import AgentState
-from objsearch.agent.strategies import RunSpec
+from objsearch.agent.strategies import MEMORY, RunSpec
+from objsearch.agent.where import LiveMemory, where
 from objsearch.cli import main
 from objsearch.events.log import read_log
 from objsearch.events.projection import fold
+from objsearch.events.snapshot import restore
 from objsearch.experiments.decompose import decompose
 from objsearch.sim.longterm import Trial, run_schedule
 from objsearch.sim.world import Placement
@@ -178,3 +180,25 @@ def test_where_refuses_what_it_cannot_answer_from(
     assert main(["where", "Cup", "--log", str(log), "--run", "first"]) == 2
     assert main(["where", "Cup", "--lake", str(tmp_path / "missing")]) == 2
     assert "no such folder" in capsys.readouterr().err
+
+
+def test_live_memory_restarts_from_its_snapshot_with_the_same_answer(tmp_path: Path) -> None:
+    # A wpl run: the memory is a counterfactual fold, which the snapshot must remember.
+    log, snapshots = tmp_path / "log", tmp_path / "snapshots"
+    _run(log, "wpl", scenes=(1,))
+    home = load_context(HOME).home
+    full = LiveMemory.restore(log, home, snapshots)
+    assert isinstance(full.state.graph(), InstanceMemory)
+    full.save(snapshots, log_dir=log, position=None)
+    again, restored = restore(
+        log,
+        lambda: AgentState(counterfactual=MEMORY),
+        AgentState.from_snapshot,
+        snapshot_dir=snapshots,
+        save=False,
+    )
+    assert restored.from_snapshot_seq == full.last_seq and restored.rejected is None
+    assert isinstance(again.graph(), InstanceMemory)
+    from_snapshot = LiveMemory.restore(log, home, snapshots)
+    assert from_snapshot.answer("Cup") == full.answer("Cup") == where(read_log(log), "Cup")
+    assert full.answer("Cup")["model_of_run"] == "eq4"

@@ -1,6 +1,6 @@
 """``where`` asked of a running agent over a real transport: the answer is the one ``objsearch
 where --log`` gives for the same log, a malformed question is answered with an error naming its
-field, and the agent carries on answering afterwards."""
+field, the agent carries on answering afterwards, and after a restart (from its snapshot)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from objsearch.cli import main
+from objsearch.runtime.agent_node import WHERE_SNAPSHOT_DIR
 from objsearch.runtime.client import AgentClient
 from objsearch.runtime.node import Requester
 from objsearch.runtime.requests import check_where_result
@@ -58,3 +59,11 @@ def test_the_agent_answers_where_from_its_live_memory(
         stop(robot)
     assert main(["where", "Apple", "--log", str(log), "--json"]) == 0
     assert json.loads(capsys.readouterr().out) == live["answer"]
+    # A restart restores the memory from the snapshot written at shutdown, and answers the same.
+    assert (log / WHERE_SNAPSHOT_DIR / "agent_state.snapshot.json").is_file()
+    agent = objsearch("agent", "run", *net.args, "--log", str(log), log=tmp_path / "agent2.txt")
+    try:
+        assert main(["agent", "where", "Apple", *net.args, "--json", "--timeout", "30"]) == 0
+        assert json.loads(capsys.readouterr().out)["answer"] == live["answer"]
+    finally:
+        assert stop(agent) == 0
