@@ -12,6 +12,7 @@ view, the report and the lake's derived tables — so they cannot disagree about
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -135,14 +136,20 @@ class AgentState:
             "seeded": self.seeded,
             "seeded_source": self.seeded_source,
             "last_time_ns": self.last_time_ns,
+            # Which model folded it, when not the run's own (a snapshot without the key: none).
+            "counterfactual": None
+            if self.counterfactual is None
+            else dataclasses.asdict(self.counterfactual),
         }
 
     @classmethod
     def from_snapshot(cls, state: dict[str, Any], last_seq: int) -> AgentState:
         first = None if state["first_run"] is None else RunSpec.from_payload(state["first_run"])
+        cf = state.get("counterfactual")
+        counterfactual = None if cf is None else RelationSpec(**cf)
         model = None
         if first is not None:
-            fresh = first.relation_model()
+            fresh = (counterfactual or first.relations).build()
             restore = getattr(type(fresh), "from_snapshot", None)
             if restore is None:
                 raise ObjsearchError(f"{type(fresh).__name__} cannot be restored")
@@ -157,6 +164,7 @@ class AgentState:
             seeded=bool(state["seeded"]),
             # Snapshots written before the source was kept lack it: unknown, not checked.
             seeded_source=state.get("seeded_source"),
+            counterfactual=counterfactual,
             last_seq=last_seq,
             last_time_ns=int(state["last_time_ns"]),
         )

@@ -1,24 +1,33 @@
 """``objsearch where TARGET``: where an object was last seen, where it usually is, how sure —
 answered from the memory projection of a log (:class:`~objsearch.agent.memory.InstanceMemory`).
 
+One fold answers every way of asking: a log folder and a lake run (``objsearch where``) are folded
+by :func:`where`, and the running agent keeps the same projection live (:class:`LiveMemory`,
+``objsearch agent where``), so the three cannot disagree about the same events.
+
 A log whose run used another relation model is folded with the memory model as a counterfactual
 (``AgentState(counterfactual=MEMORY)``): the facts it answers from (sightings, looks) are in every
-log; only the robot's own plans used another model, and the answer says so.
+log; only the robot's own plans used another model, and the answer says so (``model_of_run``).
 """
 
 from __future__ import annotations
 
+import threading
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from objsearch.agent.errors import ObjsearchError
-from objsearch.agent.home import load_home
+from objsearch.agent.home import Home, load_home
 from objsearch.agent.memory import InstanceMemory
+from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import MEMORY
-from objsearch.events.log import read_log
+from objsearch.events.envelope import Event
+from objsearch.events.log import LogPosition
 from objsearch.events.projection import fold
+from objsearch.events.snapshot import restore, save_snapshot
 
 
 @dataclass(frozen=True, slots=True)
@@ -29,15 +38,30 @@ class Place:
     belief: float  # share of the memory's mass over every known static
 
 
-def where(log_dir: Path, target: str, *, top: int = 3) -> dict[str, Any]:
-    state = fold(read_log(log_dir), AgentState(counterfactual=MEMORY))
+def memory_state(events: Iterable[Event]) -> AgentState:
+    """The projection ``where`` answers from: ``events`` folded with the memory model."""
+    return fold(events, _fresh())
+
+
+def where(events: Iterable[Event], target: str, *, top: int = 3) -> dict[str, Any]:
+    """The answer for ``target`` from a log's or a lake run's events."""
+    state = memory_state(events)
     if state.run is None:
-        raise ObjsearchError(f"{log_dir}: the log holds no run yet")
+        raise ObjsearchError("the events hold no run yet: nothing has been searched")
+    return answer(state, target, load_home(state.run.home), top=top)
+
+
+def answer(state: AgentState, target: str, home: Home, *, top: int = 3) -> dict[str, Any]:
+    """What the folded ``state`` says about ``target`` (``home``: the run's, for rooms)."""
     memory = state.graph()
     assert isinstance(memory, InstanceMemory)
+    assert state.run is not None
     if target not in {d for d, _ in memory.classes.prior}:
-        raise ObjsearchError(f"unknown object class {target!r} in this log's scene graph")
-    statics = load_home(state.run.home).statics
+        known = sorted({d for d, _ in memory.classes.prior})
+        raise ObjsearchError(
+            f"unknown object class {target!r} in this run's scene graph; known: {', '.join(known)}"
+        )
+    statics = home.statics
     values = {sid: v for sid, v in memory.instances(target).items() if v > 0 and sid in statics}
     total = sum(values.values())
     ranked = sorted(values, key=lambda s: (-values[s], s))[:top]
@@ -50,7 +74,9 @@ def where(log_dir: Path, target: str, *, top: int = 3) -> dict[str, Any]:
     last = memory.last_seen.get(target)
     return {
         "target": target,
-        "log": str(log_dir),
+        # The run id names the run, not the file it was read from: a log and the lake run made
+        # from it give the same answer.
+        "run_id": state.run.params.get("run_id"),
         "model_of_run": state.run.relations.model,
         "tasks": memory.tasks_folded,
         "last_seen": None
@@ -81,6 +107,58 @@ def where(log_dir: Path, target: str, *, top: int = 3) -> dict[str, Any]:
             for p in likely
         ],
     }
+
+
+class LiveMemory:
+    """The ``where`` projection kept live beside a running agent: restored once at start (from
+    its snapshot and the events after it, like the agent's own state), then fed every event the
+    agent appends (an observer of its session), and asked from another thread (the request
+    server's) under a lock — so a question never re-reads the log and is answered even while a
+    search is running."""
+
+    def __init__(self, state: AgentState, home: Home) -> None:
+        self._state = state
+        self._home = home
+        self._lock = threading.Lock()
+
+    @classmethod
+    def restore(cls, log_dir: Path, home: Home, snapshot_dir: Path) -> LiveMemory:
+        """From the snapshot in ``snapshot_dir`` (if trusted) and the log after it; a log that
+        does not exist yet starts empty."""
+        if not (log_dir / "meta.json").exists():
+            return cls(_fresh(), home)
+        state, _ = restore(
+            log_dir, _fresh, AgentState.from_snapshot, snapshot_dir=snapshot_dir, save=False
+        )
+        return cls(state, home)
+
+    def save(self, snapshot_dir: Path, *, log_dir: Path, position: LogPosition | None) -> None:
+        """A snapshot for the next :meth:`restore` (``position``: where the log stands now)."""
+        with self._lock:
+            save_snapshot(snapshot_dir, self._state, log_dir=log_dir, position=position)
+
+    @property
+    def last_seq(self) -> int:
+        return self._state.last_seq
+
+    @property
+    def state(self) -> AgentState:
+        return self._state
+
+    def apply(self, event: EventLike) -> None:
+        assert isinstance(event, Event)
+        with self._lock:
+            fold([event], self._state)  # the fold's checks: no event skipped or applied twice
+
+    def answer(self, target: str) -> dict[str, Any]:
+        with self._lock:
+            if self._state.run is None:
+                raise ObjsearchError("the agent has not started a run yet")
+            return answer(self._state, target, self._home)
+
+
+def _fresh() -> AgentState:
+    return AgentState(counterfactual=MEMORY)
 
 
 def render(answer: dict[str, Any]) -> str:

@@ -13,6 +13,7 @@ from typing import Any
 
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import available_homes, load_home
+from objsearch.agent.session import DEFAULT_PRIOR
 from objsearch.experiments.learning import (
     learning_summary,
     paired_bootstrap,
@@ -21,7 +22,7 @@ from objsearch.experiments.learning import (
     render_paired,
 )
 from objsearch.experiments.metrics import mean_std, summarise
-from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, write_rows
+from objsearch.experiments.runner import TARGETS, Job, Row, command_line, run_jobs, write_rows
 from objsearch.experiments.strategies import STRATEGIES, strategy
 from objsearch.sim.rearr_schedule import homes_with_rearrangement, why_no_rearrangement
 from objsearch.sim.schedule_names import SEEDED_KINDS, UnknownScheduleError
@@ -242,8 +243,24 @@ def run_homes(
     rows = run_jobs(jobs, workers=workers, progress=progress, label="bench homes")
     elapsed = time.perf_counter() - started
     parquet, csv = write_rows(rows, out, "homes_trials")
+    command = command_line(
+        "objsearch bench homes",
+        {
+            "out": out,
+            "homes": homes,
+            "schedules": schedules,
+            "seeds": seeds,
+            "scenes": scenes,
+            "strategies": strategies,
+            "starts": starts_per_search,
+            "workers": workers,
+        },
+    )
     summary = {
-        "command": "objsearch bench homes",
+        "command": command,
+        # Every search of this bench starts from this prior; dist-oracle alone also reads the
+        # schedule's own distribution (a reference, never a default).
+        "prior": DEFAULT_PRIOR,
         "homes": homes,
         "seeds": list(range(seeds)),
         "schedules": list(schedules),

@@ -5,7 +5,7 @@ scenes (the later ones also profit from the searches of the same scene) — as a
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -89,16 +89,25 @@ def render_paired(paired: dict[str, dict[str, float]], base: str = "wpl") -> str
     return "\n".join(lines)
 
 
+def full_path(row: Row) -> float:
+    return row.path_length
+
+
 def paired_bootstrap(
-    rows: Sequence[Row], *, base: str = "wpl", resamples: int = 10_000, seed: int = 0
+    rows: Sequence[Row],
+    *,
+    base: str = "wpl",
+    resamples: int = 10_000,
+    seed: int = 0,
+    metric: Callable[[Row], float] = full_path,
 ) -> dict[str, dict[str, float]]:
-    """Per strategy: the mean over (home, schedule) runs of (its run mean path − ``base``'s), with
-    a paired bootstrap 95 % CI over runs (resampling runs with replacement, seeded)."""
+    """Per strategy: the mean over (home, schedule) runs of (its run mean ``metric`` − ``base``'s),
+    with a paired bootstrap 95 % CI over runs (resampling runs with replacement, seeded)."""
     import random
 
     means: dict[tuple[str, str, str], list[float]] = {}
     for r in rows:
-        means.setdefault((key(r), r.home, r.placements), []).append(r.path_length)
+        means.setdefault((key(r), r.home, r.placements), []).append(metric(r))
     run_mean = {k: math.fsum(v) / len(v) for k, v in means.items()}
     out: dict[str, dict[str, float]] = {}
     rng = random.Random(seed)
@@ -142,9 +151,9 @@ def render_learning(summary: dict[str, Any], *, after: int = 10) -> str:
     return "\n".join(lines)
 
 
-def plot_curves(summary: dict[str, Any], out: Path) -> list[Path]:
-    """One PNG per schedule kind: oracle ratio per scene, first search of the day (solid) and all
-    searches (dashed), per strategy."""
+def plot_curves(summary: dict[str, Any], out: Path, *, prefix: str = "learning") -> list[Path]:
+    """One PNG per schedule kind (``<prefix>_<kind>.png``): oracle ratio per scene, first search
+    of the day (solid) and all searches (dashed), per strategy."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -169,7 +178,7 @@ def plot_curves(summary: dict[str, Any], out: Path) -> list[Path]:
         ax.set_title(f"{kind} schedules: first search of the day (solid) vs all (dashed)")
         ax.legend(fontsize=6, ncol=2)
         fig.tight_layout()
-        path = out / f"learning_{kind}.png"
+        path = out / f"{prefix}_{kind}.png"
         fig.savefig(path, dpi=110)
         plt.close(fig)
         paths.append(path)

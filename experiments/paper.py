@@ -13,7 +13,7 @@ from typing import Any
 
 from objsearch.agent.session import DEFAULT_PRIOR
 from objsearch.experiments.metrics import mean_std, summarise
-from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, write_rows
+from objsearch.experiments.runner import TARGETS, Job, Row, command_line, run_jobs, write_rows
 from objsearch.experiments.strategies import PAPER_STRATEGIES, strategy
 
 HOME = "paper"
@@ -193,12 +193,12 @@ def render(summary: dict[str, Any]) -> str:
         scenes = list(next(iter(lt.values()))["per_scene"])
         lines.append(
             "Long-term (Table II schedule) — mean path length to discovery (m) per scene over "
-            "8 targets × 8 starts"
+            "8 targets × 8 starts; 'path+appr' adds the approach to the target"
         )
         lines.append(
             f"{'strategy/updates':22}"
             + "".join(f"{s:>7}" for s in scenes)
-            + f"{'avg':>8}{'vs none':>10}"
+            + f"{'avg':>8}{'vs none':>10}{'path+appr':>11}"
         )
         for key, s in lt.items():
             ch = s["change_vs_wpl_none_pct"]
@@ -206,7 +206,8 @@ def render(summary: dict[str, Any]) -> str:
                 f"{key:22}"
                 + "".join(f"{s['per_scene'][sc]:7.2f}" for sc in scenes)
                 + f"{s['mean_path_to_discovery']:8.2f}"
-                + (f"{ch:+9.2f}%" if ch is not None else "")
+                + (f"{ch:+9.2f}%" if ch is not None else f"{'–':>10}")
+                + f"{s['mean_path_length']:11.2f}"
             )
         lines.append(f"(the paper reports {PAPER_REDUCTION_PCT:+.2f} % with updates)")
         lines.append("")
@@ -251,8 +252,19 @@ def run_paper(
     parquet, csv = write_rows(rows, out, "paper_trials")
     summary = {
         "home": HOME,
-        "command": "objsearch bench paper"
-        + ("" if prior == DEFAULT_PRIOR else f" --prior {prior}"),
+        "command": command_line(
+            "objsearch bench paper",
+            {
+                "out": out,
+                "strategies": list(strategies),
+                "sdp_seeds": sdp_seeds,
+                "targets": None if tuple(targets) == TARGETS else list(targets),
+                "scenes": list(scenes) if scenes else None,
+                "prior": None if prior == DEFAULT_PRIOR else prior,
+                "keep_logs": keep_logs,
+                "workers": workers,
+            },
+        ),
         "prior": prior,
         "sdp_seeds": sdp_seeds,
         "workers": workers,

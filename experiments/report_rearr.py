@@ -13,7 +13,7 @@ from typing import Any
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import load_home
 from objsearch.experiments.homes import homes_summary, schedule_kind
-from objsearch.experiments.runner import Row
+from objsearch.experiments.runner import Row, read_rows
 from objsearch.sim.schedule_names import load_schedule
 
 RESULTS_FILE = "results-rearrangement.md"
@@ -21,14 +21,11 @@ RESULTS_FILE = "results-rearrangement.md"
 
 def load_rows(folder: Path) -> tuple[dict[str, Any], list[Row]]:
     """The run's summary.json (its command line) and its rows, from which everything is recomputed."""
-    import polars as pl
-
     path = folder / "summary.json"
     if not path.is_file():
         raise ObjsearchError(f"no bench summary at {path}; run `objsearch bench homes` first")
     summary: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
-    trials = folder / summary["files"]["parquet"]
-    rows = [Row(**rec) for rec in pl.read_parquet(trials).to_dicts()]
+    rows = read_rows(folder / summary["files"]["parquet"])
     if not any(schedule_kind(r.placements) == "rearr" for r in rows):
         raise ObjsearchError(f"{folder} has no rearr-<seed> runs; run with --schedules rearr,stats")
     return summary, rows

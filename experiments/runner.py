@@ -188,5 +188,29 @@ def write_rows(rows: Sequence[Row], out: Path, stem: str) -> tuple[Path, Path]:
     return parquet, csv
 
 
+def read_rows(parquet: Path) -> list[Row]:
+    """The rows :func:`write_rows` wrote (without routes, which it does not write)."""
+    import polars as pl
+
+    return [Row(**rec) for rec in pl.read_parquet(parquet).to_dicts()]
+
+
+def command_line(words: str, options: Mapping[str, object]) -> str:
+    """``words`` and its options as typed (``--name value``; lists comma-joined; None and
+    False left out, True as a bare flag): what a summary records so a figure can be rerun."""
+    parts = [words]
+    for name, value in options.items():
+        if value is None or value is False:
+            continue
+        flag = "--" + name.replace("_", "-")
+        if value is True:
+            parts.append(flag)
+        elif isinstance(value, list | tuple):
+            parts.append(f"{flag} {','.join(str(v) for v in value)}")
+        else:
+            parts.append(f"{flag} {value}")
+    return " ".join(parts)
+
+
 def route_points(rows: Sequence[Row]) -> Mapping[str, list[Point]]:
     return {r.task_id: [Point(x, y) for x, y in r.route] for r in rows if r.route}

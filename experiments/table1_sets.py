@@ -381,7 +381,10 @@ def run_table1_sets(
     pl.DataFrame(records).write_csv(out / "table1_sets.csv")
     sampled = [r for r in records if r["sampled"]]
     paper_rec = next((r for r in records if r["paper_set"]), None)
-    command = f"objsearch bench table1 --sets {sets} --seed {seed} --out {out} --workers {workers}"
+    command = (
+        f"objsearch bench table1 --sets {sets} --seed {seed} --source {source} --out {out} "
+        f"--workers {workers}"
+    )
     if tuple(targets) != TARGETS:
         command += f" --targets {','.join(targets)}"
     if prior != DEFAULT_PRIOR:

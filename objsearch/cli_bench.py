@@ -121,7 +121,7 @@ def cmd_bench_table1(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_report(args: argparse.Namespace) -> int:
-    from objsearch.experiments.report import write_report
+    from objsearch.experiments.report import ReportInputs, write_report
 
     missing = [d for d in (args.paper, args.homes) if not (Path(d) / "summary.json").is_file()]
     if args.rearr:
@@ -133,7 +133,19 @@ def cmd_bench_report(args: argparse.Namespace) -> int:
         if missing:
             print(f"kept {args.out}: no bench summary in {', '.join(missing)}")
             return 0
-    path = write_report(Path(args.paper), Path(args.homes), Path(args.out), Path(args.img))
+    if args.heldout is not None and Path(args.heldout).resolve() == Path(args.homes).resolve():
+        raise ObjsearchError(
+            f"--heldout {args.heldout} is the --homes folder: held-out homes are reported apart, "
+            "from a bench homes run of their own"
+        )
+    inputs = ReportInputs(
+        paper=Path(args.paper),
+        homes=Path(args.homes),
+        table1=None if args.table1 is None else Path(args.table1),
+        heldout=None if args.heldout is None else Path(args.heldout),
+        paper_geometric=None if args.paper_geometric is None else Path(args.paper_geometric),
+    )
+    path = write_report(inputs, Path(args.out), Path(args.img))
     print(f"wrote {path}")
     return 0
 
@@ -278,6 +290,22 @@ def register(sub: Any) -> None:
     )
     report.add_argument(
         "--img", default="docs/img", type=t.dir_path, help="folder for the PNG plots"
+    )
+    report.add_argument(
+        "--table1",
+        type=t.existing_dir,
+        help="a bench table1 output: the Table I distribution section (left out without it)",
+    )
+    report.add_argument(
+        "--heldout",
+        type=t.existing_dir,
+        help="a bench homes output on held-out homes, reported in a section of its own",
+    )
+    report.add_argument(
+        "--paper-geometric",
+        type=t.existing_dir,
+        help="a bench paper output with the other camera: both cameras' Table I/II and their "
+        "difference",
     )
     report.add_argument(
         "--rearr",

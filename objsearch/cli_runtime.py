@@ -1,4 +1,4 @@
-"""``objsearch agent run|find`` and ``objsearch robot sim|router``: the on-robot runtime."""
+"""``objsearch agent run|find|where`` and ``objsearch robot sim|router``: the on-robot runtime."""
 
 from __future__ import annotations
 
@@ -15,6 +15,9 @@ from typing import TYPE_CHECKING, Any
 from objsearch import cli_types as t
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from objsearch.runtime.client import AgentClient
     from objsearch.runtime.config import RuntimeConfig
     from objsearch.runtime.liveview import LiveSink
 
@@ -178,7 +181,7 @@ def cmd_liveview(args: argparse.Namespace) -> int:
     return 0
 
 
-#: Seconds ``agent find`` waits before it says that nobody can hear it.
+#: Seconds ``agent find`` and ``agent where`` wait before it says that nobody can hear it.
 NO_ANSWER_HINT_S = 3.0
 
 
@@ -199,7 +202,11 @@ def nobody_hears(config: RuntimeConfig, transport: Any, timeout_s: float) -> str
     )
 
 
-def cmd_agent_find(args: argparse.Namespace) -> int:
+def _ask(
+    args: argparse.Namespace, command: str, call: Callable[[AgentClient], dict[str, Any]]
+) -> dict[str, Any]:
+    """``call(client)``'s answer; after :data:`NO_ANSWER_HINT_S` without one, says on stderr
+    why nobody may be answering (:func:`nobody_hears`), and keeps waiting up to --timeout."""
     import threading
 
     from objsearch.runtime.client import AgentClient
@@ -210,17 +217,26 @@ def cmd_agent_find(args: argparse.Namespace) -> int:
         def hint_if_alone() -> None:
             why = nobody_hears(config, client.node.transport, args.timeout)
             if why is not None:
-                print(f"objsearch agent find: {why}", file=sys.stderr, flush=True)
+                print(f"objsearch {command}: {why}", file=sys.stderr, flush=True)
 
         hint = threading.Timer(NO_ANSWER_HINT_S, hint_if_alone)
         hint.daemon = True
         hint.start()
         try:
-            result = client.find(
-                args.target, start=args.start, scene=args.scene, timeout_s=args.timeout
-            )
+            result = call(client)
         finally:
             hint.cancel()
+    return result
+
+
+def cmd_agent_find(args: argparse.Namespace) -> int:
+    result = _ask(
+        args,
+        "agent find",
+        lambda client: client.find(
+            args.target, start=args.start, scene=args.scene, timeout_s=args.timeout
+        ),
+    )
     if args.json:
         print(json.dumps(result, indent=2, sort_keys=True))
     elif not result.get("ok"):
@@ -235,6 +251,21 @@ def cmd_agent_find(args: argparse.Namespace) -> int:
     if not result.get("ok"):
         return 2
     return 0 if result["success"] else 1
+
+
+def cmd_agent_where(args: argparse.Namespace) -> int:
+    from objsearch.agent.where import render
+
+    result = _ask(
+        args, "agent where", lambda client: client.where(args.target, timeout_s=args.timeout)
+    )
+    if args.json:
+        print(json.dumps(result, indent=2, sort_keys=True))
+    elif not result.get("ok"):
+        print(f"where failed: {result.get('error')}")
+    else:
+        print(render(result["answer"]))
+    return 0 if result.get("ok") else 2
 
 
 def cmd_robot_sim(args: argparse.Namespace) -> int:
@@ -328,6 +359,23 @@ def register(sub: Any) -> None:
     )
     find.add_argument("--json", action="store_true")
     find.set_defaults(func=cmd_agent_find)
+
+    where = agent_sub.add_parser(
+        "where",
+        help="ask the running agent where an object was last seen, where it usually is, how sure",
+        description="Answered from the agent's live memory (the projection `objsearch where "
+        "--log` folds), even while it searches.",
+    )
+    where.add_argument("target", type=t.text, help="object class, e.g. Cup")
+    _transport_options(where)
+    where.add_argument(
+        "--timeout",
+        type=t.float_range(0.0, 86_400.0, lo_open=True),
+        default=30.0,
+        help="seconds to wait, up to a day (30)",
+    )
+    where.add_argument("--json", action="store_true", help="print the result as JSON")
+    where.set_defaults(func=cmd_agent_where)
 
     robot = sub.add_parser("robot", help="a stand-in robot and a zenoh router for it")
     robot_sub = robot.add_subparsers(dest="robot_command", required=True, metavar="SUBCOMMAND")

@@ -1,4 +1,4 @@
-"""`objsearch where TARGET`: where the robot's memory says an object is."""
+"""`objsearch where TARGET`: where the robot's memory says an object is (a log or a lake run)."""
 
 from __future__ import annotations
 
@@ -12,17 +12,36 @@ from objsearch import cli_types as t
 
 def register(sub: Any) -> None:
     where = sub.add_parser(
-        "where", help="where an object was last seen, where it usually is, how sure (from a log)"
+        "where",
+        help="where an object was last seen, where it usually is, how sure (from a log or a lake)",
+        description="Folds the events of an event log (--log) or of one lake run (--lake, "
+        "--run) with the memory model and answers from it; a log and the lake run made from it "
+        "give the same answer. A lake holding several runs needs --run (objsearch lake ls lists "
+        "them). The running agent answers the same question: objsearch agent where.",
     )
     where.add_argument("target", metavar="TARGET", type=t.text, help="object class, e.g. Cup")
-    where.add_argument("--log", required=True, type=t.existing_dir, help="event log folder")
+    source = where.add_mutually_exclusive_group(required=True)
+    source.add_argument("--log", type=t.existing_dir, help="event log folder")
+    source.add_argument("--lake", type=t.existing_dir, help="a lake (objsearch lake add)")
+    where.add_argument("--run", type=t.text, help="the lake run to answer from (with --lake)")
+    where.add_argument(
+        "--robot", type=t.text, help="the robot whose run it is, if run names repeat"
+    )
     where.add_argument("--json", action="store_true", help="print the answer as JSON")
     where.set_defaults(func=cmd_where)
 
 
 def cmd_where(args: argparse.Namespace) -> int:
+    from objsearch.agent.errors import ObjsearchError
     from objsearch.agent.where import render, where
+    from objsearch.replay.source import is_log, open_events
 
-    answer = where(Path(args.log), args.target)
+    path = Path(args.log or args.lake)
+    if args.log is not None and not is_log(path):
+        raise ObjsearchError(f"{path} is not an event log (no meta.json); if it is a lake: --lake")
+    if args.lake is not None and is_log(path):
+        raise ObjsearchError(f"{path} is an event log, not a lake: use --log")
+    events, _ = open_events(path, run=args.run, robot=args.robot)
+    answer = where(events, args.target)
     print(json.dumps(answer, indent=2) if args.json else render(answer))
     return 0

@@ -41,6 +41,10 @@ def lake_run(path: Path, *, run: str | None = None, robot: str | None = None) ->
             raise ObjsearchError(f"run {runs[0].run!r} in the lake {path} is damaged: {problem}")
         return runs[0]
     available = ", ".join(f"{r.robot}/{r.run}" for r in healthy) or "none"
+    if not runs and run is None and robot is None:
+        raise ObjsearchError(
+            f"the lake {path} holds no runs; add a run with `objsearch lake add LOG --lake {path}`"
+        )
     if not runs:
         raise ObjsearchError(
             f"no run {run!r}{f' of robot {robot!r}' if robot else ''} in the lake {path} "

@@ -1,5 +1,6 @@
 """The long-running on-robot agent: search requests in, robot commands out, every event logged
-and published.
+and published; and questions about its memory (``where``) answered on a thread of their own from
+the live projection (:class:`~objsearch.agent.where.LiveMemory`), even during a search.
 
 Each event is appended to the durable log first, then published on the events topic as an
 ``objsearch_msgs/Event`` (so the robot's bag records it); a publish that fails is reported and
@@ -23,13 +24,19 @@ from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.scene_graph import EventLike, UpdateMode
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import DEFAULT_ALPHA, DEFAULT_STRATEGY, RunSpec
+from objsearch.agent.where import LiveMemory
 from objsearch.events import Event, read_log
 from objsearch.runtime import messages as m
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import RobotError
 from objsearch.runtime.liveview import LiveSink, LiveView
 from objsearch.runtime.node import Node, Server
-from objsearch.runtime.requests import FindRequest, parse_find_request
+from objsearch.runtime.requests import (
+    FindRequest,
+    WhereRequest,
+    parse_find_request,
+    parse_where_request,
+)
 from objsearch.runtime.rosworld import RobotLink, RosWorld
 from objsearch.runtime.transport import open_transport
 
@@ -37,6 +44,8 @@ log = logging.getLogger("objsearch.agent")
 
 #: Beside the log: the agent's state at its last shutdown (objsearch.events.snapshot).
 SNAPSHOT_DIR = "snapshots"
+#: Beside it: the ``where`` memory's (a fold with the memory model, whatever the run's model).
+WHERE_SNAPSHOT_DIR = f"{SNAPSHOT_DIR}/where"
 
 
 class EventPublisher:
@@ -92,7 +101,10 @@ class AgentNode:
         self.live_sinks = tuple(live)
         try:
             self.ctx = load_context(config.home)
-            observers: list[Any] = []
+            # Restored once here, like the session's own state (from its snapshot and the log
+            # after it), then kept current as an observer: no question re-reads the log.
+            self.memory = LiveMemory.restore(log_dir, self.ctx.home, log_dir / WHERE_SNAPSHOT_DIR)
+            observers: list[Any] = [self.memory]
             if self.live_sinks:
                 view = LiveView(self.ctx, self.live_sinks)
                 if (log_dir / "meta.json").exists():
@@ -134,7 +146,30 @@ class AgentNode:
         self.requests = Server(
             self.node, t.find, t.find_result, config.qos.requests, parse_find_request
         )
+        self.questions = Server(
+            self.node, t.where, t.where_result, config.qos.requests, parse_where_request
+        )
         self._stop = threading.Event()
+        self._answering = threading.Thread(target=self._answer_questions, name="where", daemon=True)
+
+    def answer_where(self, request: WhereRequest) -> dict[str, Any]:
+        """The memory's answer; ``request`` is checked field by field already (:mod:`requests`)."""
+        try:
+            return {"ok": True, "answer": self.memory.answer(request.target)}
+        except ObjsearchError as exc:
+            return {"ok": False, "error": f"where request: field 'target': {exc}"}
+
+    def _answer_questions(self) -> None:
+        while not self._stop.is_set():
+            request = self.questions.next(0.2)
+            if request is None:
+                continue
+            try:
+                result = self.answer_where(request)
+            except Exception as exc:  # a bug in answering must not leave the client waiting
+                log.exception("where %s: %s", request.target, exc)
+                result = {"ok": False, "error": f"where request failed: {exc}"}
+            self.questions.answer(request, result)
 
     def handle(self, request: FindRequest) -> dict[str, Any]:
         """One search; ``request`` is checked field by field already (:mod:`requests`)."""
@@ -181,21 +216,40 @@ class AgentNode:
         log.info(
             "agent up: %s, log %s", self.config.transport.backend.value, self.session.log.directory
         )
+        self._answering.start()
         try:
             while not self._stop.is_set():
                 request = self.requests.next(0.2)
                 if request is not None:
                     self.requests.answer(request, self.handle(request))
         finally:
+            self._stop.set()
+            self._answering.join()
             self.close()
         return 0
 
     def close(self) -> None:
         try:
+            self._save_memory()
             self.session.close()
             self.node.close()
         finally:
             self._close_live()
+
+    def _save_memory(self) -> None:
+        """The where memory's snapshot, beside the session's; one that cannot be written is
+        logged, never fatal (the next start folds the log instead)."""
+        log_ = self.session.log
+        if log_.closed or not self.memory.last_seq:
+            return
+        try:
+            self.memory.save(
+                log_.directory / WHERE_SNAPSHOT_DIR, log_dir=log_.directory, position=log_.position
+            )
+        except (ObjsearchError, OSError, ValueError) as exc:
+            log.warning(
+                "where memory: snapshot not written (%s); the next start folds the log", exc
+            )
 
     def _close_live(self) -> None:
         for sink in self.live_sinks:

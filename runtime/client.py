@@ -1,4 +1,5 @@
-"""Asking a running agent to search (``objsearch agent find``) and, for tests and demos, telling
+"""Asking a running agent to search (``objsearch agent find``), where it last saw something
+(``objsearch agent where``) and, for tests and demos, telling
 the stand-in robot where things are (``/objsearch_sim/reset``)."""
 
 from __future__ import annotations
@@ -7,7 +8,11 @@ from typing import Any
 
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.node import Node, Requester
-from objsearch.runtime.requests import check_find_result, check_reset_result
+from objsearch.runtime.requests import (
+    check_find_result,
+    check_reset_result,
+    check_where_result,
+)
 from objsearch.runtime.transport import open_transport
 
 
@@ -16,6 +21,7 @@ class AgentClient:
         self.node = Node(open_transport(config.transport))
         t, q = config.topics, config.qos.requests
         self._find = Requester(self.node, t.find, t.find_result, q, check_find_result)
+        self._where = Requester(self.node, t.where, t.where_result, q, check_where_result)
         self._reset = Requester(self.node, t.sim_reset, t.sim_reset_result, q, check_reset_result)
 
     def find(
@@ -36,6 +42,11 @@ class AgentClient:
             "not_before_ns": not_before_ns,
         }
         return self._find.call(body, timeout_s=timeout_s, resend_s=1.0, what=f"find {target}")
+
+    def where(self, target: str, *, timeout_s: float) -> dict[str, Any]:
+        """The agent's answer from its live memory (``ok`` false: ``error`` says why)."""
+        body = {"target": target}
+        return self._where.call(body, timeout_s=timeout_s, resend_s=1.0, what=f"where {target}")
 
     def reset_sim(self, scene: int | None, start: str, *, timeout_s: float) -> dict[str, Any]:
         body = {"scene": scene, "start": start}

@@ -58,6 +58,8 @@ class Topics:
     events: str = "/objsearch/events"  # objsearch_msgs/Event, every append
     find: str = "/objsearch/find"  # std_msgs/String JSON {id, target, start?, scene?}
     find_result: str = "/objsearch/find/result"
+    where: str = "/objsearch/where"  # std_msgs/String JSON {id, target}: the agent's memory
+    where_result: str = "/objsearch/where/result"
     open: str = "/objsearch/open"  # std_msgs/String JSON {id, static_id}
     open_result: str = "/objsearch/open/result"
     sim_reset: str = "/objsearch_sim/reset"  # the stand-in only: {id, scene, start}

@@ -1,6 +1,6 @@
 """A seeded fuzzer for what the agent and the stand-in robot read from the network.
 
-Each case starts from a valid message of one request type — a find request (agent), an open or a
+Each case starts from a valid message of one request type — a find or a where request (agent), an open or a
 reset request (stand-in robot), a goal pose (stand-in robot) — and breaks it: one field gets a
 value of the wrong type, NaN, ±Infinity, a number too big for any integer or float, a string too
 long or with characters a name cannot have, or the field is dropped or an unknown one added; or
@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.geometry import Pose
+from objsearch.ros.qos import QoS
 from objsearch.runtime import messages as m
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.node import Node
@@ -80,7 +81,7 @@ BAD_IDS = ["null", "0", "5", '""', '" "', '"a b"', '"' + "i" * 200 + '"', "[]", 
 
 @dataclass(frozen=True, slots=True)
 class Case:
-    kind: str  # find | open | reset | goal
+    kind: str  # find | where | open | reset | goal
     topic: str
     msgtype: str
     payload: bytes
@@ -91,7 +92,7 @@ class Case:
 
 
 #: Which process reads each kind of case (and so must log the drop).
-RECEIVER = {"find": "agent", "open": "robot", "reset": "robot", "goal": "robot"}
+RECEIVER = {"find": "agent", "where": "agent", "open": "robot", "reset": "robot", "goal": "robot"}
 
 
 @dataclass
@@ -152,6 +153,11 @@ class CaseMaker:
                     "not_before_ns": BAD_INTS,
                 },
             ),
+            "where": (
+                t.where,
+                {"id": json.dumps(rid), "target": '"Apple"'},
+                {"target": [*BAD_NAMES, *UNKNOWN_NAMES, "null"]},
+            ),
             "open": (
                 t.open,
                 {"id": json.dumps(rid), "static_id": '"kitchen/Fridge|0|0"'},
@@ -171,7 +177,7 @@ class CaseMaker:
         r = self.rng.random()
         if r < 0.08:
             return self._goal()
-        kind = self.rng.choice(["find", "find", "find", "open", "reset"])
+        kind = self.rng.choice(["find", "find", "find", "where", "open", "reset"])
         rid = self._rid()
         topic, valid, bad = self.bases(rid)[kind]
         if r < 0.55:  # one field gets a bad value
@@ -180,7 +186,7 @@ class CaseMaker:
             note = f"{key}={fields[key][:40]}"
             return self._json(kind, topic, _doc(fields), "error", rid, note, key)
         if r < 0.62:  # a required field left out
-            key = self.rng.choice(["target"] if kind == "find" else sorted(bad))
+            key = self.rng.choice(["target"] if kind in ("find", "where") else sorted(bad))
             fields = {k: v for k, v in valid.items() if k != key}
             if kind == "reset" and key == "scene":  # scene may be left out: break start instead
                 fields["start"] = "7"
@@ -281,8 +287,13 @@ class Fuzzer:
         self._answers: dict[str, dict[str, Any]] = {}
         self._cond = threading.Condition()
         t, q = config.topics, config.qos.requests
-        for topic in (t.find_result, t.open_result, t.sim_reset_result):
+        for topic in (t.find_result, t.where_result, t.open_result, t.sim_reset_result):
             node.transport.subscribe(topic, m.STRING, q, self._on_result)
+        # Every publisher up front: one created at its first case could lose that case while
+        # discovery matches it (an answerable case would then wait for nothing).
+        for topic, _, _ in self.maker.bases("-").values():
+            self._publisher(topic, m.STRING, q)
+        self._publisher(t.goal, m.POSE_STAMPED, config.qos.goal)
 
     def _on_result(self, data: bytes) -> None:
         doc = json.loads(m.decode(data, m.STRING).data)
@@ -290,12 +301,15 @@ class Fuzzer:
             self._answers[str(doc.get("id"))] = doc
             self._cond.notify_all()
 
-    def _publish(self, case: Case) -> None:
-        key = f"{case.topic} {case.msgtype}"
+    def _publisher(self, topic: str, msgtype: str, qos: QoS) -> Any:
+        key = f"{topic} {msgtype}"
         if key not in self._pubs:
-            qos = self.config.qos.goal if case.kind == "goal" else self.config.qos.requests
-            self._pubs[key] = self.node.transport.publisher(case.topic, case.msgtype, qos)
-        self._pubs[key].publish(case.payload)
+            self._pubs[key] = self.node.transport.publisher(topic, msgtype, qos)
+        return self._pubs[key]
+
+    def _publish(self, case: Case) -> None:
+        qos = self.config.qos.goal if case.kind == "goal" else self.config.qos.requests
+        self._publisher(case.topic, case.msgtype, qos).publish(case.payload)
 
     def wait_answer(self, rid: str, timeout_s: float) -> dict[str, Any] | None:
         deadline = time.monotonic() + timeout_s

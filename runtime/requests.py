@@ -15,6 +15,9 @@ find request                ``id``, ``target`` (a class name), ``start`` (label 
                             ``scene`` (int or null), ``not_before_ns`` (int ≥ 0 or null)
 find result                 ``id``, ``ok``, ``error``, ``target``, ``task_id``, ``success``,
                             ``path_length``, ``found``, ``plans``
+where request               ``id``, ``target`` (a class name)
+where result                ``id``, ``ok``, ``error``, ``answer`` (``objsearch where --json``'s
+                            object: ``target``, ``last_seen``, ``usually``, ``most_likely_now``, …)
 open request (agent→robot)  ``id``, ``static_id``
 open result                 ``id``, ``ok``, ``stamp_ns``, ``yaw``, ``error``
 reset request (stand-in)    ``id``, ``scene`` (int or null), ``start`` (label)
@@ -238,6 +241,46 @@ def check_find_result(doc: Mapping[str, Any]) -> dict[str, Any]:
         for p in plans
     ):
         raise f.fail("plans", "must be a list of [room, [stop, …]]")
+    return dict(doc)
+
+
+# -- where: client → agent ------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class WhereRequest:
+    id: str
+    target: str
+
+
+def parse_where_request(doc: Mapping[str, Any]) -> WhereRequest:
+    """Types only: whether ``target`` is a class the agent's memory knows is the agent's to say."""
+    f = _Fields(doc, "where request", {"id", "target"})
+    target = f.name("target")
+    assert target is not None
+    return WhereRequest(request_id(doc), target)
+
+
+#: What an answer must hold (agent/where.py writes them; the rest is passed on as sent).
+WHERE_ANSWER_KEYS = ("target", "tasks", "last_seen", "usually", "most_likely_now")
+
+
+def check_where_result(doc: Mapping[str, Any]) -> dict[str, Any]:
+    """A where result as the agent sends it (``ok`` false: ``error`` says why)."""
+    f = _Fields(doc, "where result", {"id", "ok", "error", "answer"})
+    request_id(doc)
+    if not f.bool("ok"):
+        if not isinstance(f.error(), str):
+            raise f.fail("error", "must say why when ok is false")
+        return dict(doc)
+    answer = doc.get("answer")
+    if not isinstance(answer, dict) or any(k not in answer for k in WHERE_ANSWER_KEYS):
+        raise f.fail("answer", f"must be an object with {', '.join(WHERE_ANSWER_KEYS)}")
+    for key in ("last_seen", "usually"):
+        if answer[key] is not None and not isinstance(answer[key], dict):
+            raise f.fail("answer", f"must hold {key!r} as an object or null")
+    if not isinstance(answer["most_likely_now"], list):
+        raise f.fail("answer", "must hold 'most_likely_now' as a list")
     return dict(doc)
 
 

@@ -11,10 +11,12 @@ import pytest
 from objsearch.agent.memory import InstanceMemory
 from objsearch.agent.session import load_context
 from objsearch.agent.state import AgentState
-from objsearch.agent.strategies import RunSpec
+from objsearch.agent.strategies import MEMORY, RunSpec
+from objsearch.agent.where import LiveMemory, where
 from objsearch.cli import main
 from objsearch.events.log import read_log
 from objsearch.events.projection import fold
+from objsearch.events.snapshot import restore
 from objsearch.experiments.decompose import decompose
 from objsearch.sim.longterm import Trial, run_schedule
 from objsearch.sim.world import Placement
@@ -130,3 +132,73 @@ def test_distribution_oracle_is_a_reference_that_runs(tmp_path: Path) -> None:
     assert all(t.success for t in trials)
     state = fold(read_log(tmp_path / "log"), AgentState())
     assert state.run is not None and state.run.relations.model == "dist-oracle"
+
+
+def test_a_log_and_the_lake_made_from_it_answer_the_same(
+    memory_log: tuple[Path, list[Trial]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log, _ = memory_log
+    lake = tmp_path / "lake"
+    assert main(["lake", "add", str(log), "--robot", "sim", "--lake", str(lake)]) == 0
+    capsys.readouterr()
+    answers = []
+    for source in (["--log", str(log)], ["--lake", str(lake)]):
+        assert main(["where", "Cup", *source, "--json"]) == 0
+        answers.append(json.loads(capsys.readouterr().out))
+    assert answers[0] == answers[1]
+    assert answers[0]["last_seen"] is not None and answers[0]["run_id"]
+
+
+def test_where_refuses_what_it_cannot_answer_from(
+    memory_log: tuple[Path, list[Trial]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log, _ = memory_log
+    lake = tmp_path / "lake"
+    lake.mkdir()
+    assert main(["where", "Cup", "--lake", str(lake)]) == 2
+    assert "holds no runs" in capsys.readouterr().err
+    other = tmp_path / "other-log"
+    _run(other, "wpl", scenes=(1,))
+    for run, source in (("first", log), ("second", other)):
+        argv = ["lake", "add", str(source), "--robot", "sim", "--run", run, "--lake", str(lake)]
+        assert main(argv) == 0
+    capsys.readouterr()
+    # Several runs: refused, listing them, rather than guessing which one is meant.
+    assert main(["where", "Cup", "--lake", str(lake)]) == 2
+    err = capsys.readouterr().err
+    assert "sim/first" in err and "sim/second" in err and "--run" in err
+    assert main(["where", "Cup", "--lake", str(lake), "--run", "second", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["target"] == "Cup"
+    assert main(["where", "Cup", "--lake", str(lake), "--run", "third"]) == 2
+    assert "no run 'third'" in capsys.readouterr().err
+    assert main(["where", "Unicorn", "--lake", str(lake), "--run", "first"]) == 2
+    assert "unknown object class 'Unicorn'" in capsys.readouterr().err
+    assert main(["where", "Cup", "--log", str(lake)]) == 2
+    assert "--lake" in capsys.readouterr().err
+    assert main(["where", "Cup", "--lake", str(log)]) == 2
+    assert "use --log" in capsys.readouterr().err
+    assert main(["where", "Cup", "--log", str(log), "--run", "first"]) == 2
+    assert main(["where", "Cup", "--lake", str(tmp_path / "missing")]) == 2
+    assert "no such folder" in capsys.readouterr().err
+
+
+def test_live_memory_restarts_from_its_snapshot_with_the_same_answer(tmp_path: Path) -> None:
+    # A wpl run: the memory is a counterfactual fold, which the snapshot must remember.
+    log, snapshots = tmp_path / "log", tmp_path / "snapshots"
+    _run(log, "wpl", scenes=(1,))
+    home = load_context(HOME).home
+    full = LiveMemory.restore(log, home, snapshots)
+    assert isinstance(full.state.graph(), InstanceMemory)
+    full.save(snapshots, log_dir=log, position=None)
+    again, restored = restore(
+        log,
+        lambda: AgentState(counterfactual=MEMORY),
+        AgentState.from_snapshot,
+        snapshot_dir=snapshots,
+        save=False,
+    )
+    assert restored.from_snapshot_seq == full.last_seq and restored.rejected is None
+    assert isinstance(again.graph(), InstanceMemory)
+    from_snapshot = LiveMemory.restore(log, home, snapshots)
+    assert from_snapshot.answer("Cup") == full.answer("Cup") == where(read_log(log), "Cup")
+    assert full.answer("Cup")["model_of_run"] == "eq4"

@@ -10,13 +10,16 @@ from objsearch.runtime.errors import MessageError
 from objsearch.runtime.requests import (
     FindRequest,
     RequestError,
+    WhereRequest,
     check_find_result,
     check_reset_result,
+    check_where_result,
     parse_document,
     parse_find_request,
     parse_open_request,
     parse_open_result,
     parse_reset_request,
+    parse_where_request,
     request_id,
 )
 
@@ -129,3 +132,35 @@ def test_results() -> None:
     assert check_reset_result({"id": "r", "ok": True, "stamp_ns": 0})["ok"]
     with pytest.raises(RequestError, match="'stamp_ns'"):
         check_reset_result({"id": "r", "ok": True, "stamp_ns": -1})
+
+
+def test_where_request_and_result() -> None:
+    assert parse_where_request({"id": "w", "target": "Cup"}) == WhereRequest("w", "Cup")
+    cases: list[tuple[dict[str, Any], str]] = [
+        ({"id": "w"}, "target"),
+        ({"id": "w", "target": 7}, "target"),
+        ({"id": "w", "target": "Cup", "scene": 1}, "scene"),
+    ]
+    for bad, field in cases:
+        with pytest.raises(RequestError) as caught:
+            parse_where_request(bad)
+        assert caught.value.field == field
+    answer = {
+        "target": "Cup",
+        "tasks": 3,
+        "last_seen": None,
+        "usually": None,
+        "most_likely_now": [],
+    }
+    ok = {"id": "w", "ok": True, "answer": answer}
+    assert check_where_result(ok) == ok
+    assert not check_where_result({"id": "w", "ok": False, "error": "unknown"})["ok"]
+    for bad in (
+        {"id": "w", "ok": True},
+        {"id": "w", "ok": True, "answer": {"target": "Cup"}},
+        {"id": "w", "ok": True, "answer": {**answer, "last_seen": "kitchen"}},
+    ):
+        with pytest.raises(RequestError, match="'answer'"):
+            check_where_result(bad)
+    with pytest.raises(RequestError, match="'error'"):
+        check_where_result({"id": "w", "ok": False})
