@@ -9,14 +9,17 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from objsearch.agent.errors import ObjsearchError
+from objsearch.agent.session import DEFAULT_PRIOR
+from objsearch.experiments.homes import homes_summary
 from objsearch.experiments.report_homes import homes_section
 from objsearch.experiments.report_paper import cameras_section, paper_section
-from objsearch.experiments.runner import read_rows
+from objsearch.experiments.runner import Row, read_rows
 from objsearch.experiments.table1_sets import render as render_table1
 
 
@@ -25,9 +28,9 @@ class ReportInputs:
     """The bench output folders a report is made from (None: that section is left out)."""
 
     paper: Path
-    homes: Path
+    homes: tuple[Path, ...]
     table1: Path | None = None
-    heldout: Path | None = None
+    heldout: tuple[Path, ...] | None = None
     paper_geometric: Path | None = None
 
 
@@ -39,17 +42,38 @@ def load_summary(folder: Path, command: str) -> dict[str, Any]:
     return doc
 
 
+def load_homes(folders: Sequence[Path]) -> tuple[dict[str, Any], list[Row]]:
+    """The rows of one or more ``bench homes`` outputs as one run: a summary recomputed over all
+    rows, with every folder's command (one per schedule kind when each has its own scene count)."""
+    summaries = [load_summary(f, "bench homes") for f in folders]
+    rows = [
+        r
+        for f, s in zip(folders, summaries, strict=True)
+        for r in read_rows(f / s["files"]["parquet"])
+    ]
+    if len(summaries) == 1:
+        return summaries[0], rows
+    priors = sorted({str(s.get("prior", DEFAULT_PRIOR)) for s in summaries})
+    summary = {
+        **homes_summary(rows),
+        "command": "; ".join(str(s.get("command", "objsearch bench homes")) for s in summaries),
+        "searches": sum(int(s["searches"]) for s in summaries),
+        "elapsed_s": round(sum(float(s["elapsed_s"]) for s in summaries), 1),
+        "workers": max(int(s["workers"]) for s in summaries),
+        "prior": ", ".join(priors),
+    }
+    return summary, rows
+
+
 def _left_out(title: str, how: str) -> str:
     return f"## {title}\n\nNot in this report: {how}.\n"
 
 
 def _report_command(inputs: ReportInputs, out: Path, img: Path) -> str:
-    words = ["objsearch bench report", f"--paper {inputs.paper}", f"--homes {inputs.homes}"]
-    for flag, value in (
-        ("--table1", inputs.table1),
-        ("--heldout", inputs.heldout),
-        ("--paper-geometric", inputs.paper_geometric),
-    ):
+    words = ["objsearch bench report", f"--paper {inputs.paper}"]
+    words += [f"--homes {d}" for d in inputs.homes]
+    words += [f"--heldout {d}" for d in inputs.heldout or ()]
+    for flag, value in (("--table1", inputs.table1), ("--paper-geometric", inputs.paper_geometric)):
         if value is not None:
             words.append(f"{flag} {value}")
     return " ".join([*words, f"--out {out}", f"--img {img}"])
@@ -57,7 +81,7 @@ def _report_command(inputs: ReportInputs, out: Path, img: Path) -> str:
 
 def write_report(inputs: ReportInputs, out: Path, img: Path) -> Path:
     paper = load_summary(inputs.paper, "bench paper")
-    homes = load_summary(inputs.homes, "bench homes")
+    homes, rows = load_homes(inputs.homes)
     img.mkdir(parents=True, exist_ok=True)
     # The page links its images relative to itself.
     link = Path(os.path.relpath(img.resolve(), out.resolve().parent)).as_posix()
@@ -92,11 +116,9 @@ def write_report(inputs: ReportInputs, out: Path, img: Path) -> Path:
                 "`--table1 out/bench-table1`",
             )
         )
-    rows = read_rows(inputs.homes / homes["files"]["parquet"])
     sections.append(homes_section("Homes (not tuned on)", homes, rows, img, link, "homes"))
     if inputs.heldout is not None:
-        held = load_summary(inputs.heldout, "bench homes")
-        held_rows = read_rows(inputs.heldout / held["files"]["parquet"])
+        held, held_rows = load_homes(inputs.heldout)
         sections.append(
             homes_section(
                 "Held-out homes (looked at only at the end)", held, held_rows, img, link, "heldout"

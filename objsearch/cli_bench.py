@@ -123,7 +123,9 @@ def cmd_bench_table1(args: argparse.Namespace) -> int:
 def cmd_bench_report(args: argparse.Namespace) -> int:
     from objsearch.experiments.report import ReportInputs, write_report
 
-    missing = [d for d in (args.paper, args.homes) if not (Path(d) / "summary.json").is_file()]
+    homes = [Path(d) for d in args.homes or ["out/bench-homes"]]
+    heldout = None if args.heldout is None else [Path(d) for d in args.heldout]
+    missing = [str(d) for d in (Path(args.paper), *homes) if not (d / "summary.json").is_file()]
     if args.rearr:
         from objsearch.experiments.report_rearr import RESULTS_FILE, write_rearr_report
 
@@ -133,16 +135,17 @@ def cmd_bench_report(args: argparse.Namespace) -> int:
         if missing:
             print(f"kept {args.out}: no bench summary in {', '.join(missing)}")
             return 0
-    if args.heldout is not None and Path(args.heldout).resolve() == Path(args.homes).resolve():
+    shared = {d.resolve() for d in homes} & {d.resolve() for d in heldout or ()}
+    if shared:
         raise ObjsearchError(
-            f"--heldout {args.heldout} is the --homes folder: held-out homes are reported apart, "
-            "from a bench homes run of their own"
+            f"--heldout {', '.join(sorted(map(str, shared)))} is also a --homes folder: held-out "
+            "homes are reported apart, from a bench homes run of their own"
         )
     inputs = ReportInputs(
         paper=Path(args.paper),
-        homes=Path(args.homes),
+        homes=tuple(homes),
         table1=None if args.table1 is None else Path(args.table1),
-        heldout=None if args.heldout is None else Path(args.heldout),
+        heldout=None if heldout is None else tuple(heldout),
         paper_geometric=None if args.paper_geometric is None else Path(args.paper_geometric),
     )
     path = write_report(inputs, Path(args.out), Path(args.img))
@@ -283,7 +286,11 @@ def register(sub: Any) -> None:
         "--paper", default="out/bench-paper", type=t.dir_path, help="bench paper output folder"
     )
     report.add_argument(
-        "--homes", default="out/bench-homes", type=t.dir_path, help="bench homes output folder"
+        "--homes",
+        action="append",
+        type=t.dir_path,
+        help="bench homes output folder; repeat to report several runs (e.g. one per schedule "
+        "kind) as one (out/bench-homes)",
     )
     report.add_argument(
         "--out", default="docs/results.md", type=t.file_path, help="the results page to write"
@@ -298,8 +305,10 @@ def register(sub: Any) -> None:
     )
     report.add_argument(
         "--heldout",
+        action="append",
         type=t.existing_dir,
-        help="a bench homes output on held-out homes, reported in a section of its own",
+        help="a bench homes output on held-out homes, reported in a section of its own "
+        "(repeatable like --homes)",
     )
     report.add_argument(
         "--paper-geometric",

@@ -197,3 +197,14 @@ def test_the_paired_difference_is_in_the_paper_metric(runs: dict[str, Path]) -> 
     assert paired["runs"] == 2
     assert paired["mean_diff_m"] == pytest.approx(sum(diffs) / 2)
     assert paired["ci_low"] <= paired["mean_diff_m"] <= paired["ci_high"]
+
+
+def test_several_homes_runs_are_reported_as_one(runs: dict[str, Path], tmp_path: Path) -> None:
+    # e.g. one bench homes run per schedule kind, each with its own scene count
+    text = _report(runs, tmp_path, "--homes", str(runs["heldout"]))
+    section = text.split("## Homes (not tuned on)")[1].split("\n## ")[0]
+    assert f"--out {runs['homes']} " in section and f"--out {runs['heldout']} " in section
+    assert "Homes (3): ithor-01, ithor-02, procthor-00." in section
+    one = json.loads((runs["homes"] / "summary.json").read_text())["searches"]
+    two = json.loads((runs["heldout"] / "summary.json").read_text())["searches"]
+    assert f"{one + two} searches" in section
