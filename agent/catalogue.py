@@ -6,7 +6,8 @@ type, nullability, enum and bound against the schema files). Records are built w
 are immutable. :func:`encode` turns one into the payload dict the log stores; :func:`decode` turns
 an event (latest version, as ``read_log`` upcasts it) back into its record, validating it on the
 way. The upcast steps for old versions live in :mod:`objsearch.agent.upcasters`;
-:data:`CATALOGUE` hands both to the event store (:mod:`objsearch.events.catalogue`).
+:data:`CATALOGUE` hands both to the event store (:mod:`objsearch.events.catalogue`), with the
+lake's Eq. 4 tables (:mod:`objsearch.agent.scene_graph_sql`).
 
 Why msgspec rather than frozen dataclasses: ``msgspec.convert`` checks a payload dict against the
 record's types and bounds in C, about as strict as the JSON Schema (no coercion of strings to
@@ -32,6 +33,7 @@ from typing import (
 
 import msgspec
 
+from objsearch.agent.scene_graph_sql import DERIVED_TABLES
 from objsearch.agent.upcasters import STEPS
 from objsearch.events.catalogue import Catalogue
 from objsearch.events.errors import InvalidEventError
@@ -402,8 +404,10 @@ def _catalogue() -> Catalogue:
         schemas=resources.files("objsearch.events").joinpath("schema"),
         upcasters=STEPS,
         accepts=accepts,
+        derived=DERIVED_TABLES,
     )
 
 
-#: The domain's catalogue: the schema files, the upcasters and the records' fast check.
+#: The domain's catalogue: the schema files, the upcasters, the records' fast check and the
+#: lake's Eq. 4 tables.
 CATALOGUE: Final = _catalogue()

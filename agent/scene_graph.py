@@ -46,7 +46,8 @@ def experience_to_fold(
 ) -> dict[str, set[str]]:
     """The part of a task's experience (each semi-dynamic class seen → the static classes it was
     seen at) that the update folds in under ``mode``: every ``known`` class, only the target, or
-    nothing. The one Python statement of the choice; the lake's derived SQL restates it."""
+    nothing. The one Python statement of the choice; ``eq4_updates`` in :mod:`.scene_graph_sql`
+    restates it for the lake."""
     if mode is UpdateMode.ALL:
         return {d: s for d, s in seen_at.items() if d in known}
     if mode is UpdateMode.TARGETS and target is not None and target in seen_at:

@@ -5,7 +5,9 @@ of ``<type>.v<version>.json`` schemas, the upcast steps from each old version to
 optionally a fast check that accepts valid payloads without ``jsonschema`` — and installs it as
 the process's default with :func:`install`. ``read_log(dir)``, ``EventLog.open(dir)``, the lake and
 the Arrow export all use the installed catalogue (through :func:`~objsearch.events.default_registry`
-and :func:`~objsearch.events.default_upcaster`). The ``objsearch`` package installs the agent's
+and :func:`~objsearch.events.default_upcaster`), and the lake writes the catalogue's derived
+tables beside each committed run (:func:`~objsearch.events.derived.derived_tables`), so no formula
+of the domain's lives here. The ``objsearch`` package installs the agent's
 catalogue (:data:`objsearch.agent.catalogue.CATALOGUE`) when it is imported, so callers never
 have to; a test or another domain may install its own.
 """
@@ -17,7 +19,11 @@ from dataclasses import dataclass, field
 from importlib import resources
 from importlib.resources.abc import Traversable
 from pathlib import Path
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
+
+if TYPE_CHECKING:
+    # Only the annotation: derived.py imports installed() from here, so no import at run time.
+    from .derived import DerivedTable
 
 #: payload of version N (a fresh dict the step may keep) → payload of version N + 1
 UpcastStep = Callable[[dict[str, Any]], dict[str, Any]]
@@ -30,11 +36,13 @@ _PACKAGE: Final = __name__.rpartition(".")[0]
 
 @dataclass(frozen=True)
 class Catalogue:
-    """A domain's event types: schema files, upcasters, and an optional fast payload check."""
+    """A domain's event types: schema files, upcasters, an optional fast payload check, and the
+    per-run tables the lake derives from them besides ``searches`` (in dependency order)."""
 
     schemas: Path | Traversable
     upcasters: Mapping[tuple[str, int], UpcastStep] = field(default_factory=dict)
     accepts: PayloadCheck | None = None
+    derived: tuple[DerivedTable, ...] = ()
 
 
 def schemas_only() -> Catalogue:

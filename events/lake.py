@@ -25,10 +25,10 @@ and the intent. At every instant a complete old or new run exists, and the inten
 Each event table is written sorted by ``seq`` in row groups of 128 Ki rows, so a reader
 filtering on ``seq`` can skip row groups by their min/max statistics. Next to the events, a
 commit writes the run's derived tables (:mod:`objsearch.events.derived`: per-task summaries and
-the Eq. 4 update rows), computed from that run's tables alone; they are not part of the digest
-(they are a function of it), and committing the same content again writes any that are missing
-or of an older version, which is how a lake written by older code is upgraded
-(:meth:`Lake.upgrade` does it for every run).
+those the installed catalogue hands over, the agent's Eq. 4 rows), computed from that run's tables
+alone; they are not part of the digest (they are a function of it), and committing the same
+content again writes any that are missing or of an older version, which is how a lake written by
+older code is upgraded (:meth:`Lake.upgrade` does it for every run).
 
 The lake is where anything that produces events lands: :func:`compact_log` seals an event log
 into it, and other importers (e.g. ROS bags) call :meth:`Lake.commit_events` or
@@ -58,7 +58,7 @@ import pyarrow.parquet as pq
 
 from . import _fs
 from .arrow import event_schema, events_to_tables, tables_to_events
-from .derived import DERIVED_DIR, DERIVED_TABLES, DerivedTable, derive_run
+from .derived import DERIVED_DIR, DerivedTable, derive_run, derived_tables
 from .envelope import Event
 from .errors import EventStoreError
 from .log import LOCK_FILE, read_log, read_meta
@@ -117,7 +117,7 @@ class RunInfo:
 
     def missing_derived(self) -> list[DerivedTable]:
         """Derived tables this run lacks at their current version (older code wrote it)."""
-        return [d for d in DERIVED_TABLES if not d.path(self.path).is_file()]
+        return [d for d in derived_tables() if not d.path(self.path).is_file()]
 
 
 class Lake:
@@ -547,7 +547,7 @@ def _stage(
         tables, robot=manifest["robot"], date=manifest["date"], run=manifest["run"]
     )
     _fs.make_dirs(staged / DERIVED_DIR)
-    for spec in DERIVED_TABLES:
+    for spec in derived_tables():
         _write_parquet(spec.path(staged), derived[spec.name])
     _fs.fsync_dir(staged / DERIVED_DIR)
     for name, data in sorted(attachments.items()):
@@ -625,7 +625,7 @@ def _run_problem(info: RunInfo) -> str | None:
         problem = parquet_problem(info.path / f"{event_type}.parquet")
         if problem is not None:
             return problem
-    for spec in DERIVED_TABLES:
+    for spec in derived_tables():
         path = spec.path(info.path)
         if path.exists():
             problem = parquet_problem(path)

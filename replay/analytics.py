@@ -13,8 +13,9 @@ Convenience views (one row per …):
 * ``eq4_updates`` — (run, task end, dynamic class) where Eq. 4 updated the class.
 
 ``searches``, ``eq4_updates`` and ``scene_graph`` read the tables each run derived when it was
-committed (:mod:`objsearch.events.derived`, which holds their SQL); a run without them gets the
-same rows from its events through the same SQL (see :func:`create_views`).
+committed (:mod:`objsearch.events.derived`; the SQL of the Eq. 4 ones is the agent's,
+:mod:`objsearch.agent.scene_graph_sql`); a run without them gets the same rows from its events
+through the same SQL (see :func:`create_views`).
 
 Table macros ``scene_graph_at_seq(s)`` and ``scene_graph_at_time(t_ns)`` give Rel as it was right
 after seq ``s`` (or the last event with ``time_ns <= t_ns``) of every run, computed with the closed
@@ -40,15 +41,9 @@ from typing import Any, Final
 
 import duckdb
 
+from objsearch.agent.scene_graph_sql import LIMIT_SEQ, LIMIT_TIME, SCENE_GRAPH_BODY
 from objsearch.events import EventStoreError
-from objsearch.events.derived import (
-    DERIVED_DIR,
-    DERIVED_TABLES,
-    LIMIT_SEQ,
-    LIMIT_TIME,
-    SCENE_GRAPH_BODY,
-    DerivedTable,
-)
+from objsearch.events.derived import DERIVED_DIR, DerivedTable, derived_tables
 from objsearch.events.lake import DamagedRun, Lake, RunInfo, deep_check
 from objsearch.events.schemas import default_registry
 from objsearch.events.sql import (
@@ -103,7 +98,7 @@ def create_views(
     legacy = sorted({(r.robot, r.run) for r in runs if r.missing_derived()})
     if legacy:
         _create_legacy_views(con, legacy)
-    for spec in DERIVED_TABLES:
+    for spec in derived_tables():
         con.execute(
             f"CREATE OR REPLACE VIEW {spec.name} AS "
             + _derived_source(lake, spec, any(not r.missing_derived() for r in runs), legacy, only)
@@ -130,7 +125,7 @@ def _create_legacy_views(con: duckdb.DuckDBPyConnection, legacy: list[tuple[str,
             f"CREATE OR REPLACE VIEW {_LEGACY}.{view} AS SELECT t.* FROM main.{view} t "
             f"SEMI JOIN {_LEGACY}._runs USING (robot, run)"
         )
-    for spec in DERIVED_TABLES:
+    for spec in derived_tables():
         # A view in the legacy schema binds the type names to that schema's (filtered) views.
         con.execute(f"CREATE OR REPLACE VIEW {_LEGACY}.{spec.name} AS {spec.sql}")
 

@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING
 
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from objsearch.ros.msgfiles import read_msg_folder
+
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
@@ -34,15 +36,7 @@ class Distro(enum.Enum):
 def message_definitions() -> dict[str, str]:
     """``{"pkg/msg/Name": msg text}`` for every ``.msg`` file kept in the repository."""
     root = resources.files(__package__).joinpath(MSG_ROOT)
-    found: dict[str, str] = {}
-    for package in sorted(root.iterdir(), key=lambda p: p.name):
-        msg_dir = package.joinpath("msg")
-        if not msg_dir.is_dir():
-            continue
-        for entry in sorted(msg_dir.iterdir(), key=lambda p: p.name):
-            if entry.name.endswith(".msg"):
-                name = entry.name.removesuffix(".msg")
-                found[f"{package.name}/msg/{name}"] = entry.read_text(encoding="utf-8")
+    found = read_msg_folder(root)
     if not found:
         raise RuntimeError(f"no .msg files found under {root}: the package data is missing")
     return found

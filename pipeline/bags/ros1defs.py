@@ -15,6 +15,7 @@ from functools import cache
 from importlib import resources
 from typing import TYPE_CHECKING, Any
 
+from objsearch.ros.msgfiles import read_msg_folder
 from objsearch.ros.types import message_definitions
 
 if TYPE_CHECKING:
@@ -29,16 +30,7 @@ BUILTINS = frozenset({"builtin_interfaces/msg/Time", "builtin_interfaces/msg/Dur
 @cache
 def msg_texts() -> dict[str, str]:
     """``{"pkg/msg/Name": .msg text}``: Noetic's standard files, then the repository's own."""
-    root = resources.files(__package__).joinpath(NOETIC_ROOT)
-    found: dict[str, str] = {}
-    for package in sorted(root.iterdir(), key=lambda p: p.name):
-        msg_dir = package.joinpath("msg")
-        if not msg_dir.is_dir():
-            continue
-        for entry in sorted(msg_dir.iterdir(), key=lambda p: p.name):
-            if entry.name.endswith(".msg"):
-                name = f"{package.name}/msg/{entry.name.removesuffix('.msg')}"
-                found[name] = entry.read_text(encoding="utf-8")
+    found = read_msg_folder(resources.files(__package__).joinpath(NOETIC_ROOT))
     for name, text in message_definitions().items():
         found.setdefault(name, text)  # tf2_msgs/TFMessage: Noetic's text, not our annotated copy
     return found

@@ -14,7 +14,7 @@ import pytest
 
 from objsearch.events import EventLog, default_registry, read_log
 from objsearch.events.arrow import event_schema, events_to_tables
-from objsearch.events.derived import DERIVED_DIR, DERIVED_TABLES
+from objsearch.events.derived import DERIVED_DIR, derived_tables
 from objsearch.events.lake import ROW_GROUP_ROWS, Lake, LakeError, compact_log
 from objsearch.events.sql import connect
 
@@ -128,7 +128,7 @@ def test_tables_are_written_by_seq_with_the_derived_tables_beside_them(tmp_path:
     assert stored.metadata.num_row_groups == -(-len(seqs) // ROW_GROUP_ROWS)
     assert info.missing_derived() == []
     assert sorted(p.name for p in (info.path / DERIVED_DIR).iterdir()) == sorted(
-        d.file_name for d in DERIVED_TABLES
+        d.file_name for d in derived_tables()
     )
     # Derived files are not event types and not events.
     assert lake.event_types() == sorted(tables)
@@ -201,7 +201,7 @@ def test_a_truncated_or_empty_file_is_named_and_its_run_left_out(tmp_path: Path)
     empty = compact_log(small_log(tmp_path / "c", stream="c"), lake, robot="r", run="c")
     path = truncated.path / "detection.parquet"
     path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
-    DERIVED_TABLES[0].path(empty.path).write_bytes(b"")
+    derived_tables()[0].path(empty.path).write_bytes(b"")
     runs, damaged = lake.scan()
     assert runs == [good]
     assert [(d.path, d.reason) for d in damaged] == [
@@ -211,7 +211,7 @@ def test_a_truncated_or_empty_file_is_named_and_its_run_left_out(tmp_path: Path)
             + str(path.stat().st_size)
             + " bytes, no PAR1 at both ends)",
         ),
-        (empty.path, f"{DERIVED_TABLES[0].file_name} is empty"),
+        (empty.path, f"{derived_tables()[0].file_name} is empty"),
     ]
     with pytest.raises(LakeError, match=r"detection.parquet: damaged Parquet file"):
         lake.read_events(truncated)

@@ -12,10 +12,11 @@ import pyarrow.parquet as pq
 import pytest
 
 from objsearch.agent.scene_graph import SceneGraphProjection
+from objsearch.agent.scene_graph_sql import EQ4_UPDATES
 from objsearch.cli import main
 from objsearch.events import fold, read_log
 from objsearch.events.arrow import events_to_tables
-from objsearch.events.derived import DERIVED_DIR, DERIVED_TABLES, EQ4_UPDATES
+from objsearch.events.derived import DERIVED_DIR, derived_tables
 from objsearch.events.lake import Lake
 from objsearch.replay.analytics import open_analytics
 
@@ -175,7 +176,7 @@ def test_a_run_without_derived_tables_is_computed_live_and_upgraded(
 ) -> None:
     old = _without_derived(lake, tmp_path / "l", {"targets"})
     (info,) = [r for r in old.runs() if r.run == "targets"]
-    assert info.missing_derived() == list(DERIVED_TABLES)
+    assert info.missing_derived() == list(derived_tables())
     before = open_analytics(old.root).execute("SELECT * FROM scene_graph ORDER BY ALL").fetchall()
     # Committing the same content again adds what is missing, and nothing else changes.
     tables = events_to_tables(read_log(logs["targets"]))
