@@ -147,8 +147,8 @@ class Failure:
 
 
 @cache
-def _scene_placements(home: str, spec: str) -> dict[int, dict[str, Placement]]:
-    return {s: dict(p) for s, p in scenes_of(home, spec).items()}
+def _scene_placements(home: str, spec: str, upto: int) -> dict[int, dict[str, Placement]]:
+    return {s: dict(p) for s, p in scenes_of(home, spec, upto=upto).items()}
 
 
 def failure_cause(row: Row, camera: Camera | None = None) -> str:
@@ -158,7 +158,7 @@ def failure_cause(row: Row, camera: Camera | None = None) -> str:
     camera = camera or Camera()
     placed = [
         p
-        for p in _scene_placements(row.home, row.placements)[row.scene].values()
+        for p in _scene_placements(row.home, row.placements, row.scene)[row.scene].values()
         if p.cls == row.target
     ]
     if not placed:

@@ -87,7 +87,7 @@ def run_job(job: Job) -> list[Row]:
         schedule=job.placements,
         prior=job.prior,
     )
-    scenes = scenes_of(job.home, job.placements)
+    scenes = scenes_of(job.home, job.placements, upto=_last_scene(job))
     with tempfile.TemporaryDirectory(prefix="objsearch-bench-") as tmp:
         trials = run_schedule(
             Path(job.log_dir) if job.log_dir else Path(tmp),
@@ -127,10 +127,14 @@ def _row(job: Job, t: Trial, excess: Excess | None) -> Row:
     )
 
 
+def _last_scene(job: Job) -> int | None:
+    return max(job.scenes) if job.scenes else None
+
+
 def _count(job: Job) -> int:
     ctx = load_context(job.home)
-    scenes = scenes_of(job.home, job.placements)
-    wanted = job.scenes or tuple(sorted(scenes))
+    scenes = scenes_of(job.home, job.placements, upto=_last_scene(job))
+    wanted = [s for s in job.scenes or sorted(scenes) if s in scenes]  # run_job names the others
     starts = len(ctx.home.starts)
     if job.starts_per_search:
         starts = min(starts, job.starts_per_search)

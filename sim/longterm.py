@@ -41,14 +41,16 @@ class Trial:
     path_to_discovery: float | None = None
 
 
-def scenes_of(home_name: str, source: str) -> dict[int, Placements]:
+def scenes_of(home_name: str, source: str, *, upto: int | None = None) -> dict[int, Placements]:
     """Scene number → placements for a placement source: ``table1`` (the paper's Table I scene,
     as scene 0), or any schedule ``sim/schedule_names.py`` knows (``table2``, ``stats-<seed>``,
-    ``rearr-<seed>``)."""
+    ``rearr-<seed>``, ``habit-<seed>``). A seeded schedule is drawn with ``upto`` scenes (default:
+    its kind's own length); the draw is sequential, so its first scenes are the same whatever
+    the length."""
     ctx = load_context(home_name)
     if source == "table1":
         return {0: base_placements(ctx.home, table1_removals(ctx.home))}
-    return dict(load_schedule(ctx.home, source).scenes)
+    return dict(load_schedule(ctx.home, source, scenes=upto).scenes)
 
 
 def run_schedule(

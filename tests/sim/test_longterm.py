@@ -8,7 +8,7 @@ import pytest
 
 from objsearch.agent.session import load_context
 from objsearch.agent.strategies import RunSpec
-from objsearch.sim.longterm import day_starts, run_schedule
+from objsearch.sim.longterm import day_starts, run_schedule, scenes_of
 
 
 def test_day_starts_are_a_seeded_draw_per_scene_and_target() -> None:
@@ -46,3 +46,17 @@ def test_every_strategy_of_a_run_searches_from_the_same_day_starts(tmp_path: Pat
         per_day = {(t.scene, t.target) for t in trials}
         assert len(trials) == 2 * len(per_day)
     assert seen[0] == seen[1]
+
+
+def test_a_seeded_schedule_is_drawn_as_long_as_the_scenes_asked_for(tmp_path: Path) -> None:
+    # `bench homes --schedules stats --scenes 15`: scenes 11-15 exist (it was a KeyError)
+    from objsearch.experiments.runner import Job, run_job
+
+    job = Job(
+        "homes", "ithor-01", "stats-0", "wpl", "all", 0, ("Cup",), (14, 15), starts_per_search=1
+    )
+    rows = run_job(job)
+    assert {r.scene for r in rows} <= {14, 15} and rows
+    ten = scenes_of("ithor-01", "stats-0")
+    fifteen = scenes_of("ithor-01", "stats-0", upto=15)
+    assert sorted(fifteen) == list(range(1, 16)) and sorted(ten) == list(range(1, 11))
