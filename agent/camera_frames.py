@@ -68,6 +68,21 @@ def _rays(k: CameraIntrinsics) -> FloatArray:
 #: thresholds of ``data/vocabulary.json`` were derived for (f = 320 px), 1 m above the floor.
 DEFAULT_INTRINSICS = CameraIntrinsics.from_hfov(640, 480, math.pi / 2)
 CAMERA_HEIGHT_M = 1.0
+#: The tilt unit's range, as AI2-THOR's ``horizon``: level (0) to 60° down. Up is never needed:
+#: with a 74° vertical field of view a level camera at 1 m already sees 1.4 m high at 1 m.
+MAX_PITCH = math.radians(60.0)
+
+
+def pitch_towards(
+    here: tuple[float, float],
+    target: tuple[float, float, float],
+    *,
+    height: float = CAMERA_HEIGHT_M,
+) -> float:
+    """The camera pitch (radians down) that puts ``target`` on the optical axis when the robot
+    stands at ``here`` facing it, clamped to the tilt unit's range [0, MAX_PITCH]."""
+    horizontal = max(math.hypot(target[0] - here[0], target[1] - here[1]), 1e-6)
+    return min(max(math.atan2(height - target[2], horizontal), 0.0), MAX_PITCH)
 
 
 def camera_to_map(

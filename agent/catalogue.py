@@ -281,10 +281,19 @@ class TaskStarted(Record, frozen=True):
     scene: int | None
 
 
-class ViewTaken(Record, frozen=True):
+class ViewTakenV1(Record, frozen=True):
     TYPE: ClassVar[str] = "view_taken"
     VERSION: ClassVar[int] = 1
     pose: PlanarPose
+    static_id: str | None
+    reason: ViewReason
+
+
+class ViewTaken(Record, frozen=True):
+    TYPE: ClassVar[str] = "view_taken"
+    VERSION: ClassVar[int] = 2
+    pose: PlanarPose
+    pitch: NonNegative  # camera tilt, radians down (v2)
     static_id: str | None
     reason: ViewReason
 
@@ -310,6 +319,7 @@ RECORDS: Final[Mapping[tuple[str, int], type[Record]]] = {
         TaskAborted,
         TaskEnded,
         TaskStarted,
+        ViewTakenV1,
         ViewTaken,
     )
 }

@@ -16,6 +16,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from objsearch.agent.camera_frames import pitch_towards
 from objsearch.agent.catalogue import (
     XY,
     XYZ,
@@ -183,6 +184,15 @@ def _xy(v: Sequence[float]) -> XY:
 
 def _xyz(v: Sequence[float]) -> XYZ:
     return (round(float(v[0]), 4), round(float(v[1]), 4), round(float(v[2]), 4))
+
+
+def static_pitch(here: Point, static: MappedStatic) -> float:
+    """The camera tilt for a view of ``static`` from ``here`` (as AI2-THOR's ``horizon``): at
+    the middle of its top surface, where movable things lie, or, for a container, at its centre,
+    where they lie once it is open; clamped to the tilt unit's range."""
+    c, size = static.box.center, static.box.size
+    z = c[2] if static.container else c[2] + size[2] / 2
+    return pitch_towards((here.x, here.y), (static.loc.x, static.loc.y, z))
 
 
 def stop_value(graph: RelationModel, target: str, statics: Sequence[MappedStatic]) -> float:
@@ -475,15 +485,17 @@ class _Task:
         return found[0] if found else None
 
     def inspect(self, stop: Stop) -> _Found | None:
-        """Open each container of the stop and look in; look at the others from θ_s and ±45°."""
+        """Open each container of the stop and look in; look at the others from θ_s and ±45°.
+        Each view tilts the camera at the static (:func:`static_pitch`)."""
         room = stop.statics[0].room
         yaws_done: list[float] = []
         for s in stop.statics:
+            pitch = static_pitch(self.world.pose().point, s)
             if s.container:
-                dets = self.world.open(s.id)
+                dets = self.world.open(s.id, pitch)
                 pose = self.world.pose()
                 self.emit(ContainerOpened(static_id=s.id, pose=_planar(pose)))
-                hit = self._view(pose, s.id, "inside", dets, room)
+                hit = self._view(pose, pitch, s.id, "inside", dets, room)
                 if hit:
                     return hit
                 continue
@@ -492,8 +504,8 @@ class _Task:
                 if any(abs(wrap_angle(yaw - y)) < 1e-3 for y in yaws_done):
                     continue
                 yaws_done.append(yaw)
-                dets = self.world.look(yaw)
-                hit = self._view(self.world.pose(), s.id, "look", dets, room)
+                dets = self.world.look(yaw, pitch)
+                hit = self._view(self.world.pose(), pitch, s.id, "look", dets, room)
                 if hit:
                     return hit
         return None
@@ -501,12 +513,15 @@ class _Task:
     def _view(
         self,
         pose: Pose,
+        pitch: float,
         static_id: str,
         reason: ViewReason,
         dets: Sequence[Detection],
         room: str,
     ) -> _Found | None:
-        self.emit(ViewTaken(pose=_planar(pose), static_id=static_id, reason=reason))
+        self.emit(
+            ViewTaken(pose=_planar(pose), pitch=round(pitch, 4), static_id=static_id, reason=reason)
+        )
         found: _Found | None = None
         for det in dets:
             if self.detection(det, room) and found is None:

@@ -63,10 +63,16 @@ def run_started_v2_to_v3(payload: dict[str, Any]) -> dict[str, Any]:
     return payload
 
 
+def view_taken_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
+    # v2 records the camera's tilt; before it the camera was always level.
+    return {"pose": payload["pose"], "pitch": 0.0, **payload}
+
+
 STEPS: Final[Mapping[tuple[str, int], UpcastStep]] = MappingProxyType(
     {
         ("detection", 1): detection_v1_to_v2,
         ("run_started", 1): run_started_v1_to_v2,
         ("run_started", 2): run_started_v2_to_v3,
+        ("view_taken", 1): view_taken_v1_to_v2,
     }
 )

@@ -53,10 +53,11 @@ class World(Protocol):
         final_yaw: float | None = None,
     ) -> Navigation: ...
 
-    def look(self, yaw: float) -> tuple[Detection, ...]:
-        """Turn in place to ``yaw`` and take one camera view."""
+    def look(self, yaw: float, pitch: float = 0.0) -> tuple[Detection, ...]:
+        """Turn in place to ``yaw``, tilt the camera ``pitch`` radians down and take one view."""
         ...
 
-    def open(self, static_id: str) -> tuple[Detection, ...]:
-        """Open a container the robot stands at and look inside."""
+    def open(self, static_id: str, pitch: float = 0.0) -> tuple[Detection, ...]:
+        """Open a container the robot stands at and look inside, the camera ``pitch`` radians
+        down. While the robot drives the camera is level (pitch 0)."""
         ...

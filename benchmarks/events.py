@@ -183,7 +183,7 @@ def _mix_records(n: int, seed: int = 0) -> list[Record]:
             out.append(Moved(start=pose, end=pose, metres=rng.random() * 5, rooms=("kitchen",),
                              interrupted=False))  # fmt: skip
         elif i % 3 == 1:
-            out.append(ViewTaken(pose=pose, static_id=f"{static}|1", reason="look"))
+            out.append(ViewTaken(pose=pose, pitch=0.0, static_id=f"{static}|1", reason="look"))
         else:
             support = Support(static_id=f"{static}|1", static_class=static, at=rng.random() < 0.5)
             out.append(Detected(object_class=DYNAMIC[i % len(DYNAMIC)], instance_id="i",

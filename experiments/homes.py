@@ -22,10 +22,19 @@ from objsearch.experiments.learning import (
     render_paired,
 )
 from objsearch.experiments.metrics import mean_std, summarise
-from objsearch.experiments.runner import TARGETS, Job, Row, command_line, run_jobs, write_rows
+from objsearch.experiments.runner import (
+    TARGETS,
+    Job,
+    Row,
+    command_line,
+    run_jobs,
+    unseeable,
+    write_rows,
+)
 from objsearch.experiments.strategies import STRATEGIES, strategy
 from objsearch.sim.rearr_schedule import homes_with_rearrangement, why_no_rearrangement
 from objsearch.sim.schedule_names import SEEDED_KINDS, UnknownScheduleError
+from objsearch.sim.world import DEFAULT_CAMERA
 
 
 def heldout_homes() -> tuple[str, ...]:
@@ -46,6 +55,7 @@ def homes_jobs(
     targets: Sequence[str] = TARGETS,
     schedules: Sequence[str] = ("stats",),
     starts_per_search: int | None = None,
+    camera: str = DEFAULT_CAMERA,
 ) -> list[Job]:
     known = set(available_homes())
     unknown = [h for h in homes if h not in known]
@@ -88,6 +98,7 @@ def homes_jobs(
                             tuple(targets),
                             scene_ids,
                             starts_per_search=starts_per_search,
+                            camera=camera,
                         )
                     )
                 if "wpl" in strategies:
@@ -102,6 +113,7 @@ def homes_jobs(
                             tuple(targets),
                             scene_ids,
                             starts_per_search=starts_per_search,
+                            camera=camera,
                         )
                     )
     return jobs
@@ -227,6 +239,7 @@ def run_homes(
     progress: bool = True,
     schedules: Sequence[str] = ("stats",),
     starts_per_search: int | None = None,
+    camera: str = DEFAULT_CAMERA,
 ) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     homes = list(homes) if homes else list(heldout_homes())
@@ -238,6 +251,7 @@ def run_homes(
         scenes=scenes,
         schedules=schedules,
         starts_per_search=starts_per_search,
+        camera=camera,
     )
     started = time.perf_counter()
     rows = run_jobs(jobs, workers=workers, progress=progress, label="bench homes")
@@ -258,6 +272,7 @@ def run_homes(
     )
     summary = {
         "command": command,
+        "camera": camera,
         # Every search of this bench starts from this prior; dist-oracle alone also reads the
         # schedule's own distribution (a reference, never a default).
         "prior": DEFAULT_PRIOR,
@@ -269,6 +284,7 @@ def run_homes(
         "workers": workers,
         "elapsed_s": round(elapsed, 1),
         "searches": len(rows),
+        "unseeable": unseeable(jobs),
         **homes_summary(rows),
         "files": {"parquet": parquet.name, "csv": csv.name},
     }

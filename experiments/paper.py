@@ -13,8 +13,17 @@ from typing import Any
 
 from objsearch.agent.session import DEFAULT_PRIOR
 from objsearch.experiments.metrics import mean_std, summarise
-from objsearch.experiments.runner import TARGETS, Job, Row, command_line, run_jobs, write_rows
+from objsearch.experiments.runner import (
+    TARGETS,
+    Job,
+    Row,
+    command_line,
+    run_jobs,
+    unseeable,
+    write_rows,
+)
 from objsearch.experiments.strategies import PAPER_STRATEGIES, strategy
+from objsearch.sim.world import DEFAULT_CAMERA
 
 HOME = "paper"
 SDP_SEEDS = 20
@@ -57,6 +66,7 @@ def paper_jobs(
     log_root: Path | None = None,
     prior: str = DEFAULT_PRIOR,
     home: str = HOME,
+    camera: str = DEFAULT_CAMERA,
 ) -> list[Job]:
     for name in strategies:
         strategy(name)  # unknown names fail here, before any work
@@ -66,7 +76,17 @@ def paper_jobs(
             continue
         seeds = range(sdp_seeds) if strategy(name).randomised else range(1)
         jobs += [
-            Job("table1", home, "table1", name, "none", s, tuple(targets), prior=prior)
+            Job(
+                "table1",
+                home,
+                "table1",
+                name,
+                "none",
+                s,
+                tuple(targets),
+                prior=prior,
+                camera=camera,
+            )
             for s in seeds
         ]
     for name in strategies:
@@ -87,6 +107,7 @@ def paper_jobs(
                     tuple(scenes) if scenes else None,
                     log_dir=log,
                     prior=prior,
+                    camera=camera,
                 )
             )
     return jobs
@@ -236,6 +257,7 @@ def run_paper(
     scenes: Sequence[int] | None = None,
     keep_logs: bool = False,
     prior: str = DEFAULT_PRIOR,
+    camera: str = DEFAULT_CAMERA,
 ) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     jobs = paper_jobs(
@@ -245,6 +267,7 @@ def run_paper(
         scenes=scenes,
         log_root=out / "logs" if keep_logs else None,
         prior=prior,
+        camera=camera,
     )
     started = time.perf_counter()
     rows = run_jobs(jobs, workers=workers, progress=progress, label="bench paper")
@@ -261,15 +284,18 @@ def run_paper(
                 "targets": None if tuple(targets) == TARGETS else list(targets),
                 "scenes": list(scenes) if scenes else None,
                 "prior": None if prior == DEFAULT_PRIOR else prior,
+                "camera": None if camera == DEFAULT_CAMERA else camera,
                 "keep_logs": keep_logs,
                 "workers": workers,
             },
         ),
         "prior": prior,
+        "camera": camera,
         "sdp_seeds": sdp_seeds,
         "workers": workers,
         "elapsed_s": round(elapsed, 1),
         "searches": len(rows),
+        "unseeable": unseeable(jobs),
         "table1": table1_summary(rows),
         "longterm": longterm_summary(rows),
         "paper": {"table1": PAPER_TABLE1, "longterm_reduction_pct": PAPER_REDUCTION_PCT},

@@ -18,13 +18,13 @@ PRIOR_DATA = {
     "vg-hoz-masked": "Visual Genome image co-occurrence masked by HOZ's object adjacency",
 }
 #: A bench summary without a ``camera`` was run before the camera could be chosen: geometric.
-DEFAULT_CAMERA = "geometric"
+UNRECORDED_CAMERA = "geometric"
 #: The long-term run whose kept log the scene-graph figure folds (bench paper --keep-logs).
 GRAPH_LOG = Path("logs") / "longterm-wpl-all"
 
 
 def camera(summary: dict[str, Any]) -> str:
-    return str(summary.get("camera") or DEFAULT_CAMERA)
+    return str(summary.get("camera") or UNRECORDED_CAMERA)
 
 
 def prior_line(summary: dict[str, Any]) -> str:
@@ -222,7 +222,7 @@ def cameras_section(ours: dict[str, Any], other: dict[str, Any], other_dir: Path
     if a == b:
         lines.append(
             f"Both runs used the {a} camera (a summary without `camera` is read as "
-            f"{DEFAULT_CAMERA}): nothing to compare. Pass a run with the other camera."
+            f"{UNRECORDED_CAMERA}): nothing to compare. Pass a run with the other camera."
         )
         return "\n".join(lines) + "\n"
     lines += [

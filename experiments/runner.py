@@ -19,6 +19,8 @@ from objsearch.agent.strategies import RunSpec
 from objsearch.events.log import read_log
 from objsearch.experiments.decompose import Excess, decompose
 from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule, scenes_of
+from objsearch.sim.seeable import seeable_scenes
+from objsearch.sim.world import DEFAULT_CAMERA
 
 TARGETS = TARGET_ORDER
 
@@ -42,6 +44,7 @@ class Job:
     prior: str = "vg-cooccurrence"
     #: Search each target from this many seeded start points per scene (None: from every start).
     starts_per_search: int | None = None
+    camera: str = DEFAULT_CAMERA
 
 
 @dataclass(frozen=True)
@@ -86,6 +89,7 @@ def run_job(job: Job) -> list[Row]:
         update_mode=UpdateMode(job.update_mode),
         schedule=job.placements,
         prior=job.prior,
+        params={"camera": job.camera},
     )
     scenes = scenes_of(job.home, job.placements, upto=_last_scene(job))
     with tempfile.TemporaryDirectory(prefix="objsearch-bench-") as tmp:
@@ -133,7 +137,7 @@ def _last_scene(job: Job) -> int | None:
 
 def _count(job: Job) -> int:
     ctx = load_context(job.home)
-    scenes = scenes_of(job.home, job.placements, upto=_last_scene(job))
+    scenes, _ = seeable_scenes(ctx.home, scenes_of(job.home, job.placements, upto=_last_scene(job)))
     wanted = [s for s in job.scenes or sorted(scenes) if s in scenes]  # run_job names the others
     starts = len(ctx.home.starts)
     if job.starts_per_search:
@@ -142,6 +146,22 @@ def _count(job: Job) -> int:
         starts * sum(1 for t in job.targets if t in {p.cls for p in scenes[s].values()})
         for s in wanted
     )
+
+
+def unseeable(jobs: Sequence[Job]) -> list[dict[str, object]]:
+    """The placements of the jobs' scenes no viewpoint can see, once per (home, placement
+    source): ``run_schedule`` leaves them out of their scenes, and the bench reports them."""
+    out: list[dict[str, object]] = []
+    for home, source, wanted in sorted({(j.home, j.placements, j.scenes) for j in jobs}, key=str):
+        ctx = load_context(home)
+        upto = max(wanted) if wanted else None
+        _, dropped = seeable_scenes(ctx.home, scenes_of(home, source, upto=upto))
+        out += [
+            {"placements": source, **asdict(u)}
+            for u in dropped
+            if wanted is None or u.scene in wanted
+        ]
+    return out
 
 
 def run_jobs(

@@ -30,7 +30,7 @@ from objsearch.agent.datapaths import DATA_ENV
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.session import DEFAULT_PRIOR, load_context
 from objsearch.experiments.paper import PAPER_TABLE1, discovery
-from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, write_rows
+from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, unseeable, write_rows
 from objsearch.pipeline.build import PAPER_HOME, build_data
 from objsearch.pipeline.findings import EMPTY_ROOMS, LOST_GRID_POINTS
 from objsearch.pipeline.home import build_home
@@ -38,6 +38,7 @@ from objsearch.pipeline.more_homes import TYPE_BASES
 from objsearch.pipeline.rooms import Room
 from objsearch.pipeline.scenario import TABLE1_KEEP_ONE, TABLE1_REMOVE_ALL
 from objsearch.pipeline.vocabulary import SEMI_DYNAMIC_NAMES
+from objsearch.sim.world import DEFAULT_CAMERA
 
 #: FloorPlans per room type in the stored source data (1-25, 201-225, 301-325, 401-425).
 SCENES_PER_TYPE = 25
@@ -156,10 +157,23 @@ def _data_folder(path: Path) -> Iterator[None]:
 
 
 def table1_jobs(
-    homes: Sequence[str], targets: Sequence[str] = TARGETS, prior: str = DEFAULT_PRIOR
+    homes: Sequence[str],
+    targets: Sequence[str] = TARGETS,
+    prior: str = DEFAULT_PRIOR,
+    camera: str = DEFAULT_CAMERA,
 ) -> list[Job]:
     return [
-        Job("table1", home, "table1", name, "none", seed, tuple(targets), prior=prior)
+        Job(
+            "table1",
+            home,
+            "table1",
+            name,
+            "none",
+            seed,
+            tuple(targets),
+            prior=prior,
+            camera=camera,
+        )
         for home in homes
         for name, seeds in STRATEGY_SEEDS
         for seed in seeds
@@ -323,6 +337,7 @@ def run_table1_sets(
     with_paper_set: bool = True,
     progress: bool = True,
     prior: str = DEFAULT_PRIOR,
+    camera: str = DEFAULT_CAMERA,
 ) -> dict[str, Any]:
     def say(msg: str) -> None:
         if progress:
@@ -350,13 +365,10 @@ def run_table1_sets(
         raise ObjsearchError(f"the build derived no Table I scenario for {', '.join(missing)}")
     build_s = time.perf_counter() - started
     started = time.perf_counter()
+    jobs = table1_jobs(list(homes), targets, prior, camera)
     with _data_folder(data):
-        rows = run_jobs(
-            table1_jobs(list(homes), targets, prior),
-            workers=workers,
-            progress=progress,
-            label="bench table1",
-        )
+        rows = run_jobs(jobs, workers=workers, progress=progress, label="bench table1")
+        left_out = unseeable(jobs)
     search_s = time.perf_counter() - started
     write_rows(rows, out, "table1_trials")
     records = []
@@ -389,6 +401,8 @@ def run_table1_sets(
         command += f" --targets {','.join(targets)}"
     if prior != DEFAULT_PRIOR:
         command += f" --prior {prior}"
+    if camera != DEFAULT_CAMERA:
+        command += f" --camera {camera}"
     summary: dict[str, Any] = {
         "command": command,
         "seed": seed,
@@ -406,6 +420,8 @@ def run_table1_sets(
         },
         "sample": [set_name(s) for s in sample],
         "searches": len(rows),
+        "camera": camera,
+        "unseeable": left_out,
         "eligibility_s": round(elig_s, 1),
         "build_s": round(build_s, 1),
         "search_s": round(search_s, 1),

@@ -92,12 +92,14 @@ def run_spec(args: argparse.Namespace, home: Any, **extra: Any) -> Any:
         seed=args.seed,
         alpha=args.alpha,
         update_mode=UpdateMode(getattr(args, "update_mode", "all")),
+        params={"camera": args.camera},
         **extra,
     )
 
 
 def cmd_search(args: argparse.Namespace) -> int:
     from objsearch.agent.session import Session, load_context
+    from objsearch.sim.longterm import with_camera
     from objsearch.sim.placements import base_placements, table1_removals
     from objsearch.sim.schedule_names import load_schedule
     from objsearch.sim.world import SimClock, SimWorld
@@ -118,14 +120,23 @@ def cmd_search(args: argparse.Namespace) -> int:
     tmp = None if args.log else tempfile.mkdtemp(prefix="objsearch-search-")
     log_dir = Path(args.log or tmp or ".")
     try:
-        spec = run_spec(args, ctx.home, schedule=None if args.scene is None else args.schedule)
+        spec, camera = with_camera(
+            run_spec(args, ctx.home, schedule=None if args.scene is None else args.schedule)
+        )
         inputs = {"target": target, "start": args.start, "scene": args.scene}
         session = Session.start(ctx, log_dir, spec, inputs=inputs)
         try:
             world = SimWorld(
-                ctx.home, ctx.navmap, placements, pose, clock=SimClock(session.resume_time_ns)
+                ctx.home,
+                ctx.navmap,
+                placements,
+                pose,
+                clock=SimClock(session.resume_time_ns),
+                camera=camera,
             )
-            oracle = world.oracle_length(target)
+            oracle = world.oracle_length(
+                target, min_mask_px=ctx.vocabulary.classes[target].min_mask_area_px
+            )
             result = session.search(world, target, args.start, scene=args.scene)
         finally:
             session.close()
@@ -136,6 +147,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         "target": target,
         "start": args.start,
         "strategy": args.strategy,
+        "camera": camera.name,
         "success": result.success,
         "found": result.found_instance,
         "path_length_m": round(result.path_length, 3),
@@ -184,6 +196,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
             progress=not args.no_progress,
             baseline=not args.no_baseline,
             strategy=args.strategy,
+            camera=args.camera,
         )
     if args.json and code == 0:
         print(json.dumps(demo_summary(Path(args.out)), indent=2))
@@ -362,6 +375,7 @@ def build_parser() -> argparse.ArgumentParser:
         choices=_strategy_names(),
         help="search strategy (wpl, the paper's method)",
     )
+    t.camera_option(demo)
     demo.add_argument(
         "--json", action="store_true", help="print a JSON summary (the report goes to stderr)"
     )
@@ -411,6 +425,7 @@ def _search_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--alpha", type=t.ALPHA, default=10.0, help="alpha of Eq. 3, 0-1000 (10)")
     p.add_argument("--seed", type=t.SEED, default=0, help="seed (SDP's random room order)")
+    t.camera_option(p)
 
 
 def expected_errors() -> tuple[type[BaseException], ...]:

@@ -143,6 +143,7 @@ def cmd_record(args: argparse.Namespace) -> int:
             seed=args.seed,
             compress=compress,
             progress=progress,
+            camera=args.camera,
         )
     finally:
         progress.close()
@@ -253,6 +254,7 @@ def register(sub: Any) -> None:
         "--odom-hz", type=ODOM_HZ, default=10.0, help="odometry rate, above 0 and up to 200 (10)"
     )
     rec.add_argument("--seed", type=t.SEED, default=0, help="seed (0)")
+    t.camera_option(rec)
     rec.add_argument(
         "--mapping-sweep",
         action="store_true",

@@ -62,6 +62,7 @@ def cmd_bench_paper(args: argparse.Namespace) -> int:
             scenes=args.scenes,
             keep_logs=args.keep_logs,
             prior=args.prior,
+            camera=args.camera,
         )
     if args.json:
         print(json.dumps(_headline(summary), indent=2))
@@ -70,6 +71,7 @@ def cmd_bench_paper(args: argparse.Namespace) -> int:
         print(
             f"\n{summary['searches']} searches in {summary['elapsed_s']} s; results in {args.out}"
         )
+        print(_unseeable(summary))
     return 0
 
 
@@ -88,6 +90,7 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
             progress=not args.no_progress and not args.json,
             schedules=args.schedules,
             starts_per_search=args.starts,
+            camera=args.camera,
         )
     if args.json:
         print(json.dumps(_headline(summary), indent=2))
@@ -96,6 +99,7 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
         print(
             f"\n{summary['searches']} searches in {summary['elapsed_s']} s; results in {args.out}"
         )
+        print(_unseeable(summary))
     return 0
 
 
@@ -114,8 +118,10 @@ def cmd_bench_table1(args: argparse.Namespace) -> int:
             targets=targets,
             progress=not args.no_progress,
             prior=args.prior,
+            camera=args.camera,
         )
     print(render(summary))
+    print(_unseeable(summary))
     print(f"\nresults in {args.out} (summary.md, summary.json, table1_sets.csv)")
     return 0
 
@@ -153,8 +159,23 @@ def cmd_bench_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _unseeable(summary: dict[str, Any]) -> str:
+    """One line per placement no viewpoint can see, left out of its scene's searches."""
+    left_out = summary["unseeable"]
+    lines = [
+        f"camera {summary['camera']}; {len(left_out)} placement(s) no viewpoint can see, left out "
+        "of their scenes' searches (summary.json: unseeable)" + (":" if left_out else "")
+    ]
+    lines += [
+        f"  {u['home']} {u['placements']} scene {u['scene']}: {u['cls']} {u['instance_id']} "
+        f"(best {u['best_mask_px']} px)"
+        for u in left_out
+    ]
+    return "\n".join(lines)
+
+
 def _headline(summary: dict[str, Any]) -> dict[str, Any]:
-    keys = ("command", "elapsed_s", "searches", "strategies", "files")
+    keys = ("command", "camera", "elapsed_s", "searches", "unseeable", "strategies", "files")
     return {k: summary[k] for k in keys if k in summary}
 
 
@@ -191,6 +212,7 @@ def register(sub: Any) -> None:
         )
         p.add_argument("--json", action="store_true", help="print a JSON summary per strategy")
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
+        t.camera_option(p)
 
     paper = bsub.add_parser("paper", help="Table I and the long-term experiment on the paper home")
     common(paper, "out/bench-paper")
@@ -279,6 +301,7 @@ def register(sub: Any) -> None:
     )
     _prior_option(table1)
     table1.add_argument("--no-progress", action="store_true", help="no progress output")
+    t.camera_option(table1)
     table1.set_defaults(func=cmd_bench_table1)
 
     report = bsub.add_parser("report", help="write docs/results.md from bench outputs")

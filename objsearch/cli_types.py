@@ -376,6 +376,20 @@ ALPHA = float_range(0.0, 1000.0)
 SCENE = int_range(1, MAX_SCENE)
 
 
+def camera_option(p: argparse.ArgumentParser) -> None:
+    """``--camera``: the simulated search camera (docs/perception.md), recorded in the run."""
+    from objsearch.sim.world import CAMERAS, DEFAULT_CAMERA
+
+    p.add_argument(
+        "--camera",
+        type=text,
+        choices=CAMERAS,
+        default=DEFAULT_CAMERA,
+        help="simulated search camera: occluding (what a render shows; furniture hides what is "
+        f"behind it) or geometric (field of view and box area, no occlusion) ({DEFAULT_CAMERA})",
+    )
+
+
 def is_validated(convert: object) -> bool:
     """Whether an argparse ``type`` comes from this module (the battery test checks every one)."""
     return getattr(convert, "__module__", None) == __name__

@@ -172,6 +172,7 @@ class RosWorld:
         self._commanded: Pose | None = None
         #: Nav2 said SUCCEEDED at ``_commanded``: within its tolerance, which is its business.
         self._arrived = False
+        self._told_no_tilt = False
 
     def _pose_topic(self) -> str:
         c = self.link.config
@@ -339,11 +340,24 @@ class RosWorld:
     def _step(self, pose: Pose, metres: float, *, view: bool) -> tuple[Detection, ...]:
         return self._drive(pose, view=view)
 
-    def look(self, yaw: float) -> tuple[Detection, ...]:
+    def look(self, yaw: float, pitch: float = 0.0) -> tuple[Detection, ...]:
+        self._level_camera(pitch)
         here = self.pose()
         return self._drive(Pose(here.x, here.y, yaw), view=True)
 
-    def open(self, static_id: str) -> tuple[Detection, ...]:
+    def _level_camera(self, pitch: float) -> None:
+        # The robot's interface (a navigation goal, an open service) has no tilt command: its
+        # camera stays level whatever the agent asks, which docs/runtime.md states. Said once.
+        if pitch != 0.0 and not self._told_no_tilt:
+            self._told_no_tilt = True
+            log.info(
+                "the agent asked for a camera tilt of %.1f° down; this robot has no tilt command, "
+                "its views stay level (docs/runtime.md)",
+                math.degrees(pitch),
+            )
+
+    def open(self, static_id: str, pitch: float = 0.0) -> tuple[Detection, ...]:
+        self._level_camera(pitch)
         mark = self.link.mark()
         t = self.timeouts
         try:

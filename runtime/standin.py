@@ -6,6 +6,10 @@ in place and takes a view, as the simulator's ``look``), publishes ``/odom`` (ma
 containers on request. Its clock is the simulator's, carried in every stamp. A goal repeated with
 the same stamp is answered from the last reply without moving.
 
+Its camera stays level: the robot interface has no tilt command, so the agent's tilt
+(``view_taken.pitch``) does not reach it, as on a robot without a tilt unit (docs/runtime.md). It
+detects with the default search camera (occluding).
+
 ``/objsearch_sim/reset`` ({scene, start}) places the objects of a schedule scene and the robot at
 a start, as a simulator's reset service would; a real robot has no such topic.
 

@@ -16,6 +16,7 @@ from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
 from objsearch.agent.strategies import DEFAULT_STRATEGY, RunSpec
 from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule
+from objsearch.sim.world import DEFAULT_CAMERA
 
 SCENES = 10
 STARTS = 8
@@ -31,16 +32,21 @@ def run_demo(
     progress: bool = True,
     baseline: bool = True,
     strategy: str = DEFAULT_STRATEGY,
+    camera: str = DEFAULT_CAMERA,
 ) -> int:
     modes = [UpdateMode.ALL, UpdateMode.NONE] if baseline else [UpdateMode.ALL]
     # --force replaces only what an earlier demo wrote here; anything else in --out is refused.
     with claim(out, command="demo", owns=OUTPUTS, force=force):
-        return _run(out, home, modes, progress, strategy)
+        return _run(out, home, modes, progress, strategy, camera)
 
 
-def _run(out: Path, home: str, modes: list[UpdateMode], progress: bool, strategy: str) -> int:
+def _run(
+    out: Path, home: str, modes: list[UpdateMode], progress: bool, strategy: str, camera: str
+) -> int:
     ctx = load_context(home)
-    spec = RunSpec.of(home, ctx.home.digest, strategy, seed=0, schedule="table2")
+    spec = RunSpec.of(
+        home, ctx.home.digest, strategy, seed=0, schedule="table2", params={"camera": camera}
+    )
     results: dict[UpdateMode, list[Trial]] = {}
     total = SCENES * len(TARGET_ORDER) * STARTS * len(modes)
     # Redrawn at most every 2 s when stderr is a file or a CI log, not a terminal.

@@ -17,7 +17,9 @@ and then, every scene independently:
 The parameters were fixed before any run (docs/results.md, "Schedules with a past") and are not
 tuned. If a home has too few valid statics for two alternates, an alternate's share goes to the
 usual place. :func:`habit_distribution` is that per-scene distribution (the distribution oracle's
-knowledge); it is exact, because scenes are independent given the habits.
+knowledge); it is exact, because scenes are independent given the habits — but for placements no
+viewpoint can see (``sim/seeable.py``), which are drawn again from the fresh-draw distribution as
+stats schedules do (``stats_schedule.place_seeable``) and counted in ``Schedule.redrawn``.
 """
 
 from __future__ import annotations
@@ -25,14 +27,15 @@ from __future__ import annotations
 import random
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 
 from objsearch.agent.home import Home, StaticObject
 from objsearch.sim.placements import Placements, Schedule
 from objsearch.sim.stats_schedule import (
     PlacementStats,
     _draw_static,
-    _place,
     _receptacle_type,
+    place_seeable,
 )
 from objsearch.sim.world import Placement
 
@@ -117,6 +120,7 @@ def habit_schedule(home: Home, seed: int, *, scenes: int = HABIT_SCENES) -> Sche
     by_id = home.statics
     table = habits(home, seed)
     out: dict[int, Placements] = {}
+    redrawn = 0
     for scene in range(1, scenes + 1):
         placed: dict[str, Placement] = {}
         for cls in sorted(table):
@@ -130,7 +134,11 @@ def habit_schedule(home: Home, seed: int, *, scenes: int = HABIT_SCENES) -> Sche
             else:
                 where = _draw_static(rng, stats.counts[cls], statics, None)
             assert where is not None  # the usual place was drawn from the same statics
-            p = _place(rng, home, cls, stats.sizes[cls], where)
-            placed[p.instance_id] = p
+            anywhere = partial(_draw_static, rng, stats.counts[cls], statics, None)
+            taken = list(placed.values())
+            p, refused = place_seeable(rng, home, cls, stats.sizes[cls], where, anywhere, taken)
+            redrawn += refused
+            if p is not None:
+                placed[p.instance_id] = p
         out[scene] = placed
-    return Schedule(name=f"habit-{seed}", home=home.name, scenes=out)
+    return Schedule(name=f"habit-{seed}", home=home.name, scenes=out, redrawn=redrawn)

@@ -19,7 +19,15 @@ from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.sim.placements import Placements, base_placements, table1_removals
 from objsearch.sim.schedule_names import load_schedule
-from objsearch.sim.world import SimClock, SimWorld, WorldObserver
+from objsearch.sim.seeable import seeable_scenes
+from objsearch.sim.world import (
+    DEFAULT_CAMERA,
+    SearchCamera,
+    SimClock,
+    SimWorld,
+    WorldObserver,
+    search_camera,
+)
 
 TARGET_ORDER = ("Apple", "Cup", "Bowl", "Phone", "Laptop", "Pillow", "Vase", "ToiletPaper")
 #: Simulated time between two searches (s): the robot's clock moves on between tasks.
@@ -53,6 +61,14 @@ def scenes_of(home_name: str, source: str, *, upto: int | None = None) -> dict[i
     return dict(load_schedule(ctx.home, source, scenes=upto).scenes)
 
 
+def with_camera(spec: RunSpec) -> tuple[RunSpec, SearchCamera]:
+    """The spec's search camera (``params["camera"]``), and the spec with it recorded: a spec that
+    names none gets the default, so every simulated log says which camera produced it."""
+    name = spec.params.get("camera", DEFAULT_CAMERA)
+    camera = search_camera(str(name))
+    return spec.with_changes(params={**spec.params, "camera": camera.name}), camera
+
+
 def run_schedule(
     log_dir: Path,
     spec: RunSpec,
@@ -71,7 +87,9 @@ def run_schedule(
     """Search every target from every start in every scene, in that order, on one log.
 
     The placements come from ``placements`` (scene → placements) or else from the spec's
-    ``schedule`` (see :func:`scenes_of`). Each search is one task: the scene graph is updated
+    ``schedule`` (see :func:`scenes_of`), without those no viewpoint can see
+    (``sim/seeable.py``): a target left with no seeable instance in a scene is not searched for
+    there (``objsearch bench`` reports them). Each search is one task: the scene graph is updated
     (per the spec's update mode) when it ends, so the next search, whatever its start, plans with
     what the previous ones saw. ``starts`` picks start points by name (default: all of the
     home's); ``starts_per_search`` instead searches each target from that many of them per scene,
@@ -81,10 +99,15 @@ def run_schedule(
     ``session_options`` go to :meth:`Session.start` (``wall_clock``, ``stream``, ...).
     """
     ctx = load_context(spec.home)
+    spec, camera = with_camera(spec)
     if placements is None:
         if spec.schedule is None:
             raise DataFileError("a long-term run needs placements or a schedule in its spec")
         placements = scenes_of(spec.home, spec.schedule)
+    placements, dropped = seeable_scenes(ctx.home, placements)
+    unseeable: dict[int, set[str]] = {n: set() for n in placements}
+    for u in dropped:
+        unseeable[u.scene].add(u.cls)
     all_starts = ctx.home.starts
     for name in starts or ():
         ctx.home.start(name)  # an unknown start fails before anything is written
@@ -110,7 +133,7 @@ def run_schedule(
             scene_placements = placements[scene]
             present = {p.cls for p in scene_placements.values()}
             for target in targets:
-                if skip_absent_targets and target not in present:
+                if target not in present and (skip_absent_targets or target in unseeable[scene]):
                     continue
                 todays = (
                     day_starts(chosen, starts_per_search, spec.seed, scene, target)
@@ -120,9 +143,17 @@ def run_schedule(
                 for start_name, pose in todays.items():
                     clock.advance(PAUSE_BETWEEN_TASKS_S)
                     world = SimWorld(
-                        ctx.home, ctx.navmap, scene_placements, pose, clock=clock, observer=observer
+                        ctx.home,
+                        ctx.navmap,
+                        scene_placements,
+                        pose,
+                        clock=clock,
+                        camera=camera,
+                        observer=observer,
                     )
-                    oracle = world.oracle_length(target)
+                    oracle = world.oracle_length(
+                        target, min_mask_px=ctx.vocabulary.classes[target].min_mask_area_px
+                    )
                     result = session.search(world, target, start_name, scene=scene)
                     trial = Trial(
                         scene,

@@ -19,6 +19,7 @@ from objsearch.agent.semmap import MappedStatic, SemanticMap
 from objsearch.agent.session import HomeContext, Session
 from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
+from objsearch.sim.longterm import with_camera
 from objsearch.sim.world import REACH_M, Placement, SimWorld
 
 MATCH_RADIUS_M = 0.5
@@ -133,10 +134,10 @@ class BuiltMapWorld:
     ) -> Navigation:
         return self.world.navigate(goal, on_detection=on_detection, final_yaw=final_yaw)
 
-    def look(self, yaw: float) -> tuple[Detection, ...]:
-        return self.world.look(yaw)
+    def look(self, yaw: float, pitch: float = 0.0) -> tuple[Detection, ...]:
+        return self.world.look(yaw, pitch)
 
-    def open(self, static_id: str) -> tuple[Detection, ...]:
+    def open(self, static_id: str, pitch: float = 0.0) -> tuple[Detection, ...]:
         mapped = self._mapped[static_id]
         here = self.world.pose()
         candidates = [
@@ -155,8 +156,8 @@ class BuiltMapWorld:
         if best is not None:
             reach = distance(here, Point(best.box.center[0], best.box.center[1]))
             if reach - max(best.box.size[:2]) / 2 <= REACH_M:
-                return self.world.open(best.id)
-        return self.world.look(heading(here, mapped.loc))
+                return self.world.open(best.id, pitch)
+        return self.world.look(heading(here, mapped.loc), pitch)
 
 
 @dataclass(frozen=True, slots=True)
@@ -193,6 +194,7 @@ def search_cost(
             alpha=config.alpha,
             update_mode=UpdateMode.NONE,
         )
+        spec, camera = with_camera(spec)
         sessions = {
             name: Session.start(c, Path(tmp) / name, spec)
             for name, c in (("truth", ctx), ("built", built_ctx))
@@ -200,9 +202,11 @@ def search_cost(
         try:
             for target in targets:
                 for start, pose in ctx.home.starts.items():
-                    w_truth = SimWorld(ctx.home, navmap, placements, pose)
+                    w_truth = SimWorld(ctx.home, navmap, placements, pose, camera=camera)
                     r_truth = sessions["truth"].search(w_truth, target, start)
-                    w_built = BuiltMapWorld(SimWorld(ctx.home, navmap, placements, pose), built)
+                    w_built = BuiltMapWorld(
+                        SimWorld(ctx.home, navmap, placements, pose, camera=camera), built
+                    )
                     r_built = sessions["built"].search(w_built, target, start)
                     pair = SearchCost(
                         target,

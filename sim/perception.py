@@ -1,20 +1,28 @@
-"""What the simulated camera sees: field of view, same room, mask area, closed containers.
+"""The geometric search camera (``--camera geometric``): field of view, same room, projected
+box area, closed containers — and no occlusion.
 
 A pinhole camera with Kinect-like intrinsics (640×480, 90° horizontal FOV, so f = 320 px) at the
 robot's pose. An object is in view when its centre lies within the horizontal FOV and in the robot's
 room; its mask area is the projected area of its bounding box (the faces the camera sees, so a
 phone lying flat shows its top, not only its 1 cm edge); objects inside a closed container are hidden unless the robot opened that container for this view. Furniture does
 not occlude (the paper's simulator reports detections "even far away"; the mask-area threshold is
-what limits range).
+what limits range). It ignores the camera's pitch (the projected area barely depends on it).
+The default search camera is the occluding one (``objsearch.sim.visibility``).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from objsearch.agent.geometry import Pose, wrap_angle
-from objsearch.agent.home import Box
+from objsearch.agent.home import Box, Home
+from objsearch.agent.world import Detection
+
+if TYPE_CHECKING:
+    from objsearch.sim.world import Placement
 
 IMAGE_WIDTH = 640
 IMAGE_HEIGHT = 480
@@ -24,6 +32,23 @@ IMAGE_HEIGHT = 480
 class Camera:
     hfov: float = math.pi / 2
     height: float = 1.0  # metres above the floor
+    name: str = "geometric"
+
+    def detections(
+        self,
+        home: Home,
+        room: str,
+        pose: Pose,
+        pitch: float,
+        placed: Sequence[Placement],
+        candidates: Sequence[Placement],
+        opened: str | None,
+    ) -> tuple[Detection, ...]:
+        return tuple(
+            Detection(p.cls, p.instance_id, self.mask_area(pose, p.box), p.box.center)
+            for p in candidates
+            if self.in_view(pose, p.box)
+        )
 
     @property
     def focal_px(self) -> float:

@@ -48,12 +48,14 @@ class Schedule:
     """Placements per scene (paper Table II): scene number → instance id → placement.
 
     ``fallback``: classes this schedule places by another source than its own (a ``rearr-<seed>``
-    schedule places classes without rearrangement data as ``stats-<seed>`` does)."""
+    schedule places classes without rearrangement data as ``stats-<seed>`` does). ``redrawn``:
+    placements a drawn schedule refused because no viewpoint could see them (sim/seeable.py)."""
 
     name: str
     home: str
     scenes: Mapping[int, Placements]
     fallback: tuple[str, ...] = ()
+    redrawn: int = 0
 
     @classmethod
     def load(cls, home: Home, name: str = "table2", path: Path | None = None) -> Schedule:

@@ -11,8 +11,9 @@ docs/perception.md for what that means for L-shaped counters and shelving units)
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Collection, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -29,7 +30,9 @@ from objsearch.agent.camera_frames import (
 )
 from objsearch.agent.geometry import Pose
 from objsearch.agent.home import Box, Home, Room
-from objsearch.sim.world import Placement
+
+if TYPE_CHECKING:  # sim.world imports the search cameras, which render
+    from objsearch.sim.world import Placement
 
 WALL_HEIGHT_M = 2.5
 MAX_RANGE_M = 10.0  # beyond this the simulated sensor reports no return (depth 0)
@@ -47,6 +50,13 @@ class SceneObject:
     id: str
     cls: str
     box: Box
+    #: Statics whose boxes never hide this object: the render cuts them away wherever a ray hits
+    #: it (``support_cutouts``). Boxes are hulls: the static an object lies on — a shelving
+    #: unit, a bed with its headboard — or any whose box holds the object's centre may enclose
+    #: it, and a box that reaches into an opened container — the kitchen's L-shaped counter is
+    #: one slab that runs through the fridge — is no wall in front of what the container holds.
+    see_through: tuple[str, ...] = ()
+    held_in: str | None = None  # the container this object lies in
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,8 +68,26 @@ class Scene:
     objects: tuple[SceneObject, ...]
 
     def without(self, object_id: str) -> Scene:
-        """The scene with one object taken out (an opened container shows what it holds)."""
-        return Scene(self.lo, self.hi, tuple(o for o in self.objects if o.id != object_id))
+        """The scene with one object taken out (an opened container shows what it holds, and
+        the boxes that reach into it do not hide it: ``SceneObject.see_through``)."""
+        taken = [o.box for o in self.objects if o.id == object_id]
+        reaching = tuple(
+            o.id for o in self.objects if o.held_in is None and taken and overlap(o.box, taken[0])
+        )
+        return Scene(
+            self.lo,
+            self.hi,
+            tuple(
+                replace(o, see_through=o.see_through + reaching) if o.held_in == object_id else o
+                for o in self.objects
+                if o.id != object_id
+            ),
+        )
+
+
+def overlap(a: Box, b: Box) -> bool:
+    """Whether two boxes share volume."""
+    return all(abs(a.center[i] - b.center[i]) < (a.size[i] + b.size[i]) / 2 for i in range(3))
 
 
 def room_scene(home: Home, room: str | Room, placements: Iterable[Placement] = ()) -> Scene:
@@ -73,7 +101,13 @@ def room_scene(home: Home, room: str | Room, placements: Iterable[Placement] = (
     margin = home.grid  # viewpoints stand at least a grid step off the walls
     objects = [SceneObject(s.id, s.cls, s.box) for s in r.statics]
     objects += [
-        SceneObject(p.instance_id, p.cls, p.box)
+        SceneObject(
+            p.instance_id,
+            p.cls,
+            p.box,
+            () if p.inside else _hulls(r, p),
+            p.support if p.inside else None,
+        )
         for p in sorted(placements, key=lambda p: p.instance_id)
         if p.room == r.name
     ]
@@ -81,6 +115,18 @@ def room_scene(home: Home, room: str | Room, placements: Iterable[Placement] = (
         (lo_x - margin, lo_y - margin, 0.0),
         (hi_x + margin, hi_y + margin, WALL_HEIGHT_M),
         tuple(objects),
+    )
+
+
+def _hulls(room: Room, p: Placement) -> tuple[str, ...]:
+    """The statics whose boxes cannot hide ``p``: its support, and any whose box holds its centre
+    (no real static encloses an object: the box is a hull there — two counter slabs that
+    overlap, a shelving unit)."""
+    return tuple(
+        s.id
+        for s in room.statics
+        if s.id == p.support
+        or all(abs(p.box.center[i] - s.box.center[i]) < s.box.size[i] / 2 for i in range(3))
     )
 
 
@@ -104,47 +150,28 @@ def render(
     *,
     max_range: float = MAX_RANGE_M,
 ) -> Rendered:
-    rays = intrinsics.rays()
     rot = T_map_camera[:3, :3].astype(np.float32)
     origin = T_map_camera[:3, 3].astype(np.float32)
-    # Planar (3, H, W) map-frame directions; t along them is depth. Per-axis planes keep every
-    # reduction below an element-wise min/max of three contiguous images.
-    d = np.ascontiguousarray(np.moveaxis(rays @ rot.T, 2, 0))
-    with np.errstate(divide="ignore"):
-        inv = np.float32(1.0) / d
-    # The shell: the ray leaves the room box at t_far; the axis it leaves by names the surface.
-    exits = []
-    for a in range(3):
-        with np.errstate(invalid="ignore"):
-            exits.append(
-                np.maximum((scene.lo[a] - origin[a]) * inv[a], (scene.hi[a] - origin[a]) * inv[a])
-            )
-    depth = np.minimum(np.minimum(exits[0], exits[1]), exits[2])
-    axis = np.where(exits[2] == depth, 2, np.where(exits[1] == depth, 1, 0)).astype(np.int8)
-    instance = np.where(axis == 2, np.where(d[2] < 0, FLOOR, CEILING), WALL).astype(np.int32)
+    inv = inverse_directions(intrinsics.rays(), rot)
+    depth, axis = shell_depth(scene, origin, inv)
+    instance = np.where(axis == 2, np.where(inv[2] < 0, FLOOR, CEILING), WALL).astype(np.int32)
 
     inv_t: Float64Array = np.linalg.inv(T_map_camera).astype(np.float64)
+    windows = windows_of([o.box for o in scene.objects], inv_t, intrinsics).rects
+    cutouts = support_cutouts(
+        scene, windows, origin, inv, (0, intrinsics.height, 0, intrinsics.width)
+    )
     for k, obj in enumerate(scene.objects):
-        window = _window(obj.box, inv_t, intrinsics)
+        window = windows[k]
         if window is None:
             continue
         r0, r1, c0, c1 = window
-        near: list[FloatArray] = []
-        t_far: FloatArray | None = None
-        for a in range(3):
-            lo_a = obj.box.center[a] - obj.box.size[a] / 2
-            inv_a = inv[a, r0:r1, c0:c1]
-            with np.errstate(invalid="ignore"):
-                t1 = (np.float32(lo_a) - origin[a]) * inv_a
-                t2 = (np.float32(lo_a + obj.box.size[a]) - origin[a]) * inv_a
-                near.append(np.minimum(t1, t2))
-                far_a = np.maximum(t1, t2)
-            t_far = far_a if t_far is None else np.minimum(t_far, far_a)
-        assert t_far is not None
-        t_near = np.maximum(np.maximum(near[0], near[1]), near[2])
+        near, t_near, hit = slab(obj.box, origin, inv[:, r0:r1, c0:c1])
+        cut = cutouts.get(obj.id)
+        if cut is not None:
+            hit &= ~cut[r0:r1, c0:c1]
         current = depth[r0:r1, c0:c1]
-        # A ray parallel to a slab it starts outside of gives nan there, which compares False.
-        hit = (t_near <= t_far) & (t_near > NEAR_M) & (t_near < current)
+        hit &= t_near < current
         if not hit.any():
             continue
         current[hit] = t_near[hit]
@@ -158,26 +185,146 @@ def render(
     return Rendered(rgb, depth.astype(np.float32, copy=False), instance)
 
 
-def _window(box: Box, inv_t: Float64Array, k: CameraIntrinsics) -> tuple[int, int, int, int] | None:
-    """The pixel rectangle the box can cover: its corners' projections, or the whole image when
-    the box reaches behind the camera; None when it is wholly behind or outside the image."""
-    c = np.asarray(box.center)
-    s = np.asarray(box.size) / 2
-    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
-    corners = c + signs * s
-    cam = corners @ inv_t[:3, :3].T + inv_t[:3, 3]
-    z = cam[:, 2]
-    if (z <= NEAR_M).all():
+def inverse_directions(rays: FloatArray, rot: FloatArray) -> FloatArray:
+    """Planar (3, H, W) inverses of the map-frame ray directions of ``rays`` ((H, W, 3), optical
+    frame, z = 1, so t along a direction is depth). Element-wise, never a matrix product, so a
+    pixel's value does not depend on which window of the image it is computed in (the visibility
+    model ray-casts windows and must agree with a full render to the bit)."""
+    d = rays[..., 0] * rot[:, 0, None, None] + rays[..., 1] * rot[:, 1, None, None]
+    d += rays[..., 2] * rot[:, 2, None, None]
+    with np.errstate(divide="ignore"):
+        inv: FloatArray = (np.float32(1.0) / d).astype(np.float32, copy=False)
+    return inv
+
+
+def shell_depth(
+    scene: Scene, origin: FloatArray, inv: FloatArray
+) -> tuple[FloatArray, npt.NDArray[np.int8]]:
+    """Where each ray leaves the room box (t_far of the shell) and the axis it leaves by, which
+    names the surface (2: floor or ceiling, else a wall)."""
+    exits = []
+    for a in range(3):
+        with np.errstate(invalid="ignore"):
+            exits.append(
+                np.maximum((scene.lo[a] - origin[a]) * inv[a], (scene.hi[a] - origin[a]) * inv[a])
+            )
+    depth = np.minimum(np.minimum(exits[0], exits[1]), exits[2])
+    axis = np.where(exits[2] == depth, 2, np.where(exits[1] == depth, 1, 0)).astype(np.int8)
+    return depth, axis
+
+
+def slab(
+    box: Box, origin: FloatArray, inv: FloatArray
+) -> tuple[list[FloatArray], FloatArray, npt.NDArray[np.bool_]]:
+    """The slab test of rays (``inv``: their (3, h, w) inverse directions) against a box: the
+    per-axis entry distances, the entry distance t_near and which rays hit the box in front of
+    the camera (beyond ``NEAR_M``). The one ray/box intersection of the simulator."""
+    near: list[FloatArray] = []
+    t_far: FloatArray | None = None
+    for a in range(3):
+        lo_a = box.center[a] - box.size[a] / 2
+        with np.errstate(invalid="ignore"):
+            t1 = (np.float32(lo_a) - origin[a]) * inv[a]
+            t2 = (np.float32(lo_a + box.size[a]) - origin[a]) * inv[a]
+            near.append(np.minimum(t1, t2))
+            far_a = np.maximum(t1, t2)
+        t_far = far_a if t_far is None else np.minimum(t_far, far_a)
+    assert t_far is not None
+    t_near = np.maximum(np.maximum(near[0], near[1]), near[2])
+    # A ray parallel to a slab it starts outside of gives nan there, which compares False.
+    hit = (t_near <= t_far) & (t_near > NEAR_M)
+    return near, t_near, hit
+
+
+Window = tuple[int, int, int, int]  # rows r0:r1, columns c0:c1
+
+
+def support_cutouts(
+    scene: Scene,
+    windows: Sequence[Window | None],
+    origin: FloatArray,
+    inv: FloatArray,
+    region: Window,
+    only: Collection[str] | None = None,
+) -> dict[str, npt.NDArray[np.bool_]]:
+    """Per static (of ``only``, if given), the pixels of ``region`` (the part of the image ``inv``
+    covers) where a ray hits an object that sees through it (``SceneObject.see_through``): there
+    the static's box is cut away. Each object counts within its own window only, as the render
+    paints it."""
+    out: dict[str, npt.NDArray[np.bool_]] = {}
+    for obj, window in zip(scene.objects, windows, strict=True):
+        if not obj.see_through or window is None:
+            continue
+        if only is not None and not any(s in only for s in obj.see_through):
+            continue
+        part = intersect(window, region)
+        if part is None:
+            continue
+        r0, r1 = part[0] - region[0], part[1] - region[0]
+        c0, c1 = part[2] - region[2], part[3] - region[2]
+        _, _, hit = slab(obj.box, origin, inv[:, r0:r1, c0:c1])
+        for static_id in obj.see_through:
+            cut = out.get(static_id)
+            if cut is None:
+                cut = out[static_id] = np.zeros(inv.shape[1:], dtype=np.bool_)
+            cut[r0:r1, c0:c1] |= hit
+    return out
+
+
+def intersect(a: Window, b: Window | None) -> Window | None:
+    """The pixels two windows share, or None."""
+    if b is None:
         return None
-    if (z <= NEAR_M).any():
-        return (0, k.height, 0, k.width)
-    u = k.fx * cam[:, 0] / z + k.cx
-    v = k.fy * cam[:, 1] / z + k.cy
-    c0, c1 = max(int(np.floor(u.min())), 0), min(int(np.ceil(u.max())) + 1, k.width)
-    r0, r1 = max(int(np.floor(v.min())), 0), min(int(np.ceil(v.max())) + 1, k.height)
-    if c0 >= c1 or r0 >= r1:
-        return None
-    return (r0, r1, c0, c1)
+    r0, r1, c0, c1 = max(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), min(a[3], b[3])
+    return None if r0 >= r1 or c0 >= c1 else (r0, r1, c0, c1)
+
+
+_SIGNS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Windows:
+    """Per box, the pixel rectangle it can cover (None: none) and the nearest and farthest depth
+    of its corners (a convex box's depth range)."""
+
+    rects: tuple[Window | None, ...]
+    near: Float64Array
+    far: Float64Array
+
+
+def windows_of(boxes: Sequence[Box], inv_t: Float64Array, k: CameraIntrinsics) -> Windows:
+    """Each box's pixel rectangle: its corners' projections, or the whole image when the box
+    reaches behind the camera; None when it is wholly behind or outside the image. Element-wise
+    per corner, so a box's rectangle does not depend on the other boxes."""
+    if not boxes:
+        return Windows((), np.zeros(0), np.zeros(0))
+    c = np.array([b.center for b in boxes], dtype=float)
+    s = np.array([b.size for b in boxes], dtype=float) / 2
+    corners = c[:, None, :] + _SIGNS[None] * s[:, None, :]  # (n, 8, 3)
+    x, y, z = corners[..., 0], corners[..., 1], corners[..., 2]
+    cam = [inv_t[a, 0] * x + inv_t[a, 1] * y + inv_t[a, 2] * z + inv_t[a, 3] for a in range(3)]
+    depth = cam[2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = k.fx * cam[0] / depth + k.cx
+        v = k.fy * cam[1] / depth + k.cy
+    front = depth > NEAR_M
+    some, every = front.any(axis=1), front.all(axis=1)
+    with np.errstate(invalid="ignore"):
+        col0 = np.maximum(np.floor(u.min(axis=1)), 0)
+        col1 = np.minimum(np.ceil(u.max(axis=1)) + 1, k.width)
+        row0 = np.maximum(np.floor(v.min(axis=1)), 0)
+        row1 = np.minimum(np.ceil(v.max(axis=1)) + 1, k.height)
+    rects: list[Window | None] = []
+    for i in range(len(boxes)):
+        if not some[i]:
+            rects.append(None)
+        elif not every[i]:
+            rects.append((0, k.height, 0, k.width))
+        elif col0[i] >= col1[i] or row0[i] >= row1[i]:
+            rects.append(None)
+        else:
+            rects.append((int(row0[i]), int(row1[i]), int(col0[i]), int(col1[i])))
+    return Windows(tuple(rects), depth.min(axis=1), depth.max(axis=1))
 
 
 def _colours(

@@ -11,7 +11,11 @@ iTHOR/RoboTHOR scenes. A schedule of ``SCENES`` scenes for a home is drawn as fo
 - later scenes: each object moves with probability ``move_rate`` (21 of 72 in the paper's Table II)
   and is then redrawn the same way among the other instances;
 - the object rests on one of the static's ``rest_points`` (where AI2-THOR put objects on it; the box
-  top centre if none), raised by half its height; in a container it sits at the box centre.
+  top centre if none), raised by half its height; in a container it sits at the box centre;
+- a placement no viewpoint of its room can see (``sim/seeable.py``: a phone flat on a counter at
+  the camera's height) is drawn again, receptacle and spot, from the same ``random.Random``; the
+  schedule counts the redraws (``Schedule.redrawn``). After ``MAX_DRAWS`` refusals the object
+  stays where it was (in scene 1: is left out).
 
 Object sizes are the median AI2-THOR asset sizes of the class. Everything is drawn from one
 ``random.Random`` seeded by (home, seed), so a seed names one schedule.
@@ -20,9 +24,9 @@ Object sizes are the median AI2-THOR asset sizes of the class. Everything is dra
 from __future__ import annotations
 
 import random
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, partial
 from typing import Any
 
 from objsearch.agent.categories import read_json
@@ -30,9 +34,12 @@ from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.home import Box, Home, StaticObject, home_path
 from objsearch.sim.placements import Placements, Schedule
+from objsearch.sim.seeable import seeable
 from objsearch.sim.world import Placement
 
 SCENES = 10
+#: Draws of one placement before the object stays where it was (see the module doc).
+MAX_DRAWS = 20
 PLACEMENTS_FILE = "priors/ai2thor_placements.json"
 #: AI2-THOR names a basin as its own receptacle type; the statistics count the fixture.
 _RECEPTACLE_ALIAS = {"SinkBasin": "Sink", "BathtubBasin": "Bathtub"}
@@ -90,19 +97,63 @@ def _draw_static(
     return rng.choice(sorted(by_type[chosen], key=lambda s: s.id))
 
 
+def _free(rest: tuple[float, float, float], taken: Sequence[Placement], s: StaticObject) -> bool:
+    """Whether a rest point of ``s`` lies outside the footprint of every object already there
+    (two objects drawn onto one rest point would lie inside each other, the one hiding the other)."""
+    return not any(
+        o.support == s.id
+        and abs(o.box.center[0] - rest[0]) < o.box.size[0] / 2
+        and abs(o.box.center[1] - rest[1]) < o.box.size[1] / 2
+        for o in taken
+    )
+
+
 def _place(
-    rng: random.Random, home: Home, cls: str, size: tuple[float, float, float], s: StaticObject
-) -> Placement:
+    rng: random.Random,
+    home: Home,
+    cls: str,
+    size: tuple[float, float, float],
+    s: StaticObject,
+    taken: Sequence[Placement] = (),
+) -> Placement | None:
+    """An object of ``cls`` on (or in) ``s`` at a free rest point; None when every rest point
+    of ``s`` is under another object."""
     if s.container:
         center = s.box.center
     else:
-        rests = _rest_points(home.name).get(s.id, ())
-        if rests:
-            x, y, z = rng.choice(rests)
-        else:
-            x, y, z = s.box.center[0], s.box.center[1], s.box.top
+        # A static without recorded rest points has one: the middle of its top.
+        rests = _rest_points(home.name).get(s.id) or (
+            (s.box.center[0], s.box.center[1], s.box.top),
+        )
+        free = [r for r in rests if _free(r, taken, s)]
+        if not free:
+            return None
+        x, y, z = rng.choice(free) if len(free) > 1 else free[0]
         center = (x, y, z + size[2] / 2)
     return Placement(f"{cls}|schedule", cls, Box(center, size), s.room, s.id, s.container)
+
+
+def place_seeable(
+    rng: random.Random,
+    home: Home,
+    cls: str,
+    size: tuple[float, float, float],
+    first: StaticObject | None,
+    redraw: Callable[[], StaticObject | None],
+    taken: Sequence[Placement] = (),
+) -> tuple[Placement | None, int]:
+    """A placement on ``first`` or, while the one drawn is unseeable or has no free rest point,
+    on ``redraw()``; and how many draws were refused. None when nothing could be drawn or every draw was refused.
+    ``taken``: the objects already placed in the scene, whose rest points are not drawn again."""
+    s = first
+    for refused in range(MAX_DRAWS):
+        if s is None:
+            return None, refused
+        p = _place(rng, home, cls, size, s, taken)
+        if p is not None and seeable(home, p):
+            return p, refused
+        s = redraw()
+    return None, MAX_DRAWS
 
 
 def stats_schedule(home: Home, seed: int, *, scenes: int = SCENES) -> Schedule:
@@ -112,14 +163,19 @@ def stats_schedule(home: Home, seed: int, *, scenes: int = SCENES) -> Schedule:
     statics = sorted(home.statics.values(), key=lambda s: s.id)
     current: dict[str, Placement] = {}
     out: dict[int, Placements] = {}
+    redrawn = 0
     for scene in range(1, scenes + 1):
         for cls in sorted(stats.counts):
             old = current.get(cls)
             if old is not None and rng.random() >= stats.move_rate:
                 continue
-            s = _draw_static(rng, stats.counts[cls], statics, old.support if old else None)
-            if s is None:
-                continue
-            current[cls] = _place(rng, home, cls, stats.sizes[cls], s)
+            draw = partial(
+                _draw_static, rng, stats.counts[cls], statics, old.support if old else None
+            )
+            others = [p for c, p in current.items() if c != cls]
+            p, refused = place_seeable(rng, home, cls, stats.sizes[cls], draw(), draw, others)
+            redrawn += refused
+            if p is not None:
+                current[cls] = p
         out[scene] = {p.instance_id: p for p in current.values()}
-    return Schedule(name=f"stats-{seed}", home=home.name, scenes=out)
+    return Schedule(name=f"stats-{seed}", home=home.name, scenes=out, redrawn=redrawn)

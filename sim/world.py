@@ -6,12 +6,15 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
+from objsearch.agent.camera_frames import pitch_towards
+from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point, Pose, distance, heading
 from objsearch.agent.home import Box, Home
 from objsearch.agent.navigation import walk_path
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
 from objsearch.sim.perception import Camera
+from objsearch.sim.visibility import OccludingCamera
 
 SPEED_M_PER_S = 0.5
 LOOK_S = 1.0
@@ -29,6 +32,66 @@ class Placement:
     room: str
     support: str | None
     inside: bool
+
+
+class SearchCamera(Protocol):
+    """What a search's camera reports from one pose: detections of the ``candidates`` (objects
+    placed in ``room`` that are not shut in a closed container), with ``placed`` (every object
+    placed in the room) and the room's statics as what may stand in the way, ``opened`` (a
+    container the robot opened for this view) taken out of the room."""
+
+    @property
+    def name(self) -> str: ...
+
+    def detections(
+        self,
+        home: Home,
+        room: str,
+        pose: Pose,
+        pitch: float,
+        placed: Sequence[Placement],
+        candidates: Sequence[Placement],
+        opened: str | None,
+    ) -> tuple[Detection, ...]: ...
+
+
+#: Search cameras by name (``--camera``); the first is the default.
+CAMERAS = ("occluding", "geometric")
+DEFAULT_CAMERA = CAMERAS[0]
+
+
+def search_camera(name: str = DEFAULT_CAMERA) -> SearchCamera:
+    """The search camera called ``name``: ``occluding`` (what a render of the room shows) or
+    ``geometric`` (field of view and projected area, furniture does not occlude)."""
+    if name == "occluding":
+        return OccludingCamera()
+    if name == "geometric":
+        return Camera()
+    raise ObjsearchError(f"unknown search camera {name!r}; choose from {', '.join(CAMERAS)}")
+
+
+def facing_view(viewpoint: Point, target: tuple[float, float, float]) -> tuple[Pose, float]:
+    """The pose and camera pitch of a robot at ``viewpoint`` looking straight at ``target``."""
+    return (
+        Pose(viewpoint.x, viewpoint.y, heading(viewpoint, Point(target[0], target[1]))),
+        pitch_towards((viewpoint.x, viewpoint.y), target),
+    )
+
+
+def mask_facing(
+    camera: SearchCamera,
+    home: Home,
+    viewpoint: Point,
+    target: Placement,
+    placed: Sequence[Placement],
+) -> float:
+    """The target's mask area (px) from ``viewpoint``, facing it with the camera pitched at it
+    and, if it lies in a container, with that container opened; ``placed`` is everything placed
+    in its room (the target included)."""
+    pose, pitch = facing_view(viewpoint, target.box.center)
+    opened = target.support if target.inside else None
+    seen = camera.detections(home, target.room, pose, pitch, placed, (target,), opened)
+    return seen[0].mask_area if seen else 0.0
 
 
 class WorldObserver(Protocol):
@@ -64,14 +127,15 @@ class SimWorld:
         start: Pose,
         *,
         clock: SimClock | None = None,
-        camera: Camera | None = None,
+        camera: SearchCamera | None = None,
         observer: WorldObserver | None = None,
     ) -> None:
         self.home = home
         self.navmap = navmap
         self.placements = dict(placements)
+        self._placed: dict[str, tuple[Placement, ...]] = {}
         self.clock = clock or SimClock()
-        self.camera = camera or Camera()
+        self.camera = camera or search_camera()
         self._statics = home.statics
         self._pose = start
         self.observer = observer
@@ -90,20 +154,27 @@ class SimWorld:
         if self.observer is not None:
             self.observer.pose_changed(self.clock.ns, pose)
 
-    def _view(self, pose: Pose, opened: str | None = None) -> tuple[Detection, ...]:
+    def _view(
+        self, pose: Pose, pitch: float = 0.0, opened: str | None = None
+    ) -> tuple[Detection, ...]:
         room = self.navmap.room_at(pose.x, pose.y)
-        seen = []
-        for p in sorted(self.placements.values(), key=lambda p: p.instance_id):
-            if p.room != room or not self.camera.in_view(pose, p.box):
-                continue
-            if p.inside and p.support != opened:
-                continue
-            seen.append(
-                Detection(p.cls, p.instance_id, self.camera.mask_area(pose, p.box), p.box.center)
-            )
+        placed = self._in_room(room)
+        candidates = [p for p in placed if not p.inside or p.support == opened]
+        seen = self.camera.detections(self.home, room, pose, pitch, placed, candidates, opened)
         if self.observer is not None:
             self.observer.camera_frame(self.clock.ns, pose, seen)
-        return tuple(seen)
+        return seen
+
+    def _in_room(self, room: str) -> tuple[Placement, ...]:
+        # Asked at every step: the placements are fixed for the world's life.
+        if room not in self._placed:
+            self._placed[room] = tuple(
+                sorted(
+                    (p for p in self.placements.values() if p.room == room),
+                    key=lambda p: p.instance_id,
+                )
+            )
+        return self._placed[room]
 
     def view(self) -> tuple[Detection, ...]:
         """What the camera sees from where the robot stands, without turning or spending time."""
@@ -130,27 +201,38 @@ class SimWorld:
         self._set_pose(pose)
         return self._view(pose) if view else ()
 
-    def oracle_length(self, cls: str) -> float:
-        """Shortest walk from here to the nearest viewpoint of the closest ``cls`` object: the
-        path length of a robot that knew where it was (the limit for any search strategy)."""
-        lengths = [
-            self.navmap.distance(
-                self._pose.point,
-                self.navmap.nearest_viewpoint(p.box.center[0], p.box.center[1], p.room),
-            )
-            for p in self.placements.values()
-            if p.cls == cls
-        ]
-        if not lengths:
+    def oracle_length(self, cls: str, *, min_mask_px: float) -> float:
+        """Shortest walk from here to a viewpoint from which a ``cls`` object is detectable
+        (mask ≥ ``min_mask_px`` facing it, camera pitched at it, its container opened): the path
+        length of a robot that knew where it was (the limit for any search strategy). When no
+        viewpoint can detect one, the walk to the viewpoint nearest it (no search finds it)."""
+        targets = [p for p in self.placements.values() if p.cls == cls]
+        if not targets:
             raise ValueError(f"no {cls} is placed in this world")
-        return min(lengths)
+        here = self._pose.point
+        # Nearest walk first: the first viewpoint that detects a target is the answer.
+        walks = sorted(
+            (self.navmap.distance(here, v), v, p.instance_id)
+            for p in targets
+            for v in self.navmap.viewpoints(p.room)
+        )
+        for walk, v, instance_id in walks:
+            p = self.placements[instance_id]
+            if mask_facing(self.camera, self.home, v, p, self._in_room(p.room)) >= min_mask_px:
+                return walk
+        return min(
+            self.navmap.distance(
+                here, self.navmap.nearest_viewpoint(p.box.center[0], p.box.center[1], p.room)
+            )
+            for p in targets
+        )
 
-    def look(self, yaw: float) -> tuple[Detection, ...]:
+    def look(self, yaw: float, pitch: float = 0.0) -> tuple[Detection, ...]:
         self.clock.advance(LOOK_S)
         self._set_pose(Pose(self._pose.x, self._pose.y, yaw))
-        return self._view(self._pose)
+        return self._view(self._pose, pitch)
 
-    def open(self, static_id: str) -> tuple[Detection, ...]:
+    def open(self, static_id: str, pitch: float = 0.0) -> tuple[Detection, ...]:
         container = self._statics.get(static_id)
         if container is None or not container.container:
             raise ValueError(f"{static_id!r} is not a container of home {self.home.name!r}")
@@ -159,4 +241,4 @@ class SimWorld:
             raise ValueError(f"robot at {self._pose} is too far to open {static_id!r}")
         self.clock.advance(OPEN_S)
         self._set_pose(Pose(self._pose.x, self._pose.y, heading(self._pose, target)))
-        return self._view(self._pose, opened=static_id)
+        return self._view(self._pose, pitch, opened=static_id)

@@ -43,9 +43,25 @@ def test_search_prints_the_route_and_writes_the_log(
     assert events[-1].payload["path_length"] == pytest.approx(out["path_length_m"], abs=1e-3)
 
 
+@pytest.mark.parametrize("camera", ["occluding", "geometric"])
+def test_search_records_its_camera_and_the_camera_tilt(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], camera: str
+) -> None:
+    log = tmp_path / "log"
+    args = ["search", "--target", "Pillow", "--start", "kitchen-1", "--camera", camera]
+    assert main([*args, "--log", str(log), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["camera"] == camera
+    events = list(read_log(log))
+    (started,) = (e for e in events if e.type == "run_started")
+    assert started.payload["params"]["camera"] == camera
+    looks = [e.payload["pitch"] for e in events if e.type == "view_taken"]
+    assert looks and any(p > 0 for p in looks)  # tilted at what it inspects
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
+        (["--target", "Apple", "--start", "kitchen-1", "--camera", "x-ray"], "--camera"),
         (["--target", "Spaceship", "--start", "kitchen-1"], "unknown object class 'Spaceship'"),
         (["--target", "Fridge", "--start", "kitchen-1"], "static object and cannot be a search"),
         (["--target", "Apple", "--start", "garage-3"], "unknown start point 'garage-3'"),

@@ -43,6 +43,7 @@ from objsearch.ros.builder import BoxCamera, MessageBuilder
 from objsearch.ros.topics import Role, TopicMap
 from objsearch.ros.types import Distro, typestore
 from objsearch.sim.perception import IMAGE_HEIGHT, IMAGE_WIDTH, Camera
+from objsearch.sim.world import DEFAULT_CAMERA
 
 if TYPE_CHECKING:
     import numpy as np
@@ -472,8 +473,10 @@ def record(
     seed: int = 0,
     compress: bool = True,
     progress: Progress | None = None,
+    camera: str = DEFAULT_CAMERA,
 ) -> Recording:
     """Run the searches and write the bag; the agent's own log goes to ``log_dir`` if given.
+    ``camera`` names the simulated search camera that decides what is detected.
 
     ``progress(stage, done, total)`` hears of each search (stage ``"searches"``) and of the
     messages written (``"messages"``)."""
@@ -501,7 +504,14 @@ def record(
         timeline = Timeline()
         trials = run_schedule(
             log,
-            RunSpec.of(home, ctx.home.digest, "wpl", seed=seed, schedule="table2"),
+            RunSpec.of(
+                home,
+                ctx.home.digest,
+                "wpl",
+                seed=seed,
+                schedule="table2",
+                params={"camera": camera},
+            ),
             targets=chosen,
             scenes=scenes,
             starts=starts,

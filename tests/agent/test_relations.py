@@ -78,7 +78,13 @@ def task(
     evs = [Ev(seq, "task_started", encode(started)), Ev(seq + 1, "plan_computed", encode(plan))]
     n = seq + 2
     for sid, _ in viewed:
-        evs.append(Ev(n, "view_taken", encode(ViewTaken(pose=POSE, static_id=sid, reason="look"))))
+        evs.append(
+            Ev(
+                n,
+                "view_taken",
+                encode(ViewTaken(pose=POSE, pitch=0.0, static_id=sid, reason="look")),
+            )
+        )
         n += 1
     for cls, static in seen:
         evs.append(Ev(n, "detection", det(cls, static)))

@@ -34,7 +34,9 @@ def _search(log: Path, target: str, start: str, method: Method = Method.WPL) -> 
             ctx.home.start(start),
             clock=SimClock(session.resume_time_ns),
         )
-        oracle = world.oracle_length(target)
+        oracle = world.oracle_length(
+            target, min_mask_px=ctx.vocabulary.classes[target].min_mask_area_px
+        )
         result = session.search(world, target, start)
     finally:
         session.close()
@@ -81,7 +83,9 @@ def test_every_target_is_found_from_every_start(tmp_path: Path, method: Method) 
         for start, pose in ctx.home.starts.items():
             for target in TARGET_ORDER:
                 world = SimWorld(ctx.home, ctx.navmap, placements, pose, clock=clock)
-                oracle = world.oracle_length(target)
+                oracle = world.oracle_length(
+                    target, min_mask_px=ctx.vocabulary.classes[target].min_mask_area_px
+                )
                 result = session.search(world, target, start)
                 assert result.success, f"{method.value}: {target} from {start} not found"
                 assert result.path_length >= oracle - 1e-9

@@ -55,7 +55,7 @@ EXAMPLES: dict[str, dict[str, Any]] = {
         "rooms": ["kitchen", "living_room"],
         "interrupted": False,
     },
-    "view_taken": {"pose": POSE, "static_id": None, "reason": "on_the_way"},
+    "view_taken": {"pose": POSE, "pitch": 0.0, "static_id": None, "reason": "on_the_way"},
     "container_opened": {"static_id": "Fridge|1", "pose": POSE},
     "detection": {
         "object_class": "Cup",
@@ -127,6 +127,11 @@ OLD_EXAMPLES: dict[tuple[str, int], dict[str, Any]] = {
         "nearest_static_class": "Table",
         "at_static": True,
     },
+    ("view_taken", 1): {"pose": POSE, "static_id": None, "reason": "on_the_way"},
 }
 
-LATEST: dict[str, int] = {t: 1 for t in EXAMPLES} | {"detection": 2, "run_started": 3}
+LATEST: dict[str, int] = {t: 1 for t in EXAMPLES} | {
+    "detection": 2,
+    "run_started": 3,
+    "view_taken": 2,
+}

@@ -25,7 +25,7 @@ from objsearch.events import (
     read_log,
 )
 from objsearch.sim.placements import Schedule
-from objsearch.sim.world import SimClock, SimWorld
+from objsearch.sim.world import SimClock, SimWorld, search_camera
 
 from .payloads import EXAMPLES, LATEST, OLD_EXAMPLES
 
@@ -67,7 +67,10 @@ def test_upcast_payloads_validate_against_the_latest_schema(key: tuple[str, int]
             assert OLD_EXAMPLES[key]["params"]["strategy"] == "wpl-neg-decay"  # input unchanged
     else:
         assert payload == EXAMPLES[event_type]
+    if event_type == "detection":
         assert OLD_EXAMPLES[key]["nearest_static_id"] == "Table|1"  # the input was not changed
+    if event_type == "view_taken":  # a view before the tilt was level
+        assert payload["pitch"] == 0.0 and "pitch" not in OLD_EXAMPLES[key]
 
 
 def test_detection_v1_without_a_static_upcasts_to_no_support() -> None:
@@ -136,8 +139,14 @@ def _rerun_fixture_searches(log_dir: Path) -> None:
             for target in ("Cup", "Apple", "Bowl"):
                 for start_name, pose in starts[::4]:
                     clock.advance(60.0)
+                    # The camera the fixture was recorded with (it predates occlusion).
                     world = SimWorld(
-                        ctx.home, ctx.navmap, schedule.scenes[scene], pose, clock=clock
+                        ctx.home,
+                        ctx.navmap,
+                        schedule.scenes[scene],
+                        pose,
+                        clock=clock,
+                        camera=search_camera("geometric"),
                     )
                     session.search(world, target, start_name, scene=scene)
     finally:
@@ -161,6 +170,8 @@ def _decision_facts(event: Event) -> dict[str, Any]:
         d["payload"]["params"].pop("run_id", None)
     if d["type"] == "detection":
         d["payload"] = {k: v for k, v in d["payload"].items() if k not in ("mask_area", "accepted")}
+    if d["type"] == "view_taken":  # the fixture predates the camera tilt too (upcast: level)
+        d["payload"].pop("pitch")
     return d
 
 

@@ -75,7 +75,7 @@ def test_without_optional_inputs_their_sections_say_how_to_produce_them(
     assert "path length to discovery (m; the paper's metric)" in text
     assert "path+appr" in text and "[10.04]" in text and "-25.27 %" in text
     assert "--keep-logs --workers 1`" in text  # the paper run's command
-    assert "prior `vg-cooccurrence`" in text and "Camera: geometric" in text
+    assert "prior `vg-cooccurrence`" in text and "Camera: occluding" in text
     assert "![scene graph](img/scene_graph_before_after.png)" in text
     for missing in ("bench table1 --sets 100", "--heldout out/bench-heldout", "--paper-geometric"):
         assert missing in text
@@ -124,8 +124,8 @@ def test_every_optional_section_from_its_own_run(
     held = text.split("## Held-out homes (looked at only at the end)")[1]
     assert "Homes (1): ithor-02." in held and "ithor-02" not in text.split("## Held-out")[0]
     assert "![heldout_stats](img/heldout_stats.png)" in held
-    # Both runs are geometric (no camera recorded): the section says there is nothing to compare.
-    assert "Both runs used the geometric camera" in text
+    # Both runs used the same camera: the section says there is nothing to compare.
+    assert "Both runs used the occluding camera" in text
 
 
 def test_heldout_must_not_be_the_homes_run(
@@ -138,8 +138,9 @@ def test_heldout_must_not_be_the_homes_run(
 
 
 def test_the_camera_difference_per_strategy(runs: dict[str, Path]) -> None:
-    geometric = json.loads((runs["paper"] / "summary.json").read_text())
-    occluding = {**geometric, "camera": "occluding"}
+    summary = json.loads((runs["paper"] / "summary.json").read_text())
+    geometric = {**summary, "camera": "geometric"}
+    occluding = {**summary, "camera": "occluding"}
     wpl = occluding["table1"]["wpl"]
     occluding["table1"] = {**occluding["table1"], "wpl": {**wpl, "mean_path_to_discovery": 30.0}}
     text = cameras_section(occluding, geometric, runs["paper"])

@@ -11,7 +11,14 @@ from objsearch.agent.home import Box
 from objsearch.agent.session import load_context
 from objsearch.sim.perception import Camera
 from objsearch.sim.placements import Schedule, base_placements
-from objsearch.sim.world import OPEN_S, SPEED_M_PER_S, Placement, SimClock, SimWorld
+from objsearch.sim.world import (
+    OPEN_S,
+    SPEED_M_PER_S,
+    Placement,
+    SimClock,
+    SimWorld,
+    facing_view,
+)
 
 
 def _world(start: str = "kitchen-1", placements: dict[str, Placement] | None = None) -> SimWorld:
@@ -106,21 +113,30 @@ def test_opening_what_is_not_a_container_is_refused() -> None:
         world.open(sink.id)
 
 
-def test_oracle_is_the_walk_to_the_nearest_instance() -> None:
+def test_oracle_is_the_walk_to_the_nearest_viewpoint_that_detects_the_target() -> None:
     world = _world("bedroom-1")
     ctx = load_context("paper")
-    pillows = [p for p in world.placements.values() if p.cls == "Pillow"]
-    assert pillows
-    expected = min(
-        ctx.navmap.distance(
-            world.pose().point,
-            ctx.navmap.nearest_viewpoint(p.box.center[0], p.box.center[1], p.room),
-        )
-        for p in pillows
-    )
-    assert world.oracle_length("Pillow") == expected
+    threshold = ctx.vocabulary.classes["Pillow"].min_mask_area_px
+    oracle = world.oracle_length("Pillow", min_mask_px=threshold)
+    here = world.pose().point
+    reached = False
+    for p in (p for p in world.placements.values() if p.cls == "Pillow"):
+        for v in ctx.navmap.viewpoints(p.room):
+            walk = ctx.navmap.distance(here, v)
+            if walk > oracle + 1e-9:
+                continue
+            # What the robot sees standing there, facing the pillow, camera pitched at it.
+            pose, pitch = facing_view(v, p.box.center)
+            probe = SimWorld(ctx.home, ctx.navmap, world.placements, pose)
+            seen = probe.look(pose.yaw, pitch)
+            mask = max((d.mask_area for d in seen if d.instance_id == p.instance_id), default=0.0)
+            if walk < oracle - 1e-9:
+                assert mask < threshold, f"{v} is nearer than the oracle's and detects {p}"
+            else:
+                reached |= mask >= threshold
+    assert reached
     with pytest.raises(ValueError, match="no Spoon"):
-        world.oracle_length("Spoon")
+        world.oracle_length("Spoon", min_mask_px=threshold)
 
 
 def test_a_start_off_the_grid_is_refused() -> None:

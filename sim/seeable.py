@@ -1,0 +1,112 @@
+"""Placements a camera can see: whether any viewpoint of its room detects a placed object.
+
+A placement is *seeable* when, from some viewpoint of its room, facing it with the camera pitched
+at it (and its container opened, if it lies in one), the occluding camera shows at least its
+class's ``min_mask_area_px`` of it with only the room's statics around (other placements move from
+scene to scene). The occluding camera decides whatever camera a run searches with, so both cameras
+search the same scenes. Schedules drawn from statistics (stats, habit) redraw an unseeable
+placement; schedules of fixed data (Table I, Table II, rearr) keep their data, and a run leaves an
+unseeable placement out of its scene (:func:`seeable_scenes`), which the bench reports.
+
+The answer for one placement box is computed once per process (viewpoints nearest the object
+first, stopping at the first that detects it) and kept by (home digest, room, box, support).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import cache
+
+from objsearch.agent.categories import Vocabulary
+from objsearch.agent.geometry import Point
+from objsearch.agent.home import Box, Home
+from objsearch.agent.navmap import NavigationMap
+from objsearch.sim.placements import Placements
+from objsearch.sim.visibility import OccludingCamera, VisibilityCache
+from objsearch.sim.world import Placement, mask_facing
+
+#: Its own cache: one view per (placement, viewpoint), never seen again by a search.
+_CAMERA = OccludingCamera(cache=VisibilityCache(max_views=1))
+
+
+@dataclass(frozen=True, slots=True)
+class Visibility:
+    seeable: bool
+    best_mask_px: float  # the largest mask found (over every viewpoint when not seeable)
+
+
+@dataclass(frozen=True, slots=True)
+class Unseeable:
+    """A placement of fixed data no viewpoint can detect, as the bench reports it."""
+
+    home: str
+    scene: int
+    cls: str
+    instance_id: str
+    best_mask_px: float
+
+
+_NAVMAPS: dict[str, NavigationMap] = {}
+_ANSWERS: dict[tuple[str, str, Box, str | None, bool, float], Visibility] = {}
+
+
+def _navmap(home: Home) -> NavigationMap:
+    if home.digest not in _NAVMAPS:
+        _NAVMAPS[home.digest] = NavigationMap.from_home(home)
+    return _NAVMAPS[home.digest]
+
+
+@cache
+def _vocabulary() -> Vocabulary:
+    return Vocabulary.load()
+
+
+def visibility(home: Home, placement: Placement) -> Visibility:
+    """Whether some viewpoint of the placement's room detects it (see the module doc)."""
+    threshold = _vocabulary().classes[placement.cls].min_mask_area_px
+    p = placement
+    key = (home.digest, p.room, p.box, p.support, p.inside, threshold)
+    if key not in _ANSWERS:
+        _ANSWERS[key] = _visibility(home, p.room, p.box, p.support, p.inside, threshold)
+    return _ANSWERS[key]
+
+
+def _visibility(
+    home: Home, room: str, box: Box, support: str | None, inside: bool, threshold: float
+) -> Visibility:
+    probe = Placement("probe", "probe", box, room, support, inside)
+    c = Point(box.center[0], box.center[1])
+    best = 0.0
+    for v in sorted(
+        _navmap(home).viewpoints(room), key=lambda v: ((v.x - c.x) ** 2 + (v.y - c.y) ** 2, v)
+    ):
+        area = mask_facing(_CAMERA, home, v, probe, (probe,))
+        best = max(best, area)
+        if area >= threshold:
+            return Visibility(True, best)
+    return Visibility(False, best)
+
+
+def seeable(home: Home, placement: Placement) -> bool:
+    return visibility(home, placement).seeable
+
+
+def seeable_scenes(
+    home: Home, scenes: Mapping[int, Placements]
+) -> tuple[dict[int, Placements], tuple[Unseeable, ...]]:
+    """The scenes without their unseeable placements, and those placements."""
+    kept: dict[int, Placements] = {}
+    dropped: list[Unseeable] = []
+    for n, placements in sorted(scenes.items()):
+        keep: dict[str, Placement] = {}
+        for key, p in sorted(placements.items()):
+            v = visibility(home, p)
+            if v.seeable:
+                keep[key] = p
+            else:
+                dropped.append(
+                    Unseeable(home.name, n, p.cls, p.instance_id, round(v.best_mask_px, 1))
+                )
+        kept[n] = keep
+    return kept, tuple(dropped)

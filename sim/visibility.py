@@ -1,0 +1,274 @@
+"""The occluding search camera: what a full render of the room would show of each object, cheaply.
+
+An object's mask area is the number of pixels its instance covers in ``render(room_scene(...))``
+— room shell, every static box, every placed object, an opened container taken out — but only
+the object's own projected window is ray-cast, and only against the boxes whose windows overlap
+it. A pixel belongs to the object exactly when it does in the full render: the same float32
+directions (``render.inverse_directions``), the same slab test (``render.slab``), the same boxes
+cut away (``render.support_cutouts``), the same rule for ties (the render paints objects in scene
+order and a later one wins only when strictly nearer) and the same range limit. Results are cached per view (see :class:`VisibilityCache`), so the same
+pose in another search, scene or strategy costs a dictionary look-up.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import sys
+from collections import OrderedDict
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cache
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from objsearch.agent.camera_frames import (
+    CAMERA_HEIGHT_M,
+    DEFAULT_INTRINSICS,
+    CameraIntrinsics,
+    Float64Array,
+    camera_to_map,
+)
+from objsearch.agent.geometry import Pose
+from objsearch.agent.home import Home
+from objsearch.agent.world import Detection
+from objsearch.sim.render import (
+    MAX_RANGE_M,
+    Scene,
+    intersect,
+    inverse_directions,
+    room_scene,
+    shell_depth,
+    slab,
+    support_cutouts,
+    windows_of,
+)
+
+if TYPE_CHECKING:
+    from objsearch.sim.world import Placement
+
+#: Float32 rays meet a box a few µm off its true depth: a box is skipped as an occluder only when
+#: its nearest corner is this much farther than the candidate's farthest.
+DEPTH_MARGIN_M = 1e-3
+#: Views kept in memory: one entry is a few ids and floats; 200k views is a few tens of MB and
+#: more than a whole ``bench paper`` visits.
+CACHE_VIEWS = 200_000
+#: Placed-object sequences whose key part is remembered (a few per world; worlds are short-lived).
+PLACED_KEYS = 64
+
+
+def mask_areas(
+    scene: Scene,
+    candidates: Sequence[str],
+    T_map_camera: Float64Array,
+    intrinsics: CameraIntrinsics = DEFAULT_INTRINSICS,
+    *,
+    max_range: float = MAX_RANGE_M,
+) -> dict[str, int]:
+    """Pixels of each candidate (an object id of ``scene``) in a render of ``scene`` from
+    ``T_map_camera``; 0 for a candidate the render would not show."""
+    rot = T_map_camera[:3, :3].astype(np.float32)
+    origin = T_map_camera[:3, 3].astype(np.float32)
+    inv_t: Float64Array = np.linalg.inv(T_map_camera).astype(np.float64)
+    boxes = windows_of([o.box for o in scene.objects], inv_t, intrinsics)
+    windows = boxes.rects
+    index = {o.id: k for k, o in enumerate(scene.objects)}
+    rays = intrinsics.rays()
+    out: dict[str, int] = {}
+    for object_id in candidates:
+        k = index[object_id]
+        win = windows[k]
+        if win is None:
+            out[object_id] = 0
+            continue
+        r0, r1, c0, c1 = win
+        inv = inverse_directions(rays[r0:r1, c0:c1], rot)
+        shell, _ = shell_depth(scene, origin, inv)
+        _, t_k, own = slab(scene.objects[k].box, origin, inv)
+        own &= (t_k < shell) & (t_k <= max_range)
+        rows, cols = np.flatnonzero(own.any(axis=1)), np.flatnonzero(own.any(axis=0))
+        if rows.size == 0:
+            out[object_id] = 0
+            continue
+        # Only the pixels the candidate covers can be hidden, and only by a box in front of it.
+        seen = (
+            r0 + int(rows[0]),
+            r0 + int(rows[-1]) + 1,
+            c0 + int(cols[0]),
+            c0 + int(cols[-1]) + 1,
+        )
+        farthest = boxes.far[k] + DEPTH_MARGIN_M
+        occluders = [
+            (j, overlap)
+            for j in range(len(scene.objects))
+            if j != k
+            and boxes.near[j] <= farthest
+            and (overlap := intersect(seen, windows[j])) is not None
+        ]
+        ids = {object_id} | {scene.objects[j].id for j, _ in occluders}
+        cutouts = support_cutouts(scene, windows, origin, inv, win, ids)
+        if object_id in cutouts:
+            own &= ~cutouts[object_id]
+        for j, (a0, a1, b0, b1) in occluders:
+            other = scene.objects[j]
+            sub = (slice(a0 - r0, a1 - r0), slice(b0 - c0, b1 - c0))
+            _, t_j, hit = slab(other.box, origin, inv[:, sub[0], sub[1]])
+            if other.id in cutouts:
+                hit &= ~cutouts[other.id][sub]
+            # The render paints in scene order: an earlier object keeps a pixel on a tie.
+            nearer = t_j <= t_k[sub] if j < k else t_j < t_k[sub]
+            own[sub] &= ~(hit & nearer)
+        out[object_id] = int(own.sum())
+    return out
+
+
+ViewKey = tuple[object, ...]
+
+
+class _Placed:
+    """The placed objects of a view key, hashed once (a search asks for thousands of views of
+    one room with the same objects in it)."""
+
+    __slots__ = ("_hash", "items")
+
+    def __init__(self, items: tuple[Placement, ...]) -> None:
+        self.items = items
+        self._hash = hash(items)
+
+    def __hash__(self) -> int:
+        return self._hash
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _Placed) and self.items == other.items
+
+
+class VisibilityCache:
+    """Mask areas by view, least recently used first out when full.
+
+    A view is the home (its digest), the room, the camera pose (x, y, yaw, pitch to 1e-6), the
+    opened container and the objects placed in that room (id, box, support): everything the
+    render of the room depends on (the statics are fixed per home)."""
+
+    def __init__(self, max_views: int = CACHE_VIEWS) -> None:
+        self.max_views = max_views
+        self._views: OrderedDict[ViewKey, dict[str, int]] = OrderedDict()
+        self.hits = 0
+        self.misses = 0
+
+    def get(self, key: ViewKey) -> dict[str, int] | None:
+        found = self._views.get(key)
+        if found is None:
+            self.misses += 1
+            return None
+        self.hits += 1
+        self._views.move_to_end(key)
+        return found
+
+    def put(self, key: ViewKey, areas: dict[str, int]) -> None:
+        self._views[key] = areas
+        if len(self._views) > self.max_views:
+            self._views.popitem(last=False)
+
+
+#: glibc's trim and mmap thresholds while an occluding camera is in use (bytes).
+KEEP_FREED_BYTES = 256 * 2**20
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameters
+
+
+@cache
+def keep_freed_memory() -> bool:
+    """Ask glibc to keep freed memory instead of returning it to the kernel.
+
+    Every view allocates and frees window-sized float32 arrays (0.1–1 MB); with glibc's default
+    thresholds the heap top is trimmed and faulted in again each time, which took 40 % of a
+    search run's time (sys time 6.8 s of 23.7 s; 0.4 s with these thresholds). Linux with glibc
+    only; elsewhere (or if the call fails) nothing changes and False is returned."""
+    name = ctypes.util.find_library("c")
+    if sys.platform != "linux" or name is None:
+        return False
+    try:
+        libc = ctypes.CDLL(name)
+        return bool(
+            libc.mallopt(_M_TRIM_THRESHOLD, KEEP_FREED_BYTES)
+            and libc.mallopt(_M_MMAP_THRESHOLD, KEEP_FREED_BYTES)
+        )
+    except (OSError, AttributeError):
+        return False
+
+
+#: Shared by every occluding camera of a process: the views of one run's searches recur in the
+#: next strategy's and the next seed's.
+SHARED_CACHE = VisibilityCache()
+
+
+@dataclass(frozen=True)
+class OccludingCamera:
+    """A search camera whose detections are what the rendered room shows (furniture occludes)."""
+
+    intrinsics: CameraIntrinsics = DEFAULT_INTRINSICS
+    height: float = CAMERA_HEIGHT_M
+    cache: VisibilityCache = SHARED_CACHE
+    name: str = "occluding"
+    #: id of a ``placed`` sequence → (it, its key part): a world passes the same tuple per room.
+    _placed: dict[int, tuple[Sequence[Placement], _Placed]] = field(
+        default_factory=dict, compare=False, repr=False
+    )
+
+    def __post_init__(self) -> None:
+        keep_freed_memory()
+
+    def _placed_key(self, placed: Sequence[Placement]) -> _Placed:
+        known = self._placed.get(id(placed))
+        if known is not None and known[0] is placed:
+            return known[1]
+        if len(self._placed) >= PLACED_KEYS:
+            self._placed.clear()
+        key = _Placed(tuple(placed))
+        self._placed[id(placed)] = (placed, key)
+        return key
+
+    def detections(
+        self,
+        home: Home,
+        room: str,
+        pose: Pose,
+        pitch: float,
+        placed: Sequence[Placement],
+        candidates: Sequence[Placement],
+        opened: str | None,
+    ) -> tuple[Detection, ...]:
+        if not candidates:
+            return ()
+        areas = self.areas(home, room, pose, pitch, placed, opened)
+        return tuple(
+            Detection(p.cls, p.instance_id, float(areas[p.instance_id]), p.box.center)
+            for p in candidates
+            if areas[p.instance_id] > 0
+        )
+
+    def areas(
+        self,
+        home: Home,
+        room: str,
+        pose: Pose,
+        pitch: float,
+        placed: Sequence[Placement],
+        opened: str | None,
+    ) -> dict[str, int]:
+        """Pixels of every object placed in ``room`` (``placed``) seen from ``pose``."""
+        # Rounded for the key, and the view is computed at the rounded pose, so a cached
+        # answer is exactly the answer for its key.
+        x, y, yaw, tilt = (round(v, 6) for v in (pose.x, pose.y, pose.yaw, pitch))
+        key: ViewKey = (home.digest, room, x, y, yaw, tilt, opened, self.height, self.intrinsics)
+        key += (self._placed_key(placed),)
+        found = self.cache.get(key)
+        if found is not None:
+            return found
+        scene = room_scene(home, room, placed)
+        if opened is not None:
+            scene = scene.without(opened)
+        t = camera_to_map(Pose(x, y, yaw), height=self.height, pitch=tilt)
+        areas = mask_areas(scene, [p.instance_id for p in placed], t, self.intrinsics)
+        self.cache.put(key, areas)
+        return areas
