@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections.abc import Callable, Sequence
+from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 from typing import Any
 
-from objsearch.agent.geometry import Pose
 from objsearch.agent.session import load_context
 from objsearch.experiments.homes import family, schedule_kind
 from objsearch.experiments.learning import (
@@ -32,11 +32,10 @@ from objsearch.experiments.learning import (
     ratio,
 )
 from objsearch.experiments.paper import discovery
-from objsearch.experiments.report_paper import pyplot
+from objsearch.experiments.report_paper import UNRECORDED_CAMERA, pyplot
 from objsearch.experiments.runner import Row
 from objsearch.sim.longterm import scenes_of
-from objsearch.sim.perception import Camera
-from objsearch.sim.world import Placement
+from objsearch.sim.world import DEFAULT_CAMERA, Placement, mask_facing, search_camera
 
 #: "After scene 10": the issue's targets are read on the searches of later scenes.
 AFTER = 10
@@ -151,66 +150,80 @@ def _scene_placements(home: str, spec: str, upto: int) -> dict[int, dict[str, Pl
     return {s: dict(p) for s, p in scenes_of(home, spec, upto=upto).items()}
 
 
-def failure_cause(row: Row, camera: Camera | None = None) -> str:
-    """Why a search failed, from what can be told without its log: where the target was that
-    scene, and whether any viewpoint of its room shows it with a mask above its class's
-    threshold (the geometric camera facing it; ``bench homes`` keeps no logs to tell more)."""
-    camera = camera or Camera()
-    placed = [
-        p
-        for p in _scene_placements(row.home, row.placements, row.scene)[row.scene].values()
-        if p.cls == row.target
-    ]
+def failure_cause(row: Row, camera: str = DEFAULT_CAMERA) -> str:
+    """Why a search failed, from what can be told without its log (``bench homes`` keeps none):
+    where the target was that scene and what the run's ``camera`` shows of it, with everything
+    placed in its room in the way — from the best viewpoint of the room and from the one
+    viewpoint the agent inspects its static from (N_s, paper §4)."""
+    return _cause(row.home, row.placements, row.scene, row.target, camera)
+
+
+@cache
+def _cause(home: str, placements: str, scene: int, target: str, camera_name: str) -> str:
+    everything = _scene_placements(home, placements, scene)[scene]
+    placed = [p for p in everything.values() if p.cls == target]
     if not placed:
         return "not placed in this scene"
-    ctx = load_context(row.home)
-    oc = ctx.vocabulary.classes.get(row.target)
+    ctx = load_context(home)
+    camera = search_camera(camera_name)
+    oc = ctx.vocabulary.classes.get(target)
     threshold = oc.min_mask_area_px if oc is not None else math.inf
-    best, where = 0.0, placed[0]
-    for p in placed:
-        for v, room in ctx.navmap.room_of.items():
-            if room != p.room:
-                continue
-            yaw = math.atan2(p.box.center[1] - v.y, p.box.center[0] - v.x)
-            area = camera.mask_area(Pose(v.x, v.y, yaw), p.box)
-            if area > best:
-                best, where = area, p
+    p = placed[0]
+    room = [q for q in everything.values() if q.room == p.room]
+    best = max(
+        (mask_facing(camera, ctx.home, v, p, room) for v in ctx.navmap.viewpoints(p.room)),
+        default=0.0,
+    )
     if best < threshold:
         return (
-            f"never detectable: its best view from any viewpoint of {where.room} is "
-            f"{best:.0f} px < {threshold:g} px"
+            f"never detectable ({camera_name} camera): its best view from any viewpoint of "
+            f"{p.room} is {best:.0f} px < {threshold:g} px"
         )
-    if all(p.inside for p in placed):
-        return f"inside {where.support} in {where.room}: seen only if opened"
+    stops = [s.viewpoint for s in ctx.semmap.in_room(p.room) if s.id == p.support]
+    at_stop = max((mask_facing(camera, ctx.home, v, p, room) for v in stops), default=0.0)
+    if at_stop < threshold:
+        return (
+            f"detectable from elsewhere in {p.room} ({best:.0f} px) but not from the viewpoint "
+            f"its static is inspected from ({at_stop:.0f} px < {threshold:g} px; one viewpoint "
+            "per static, paper §4)"
+        )
+    if p.inside:
+        return f"inside {p.support} in {p.room}: seen only if opened"
     return (
-        f"detectable ({best:.0f} px from a viewpoint of {where.room}), not detected: the "
-        "search ended without that view"
+        f"detectable from its static's viewpoint ({at_stop:.0f} px), not detected: the search "
+        "ended without that view"
     )
 
 
-def failures(rows: Sequence[Row], cause: Callable[[Row], str] = failure_cause) -> list[Failure]:
-    return [Failure(r, cause(r)) for r in rows if not r.success]
+def failures(rows: Sequence[Row], camera: str = DEFAULT_CAMERA) -> list[Failure]:
+    return [Failure(r, failure_cause(r, camera)) for r in rows if not r.success]
 
 
-def failure_lines(rows: Sequence[Row]) -> list[str]:
-    failed = failures(rows)
+def failure_lines(rows: Sequence[Row], camera: str = DEFAULT_CAMERA) -> list[str]:
+    """Success, and every failure named with its cause: one line per (home, schedule, scene,
+    target) — the searches that failed there, by strategy — since a cause belongs to a
+    placement, and a protocol-scale run fails the same placement from many starts."""
+    failed = failures(rows, camera)
     n = len(rows)
     lines = [
         f"Success {100 * (n - len(failed)) / n:.2f} % ({n - len(failed)} of {n} searches); "
         + ("no failures." if not failed else f"{len(failed)} failures, each with its cause:")
     ]
     if failed:
+        groups: dict[tuple[str, str, int, str], list[Failure]] = {}
+        for f in failed:
+            groups.setdefault((f.row.home, f.row.placements, f.row.scene, f.row.target), []).append(
+                f
+            )
         lines += [
             "",
-            "| home | schedule | scene | target | start | strategy | cause |",
-            "|---|---|---|---|---|---|---|",
+            "| home | schedule | scene | target | failed searches (strategy × start) | cause |",
+            "|---|---|---|---|---|---|",
         ]
-        for f in failed:
-            r = f.row
-            lines.append(
-                f"| {r.home} | {r.placements} | {r.scene} | {r.target} | {r.start} "
-                f"| {key(r)} | {f.cause} |"
-            )
+        for (home, sched, scene, target), fs in sorted(groups.items()):
+            by = Counter(key(f.row) for f in fs)
+            who = ", ".join(f"{k} ×{c}" for k, c in sorted(by.items()))
+            lines.append(f"| {home} | {sched} | {scene} | {target} | {who} | {fs[0].cause} |")
     return lines
 
 
@@ -280,7 +293,7 @@ def homes_section(
         *regression_lines(rows),
         "",
         "### Success and failures",
-        *failure_lines(rows),
+        *failure_lines(rows, str(summary.get("camera") or UNRECORDED_CAMERA)),
     ]
     for label, group in (("home family", _family), ("schedule kind", _kind)):
         for name in sorted({group(r) for r in rows}):

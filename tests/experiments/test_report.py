@@ -158,10 +158,14 @@ def test_failures_are_listed_with_their_cause(runs: dict[str, Path]) -> None:
     row = lines[-1]
     r = failed
     assert row.startswith(
-        f"| {r.home} | {r.placements} | {r.scene} | {r.target} | {r.start} | {r.strategy} |"
+        f"| {r.home} | {r.placements} | {r.scene} | {r.target} | {r.strategy} ×1 |"
     )
-    # A target the runs did find is detectable: the cause says so, with the view that shows it.
-    assert "detectable (" in row and "not detected" in row
+    # A target the runs did find is detectable from its static's viewpoint: the cause says so.
+    assert "detectable from its static's viewpoint (" in row and "not detected" in row
+    # Failures of one placement from several starts are one line, counted by strategy.
+    twice = [failed, dataclasses.replace(failed, start="other"), *rows[1:]]
+    assert failure_lines(twice)[-1].startswith(row.split(" ×1 |")[0].rsplit("|", 1)[0])
+    assert f"| {r.strategy} ×2 |" in failure_lines(twice)[-1]
 
 
 def test_update_regressions_count_runs_against_the_no_update_twin(
