@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -37,9 +38,11 @@ NOTES = (
     "home: the instance of that static class whose box center is nearest (3-D) to where the object "
     "was in the previous scene (for scene 1: its position in the Table I scenario); ties go to the "
     "smallest id. center: the support's rest point (where AI2-THOR rests pickupable objects on or "
-    "in it) nearest the previous position, raised by half the object's own height; a support "
+    "in it) nearest the previous position where it overlaps no object placed before it in the scene "
+    "(in the order of the table's rows), raised by half the object's own height; a support "
     "without rest points: a container's box center, else x, y of the support's box center and z = "
-    "box top + half the object's height. 'object' is the Table I instance that is moved."
+    "box top + half the object's height (or, when an object already lies there, the nearest free "
+    "point of a 3 x 3 grid over the top). 'object' is the Table I instance that is moved."
 )
 
 
@@ -70,21 +73,48 @@ def _check_table() -> None:
             raise BuildError(f"Table II row {cls}: {row} is not {SCENES} static classes")
 
 
-def place_on(support: Static, obj_height: float, previous: Vec3) -> Vec3:
-    """Where an object of height ``obj_height`` goes on/in ``support``.
+def place_on(
+    support: Static,
+    obj_size: Vec3,
+    previous: Vec3,
+    taken: Sequence[tuple[Vec3, Vec3]] = (),
+) -> Vec3:
+    """Where an object of size ``obj_size`` goes on/in ``support``.
 
     On the support's rest point nearest the object's previous position when AI2-THOR rests
-    anything there (so an object returning to its own support returns to its own spot); otherwise
-    the container's centre, or the top of the support's box above its centre.
+    anything there (so an object returning to its own support returns to its own spot), leaving
+    out rest points where its footprint would overlap an object already placed (``taken``: centre
+    and size of each) — two objects on one spot lie inside each other and the one hides the other from
+    every view; otherwise the container's centre, or the top of the support's box above its centre.
     """
-    half = obj_height / 2
+    half = obj_size[2] / 2
+
+    def free(spots: list[Vec3]) -> list[Vec3]:
+        return [
+            p
+            for p in spots
+            if not any(
+                abs(c[0] - p[0]) < (size[0] + obj_size[0]) / 2
+                and abs(c[1] - p[1]) < (size[1] + obj_size[1]) / 2
+                for c, size in taken
+            )
+        ]
+
+    c, s = support.box.center, support.box.size
+    top = c[2] + s[2] / 2 + half
+    # When every spot is taken: the nearest free point of a 3 × 3 grid over the top (a sink
+    # basin holding an apple, a cup and a bowl; a bed with two rest points and three objects).
+    grid = [(c[0] + i * s[0] / 4, c[1] + j * s[1] / 4, top) for i in (-1, 0, 1) for j in (-1, 0, 1)]
+    grid.sort(key=lambda p: (math.dist(p, (c[0], c[1], top)), p))
     if support.rest_points:
         spots = [(x, y, z + half) for x, y, z in support.rest_points]
-        return min(spots, key=lambda p: (math.dist(p, previous), p))
-    c, s = support.box.center, support.box.size
+        open_spots = free(spots)
+        if open_spots or not free(grid):
+            return min(open_spots or spots, key=lambda p: (math.dist(p, previous), p))
+        return free(grid)[0]
     if support.container:
         return c
-    return (c[0], c[1], c[2] + s[2] / 2 + half)
+    return (free(grid) or grid)[0]
 
 
 def table2(home: SourceHome, scenario: Scenario) -> dict[str, Any]:
@@ -93,7 +123,7 @@ def table2(home: SourceHome, scenario: Scenario) -> dict[str, Any]:
     where = {cls: objects[oid].box.center for cls, oid in scenario.targets.items()}
     scenes = []
     for k in range(SCENES):
-        placements = {}
+        placements: dict[str, Placement] = {}
         for cls in SEMI_DYNAMIC_NAMES:
             wanted = TABLE2[cls][k]
             options = [s for s in home.statics if s.cls == wanted]
@@ -104,7 +134,12 @@ def table2(home: SourceHome, scenario: Scenario) -> dict[str, Any]:
             prev = where[cls]
             support = min(options, key=lambda s: (math.dist(s.box.center, prev), s.id))
             obj = objects[scenario.targets[cls]]
-            center = place_on(support, obj.box.size[2], prev)
+            taken = [
+                (q.center, objects[q.object].box.size)
+                for q in placements.values()
+                if q.support == support.id
+            ]
+            center = place_on(support, obj.box.size, prev, taken)
             placements[cls] = Placement(obj.id, wanted, support.id, support.container, center)
             where[cls] = center
         scenes.append(

@@ -97,13 +97,18 @@ def _draw_static(
     return rng.choice(sorted(by_type[chosen], key=lambda s: s.id))
 
 
-def _free(rest: tuple[float, float, float], taken: Sequence[Placement], s: StaticObject) -> bool:
-    """Whether a rest point of ``s`` lies outside the footprint of every object already there
-    (two objects drawn onto one rest point would lie inside each other, the one hiding the other)."""
+def _free(
+    rest: tuple[float, float, float],
+    size: tuple[float, float, float],
+    taken: Sequence[Placement],
+    s: StaticObject,
+) -> bool:
+    """Whether an object of ``size`` at a rest point of ``s`` overlaps no object already there
+    (two objects drawn onto one spot lie inside each other, the one hiding the other)."""
     return not any(
         o.support == s.id
-        and abs(o.box.center[0] - rest[0]) < o.box.size[0] / 2
-        and abs(o.box.center[1] - rest[1]) < o.box.size[1] / 2
+        and abs(o.box.center[0] - rest[0]) < (o.box.size[0] + size[0]) / 2
+        and abs(o.box.center[1] - rest[1]) < (o.box.size[1] + size[1]) / 2
         for o in taken
     )
 
@@ -125,7 +130,7 @@ def _place(
         rests = _rest_points(home.name).get(s.id) or (
             (s.box.center[0], s.box.center[1], s.box.top),
         )
-        free = [r for r in rests if _free(r, taken, s)]
+        free = [r for r in rests if _free(r, size, taken, s)]
         if not free:
             return None
         x, y, z = rng.choice(free) if len(free) > 1 else free[0]
