@@ -32,7 +32,7 @@ from objsearch.experiments.learning import (
     ratio,
 )
 from objsearch.experiments.paper import discovery
-from objsearch.experiments.report_paper import UNRECORDED_CAMERA, pyplot
+from objsearch.experiments.report_paper import pyplot
 from objsearch.experiments.runner import Row
 from objsearch.sim.longterm import scenes_of
 from objsearch.sim.world import DEFAULT_CAMERA, Placement, mask_facing, search_camera
@@ -195,11 +195,25 @@ def _cause(home: str, placements: str, scene: int, target: str, camera_name: str
     )
 
 
-def failures(rows: Sequence[Row], camera: str = DEFAULT_CAMERA) -> list[Failure]:
-    return [Failure(r, failure_cause(r, camera)) for r in rows if not r.success]
+#: The cause of a failure in a run that recorded no camera: it predates the search camera choice
+#: and the schedules' visibility and overlap checks, so today's draw of its schedule is not the
+#: draw it searched, and a cause computed from today's would name the wrong placement.
+UNKNOWN_CAUSE = (
+    "not computed: the run predates the schedules' visibility checks (no camera recorded), so "
+    "its scenes cannot be drawn again"
+)
 
 
-def failure_lines(rows: Sequence[Row], camera: str = DEFAULT_CAMERA) -> list[str]:
+def failures(rows: Sequence[Row], camera: str | None = DEFAULT_CAMERA) -> list[Failure]:
+    """Failed searches with their causes (``camera`` None: a run that recorded none)."""
+    return [
+        Failure(r, UNKNOWN_CAUSE if camera is None else failure_cause(r, camera))
+        for r in rows
+        if not r.success
+    ]
+
+
+def failure_lines(rows: Sequence[Row], camera: str | None = DEFAULT_CAMERA) -> list[str]:
     """Success, and every failure named with its cause: one line per (home, schedule, scene,
     target) — the searches that failed there, by strategy — since a cause belongs to a
     placement, and a protocol-scale run fails the same placement from many starts."""
@@ -293,7 +307,7 @@ def homes_section(
         *regression_lines(rows),
         "",
         "### Success and failures",
-        *failure_lines(rows, str(summary.get("camera") or UNRECORDED_CAMERA)),
+        *failure_lines(rows, summary.get("camera")),
     ]
     for label, group in (("home family", _family), ("schedule kind", _kind)):
         for name in sorted({group(r) for r in rows}):

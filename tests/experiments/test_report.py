@@ -213,3 +213,10 @@ def test_several_homes_runs_are_reported_as_one(runs: dict[str, Path], tmp_path:
     one = json.loads((runs["homes"] / "summary.json").read_text())["searches"]
     two = json.loads((runs["heldout"] / "summary.json").read_text())["searches"]
     assert f"{one + two} searches" in section
+
+
+def test_a_run_without_a_camera_gets_no_computed_cause(runs: dict[str, Path]) -> None:
+    # Its schedules were drawn before the visibility checks: today's draw is another scene.
+    rows = read_rows(runs["homes"] / "homes_trials.parquet")
+    failed = dataclasses.replace(rows[0], success=False)
+    assert "not computed: the run predates" in failure_lines([failed], None)[-1]
