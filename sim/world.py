@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -202,30 +203,34 @@ class SimWorld:
         return self._view(pose) if view else ()
 
     def oracle_length(self, cls: str, *, min_mask_px: float) -> float:
-        """Shortest walk from here to a viewpoint from which a ``cls`` object is detectable
-        (mask ≥ ``min_mask_px`` facing it, camera pitched at it, its container opened): the path
-        length of a robot that knew where it was (the limit for any search strategy). When no
-        viewpoint can detect one, the walk to the viewpoint nearest it (no search finds it)."""
+        """The full path of a robot that knew where a ``cls`` object is — the limit for any
+        search strategy, measured like a search's full path: the walk from here to the nearest
+        viewpoint from which it is detectable (mask ≥ ``min_mask_px`` facing it, camera pitched
+        at it, its container opened), then on to the viewpoint nearest the object, where a
+        search's approach ends. When no viewpoint detects one, the walk to that viewpoint."""
         targets = [p for p in self.placements.values() if p.cls == cls]
         if not targets:
             raise ValueError(f"no {cls} is placed in this world")
         here = self._pose.point
-        # Nearest walk first: the first viewpoint that detects a target is the answer.
+        approach = {
+            p.instance_id: self.navmap.nearest_viewpoint(p.box.center[0], p.box.center[1], p.room)
+            for p in targets
+        }
         walks = sorted(
             (self.navmap.distance(here, v), v, p.instance_id)
             for p in targets
             for v in self.navmap.viewpoints(p.room)
         )
+        best = math.inf
         for walk, v, instance_id in walks:
+            if walk >= best:  # the rest of the way is never negative
+                break
             p = self.placements[instance_id]
             if mask_facing(self.camera, self.home, v, p, self._in_room(p.room)) >= min_mask_px:
-                return walk
-        return min(
-            self.navmap.distance(
-                here, self.navmap.nearest_viewpoint(p.box.center[0], p.box.center[1], p.room)
-            )
-            for p in targets
-        )
+                best = min(best, walk + self.navmap.distance(v, approach[instance_id]))
+        if best < math.inf:
+            return best
+        return min(self.navmap.distance(here, n) for n in approach.values())
 
     def look(self, yaw: float, pitch: float = 0.0) -> tuple[Detection, ...]:
         self.clock.advance(LOOK_S)
