@@ -287,8 +287,8 @@ def homes_section(
         "`dist-oracle` alone reads the schedule's own placement distribution (a reference).",
         "",
         "### Per strategy (all homes, all schedules)",
-        "oracle× is Σ full path / Σ oracle path (the oracle walks straight to the target's "
-        "viewpoint); the first search of the day is the first for each target in each scene.",
+        "oracle× is Σ full path / Σ oracle path; the first search of the day is the first for "
+        "each target in each scene. " + _oracle_note(summary),
         "",
         *strategy_table(rows),
         "",
@@ -314,6 +314,20 @@ def homes_section(
             out += ["", f"### {label.capitalize()}: {name}"]
             out += strategy_table([r for r in rows if group(r) == name])
     return "\n".join(out) + "\n"
+
+
+def _oracle_note(summary: dict[str, Any]) -> str:
+    """What the oracle walked in this run: a run that recorded no camera predates the oracle
+    measured like a search's full path (sim/world.py ``oracle_length``)."""
+    if summary.get("camera") is None:
+        return (
+            "This run recorded no camera: its oracle walked straight to the viewpoint nearest the "
+            "target (whether or not that viewpoint sees it)."
+        )
+    return (
+        f"The oracle walks to the nearest viewpoint from which the {summary['camera']} camera "
+        "detects the target, then on to the viewpoint nearest it, as a search's full path does."
+    )
 
 
 def _family(r: Row) -> str:
