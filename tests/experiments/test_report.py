@@ -18,8 +18,6 @@ from objsearch.experiments.report_homes import failure_lines, update_regressions
 from objsearch.experiments.report_paper import cameras_section
 from objsearch.experiments.runner import read_rows
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
-
 
 def _bench(*argv: str) -> None:
     assert main([*argv, "--workers", "1", "--no-progress"]) == 0
@@ -100,12 +98,9 @@ def test_without_optional_inputs_their_sections_say_how_to_produce_them(
 
 
 def test_every_optional_section_from_its_own_run(
-    runs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    runs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], shared: Path
 ) -> None:
     t1 = tmp_path / "table1"
-    shared = REPO_ROOT.parent / "shared" / "data"
-    if not (shared / "ai2thor" / "ithor_scenes").is_dir():
-        pytest.skip("raw shared data not found (../shared/data)")
     _bench(
         *["bench", "table1", "--sets", "1", "--seed", "1", "--out", str(t1)],
         *["--source", str(shared), "--targets", "Cup"],

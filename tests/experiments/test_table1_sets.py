@@ -23,20 +23,6 @@ from objsearch.pipeline.build import PAPER_HOME
 from objsearch.pipeline.home import build_home
 from objsearch.pipeline.scenario import table1
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
-
-
-@pytest.fixture(scope="module")
-def shared() -> Path:
-    env = os.environ.get("OBJSEARCH_SHARED")
-    for path in [
-        *([Path(env), Path(env) / "data"] if env else []),
-        REPO_ROOT.parent / "shared" / "data",
-    ]:
-        if (path / "ai2thor" / "ithor_scenes").is_dir():
-            return path
-    pytest.skip("raw shared data not found (../shared/data or OBJSEARCH_SHARED)")
-
 
 @pytest.fixture(scope="module")
 def elig(shared: Path) -> Eligibility:
