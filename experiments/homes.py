@@ -200,8 +200,12 @@ def homes_summary(rows: Sequence[Row]) -> dict[str, Any]:
 
 
 def render(summary: dict[str, Any]) -> str:
+    starts = summary.get("starts_per_search")
+    homes, seeds = summary.get("homes") or [], summary.get("seeds") or []
     lines = [
-        "Held-out homes — all searches (8 targets × every start × every scene), updates of all pairs"
+        f"{len(homes)} home(s) × {len(seeds)} seed(s): every target in every scene "
+        f"from {f'{starts} start point(s)' if starts else 'every start point'}; "
+        f"full path (m), camera {summary.get('camera', '?')}"
     ]
     lines.append(
         f"{'strategy':20}{'n':>7}{'path m':>9}{'±runs':>7}{'success':>9}{'SPL':>7}{'oracle×':>9}{'< wpl':>8}"

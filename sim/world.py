@@ -71,6 +71,11 @@ def search_camera(name: str = DEFAULT_CAMERA) -> SearchCamera:
     raise ObjsearchError(f"unknown search camera {name!r}; choose from {', '.join(CAMERAS)}")
 
 
+#: The two directions of one shortest path may sum their steps in another order: ways this close
+#: count as equal (m).
+ROUNDING_M = 1e-6
+
+
 def facing_view(viewpoint: Point, target: tuple[float, float, float]) -> tuple[Pose, float]:
     """The pose and camera pitch of a robot at ``viewpoint`` looking straight at ``target``."""
     return (
@@ -212,22 +217,37 @@ class SimWorld:
         if not targets:
             raise ValueError(f"no {cls} is placed in this world")
         here = self._pose.point
+
+        def here_to(v: Point) -> float:
+            return self.navmap.distance(here, v)
+
         approach = {
             p.instance_id: self.navmap.nearest_viewpoint(p.box.center[0], p.box.center[1], p.room)
             for p in targets
         }
-        walks = sorted(
-            (self.navmap.distance(here, v), v, p.instance_id)
+        # Ordered by each viewpoint's whole way (walk there, then on to the approach; the second
+        # leg measured from the approach's side: one shortest-path tree instead of one per
+        # viewpoint, equal up to rounding), nearer the object first among equal ways, so the
+        # first detecting viewpoint ends the look-ups: a room has hundreds of viewpoints and
+        # each look-up renders the room.
+        ways = sorted(
+            (
+                round(here_to(v) + self.navmap.distance(approach[p.instance_id], v), 6),
+                math.dist((v.x, v.y), p.box.center[:2]),
+                v,
+                p.instance_id,
+            )
             for p in targets
             for v in self.navmap.viewpoints(p.room)
         )
         best = math.inf
-        for walk, v, instance_id in walks:
-            if walk >= best:  # the rest of the way is never negative
+        for way, _, v, instance_id in ways:
+            if way >= best - ROUNDING_M:
                 break
             p = self.placements[instance_id]
             if mask_facing(self.camera, self.home, v, p, self._in_room(p.room)) >= min_mask_px:
-                best = min(best, walk + self.navmap.distance(v, approach[instance_id]))
+                # Measured as a search walks it: from here to v, then v to the approach.
+                best = min(best, here_to(v) + self.navmap.distance(v, approach[instance_id]))
         if best < math.inf:
             return best
         return min(self.navmap.distance(here, n) for n in approach.values())
