@@ -35,7 +35,7 @@ from objsearch.experiments.paper import discovery
 from objsearch.experiments.report_paper import pyplot
 from objsearch.experiments.runner import Row
 from objsearch.sim.longterm import scenes_of
-from objsearch.sim.world import DEFAULT_CAMERA, Placement, mask_facing, search_camera
+from objsearch.sim.world import DEFAULT_CAMERA, Placement, first_sighting, search_camera
 
 #: "After scene 10": the issue's targets are read on the searches of later scenes.
 AFTER = 10
@@ -153,8 +153,8 @@ def _scene_placements(home: str, spec: str, upto: int) -> dict[int, dict[str, Pl
 def failure_cause(row: Row, camera: str = DEFAULT_CAMERA) -> str:
     """Why a search failed, from what can be told without its log (``bench homes`` keeps none):
     where the target was that scene and what the run's ``camera`` shows of it, with everything
-    placed in its room in the way — from the best viewpoint of the room and from the one
-    viewpoint the agent inspects its static from (N_s, paper §4)."""
+    placed in its room in the way — from any viewpoint of the room and from the one viewpoint
+    the agent inspects its static from (N_s, paper §4)."""
     return _cause(row.home, row.placements, row.scene, row.target, camera)
 
 
@@ -170,27 +170,25 @@ def _cause(home: str, placements: str, scene: int, target: str, camera_name: str
     threshold = oc.min_mask_area_px if oc is not None else math.inf
     p = placed[0]
     room = [q for q in everything.values() if q.room == p.room]
-    best = max(
-        (mask_facing(camera, ctx.home, v, p, room) for v in ctx.navmap.viewpoints(p.room)),
-        default=0.0,
-    )
-    if best < threshold:
+    anywhere = first_sighting(camera, ctx.home, p, room, ctx.navmap.viewpoints(p.room), threshold)
+    if anywhere.viewpoint is None:
         return (
             f"never detectable ({camera_name} camera): its best view from any viewpoint of "
-            f"{p.room} is {best:.0f} px < {threshold:g} px"
+            f"{p.room} is {anywhere.mask_px:.0f} px < {threshold:g} px"
         )
     stops = [s.viewpoint for s in ctx.semmap.in_room(p.room) if s.id == p.support]
-    at_stop = max((mask_facing(camera, ctx.home, v, p, room) for v in stops), default=0.0)
-    if at_stop < threshold:
+    at_stop = first_sighting(camera, ctx.home, p, room, stops, threshold)
+    if at_stop.viewpoint is None:
+        v = anywhere.viewpoint
         return (
-            f"detectable from elsewhere in {p.room} ({best:.0f} px) but not from the viewpoint "
-            f"its static is inspected from ({at_stop:.0f} px < {threshold:g} px; one viewpoint "
-            "per static, paper §4)"
+            f"detectable from elsewhere in {p.room} ({anywhere.mask_px:.0f} px from "
+            f"({v.x:g}, {v.y:g})) but not from the viewpoint its static is inspected from "
+            f"({at_stop.mask_px:.0f} px < {threshold:g} px; one viewpoint per static, paper §4)"
         )
     if p.inside:
         return f"inside {p.support} in {p.room}: seen only if opened"
     return (
-        f"detectable from its static's viewpoint ({at_stop:.0f} px), not detected: the search "
+        f"detectable from its static's viewpoint ({at_stop.mask_px:.0f} px), not detected: the search "
         "ended without that view"
     )
 

@@ -19,12 +19,11 @@ from dataclasses import dataclass
 from functools import cache
 
 from objsearch.agent.categories import Vocabulary
-from objsearch.agent.geometry import Point
 from objsearch.agent.home import Box, Home
 from objsearch.agent.navmap import NavigationMap
 from objsearch.sim.placements import Placements
 from objsearch.sim.visibility import OccludingCamera, VisibilityCache
-from objsearch.sim.world import Placement, mask_facing
+from objsearch.sim.world import Placement, first_sighting
 
 #: Its own cache: one view per (placement, viewpoint), never seen again by a search.
 _CAMERA = OccludingCamera(cache=VisibilityCache(max_views=1))
@@ -33,7 +32,7 @@ _CAMERA = OccludingCamera(cache=VisibilityCache(max_views=1))
 @dataclass(frozen=True, slots=True)
 class Visibility:
     seeable: bool
-    best_mask_px: float  # the largest mask found (over every viewpoint when not seeable)
+    best_mask_px: float  # the detecting view's mask; when not seeable, the largest of any view
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,16 +75,12 @@ def _visibility(
     home: Home, room: str, box: Box, support: str | None, inside: bool, threshold: float
 ) -> Visibility:
     probe = Placement("probe", "probe", box, room, support, inside)
-    c = Point(box.center[0], box.center[1])
-    best = 0.0
-    for v in sorted(
-        _navmap(home).viewpoints(room), key=lambda v: ((v.x - c.x) ** 2 + (v.y - c.y) ** 2, v)
-    ):
-        area = mask_facing(_CAMERA, home, v, probe, (probe,))
-        best = max(best, area)
-        if area >= threshold:
-            return Visibility(True, best)
-    return Visibility(False, best)
+    nearest_first = sorted(
+        _navmap(home).viewpoints(room),
+        key=lambda v: ((v.x - box.center[0]) ** 2 + (v.y - box.center[1]) ** 2, v),
+    )
+    seen = first_sighting(_CAMERA, home, probe, (probe,), nearest_first, threshold)
+    return Visibility(seen.viewpoint is not None, seen.mask_px)
 
 
 def seeable(home: Home, placement: Placement) -> bool:

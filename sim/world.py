@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -98,6 +98,36 @@ def mask_facing(
     opened = target.support if target.inside else None
     seen = camera.detections(home, target.room, pose, pitch, placed, (target,), opened)
     return seen[0].mask_area if seen else 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class Sighting:
+    """The first viewpoint (of those tried, in their order) that detects a placement, and the
+    mask it shows there; when none does, ``viewpoint`` is None and ``mask_px`` the largest mask
+    any of them showed."""
+
+    viewpoint: Point | None
+    mask_px: float
+
+
+def first_sighting(
+    camera: SearchCamera,
+    home: Home,
+    target: Placement,
+    placed: Sequence[Placement],
+    viewpoints: Iterable[Point],
+    min_mask_px: float,
+) -> Sighting:
+    """Try ``viewpoints`` in order, facing ``target`` (:func:`mask_facing`), until one shows at
+    least ``min_mask_px`` of it: the one walk over a room's viewpoints that the oracle, the
+    seeable-placement check and the bench's failure causes share."""
+    largest = 0.0
+    for v in viewpoints:
+        area = mask_facing(camera, home, v, target, placed)
+        if area >= min_mask_px:
+            return Sighting(v, area)
+        largest = max(largest, area)
+    return Sighting(None, largest)
 
 
 class WorldObserver(Protocol):
@@ -225,29 +255,29 @@ class SimWorld:
             p.instance_id: self.navmap.nearest_viewpoint(p.box.center[0], p.box.center[1], p.room)
             for p in targets
         }
-        # Ordered by each viewpoint's whole way (walk there, then on to the approach; the second
-        # leg measured from the approach's side: one shortest-path tree instead of one per
-        # viewpoint, equal up to rounding), nearer the object first among equal ways, so the
-        # first detecting viewpoint ends the look-ups: a room has hundreds of viewpoints and
-        # each look-up renders the room.
-        ways = sorted(
-            (
-                round(here_to(v) + self.navmap.distance(approach[p.instance_id], v), 6),
-                math.dist((v.x, v.y), p.box.center[:2]),
-                v,
-                p.instance_id,
-            )
-            for p in targets
-            for v in self.navmap.viewpoints(p.room)
-        )
         best = math.inf
-        for way, _, v, instance_id in ways:
-            if way >= best - ROUNDING_M:
-                break
-            p = self.placements[instance_id]
-            if mask_facing(self.camera, self.home, v, p, self._in_room(p.room)) >= min_mask_px:
-                # Measured as a search walks it: from here to v, then v to the approach.
-                best = min(best, here_to(v) + self.navmap.distance(v, approach[instance_id]))
+        for p in targets:
+            a = approach[p.instance_id]
+            # Each viewpoint by its whole way (walk there, then on to the approach; the second
+            # leg measured from the approach's side: one shortest-path tree instead of one per
+            # viewpoint, equal up to rounding), nearer the object first among equal ways, so
+            # the first detecting viewpoint is the answer: a room has hundreds of viewpoints and
+            # each look-up renders the room.
+            ways = sorted(
+                (
+                    round(here_to(v) + self.navmap.distance(a, v), 6),
+                    math.dist((v.x, v.y), p.box.center[:2]),
+                    v,
+                )
+                for v in self.navmap.viewpoints(p.room)
+            )
+            shorter = [v for way, _, v in ways if way < best - ROUNDING_M]
+            seen = first_sighting(
+                self.camera, self.home, p, self._in_room(p.room), shorter, min_mask_px
+            )
+            if seen.viewpoint is not None:
+                # Measured as a search walks it: from here to the viewpoint, then to the approach.
+                best = min(best, here_to(seen.viewpoint) + self.navmap.distance(seen.viewpoint, a))
         if best < math.inf:
             return best
         return min(self.navmap.distance(here, n) for n in approach.values())
