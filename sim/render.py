@@ -221,18 +221,22 @@ def slab(
     the camera (beyond ``NEAR_M``). The one ray/box intersection of the simulator."""
     near: list[FloatArray] = []
     t_far: FloatArray | None = None
+    # In place where a temporary is not needed any more (the same arithmetic: the visibility
+    # model runs this tens of thousands of times per bench run).
     for a in range(3):
         lo_a = box.center[a] - box.size[a] / 2
         with np.errstate(invalid="ignore"):
             t1 = (np.float32(lo_a) - origin[a]) * inv[a]
             t2 = (np.float32(lo_a + box.size[a]) - origin[a]) * inv[a]
             near.append(np.minimum(t1, t2))
-            far_a = np.maximum(t1, t2)
-        t_far = far_a if t_far is None else np.minimum(t_far, far_a)
+            far_a = np.maximum(t1, t2, out=t1)
+        t_far = far_a if t_far is None else np.minimum(t_far, far_a, out=t_far)
     assert t_far is not None
-    t_near = np.maximum(np.maximum(near[0], near[1]), near[2])
+    t_near = np.maximum(near[0], near[1])
+    np.maximum(t_near, near[2], out=t_near)
     # A ray parallel to a slab it starts outside of gives nan there, which compares False.
-    hit = (t_near <= t_far) & (t_near > NEAR_M)
+    hit = t_near <= t_far
+    hit &= t_near > NEAR_M
     return near, t_near, hit
 
 
@@ -314,17 +318,27 @@ def windows_of(boxes: Sequence[Box], inv_t: Float64Array, k: CameraIntrinsics) -
         col1 = np.minimum(np.ceil(u.max(axis=1)) + 1, k.width)
         row0 = np.maximum(np.floor(v.min(axis=1)), 0)
         row1 = np.minimum(np.ceil(v.max(axis=1)) + 1, k.height)
-    rects: list[Window | None] = []
-    for i in range(len(boxes)):
-        if not some[i]:
-            rects.append(None)
-        elif not every[i]:
-            rects.append((0, k.height, 0, k.width))
-        elif col0[i] >= col1[i] or row0[i] >= row1[i]:
-            rects.append(None)
-        else:
-            rects.append((int(row0[i]), int(row1[i]), int(col0[i]), int(col1[i])))
-    return Windows(tuple(rects), depth.min(axis=1), depth.max(axis=1))
+    # A box reaching behind the camera may cover any pixel; one wholly behind, or projecting to
+    # an empty rectangle, covers none.
+    whole = some & ~every
+    rows0 = np.where(whole, 0, row0)
+    rows1 = np.where(whole, k.height, row1)
+    cols0 = np.where(whole, 0, col0)
+    cols1 = np.where(whole, k.width, col1)
+    with np.errstate(invalid="ignore"):
+        shown = some & (whole | ((col0 < col1) & (row0 < row1)))
+    rects = tuple(
+        (int(r0), int(r1), int(c0), int(c1)) if ok else None
+        for ok, r0, r1, c0, c1 in zip(
+            shown.tolist(),
+            rows0.tolist(),
+            rows1.tolist(),
+            cols0.tolist(),
+            cols1.tolist(),
+            strict=True,
+        )
+    )
+    return Windows(rects, depth.min(axis=1), depth.max(axis=1))
 
 
 def _colours(
