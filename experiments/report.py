@@ -29,7 +29,7 @@ class ReportInputs:
 
     paper: Path
     homes: tuple[Path, ...]
-    table1: Path | None = None
+    table1: tuple[Path, ...] | None = None  # one bench table1 run per reading of Eq. 2
     heldout: tuple[Path, ...] | None = None
     paper_geometric: Path | None = None
 
@@ -73,10 +73,37 @@ def _report_command(inputs: ReportInputs, out: Path, img: Path) -> str:
     words = ["objsearch bench report", f"--paper {inputs.paper}"]
     words += [f"--homes {d}" for d in inputs.homes]
     words += [f"--heldout {d}" for d in inputs.heldout or ()]
-    for flag, value in (("--table1", inputs.table1), ("--paper-geometric", inputs.paper_geometric)):
-        if value is not None:
-            words.append(f"{flag} {value}")
+    words += [f"--table1 {d}" for d in inputs.table1 or ()]
+    if inputs.paper_geometric is not None:
+        words.append(f"--paper-geometric {inputs.paper_geometric}")
     return " ".join([*words, f"--out {out}", f"--img {img}"])
+
+
+def table1_section(runs: Sequence[dict[str, Any]]) -> str:
+    """Table I over FloorPlan sets, one run per reading of Eq. 2 (prior); with several, a
+    comparison first: each prior's median per strategy and how often the paper's order holds."""
+    parts = ["## Table I over FloorPlan sets\n"]
+    if len(runs) > 1:
+        parts.append(
+            "Each reading of Eq. 2 (`--prior`, docs/paper-readings.md) over its sample "
+            "(median of the per-set means, path to discovery m; the paper's WPL ≤ RVP < SDP):\n\n"
+            "| prior | sets | SDP | RVP | WPL | paper's order |\n|---|---|---|---|---|---|"
+        )
+        for run in runs:
+            s = run["summary"]
+            d, po = s["distribution"], s["paper_order"]
+            lo, hi = po["wilson95"]
+            parts.append(
+                f"| {run['prior']} | {s['sets']} | {d['sdp']['median']:.2f} | "
+                f"{d['rvp']['median']:.2f} | {d['wpl']['median']:.2f} | {po['count']} of "
+                f"{s['sets']} ({100 * po['share']:.0f} %, CI {100 * lo:.0f}–{100 * hi:.0f} %) |"
+            )
+        parts.append("")
+    for run in runs:
+        if len(runs) > 1:
+            parts.append(f"### Prior `{run['prior']}`\n")
+        parts.append(render_table1(run) + "\n")
+    return "\n".join(parts)
 
 
 def write_report(inputs: ReportInputs, out: Path, img: Path) -> Path:
@@ -105,9 +132,9 @@ def write_report(inputs: ReportInputs, out: Path, img: Path) -> Path:
                 "pass it as `--paper-geometric DIR`",
             )
         )
-    if inputs.table1 is not None:
-        t1 = load_summary(inputs.table1, "bench table1")
-        sections.append("## Table I over FloorPlan sets\n\n" + render_table1(t1) + "\n")
+    if inputs.table1:
+        runs = [load_summary(d, "bench table1") for d in inputs.table1]
+        sections.append(table1_section(runs))
     else:
         sections.append(
             _left_out(

@@ -150,7 +150,7 @@ def cmd_bench_report(args: argparse.Namespace) -> int:
     inputs = ReportInputs(
         paper=Path(args.paper),
         homes=tuple(homes),
-        table1=None if args.table1 is None else Path(args.table1),
+        table1=None if args.table1 is None else tuple(Path(d) for d in args.table1),
         heldout=None if heldout is None else tuple(heldout),
         paper_geometric=None if args.paper_geometric is None else Path(args.paper_geometric),
     )
@@ -323,8 +323,10 @@ def register(sub: Any) -> None:
     )
     report.add_argument(
         "--table1",
+        action="append",
         type=t.existing_dir,
-        help="a bench table1 output: the Table I distribution section (left out without it)",
+        help="a bench table1 output: the Table I distribution section (left out without it); "
+        "repeat with one run per --prior to compare the readings of Eq. 2",
     )
     report.add_argument(
         "--heldout",

@@ -100,22 +100,27 @@ def test_without_optional_inputs_their_sections_say_how_to_produce_them(
 def test_every_optional_section_from_its_own_run(
     runs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], shared: Path
 ) -> None:
-    t1 = tmp_path / "table1"
-    _bench(
-        *["bench", "table1", "--sets", "1", "--seed", "1", "--out", str(t1)],
-        *["--source", str(shared), "--targets", "Cup"],
-    )
+    t1, masked = tmp_path / "table1", tmp_path / "table1-masked"
+    for out, prior_option in ((t1, []), (masked, ["--prior", "vg-hoz-masked"])):
+        _bench(
+            *["bench", "table1", "--sets", "1", "--seed", "1", "--out", str(out), *prior_option],
+            *["--source", str(shared), "--targets", "Cup"],
+        )
     text = _report(
         runs,
         tmp_path,
-        *("--table1", str(t1), "--heldout", str(runs["heldout"])),
+        *("--table1", str(t1), "--table1", str(masked), "--heldout", str(runs["heldout"])),
         *("--paper-geometric", str(runs["paper"])),
     )
     capsys.readouterr()
     assert "Not in this report:" not in text
-    assert "## Table I over FloorPlan sets" in text
+    assert text.count("## Table I over FloorPlan sets") == 1
     assert f"objsearch bench table1 --sets 1 --seed 1 --source {shared}" in text
     assert "| strategy | median | IQR (25–75 %) | 5–95 % | mean | paper (percentile) |" in text
+    # One comparison row and one section per reading of Eq. 2.
+    assert "| prior | sets | SDP | RVP | WPL | paper's order |" in text
+    for prior in ("vg-cooccurrence", "vg-hoz-masked"):
+        assert f"### Prior `{prior}`" in text and f"| {prior} | 1 |" in text
     held = text.split("## Held-out homes (looked at only at the end)")[1]
     assert "Homes (1): ithor-02." in held and "ithor-02" not in text.split("## Held-out")[0]
     assert "![heldout_stats](img/heldout_stats.png)" in held
