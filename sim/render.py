@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Collection, Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -66,6 +66,14 @@ class Scene:
     lo: tuple[float, float, float]
     hi: tuple[float, float, float]
     objects: tuple[SceneObject, ...]
+    #: Each object's box corners, (n, 8, 3), and its position by id: a camera projects them for
+    #: every view.
+    corners: Float64Array = field(init=False, repr=False, compare=False)
+    index: Mapping[str, int] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "corners", box_corners([o.box for o in self.objects]))
+        object.__setattr__(self, "index", {o.id: k for k, o in enumerate(self.objects)})
 
     def without(self, object_id: str) -> Scene:
         """The scene with one object taken out (an opened container shows what it holds, and
@@ -157,7 +165,7 @@ def render(
     instance = np.where(axis == 2, np.where(inv[2] < 0, FLOOR, CEILING), WALL).astype(np.int32)
 
     inv_t: Float64Array = np.linalg.inv(T_map_camera).astype(np.float64)
-    windows = windows_of([o.box for o in scene.objects], inv_t, intrinsics).rects
+    windows = corner_windows(scene.corners, inv_t, intrinsics).rects
     cutouts = support_cutouts(
         scene, windows, origin, inv, (0, intrinsics.height, 0, intrinsics.width)
     )
@@ -296,15 +304,27 @@ class Windows:
     far: Float64Array
 
 
+def box_corners(boxes: Sequence[Box]) -> Float64Array:
+    """The eight corners of each box, (n, 8, 3)."""
+    if not boxes:
+        return np.zeros((0, 8, 3))
+    c = np.array([b.center for b in boxes], dtype=float)
+    s = np.array([b.size for b in boxes], dtype=float) / 2
+    corners: Float64Array = c[:, None, :] + _SIGNS[None] * s[:, None, :]
+    return corners
+
+
 def windows_of(boxes: Sequence[Box], inv_t: Float64Array, k: CameraIntrinsics) -> Windows:
     """Each box's pixel rectangle: its corners' projections, or the whole image when the box
     reaches behind the camera; None when it is wholly behind or outside the image. Element-wise
     per corner, so a box's rectangle does not depend on the other boxes."""
-    if not boxes:
+    return corner_windows(box_corners(boxes), inv_t, k)
+
+
+def corner_windows(corners: Float64Array, inv_t: Float64Array, k: CameraIntrinsics) -> Windows:
+    """:func:`windows_of` from the boxes' corners (:func:`box_corners`)."""
+    if not len(corners):
         return Windows((), np.zeros(0), np.zeros(0))
-    c = np.array([b.center for b in boxes], dtype=float)
-    s = np.array([b.size for b in boxes], dtype=float) / 2
-    corners = c[:, None, :] + _SIGNS[None] * s[:, None, :]  # (n, 8, 3)
     x, y, z = corners[..., 0], corners[..., 1], corners[..., 2]
     cam = [inv_t[a, 0] * x + inv_t[a, 1] * y + inv_t[a, 2] * z + inv_t[a, 3] for a in range(3)]
     depth = cam[2]

@@ -40,13 +40,13 @@ from objsearch.sim.render import (
     MAX_RANGE_M,
     Scene,
     Window,
+    corner_windows,
     intersect,
     inverse_directions,
     room_scene,
     shell_depth,
     slab,
     support_cutouts,
-    windows_of,
 )
 
 if TYPE_CHECKING:
@@ -80,23 +80,24 @@ class DirectionCache:
 
     def __init__(self, max_images: int = DIRECTION_IMAGES) -> None:
         self.max_images = max_images
-        self._images: OrderedDict[tuple[CameraIntrinsics, bytes], FloatArray | None] = OrderedDict()
+        self._images: OrderedDict[tuple[CameraIntrinsics, bytes], FloatArray] = OrderedDict()
+        self._seen: OrderedDict[tuple[CameraIntrinsics, bytes], None] = OrderedDict()
 
     def window(self, k: CameraIntrinsics, rot: FloatArray, win: Window) -> FloatArray:
         r0, r1, c0, c1 = win
         key = (k, rot.tobytes())
-        if key not in self._images:
-            self._images[key] = None
-            if len(self._images) > SEEN_ROTATIONS:
-                self._images.popitem(last=False)
+        image = self._images.get(key)
+        if image is not None:
+            self._images.move_to_end(key)
+            return image[:, r0:r1, c0:c1]
+        if key not in self._seen:
+            self._seen[key] = None
+            if len(self._seen) > SEEN_ROTATIONS:
+                self._seen.popitem(last=False)
             return inverse_directions(k.rays()[r0:r1, c0:c1], rot)
-        image = self._images[key]
-        if image is None:
-            image = self._images[key] = inverse_directions(k.rays(), rot)
-            kept = [key for key, image in self._images.items() if image is not None]
-            for old in kept[: max(0, len(kept) - self.max_images)]:
-                self._images[old] = None
-        self._images.move_to_end(key)
+        image = self._images[key] = inverse_directions(k.rays(), rot)
+        if len(self._images) > self.max_images:
+            self._images.popitem(last=False)
         return image[:, r0:r1, c0:c1]
 
 
@@ -130,9 +131,11 @@ def mask_areas(
     rot = T_map_camera[:3, :3].astype(np.float32)
     origin = T_map_camera[:3, 3].astype(np.float32)
     inv_t: Float64Array = np.linalg.inv(T_map_camera).astype(np.float64)
-    boxes = windows_of([o.box for o in scene.objects], inv_t, intrinsics)
+    index = scene.index
+    boxes = corner_windows(scene.corners, inv_t, intrinsics)
     windows = boxes.rects
-    index = {o.id: k for k, o in enumerate(scene.objects)}
+    if all(windows[index[c]] is None for c in candidates):
+        return dict.fromkeys(candidates, 0)  # most views of a walk show none of the candidates
     out: dict[str, int] = {}
     for object_id in candidates:
         k = index[object_id]
@@ -201,6 +204,19 @@ class _Placed:
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, _Placed) and self.items == other.items
+
+
+#: One key object per distinct placed-object sequence: every world builds its own tuples, and a
+#: cache look-up whose key holds the same object compares by identity instead of comparing every
+#: placement field by field (which took most of a cache hit's time).
+_INTERNED: dict[_Placed, _Placed] = {}
+INTERNED_KEYS = 4096
+
+
+def _intern(key: _Placed) -> _Placed:
+    if len(_INTERNED) >= INTERNED_KEYS:
+        _INTERNED.clear()  # only slower look-ups for the keys already cached, never wrong ones
+    return _INTERNED.setdefault(key, key)
 
 
 class VisibilityCache:
@@ -301,7 +317,7 @@ class OccludingCamera:
             return known[1]
         if len(self._placed) >= PLACED_KEYS:
             self._placed.clear()
-        key = _Placed(tuple(placed))
+        key = _intern(_Placed(tuple(placed)))
         self._placed[id(placed)] = (placed, key)
         return key
 
