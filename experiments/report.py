@@ -54,6 +54,12 @@ def load_homes(folders: Sequence[Path]) -> tuple[dict[str, Any], list[Row]]:
     if len(summaries) == 1:
         return summaries[0], rows
     priors = sorted({str(s.get("prior", DEFAULT_PRIOR)) for s in summaries})
+    cameras = {s.get("camera") for s in summaries}
+    if len(cameras) > 1:
+        raise ObjsearchError(
+            f"{', '.join(map(str, folders))} were searched with different cameras "
+            f"({', '.join(sorted(str(c) for c in cameras))}): report them apart"
+        )
     summary = {
         **homes_summary(rows),
         "command": "; ".join(str(s.get("command", "objsearch bench homes")) for s in summaries),
@@ -62,6 +68,8 @@ def load_homes(folders: Sequence[Path]) -> tuple[dict[str, Any], list[Row]]:
         "workers": max(int(s["workers"]) for s in summaries),
         "prior": ", ".join(priors),
     }
+    if (camera := cameras.pop()) is not None:
+        summary["camera"] = camera  # the oracle it measured and the failure causes depend on it
     return summary, rows
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import shutil
 from pathlib import Path
 
 import pytest
@@ -213,6 +214,23 @@ def test_several_homes_runs_are_reported_as_one(runs: dict[str, Path], tmp_path:
     one = json.loads((runs["homes"] / "summary.json").read_text())["searches"]
     two = json.loads((runs["heldout"] / "summary.json").read_text())["searches"]
     assert f"{one + two} searches" in section
+    # Both recorded the occluding camera: so does the merged section (its oracle note and the
+    # failure causes depend on it).
+    assert "This run recorded no camera" not in section
+
+
+def test_runs_with_different_cameras_are_not_merged(
+    runs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    other = tmp_path / "geometric"
+    shutil.copytree(runs["heldout"], other)
+    summary = json.loads((other / "summary.json").read_text())
+    (other / "summary.json").write_text(json.dumps({**summary, "camera": "geometric"}))
+    argv = ["bench", "report", "--paper", str(runs["paper"]), "--homes", str(runs["homes"])]
+    argv += ["--homes", str(other), "--out", str(tmp_path / "r.md")]
+    assert main(argv) == 2
+    assert "different cameras (geometric, occluding): report them apart" in capsys.readouterr().err
+    assert not (tmp_path / "r.md").exists()
 
 
 def test_a_run_without_a_camera_gets_no_computed_cause(runs: dict[str, Path]) -> None:
