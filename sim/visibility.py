@@ -135,7 +135,7 @@ def mask_areas(
     boxes = corner_windows(scene.corners, inv_t, intrinsics)
     windows = boxes.rects
     if all(windows[index[c]] is None for c in candidates):
-        return dict.fromkeys(candidates, 0)  # 2 in 5 views of a bench homes run show none
+        return dict.fromkeys(candidates, 0)  # 2 in 5 computed views of a bench run show none
     out: dict[str, int] = {}
     for object_id in candidates:
         k = index[object_id]
