@@ -57,6 +57,16 @@ LONGTERM_PAPER_MODES = ("none", "targets", "all")
 LONGTERM_OURS = ("wpl-neg", "wpl-neg-decay", "epl", "epl-neg-decay")
 
 
+def table1_job(
+    home: str, name: str, seed: int, targets: Sequence[str], prior: str, camera: str
+) -> Job:
+    """One Table I run: strategy ``name`` with ``seed`` on ``home``'s Table I scene (the paper's
+    removals), every target from every start, no updates."""
+    return Job(
+        "table1", home, "table1", name, "none", seed, tuple(targets), prior=prior, camera=camera
+    )
+
+
 def paper_jobs(
     strategies: Sequence[str],
     *,
@@ -75,20 +85,7 @@ def paper_jobs(
         if name not in strategies:
             continue
         seeds = range(sdp_seeds) if strategy(name).randomised else range(1)
-        jobs += [
-            Job(
-                "table1",
-                home,
-                "table1",
-                name,
-                "none",
-                s,
-                tuple(targets),
-                prior=prior,
-                camera=camera,
-            )
-            for s in seeds
-        ]
+        jobs += [table1_job(home, name, s, targets, prior, camera) for s in seeds]
     for name in strategies:
         if strategy(name).randomised or name == "rvp":
             continue  # the paper runs its long-term experiment with its own method

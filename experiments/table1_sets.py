@@ -29,7 +29,7 @@ import numpy as np
 from objsearch.agent.datapaths import DATA_ENV
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.session import DEFAULT_PRIOR, load_context
-from objsearch.experiments.paper import PAPER_TABLE1, discovery
+from objsearch.experiments.paper import PAPER_TABLE1, discovery, table1_job
 from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, unseeable, write_rows
 from objsearch.pipeline.build import PAPER_HOME, build_data
 from objsearch.pipeline.findings import EMPTY_ROOMS, LOST_GRID_POINTS
@@ -163,17 +163,7 @@ def table1_jobs(
     camera: str = DEFAULT_CAMERA,
 ) -> list[Job]:
     return [
-        Job(
-            "table1",
-            home,
-            "table1",
-            name,
-            "none",
-            seed,
-            tuple(targets),
-            prior=prior,
-            camera=camera,
-        )
+        table1_job(home, name, seed, targets, prior, camera)
         for home in homes
         for name, seeds in STRATEGY_SEEDS
         for seed in seeds

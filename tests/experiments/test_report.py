@@ -99,13 +99,13 @@ def test_without_optional_inputs_their_sections_say_how_to_produce_them(
 
 
 def test_every_optional_section_from_its_own_run(
-    runs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], shared: Path
+    runs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], shared_data: Path
 ) -> None:
     t1, masked = tmp_path / "table1", tmp_path / "table1-masked"
     for out, prior_option in ((t1, []), (masked, ["--prior", "vg-hoz-masked"])):
         _bench(
             *["bench", "table1", "--sets", "1", "--seed", "1", "--out", str(out), *prior_option],
-            *["--source", str(shared), "--targets", "Cup"],
+            *["--source", str(shared_data), "--targets", "Cup"],
         )
     text = _report(
         runs,
@@ -116,7 +116,7 @@ def test_every_optional_section_from_its_own_run(
     capsys.readouterr()
     assert "Not in this report:" not in text
     assert text.count("## Table I over FloorPlan sets") == 1
-    assert f"objsearch bench table1 --sets 1 --seed 1 --source {shared}" in text
+    assert f"objsearch bench table1 --sets 1 --seed 1 --source {shared_data}" in text
     assert "| strategy | median | IQR (25–75 %) | 5–95 % | mean | paper (percentile) |" in text
     # One comparison row and one section per reading of Eq. 2.
     assert "| prior | sets | SDP | RVP | WPL | paper's order |" in text

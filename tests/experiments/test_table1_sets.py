@@ -25,8 +25,8 @@ from objsearch.pipeline.scenario import table1
 
 
 @pytest.fixture(scope="module")
-def elig(shared: Path) -> Eligibility:
-    return eligibility(shared)
+def elig(shared_data: Path) -> Eligibility:
+    return eligibility(shared_data)
 
 
 def test_eligibility_counts_every_set_once(elig: Eligibility) -> None:
@@ -37,10 +37,10 @@ def test_eligibility_counts_every_set_once(elig: Eligibility) -> None:
     assert not any("FloorPlan408" in s for s in elig.eligible)
 
 
-def test_per_room_rule_agrees_with_the_build(shared: Path, elig: Eligibility) -> None:
+def test_per_room_rule_agrees_with_the_build(shared_data: Path, elig: Eligibility) -> None:
     order = sample_order(elig.eligible, 1)
     for scenes in order[:2]:
-        table1(build_home(shared, set_name(scenes), scenes))  # raises if the rule fails
+        table1(build_home(shared_data, set_name(scenes), scenes))  # raises if the rule fails
     eligible = set(elig.eligible)
     failing = next(
         s
@@ -51,7 +51,7 @@ def test_per_room_rule_agrees_with_the_build(shared: Path, elig: Eligibility) ->
         if s not in eligible and "FloorPlan408" not in s
     )
     with pytest.raises(Exception, match="exactly one"):
-        table1(build_home(shared, set_name(failing), failing))
+        table1(build_home(shared_data, set_name(failing), failing))
 
 
 def test_sample_is_seeded_and_nested(elig: Eligibility) -> None:
@@ -68,12 +68,20 @@ def test_orderings() -> None:
 
 
 def test_bench_table1_on_two_sets(
-    shared: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "t1"
     before = os.environ.get(DATA_ENV)
     argv = ["bench", "table1", "--sets", "2", "--seed", "1", "--out", str(out)]
-    argv += ["--source", str(shared), "--targets", "Cup,Vase", "--workers", "1", "--no-progress"]
+    argv += [
+        "--source",
+        str(shared_data),
+        "--targets",
+        "Cup,Vase",
+        "--workers",
+        "1",
+        "--no-progress",
+    ]
     argv += ["--prior", "vg-hoz-masked"]
     assert main(argv) == 0
     assert os.environ.get(DATA_ENV) == before  # the temporary data folder is not left set
