@@ -86,17 +86,39 @@ def _logging() -> None:
     logging.getLogger("objsearch").setLevel(logging.INFO)
 
 
-def live_sinks(live: str | None, live_mcap: str | None, *, compress: bool = True) -> list[LiveSink]:
-    """The live view's sinks from ``--live [HOST:]PORT`` and ``--live-mcap FILE`` (none: off).
+def live_sinks(
+    live: str | None,
+    live_mcap: str | None,
+    *,
+    compress: bool = True,
+    max_clients: int | None = None,
+    client_queue_mib: int | None = None,
+) -> list[LiveSink]:
+    """The live view's sinks from ``--live [HOST:]PORT`` and ``--live-mcap FILE`` (none: off);
+    ``--live-max-clients`` and ``--live-client-queue`` bound the server's clients.
 
     If the second cannot start, the first is closed again before the error is raised."""
+    from objsearch.agent.errors import ObjsearchError
     from objsearch.runtime.livesinks import FoxgloveSink, McapSink, parse_address
+    from objsearch.runtime.wsfront import FrontLimits
 
+    if live is None and (max_clients is not None or client_queue_mib is not None):
+        raise ObjsearchError(
+            "--live-max-clients and --live-client-queue bound the live view's server: "
+            "they need --live [HOST:]PORT"
+        )
+    defaults = FrontLimits()
+    limits = FrontLimits(
+        max_clients=defaults.max_clients if max_clients is None else max_clients,
+        client_queue_bytes=(
+            defaults.client_queue_bytes if client_queue_mib is None else client_queue_mib << 20
+        ),
+    )
     sinks: list[LiveSink] = []
     try:
         if live is not None:
             host, port = parse_address(live)
-            server = FoxgloveSink(host, port)
+            server = FoxgloveSink(host, port, limits=limits)
             sinks.append(server)
             print(
                 f"objsearch agent: live view on ws://{_host_for_url(server.host)}:{server.port} "
@@ -123,7 +145,13 @@ def cmd_agent_run(args: argparse.Namespace) -> int:
 
     _logging()
     config = runtime_config(args)  # bad options fail before a port is taken or a file made
-    sinks = live_sinks(args.live, args.live_mcap, compress=not args.no_compress)
+    sinks = live_sinks(
+        args.live,
+        args.live_mcap,
+        compress=not args.no_compress,
+        max_clients=args.live_max_clients,
+        client_queue_mib=args.live_client_queue,
+    )
     node = AgentNode(
         config,
         Path(args.log),
@@ -338,6 +366,26 @@ def register(sub: Any) -> None:
         metavar="FILE",
         type=t.new_path,
         help="also write the live view's channels to FILE.mcap",
+    )
+    from objsearch.runtime.wsfront import (
+        DEFAULT_CLIENT_QUEUE_BYTES,
+        DEFAULT_MAX_CLIENTS,
+        MAX_CLIENTS_LIMIT,
+    )
+
+    run.add_argument(
+        "--live-max-clients",
+        metavar="N",
+        type=t.int_range(1, MAX_CLIENTS_LIMIT),
+        help=f"serve at most N live-view clients at once, 1-{MAX_CLIENTS_LIMIT} "
+        f"({DEFAULT_MAX_CLIENTS}); more get HTTP 503",
+    )
+    run.add_argument(
+        "--live-client-queue",
+        metavar="MIB",
+        type=t.int_range(1, 1024),
+        help="drop a live-view client once more than MIB mebibytes wait for it, 1-1024 "
+        f"({DEFAULT_CLIENT_QUEUE_BYTES >> 20})",
     )
     run.add_argument(
         "--no-compress",

@@ -26,7 +26,7 @@ from typing import Any
 from objsearch.agent.errors import ObjsearchError
 from objsearch.runtime import messages as m
 from objsearch.runtime.liveview import LiveMessage
-from objsearch.runtime.wsfront import SubprotocolFront
+from objsearch.runtime.wsfront import FrontLimits, FrontStats, SubprotocolFront
 
 log = logging.getLogger("objsearch.liveview")
 
@@ -142,10 +142,20 @@ class McapSink:
 
 
 class FoxgloveSink:
-    """A Foxglove WebSocket server (``foxglove-sdk``) with one channel per live topic."""
+    """A Foxglove WebSocket server (``foxglove-sdk``) with one channel per live topic.
+
+    ``limits`` bounds what clients may cost (:class:`~objsearch.runtime.wsfront.FrontLimits`:
+    how many at once, how much may wait for one, how long a handshake may take); a client over
+    them is refused or dropped, never the agent.
+    """
 
     def __init__(
-        self, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, name: str = "objsearch"
+        self,
+        host: str = DEFAULT_HOST,
+        port: int = DEFAULT_PORT,
+        *,
+        name: str = "objsearch",
+        limits: FrontLimits | None = None,
     ) -> None:
         try:
             import foxglove
@@ -183,7 +193,7 @@ class FoxgloveSink:
         except RuntimeError as exc:
             raise LiveViewError(f"cannot start the live view's Foxglove server: {exc}") from exc
         try:
-            self._front = SubprotocolFront(host, port, int(self._server.port))
+            self._front = SubprotocolFront(host, port, int(self._server.port), limits)
         except OSError as exc:
             self._server.stop()
             raise LiveViewError(
@@ -192,6 +202,10 @@ class FoxgloveSink:
             ) from exc
         self.host = host
         self.port = self._front.port
+
+    def stats(self) -> FrontStats:
+        """What the front door holds and has refused or dropped (connections, queues)."""
+        return self._front.stats()
 
     def write(self, message: LiveMessage) -> None:
         with self._lock:

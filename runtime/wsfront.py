@@ -14,14 +14,24 @@ else ``foxglove.websocket.v1``, hands the handshake to the SDK under the name th
 answers the client under the name it offered; after that it copies bytes both ways untouched.
 A handshake it refuses, or the SDK refuses, is logged with its reason (who, what was offered,
 what the server said).
+
+A viewer must never cost the agent its memory or the other viewers their stream, so one thread
+serves every connection and :class:`FrontLimits` bounds them: how many at once, how long a
+handshake may take, how many bytes may wait for one client before it is dropped.
 """
 
 from __future__ import annotations
 
 import contextlib
+import enum
+import errno
 import logging
+import os
+import selectors
 import socket
+import struct
 import threading
+import time
 from dataclasses import dataclass
 from typing import Final
 
@@ -35,7 +45,19 @@ LEGACY_SUBPROTOCOL: Final = "foxglove.websocket.v1"
 SUBPROTOCOLS: Final = (SDK_SUBPROTOCOL, LEGACY_SUBPROTOCOL)
 
 _MAX_HEAD = 64 * 1024
-_HANDSHAKE_TIMEOUT_S = 10.0
+_CHUNK = 64 * 1024
+
+#: How many clients the live view serves at once unless told otherwise (``--live-max-clients``).
+DEFAULT_MAX_CLIENTS: Final = 32
+#: Bytes waiting for one client before it is dropped as too slow (``--live-client-queue``).
+DEFAULT_CLIENT_QUEUE_BYTES: Final = 4 * 1024 * 1024
+#: Seconds from accepting a connection to the end of its WebSocket handshake.
+DEFAULT_HANDSHAKE_TIMEOUT_S: Final = 10.0
+#: Upper bounds of the options (a front door is not a load balancer).
+MAX_CLIENTS_LIMIT: Final = 1024
+MAX_QUEUE_BYTES_LIMIT: Final = 1024 * 1024 * 1024
+#: Seconds between two log lines about the same kind of refusal (a flood is summarised).
+_LOG_EVERY_S = 10.0
 
 
 class HandshakeRefused(Exception):
@@ -106,147 +128,550 @@ def choose_subprotocol(request: Handshake) -> str:
     )
 
 
-def _read_head(sock: socket.socket) -> tuple[bytes, bytes]:
-    """(head without its blank line, bytes read past it)."""
-    buf = b""
-    while b"\r\n\r\n" not in buf:
-        if len(buf) > _MAX_HEAD:
-            raise HandshakeRefused(f"handshake longer than {_MAX_HEAD} bytes")
-        chunk = sock.recv(65536)
-        if not chunk:
-            raise ConnectionError("closed during the handshake")
-        buf += chunk
-    head, rest = buf.split(b"\r\n\r\n", 1)
-    return head, rest
+@dataclass(frozen=True, slots=True)
+class FrontLimits:
+    """What one client may cost: a place among ``max_clients``, ``client_queue_bytes`` of
+    messages waiting for it, ``handshake_timeout_s`` to finish its handshake."""
+
+    max_clients: int = DEFAULT_MAX_CLIENTS
+    client_queue_bytes: int = DEFAULT_CLIENT_QUEUE_BYTES
+    handshake_timeout_s: float = DEFAULT_HANDSHAKE_TIMEOUT_S
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.max_clients, int) or not 1 <= self.max_clients <= MAX_CLIENTS_LIMIT:
+            raise ValueError(
+                f"the live view's client limit must be a whole number 1–{MAX_CLIENTS_LIMIT}, "
+                f"not {self.max_clients!r}"
+            )
+        if (
+            not isinstance(self.client_queue_bytes, int)
+            or not _CHUNK <= self.client_queue_bytes <= MAX_QUEUE_BYTES_LIMIT
+        ):
+            raise ValueError(
+                f"the live view's per-client queue must be {_CHUNK} bytes to 1 GiB, "
+                f"not {self.client_queue_bytes!r}"
+            )
+        timeout = self.handshake_timeout_s
+        if not isinstance(timeout, int | float) or not 0 < timeout <= 3600:  # NaN fails too
+            raise ValueError(
+                f"the live view's handshake timeout must be above 0 and at most 3600 s, "
+                f"not {timeout!r}"
+            )
+
+
+@dataclass(frozen=True, slots=True)
+class FrontStats:
+    """What the front door has done so far, and what it holds now (:meth:`SubprotocolFront.stats`)."""
+
+    #: Connections held now (handshaking and relaying); never more than ``max_clients``.
+    connections: int
+    #: Of those, the ones still in their handshake.
+    handshaking: int
+    #: Connections accepted in all (including those then refused, evicted or dropped).
+    accepted: int
+    #: Answered HTTP 503 because ``max_clients`` clients were connected.
+    refused_full: int
+    #: Closed in their handshake to make room for a newer connection while at the cap.
+    evicted: int
+    #: Closed because their handshake took longer than ``handshake_timeout_s``.
+    timed_out: int
+    #: Dropped because more than ``client_queue_bytes`` were waiting for them.
+    dropped_slow: int
+    #: The most bytes that ever waited for one client.
+    peak_queue_bytes: int
+
+
+def _response(status: str, reason: str, *extra: str) -> bytes:
+    """A complete HTTP response that ends the connection (a refusal before any upgrade)."""
+    body = (reason + "\n").encode("utf-8")
+    head = [
+        f"HTTP/1.1 {status}",
+        "Content-Type: text/plain; charset=utf-8",
+        f"Content-Length: {len(body)}",
+        *extra,
+        "Connection: close",
+    ]
+    return ("\r\n".join(head) + "\r\n\r\n").encode("latin-1") + body
 
 
 def _refusal(reason: str) -> bytes:
-    body = (reason + "\n").encode("utf-8")
-    return (
-        b"HTTP/1.1 400 Bad Request\r\nContent-Type: text/plain; charset=utf-8\r\n"
-        + f"Content-Length: {len(body)}\r\nConnection: close\r\n\r\n".encode()
-        + body
-    )
+    return _response("400 Bad Request", reason)
+
+
+class _Phase(enum.Enum):
+    HEAD = "reading the client's handshake"
+    BACKEND = "waiting for the Foxglove server's answer"
+    RELAY = "relaying"
+    CLOSING = "sending a refusal"
+
+
+#: Seconds a refused connection is given to read its answer before it is closed.
+_LINGER_S = 2.0
+
+
+class _Conn:
+    """One client: its socket, the SDK-side socket once there is one, and what waits for each."""
+
+    def __init__(self, client: socket.socket, who: str, deadline: float, holds_slot: bool) -> None:
+        self.client = client
+        self.who = who
+        self.deadline: float | None = deadline
+        self.holds_slot = holds_slot
+        self.phase = _Phase.HEAD
+        self.backend: socket.socket | None = None
+        self.connecting = False
+        self.head = bytearray()
+        self.chosen = ""
+        self.offered = ""
+        self.to_client = bytearray()
+        self.to_backend = bytearray()
+        self.client_eof = False
+        self.backend_eof = False
+        self.write_shut = False  # CLOSING: the answer is out, the client's side is ended
+        self.masks: dict[int, int] = {}
+
+
+class _Throttle:
+    """Warnings of one kind at most once per ``_LOG_EVERY_S``; the rest are counted and summed up
+    in one line, so a flood of connections cannot flood the log."""
+
+    def __init__(self) -> None:
+        self._last: dict[str, float] = {}
+        self._quiet: dict[str, int] = {}
+
+    def warn(self, kind: str, message: str) -> None:
+        now = time.monotonic()
+        last = self._last.get(kind)
+        if last is not None and now - last < _LOG_EVERY_S:
+            self._quiet[kind] = self._quiet.get(kind, 0) + 1
+            return
+        self._last[kind] = now
+        log.warning("live view: %s", message)
+
+    def flush(self) -> None:
+        now = time.monotonic()
+        for kind, quiet in list(self._quiet.items()):
+            if now - self._last[kind] >= _LOG_EVERY_S:
+                del self._quiet[kind]
+                self._last[kind] = now
+                log.warning(
+                    "live view: %d more connections %s in the last %.0f s",
+                    quiet,
+                    kind,
+                    _LOG_EVERY_S,
+                )
 
 
 class SubprotocolFront:
     """Listens on ``host:port`` and relays each Foxglove client to ``backend_port`` on loopback.
 
+    One thread serves every connection (a selector loop), so connections cost sockets and
+    buffers, never threads, and ``limits`` bounds both: at most ``max_clients`` connections; a
+    handshake unfinished after ``handshake_timeout_s`` is closed; a client with more than
+    ``client_queue_bytes`` waiting for it is dropped. A connection over the cap closes the oldest
+    one still in its handshake, or, when every place holds a connected client, is answered
+    HTTP 503.
+
     Raises :class:`OSError` if ``host:port`` cannot be bound; ``port`` 0 picks a free one
     (:attr:`port` says which).
     """
 
-    def __init__(self, host: str, port: int, backend_port: int) -> None:
+    def __init__(
+        self, host: str, port: int, backend_port: int, limits: FrontLimits | None = None
+    ) -> None:
+        self.limits = limits or FrontLimits()
         family = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0][0]
         self._listener = socket.create_server((host, port), family=family)
+        self._listener.setblocking(False)
         self.host = host
         self.port = int(self._listener.getsockname()[1])
         self.backend_port = backend_port
-        self._open: set[socket.socket] = set()
-        self._lock = threading.Lock()
+        self._selector = selectors.DefaultSelector()
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_r.setblocking(False)
+        self._selector.register(self._listener, selectors.EVENT_READ, None)
+        self._selector.register(self._wake_r, selectors.EVENT_READ, None)
+        # Insertion order is acceptance order: the first unfinished handshake is the oldest.
+        self._conns: dict[int, _Conn] = {}
+        self._refusing: dict[int, _Conn] = {}
+        self._throttle = _Throttle()
         self._closed = False
-        self._thread = threading.Thread(target=self._accept, name="liveview-front", daemon=True)
+        self._counts = dict.fromkeys(
+            ("accepted", "refused_full", "evicted", "timed_out", "dropped_slow", "peak"), 0
+        )
+        self._stats = self._snapshot()
+        self._thread = threading.Thread(target=self._loop, name="liveview-front", daemon=True)
         self._thread.start()
 
-    def _accept(self) -> None:
-        while True:
-            try:
-                conn, peer = self._listener.accept()
-            except OSError:
-                return  # closed
-            threading.Thread(
-                target=self._serve, args=(conn, peer), name="liveview-client", daemon=True
-            ).start()
+    # -- what it holds ---------------------------------------------------------------------------
 
-    def _track(self, *socks: socket.socket) -> bool:
-        with self._lock:
-            if self._closed:
-                return False
-            self._open.update(socks)
-            return True
+    def stats(self) -> FrontStats:
+        """The counts as of the loop's last turn (it turns at least once a second)."""
+        return self._stats
 
-    def _serve(self, client: socket.socket, peer: tuple[str, int]) -> None:
-        who = f"{peer[0]}:{peer[1]}"
-        backend: socket.socket | None = None
+    def _snapshot(self) -> FrontStats:
+        held = [c for c in self._conns.values() if c.holds_slot]
+        c = self._counts
+        return FrontStats(
+            connections=len(held),
+            handshaking=sum(x.phase is not _Phase.RELAY for x in held),
+            accepted=c["accepted"],
+            refused_full=c["refused_full"],
+            evicted=c["evicted"],
+            timed_out=c["timed_out"],
+            dropped_slow=c["dropped_slow"],
+            peak_queue_bytes=c["peak"],
+        )
+
+    # -- the loop --------------------------------------------------------------------------------
+
+    def _loop(self) -> None:
         try:
-            if not self._track(client):
-                return
-            client.settimeout(_HANDSHAKE_TIMEOUT_S)
-            try:
-                head, rest = _read_head(client)
-                request = Handshake.parse(head)
-                chosen = choose_subprotocol(request)
-            except HandshakeRefused as refused:
-                log.warning("live view: refused the WebSocket handshake of %s: %s", who, refused)
-                with contextlib.suppress(OSError):
-                    client.sendall(_refusal(refused.reason))
-                return
-            except (OSError, ConnectionError, UnicodeError) as exc:
-                log.warning("live view: WebSocket handshake of %s failed: %s", who, exc)
-                return
-            backend = socket.create_connection(
-                ("127.0.0.1", self.backend_port), timeout=_HANDSHAKE_TIMEOUT_S
-            )
-            if not self._track(backend):
-                return
-            backend.sendall(request.with_header("Sec-WebSocket-Protocol", SDK_SUBPROTOCOL).encode())
-            backend.sendall(rest)
-            answer_head, answer_rest = _read_head(backend)
-            answer = Handshake.parse(answer_head)
-            if answer.status != 101:
-                log.warning(
-                    "live view: the Foxglove server refused the WebSocket handshake of %s "
-                    "(offered %s): %s %s",
-                    who,
-                    ", ".join(request.values("Sec-WebSocket-Protocol")),
-                    answer.first_line,
-                    answer_rest[:200].decode("utf-8", "replace").strip(),
-                )
-                client.sendall(answer_head + b"\r\n\r\n" + answer_rest)
-                return
-            client.sendall(answer.with_header("Sec-WebSocket-Protocol", chosen).encode())
-            client.sendall(answer_rest)
-            log.info("live view: Foxglove client %s connected (%s)", who, chosen)
-            for s in (client, backend):
-                s.settimeout(None)
-                s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            back = threading.Thread(
-                target=_pump, args=(backend, client), name="liveview-relay", daemon=True
-            )
-            back.start()
-            _pump(client, backend)
-            back.join()
-        except (OSError, ConnectionError, HandshakeRefused) as exc:
-            log.warning("live view: connection of %s ended: %s", who, exc)
+            while not self._closed:
+                timeout = self._next_timeout()
+                for key, mask in self._selector.select(timeout):
+                    if key.fileobj is self._listener:
+                        self._accept()
+                    elif key.fileobj is self._wake_r:
+                        with contextlib.suppress(OSError):
+                            self._wake_r.recv(4096)
+                    else:
+                        conn, side = key.data
+                        self._serve(conn, side, mask)
+                self._expire()
+                self._throttle.flush()
+                self._stats = self._snapshot()
+        except Exception:
+            # A bug here must not take the agent down, but it must not be silent either.
+            log.exception("live view: the WebSocket front door stopped")
         finally:
-            ends: list[socket.socket | None] = [client, backend]
-            for end in ends:
-                if end is not None:
-                    with self._lock:
-                        self._open.discard(end)
-                    end.close()
+            for conn in [*self._conns.values(), *self._refusing.values()]:
+                self._close(conn, reset=True)
+            self._stats = self._snapshot()
+
+    def _next_timeout(self) -> float:
+        deadlines = [
+            c.deadline
+            for c in [*self._conns.values(), *self._refusing.values()]
+            if c.deadline is not None
+        ]
+        if not deadlines:
+            return 1.0
+        return min(max(min(deadlines) - time.monotonic(), 0.0), 1.0)
+
+    def _accept(self) -> None:
+        for _ in range(64):  # then let the clients' sockets have a turn
+            try:
+                sock, peer = self._listener.accept()
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:  # out of file descriptors, …: the connection waits
+                self._throttle.warn("not accepted", f"cannot accept a connection: {exc}")
+                return
+            sock.setblocking(False)
+            who = f"{peer[0]}:{peer[1]}"
+            self._counts["accepted"] += 1
+            deadline = time.monotonic() + self.limits.handshake_timeout_s
+            held = sum(c.holds_slot for c in self._conns.values())
+            if held >= self.limits.max_clients:
+                oldest = next(
+                    (
+                        c
+                        for c in self._conns.values()
+                        if c.holds_slot and c.phase is not _Phase.RELAY
+                    ),
+                    None,
+                )
+                if oldest is None:
+                    self._refuse_full(sock, who)
+                    continue
+                self._counts["evicted"] += 1
+                self._throttle.warn(
+                    "closed unfinished to make room",
+                    f"closed the unfinished handshake of {oldest.who} ({oldest.phase.value}) to "
+                    f"make room for {who}: {self.limits.max_clients} connections is the limit",
+                )
+                self._close(oldest, reset=True)
+            conn = _Conn(sock, who, deadline, holds_slot=True)
+            self._conns[sock.fileno()] = conn
+            self._update(conn)
+
+    def _refuse_full(self, sock: socket.socket, who: str) -> None:
+        self._counts["refused_full"] += 1
+        self._throttle.warn(
+            "refused at the limit",
+            f"refused {who}: {self.limits.max_clients} Foxglove clients are connected, the "
+            "limit (--live-max-clients)",
+        )
+        conn = _Conn(sock, who, time.monotonic() + _LINGER_S, holds_slot=False)
+        conn.phase = _Phase.CLOSING
+        conn.to_client += _response(
+            "503 Service Unavailable",
+            f"the live view serves at most {self.limits.max_clients} clients at once and has "
+            "that many; try again later",
+            "Retry-After: 5",
+        )
+        # Refusals wait for their answer to be read, but there are never more of them than places.
+        if len(self._refusing) >= self.limits.max_clients:
+            self._close(next(iter(self._refusing.values())), reset=True)
+        self._refusing[sock.fileno()] = conn
+        self._update(conn)
+
+    def _expire(self) -> None:
+        now = time.monotonic()
+        for conn in [*self._conns.values(), *self._refusing.values()]:
+            if conn.deadline is None or conn.deadline > now:
+                continue
+            if conn.phase is _Phase.CLOSING:
+                self._close(conn, reset=True)
+                continue
+            self._counts["timed_out"] += 1
+            self._throttle.warn(
+                "closed for a slow handshake",
+                f"closed {conn.who}: its WebSocket handshake was not done after "
+                f"{self.limits.handshake_timeout_s:g} s ({conn.phase.value})",
+            )
+            self._close(conn, reset=True)
+
+    # -- one connection ---------------------------------------------------------------------------
+
+    def _serve(self, conn: _Conn, side: str, mask: int) -> None:
+        if not self._open(conn):  # closed earlier in this turn (evicted, dropped)
+            return
+        try:
+            if side == "client":
+                if mask & selectors.EVENT_WRITE:
+                    self._write_client(conn)
+                if mask & selectors.EVENT_READ and self._open(conn):
+                    self._read_client(conn)
+            else:
+                if mask & selectors.EVENT_WRITE:
+                    self._write_backend(conn)
+                if mask & selectors.EVENT_READ and self._open(conn):
+                    self._read_backend(conn)
+        except (BlockingIOError, InterruptedError):
+            pass
+        except OSError as exc:
+            self._end(conn, f"connection of {conn.who} ended: {exc}")
+            return
+        if self._open(conn):
+            self._update(conn)
+
+    def _open(self, conn: _Conn) -> bool:
+        key = conn.client.fileno()
+        return key != -1 and (self._conns.get(key) is conn or self._refusing.get(key) is conn)
+
+    def _read_client(self, conn: _Conn) -> None:
+        data = conn.client.recv(_CHUNK)
+        if conn.phase is _Phase.CLOSING:
+            if not data:  # it read the answer and hung up
+                self._close(conn)
+            return  # what it sends after a refusal is read and dropped
+        if not data:
+            if conn.phase is _Phase.RELAY:
+                conn.client_eof = True
+                self._maybe_finish(conn)
+            else:
+                self._end(
+                    conn, f"WebSocket handshake of {conn.who} failed: closed during the handshake"
+                )
+            return
+        if conn.phase is _Phase.RELAY:
+            conn.to_backend += data
+            return
+        conn.head += data
+        if b"\r\n\r\n" not in conn.head:
+            if len(conn.head) > _MAX_HEAD:
+                self._refuse(conn, f"handshake longer than {_MAX_HEAD} bytes")
+            return
+        head, rest = bytes(conn.head).split(b"\r\n\r\n", 1)
+        conn.head.clear()
+        try:
+            request = Handshake.parse(head)
+            conn.chosen = choose_subprotocol(request)
+        except HandshakeRefused as refused:
+            self._refuse(conn, refused.reason)
+            return
+        conn.offered = ", ".join(request.values("Sec-WebSocket-Protocol"))
+        conn.to_backend += request.with_header("Sec-WebSocket-Protocol", SDK_SUBPROTOCOL).encode()
+        conn.to_backend += rest
+        backend = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        backend.setblocking(False)
+        conn.backend = backend
+        conn.phase = _Phase.BACKEND
+        conn.connecting = True
+        err = backend.connect_ex(("127.0.0.1", self.backend_port))
+        if err not in (0, errno.EINPROGRESS, errno.EWOULDBLOCK):
+            raise OSError(err, f"cannot reach the Foxglove server: {os.strerror(err)}")
+
+    def _refuse(self, conn: _Conn, reason: str) -> None:
+        self._throttle.warn(
+            "refused for a bad handshake",
+            f"refused the WebSocket handshake of {conn.who}: {reason}",
+        )
+        conn.phase = _Phase.CLOSING
+        conn.deadline = time.monotonic() + _LINGER_S
+        conn.to_client += _refusal(reason)
+
+    def _write_client(self, conn: _Conn) -> None:
+        sent = conn.client.send(conn.to_client)
+        del conn.to_client[:sent]
+        if conn.to_client:
+            return
+        if conn.phase is _Phase.CLOSING and not conn.write_shut:
+            # Ended, then read until the client hangs up: closing with its request unread would
+            # reset the connection and could lose the answer before the client reads it.
+            conn.write_shut = True
+            conn.client.shutdown(socket.SHUT_WR)
+        elif conn.phase is _Phase.RELAY:
+            self._maybe_finish(conn)
+
+    def _write_backend(self, conn: _Conn) -> None:
+        assert conn.backend is not None
+        if conn.connecting:
+            err = conn.backend.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR)
+            if err:
+                raise OSError(err, f"cannot reach the Foxglove server: {os.strerror(err)}")
+            conn.connecting = False
+        if conn.to_backend:
+            sent = conn.backend.send(conn.to_backend)
+            del conn.to_backend[:sent]
+        if not conn.to_backend and conn.phase is _Phase.RELAY:
+            self._maybe_finish(conn)
+
+    def _read_backend(self, conn: _Conn) -> None:
+        assert conn.backend is not None
+        data = conn.backend.recv(_CHUNK)
+        if not data:
+            if conn.phase is _Phase.RELAY:
+                conn.backend_eof = True
+                self._maybe_finish(conn)
+            else:
+                self._end(conn, f"the Foxglove server hung up on {conn.who} during the handshake")
+            return
+        if conn.phase is _Phase.RELAY:
+            conn.to_client += data
+            self._counts["peak"] = max(self._counts["peak"], len(conn.to_client))
+            if len(conn.to_client) > self.limits.client_queue_bytes:
+                self._counts["dropped_slow"] += 1
+                self._throttle.warn(
+                    "dropped for not reading",
+                    f"dropped {conn.who}: {len(conn.to_client)} bytes were waiting for it, over "
+                    f"the limit of {self.limits.client_queue_bytes} (--live-client-queue); "
+                    "a client that does not keep up is dropped",
+                )
+                self._close(conn, reset=True)
+            return
+        conn.head += data
+        if b"\r\n\r\n" not in conn.head:
+            if len(conn.head) > _MAX_HEAD:
+                self._end(conn, f"the Foxglove server's answer to {conn.who} is too long")
+            return
+        head, rest = bytes(conn.head).split(b"\r\n\r\n", 1)
+        conn.head.clear()
+        answer = Handshake.parse(head)
+        if answer.status != 101:
+            self._throttle.warn(
+                "refused by the Foxglove server",
+                f"the Foxglove server refused the WebSocket handshake of {conn.who} (offered "
+                f"{conn.offered}): {answer.first_line} "
+                f"{rest[:200].decode('utf-8', 'replace').strip()}",
+            )
+            conn.phase = _Phase.CLOSING
+            conn.deadline = time.monotonic() + _LINGER_S
+            conn.to_client += head + b"\r\n\r\n" + rest
+            self._register(conn, conn.backend, 0, "backend")
+            conn.backend.close()
+            conn.backend = None
+            return
+        conn.to_client += answer.with_header("Sec-WebSocket-Protocol", conn.chosen).encode()
+        conn.to_client += rest
+        conn.phase = _Phase.RELAY
+        conn.deadline = None
+        for s in (conn.client, conn.backend):
+            s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        log.info("live view: Foxglove client %s connected (%s)", conn.who, conn.chosen)
+
+    def _maybe_finish(self, conn: _Conn) -> None:
+        """Pass each side's end on once what it sent is through; close when both have ended."""
+        assert conn.backend is not None
+        if conn.client_eof and not conn.to_backend:
+            with contextlib.suppress(OSError):
+                conn.backend.shutdown(socket.SHUT_WR)
+        if conn.backend_eof and not conn.to_client:
+            with contextlib.suppress(OSError):
+                conn.client.shutdown(socket.SHUT_WR)
+        if conn.client_eof and conn.backend_eof and not conn.to_client and not conn.to_backend:
+            log.info("live view: Foxglove client %s disconnected", conn.who)
+            self._close(conn)
+
+    def _end(self, conn: _Conn, message: str) -> None:
+        self._throttle.warn("ended with an error", message)
+        self._close(conn, reset=True)
+
+    def _update(self, conn: _Conn) -> None:
+        """Register each socket for what it waits on now."""
+        read, write = selectors.EVENT_READ, selectors.EVENT_WRITE
+        room = len(conn.to_backend) < self.limits.client_queue_bytes
+        client = 0
+        if conn.phase is _Phase.HEAD or conn.phase is _Phase.CLOSING:
+            client |= read
+        elif conn.phase is _Phase.RELAY and not conn.client_eof and room:
+            client |= read  # a client that sends faster than the server reads waits
+        if conn.to_client and not conn.write_shut:
+            client |= write
+        self._register(conn, conn.client, client, "client")
+        if conn.backend is not None:
+            backend = 0
+            if not conn.connecting and not conn.backend_eof:
+                backend |= read
+            if conn.connecting or conn.to_backend:
+                backend |= write
+            self._register(conn, conn.backend, backend, "backend")
+
+    def _register(self, conn: _Conn, sock: socket.socket, mask: int, side: str) -> None:
+        fd = sock.fileno()
+        had = conn.masks.get(fd, 0)
+        if mask == had:
+            return
+        if not mask:
+            self._selector.unregister(sock)
+            del conn.masks[fd]
+        elif not had:
+            self._selector.register(sock, mask, (conn, side))
+            conn.masks[fd] = mask
+        else:
+            self._selector.modify(sock, mask, (conn, side))
+            conn.masks[fd] = mask
+
+    def _close(self, conn: _Conn, *, reset: bool = False) -> None:
+        """Forget ``conn`` and close its sockets; ``reset`` discards what is unsent (RST), so a
+        dropped client's backlog is freed at once rather than lingering in the kernel."""
+        fd = conn.client.fileno()
+        if self._conns.get(fd) is conn:
+            del self._conns[fd]
+        if self._refusing.get(fd) is conn:
+            del self._refusing[fd]
+        for sock in (conn.client, conn.backend):
+            if sock is None or sock.fileno() == -1:
+                continue
+            if sock.fileno() in conn.masks:
+                with contextlib.suppress(KeyError, ValueError):
+                    self._selector.unregister(sock)
+            if reset:
+                with contextlib.suppress(OSError):
+                    sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+            sock.close()
+        conn.masks.clear()
+        conn.to_client.clear()
+        conn.to_backend.clear()
 
     def close(self) -> None:
         """Stop listening and drop every client."""
-        with self._lock:
-            self._closed = True
-            socks = list(self._open)
+        self._closed = True
         with contextlib.suppress(OSError):
-            self._listener.shutdown(socket.SHUT_RDWR)
-        self._listener.close()
-        for s in socks:
-            with contextlib.suppress(OSError):
-                s.shutdown(socket.SHUT_RDWR)
-        self._thread.join(timeout=5)
-
-
-def _pump(src: socket.socket, dst: socket.socket) -> None:
-    """Copy ``src`` to ``dst`` until ``src`` ends, then end ``dst``'s sending side."""
-    try:
-        while chunk := src.recv(65536):
-            dst.sendall(chunk)
-    except OSError:
-        pass
-    finally:
-        with contextlib.suppress(OSError):
-            dst.shutdown(socket.SHUT_WR)
+            self._wake_w.send(b"x")
+        self._thread.join(timeout=10)
+        self._selector.close()
+        for sock in (self._listener, self._wake_r, self._wake_w):
+            sock.close()
