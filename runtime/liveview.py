@@ -59,6 +59,12 @@ MARKER_ARRAY: Final = "visualization_msgs/msg/MarkerArray"
 PATH: Final = "nav_msgs/msg/Path"
 
 #: Every channel with its message type, in the order a viewer lists them.
+#: A log whose clock is already past this (2001-09-09) is on a wall clock: a robot's, or a bag
+#: run's, which ingest put on the agent's header stamps. A simulated log's clock starts at 0.
+WALL_CLOCK_NS: Final = 10**18
+#: ROS time's seconds are an int32 (builtin_interfaces/Time): the last stamp a message can carry.
+MAX_STAMP_NS: Final = (2**31 - 1) * 10**9
+
 CHANNELS: Final[Mapping[str, str]] = {
     MAP: OCCUPANCY_GRID,
     STATICS: MARKER_ARRAY,
@@ -328,6 +334,14 @@ class LiveView:
         assert isinstance(event, Event)  # the log's events; EventLike is the fold's protocol
         self.agent.apply(event)
         stamp = self.clock_offset_ns + event.time_ns
+        if not 0 <= stamp <= MAX_STAMP_NS:
+            from objsearch.agent.errors import ObjsearchError
+
+            raise ObjsearchError(
+                f"event {event.seq} ({event.type}): its time {event.time_ns} ns"
+                + (f" + the clock offset {self.clock_offset_ns} ns" if self.clock_offset_ns else "")
+                + " is outside ROS time (0 to 2038-01-19, int32 seconds)"
+            )
         if not self._map_sent:
             self._map_sent = True
             self._send(MAP, stamp, occupancy_grid(self.ctx, stamp))
@@ -513,7 +527,8 @@ def render(
     events: Iterable[Event], sinks: Sequence[LiveSink], *, clock_offset_ns: int = 0
 ) -> LiveView:
     """Draw a recorded log on ``sinks`` (the caller closes them); the home is the one its
-    ``run_started`` names."""
+    ``run_started`` names. ``clock_offset_ns`` is added only to a simulated clock: a log whose
+    ``run_started`` is already on a wall clock (:data:`WALL_CLOCK_NS`) is drawn as it is."""
     from objsearch.agent.errors import ObjsearchError
     from objsearch.agent.session import load_context
 
@@ -537,7 +552,8 @@ def render(
                         spec.home_digest,
                         ctx.home.digest,
                     )
-                view = LiveView(ctx, sinks, clock_offset_ns=clock_offset_ns)
+                simulated = event.time_ns < WALL_CLOCK_NS
+                view = LiveView(ctx, sinks, clock_offset_ns=clock_offset_ns if simulated else 0)
         if view is None:
             raise ObjsearchError(
                 f"event {event.seq} ({event.type}) comes before any run_started: "

@@ -88,7 +88,7 @@ class Census:
                 claim("metadata.yaml", topic, n)
         for f in self.files:
             sources = {} if f.chunks_verified else dict(f.totals)
-            if f.chunks:
+            if f.chunks or f.chunks_verified:  # verified and none: a bag with no messages
                 sources["chunk indexes"] = f.chunk_sum()
             for source, counts in f.totals.items():
                 if f.chunks_verified and counts != sources["chunk indexes"]:
@@ -342,11 +342,14 @@ def _ros1(buf: Buffer, census: FileCensus) -> None:
         header, rec = _ros1_record(buf, len(ROS1_MAGIC))
         index_pos = _u(header, "index_pos", "<Q")
         chunk_count = _u(header, "chunk_count", "<I")
+        conn_count = _u(header, "conn_count", "<I")
         data_start = rec.end
     except _Cut:
         return
-    if len(ROS1_MAGIC) < index_pos < len(buf) and _ros1_index(buf, index_pos, census):
-        census.complete = len(census.chunks) == chunk_count
+    # A bag with no messages (a split's last piece, closed before anything came) has an empty
+    # index section at its very end: index_pos == its size, no chunks, no connections.
+    if len(ROS1_MAGIC) < index_pos <= len(buf) and _ros1_index(buf, index_pos, census):
+        census.complete = len(census.chunks) == chunk_count and len(census.topics) == conn_count
         if census.complete:
             census.totals["ROS 1 index"] = census.chunk_sum()
             census.chunks_verified = all(

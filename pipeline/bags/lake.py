@@ -1,20 +1,27 @@
-"""Where ingested bags go: the event lake (:mod:`objsearch.events.lake`), one run per bag.
+"""Where ingested bags go: the event lake (:mod:`objsearch.events.lake`), one run per recording.
 
 Ingest needs three things of the lake, behind the :class:`LakeWriter` seam: which bags are in it
-already (``known_runs``, handed to workers so they skip those bags without reading them; and
-``has_bag``), and to commit a bag's tables whole (``commit_bag``). :class:`BagLake` does both with the
-event store's lake, so bags and compacted agent logs share one layout, one set of typed Parquet
-tables and one set of DuckDB views::
+already (``known_pieces``, handed to workers so they skip those bags without reading them), to
+keep the report of a bag that made no run, and to commit a bag into its run (``commit_piece``).
+:class:`BagLake` does them with the event store's lake, so bags and compacted agent logs share
+one layout, one set of typed Parquet tables and one set of DuckDB views::
 
-    LAKE/robot=<robot>/date=<YYYY-MM-DD>/run=bag-<bag id, 16 hex>/<event type>.parquet, _run.json
-    LAKE/robot=<robot>/date=<YYYY-MM-DD>/run=bag-<bag id, 16 hex>/_ingest.json   the report
-    LAKE/_bags/<bag id>.json          a copy of the report, found by bag id
+    LAKE/robot=<robot>/date=<YYYY-MM-DD>/run=bag-<16 hex>/<event type>.parquet, _run.json
+    LAKE/robot=<robot>/date=<YYYY-MM-DD>/run=bag-<16 hex>/_ingest.json   the session and reports
+    LAKE/_bags/<bag id>.json          a copy of each piece's report, found by bag id
+
+A run holds one recording session (:mod:`~objsearch.pipeline.bags.session`): ``bag-`` and the
+agent run id's first 16 hex digits when its events prove it, else its lowest agent event id's
+(a provisional run, renamed as earlier pieces arrive), else the bag id's (a bag with no agent
+events and no session's receive times around it). A piece whose agent run the lake holds other
+than as this robot's bag session (a compacted log, another robot's) is refused naming that run:
+an event id is in the lake at most once.
 
 The lake commits a run atomically (staging folder, fsync, rename), so a reader sees all of a bag or
-none of it; the run name carries the bag id, so committing a bag twice is a no-op. The ingest
-report (what was read, skipped, salvaged) is committed inside the run, so a run never lacks it;
-its copy in ``_bags/`` is written after the run, under the same lake lock, and restored from the
-run by any later ingest of that bag if a crash came between the two.
+none of it; committing a bag twice is a no-op. The ingest report (what was read, skipped,
+salvaged) is committed inside the run, so a run never lacks it; its copy in ``_bags/`` is written
+after the run, under the same lake lock, and restored from the run by any later ingest of that
+bag if a crash came between the two.
 """
 
 from __future__ import annotations
@@ -23,22 +30,33 @@ import dataclasses
 import datetime as dt
 import json
 import logging
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
+import polars as pl
 import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
 
 from objsearch.events import Event, EventStoreError, _fs
 from objsearch.events.lake import Lake, RunInfo
+from objsearch.pipeline.bags.clock import fit_clock, pairs_from_doc
 from objsearch.pipeline.bags.errors import BagCommitError
 from objsearch.pipeline.bags.session import (
     DERIVED_PREFIX,
     FirstEvent,
+    Span,
+    agent_rows,
     belongs,
+    continues,
     merge_tables,
+    overlaps,
+    provisional_run_name,
+    same_ids,
     session_run_name,
+    spans_of,
 )
 
 MANIFESTS = "_bags"
@@ -65,6 +83,18 @@ class Piece:
     @property
     def events(self) -> int:
         return sum(t.num_rows for t in self.tables.values())
+
+    @property
+    def received(self) -> tuple[int, int] | None:
+        return _received(self.report, self.start_ns, self.end_ns)
+
+
+def _received(report: Mapping[str, Any], start_ns: Any, end_ns: Any) -> tuple[int, int] | None:
+    """A piece's receive-time range (its report's; a report from before there was one gives
+    its time range, which was the receive time then)."""
+    start = report.get("received_start_ns", start_ns)
+    end = report.get("received_end_ns", end_ns)
+    return (int(start), int(end)) if start is not None and end is not None else None
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,6 +137,35 @@ class _SessionRun:
         return FirstEvent(**first) if first else None
 
     @property
+    def spans(self) -> dict[str, Span]:
+        docs = self.doc.get("session", {}).get("spans")
+        if not isinstance(docs, dict):
+            return {}
+        spans = {str(k): Span.from_doc(str(k), v) for k, v in docs.items()}
+        return {k: v for k, v in spans.items() if v is not None}
+
+    @property
+    def received(self) -> tuple[int, int] | None:
+        """The receive times its pieces span."""
+        ranges = [
+            r
+            for p in self.pieces.values()
+            if (r := _received(p.get("report") or {}, p.get("start_ns"), p.get("end_ns")))
+        ]
+        if not ranges:
+            return None
+        return min(a for a, _ in ranges), max(b for _, b in ranges)
+
+    def encloses(self, received: tuple[int, int] | None) -> bool:
+        mine = self.received
+        return (
+            mine is not None
+            and received is not None
+            and mine[0] <= received[0]
+            and received[1] <= mine[1]
+        )
+
+    @property
     def pieces(self) -> Mapping[str, Mapping[str, Any]]:
         pieces = self.doc.get("pieces")
         if isinstance(pieces, dict):
@@ -122,10 +181,10 @@ class BagLake:
         self.root = Path(root)
         self.lake = Lake(self.root)
 
-    def _sessions(self) -> list[_SessionRun]:
+    def _sessions(self, runs: Sequence[RunInfo] | None = None) -> list[_SessionRun]:
         """Every bag run with its ingest record (one small file a run)."""
         found = []
-        for info in self.lake.runs():
+        for info in self.lake.runs() if runs is None else runs:
             if not info.run.startswith(RUN_PREFIX):
                 continue
             try:
@@ -164,48 +223,60 @@ class BagLake:
             ) from exc
 
     def _commit_locked(self, piece: Piece, robot: str) -> Commit:
-        sessions = [s for s in self._sessions() if s.info.robot == robot]
-        candidates = sorted({s.run_id for s in sessions if s.run_id})
-        run_id = piece.run_id
-        if run_id is None and piece.first is not None:
-            run_id = next((c for c in candidates if belongs(c, piece.first)), None)
-        run = session_run_name(run_id) if run_id else run_name(piece.bag_id)
+        runs = self.lake.runs()
+        sessions = [s for s in self._sessions(runs) if s.info.robot == robot]
+        rows = agent_rows(piece.tables)
+        run_id = piece.run_id or self._proven_run_id(piece.first, runs)
         if run_id:
-            for other in self.lake.holding({"run_id": run_id}):
-                if not other.run.startswith(RUN_PREFIX):
-                    raise BagCommitError(
-                        f"bag {piece.bag_id[:16]} records agent run {run_id}, which the lake "
-                        f"already holds as run {other.run!r} of robot {other.robot!r} "
-                        f"({other.source}); ingesting it would count its events twice"
-                    )
+            self._refuse_other_holder(piece, run_id, robot, runs)
+        elif not rows.is_empty():
+            self._refuse_held_ids(piece, rows, runs)
+        related = self._same_recording(piece, run_id, rows, sessions)
+        firsts = [f for f in [piece.first, *(s.first for s in related)] if f is not None]
+        first = min(firsts, key=lambda f: (f.stream, f.seq)) if firsts else None
+        joined = ""
+        if run_id:
+            run = session_run_name(run_id)
+        elif rows.is_empty() and related:
+            # A stretch without agent events, inside that session's receive times.
+            run, run_id, joined = related[0].info.run, related[0].run_id, related[0].info.run
+        elif first is not None:
+            run = provisional_run_name(first)
+        else:
+            run = run_name(piece.bag_id)
         existing = next((s for s in sessions if s.info.run == run), None)
+        previous = [existing] if existing is not None else []
+        previous += [s for s in related if s is not existing]
+        absorbed = [s for s in previous if s is not existing]
         redo = False
-        if existing is not None and piece.bag_id in existing.pieces:
-            same = existing.pieces[piece.bag_id].get("converter") == piece.converter
-            if same and not piece.reingest:
+        holder = next((s for s in previous if piece.bag_id in s.pieces), None)
+        if holder is not None:
+            same = holder.pieces[piece.bag_id].get("converter") == piece.converter
+            if same and not piece.reingest and holder is existing and not absorbed:
                 self.restore_report(piece.bag_id)
-                return Commit(piece.bag_id, existing.info.path, 0, new=False, run=run)
+                return Commit(piece.bag_id, holder.info.path, 0, new=False, run=run)
             redo = True  # read again with another topic map or converter: replace its rows
-        absorbed = [
-            s
-            for s in sessions
-            if run_id
-            and s is not existing
-            and s.run_id is None
-            and s.first is not None
-            and belongs(run_id, s.first)
-        ]
-        previous = [existing, *absorbed] if existing is not None else absorbed
         old_tables = [self.lake.read_tables(s.info) for s in previous]
+        pieces: dict[str, Mapping[str, Any]] = {}
+        for s in previous:
+            pieces.update(s.pieces)
+        pieces[piece.bag_id] = self._piece_doc(piece, robot, run)
+        clock = fit_clock(
+            pair
+            for p in pieces.values()
+            for pair in pairs_from_doc((p.get("report") or {}).get("clock_pairs"))
+        )
         tables: Mapping[str, pa.Table] = piece.tables
-        if old_tables or run_id:
+        if old_tables or first is not None or clock is not None:
             # A session's derived events are numbered in its own stream, whichever piece came
             # first, so the run does not depend on the order the pieces arrived in.
-            drop = [(piece.start_ns, piece.end_ns)] if redo else []
+            received = piece.received
+            drop = [received] if redo and received is not None else []
             tables = merge_tables(
                 [*old_tables, piece.tables],
                 DERIVED_PREFIX + run.removeprefix(RUN_PREFIX),
-                [(a, b) for a, b in drop if a is not None and b is not None],
+                drop,
+                clock,
             )
         before = sum(t.num_rows for ts in old_tables for t in ts.values())
         events = sum(t.num_rows for t in tables.values())
@@ -222,23 +293,20 @@ class BagLake:
                 note=f"its events are already in the lake in run {existing.info.run} "
                 "(the same recording, ingested before); nothing added",
             )
-        pieces: dict[str, Mapping[str, Any]] = {}
-        for s in previous:
-            pieces.update(s.pieces)
-        pieces[piece.bag_id] = self._piece_doc(piece, robot, run)
         pieces = {k: {**v, "run": run} for k, v in sorted(pieces.items())}
-        starts = [int(p["start_ns"]) for p in pieces.values() if p.get("start_ns") is not None]
-        date = dt.datetime.fromtimestamp(min(starts, default=0) / 1e9, dt.UTC).date()
-        firsts = [f for f in [piece.first, *(s.first for s in previous)] if f is not None]
-        first = min(firsts, key=lambda f: (f.stream, f.seq)) if firsts else None
-        session = {"run_id": run_id, "first": dataclasses.asdict(first) if first else None}
+        session = {
+            "run_id": run_id,
+            "first": dataclasses.asdict(first) if first else None,
+            "spans": {k: v.to_doc() for k, v in sorted(spans_of(agent_rows(tables)).items())},
+            "clock": dataclasses.asdict(clock) if clock else None,
+        }
         doc = {"session": session, "pieces": pieces}
         info = self.lake.commit_tables(
             tables,
             robot=robot,
             run=run,
-            date=date,
-            source=f"bag session {run_id}" if run_id else f"bag:{piece.bag_id}",
+            date=_date(tables),
+            source=f"bag session {run_id or run}" if first else f"bag:{piece.bag_id}",
             replace=existing is not None,
             attachments={RUN_REPORT: _json(doc)},
             identity={"run_id": run_id} if run_id else {},
@@ -248,9 +316,98 @@ class BagLake:
         for bag_id, piece_doc in pieces.items():
             self._write_report(bag_id, _json(piece_doc))
         note = ""
-        if len(pieces) > 1:
+        if joined:
+            note = (
+                f"joined run {run}: it holds no agent events and its receive times lie within "
+                f"that recording's ({len(pieces)} bags)"
+            )
+        elif len(pieces) > 1:
             note = f"merged into run {run} ({len(pieces)} bags of one recording session)"
         return Commit(piece.bag_id, info.path, events - before, new=True, run=run, note=note)
+
+    @staticmethod
+    def _proven_run_id(first: FirstEvent | None, runs: Sequence[RunInfo]) -> str | None:
+        """The run id, among those the lake's runs record (bag sessions and compacted logs),
+        that the piece's lowest event id proves it belongs to."""
+        if first is None:
+            return None
+        candidates = sorted({r.identity["run_id"] for r in runs if r.identity.get("run_id")})
+        return next((c for c in candidates if belongs(c, first)), None)
+
+    @staticmethod
+    def _refuse_other_holder(
+        piece: Piece, run_id: str, robot: str, runs: Sequence[RunInfo]
+    ) -> None:
+        """A run id the lake holds other than as this robot's bag session: refused."""
+        for other in runs:
+            if other.identity.get("run_id") != run_id:
+                continue
+            if other.run.startswith(RUN_PREFIX) and other.robot == robot:
+                continue
+            raise BagCommitError(
+                f"bag {piece.bag_id[:16]}'s agent events belong to agent run {run_id}, which "
+                f"the lake already holds as run {other.run!r} of robot {other.robot!r} "
+                f"({other.source}); ingesting it would count its events twice"
+            )
+
+    def _refuse_held_ids(self, piece: Piece, rows: pl.DataFrame, runs: Sequence[RunInfo]) -> None:
+        """A piece whose run nothing proves, whose event ids a run that is no bag session
+        holds (a compacted log that records no run id): refused naming that run."""
+        ids = set(rows["event_id"].to_list())
+        for other in runs:
+            if other.run.startswith(RUN_PREFIX) or other.identity.get("run_id"):
+                continue  # bag sessions are matched by their ids; run ids were checked
+            held = other.identity.get("first_event_id") in ids or bool(ids & _event_ids(other))
+            if held:
+                raise BagCommitError(
+                    f"bag {piece.bag_id[:16]}'s agent events are already in the lake in run "
+                    f"{other.run!r} of robot {other.robot!r} ({other.source}); ingesting it "
+                    "would count them twice"
+                )
+
+    def _same_recording(
+        self,
+        piece: Piece,
+        run_id: str | None,
+        rows: pl.DataFrame,
+        sessions: Sequence[_SessionRun],
+    ) -> list[_SessionRun]:
+        """The stored sessions (of this robot) that are this piece's recording."""
+        related: list[_SessionRun] = []
+        if rows.is_empty():
+            if run_id is None:
+                enclosing = [
+                    s for s in sessions if s.first is not None and s.encloses(piece.received)
+                ]
+                if len(enclosing) == 1:
+                    related = enclosing
+            return related
+        spans = spans_of(rows)
+        for s in sessions:
+            if s.run_id is not None or s.first is None:
+                continue
+            if run_id is not None:
+                if belongs(run_id, s.first):
+                    related.append(s)
+                continue
+            theirs = s.spans
+            if any(overlaps(a, b) for a in spans.values() for b in theirs.values()):
+                if same_ids(rows, agent_rows(self.lake.read_tables(s.info))):
+                    related.append(s)
+            elif any(continues(a, b) for a in spans.values() for b in theirs.values()):
+                related.append(s)
+        # Stretches without agent events stored before their session was known: absorbed
+        # when the session's receive times (with this piece) enclose them.
+        mine = [*related, *(s for s in sessions if run_id is not None and s.run_id == run_id)]
+        ranges = [r for r in [piece.received, *(s.received for s in mine)] if r is not None]
+        if ranges:
+            span = (min(a for a, _ in ranges), max(b for _, b in ranges))
+            for s in sessions:
+                if s.first is None and s.run_id is None and s not in related:
+                    received = s.received
+                    if received is not None and span[0] <= received[0] and received[1] <= span[1]:
+                        related.append(s)
+        return related
 
     @staticmethod
     def _piece_doc(piece: Piece, robot: str, run: str, duplicate: bool = False) -> dict[str, Any]:
@@ -310,6 +467,20 @@ class BagLake:
         for info in self.lake.runs():
             if info.run.startswith(RUN_PREFIX):
                 yield from self.lake.read_events(info)
+
+
+def _date(tables: Mapping[str, pa.Table]) -> dt.date:
+    """The UTC date of a run's earliest event."""
+    starts = [pc.min(t["time_ns"]).as_py() for t in tables.values() if t.num_rows]
+    first = min((s for s in starts if s is not None), default=0)
+    return dt.datetime.fromtimestamp(first / 1e9, dt.UTC).date()
+
+
+def _event_ids(run: RunInfo) -> set[str]:
+    ids: set[str] = set()
+    for path in sorted(run.path.glob("*.parquet")):
+        ids.update(pq.read_table(path, columns=["event_id"])["event_id"].to_pylist())
+    return ids
 
 
 def _json(doc: Mapping[str, Any]) -> bytes:

@@ -23,6 +23,7 @@ bit-for-bit what the per-message arithmetic gives.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -198,9 +199,21 @@ class PoseTrack:
     topic: Ints
     frames: tuple[str, ...]
     topics: tuple[str, ...]
+    #: When the recorder received each pose (``recorded_at_ns``), where ``time`` was put on
+    #: another clock (:mod:`~objsearch.pipeline.bags.clock`); None: the same as ``time``.
+    received: Ints | None = None
 
     def __len__(self) -> int:
         return len(self.seq)
+
+    def on_clock(self, time: Ints) -> PoseTrack:
+        """The same rows with ``time`` on another clock, their receive times kept."""
+        received = self.time if self.received is None else self.received
+        return dataclasses.replace(self, time=time, received=received)
+
+    @property
+    def recorded_at(self) -> Ints:
+        return self.time if self.received is None else self.received
 
     def table(self, stream: str) -> pa.Table:
         """The rows as :func:`~objsearch.events.arrow.events_to_tables` would make them."""
@@ -218,7 +231,7 @@ class PoseTrack:
             pa.array([stream] * n, pa.string()),
             pa.array(self.seq, pa.int64()),
             pa.array(self.time, pa.int64()),
-            pa.array(self.time, pa.int64()),
+            pa.array(self.recorded_at, pa.int64()),
             pa.array(np.full(n, POSE_VERSION, dtype=np.int32), pa.int32()),
             pa.nulls(n, pa.string()),
             pa.StructArray.from_arrays(
@@ -240,7 +253,7 @@ class PoseTrack:
                     "stream": stream,
                     "seq": seq,
                     "time_ns": t,
-                    "recorded_at_ns": t,
+                    "recorded_at_ns": r,
                     "type": POSE_TYPE,
                     "version": POSE_VERSION,
                     "task_id": None,
@@ -251,9 +264,10 @@ class PoseTrack:
                     },
                 }
             )
-            for seq, t, x, y, yaw, f, tp in zip(
+            for seq, t, r, x, y, yaw, f, tp in zip(
                 self.seq.tolist(),
                 self.time.tolist(),
+                self.recorded_at.tolist(),
                 self.x.tolist(),
                 self.y.tolist(),
                 self.yaw.tolist(),

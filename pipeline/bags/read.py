@@ -38,6 +38,7 @@ from objsearch.events.arrow import events_to_tables
 from objsearch.events.record import encode_record
 from objsearch.pipeline.bags import fastdecode
 from objsearch.pipeline.bags.census import Census, take_census
+from objsearch.pipeline.bags.clock import ClockMap, fit_clock, kept_pairs
 from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.formats import BagFormat, detect, storage_files
 from objsearch.pipeline.bags.posetrack import (
@@ -148,8 +149,19 @@ class BagReport:
     notes: tuple[str, ...] = ()
     #: Whether the bag's claims cover all of it; if not, the per-topic ``lost`` are lower bounds.
     claims_complete: bool = True
-    #: Added to the agent events' ``time_ns`` to put them on the bag's clock (0: not moved).
+    #: Added to the agent events' ``time_ns`` to put them on their header stamps' clock (0:
+    #: not moved).
     clock_offset_ns: int = 0
+    #: How receive times were mapped onto the agent's clock (None: they agree, or no agent
+    #: event has a header stamp): :mod:`~objsearch.pipeline.bags.clock`.
+    clock: ClockMap | None = None
+    #: The recorder's receive times of the first and last converted message, as stored in the
+    #: bag (``start_ns``/``end_ns`` are on the run's clock).
+    received_start_ns: int | None = None
+    received_end_ns: int | None = None
+    #: (receive time, header stamp) of up to :data:`~objsearch.pipeline.bags.clock.MAX_PAIRS`
+    #: agent events: what the clock was fitted over (a session fits its pieces' together).
+    clock_pairs: tuple[tuple[int, int], ...] = ()
 
     @property
     def damaged(self) -> bool:
@@ -282,6 +294,8 @@ class Converter:
         self.agent: dict[str, Event] = {}
         #: event id → the events topic's header stamp (ns), where the message had one
         self.stamps: dict[str, int] = {}
+        #: event id → when the recorder received it (the bag's time of its message)
+        self.received: dict[str, int] = {}
         self.duplicates = 0
         self.start_ns: int | None = None
         self.end_ns: int | None = None
@@ -381,7 +395,7 @@ class Converter:
             self.derived.append((log_ns, topic, self.arrivals, "objects_detected", payload))
             return 1
         if state.role is Role.EVENTS:
-            return self._agent_event(msg)
+            return self._agent_event(msg, log_ns)
         return 0
 
     def end_of_messages(self) -> None:
@@ -457,7 +471,7 @@ class Converter:
         )
         return track, derived
 
-    def _agent_event(self, msg: Any) -> int:
+    def _agent_event(self, msg: Any, log_ns: int) -> int:
         try:
             payload = json.loads(msg.payload_json)
         except ValueError as exc:
@@ -485,6 +499,7 @@ class Converter:
             self.duplicates += 1
             return 0
         self.agent[event.event_id] = event
+        self.received[event.event_id] = log_ns
         stamp = getattr(getattr(msg, "header", None), "stamp", None)
         if stamp is not None:
             stamp_ns = int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
@@ -495,7 +510,9 @@ class Converter:
     def finish(self) -> Finished:
         """All events (the agent's in (stream, seq) order, then derived), gaps as losses.
 
-        The agent's events are moved onto the bag's clock (see :func:`clock_offset`)."""
+        One clock for all of them, the agent's: its events are moved onto their header stamps
+        (:func:`clock_offset`), and derived events from receive times onto the same clock where
+        the bag's receive times differ from those stamps (:mod:`..clock`)."""
         agent = sorted(self.agent.values(), key=lambda e: (e.stream, e.seq))
         losses: list[Loss] = []
         notes: list[str] = []
@@ -503,9 +520,17 @@ class Converter:
         if offset:
             agent = [_shifted(e, offset) for e in agent]
             notes.append(
-                f"agent events moved onto the bag's clock: time_ns + {offset} ns "
-                f"(their header stamps less their own time_ns; the simulator's 0 is {_iso(offset)})"
+                f"agent events moved onto their header stamps' clock: time_ns + {offset} ns "
+                f"(the simulator's 0 is {_iso(offset)})"
             )
+        pairs = kept_pairs(
+            (self.received[e.event_id], self.stamps[e.event_id])
+            for e in agent
+            if e.event_id in self.stamps
+        )
+        clock = fit_clock(pairs)
+        if clock is not None:
+            notes.append(clock.describe())
         by_stream: dict[str, list[int]] = {}
         for e in agent:
             by_stream.setdefault(e.stream, []).append(e.seq)
@@ -524,14 +549,26 @@ class Converter:
         self.end_of_messages()
         assert self.numbered is not None
         poses, derived = self.numbered
-        return Finished(tuple(agent), tuple(derived), poses, losses, notes, offset)
+        if clock is not None:
+            poses = poses.on_clock(clock.apply(poses.time))
+            derived = [_retimed(e, clock.at(e.time_ns)) for e in derived]
+        return Finished(tuple(agent), tuple(derived), poses, losses, notes, offset, clock, pairs)
+
+    def time_range(self, done: Finished) -> tuple[int | None, int | None]:
+        """The first and last time of the bag's converted messages on the run's clock."""
+        if self.start_ns is None or self.end_ns is None or done.clock is None:
+            return self.start_ns, self.end_ns
+        times = [e.time_ns for e in done.agent]
+        start = min([done.clock.at(self.start_ns), *times])
+        end = max([done.clock.at(self.end_ns), *times])
+        return start, end
 
 
 def clock_offset(agent: Sequence[Event], stamps: Mapping[str, int]) -> int:
-    """What to add to the agent's ``time_ns`` to put it on the bag's clock: the header stamp of
-    the events topic less the event's own ``time_ns``, from the lowest-seq event with a stamp
-    (the recorder stamps each event at its simulated time on the bag's clock; ``rosbag
-    record`` of a playback keeps the stamps). 0 if no event has a stamp."""
+    """What to add to the agent's ``time_ns`` to put it on its header stamps' clock: the header
+    stamp of the events topic less the event's own ``time_ns``, from the lowest-seq event with a
+    stamp (``record`` stamps each event at 2026-01-01 + its simulated time; ``rosbag record`` of
+    a playback keeps the stamps). 0 if no event has a stamp."""
     for e in agent:
         if e.event_id in stamps:
             return stamps[e.event_id] - e.time_ns
@@ -544,6 +581,13 @@ def _shifted(event: Event, offset: int) -> Event:
     return Event._adopt(doc)
 
 
+def _retimed(event: Event, time_ns: int) -> Event:
+    """A derived event on the run's clock; ``recorded_at_ns`` keeps its receive time."""
+    doc = event.to_json_dict()
+    doc["time_ns"] = time_ns
+    return Event._adopt(doc)
+
+
 @dataclass(frozen=True, slots=True)
 class Finished:
     agent: tuple[Event, ...]
@@ -552,6 +596,8 @@ class Finished:
     losses: list[Loss]
     notes: list[str]
     clock_offset_ns: int = 0
+    clock: ClockMap | None = None
+    clock_pairs: tuple[tuple[int, int], ...] = ()
 
     def event_types(self) -> Counter[str]:
         types = Counter(e.type for e in self.agent)
@@ -936,6 +982,7 @@ def read_bag(
             "losses per topic are lower bounds (messages after a cut cannot be counted)"
         )
     types = done.event_types()
+    start_ns, end_ns = conv.time_range(done)
     report = BagReport(
         path=str(path),
         format=fmt.value,
@@ -945,13 +992,17 @@ def read_bag(
         topics=_topic_rows(conv, outcome.claimed, per_topic),
         skipped=_skipped_rows(conv, per_topic),
         losses=tuple(losses),
-        start_ns=conv.start_ns,
-        end_ns=conv.end_ns,
+        start_ns=start_ns,
+        end_ns=end_ns,
         events=sum(types.values()),
         event_types=dict(types),
         notes=tuple(notes),
         claims_complete=outcome.claims_complete,
         clock_offset_ns=done.clock_offset_ns,
+        clock=done.clock,
+        received_start_ns=conv.start_ns,
+        received_end_ns=conv.end_ns,
+        clock_pairs=done.clock_pairs if done.clock is not None else (),
     )
     return BagContents(report, done.agent, done.derived, done.poses, conv.stream)
 

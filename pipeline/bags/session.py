@@ -8,16 +8,23 @@ through them: the agent's events have ids ``uuid5(run id/seq)``
 spec (:func:`objsearch.agent.session.derived_run_id`, what ``record`` and seeded runs use) can be
 recomputed from the ``run_started`` event. So:
 
-* a piece holding ``run_started`` proves its run id (recomputed, then checked against the
-  event's id);
-* any other piece is matched against the run ids the lake (or this ingest) already knows: one
-  event id that equals ``uuid5(candidate/seq)`` proves it belongs;
-* a piece that cannot be placed yet (a later piece ingested before the first) is a
-  provisional run of its own, absorbed when its session's run id becomes known.
+* a piece holding ``run_started`` proves its run id (``run_started.params.run_id``, checked
+  against the event's id);
+* any other piece is matched against the run ids the lake already knows (bag sessions and
+  compacted agent logs alike): one event id that equals ``uuid5(candidate/seq)`` proves it
+  belongs;
+* pieces whose run id nothing proves (the recorder started after the agent, so no piece holds
+  ``run_started``) are one recording when their agent events are one stream's: a common seq with
+  the same event id, or consecutive seqs (:func:`continues`) with time running on. Such a session
+  is a provisional run named by its lowest event (:func:`provisional_run_name`), renamed as earlier
+  pieces arrive and absorbed when its run id becomes known;
+* a piece with no agent events (a split's stretch of odometry alone) belongs to the session of
+  the same robot whose receive times enclose its own.
 
 Merging keeps the agent's events once (by id) and the derived ones (poses, detections) once by
-content, then numbers the derived ones again in the session's own stream in (time, type, seq)
-order, so the run is the same whatever order the pieces came in.
+content, puts the derived ones on the session's clock (:mod:`~objsearch.pipeline.bags.clock`,
+fitted over all its pieces) and numbers them again in the session's own stream in (time, type,
+seq) order, so the run is the same whatever order the pieces came in.
 """
 
 from __future__ import annotations
@@ -29,12 +36,14 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Final
 
+import numpy as np
 import polars as pl
 import pyarrow as pa
 import pyarrow.compute as pc
 
 from objsearch.events import Event
 from objsearch.events.envelope import deterministic_event_id
+from objsearch.pipeline.bags.clock import ClockMap
 from objsearch.ros.topics import TopicMap
 
 #: Bump when a change to the conversion changes what a bag gives: bags ingested by an older
@@ -99,13 +108,95 @@ def session_run_name(run_id: str) -> str:
     return "bag-" + run_id.replace("-", "")[:16]
 
 
+def provisional_run_name(first: FirstEvent) -> str:
+    """The lake run of a session whose run id is not known yet: ``bag-`` and the first 16 hex
+    digits of its lowest agent event's id (the same whichever of its pieces came first)."""
+    return "bag-" + first.event_id.replace("-", "")[:16]
+
+
+@dataclass(frozen=True, slots=True)
+class Span:
+    """The agent events of one stream in a piece or session: first and last seq and time."""
+
+    stream: str
+    first_seq: int
+    last_seq: int
+    first_time_ns: int
+    last_time_ns: int
+
+    def to_doc(self) -> list[int]:
+        return [self.first_seq, self.last_seq, self.first_time_ns, self.last_time_ns]
+
+    @staticmethod
+    def from_doc(stream: str, doc: object) -> Span | None:
+        if not isinstance(doc, list) or len(doc) != 4:
+            return None
+        try:
+            return Span(stream, *(int(v) for v in doc))
+        except (TypeError, ValueError):
+            return None
+
+
+def agent_rows(tables: Mapping[str, pa.Table]) -> pl.DataFrame:
+    """``stream, seq, event_id, time_ns`` of the agent's events in a set of tables."""
+    columns = ["stream", "seq", "event_id", "time_ns"]
+    frames = []
+    for table in tables.values():
+        df = pl.from_arrow(table.select(columns))
+        assert isinstance(df, pl.DataFrame)
+        frames.append(df.filter(~pl.col("stream").str.starts_with(DERIVED_PREFIX)))
+    if not frames:
+        return pl.DataFrame(schema={"stream": pl.String, "seq": pl.Int64, "event_id": pl.String})
+    return pl.concat(frames, how="vertical_relaxed").sort("stream", "seq")
+
+
+def spans_of(rows: pl.DataFrame) -> dict[str, Span]:
+    spans = {}
+    for (stream,), df in rows.group_by("stream", maintain_order=True):
+        first, last = df.row(0, named=True), df.row(-1, named=True)
+        spans[str(stream)] = Span(
+            str(stream), first["seq"], last["seq"], first["time_ns"], last["time_ns"]
+        )
+    return spans
+
+
+def continues(a: Span, b: Span) -> bool:
+    """One stream's events going on from one piece into the other: consecutive seqs, and time
+    not running backwards across the boundary."""
+    if a.stream != b.stream:
+        return False
+    return (b.first_seq == a.last_seq + 1 and b.first_time_ns >= a.last_time_ns) or (
+        a.first_seq == b.last_seq + 1 and a.first_time_ns >= b.last_time_ns
+    )
+
+
+def overlaps(a: Span, b: Span) -> bool:
+    return a.stream == b.stream and a.first_seq <= b.last_seq and b.first_seq <= a.last_seq
+
+
+def same_ids(a: pl.DataFrame, b: pl.DataFrame) -> bool | None:
+    """Whether two sets of agent rows are one run's where they share (stream, seq): True if
+    every shared seq has the same event id, False if one differs, None if none is shared."""
+    shared = a.select("stream", "seq", "event_id").join(
+        b.select("stream", "seq", pl.col("event_id").alias("other")), on=["stream", "seq"]
+    )
+    if shared.is_empty():
+        return None
+    return bool((shared["event_id"] == shared["other"]).all())
+
+
 def merge_tables(
-    parts: Sequence[Mapping[str, pa.Table]], stream: str, drop: Sequence[tuple[int, int]] = ()
+    parts: Sequence[Mapping[str, pa.Table]],
+    stream: str,
+    drop: Sequence[tuple[int, int]] = (),
+    clock: ClockMap | None = None,
 ) -> dict[str, pa.Table]:
     """One session's tables from several pieces' (earlier pieces win ties).
 
-    ``drop`` are time ranges whose derived rows are removed first from every part but the last
-    (a piece read again with another topic map or converter replaces its rows).
+    ``drop`` are receive-time ranges whose derived rows are removed first from every part but
+    the last (a piece read again with another topic map or converter replaces its rows).
+    ``clock`` puts every derived row on the session's clock: ``time_ns`` = its map of the
+    row's receive time, ``recorded_at_ns``.
     """
     types = sorted({t for p in parts for t in p})
     merged: dict[str, pl.DataFrame] = {}
@@ -116,10 +207,16 @@ def merge_tables(
                 continue
             df = pl.from_arrow(part[event_type])
             assert isinstance(df, pl.DataFrame)
+            derived = pl.col("stream").str.starts_with(DERIVED_PREFIX)
             if drop and i < len(parts) - 1:
-                derived = pl.col("stream").str.starts_with(DERIVED_PREFIX)
-                inside = pl.any_horizontal([pl.col("time_ns").is_between(a, b) for a, b in drop])
+                received = pl.col("recorded_at_ns")
+                inside = pl.any_horizontal([received.is_between(a, b) for a, b in drop])
                 df = df.filter(~(derived & inside))
+            if clock is not None and df.height:
+                derived_rows = df.select(derived).to_series().to_numpy()
+                mapped = clock.apply(df["recorded_at_ns"].to_numpy().astype(np.int64))
+                times = np.where(derived_rows, mapped, df["time_ns"].to_numpy())
+                df = df.with_columns(pl.Series("time_ns", times, dtype=df.schema["time_ns"]))
             frames.append(df)
         merged[event_type] = pl.concat(frames, how="vertical_relaxed")
     agent_frames: dict[str, pl.DataFrame] = {}

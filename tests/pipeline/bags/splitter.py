@@ -1,4 +1,5 @@
-"""Cut a ROS 1 bag the way ``rosbag record --split --duration=D`` does.
+"""Cut a ROS 1 bag the way ``rosbag record --split --duration=D`` does; re-time one as a
+playback recorded again does.
 
 The real recorder (``rosbag/recorder.cpp``) starts a new file when a message arrives more than
 ``D`` after the current file was opened; each file is a complete bag of its own, holding whole
@@ -47,3 +48,27 @@ def split_ros1(bag: Path, out_dir: Path, duration_s: float) -> list[Path]:
     if writer is not None:
         writer.close()
     return pieces
+
+
+def rerecord_ros1(bag: Path, out: Path, *, rate: float, start_ns: int) -> Path:
+    """The bag as ``rosbag play -r RATE`` → ``rosbag record`` would store it: every message
+    unchanged (header stamps included), received at ``start_ns`` + (its time in ``bag`` since
+    the first message) / ``rate`` on the recorder's clock."""
+    conns: dict[int, Connection] = {}
+    with Reader(bag) as reader, Writer(out) as writer:
+        first: int | None = None
+        for conn, t, raw in reader.messages():
+            first = t if first is None else first
+            if conn.id not in conns:
+                ext = conn.ext
+                assert isinstance(ext, ConnectionExtRosbag1)
+                conns[conn.id] = writer.add_connection(
+                    conn.topic,
+                    conn.msgtype,
+                    msgdef=conn.msgdef.data,
+                    md5sum=conn.digest,
+                    callerid=ext.callerid,
+                    latching=ext.latching,
+                )
+            writer.write(conns[conn.id], start_ns + round((t - first) / rate), raw)
+    return out

@@ -16,7 +16,7 @@ from objsearch.pipeline.bags.lake import BagLake
 from objsearch.ros.topics import TopicMap
 
 from .bag_fixtures import Recorded, record_run
-from .splitter import split_ros1
+from .splitter import rerecord_ros1, split_ros1
 
 BAG_CLOCK_2026 = int(dt.datetime(2026, 1, 1, tzinfo=dt.UTC).timestamp() * 1e9)
 
@@ -150,3 +150,142 @@ def test_lake_add_and_ingest_of_one_run_count_once(ros1: Recorded, tmp_path: Pat
     assert result.error is None
     with pytest.raises(LakeError, match="already in the lake as run 'bag-"):
         compact_log(ros1.bag.parent / "log", Lake(lake), robot="robot", run="log")
+
+
+# -- recordings no piece of which holds run_started (the recorder started after the agent) ---
+
+
+def _agent_ids(lake: Path) -> list[str]:
+    return [
+        e.event_id
+        for run in Lake(lake).runs()
+        for e in Lake(lake).read_events(run)
+        if not e.stream.startswith("bag:")
+    ]
+
+
+def _all_ids(lake: Path) -> list[str]:
+    return [
+        i
+        for run in Lake(lake).runs()
+        for table in Lake(lake).read_tables(run).values()
+        for i in table["event_id"].to_pylist()
+    ]
+
+
+def test_pieces_without_run_started_in_any_order_are_one_run(
+    ros1: Recorded, pieces: list[Path], tmp_path: Path
+) -> None:
+    late = pieces[1:]  # what a recorder started after the agent holds
+    for r in ingest(late, tmp_path / "a"):
+        assert r.error is None and r.report is not None
+        assert "run_started" not in r.report.event_types
+    assert len(Lake(tmp_path / "a").runs()) == 1
+    shuffled = late[::-1]
+    random.Random(5).shuffle(shuffled)
+    ingest(shuffled, tmp_path / "b")
+    assert _content(tmp_path / "b") == _content(tmp_path / "a")
+    ingest([pieces[0]], tmp_path / "b")  # the first piece after all: the run id is known now
+    ingest([ros1.bag], tmp_path / "whole")
+    assert _content(tmp_path / "b") == _content(tmp_path / "whole")
+    ids = _all_ids(tmp_path / "b")
+    assert len(ids) == len(set(ids))
+    first_piece = {e.event_id for e in ros1.log} - set(_agent_ids(tmp_path / "a"))
+    assert first_piece and {e.type for e in ros1.log if e.event_id in first_piece} >= {
+        "run_started"
+    }
+
+
+def test_pieces_of_two_recordings_stay_two_runs(
+    ros1: Recorded, pieces: list[Path], tmp_path: Path
+) -> None:
+    other = record_run(tmp_path / "other", BagFormat.ROS1, seed=1)
+    other_pieces = split_ros1(other.bag, tmp_path / "other-split", duration_s=60.0)
+    ingest([*pieces[1:], *other_pieces[1:]], tmp_path / "lake")
+    runs = Lake(tmp_path / "lake").runs()
+    assert len(runs) == 2
+    ids = _all_ids(tmp_path / "lake")
+    assert len(ids) == len(set(ids))
+
+
+def test_pieces_of_a_compacted_log_are_refused_naming_it(
+    ros1: Recorded, pieces: list[Path], tmp_path: Path
+) -> None:
+    lake = tmp_path / "lake"
+    compact_log(ros1.bag.parent / "log", Lake(lake), robot="robot", run="agent-log")
+    for result in ingest(pieces[1:], lake):
+        assert result.error is not None and "run 'agent-log' of robot 'robot'" in result.error
+    ids = _all_ids(lake)
+    assert len(ids) == len(set(ids)) == len(ros1.log)
+
+
+RECORDER_CLOCK = int(dt.datetime(2026, 12, 2, tzinfo=dt.UTC).timestamp() * 1e9)
+
+
+def test_a_rerecorded_bag_is_on_one_clock(ros1: Recorded, tmp_path: Path) -> None:
+    """``rosbag play -r 20`` → ``rosbag record``: receive times 20× faster, on another day; the
+    header stamps kept. The run is on the agent's clock, its poses where the original's are."""
+    replayed = rerecord_ros1(ros1.bag, tmp_path / "replayed.bag", rate=20, start_ns=RECORDER_CLOCK)
+    [result] = ingest([replayed], tmp_path / "lake")
+    assert result.report is not None and result.report.clock is not None
+    assert result.report.clock.rate == pytest.approx(20, rel=1e-6)
+    ingest([ros1.bag], tmp_path / "whole")
+    agent, rows, poses = _content(tmp_path / "lake")
+    assert (agent, rows) == _content(tmp_path / "whole")[:2]
+    original = _content(tmp_path / "whole")[2]
+    assert max(abs(a - b) for a, b in zip(poses, original, strict=True)) < 1_000  # ns
+    [run] = Lake(tmp_path / "lake").runs()
+    assert run.date == "2026-01-01"
+    received = Lake(tmp_path / "lake").read_tables(run)["pose_observed"]["recorded_at_ns"]
+    assert pc.min(received).as_py() >= RECORDER_CLOCK
+
+
+def test_a_rerecorded_split_recording_is_one_run_on_one_clock(
+    ros1: Recorded, tmp_path: Path
+) -> None:
+    replayed = rerecord_ros1(ros1.bag, tmp_path / "replayed.bag", rate=20, start_ns=RECORDER_CLOCK)
+    late = split_ros1(replayed, tmp_path / "split", duration_s=3.0)[1:]
+    assert len(late) >= 2
+    results = ingest(late[::-1], tmp_path / "lake")
+    assert [r.error for r in results] == [None] * len(late)
+    [run] = Lake(tmp_path / "lake").runs()
+    assert run.date == "2026-01-01"
+    events = Lake(tmp_path / "lake").read_events(run)
+    # Every derived event is where the original bag has it (the receive clock mapped back).
+    ingest([ros1.bag], tmp_path / "whole")
+    whole = {
+        (e.type, e.time_ns)
+        for r in Lake(tmp_path / "whole").runs()
+        for e in Lake(tmp_path / "whole").read_events(r)
+        if e.stream.startswith("bag:")
+    }
+    for e in events:
+        if e.stream.startswith("bag:"):
+            near = [t for typ, t in whole if typ == e.type and abs(t - e.time_ns) < 1_000]
+            assert near, (e.type, e.time_ns)
+
+
+def test_pieces_of_odometry_alone_join_their_recording(ros1: Recorded, tmp_path: Path) -> None:
+    """Split every 5 s, most pieces hold odometry and TF alone (the robot driving between
+    events); in any order, with or without the piece holding run_started, one run."""
+    cut = split_ros1(ros1.bag, tmp_path / "split", duration_s=5.0)
+    odometry_only = [
+        p
+        for r, p in zip(ingest(cut, tmp_path / "a"), cut, strict=True)
+        if r.report and "pose_observed" in r.report.event_types and len(r.report.event_types) == 1
+    ]
+    assert len(odometry_only) >= 3
+    ingest([ros1.bag], tmp_path / "whole")
+    assert _content(tmp_path / "a") == _content(tmp_path / "whole")
+    [run] = Lake(tmp_path / "a").runs()
+    assert run.identity.get("run_id")
+    shuffled = cut[:]
+    random.Random(7).shuffle(shuffled)
+    ingest(shuffled, tmp_path / "b")
+    assert _content(tmp_path / "b") == _content(tmp_path / "whole")
+    late = cut[1:]
+    random.Random(8).shuffle(late)
+    ingest(late, tmp_path / "c")
+    assert len(Lake(tmp_path / "c").runs()) == 1
+    ids = _all_ids(tmp_path / "c")
+    assert len(ids) == len(set(ids))

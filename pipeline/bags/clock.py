@@ -1,0 +1,101 @@
+"""One clock per run: a recorder's receive time mapped onto the agent's clock.
+
+A bag stores each message with the time the recorder *received* it. ``objsearch record`` writes
+that time equal to each message's header stamp, so the two agree. A bag made by any other
+recorder need not: ``rosbag play -r 20`` → ``rosbag record`` keeps every message's header stamp
+(the agent's clock: 2026-01-01 + simulated time, or the robot's) but receives it on the recorder's
+wall clock, 20 times faster. The agent's events carry both (their header stamp and their receive
+time), so they give the map from one clock to the other: ``stamp ≈ stamp_ns + rate · (t −
+recv_ns)``, fitted by least squares. Every derived event (poses, detections) is put on the agent's
+clock with it; its ``recorded_at_ns`` keeps the receive time.
+
+A bag keeps at most :data:`MAX_PAIRS` of its (receive time, stamp) pairs in its report, spread
+evenly over it, and is mapped with the fit over those; a session of several pieces (a split
+recording) is mapped with the fit over all its pieces' pairs, so a piece whose few events span no
+time (which gives no rate) is mapped like the rest of its recording.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+Ints = NDArray[np.int64]
+
+MAX_PAIRS: Final = 64
+
+
+@dataclass(frozen=True, slots=True)
+class ClockMap:
+    """``receive time → recv_ns`` is mapped to ``stamp_ns``; ``rate`` agent ns per receive ns."""
+
+    recv_ns: int
+    stamp_ns: int
+    rate: float
+    events: int  # agent events it was fitted over
+    residual_ns: int  # the largest |stamp − map(receive time)| among them
+
+    def at(self, ns: int) -> int:
+        return self.stamp_ns + round(self.rate * (ns - self.recv_ns))
+
+    def apply(self, ns: Ints) -> Ints:
+        delta = (ns - self.recv_ns).astype(np.float64) * self.rate
+        return self.stamp_ns + np.rint(delta).astype(np.int64)
+
+    def describe(self) -> str:
+        return (
+            f"receive times mapped onto the agent's clock (the events' header stamps): "
+            f"rate {self.rate:.6g}, fitted over {self.events} agent event(s), "
+            f"largest residual {self.residual_ns / 1e6:.3f} ms"
+        )
+
+
+def kept_pairs(pairs: Iterable[tuple[int, int]]) -> tuple[tuple[int, int], ...]:
+    """At most :data:`MAX_PAIRS` of ``pairs``, in receive-time order, evenly spread, the first
+    and last kept."""
+    ordered = sorted(set(pairs))
+    if len(ordered) <= MAX_PAIRS:
+        return tuple(ordered)
+    picks = np.linspace(0, len(ordered) - 1, MAX_PAIRS).round().astype(np.int64)
+    return tuple(ordered[i] for i in sorted(set(picks.tolist())))
+
+
+def pairs_from_doc(doc: Any) -> list[tuple[int, int]]:
+    """A report's ``clock_pairs`` (JSON lists) back as pairs; nothing for anything else."""
+    if not isinstance(doc, list):
+        return []
+    pairs = []
+    for item in doc:
+        if isinstance(item, list | tuple) and len(item) == 2:
+            try:
+                pairs.append((int(item[0]), int(item[1])))
+            except (TypeError, ValueError):
+                continue
+    return pairs
+
+
+def fit_clock(pairs: Iterable[tuple[int, int]]) -> ClockMap | None:
+    """The map from (receive time, header stamp) pairs, or None when the two clocks agree on
+    every pair (nothing to map) or there are no pairs."""
+    pairs = sorted(set(pairs))
+    if not pairs or all(recv == stamp for recv, stamp in pairs):
+        return None
+    recv = np.array([p[0] for p in pairs], dtype=np.int64)
+    stamp = np.array([p[1] for p in pairs], dtype=np.int64)
+    # Centred on the first pair in integers, so the floats hold differences, not epoch ns.
+    x = (recv - recv[0]).astype(np.float64)
+    y = (stamp - stamp[0]).astype(np.float64)
+    x_mean, y_mean = float(x.mean()), float(y.mean())
+    spread = float(((x - x_mean) ** 2).sum())
+    rate = float(((x - x_mean) * (y - y_mean)).sum() / spread) if spread > 0 else 1.0
+    if not rate > 0:
+        rate = 1.0  # a clock that runs backwards is no recorder's; keep the offset alone
+    recv_ns = int(recv[0]) + round(x_mean)
+    stamp_ns = int(stamp[0]) + round(y_mean)
+    clock = ClockMap(recv_ns, stamp_ns, rate, len(pairs), 0)
+    residual = int(np.abs(clock.apply(recv) - stamp).max())
+    return ClockMap(recv_ns, stamp_ns, rate, len(pairs), residual)
