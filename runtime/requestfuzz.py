@@ -370,7 +370,7 @@ class Rig:
     def start(self, robot_toml: str = "") -> None:
         endpoint = f"tcp/127.0.0.1:{self.port}"
         self._spawn("router", "robot", "router", "--listen", endpoint)
-        time.sleep(0.3)
+        self._wait_listening("router", self.port)
         self._spawn("robot", "robot", "sim", *self.args)
         config = self.workdir / "robot.toml"
         config.write_text(robot_toml)
@@ -382,6 +382,23 @@ class Rig:
         self.procs[name] = subprocess.Popen(
             [sys.executable, "-m", "objsearch.cli", *args], stdout=out, stderr=subprocess.STDOUT
         )
+
+    def _wait_listening(self, name: str, port: int, timeout_s: float = 120.0) -> None:
+        """Until ``name`` accepts connections on 127.0.0.1:``port``: a fresh interpreter takes
+        seconds on a loaded machine, so readiness is watched for, never assumed after a pause."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1.0).close()
+                return
+            except OSError:
+                if not self.alive(name):
+                    raise RuntimeError(f"{name} exited: {self.output(name)[-2000:]}") from None
+                if time.monotonic() > deadline:
+                    raise TimeoutError(
+                        f"{name} is not listening on {port} after {timeout_s:g} s"
+                    ) from None
+                time.sleep(0.05)
 
     def output(self, name: str) -> str:
         return (self.workdir / f"{name}.txt").read_text(errors="replace")

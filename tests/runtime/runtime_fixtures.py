@@ -19,6 +19,11 @@ pytest.importorskip("cyclonedds")
 
 _domains = itertools.count(1 + os.getpid() % 150)
 
+#: Seconds a test waits for a process it started to be ready (answer, listen, exit). Generous on
+#: purpose: a fresh interpreter on a loaded machine takes seconds, and a wait that ends as soon
+#: as the process is ready costs nothing when it is quick.
+STARTUP_S = 120.0
+
 
 def free_port() -> int:
     with socket.socket() as s:
@@ -48,22 +53,37 @@ def net(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Net]:
         port = free_port()
         endpoint = f"tcp/127.0.0.1:{port}"
         router = objsearch("robot", "router", "--listen", endpoint, log=tmp_path / "router.txt")
-        time.sleep(0.3)
+        wait_listening(port, router)
         n = Net("zenoh", ["--transport", "zenoh", "--connect", endpoint], router)
     else:
         n = Net("dds", ["--transport", "dds", "--domain-id", str(next(_domains) % 200 + 1)])
     yield n
     if n.router is not None:
-        n.router.terminate()
-        n.router.wait(10)
+        stop(n.router)
+
+
+def wait_listening(port: int, proc: subprocess.Popen[bytes]) -> None:
+    """Until something accepts connections on 127.0.0.1:``port`` (``proc`` is up), at most
+    :data:`STARTUP_S`; fails at once if ``proc`` exits."""
+    deadline = time.monotonic() + STARTUP_S
+    while True:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=1.0).close()
+            return
+        except OSError:
+            assert proc.poll() is None, f"the process exited with {proc.returncode}"
+            assert time.monotonic() < deadline, f"nothing listens on {port} after {STARTUP_S} s"
+            time.sleep(0.05)
 
 
 def stop(proc: subprocess.Popen[bytes]) -> int:
+    """SIGTERM, then up to :data:`STARTUP_S` to finish (it closes its log and files), then
+    SIGKILL."""
     if proc.poll() is None:
         proc.terminate()
         try:
-            return proc.wait(10)
+            return proc.wait(STARTUP_S)
         except subprocess.TimeoutExpired:
             proc.kill()
-            return proc.wait(10)
+            return proc.wait(STARTUP_S)
     return proc.returncode

@@ -16,7 +16,7 @@ from objsearch.runtime.config import RuntimeConfig
 from objsearch.sim.placements import Schedule
 from objsearch.sim.world import SimClock, SimWorld
 
-from .runtime_fixtures import Net, objsearch, stop
+from .runtime_fixtures import STARTUP_S, Net, objsearch, stop
 
 # Scene 1 of Table II, in the long-term runner's order (scene → target → start), cut short for CI.
 TRIALS = [(1, "Apple", "kitchen-1"), (1, "Apple", "bedroom-1"), (1, "Cup", "living-1")]
@@ -63,10 +63,14 @@ def run_over(net: Net, tmp_path: Path, trials: list[tuple[int, str, str]]) -> li
     try:
         with AgentClient(client_config(net)) as client:
             for scene, target, start in trials:
-                reset = client.reset_sim(scene, start, timeout_s=20)
+                reset = client.reset_sim(scene, start, timeout_s=STARTUP_S)
                 assert reset["ok"]
                 r = client.find(
-                    target, start=start, scene=scene, timeout_s=60, not_before_ns=reset["stamp_ns"]
+                    target,
+                    start=start,
+                    scene=scene,
+                    timeout_s=STARTUP_S,
+                    not_before_ns=reset["stamp_ns"],
                 )
                 assert r["ok"], r
                 out.append({k: r[k] for k in ("success", "path_length", "found", "plans")})

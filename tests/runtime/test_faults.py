@@ -11,7 +11,7 @@ import pytest
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 
-from .runtime_fixtures import Net, objsearch, stop
+from .runtime_fixtures import STARTUP_S, Net, objsearch, stop
 from .test_end_to_end import client_config
 
 FAST = "[timeouts]\nrobot_s = 3.0\narrival_s = 1.5\nattempts = 3\ndetections_s = 1.5\n"
@@ -49,20 +49,28 @@ def test_robot_vanishes_then_restarts(zenoh_only: Net, tmp_path: Path) -> None:
     agent = _agent(net, tmp_path)
     try:
         with AgentClient(client_config(net)) as client:
-            reset = client.reset_sim(3, "bathroom-1", timeout_s=20)
+            reset = client.reset_sim(3, "bathroom-1", timeout_s=STARTUP_S)
             assert reset["ok"]
             failed = client.find(
-                "Laptop", start="bathroom-1", scene=3, timeout_s=60, not_before_ns=reset["stamp_ns"]
+                "Laptop",
+                start="bathroom-1",
+                scene=3,
+                timeout_s=STARTUP_S,
+                not_before_ns=reset["stamp_ns"],
             )
             assert not failed["ok"]
             assert "last heard from the robot" in failed["error"], failed
             assert robot.wait(10) == 3
             # The robot comes back (a fresh process); the agent carries on with the next request.
             robot = objsearch("robot", "sim", *net.args, log=tmp_path / "robot2.txt")
-            reset = client.reset_sim(1, "kitchen-1", timeout_s=20)
+            reset = client.reset_sim(1, "kitchen-1", timeout_s=STARTUP_S)
             assert reset["ok"]
             ok = client.find(
-                "Apple", start="kitchen-1", scene=1, timeout_s=60, not_before_ns=reset["stamp_ns"]
+                "Apple",
+                start="kitchen-1",
+                scene=1,
+                timeout_s=STARTUP_S,
+                not_before_ns=reset["stamp_ns"],
             )
             assert ok["ok"] and ok["success"] and ok["task_id"] == "task-00002"
     finally:
@@ -91,10 +99,14 @@ def test_dropped_and_malformed_messages(zenoh_only: Net, tmp_path: Path) -> None
     agent = _agent(net, tmp_path)
     try:
         with AgentClient(client_config(net)) as client:
-            reset = client.reset_sim(1, "bedroom-1", timeout_s=20)
+            reset = client.reset_sim(1, "bedroom-1", timeout_s=STARTUP_S)
             assert reset["ok"]
             r = client.find(
-                "Apple", start="bedroom-1", scene=1, timeout_s=90, not_before_ns=reset["stamp_ns"]
+                "Apple",
+                start="bedroom-1",
+                scene=1,
+                timeout_s=STARTUP_S,
+                not_before_ns=reset["stamp_ns"],
             )
     finally:
         stop(agent)
@@ -119,13 +131,13 @@ def test_agent_restart_rebuilds_from_its_log(zenoh_only: Net, tmp_path: Path) ->
             for i, target in enumerate(["Apple", "Cup"]):
                 agent = _agent(net, tmp_path, f"agent{i}")
                 try:
-                    reset = client.reset_sim(1, "kitchen-1", timeout_s=20)
+                    reset = client.reset_sim(1, "kitchen-1", timeout_s=STARTUP_S)
                     assert reset["ok"]
                     r = client.find(
                         target,
                         start="kitchen-1",
                         scene=1,
-                        timeout_s=60,
+                        timeout_s=STARTUP_S,
                         not_before_ns=reset["stamp_ns"],
                     )
                     assert r["ok"] and r["task_id"] == f"task-0000{i + 1}"

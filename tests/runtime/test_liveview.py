@@ -319,7 +319,7 @@ def test_agent_run_serves_and_records_the_live_view(net: Any, tmp_path: Path) ->
     from objsearch.cli_runtime import runtime_config
     from objsearch.runtime.client import AgentClient
 
-    from .runtime_fixtures import free_port, objsearch, stop
+    from .runtime_fixtures import STARTUP_S, free_port, objsearch, stop
     from .ws_client import FoxgloveClient
 
     port, mcap, log = free_port(), tmp_path / "live.mcap", tmp_path / "log"
@@ -331,10 +331,14 @@ def test_agent_run_serves_and_records_the_live_view(net: Any, tmp_path: Path) ->
     try:
         config = runtime_config(build_parser().parse_args(["agent", "find", "x", *net.args]))
         with AgentClient(config) as client:
-            reset = client.reset_sim(1, "kitchen-1", timeout_s=20)
+            reset = client.reset_sim(1, "kitchen-1", timeout_s=STARTUP_S)
             assert reset["ok"]
             r = client.find(
-                "Apple", start="kitchen-1", scene=1, timeout_s=60, not_before_ns=reset["stamp_ns"]
+                "Apple",
+                start="kitchen-1",
+                scene=1,
+                timeout_s=STARTUP_S,
+                not_before_ns=reset["stamp_ns"],
             )
             assert r["ok"] and r["success"], r
         ws = FoxgloveClient("127.0.0.1", port)

@@ -12,7 +12,7 @@ import pytest
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 
-from .runtime_fixtures import Net, objsearch, stop
+from .runtime_fixtures import STARTUP_S, Net, objsearch, stop
 from .test_end_to_end import TRIALS, client_config, in_process
 
 ACTION = '[navigation]\ninterface = "navigate_to_pose"\n'
@@ -27,10 +27,10 @@ def _config(tmp_path: Path, text: str) -> list[str]:
 
 
 def _find(client: AgentClient, scene: int, target: str, start: str) -> dict[str, Any]:
-    reset = client.reset_sim(scene, start, timeout_s=20)
+    reset = client.reset_sim(scene, start, timeout_s=STARTUP_S)
     assert reset["ok"]
     return client.find(
-        target, start=start, scene=scene, timeout_s=60, not_before_ns=reset["stamp_ns"]
+        target, start=start, scene=scene, timeout_s=STARTUP_S, not_before_ns=reset["stamp_ns"]
     )
 
 

@@ -15,7 +15,7 @@ from objsearch.runtime.client import AgentClient
 from objsearch.runtime.node import Requester
 from objsearch.runtime.requests import check_where_result
 
-from .runtime_fixtures import Net, objsearch, stop
+from .runtime_fixtures import STARTUP_S, Net, objsearch, stop
 from .test_end_to_end import client_config
 
 
@@ -29,9 +29,13 @@ def test_the_agent_answers_where_from_its_live_memory(
     try:
         config = client_config(net)
         with AgentClient(config) as client:
-            reset = client.reset_sim(1, "kitchen-1", timeout_s=20)
+            reset = client.reset_sim(1, "kitchen-1", timeout_s=STARTUP_S)
             found = client.find(
-                "Apple", start="kitchen-1", scene=1, timeout_s=60, not_before_ns=reset["stamp_ns"]
+                "Apple",
+                start="kitchen-1",
+                scene=1,
+                timeout_s=STARTUP_S,
+                not_before_ns=reset["stamp_ns"],
             )
             assert found["ok"] and found["success"], found
             live = client.where("Apple", timeout_s=20)
@@ -50,7 +54,9 @@ def test_the_agent_answers_where_from_its_live_memory(
             malformed = raw.call({"target": 7}, timeout_s=20)
             assert not malformed["ok"] and "where request: field 'target'" in malformed["error"]
         # The command-line client, after the malformed question: the agent is still answering.
-        assert main(["agent", "where", "Apple", *net.args, "--json", "--timeout", "30"]) == 0
+        assert (
+            main(["agent", "where", "Apple", *net.args, "--json", "--timeout", str(STARTUP_S)]) == 0
+        )
         again = json.loads(capsys.readouterr().out)
         assert again["answer"] == live["answer"]
         assert agent.poll() is None
@@ -63,7 +69,9 @@ def test_the_agent_answers_where_from_its_live_memory(
     assert (log / WHERE_SNAPSHOT_DIR / "agent_state.snapshot.json").is_file()
     agent = objsearch("agent", "run", *net.args, "--log", str(log), log=tmp_path / "agent2.txt")
     try:
-        assert main(["agent", "where", "Apple", *net.args, "--json", "--timeout", "30"]) == 0
+        assert (
+            main(["agent", "where", "Apple", *net.args, "--json", "--timeout", str(STARTUP_S)]) == 0
+        )
         assert json.loads(capsys.readouterr().out)["answer"] == live["answer"]
     finally:
         assert stop(agent) == 0
