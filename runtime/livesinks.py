@@ -203,6 +203,10 @@ class FoxgloveSink:
         self.host = host
         self.port = self._front.port
 
+    @property
+    def limits(self) -> FrontLimits:
+        return self._front.limits
+
     def stats(self) -> FrontStats:
         """What the front door holds and has refused or dropped (connections, queues)."""
         return self._front.stats()

@@ -347,6 +347,8 @@ class SubprotocolFront:
         finally:
             for conn in [*self._conns.values(), *self._refusing.values()]:
                 self._close(conn, reset=True)
+            if not self._closed:  # stopped by a bug: refuse connections rather than queue them
+                self._listener.close()
             self._stats = self._snapshot()
 
     def _next_timeout(self) -> float:
@@ -453,6 +455,11 @@ class SubprotocolFront:
             pass
         except OSError as exc:
             self._end(conn, f"connection of {conn.who} ended: {exc}")
+            return
+        except Exception:
+            # A bug met by one connection ends that connection, not the front door.
+            log.exception("live view: dropped %s after an unexpected error", conn.who)
+            self._close(conn, reset=True)
             return
         if self._open(conn):
             self._update(conn)

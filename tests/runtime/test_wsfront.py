@@ -294,6 +294,22 @@ def test_cli_checks_the_limits_and_needs_live_for_them(
     assert not (tmp_path / "log").exists()
 
 
+def test_the_cli_options_reach_the_server() -> None:
+    pytest.importorskip("foxglove")
+    from objsearch.cli_runtime import live_sinks
+    from objsearch.runtime.livesinks import FoxgloveSink
+
+    (sink,) = live_sinks("0", None, max_clients=3, client_queue_mib=2)
+    try:
+        assert isinstance(sink, FoxgloveSink)
+        assert sink.limits == FrontLimits(max_clients=3, client_queue_bytes=2 << 20)
+    finally:
+        sink.close()
+    (sink,) = live_sinks("0", None)
+    sink.close()
+    assert isinstance(sink, FoxgloveSink) and sink.limits == FrontLimits()
+
+
 def test_dripping_handshakes_stay_bounded_and_a_real_client_still_gets_in(
     limited: Callable[[FrontLimits], Any], caplog: pytest.LogCaptureFixture
 ) -> None:
