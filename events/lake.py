@@ -30,6 +30,14 @@ alone; they are not part of the digest (they are a function of it), and committi
 content again writes any that are missing or of an older version, which is how a lake written by
 older code is upgraded (:meth:`Lake.upgrade` does it for every run).
 
+Every file a commit writes is recorded in the run's manifest with its size and SHA-256, and the
+manifest carries the SHA-256 of its own content (:mod:`objsearch.events.lake_digest`); Parquet
+files are written with page checksums. :meth:`Lake.scan` checks sizes (cheap, for listings),
+``scan(check_digests=True)`` every byte (what queries do before building their views), and
+:meth:`Lake.verify` reports every damaged file. A run committed before digests existed has none:
+it is read as before (its Parquet ends checked, and decoded in full by ``verify``) until
+:meth:`Lake.upgrade`, or committing the same content again, records them.
+
 The lake is where anything that produces events lands: :func:`compact_log` seals an event log
 into it, and other importers (e.g. ROS bags) call :meth:`Lake.commit_events` or
 :meth:`Lake.commit_tables` directly.
@@ -61,6 +69,16 @@ from .arrow import event_schema, events_to_tables, tables_to_events
 from .derived import DERIVED_DIR, DerivedTable, derive_run, derived_tables
 from .envelope import Event
 from .errors import EventStoreError
+from .lake_digest import (
+    FILES_KEY,
+    SELF_KEY,
+    FileDigest,
+    bytes_digest,
+    file_digests,
+    manifest_digest,
+    mismatch,
+    parse_files,
+)
 from .log import LOCK_FILE, read_log, read_meta
 from .upcast import default_upcaster
 
@@ -89,10 +107,24 @@ class LakeBusyError(LakeError):
 
 @dataclass(frozen=True, slots=True)
 class DamagedRun:
-    """A run folder readers leave out: its manifest or one of its Parquet files is not whole."""
+    """A run folder readers leave out: its manifest or one of its files is not whole."""
 
     path: Path
     reason: str
+    #: Each damaged file and why (``reason`` joins them); empty when built from a reason alone.
+    problems: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class LakeCheck:
+    """What :meth:`Lake.verify` found."""
+
+    runs: int  # run folders
+    files: int  # files of the healthy runs, read whole (hashed, or decoded if without digests)
+    bytes: int  # their size
+    damaged: list[DamagedRun]
+    #: Runs committed before file digests (older code): decoded in full instead of hashed.
+    unverified: list[Path]
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,14 +142,24 @@ class RunInfo:
     #: an event log's meta.json or proven by a bag's events) and ``first_event_id``. The lake
     #: uses it to refuse the same agent run under a second name.
     identity: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    #: Size and digest of every file the commit wrote, by run-relative path (empty: a run
+    #: committed before digests existed).
+    files: Mapping[str, FileDigest] = dataclasses.field(default_factory=dict)
 
     @property
     def events(self) -> int:
         return sum(self.rows.values())
 
     def missing_derived(self) -> list[DerivedTable]:
-        """Derived tables this run lacks at their current version (older code wrote it)."""
-        return [d for d in derived_tables() if not d.path(self.path).is_file()]
+        """Derived tables this run lacks at their current version (older code wrote it). In a
+        run with digests, a file its manifest does not list (an upgrade killed between writing
+        it and recording it) counts as missing: readers compute those rows from the events."""
+        return [
+            d
+            for d in derived_tables()
+            if not d.path(self.path).is_file()
+            or (self.files and _relative(d.path(self.path), self.path) not in self.files)
+        ]
 
 
 class Lake:
@@ -162,45 +204,105 @@ class Lake:
         return [upcast(e) for e in tables_to_events(self.read_tables(run).values())]
 
     def read_tables(self, run: RunInfo) -> dict[str, pa.Table]:
-        """The event tables of one committed run as stored (one per type present)."""
-        return {p.stem: _read_parquet(p) for p in sorted(run.path.glob("*.parquet"))}
+        """The event tables of one committed run as stored (one per type in its manifest), each
+        checked against its recorded digest and its page checksums; raises :class:`LakeError`
+        naming a damaged file."""
+        return {
+            event_type: _read_parquet(
+                run.path / f"{event_type}.parquet", run.files.get(f"{event_type}.parquet")
+            )
+            for event_type in sorted(run.rows)
+        }
 
-    def scan(self) -> tuple[list[RunInfo], list[DamagedRun]]:
+    def scan(self, *, check_digests: bool = False) -> tuple[list[RunInfo], list[DamagedRun]]:
         """The runs readers can use, and the run folders they must leave out.
 
-        A run is left out if its manifest is unreadable or a Parquet file it should hold is
-        missing, empty or truncated (no ``PAR1`` magic at both ends, or a footer longer than the
-        file). That check reads 8 bytes a file; damage inside a file that keeps its ends is
-        found by :func:`deep_check` (a full footer parse), which readers run when a view fails.
+        A run is left out if its manifest is unreadable, fails its own digest or names another
+        folder than the one it is in; if a file it lists is missing or has another size; if a
+        Parquet file is truncated (no ``PAR1`` magic at both ends, or a footer longer than the
+        file); or if an event table it does not list lies in its folder. That reads 8 bytes a
+        file. ``check_digests`` also hashes every file a manifest lists (what queries do: DuckDB
+        does not check page checksums, so a flipped bit inside a file would change an answer);
+        a run without digests (older code) gets only the cheap check, and a full footer parse
+        (:func:`deep_check`) when a view over it fails.
         """
-        runs: list[RunInfo] = []
+        infos: list[RunInfo] = []
         damaged: list[DamagedRun] = []
         for folder in sorted(self.root.glob("robot=*/date=*/run=*")):
             if not folder.is_dir():
                 continue
             try:
-                info = _read_run_file(folder / RUN_FILE)
+                infos.append(_read_run_file(folder / RUN_FILE))
             except LakeError as exc:
-                damaged.append(DamagedRun(folder, str(exc)))
-                continue
-            problem = _run_problem(info)
-            if problem is None:
-                runs.append(info)
+                damaged.append(DamagedRun(folder, str(exc), (str(exc),)))
+        hashed = (
+            file_digests(r.path / name for r in infos for name in r.files) if check_digests else {}
+        )
+        runs: list[RunInfo] = []
+        for info in infos:
+            problems = _run_problems(info, hashed if check_digests else None)
+            if problems:
+                damaged.append(DamagedRun(info.path, "; ".join(problems), tuple(problems)))
             else:
-                damaged.append(DamagedRun(folder, problem))
+                runs.append(info)
         runs.sort(key=lambda r: (r.robot, r.date, r.run))
+        damaged.sort(key=lambda d: d.path)
         return runs, damaged
 
+    def verify(self) -> LakeCheck:
+        """Read every byte of every run: hash each file its manifest lists, and decode in full
+        (checking page checksums where a file has them) the files of runs without digests.
+        Changes nothing."""
+        runs, damaged = self.scan(check_digests=True)
+        folders = len(runs) + len(damaged)
+        unverified = [r for r in runs if not r.files]
+        files = sum(len(r.files) for r in runs)
+        size = sum(f.size for r in runs for f in r.files.values())
+        for run in unverified:
+            paths = _parquet_files(run)
+            problems = [p for p in (_decode_problem(path) for path in paths) if p is not None]
+            if problems:
+                damaged.append(DamagedRun(run.path, "; ".join(problems), tuple(problems)))
+            else:
+                files += len(paths)
+                size += sum(p.stat().st_size for p in paths)
+        damaged.sort(key=lambda d: d.path)
+        bad = {d.path for d in damaged}
+        return LakeCheck(
+            runs=folders,
+            files=files,
+            bytes=size,
+            damaged=damaged,
+            unverified=[r.path for r in unverified if r.path not in bad],
+        )
+
     def upgrade(self) -> list[RunInfo]:
-        """Write the derived tables every run lacks (a lake written by older code); returns the
-        runs upgraded. Idempotent, and each file appears atomically, so readers never see half."""
+        """Bring every healthy run written by older code up to date: write the derived tables it
+        lacks, and record its files' digests if it has none (after decoding every file in full:
+        digests of damaged bytes would only vouch for the damage). Returns the runs upgraded.
+        Idempotent; each file and the manifest appear atomically, so readers never see half."""
         upgraded = []
         with self.locked():
-            for info in self.runs():
-                if info.missing_derived():
-                    _write_derived(info.path, self.read_tables(info), info)
+            runs, damaged = self.scan()
+            for bad in damaged:
+                _log.warning("%s: damaged run not upgraded: %s", bad.path, bad.reason)
+            for info in runs:
+                stale = info.missing_derived() or not info.files
+                if stale and self._upgrade_run(info, None):
                     upgraded.append(info)
         return upgraded
+
+    def _upgrade_run(self, info: RunInfo, tables: Mapping[str, pa.Table] | None) -> bool:
+        """Record a run's digests if it has none and write the derived tables it lacks."""
+        if not info.files:
+            problems = [p for p in map(_decode_problem, _parquet_files(info)) if p is not None]
+            if problems:
+                _log.warning("%s: damaged run not upgraded: %s", info.path, "; ".join(problems))
+                return False
+            info = _record_digests(info)
+        if info.missing_derived():
+            _write_derived(info.path, self.read_tables(info) if tables is None else tables, info)
+        return True
 
     def event_types(self) -> list[str]:
         """Event types with at least one file in the lake."""
@@ -278,9 +380,11 @@ class Lake:
             existing = self.find(robot, run)
             if existing is not None:
                 if existing.digest == digest and existing.date == day:
-                    # The same run again: nothing to do but add derived tables it may lack.
-                    if existing.missing_derived():
-                        _write_derived(existing.path, checked, existing)
+                    # The same run again: nothing to do but add what older code did not write
+                    # (derived tables, the files' digests).
+                    if existing.missing_derived() or not existing.files:
+                        self._upgrade_run(existing, checked)
+                        return _read_run_file(existing.path / RUN_FILE)
                     return existing
                 if not replace:
                     raise LakeError(
@@ -540,31 +644,86 @@ def _stage(
     manifest: Mapping[str, Any],
     attachments: Mapping[str, bytes],
 ) -> None:
-    """Write a run's files into its staging folder, each fsync'ed, the manifest last."""
+    """Write a run's files into its staging folder, each fsync'ed, the manifest last, with
+    every file's digest and its own."""
+    files: dict[str, FileDigest] = {}
     for event_type, table in tables.items():
-        _write_parquet(staged / f"{event_type}.parquet", table.sort_by("seq"))
+        name = f"{event_type}.parquet"
+        files[name] = _write_parquet(staged / name, table.sort_by("seq"))
     derived = derive_run(
         tables, robot=manifest["robot"], date=manifest["date"], run=manifest["run"]
     )
     _fs.make_dirs(staged / DERIVED_DIR)
     for spec in derived_tables():
-        _write_parquet(spec.path(staged), derived[spec.name])
+        path = spec.path(staged)
+        files[_relative(path, staged)] = _write_parquet(path, derived[spec.name])
     _fs.fsync_dir(staged / DERIVED_DIR)
     for name, data in sorted(attachments.items()):
         _fs.write_atomic(staged / name, data)
-    _fs.write_atomic(staged / RUN_FILE, _json_bytes(manifest))
+        files[name] = bytes_digest(data)
+    _fs.write_atomic(staged / RUN_FILE, _manifest_bytes(manifest, files))
     _fs.fsync_dir(staged)
 
 
+def _manifest_bytes(manifest: Mapping[str, Any], files: Mapping[str, FileDigest]) -> bytes:
+    doc = {k: v for k, v in manifest.items() if k not in (FILES_KEY, SELF_KEY)}
+    doc[FILES_KEY] = {name: files[name].as_json() for name in sorted(files)}
+    doc[SELF_KEY] = manifest_digest(doc)
+    return _json_bytes(doc)
+
+
+def _relative(path: Path, run_dir: Path) -> str:
+    return path.relative_to(run_dir).as_posix()
+
+
+def _parquet_files(info: RunInfo) -> list[Path]:
+    """The Parquet files readers may read of a run: its event tables, its current derived ones."""
+    paths = [info.path / f"{t}.parquet" for t in sorted(info.rows)]
+    return paths + [p for d in derived_tables() if (p := d.path(info.path)).is_file()]
+
+
+def _owned_files(info: RunInfo) -> list[Path]:
+    """Every file a commit of this run wrote that is there now: the Parquet files readers read
+    and the attachments (for a run committed before digests, when they are recorded)."""
+    attachments = [
+        p
+        for p in sorted(info.path.glob("_*"))
+        if p.is_file() and p.name != RUN_FILE and _ATTACHMENT.fullmatch(p.name)
+    ]
+    return _parquet_files(info) + attachments
+
+
+def _record_digests(info: RunInfo) -> RunInfo:
+    """Write the digests of the files of a run committed before digests into its manifest."""
+    hashed = file_digests(_owned_files(info))
+    files = {}
+    for path, got in hashed.items():
+        if isinstance(got, OSError):
+            raise LakeError(f"{path}: cannot read it to record its digest: {got.strerror or got}")
+        files[_relative(path, info.path)] = got
+    _rewrite_manifest(info, files)
+    return _read_run_file(info.path / RUN_FILE)
+
+
+def _rewrite_manifest(info: RunInfo, files: Mapping[str, FileDigest]) -> None:
+    """Replace a committed run's manifest (atomically) with the same content and ``files``."""
+    doc = json.loads((info.path / RUN_FILE).read_bytes())
+    _fs.write_atomic(info.path / RUN_FILE, _manifest_bytes(doc, files))
+
+
 def _write_derived(run_dir: Path, tables: Mapping[str, pa.Table], info: RunInfo) -> None:
-    """Add the missing derived tables to a committed run, each atomically (tmp file, rename)."""
+    """Add the missing derived tables to a committed run, each atomically (tmp file, rename),
+    then record their digests in the manifest if it has digests. A kill between the two leaves a
+    file the manifest does not list, which readers treat as missing (see
+    :meth:`RunInfo.missing_derived`)."""
     derived = derive_run(tables, robot=info.robot, date=info.date, run=info.run)
     _fs.make_dirs(run_dir / DERIVED_DIR)
+    files = dict(info.files)
     for spec in info.missing_derived():
         final = spec.path(run_dir)
         tmp = final.with_name(f".{final.name}.{uuid.uuid4().hex}.tmp")
         try:
-            _write_parquet(tmp, derived[spec.name])
+            files[_relative(final, run_dir)] = _write_parquet(tmp, derived[spec.name])
             _fs.rename(tmp, final)
         except BaseException:
             tmp.unlink(missing_ok=True)
@@ -573,20 +732,58 @@ def _write_derived(run_dir: Path, tables: Mapping[str, pa.Table], info: RunInfo)
         for stale in final.parent.glob(f"{spec.name}.v*.parquet"):
             if stale != final:
                 stale.unlink()
+                files.pop(_relative(stale, run_dir), None)
     _fs.fsync_dir(run_dir / DERIVED_DIR)
+    if info.files:
+        _rewrite_manifest(info, files)
 
 
-def _write_parquet(path: Path, table: pa.Table) -> None:
-    pq.write_table(table, path, compression="zstd", row_group_size=ROW_GROUP_ROWS)
+def _write_parquet(path: Path, table: pa.Table) -> FileDigest:
+    """Write ``table`` (with page checksums) and return the digest of the bytes meant for disk:
+    hashed before they are written, so damage on the way is caught, not vouched for."""
+    sink = pa.BufferOutputStream()
+    pq.write_table(
+        table,
+        sink,
+        compression="zstd",
+        row_group_size=ROW_GROUP_ROWS,
+        write_page_checksum=True,
+    )
+    data = memoryview(sink.getvalue())
+    with path.open("wb") as fh:
+        fh.write(data)
     _fs.fsync_file(path)
+    return bytes_digest(data)
 
 
-def _read_parquet(path: Path) -> pa.Table:
+def _read_parquet(path: Path, want: FileDigest | None = None) -> pa.Table:
+    """A Parquet file as a table, checked against ``want`` (its recorded digest) when given and
+    against its page checksums when it has them."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise LakeError(f"{path}: cannot read it: {exc.strerror or exc}") from exc
+    if want is not None:
+        problem = mismatch(path.name, want, bytes_digest(data))
+        if problem is not None:
+            raise LakeError(f"{path}: damaged Parquet file: {problem}")
     # ParquetFile, not read_table: the latter would add the hive partition columns.
     try:
-        return pq.ParquetFile(path).read()
+        return pq.ParquetFile(pa.BufferReader(data), page_checksum_verification=True).read()
     except (OSError, pa.ArrowException) as exc:
         raise LakeError(f"{path}: damaged Parquet file: {exc}") from exc
+
+
+def _decode_problem(path: Path) -> str | None:
+    """Why ``path`` does not decode in full as Parquet (page checksums checked), or None."""
+    problem = parquet_problem(path)
+    if problem is not None:
+        return problem
+    try:
+        pq.ParquetFile(path, page_checksum_verification=True).read()
+    except (OSError, pa.ArrowException) as exc:
+        return f"{path.name} does not decode: {exc}"
+    return None
 
 
 def parquet_problem(path: Path) -> str | None:
@@ -609,7 +806,12 @@ def parquet_problem(path: Path) -> str | None:
 
 
 def deep_check(run: RunInfo) -> str | None:
-    """Why a run's Parquet files cannot be opened (footers parsed), or None."""
+    """Why a run's files are not the ones committed (digests compared, for a run that has them)
+    or its Parquet files cannot be opened (footers parsed), or None."""
+    if run.files:
+        problems = _run_problems(run, file_digests(run.path / name for name in run.files))
+        if problems:
+            return "; ".join(problems)
     for path in sorted(run.path.glob("*.parquet")) + sorted(
         (run.path / DERIVED_DIR).glob("*.parquet")
     ):
@@ -620,18 +822,44 @@ def deep_check(run: RunInfo) -> str | None:
     return None
 
 
-def _run_problem(info: RunInfo) -> str | None:
-    for event_type in info.rows:
-        problem = parquet_problem(info.path / f"{event_type}.parquet")
+def _run_problems(info: RunInfo, hashed: Mapping[Path, FileDigest | OSError] | None) -> list[str]:
+    """Why readers must leave a run out: checks of :meth:`Lake.scan`; the files' digests are
+    compared when ``hashed`` (every listed file's digest) is given, else only their sizes."""
+    problems = []
+    where = (f"robot={info.robot}", f"date={info.date}", f"run={info.run}")
+    if (info.path.parent.parent.name, info.path.parent.name, info.path.name) != where:
+        problems.append(
+            f"its manifest describes {'/'.join(where)}, not this folder (moved or swapped)"
+        )
+    listed = {f"{t}.parquet" for t in info.rows}
+    for extra in sorted(p.name for p in info.path.glob("*.parquet")):
+        if extra not in listed:
+            problems.append(f"{extra} is not in the run's manifest (added after the commit)")
+    for name in sorted(listed - set(info.files) if info.files else ()):
+        problems.append(f"{name} has no digest in the manifest")
+    reported = set()  # files whose ends are wrong: their size and digest would say it again
+    for path in _parquet_files(info):
+        problem = parquet_problem(path)
         if problem is not None:
-            return problem
-    for spec in derived_tables():
-        path = spec.path(info.path)
-        if path.exists():
-            problem = parquet_problem(path)
-            if problem is not None:
-                return problem
-    return None
+            problems.append(problem)
+            reported.add(_relative(path, info.path))
+    for name, want in sorted(info.files.items()):
+        if name in reported:
+            continue
+        got: FileDigest | OSError | None
+        if hashed is not None:
+            got = hashed[info.path / name]
+        else:
+            try:
+                got = FileDigest(os.stat(info.path / name).st_size, want.digest)
+            except OSError as exc:
+                got = exc
+        if isinstance(got, FileNotFoundError) and name.startswith(f"{DERIVED_DIR}/"):
+            continue  # a derived table is a function of the events: readers compute it
+        problem = mismatch(name, want, got)
+        if problem is not None:
+            problems.append(problem)
+    return problems
 
 
 def _digest(tables: Mapping[str, pa.Table]) -> str:
@@ -656,6 +884,10 @@ def _read_run_file(path: Path) -> RunInfo:
         raise LakeError(f"{path}: cannot read the run manifest: {exc}") from exc
     if not isinstance(doc, dict) or doc.get("format") != LAKE_FORMAT:
         raise LakeError(f"{path}: not a {LAKE_FORMAT} run manifest")
+    if SELF_KEY in doc and doc[SELF_KEY] != manifest_digest(doc):
+        raise LakeError(
+            f"{path}: the run manifest fails its digest: its bytes are not the ones committed"
+        )
     try:
         return RunInfo(
             robot=str(doc["robot"]),
@@ -666,6 +898,7 @@ def _read_run_file(path: Path) -> RunInfo:
             digest=str(doc["digest"]),
             source=str(doc["source"]),
             identity={str(k): str(v) for k, v in dict(doc.get("identity") or {}).items()},
+            files=parse_files(doc[FILES_KEY]) if FILES_KEY in doc else {},
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise LakeError(f"{path}: run manifest lacks or mistypes {exc}") from exc

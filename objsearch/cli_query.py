@@ -3,23 +3,31 @@
 from __future__ import annotations
 
 import argparse
+import codecs
 import csv
 import datetime as dt
 import decimal
-import io
 import json
 import math
 import os
 import sys
 import uuid
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 from objsearch import cli_types as t
+from objsearch.events.sql_limits import (
+    DEFAULT_MEMORY_LIMIT,
+    DEFAULT_TIMEOUT_S,
+    MAX_MEMORY_LIMIT,
+    MIN_MEMORY_LIMIT,
+    format_size,
+)
 
 DEFAULT_LAKE = "out/lake"
 EXIT_USAGE = 2
+MAX_TIMEOUT_S = 86_400.0
 
 
 def _default_lake() -> str:
@@ -34,7 +42,8 @@ def _fail(message: str) -> int:
 def cmd_query(args: argparse.Namespace) -> int:
     import duckdb
 
-    from objsearch.replay.analytics import open_analytics, run_query
+    from objsearch.events.sql_limits import QueryLimitError, close
+    from objsearch.replay.analytics import open_analytics, stream_query
 
     lake = Path(args.lake)
     if not lake.is_dir():
@@ -49,42 +58,116 @@ def cmd_query(args: argparse.Namespace) -> int:
             return _fail(f"--out {args.out} is a directory, not a file")
     if not args.sql.strip():
         return _fail('no SQL given (e.g. "SELECT count(*) FROM events")')
+    con = None
     try:
-        con = open_analytics(lake)
-        names, rows = run_query(con, args.sql)
+        con = open_analytics(lake, memory_limit=args.memory_limit)
+        names, batches = stream_query(con, args.sql, timeout_s=args.timeout)
+        if out is None:
+            write_batches(names, batches, args.format, sys.stdout)
+            return 0
+        rows = _write_file(out, names, batches, args.format)
+    except QueryLimitError as exc:
+        return _fail(str(exc))
     except duckdb.Error as exc:
         return _fail(f"query failed: {exc}")
-    if out is None:
-        write_rows(names, rows, args.format, sys.stdout)
-        return 0
-    text = io.StringIO()
-    write_rows(names, rows, args.format, text)
-    try:
-        out.write_text(text.getvalue(), encoding="utf-8")
+    except ResultTooLargeError as exc:
+        return _fail(str(exc))
     except OSError as exc:
+        if out is None or exc.filename is None:
+            raise
         return _fail(f"cannot write --out {args.out}: {exc.strerror or exc}")
-    print(f"wrote {len(rows)} row{'s' if len(rows) != 1 else ''} to {out}", file=sys.stderr)
+    finally:
+        if con is not None:
+            close(con)
+    print(f"wrote {rows} row{'s' if rows != 1 else ''} to {out}", file=sys.stderr)
     return 0
 
 
-def write_rows(names: Sequence[str], rows: Sequence[Sequence[Any]], fmt: str, out: Any) -> None:
+#: Rows ``--format table`` holds to size its columns; csv and json stream any number.
+TABLE_MAX_ROWS = 100_000
+
+
+class ResultTooLargeError(Exception):
+    """A result too long to lay out as a table."""
+
+
+def _write_file(
+    out: Path, names: Sequence[str], batches: Iterable[Sequence[Sequence[Any]]], fmt: str
+) -> int:
+    """Stream the result into ``out``, atomically: a query stopped halfway leaves no file."""
+    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
+    try:
+        with tmp.open("w", encoding="utf-8", newline="") as fh:
+            rows = write_batches(names, batches, fmt, fh)
+        os.replace(tmp, out)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return rows
+
+
+def write_batches(
+    names: Sequence[str], batches: Iterable[Sequence[Sequence[Any]]], fmt: str, out: Any
+) -> int:
+    """Write a result that arrives in batches; csv and json as they come, a table at the end
+    (at most :data:`TABLE_MAX_ROWS` rows). Returns the number of rows."""
+    if fmt == "table":
+        rows: list[Sequence[Any]] = []
+        for batch in batches:
+            rows.extend(batch)
+            if len(rows) > TABLE_MAX_ROWS:
+                raise ResultTooLargeError(
+                    f"the result has more than {TABLE_MAX_ROWS:,} rows, too many to lay out as "
+                    "a table; use --format csv or json (they stream), or add a LIMIT"
+                )
+        write_rows(names, rows, fmt, out)
+        return len(rows)
+    count = 0
     if fmt == "json":
-        records = [dict(zip(names, map(_plain, row), strict=True)) for row in rows]
-        json.dump(records, out, indent=1, ensure_ascii=False, allow_nan=False)
-        out.write("\n")
-    elif fmt == "csv":
-        writer = csv.writer(out, lineterminator="\n")
-        writer.writerow(names)
-        for row in rows:
+        # JSON escapes what the output cannot encode (an ASCII-only stdout would otherwise get
+        # backslash escapes that are not JSON).
+        ascii_only = not _writes_utf8(out)
+        out.write("[")
+        for batch in batches:
+            for row in batch:
+                record = dict(zip(names, map(_plain, row), strict=True))
+                out.write(",\n" if count else "\n")
+                out.write(json.dumps(record, ensure_ascii=ascii_only, allow_nan=False))
+                count += 1
+        out.write("\n]\n")
+        return count
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(names)
+    for batch in batches:
+        for row in batch:
             writer.writerow(_cell(v) for v in row)
-    else:
-        cells = [[_cell(v) for v in row] for row in rows]
-        widths = [max([len(n), *(len(r[i]) for r in cells)]) for i, n in enumerate(names)]
-        out.write("  ".join(n.ljust(w) for n, w in zip(names, widths, strict=True)).rstrip() + "\n")
-        out.write("  ".join("-" * w for w in widths) + "\n")
-        for r in cells:
-            out.write("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() + "\n")
-        out.write(f"({len(rows)} row{'s' if len(rows) != 1 else ''})\n")
+            count += 1
+    return count
+
+
+def _writes_utf8(out: Any) -> bool:
+    """Whether text written to ``out`` reaches its bytes as UTF-8 (a StringIO, or a file this
+    module opened as UTF-8, has no encoding of its own: the caller encodes it as UTF-8)."""
+    encoding = getattr(out, "encoding", None)
+    if not encoding:
+        return True
+    try:
+        return codecs.lookup(encoding).name == "utf-8"
+    except LookupError:
+        return False
+
+
+def write_rows(names: Sequence[str], rows: Sequence[Sequence[Any]], fmt: str, out: Any) -> None:
+    if fmt in ("json", "csv"):
+        write_batches(names, [rows], fmt, out)
+        return
+    cells = [[_cell(v) for v in row] for row in rows]
+    widths = [max([len(n), *(len(r[i]) for r in cells)]) for i, n in enumerate(names)]
+    out.write("  ".join(n.ljust(w) for n, w in zip(names, widths, strict=True)).rstrip() + "\n")
+    out.write("  ".join("-" * w for w in widths) + "\n")
+    for r in cells:
+        out.write("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() + "\n")
+    out.write(f"({len(rows)} row{'s' if len(rows) != 1 else ''})\n")
 
 
 def _plain(value: Any) -> Any:
@@ -169,8 +252,60 @@ def cmd_lake_upgrade(args: argparse.Namespace) -> int:
         return _fail(f"no lake at {lake}")
     upgraded = Lake(lake).upgrade()
     for info in upgraded:
-        print(f"{info.path}: derived tables written")
-    print(f"{len(upgraded)} run(s) upgraded; every run now has the current derived tables")
+        print(f"{info.path}: upgraded (derived tables and file digests)")
+    print(
+        f"{len(upgraded)} run(s) upgraded; every healthy run now has the current derived tables "
+        "and its files' digests"
+    )
+    return 0
+
+
+def cmd_lake_verify(args: argparse.Namespace) -> int:
+    import time
+
+    from objsearch.events.lake import Lake
+
+    if args.lake_dir is not None and args.lake is not None and args.lake_dir != args.lake:
+        return _fail(f"two lakes given ({args.lake_dir} and --lake {args.lake}); give one")
+    lake = Path(args.lake_dir or args.lake or _default_lake())
+    if not lake.is_dir():
+        return _fail(f"no lake at {lake}")
+    started = time.perf_counter()
+    check = Lake(lake).verify()
+    seconds = time.perf_counter() - started
+    if args.json:
+        doc = {
+            "lake": str(lake),
+            "runs": check.runs,
+            "files_checked": check.files,
+            "bytes_checked": check.bytes,
+            "seconds": round(seconds, 3),
+            "damaged": [
+                {"run": str(d.path), "problems": list(d.problems or (d.reason,))}
+                for d in check.damaged
+            ],
+            "without_digests": [str(p) for p in check.unverified],
+        }
+        print(json.dumps(doc, indent=2))
+    else:
+        for bad in check.damaged:
+            for problem in bad.problems or (bad.reason,):
+                print(f"DAMAGED  {bad.path}: {problem}")
+        for path in check.unverified:
+            print(
+                f"no digests  {path}: committed by older code; decoded in full, no digest to "
+                "compare (`objsearch lake upgrade` records them)"
+            )
+        print(
+            f"{check.runs} run(s), {check.files} file(s), {check.bytes / 1e6:.1f} MB checked in "
+            f"{seconds:.2f} s; {len(check.damaged)} damaged run(s)"
+        )
+    if check.damaged:
+        files = sum(len(d.problems or (d.reason,)) for d in check.damaged)
+        return _fail(
+            f"{files} damaged file(s) in {len(check.damaged)} run(s) of {lake}; queries leave "
+            "those runs out (re-add a run from its log or bags with --replace to restore it)"
+        )
     return 0
 
 
@@ -216,6 +351,21 @@ def register(sub: Any) -> None:
         help="write the result to this file (not inside the lake) instead of stdout; SQL itself "
         "cannot write files",
     )
+    query.add_argument(
+        "--timeout",
+        type=t.float_range(0.0, MAX_TIMEOUT_S, lo_open=True),
+        default=DEFAULT_TIMEOUT_S,
+        metavar="SECONDS",
+        help=f"stop the query after this long ({DEFAULT_TIMEOUT_S:g}; at most one day)",
+    )
+    query.add_argument(
+        "--memory-limit",
+        type=t.byte_size(MIN_MEMORY_LIMIT, MAX_MEMORY_LIMIT),
+        default=DEFAULT_MEMORY_LIMIT,
+        metavar="SIZE",
+        help=f"DuckDB's memory for the query, e.g. 512MB, 4GiB ({format_size(DEFAULT_MEMORY_LIMIT)}); "
+        "beyond it large sorts and joins spill to a private temp folder, others stop",
+    )
     query.set_defaults(func=cmd_query)
 
     lake = sub.add_parser("lake", help="put event logs into the analytics lake, list what it holds")
@@ -254,10 +404,28 @@ def register(sub: Any) -> None:
     )
     ls.add_argument("--format", choices=["table", "csv", "json"], default="table")
     ls.set_defaults(func=cmd_lake_ls)
+    verify = lake_sub.add_parser(
+        "verify",
+        help="read every file of every run and check it against the digest its commit recorded; "
+        "exit 2 naming each damaged file",
+    )
+    verify.add_argument(
+        "lake_dir",
+        nargs="?",
+        type=t.dir_path,
+        metavar="LAKE",
+        help=f"lake folder (or --lake; $OBJSEARCH_LAKE or {DEFAULT_LAKE})",
+    )
+    verify.add_argument(
+        "--lake", type=t.dir_path, help="lake folder, as the other lake commands take it"
+    )
+    verify.add_argument("--json", action="store_true", help="print the findings as JSON")
+    verify.set_defaults(func=cmd_lake_verify)
     upgrade = lake_sub.add_parser(
         "upgrade",
-        help="write the derived tables (searches, eq4_updates, scene_graph) that runs committed "
-        "by older code lack; queries are correct without them, only slower",
+        help="write what runs committed by older code lack: the derived tables (searches, "
+        "eq4_updates, scene_graph) and the files' digests; queries are correct without them, "
+        "only slower and less checked",
     )
     upgrade.add_argument(
         "--lake",

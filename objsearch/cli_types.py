@@ -101,6 +101,25 @@ def float_range(
     return _typed("float_range", convert)  # type: ignore[return-value]
 
 
+def byte_size(lo: int, hi: int) -> Callable[[str], int]:
+    """A size in bytes such as ``1GB``, ``512MiB`` or ``2GiB``, in ``[lo, hi]``."""
+
+    def convert(text: str) -> int:
+        from objsearch.events.sql_limits import format_size, parse_size
+
+        try:
+            value = parse_size(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(
+                f"must be between {format_size(lo)} and {format_size(hi)}, not {text.strip()}"
+            )
+        return value
+
+    return _typed("byte_size", convert)  # type: ignore[return-value]
+
+
 def text(value: str) -> str:
     """Non-empty text on one line (names, labels, SQL keeps its own newlines: see :func:`sql`)."""
     if not value.strip():
@@ -116,6 +135,12 @@ def sql(value: str) -> str:
         raise argparse.ArgumentTypeError("the query is empty")
     if "\0" in value:
         raise argparse.ArgumentTypeError("the query holds a NUL character")
+    if any("\udc80" <= c <= "\udcff" for c in value):
+        # An ASCII locale (LC_ALL=C) hands UTF-8 arguments over as surrogate escapes.
+        try:
+            value = os.fsencode(value).decode("utf-8")
+        except UnicodeError:
+            raise argparse.ArgumentTypeError("the query is not UTF-8 text") from None
     return value
 
 

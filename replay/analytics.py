@@ -35,7 +35,7 @@ adds the seed's prior.
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, Final
 
@@ -52,6 +52,13 @@ from objsearch.events.sql import (
     lock_down,
     parquet_source,
     quote_ident,
+)
+from objsearch.events.sql_limits import (
+    DEFAULT_MEMORY_LIMIT,
+    DEFAULT_THREADS,
+    DEFAULT_TIMEOUT_S,
+    Deadline,
+    apply_limits,
 )
 
 _log = logging.getLogger(__name__)
@@ -152,13 +159,23 @@ def _derived_source(
     return f"SELECT robot, date, run, * EXCLUDE (robot, date, run) FROM ({body})"
 
 
-def open_analytics(lake_dir: Path | str) -> duckdb.DuckDBPyConnection:
+def open_analytics(
+    lake_dir: Path | str,
+    *,
+    memory_limit: int = DEFAULT_MEMORY_LIMIT,
+    threads: int = DEFAULT_THREADS,
+) -> duckdb.DuckDBPyConnection:
     """An in-memory DuckDB with every view over the lake at ``lake_dir``, locked down
-    (:func:`~objsearch.events.sql.lock_down`: it reads the lake's folder and nothing else).
+    (:func:`~objsearch.events.sql.lock_down`: it reads the lake's folder and nothing else) and
+    bounded (:mod:`~objsearch.events.sql_limits`: ``memory_limit`` bytes of buffers, ``threads``,
+    spill space in a private temp directory; :func:`run_query` bounds the time).
 
-    A damaged run (unreadable manifest, a missing, empty or truncated Parquet file) is left out
-    of every view with a warning naming it, so the other runs still answer. A commit a killed
-    writer left half done is finished first if no writer holds the lake.
+    Every file of every run is checked against the digest its commit recorded before a view
+    reads it (DuckDB checks no page checksum). A damaged run (unreadable manifest, a file
+    missing, cut, or failing its digest) is left out of every view with a warning naming it and
+    its damaged files, so the other runs still answer. A run committed before digests existed
+    gets only the cheap checks, with one warning. A commit a killed writer left half done is
+    finished first if no writer holds the lake.
     """
     lake = Lake(Path(lake_dir).absolute())
     if lake.needs_recovery():
@@ -166,7 +183,17 @@ def open_analytics(lake_dir: Path | str) -> duckdb.DuckDBPyConnection:
             lake.recover()
         except (OSError, EventStoreError) as exc:
             _log.warning("%s: could not finish an interrupted commit: %s", lake.root, exc)
-    runs, damaged = lake.scan()
+    runs, damaged = lake.scan(check_digests=True)
+    unchecked = [r for r in runs if not r.files]
+    if unchecked:
+        _log.warning(
+            "%s: %d run(s) committed before file digests are read with only a cheap check (%s); "
+            "`objsearch lake upgrade` records their digests",
+            lake.root,
+            len(unchecked),
+            ", ".join(f"{r.robot}/{r.run}" for r in unchecked[:3])
+            + (", …" if len(unchecked) > 3 else ""),
+        )
     try:
         con = _views(lake, runs, restricted=bool(damaged))
     except duckdb.Error:
@@ -180,6 +207,7 @@ def open_analytics(lake_dir: Path | str) -> duckdb.DuckDBPyConnection:
         con = _views(lake, runs, restricted=True)
     for run in damaged:
         _log.warning("%s: damaged run left out of every view: %s", run.path, run.reason)
+    apply_limits(con, memory_limit=memory_limit, threads=threads)
     lock_down(con, [lake.root])
     return con
 
@@ -191,10 +219,42 @@ def _views(lake: Lake, runs: list[RunInfo], *, restricted: bool) -> duckdb.DuckD
     return con
 
 
-def run_query(con: duckdb.DuckDBPyConnection, sql: str) -> tuple[list[str], list[tuple[Any, ...]]]:
+def run_query(
+    con: duckdb.DuckDBPyConnection, sql: str, *, timeout_s: float | None = DEFAULT_TIMEOUT_S
+) -> tuple[list[str], list[tuple[Any, ...]]]:
     """Column names and rows of a read-only query (:func:`~objsearch.events.sql.check_read_only`
-    refuses anything else with :class:`~objsearch.events.sql.QueryRefusedError`)."""
+    refuses anything else with :class:`~objsearch.events.sql.QueryRefusedError`), stopped with
+    :class:`~objsearch.events.sql_limits.QueryLimitError` after ``timeout_s`` (None: never) or
+    at the connection's memory limit."""
+    names, batches = stream_query(con, sql, timeout_s=timeout_s)
+    return names, [row for batch in batches for row in batch]
+
+
+def stream_query(
+    con: duckdb.DuckDBPyConnection,
+    sql: str,
+    *,
+    timeout_s: float | None = DEFAULT_TIMEOUT_S,
+    batch_rows: int = 10_000,
+) -> tuple[list[str], Iterator[list[tuple[Any, ...]]]]:
+    """As :func:`run_query`, but the rows come in batches as DuckDB produces them, so a huge
+    result never sits in memory whole; the time limit runs until the last batch is taken."""
     check_read_only(con, sql)
-    result = con.execute(sql)
+    deadline = Deadline(con, timeout_s)
+    try:
+        with deadline.guard():
+            result = con.execute(sql)
+    except BaseException:
+        deadline.stop()
+        raise
     names = [d[0] for d in result.description or ()]
-    return names, result.fetchall()
+
+    def batches() -> Iterator[list[tuple[Any, ...]]]:
+        try:
+            with deadline.guard():
+                while not deadline.expired and (batch := result.fetchmany(batch_rows)):
+                    yield batch
+        finally:
+            deadline.stop()
+
+    return names, batches()

@@ -4,9 +4,14 @@ every output format."""
 from __future__ import annotations
 
 import csv
+import gc
 import io
 import json
+import os
 import shutil
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -154,7 +159,7 @@ def test_csv_dates_are_not_quoted_twice(lake: Path, capsys: pytest.CaptureFixtur
     assert capsys.readouterr().out.splitlines()[1] == str(Lake(lake).runs()[0].date)
 
 
-@pytest.mark.parametrize("damage", ["truncated", "empty", "footer"])
+@pytest.mark.parametrize("damage", ["truncated", "empty", "footer", "bit flip"])
 def test_a_damaged_run_is_named_and_left_out(
     lake: Path,
     tmp_path: Path,
@@ -171,9 +176,11 @@ def test_a_damaged_run_is_named_and_left_out(
         path.write_bytes(data[: len(data) * 2 // 3])
     elif damage == "empty":
         path.write_bytes(b"")
-    else:  # the ends intact, the footer zeroed: only a footer parse sees it
+    elif damage == "footer":  # the ends intact, the footer zeroed: only a footer parse sees it
         footer = int.from_bytes(data[-8:-4], "little")
         path.write_bytes(data[: -8 - footer] + bytes(footer) + data[-8:])
+    else:  # one bit inside the first data page: DuckDB would read it without a word
+        path.write_bytes(data[:40] + bytes([data[40] ^ 0x10]) + data[41:])
     for sql in ("SELECT 1", "SELECT run, count(*) FROM events GROUP BY run"):
         caplog.clear()
         assert main(_query(copy, sql, "--format", "csv")) == 0
@@ -188,8 +195,9 @@ def test_a_damaged_run_is_named_and_left_out(
     assert err.startswith("objsearch: error: run 'cup'") and "is damaged: task_ended" in err
     caplog.clear()
     assert main(["replay", str(copy), "--run", "apple"]) == 0
-    # Replay parses only the chosen run's footers; the 8-byte check sees the rest.
-    assert (f"{bad.path}: damaged run left out" in caplog.text) == (damage != "footer")
+    # Replay checks only the chosen run's digests and footers; the 8-byte check sees the rest.
+    seen = damage not in ("footer", "bit flip")
+    assert (f"{bad.path}: damaged run left out" in caplog.text) == seen
 
 
 @pytest.mark.parametrize("name", ["x\n", "x\ny", "../x", ""])
@@ -220,3 +228,154 @@ def test_every_event_has_its_time_as_a_timestamp(
     )
     assert cli(["query", "--lake", str(lake), "--format", "csv", sql]) == 0
     assert capsys.readouterr().out.splitlines()[1:] == ["TIMESTAMP,true"]
+
+
+RUNAWAY = "WITH RECURSIVE r(n) AS (SELECT 1 UNION ALL SELECT n + 1 FROM r) SELECT count(*) FROM r"
+
+
+def test_a_runaway_query_stops_at_its_time_limit(
+    lake: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Without a limit this query never ends; with 1 s it must end with the clear error. The
+    # margin only guards against a hang (a timer that never fires), not a slow machine.
+    started = time.monotonic()
+    assert main(_query(lake, RUNAWAY, "--timeout", "1")) == 2
+    assert time.monotonic() - started < 120
+    captured = capsys.readouterr()
+    assert captured.err == (
+        "objsearch: error: query exceeded its 1 s time limit (raise it with --timeout)\n"
+    )
+    assert captured.out == ""
+    # The connection's next query is not hit by a late timer.
+    assert main(_query(lake, "SELECT count(*) FROM events", "--timeout", "0.5")) == 0
+
+
+def test_a_result_that_streams_stops_at_its_time_limit_and_leaves_no_file(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "all.csv"
+    huge = "SELECT i, i * 2 FROM range(100000000000) t(i)"
+    assert main(_query(lake, huge, "--timeout", "1", "--format", "csv", "--out", str(out))) == 2
+    assert "exceeded its 1 s time limit" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+    # A table needs every row before it prints; past TABLE_MAX_ROWS that is an error.
+    assert main(_query(lake, "SELECT * FROM range(200000)")) == 2
+    assert "use --format csv or json" in capsys.readouterr().err
+
+
+def test_a_query_past_its_memory_limit_stops_with_a_clear_error(
+    lake: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    sql = "SELECT list(i) FROM range(10000000000) t(i)"
+    assert main(_query(lake, sql, "--memory-limit", "32MiB")) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("objsearch: error: query exceeded its 32.0 MiB memory limit ")
+    assert "(raise it with --memory-limit)" in err and "Traceback" not in err
+
+
+def test_the_limits_have_defaults_and_options_raise_them(
+    lake: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    sql = "SELECT current_setting('memory_limit') AS m, current_setting('threads') AS t"
+    assert main(_query(lake, sql, "--format", "json")) == 0
+    [row] = json.loads(capsys.readouterr().out)
+    assert row["m"] == "1.0 GiB" and 1 <= row["t"] <= min(4, os.cpu_count() or 1)
+    assert main(_query(lake, sql, "--format", "json", "--memory-limit", "2GiB")) == 0
+    assert json.loads(capsys.readouterr().out)[0]["m"] == "2.0 GiB"
+    assert main(_query(lake, "SET memory_limit = '8GB'")) == 2
+    assert capsys.readouterr().err.startswith("objsearch: error: ")
+
+
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [
+        ("--timeout", "0"),
+        ("--timeout", "-1"),
+        ("--timeout", "nan"),
+        ("--timeout", "inf"),
+        ("--timeout", "1e9"),
+        ("--timeout", "soon"),
+        ("--memory-limit", "1KB"),
+        ("--memory-limit", "5TiB"),
+        ("--memory-limit", "lots"),
+        ("--memory-limit", "1 XB"),
+        ("--memory-limit", ""),
+        ("--memory-limit", "-1GB"),
+    ],
+)
+def test_bad_limits_are_clear_errors(
+    lake: Path, capsys: pytest.CaptureFixture[str], option: str, value: str
+) -> None:
+    assert main(_query(lake, "SELECT 1", f"{option}={value}")) == 2
+    err = capsys.readouterr().err
+    assert (
+        err.startswith(f"objsearch: error: query: argument {option}: ") and "Traceback" not in err
+    )
+
+
+def test_a_query_cannot_read_where_duckdb_spills(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # DuckDB lets a query read its temp folder whatever the allow-list says, and its default is
+    # ./.tmp: a secret there must stay unreadable, and the folder used is private and removed.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / ".tmp").mkdir()
+    (tmp_path / ".tmp" / "secret.csv").write_text("token\nhunter2\n")
+    for path in (".tmp/secret.csv", str(tmp_path / ".tmp" / "secret.csv")):
+        assert main(_query(lake, f"SELECT * FROM read_csv('{path}')")) == 2
+        captured = capsys.readouterr()
+        assert "hunter2" not in captured.out + captured.err
+        assert "Permission Error" in captured.err
+    sql = "SELECT current_setting('temp_directory') AS d"
+    assert main(_query(lake, sql, "--format", "json")) == 0
+    temp = Path(json.loads(capsys.readouterr().out)[0]["d"])
+    assert temp.name.startswith("objsearch-duckdb-") and not temp.is_relative_to(tmp_path)
+    gc.collect()
+    assert not temp.exists()
+
+
+def test_json_is_valid_on_an_ascii_only_stdout(lake: Path) -> None:
+    sql = "SELECT 'é → 😀' AS text, 'Apple' AS target"
+    for env in ({"PYTHONIOENCODING": "ascii"}, {"LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0"}):
+        proc = subprocess.run(
+            [sys.executable, "-m", "objsearch.cli", *_query(lake, sql, "--format", "json")],
+            capture_output=True,
+            env={
+                k: v
+                for k, v in os.environ.items()
+                if k not in ("PYTHONIOENCODING", "LC_ALL", "LANG")
+            }
+            | env,
+            check=False,
+            timeout=300,
+        )
+        assert proc.returncode == 0, proc.stderr
+        assert proc.stdout.isascii()
+        assert json.loads(proc.stdout.decode("ascii")) == [{"text": "é → 😀", "target": "Apple"}]
+
+
+def test_lake_verify_names_every_damaged_file(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["lake", "verify", str(lake)]) == 0
+    out = capsys.readouterr().out
+    assert out.endswith("0 damaged run(s)\n") and "2 run(s)" in out
+    copy = tmp_path / "lake"
+    shutil.copytree(lake, copy)
+    [cup] = [r for r in Lake(copy).runs() if r.run == "cup"]
+    for name in ("moved.parquet", "_derived/searches.v3.parquet"):
+        data = bytearray((cup.path / name).read_bytes())
+        data[len(data) // 3] ^= 0x01
+        (cup.path / name).write_bytes(bytes(data))
+    assert main(["lake", "verify", "--lake", str(copy)]) == 2
+    captured = capsys.readouterr()
+    damaged = [line for line in captured.out.splitlines() if line.startswith("DAMAGED")]
+    assert len(damaged) == 2 and all(str(cup.path) in line for line in damaged)
+    assert "moved.parquet fails its digest" in captured.out
+    assert captured.err.startswith("objsearch: error: 2 damaged file(s) in 1 run(s)")
+    assert main(["lake", "verify", str(copy), "--json"]) == 2
+    doc = json.loads(capsys.readouterr().out)
+    assert [d["run"] for d in doc["damaged"]] == [str(cup.path)]
+    assert len(doc["damaged"][0]["problems"]) == 2 and doc["runs"] == 2
+    assert main(["lake", "verify", str(copy), "--lake", str(lake)]) == 2
+    assert "two lakes given" in capsys.readouterr().err
