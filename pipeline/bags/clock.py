@@ -38,6 +38,9 @@ class ClockMap:
     rate: float
     events: int  # agent events it was fitted over
     residual_ns: int  # the largest |stamp − map(receive time)| among them
+    #: False when the events span no time on one of the clocks: the rate is then 1 (an offset
+    #: alone), until a session fits its pieces' events together.
+    rate_fitted: bool = True
 
     def at(self, ns: int) -> int:
         return self.stamp_ns + round(self.rate * (ns - self.recv_ns))
@@ -47,6 +50,12 @@ class ClockMap:
         return self.stamp_ns + np.rint(delta).astype(np.int64)
 
     def describe(self) -> str:
+        if not self.rate_fitted:
+            return (
+                f"receive times moved onto the agent's clock (the events' header stamps) by an "
+                f"offset alone: its {self.events} agent event(s) span no time, so they give no "
+                "rate (in a session's run, the fit over all its pieces applies)"
+            )
         return (
             f"receive times mapped onto the agent's clock (the events' header stamps): "
             f"rate {self.rate:.6g}, fitted over {self.events} agent event(s), "
@@ -65,8 +74,9 @@ def kept_pairs(pairs: Iterable[tuple[int, int]]) -> tuple[tuple[int, int], ...]:
 
 
 def pairs_from_doc(doc: Any) -> list[tuple[int, int]]:
-    """A report's ``clock_pairs`` (JSON lists) back as pairs; nothing for anything else."""
-    if not isinstance(doc, list):
+    """A report's ``clock_pairs`` (JSON lists, or tuples before it was written) back as pairs;
+    nothing for anything else."""
+    if not isinstance(doc, list | tuple):
         return []
     pairs = []
     for item in doc:
@@ -91,11 +101,11 @@ def fit_clock(pairs: Iterable[tuple[int, int]]) -> ClockMap | None:
     y = (stamp - stamp[0]).astype(np.float64)
     x_mean, y_mean = float(x.mean()), float(y.mean())
     spread = float(((x - x_mean) ** 2).sum())
-    rate = float(((x - x_mean) * (y - y_mean)).sum() / spread) if spread > 0 else 1.0
-    if not rate > 0:
-        rate = 1.0  # a clock that runs backwards is no recorder's; keep the offset alone
+    rate = float(((x - x_mean) * (y - y_mean)).sum() / spread) if spread > 0 else 0.0
+    fitted = rate > 0  # none, or a clock running backwards (no recorder's): an offset alone
+    rate = rate if fitted else 1.0
     recv_ns = int(recv[0]) + round(x_mean)
     stamp_ns = int(stamp[0]) + round(y_mean)
-    clock = ClockMap(recv_ns, stamp_ns, rate, len(pairs), 0)
+    clock = ClockMap(recv_ns, stamp_ns, rate, len(pairs), 0, fitted)
     residual = int(np.abs(clock.apply(recv) - stamp).max())
-    return ClockMap(recv_ns, stamp_ns, rate, len(pairs), residual)
+    return ClockMap(recv_ns, stamp_ns, rate, len(pairs), residual, fitted)

@@ -30,7 +30,7 @@ import dataclasses
 import datetime as dt
 import json
 import logging
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -97,6 +97,29 @@ def _received(report: Mapping[str, Any], start_ns: Any, end_ns: Any) -> tuple[in
     return (int(start), int(end)) if start is not None and end is not None else None
 
 
+def _receive_ranges(docs: Iterable[Mapping[str, Any]]) -> dict[bool, tuple[int, int]]:
+    """The receive times a session's pieces with agent events span, per receive clock: True for
+    the pieces whose receive times are mapped onto the agent's clock (they kept clock pairs: a
+    playback recorded again), False for those already on it (``record``'s bags). Two
+    recordings of one run on different clocks (a bag and its re-recording) are not one span."""
+    spans: dict[bool, list[tuple[int, int]]] = {}
+    for doc in docs:
+        if not doc.get("agent", True):  # pieces recorded before the flag all had agent events
+            continue
+        report = doc.get("report") or {}
+        received = _received(report, doc.get("start_ns"), doc.get("end_ns"))
+        if received is not None:
+            clocked = bool(pairs_from_doc(report.get("clock_pairs")))
+            spans.setdefault(clocked, []).append(received)
+    return {k: (min(a for a, _ in v), max(b for _, b in v)) for k, v in spans.items()}
+
+
+def _encloses(ranges: Mapping[bool, tuple[int, int]], received: tuple[int, int] | None) -> bool:
+    return received is not None and any(
+        a <= received[0] and received[1] <= b for a, b in ranges.values()
+    )
+
+
 @dataclass(frozen=True, slots=True)
 class Commit:
     bag_id: str
@@ -155,15 +178,6 @@ class _SessionRun:
         if not ranges:
             return None
         return min(a for a, _ in ranges), max(b for _, b in ranges)
-
-    def encloses(self, received: tuple[int, int] | None) -> bool:
-        mine = self.received
-        return (
-            mine is not None
-            and received is not None
-            and mine[0] <= received[0]
-            and received[1] <= mine[1]
-        )
 
     @property
     def pieces(self) -> Mapping[str, Mapping[str, Any]]:
@@ -277,6 +291,7 @@ class BagLake:
                 DERIVED_PREFIX + run.removeprefix(RUN_PREFIX),
                 drop,
                 clock,
+                _receive_ranges(pieces.values()).get(True),
             )
         before = sum(t.num_rows for ts in old_tables for t in ts.values())
         events = sum(t.num_rows for t in tables.values())
@@ -377,7 +392,10 @@ class BagLake:
         if rows.is_empty():
             if run_id is None:
                 enclosing = [
-                    s for s in sessions if s.first is not None and s.encloses(piece.received)
+                    s
+                    for s in sessions
+                    if s.first is not None
+                    and _encloses(_receive_ranges(s.pieces.values()), piece.received)
                 ]
                 if len(enclosing) == 1:
                     related = enclosing
@@ -399,14 +417,16 @@ class BagLake:
         # Stretches without agent events stored before their session was known: absorbed
         # when the session's receive times (with this piece) enclose them.
         mine = [*related, *(s for s in sessions if run_id is not None and s.run_id == run_id)]
-        ranges = [r for r in [piece.received, *(s.received for s in mine)] if r is not None]
-        if ranges:
-            span = (min(a for a, _ in ranges), max(b for _, b in ranges))
-            for s in sessions:
-                if s.first is None and s.run_id is None and s not in related:
-                    received = s.received
-                    if received is not None and span[0] <= received[0] and received[1] <= span[1]:
-                        related.append(s)
+        docs = [self._piece_doc(piece, "", ""), *(p for s in mine for p in s.pieces.values())]
+        ranges = _receive_ranges(docs)
+        related += [
+            s
+            for s in sessions
+            if s.first is None
+            and s.run_id is None
+            and s not in related
+            and _encloses(ranges, s.received)
+        ]
         return related
 
     @staticmethod
@@ -419,6 +439,7 @@ class BagLake:
             "converter": piece.converter,
             "start_ns": piece.start_ns,
             "end_ns": piece.end_ns,
+            "agent": piece.first is not None,  # holds agent events
             "report": piece.report,
         }
         if duplicate:

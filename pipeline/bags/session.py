@@ -190,13 +190,15 @@ def merge_tables(
     stream: str,
     drop: Sequence[tuple[int, int]] = (),
     clock: ClockMap | None = None,
+    clock_range: tuple[int, int] | None = None,
 ) -> dict[str, pa.Table]:
     """One session's tables from several pieces' (earlier pieces win ties).
 
     ``drop`` are receive-time ranges whose derived rows are removed first from every part but
     the last (a piece read again with another topic map or converter replaces its rows).
-    ``clock`` puts every derived row on the session's clock: ``time_ns`` = its map of the
-    row's receive time, ``recorded_at_ns``.
+    ``clock`` puts the derived rows received within ``clock_range`` on the session's clock:
+    ``time_ns`` = its map of the row's receive time, ``recorded_at_ns`` (rows of a recording
+    whose receive times are already the agent's clock lie outside it and are left alone).
     """
     types = sorted({t for p in parts for t in p})
     merged: dict[str, pl.DataFrame] = {}
@@ -209,13 +211,16 @@ def merge_tables(
             assert isinstance(df, pl.DataFrame)
             derived = pl.col("stream").str.starts_with(DERIVED_PREFIX)
             if drop and i < len(parts) - 1:
-                received = pl.col("recorded_at_ns")
-                inside = pl.any_horizontal([received.is_between(a, b) for a, b in drop])
+                inside = pl.any_horizontal(
+                    [pl.col("recorded_at_ns").is_between(a, b) for a, b in drop]
+                )
                 df = df.filter(~(derived & inside))
-            if clock is not None and df.height:
-                derived_rows = df.select(derived).to_series().to_numpy()
-                mapped = clock.apply(df["recorded_at_ns"].to_numpy().astype(np.int64))
-                times = np.where(derived_rows, mapped, df["time_ns"].to_numpy())
+            if clock is not None and clock_range is not None and df.height:
+                received = df["recorded_at_ns"].to_numpy().astype(np.int64)
+                on_clock = df.select(derived).to_series().to_numpy() & (
+                    (received >= clock_range[0]) & (received <= clock_range[1])
+                )
+                times = np.where(on_clock, clock.apply(received), df["time_ns"].to_numpy())
                 df = df.with_columns(pl.Series("time_ns", times, dtype=df.schema["time_ns"]))
             frames.append(df)
         merged[event_type] = pl.concat(frames, how="vertical_relaxed")

@@ -147,3 +147,19 @@ def test_liveview_refuses_a_stamp_ros_time_cannot_carry(tmp_path: Path) -> None:
         render(read_log(FIXTURES / "log"), [sink], clock_offset_ns=3 * 10**18)
     sink.abort()
     assert not (tmp_path / "view.mcap").exists()
+
+
+def test_a_bag_and_its_rerecording_in_one_lake_are_one_run_on_one_clock(tmp_path: Path) -> None:
+    """run.bag (receive time = stamp) proves the run id; the re-recorded pieces join it. Only
+    the pieces' receive times are mapped: run.bag's rows stay where they are."""
+    lake = tmp_path / "lake"
+    results = ingest([FIXTURES / "run.bag", *PIECES], lake)
+    assert [r.error for r in results] == [None] * (len(PIECES) + 1)
+    assert len(Lake(lake).runs()) == 1
+    ids = _ids(lake)
+    assert len(ids) == len(set(ids))
+    times = [t for table in _tables(lake).values() for t in table["time_ns"].to_pylist()]
+    assert min(times) >= SIM_START_NS and max(times) <= SIM_START_NS + 134 * 10**9
+    ingest([FIXTURES / "run.bag"], tmp_path / "whole")
+    whole = set(_tables(tmp_path / "whole")["pose_observed"]["time_ns"].to_pylist())
+    assert whole <= set(_tables(lake)["pose_observed"]["time_ns"].to_pylist())
