@@ -11,7 +11,9 @@ Layout (Hive-style, readable by DuckDB, polars, pyarrow and any Parquet reader):
 A run is committed whole and atomically: its files are written and fsync'ed in a staging
 directory, then the directory is renamed into place, so a reader (or a crash) sees all of a run
 or none of it. Committing the same content again is a no-op (its digest matches), so re-running
-an import never duplicates; different content for an existing run needs ``replace=True``.
+an import never duplicates — unless the committed run fails its file digests, which it then
+rewrites whole by the replace path below; different content for an existing run needs
+``replace=True``.
 
 Writers hold the lake's lock (an ``flock`` on the lake directory itself) for the whole commit; a
 second writer waits for it, up to ``lock_wait_s``, then fails with :class:`LakeBusyError`. Whoever
@@ -379,14 +381,23 @@ class Lake:
         with self.locked():
             existing = self.find(robot, run)
             if existing is not None:
-                if existing.digest == digest and existing.date == day:
+                same = existing.digest == digest and existing.date == day
+                damage = _damage(existing) if same else []
+                if same and not damage:
                     # The same run again: nothing to do but add what older code did not write
                     # (derived tables, the files' digests).
                     if existing.missing_derived() or not existing.files:
                         self._upgrade_run(existing, checked)
                         return _read_run_file(existing.path / RUN_FILE)
                     return existing
-                if not replace:
+                if damage:
+                    # The same content over a damaged copy: write it whole again (a replace).
+                    _log.warning(
+                        "%s: rewriting the damaged run from the same content: %s",
+                        existing.path,
+                        "; ".join(damage),
+                    )
+                elif not replace:
                     raise LakeError(
                         f"{existing.path} already holds run {run!r} of robot {robot!r} with "
                         "other content; pass replace=True to replace it"
@@ -820,6 +831,13 @@ def deep_check(run: RunInfo) -> str | None:
         except (OSError, pa.ArrowException) as exc:
             return f"{path.name}: {exc}"
     return None
+
+
+def _damage(info: RunInfo) -> list[str]:
+    """What is damaged in a committed run with digests (every byte read), else nothing known."""
+    if not info.files:
+        return []
+    return _run_problems(info, file_digests(info.path / name for name in info.files))
 
 
 def _run_problems(info: RunInfo, hashed: Mapping[Path, FileDigest | OSError] | None) -> list[str]:

@@ -304,7 +304,8 @@ def cmd_lake_verify(args: argparse.Namespace) -> int:
         files = sum(len(d.problems or (d.reason,)) for d in check.damaged)
         return _fail(
             f"{files} damaged file(s) in {len(check.damaged)} run(s) of {lake}; queries leave "
-            "those runs out (re-add a run from its log or bags with --replace to restore it)"
+            "those runs out (`objsearch lake add LOG` of the same log restores such a run; see "
+            "docs/analytics.md)"
         )
     return 0
 

@@ -26,7 +26,7 @@ Each variant gets one verdict, the worst of:
   changed a file of the lake.
 
 ``benchmarks/lake_damage.py`` runs ≥ 200 variants and prints the counts;
-``tests/events/test_lake_damage.py`` runs a few of every kind.
+``tests/test_lake_battery.py`` runs one of every kind, and the control without digests.
 """
 
 from __future__ import annotations

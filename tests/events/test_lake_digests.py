@@ -169,3 +169,15 @@ def test_a_derived_table_the_manifest_does_not_list_is_recomputed(
     assert [r.run for r in store.upgrade()] == ["a"]
     info = store.find("r", "a")
     assert info is not None and info.missing_derived() == [] and info.files == a.files
+
+
+def test_committing_the_same_content_over_a_damaged_run_restores_it(tmp_path: Path) -> None:
+    store = Lake(tmp_path / "lake")
+    first = compact_log(V1_LOG, store, robot="sim")
+    _flip_in_data_page(first.path / "detection.parquet", at=3)
+    (first.path / "moved.parquet").unlink()
+    assert [d.path for d in store.verify().damaged] == [first.path]
+    again = compact_log(V1_LOG, store, robot="sim")
+    assert again == first
+    assert store.verify().damaged == []
+    assert file_digest(first.path / "detection.parquet") == first.files["detection.parquet"]
