@@ -233,6 +233,18 @@ class SceneGraphSeeded(Record, frozen=True):
     values: tuple[SeedValue, ...]
 
 
+class RecordQuarantined(Record, frozen=True):
+    """Written by ``objsearch log repair`` in the place of a record it moved out (docs/events.md)."""
+
+    TYPE: ClassVar[str] = "record_quarantined"
+    VERSION: ClassVar[int] = 1
+    reason: str
+    quarantine: str | None
+    offset: int
+    length: int
+    chain: str | None
+
+
 class SearchFailed(Record, frozen=True):
     TYPE: ClassVar[str] = "search_failed"
     VERSION: ClassVar[int] = 1
@@ -312,6 +324,7 @@ RECORDS: Final[Mapping[tuple[str, int], type[Record]]] = {
         RunStartedV1,
         RunStartedV2,
         RunStarted,
+        RecordQuarantined,
         SceneGraphSeeded,
         SearchFailed,
         TargetFound,

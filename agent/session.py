@@ -156,9 +156,10 @@ class Session:
             stream,
             run_id=run_id,
             wall_clock=wall_clock if wall_clock is not None else time.time_ns,
-            # With a snapshot, a restart reads only what came after it and after the last clean
-            # close; every full reader (replay, lake add, log verify) still checks it all.
-            verify="all" if snapshot_dir is None else "since_close",
+            # With a snapshot, a restart checks the prefix by its seals (CRC of whole ranges) and
+            # parses only what came after the last clean close; nothing acknowledged goes
+            # unchecked before the first append.
+            verify="all" if snapshot_dir is None else "sealed",
         )
         try:
             if snapshot_dir is not None:
@@ -286,12 +287,7 @@ class Session:
         try:
             if self.snapshot_dir is not None and not self.log.closed and self.state.last_seq:
                 try:
-                    save_snapshot(
-                        self.snapshot_dir,
-                        self.state,
-                        log_dir=self.log.directory,
-                        position=self.log.position,
-                    )
+                    save_snapshot(self.snapshot_dir, self.state, log=self.log)
                 except (ObjsearchError, OSError, ValueError) as exc:
                     # The log is the record; a missing snapshot only makes the next start fold it.
                     _log.warning("snapshot not written (%s); the next start folds the log", exc)

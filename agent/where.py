@@ -25,7 +25,7 @@ from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import MEMORY
 from objsearch.events.envelope import Event
-from objsearch.events.log import LogPosition
+from objsearch.events.log import EventLog
 from objsearch.events.projection import fold
 from objsearch.events.snapshot import restore, save_snapshot
 
@@ -132,10 +132,11 @@ class LiveMemory:
         )
         return cls(state, home)
 
-    def save(self, snapshot_dir: Path, *, log_dir: Path, position: LogPosition | None) -> None:
-        """A snapshot for the next :meth:`restore` (``position``: where the log stands now)."""
+    def save(self, snapshot_dir: Path, *, log: EventLog | Path) -> None:
+        """A snapshot for the next :meth:`restore`, attested by ``log`` (the running agent's
+        writer, or the folder of a log no one writes)."""
         with self._lock:
-            save_snapshot(snapshot_dir, self._state, log_dir=log_dir, position=position)
+            save_snapshot(snapshot_dir, self._state, log=log)
 
     @property
     def last_seq(self) -> int:

@@ -335,10 +335,9 @@ def bench_restart(events: list[Event], reps: int, root: Path) -> None:
     print(f"\n## restart on a {n:,}-event log (median of {reps})")
     log_dir, snaps = root / "restart-log", root / "restart-snapshots"
     _write_log(log_dir, events)
-    with EventLog.open(log_dir, events[0].stream) as log:
-        end = log.position
     state = fold(read_log(log_dir), AgentState())
-    save_snapshot(snaps, state, log_dir=log_dir, position=end)
+    with EventLog.open(log_dir, events[0].stream) as log:
+        save_snapshot(snaps, state, log=log)
 
     def open_only() -> None:
         EventLog.open(log_dir, events[0].stream).close()
@@ -348,7 +347,7 @@ def bench_restart(events: list[Event], reps: int, root: Path) -> None:
             return fold(read_log(log_dir), AgentState())
 
     def snapshot() -> AgentState:
-        with EventLog.open(log_dir, events[0].stream, verify="since_close"):
+        with EventLog.open(log_dir, events[0].stream, verify="sealed"):
             state, _ = restore(
                 log_dir, AgentState, AgentState.from_snapshot, snapshot_dir=snaps, save=False
             )

@@ -24,6 +24,7 @@ import contextlib
 import json
 import logging
 import os
+import threading
 import time
 import uuid
 import warnings
@@ -35,6 +36,7 @@ from types import TracebackType
 from typing import IO, Any, Final, NoReturn
 
 from . import _fs
+from .diagnose import Witness, diagnose
 from .envelope import Event, deterministic_event_id
 from .errors import (
     CorruptLogError,
@@ -50,6 +52,7 @@ from .errors import (
 )
 from .record import RecordError, decode_record, encode_record
 from .schemas import SchemaRegistry, default_registry
+from .seal import Seal, Sealer, check_seals, seals_from_json, seals_to_json
 from .upcast import default_upcaster
 
 LOG_FORMAT: Final = "objsearch.events/2"
@@ -106,6 +109,20 @@ class LogPosition:
 #: The durable high-water mark: where the log ended when its writer last closed.
 Durable = LogPosition
 
+#: How many snapshot attestations ``durable.json`` keeps (the newest).
+MAX_ATTESTED: Final = 8
+
+
+@dataclass(frozen=True, slots=True)
+class DurableRecord:
+    """All of ``durable.json``: the high-water mark, the seals of every byte before it (None in a
+    mark written before seals existed) and the snapshots the writer attested: (seq, SHA-256 of
+    the snapshot file) — a snapshot is trusted only if its digest is here."""
+
+    position: LogPosition
+    seals: tuple[Seal, ...] | None
+    attested: tuple[tuple[int, str], ...] = ()
+
 
 @dataclass(frozen=True, slots=True)
 class TornTail:
@@ -151,6 +168,7 @@ class _Scan:
         stop_after: int | None = None,
         start: _Cursor | LogPosition | None = None,
         ids: dict[str, int] | None = None,
+        sealer: Sealer | None = None,
     ) -> None:
         self.path = path
         self.meta = meta
@@ -163,6 +181,8 @@ class _Scan:
         self.at = start if start is not None else _Cursor(checksum=meta.genesis)
         #: when given, filled with event id → byte offset of its record (for idempotent appends)
         self.ids = ids
+        #: when given, fed every verified record's bytes (a writer's seals)
+        self.sealer = sealer
 
     @property
     def end_offset(self) -> int:
@@ -187,7 +207,6 @@ class _Scan:
 
     def _lines(self, f: IO[bytes]) -> Iterator[Event]:
         at = self.at
-        chained = self.meta.chained
         for line in f:
             start = at.offset
             line_no = at.line + 1
@@ -198,30 +217,12 @@ class _Scan:
                 )
                 return
             try:
-                event, checksum = decode_record(line[:-1], at.checksum if chained else 0)
-            except RecordError as exc:
-                self._corrupt(line_no, start, self._explain(line[:-1], exc))
-            if event.stream != self.meta.stream:
-                self._corrupt(
-                    line_no,
-                    start,
-                    f"record of stream {event.stream!r} in the log of stream {self.meta.stream!r}",
-                )
-            if event.seq != at.seq + 1:
-                self._corrupt(line_no, start, f"expected seq {at.seq + 1}, found seq {event.seq}")
-            if not self.registry.knows(event.type, event.version):
-                self._corrupt(
-                    line_no,
-                    start,
-                    f"event type {event.type!r} version {event.version} is not one this code "
-                    "knows (written by newer code, or damaged)",
-                )
-            if event.time_ns < at.time_ns:
-                self._corrupt(
-                    line_no,
-                    start,
-                    f"time runs backwards: time_ns {event.time_ns} after {at.time_ns}",
-                )
+                event, checksum = check_record(line[:-1], at, self.meta, self.registry)
+            except BadRecord as exc:
+                reason = exc.reason
+                if exc.record_error is not None:
+                    reason = self._explain(line[:-1], exc.record_error, f)
+                self._corrupt(line_no, start, reason)
             at.offset = start + len(line)
             at.line = line_no
             at.seq = event.seq
@@ -241,12 +242,37 @@ class _Scan:
                 )
             if self.ids is not None:
                 self.ids[event.event_id] = start
+            if self.sealer is not None:
+                self.sealer.add(line)
             yield event
             if self.stop_after is not None and event.seq >= self.stop_after:
                 return
 
-    def _explain(self, line: bytes, exc: RecordError) -> str:
+    def _explain(self, line: bytes, exc: RecordError, f: IO[bytes]) -> str:
         reason = exc.reason
+        if not exc.intact and not line.endswith(b"\r"):
+            after = f.readline()  # the witness: the next record chains from this one's checksum
+            mark = self.durable
+            at = self.at
+            witness = Witness(
+                after[:-1] if after.endswith(b"\n") else None,
+                mark.checksum
+                if mark is not None
+                and mark.seq == at.seq + 1
+                and mark.offset == at.offset + len(line) + 1
+                else None,
+            )
+            found = diagnose(
+                line,
+                at.checksum,
+                seq=at.seq + 1,
+                stream=self.meta.stream,
+                id_key=self.meta.id_key(),
+                chained=self.meta.chained,
+                witness=witness,
+            )
+            if found.kind != "unproven":
+                return f"record at seq {at.seq + 1} is damaged: {found.reason} ({reason})"
         if line.endswith(b"\r"):
             return (
                 f"{reason}; the line ends in CR LF: its line endings were converted (git "
@@ -289,6 +315,55 @@ class _Scan:
         )
 
 
+#: The type ``objsearch log repair`` writes in the place of a record it moved out; the one type
+#: the store reads a field of (``chain``: where the next record's checksum chain continues from).
+QUARANTINED_TYPE: Final = "record_quarantined"
+
+
+class BadRecord(Exception):
+    """A complete line that is not the next valid record (``record_error``: its own framing,
+    checksum or envelope is wrong, rather than where it stands)."""
+
+    def __init__(self, reason: str, record_error: RecordError | None = None) -> None:
+        super().__init__(reason)
+        self.reason = reason
+        self.record_error = record_error
+
+
+def check_record(
+    line: bytes, at: _Cursor | LogPosition, meta: LogMeta, registry: SchemaRegistry
+) -> tuple[Event, int]:
+    """The event of ``line`` (no newline) if it is the valid record after ``at``, and the chain
+    value the next record continues from; :class:`BadRecord` saying why not."""
+    try:
+        event, checksum = decode_record(line, at.checksum if meta.chained else 0)
+    except RecordError as exc:
+        raise BadRecord(exc.reason, exc) from None
+    if event.stream != meta.stream:
+        raise BadRecord(f"record of stream {event.stream!r} in the log of stream {meta.stream!r}")
+    if event.seq != at.seq + 1:
+        raise BadRecord(f"expected seq {at.seq + 1}, found seq {event.seq}")
+    if not registry.knows(event.type, event.version):
+        raise BadRecord(
+            f"event type {event.type!r} version {event.version} is not one this code "
+            "knows (written by newer code, or damaged)"
+        )
+    if event.time_ns < at.time_ns:
+        raise BadRecord(f"time runs backwards: time_ns {event.time_ns} after {at.time_ns}")
+    if event.type == QUARANTINED_TYPE:
+        chain = event.payload.get("chain")
+        if chain is not None:
+            if not (isinstance(chain, str) and len(chain) == 8 and chain == chain.lower()):
+                raise BadRecord(f"{QUARANTINED_TYPE}: chain {chain!r} is not 8 hex digits")
+            try:
+                checksum = int(chain, 16)
+            except ValueError:
+                raise BadRecord(
+                    f"{QUARANTINED_TYPE}: chain {chain!r} is not 8 hex digits"
+                ) from None
+    return event, checksum
+
+
 class EventLog:
     """The single writer of one stream's log. Use :meth:`open`; close it (or use ``with``).
 
@@ -310,6 +385,9 @@ class EventLog:
         registry: SchemaRegistry,
         wall_clock: Callable[[], int],
         ids: dict[str, int] | None,
+        sealer: Sealer,
+        attested: tuple[tuple[int, str], ...],
+        seal_check: _SealCheck | None = None,
     ) -> None:
         # Private: only open() knows how to reach a consistent state (lock, meta, recovery).
         self._directory = directory
@@ -322,8 +400,13 @@ class EventLog:
         self._registry = registry
         self._wall_clock = wall_clock
         # event id → byte offset of its record: what makes appends idempotent. None after a fast
-        # open (verify="since_close") until the first explicit id asks for it.
+        # open (verify="sealed") until the first explicit id asks for it.
         self._ids = ids
+        self._sealer = sealer
+        self._sealed_in_mark = sealer.closed_count  # closed seals already in durable.json
+        self._attested = attested
+        self._attest_pending = False
+        self._seal_check = seal_check
         self._batch_depth = 0
         self._unsynced = False
         self._closed = False
@@ -350,13 +433,14 @@ class EventLog:
         ``run_id`` is the id a log created by this call gets (a random UUID if None; pass one
         derived from a seed for reproducible logs); an existing log keeps its own.
         ``wall_clock`` stamps ``recorded_at_ns``; pass a fixed one for byte-identical logs.
-        ``verify="since_close"`` checks the record at the durable high-water mark and everything
-        after it, trusting the prefix its last writer verified and closed (an agent's fast
-        restart; ``read_log`` and ``objsearch log verify`` still check every record).
+        ``verify="sealed"`` (an agent's fast restart) checks every byte before the durable
+        high-water mark against its seals (CRC-32 of whole ranges, no parsing) and parses every
+        record after it; a log without seals is verified record by record. Either way no
+        acknowledged byte goes unchecked before the first append.
         """
         directory = Path(directory)
-        if verify not in ("all", "since_close"):
-            raise ValueError(f"verify must be 'all' or 'since_close', got {verify!r}")
+        if verify not in ("all", "sealed"):
+            raise ValueError(f"verify must be 'all' or 'sealed', got {verify!r}")
         if not (isinstance(stream, str) and stream):
             raise ValueError(f"stream must be a non-empty string, got {stream!r}")
         if run_id is not None and str(_parse_uuid(run_id, "run_id")) != run_id:
@@ -426,18 +510,34 @@ class EventLog:
             data = json.dumps(doc, sort_keys=True, ensure_ascii=False).encode() + b"\n"
             _fs.write_atomic(directory / META_FILE, data)
         registry = registry if registry is not None else default_registry()
-        durable = read_durable(directory)
+        record = read_durable_record(directory)
+        durable = None if record is None else record.position
+        log_path = directory / LOG_FILE
         ids: dict[str, int] | None = {}
-        if verify == "since_close" and durable is not None:
-            check_position(directory, meta, durable)
+        seal_check = None
+        if verify == "sealed" and record is not None and record.seals:
+            # Every acknowledged byte is checked before anything is appended: the sealed
+            # prefix by CRC on a thread of its own (the caller restores its state meanwhile;
+            # the first append, batch or close waits for it), the rest record by record here.
+            check_position(directory, meta, record.position)
+            seal_check = _SealCheck(directory, meta, registry, record)
             ids = None  # the prefix is not indexed: built on the first explicit event id
-            scan = _Scan(directory / LOG_FILE, meta, registry=registry, start=durable)
+            sealer = Sealer.resume(record.seals)
+            scan = _Scan(log_path, meta, registry=registry, start=durable, sealer=sealer)
+            for _ in scan:
+                pass
         else:
-            scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable, ids=ids)
-        for _ in scan:
-            pass
+            sealer = Sealer()
+            scan = _Scan(log_path, meta, registry=registry, durable=durable, ids=ids, sealer=sealer)
+            for _ in scan:
+                pass
+            if record is not None and record.seals:
+                # The records verify; seals that do not match them mean durable.json is damaged.
+                _check_sealed(directory, meta, registry, record)
         tail = scan.torn_tail
         if tail is not None:
+            if seal_check is not None:
+                seal_check.result()  # a damaged log is left exactly as it is
             tail = _cut_torn_tail(fd, tail)
         return cls(
             directory=directory,
@@ -450,6 +550,9 @@ class EventLog:
             registry=registry,
             wall_clock=wall_clock,
             ids=ids,
+            sealer=sealer,
+            attested=() if record is None else record.attested,
+            seal_check=seal_check,
         )
 
     @property
@@ -559,9 +662,19 @@ class EventLog:
                 reason="earlier than the previous event",
             )
         self._registry.validate_event(event)
+        if type == QUARANTINED_TYPE and payload.get("chain") is not None:
+            raise InvalidEventError(
+                f"invalid {type} v{version} event: payload.chain: only `objsearch log repair` "
+                "redirects the checksum chain (it writes the record in place of a damaged one)",
+                event_type=type,
+                version=version,
+                path="payload.chain",
+                reason="not null",
+            )
         record = encode_record(event, at.checksum if self._meta.chained else 0)
         offset = at.offset
         self._write(record)
+        self._sealer.add(record)
         if ids is not None:
             ids[event.event_id] = offset
         at.offset += len(record)
@@ -645,6 +758,12 @@ class EventLog:
         if self._closed:
             return
         try:
+            if self._seal_check is not None:
+                damage = self._seal_check.wait()
+                if damage is not None:
+                    self._broken = str(damage)
+                    if not self._seal_check.reported:
+                        raise damage
             if self._unsynced and self._broken is None:
                 self._sync()
             if self._broken is None:
@@ -672,6 +791,9 @@ class EventLog:
     def _check_usable(self) -> None:
         if self._closed:
             raise LogClosedError(f"event log {self._directory} is closed")
+        if self._seal_check is not None:
+            self._seal_check.result()  # raises CorruptLogError, every time, if a seal failed
+            self._seal_check = None
         if self._broken is not None:
             raise LogClosedError(
                 f"event log {self._directory} refuses appends after a failed write "
@@ -703,14 +825,93 @@ class EventLog:
             self._broken = f"fsync failed: {exc!r}"
             raise
         self._unsynced = False
+        if self._sealer.closed_count > self._sealed_in_mark:
+            # A range was sealed: record it now, so a restart after a crash checks it by CRC.
+            self._mark_durable()
 
     def _mark_durable(self) -> None:
         at = self._at
         mark = self.position
-        if at.seq == 0 or mark == self._durable:
+        if at.seq == 0 or (mark == self._durable and not self._attest_pending):
             return
-        write_durable(self._directory, mark)
+        write_durable(self._directory, mark, self._sealer.seals(), self._attested)
         self._durable = mark
+        self._sealed_in_mark = self._sealer.closed_count
+        self._attest_pending = False
+
+    def attest_snapshot(self, seq: int, digest: str) -> None:
+        """Record that the snapshot file with SHA-256 ``digest`` is the fold of this log up to
+        ``seq`` (written to ``durable.json`` at :meth:`close`): a restore trusts only snapshots
+        attested here, so one edited and re-checksummed by hand is rebuilt, not believed."""
+        self._check_usable()
+        if not 0 < seq <= self._at.seq:
+            raise ValueError(f"seq {seq} is not in this log (1..{self._at.seq})")
+        kept = [a for a in self._attested if a[1] != digest]
+        self._attested = (*kept[-(MAX_ATTESTED - 1) :], (seq, digest))
+        self._attest_pending = True
+
+
+class _SealCheck:
+    """:func:`_check_sealed` on a thread of its own; :meth:`result` waits and raises what it
+    found (``reported`` once it has)."""
+
+    def __init__(
+        self, directory: Path, meta: LogMeta, registry: SchemaRegistry, record: DurableRecord
+    ) -> None:
+        self._damage: CorruptLogError | None = None
+        self.reported = False
+
+        def run() -> None:
+            try:
+                _check_sealed(directory, meta, registry, record)
+            except CorruptLogError as exc:
+                self._damage = exc
+            except Exception as exc:  # an unreadable file is damage too: never append on it
+                self._damage = CorruptLogError(
+                    f"corrupt event log {directory / LOG_FILE}: its seals could not be checked "
+                    f"({exc!r}); the log was not changed",
+                    path=str(directory / LOG_FILE),
+                    line=0,
+                    offset=0,
+                )
+
+        self._thread = threading.Thread(target=run, name="seal-check", daemon=True)
+        self._thread.start()
+
+    def wait(self) -> CorruptLogError | None:
+        self._thread.join()
+        return self._damage
+
+    def result(self) -> None:
+        damage = self.wait()
+        if damage is not None:
+            self.reported = True
+            raise damage
+
+
+def _check_sealed(
+    directory: Path, meta: LogMeta, registry: SchemaRegistry, record: DurableRecord
+) -> None:
+    """Raise :class:`CorruptLogError` unless every seal of ``record`` matches ``events.log``.
+
+    Where one does not, the records are parsed to name the first damaged one (the error every
+    reader gives); if they all verify, the seals themselves are what is damaged."""
+    assert record.seals is not None
+    path = directory / LOG_FILE
+    bad = check_seals(path, record.seals)
+    if bad is None:
+        return
+    scan = _Scan(path, meta, registry=registry, durable=record.position)
+    for _ in scan:
+        pass
+    raise CorruptLogError(
+        f"corrupt event log {path}: bytes {bad.start}..{bad.end} do not match their seal "
+        f"(CRC-32 {bad.crc:08x} in {DURABLE_FILE}) though every record there verifies: "
+        f"{DURABLE_FILE} is damaged; the log was not changed (`objsearch log repair` rewrites it)",
+        path=str(directory / DURABLE_FILE),
+        line=0,
+        offset=bad.start,
+    )
 
 
 def _non_empty(path: Path) -> bool:
@@ -926,13 +1127,28 @@ def _read_meta(directory: Path) -> str:
 
 def read_durable(directory: Path) -> Durable | None:
     """The high-water mark the writer left at its last close, or None if it left none."""
+    record = read_durable_record(directory)
+    return None if record is None else record.position
+
+
+def read_durable_record(directory: Path) -> DurableRecord | None:
+    """All of ``durable.json`` (:class:`DurableRecord`), or None if there is none."""
     path = directory / DURABLE_FILE
     try:
         raw = path.read_bytes()
     except FileNotFoundError:
         return None
     try:
-        mark = position_from_json(json.loads(raw))
+        doc = json.loads(raw)
+        if not isinstance(doc, dict):
+            raise ValueError("not a JSON object")
+        extra = {k: doc.pop(k) for k in ("seals", "snapshots") if k in doc}
+        position = position_from_json(doc)
+        seals = seals_from_json(extra["seals"]) if "seals" in extra else None
+        if seals and seals[-1].end != position.offset:
+            raise ValueError(f"seals end at byte {seals[-1].end}, the mark at {position.offset}")
+        attested = _attested_from_json(extra.get("snapshots", []))
+        mark = DurableRecord(position, seals, attested)
     except (ValueError, KeyError, TypeError, AttributeError) as exc:
         raise CorruptLogError(
             f"corrupt event log {directory}: {path} is damaged ({exc}); the log was not changed "
@@ -944,8 +1160,35 @@ def read_durable(directory: Path) -> Durable | None:
     return mark
 
 
-def write_durable(directory: Path, mark: Durable) -> None:
-    doc = position_to_json(mark)
+def _attested_from_json(doc: Any) -> tuple[tuple[int, str], ...]:
+    if not isinstance(doc, list):
+        raise ValueError("snapshots: not a list")
+    out = []
+    for item in doc:
+        if not (
+            isinstance(item, list)
+            and len(item) == 2
+            and type(item[0]) is int
+            and isinstance(item[1], str)
+        ):
+            raise ValueError("snapshots: an item is not [seq, sha256]")
+        out.append((item[0], item[1]))
+    return tuple(out)
+
+
+def write_durable(
+    directory: Path,
+    mark: Durable,
+    seals: tuple[Seal, ...] = (),
+    attested: tuple[tuple[int, str], ...] = (),
+) -> None:
+    """Write ``durable.json`` atomically: the mark, the seals of ``[0, mark.offset)`` and the
+    attested snapshots."""
+    if seals and seals[-1].end != mark.offset:
+        raise ValueError(f"seals end at byte {seals[-1].end}, the mark at {mark.offset}")
+    doc: dict[str, Any] = position_to_json(mark)
+    doc["seals"] = seals_to_json(seals)
+    doc["snapshots"] = [list(a) for a in attested]
     _fs.write_atomic(directory / DURABLE_FILE, json.dumps(doc, sort_keys=True).encode() + b"\n")
 
 
@@ -999,9 +1242,14 @@ def check_position(directory: Path, meta: LogMeta, at: LogPosition) -> None:
         body, _, crc = line.rpartition(b"\t")
         try:
             doc = json.loads(body)
+            chain = crc
+            if isinstance(doc, dict) and doc.get("type") == QUARANTINED_TYPE:
+                payload = doc.get("payload")
+                if isinstance(payload, dict) and isinstance(payload.get("chain"), str):
+                    chain = payload["chain"].encode()
             same = (
                 isinstance(doc, dict)
-                and crc == b"%08x" % at.checksum
+                and chain == b"%08x" % at.checksum
                 and doc.get("seq") == at.seq
                 and doc.get("time_ns") == at.time_ns
                 and doc.get("stream") == meta.stream

@@ -8,24 +8,38 @@ takes out of ``events.log`` go to a quarantine file beside it, named in its repo
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import _fs
+from .diagnose import Witness, diagnose
+from .envelope import EVENT_ID_NAMESPACE, Event
 from .errors import CorruptLogError, LogLockedError
 from .log import (
     DURABLE_FILE,
     LOCK_FILE,
     LOG_FILE,
+    QUARANTINE_PREFIX,
+    QUARANTINED_TYPE,
+    BadRecord,
+    DurableRecord,
     LogMeta,
     LogPosition,
+    _check_sealed,
+    _Cursor,
     _Scan,
+    check_record,
     quarantine,
-    read_durable,
+    read_durable_record,
     read_meta,
     write_durable,
 )
+from .record import encode_record
 from .schemas import default_registry
+from .seal import Sealer
 
 
 @dataclass(frozen=True, slots=True)
@@ -43,27 +57,45 @@ class Verification:
 
 
 @dataclass(frozen=True, slots=True)
+class RepairAction:
+    """One thing :func:`repair_log` did, at one place of the original file."""
+
+    kind: str  # "checksum-rewritten", "bit-restored", "quarantined", "cut", "missing"
+    first_seq: int  # the seq(s) it concerns
+    last_seq: int
+    line: int  # line (1-based) and byte offset in the file as it was (the end, for "missing")
+    offset: int
+    reason: str
+
+
+@dataclass(frozen=True, slots=True)
 class Repair:
     """What :func:`repair_log` changed (nothing, if ``changed`` is False)."""
 
     directory: Path
     changed: bool
-    kept_events: int
-    kept_last_seq: int
-    removed_bytes: int
+    kept_events: int  # real events in the repaired log (markers not counted)
+    kept_last_seq: int  # its last seq (markers included: the next writer continues after it)
+    removed_bytes: int  # bytes moved out of events.log (kept in ``quarantine``)
     removed_lines: int  # complete lines among the removed bytes
     problem: str | None  # the first problem found, as CorruptLogError described it
     quarantine: Path | None  # where the removed (or replaced) bytes are kept
     missing_seqs: tuple[int, int] | None  # acknowledged seqs (first, last) the file had lost
+    actions: tuple[RepairAction, ...] = ()
 
 
 def verify_log(directory: Path | str) -> Verification:
-    """Read every record and check it; raise :class:`CorruptLogError` at the first problem."""
+    """Read every record and check it, and the seals of ``durable.json``; raise
+    :class:`CorruptLogError` at the first problem."""
     directory = Path(directory)
     meta = read_meta(directory)
-    durable = read_durable(directory)
-    scan = _Scan(directory / LOG_FILE, meta, registry=default_registry(), durable=durable)
+    record = read_durable_record(directory)
+    durable = None if record is None else record.position
+    registry = default_registry()
+    scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable)
     events = sum(1 for _ in scan)
+    if record is not None and record.seals:
+        _check_sealed(directory, meta, registry, record)
     return Verification(
         directory=directory,
         stream=meta.stream,
@@ -76,15 +108,22 @@ def verify_log(directory: Path | str) -> Verification:
     )
 
 
-def repair_log(directory: Path | str) -> Repair:
-    """Make ``directory`` a clean log again, keeping every byte it takes out.
+def repair_log(directory: Path | str, *, wall_clock: Callable[[], int] = time.time_ns) -> Repair:
+    """Make ``directory`` a clean log again, removing only what is damaged and keeping every
+    byte it takes out.
 
     Under the writer's lock: a log whose every line ends in CR LF is converted back (the
-    original kept as ``events.log.crlf``) if that makes it clean; otherwise everything from the
-    first damaged record on is moved to ``events.log.repair-<offset>`` and the log keeps the clean
-    prefix. The high-water mark is rewritten to the new end (a damaged one is kept aside), and
-    acknowledged records the file had already lost are reported, since nothing can bring them
-    back. Raises :class:`LogLockedError` if a writer has the log open.
+    original kept as ``events.log.crlf``) if that makes it clean. Otherwise each bad record is
+    diagnosed by its witness, the next record (:mod:`~objsearch.events.diagnose`): checksum
+    digits damaged on an intact record are rewritten; a single flipped bit is corrected; a
+    record damaged otherwise is replaced by a ``record_quarantined`` event at its seq that
+    carries its checksum on, so every later record stays. From the first record nothing proves
+    (spliced, reordered, two damaged in a row, lines lost) everything is moved out, and
+    ``record_quarantined`` events take the seqs it held and any acknowledged seqs the file had
+    lost, so no later event reuses a removed record's seq or id. The bytes taken out are kept in
+    ``events.log.repair-<offset>``; seals and the high-water mark are rewritten (snapshot
+    attestations dropped: the log changed). Raises :class:`LogLockedError` if a writer has the
+    log open.
     """
     directory = Path(directory)
     meta = read_meta(directory)
@@ -97,80 +136,268 @@ def repair_log(directory: Path | str) -> Repair:
                 f"event log {directory} is open for writing; stop its writer first"
             )
         try:
-            return _repair_locked(directory, meta, fd)
+            return _repair_locked(directory, meta, wall_clock)
         finally:
             os.close(lock_fd)
     finally:
         os.close(fd)
 
 
-def _repair_locked(directory: Path, meta: LogMeta, fd: int) -> Repair:
+def _repair_locked(directory: Path, meta: LogMeta, wall_clock: Callable[[], int]) -> Repair:
     path = directory / LOG_FILE
     data = path.read_bytes()
     try:
-        durable = read_durable(directory)
+        record = read_durable_record(directory)
     except CorruptLogError:
         quarantine(directory, "durable-damaged", (directory / DURABLE_FILE).read_bytes())
-        durable = None
-    problem, mark, events = _clean_prefix(path, meta)
-    end, last_seq = mark.offset, mark.seq
-    kept: Path | None = None
-    if problem is not None and _is_crlf(data):
+        record = None
+    durable = None if record is None else record.position
+    problem = _first_problem(directory, meta, record)
+    if problem is None:
+        return Repair(directory, False, *_count(path, meta), 0, 0, None, None, None)
+    if _is_crlf(data):
         converted = data.replace(b"\r\n", b"\n")
-        candidate = directory / f"{LOG_FILE}.crlf-candidate"
-        candidate.write_bytes(converted)
-        try:
-            result = _clean_prefix(candidate, meta)
-        finally:
-            candidate.unlink()
-        if result[0] is None and result[1].offset == len(converted):
-            kept = quarantine(directory, "crlf", data)
+        plan = _plan(converted, meta, durable, wall_clock, directory)
+        if not plan.actions and plan.end == len(converted):
+            original = quarantine(directory, "crlf", data)
             _fs.write_atomic(path, converted)
-            _, mark, events = result
-            write_durable(directory, mark)
-            return Repair(directory, True, events, mark.seq, 0, 0, problem, kept, None)
-    removed = data[end:]
-    if removed:
-        kept = quarantine(directory, f"repair-{end}", removed)
-        os.ftruncate(fd, end)
-        os.fsync(fd)
-    missing = None
-    if durable is not None and durable.seq > last_seq:
-        missing = (last_seq + 1, durable.seq)
-    changed = bool(removed) or (durable != mark and last_seq > 0)
-    if changed and last_seq > 0:
-        write_durable(directory, mark)
-    elif last_seq == 0 and durable is not None:
-        changed = True
+            _write_mark(directory, plan.at)
+            return Repair(directory, True, plan.events, plan.at.seq, 0, 0, problem, original, None)
+    plan = _plan(data, meta, durable, wall_clock, directory)
+    kept: Path | None = None
+    if plan.removed:
+        kept = directory / plan.quarantine_name
+        _fs.write_new(kept, bytes(plan.removed))
+    new = plan.output()
+    if new != data:
+        _fs.write_atomic(path, new)
+    if plan.at.seq:
+        _write_mark(directory, plan.at)
+    elif record is not None:
         (directory / DURABLE_FILE).unlink()
         _fs.fsync_dir(directory)
     return Repair(
         directory=directory,
-        changed=changed,
-        kept_events=events,
-        kept_last_seq=last_seq,
-        removed_bytes=len(removed),
-        removed_lines=removed.count(b"\n"),
+        changed=True,
+        kept_events=plan.events,
+        kept_last_seq=plan.at.seq,
+        removed_bytes=len(plan.removed),
+        removed_lines=plan.removed.count(b"\n"),
         problem=problem,
         quarantine=kept,
-        missing_seqs=missing,
+        missing_seqs=plan.missing,
+        actions=tuple(plan.actions),
     )
 
 
-def _clean_prefix(path: Path, meta: LogMeta) -> tuple[str | None, LogPosition, int]:
-    """(first problem, where the longest clean prefix ends, its events)."""
-    scan = _Scan(path, meta, registry=default_registry())
-    events = 0
-    problem = None
+def _first_problem(directory: Path, meta: LogMeta, record: DurableRecord | None) -> str | None:
+    durable = None if record is None else record.position
+    scan = _Scan(directory / LOG_FILE, meta, registry=default_registry(), durable=durable)
     try:
         for _ in scan:
-            events += 1
+            pass
+        if record is not None and record.seals:
+            _check_sealed(directory, meta, default_registry(), record)
     except CorruptLogError as exc:
-        problem = str(exc)
-    if problem is None and scan.torn_tail is not None:
-        problem = f"unterminated fragment of {scan.torn_tail.length} byte(s) at the end"
-    at = scan.at
-    return problem, LogPosition(at.seq, at.offset, at.checksum, at.line, at.time_ns), events
+        return str(exc)
+    if scan.torn_tail is not None:
+        return f"unterminated fragment of {scan.torn_tail.length} byte(s) at the end"
+    return None
+
+
+def _count(path: Path, meta: LogMeta) -> tuple[int, int]:
+    scan = _Scan(path, meta, registry=default_registry())
+    events = sum(1 for e in scan if e.type != QUARANTINED_TYPE)
+    return events, scan.at.seq
+
+
+def _write_mark(directory: Path, at: _Cursor) -> None:
+    sealer = Sealer()
+    sealer.add_file_range(directory / LOG_FILE, 0, at.offset)
+    mark = LogPosition(at.seq, at.offset, at.checksum, at.line, at.time_ns)
+    write_durable(directory, mark, sealer.seals())
+
+
+@dataclass
+class _Plan:
+    """The repaired file, built line by line from the damaged one."""
+
+    meta: LogMeta
+    wall_clock: Callable[[], int]
+    quarantine_name: str = ""
+    at: _Cursor = field(default_factory=_Cursor)
+    lines: list[bytes] = field(default_factory=list)  # the new file's lines, newlines included
+    removed: bytearray = field(default_factory=bytearray)
+    actions: list[RepairAction] = field(default_factory=list)
+    events: int = 0
+    end: int = 0  # bytes of the original file read as kept records
+    missing: tuple[int, int] | None = None
+
+    def keep(self, line: bytes, event: Event, chain: int) -> None:
+        self.lines.append(line + b"\n")
+        at = self.at
+        at.offset += len(line) + 1
+        at.line += 1
+        at.seq = event.seq
+        at.checksum = chain
+        at.time_ns = event.time_ns
+        if event.type != QUARANTINED_TYPE:
+            self.events += 1
+
+    def marker(
+        self, *, reason: str, offset: int, length: int, chain: int | None, kept: bool
+    ) -> None:
+        """A ``record_quarantined`` event at the next seq."""
+        at = self.at
+        seq = at.seq + 1
+        event = Event(
+            event_id=str(uuid.uuid5(EVENT_ID_NAMESPACE, f"{self.meta.id_key()}/{seq}/quarantined")),
+            stream=self.meta.stream,
+            seq=seq,
+            time_ns=at.time_ns,
+            recorded_at_ns=self.wall_clock(),
+            type=QUARANTINED_TYPE,
+            version=1,
+            task_id=None,
+            payload={
+                "reason": reason,
+                "quarantine": self.quarantine_name if kept else None,
+                "offset": offset,
+                "length": length,
+                "chain": None if chain is None else f"{chain:08x}",
+            },
+        )
+        line = encode_record(event, at.checksum if self.meta.chained else 0)[:-1]
+        own = int(line[-8:], 16)
+        self.keep(line, event, own if chain is None else chain)
+
+    def output(self) -> bytes:
+        return b"".join(self.lines)
+
+
+def _plan(
+    data: bytes,
+    meta: LogMeta,
+    durable: LogPosition | None,
+    wall_clock: Callable[[], int],
+    directory: Path,
+) -> _Plan:
+    registry = default_registry()
+    plan = _Plan(meta, wall_clock)
+    plan.at.checksum = meta.genesis
+    lines = data.split(b"\n")
+    lines.pop()  # the unterminated fragment after the last newline (b"" if none): part of the tail
+    offsets = [0]
+    for line in lines:
+        offsets.append(offsets[-1] + len(line) + 1)
+    first_change: int | None = None
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        at = plan.at
+        try:
+            event, chain = check_record(line, at, meta, registry)
+        except BadRecord as bad:
+            found = None
+            if bad.record_error is not None and not bad.record_error.intact:
+                mark = None
+                if (
+                    durable is not None
+                    and durable.seq == at.seq + 1
+                    and durable.offset == offsets[i + 1]
+                ):
+                    mark = durable.checksum
+                found = diagnose(
+                    line,
+                    at.checksum,
+                    seq=at.seq + 1,
+                    stream=meta.stream,
+                    id_key=meta.id_key(),
+                    chained=meta.chained,
+                    witness=Witness(lines[i + 1] if i + 1 < len(lines) else None, mark),
+                )
+            if found is None or found.kind == "unproven":
+                break
+            if first_change is None:
+                first_change = offsets[i]
+                plan.quarantine_name = _quarantine_name(directory, first_change)
+            kept_at = len(plan.removed)
+            plan.removed += line + b"\n"
+            seq = at.seq + 1
+            if found.original is not None:
+                event, chain = check_record(found.original, at, meta, registry)
+                plan.keep(found.original, event, chain)
+                kind = "checksum-rewritten" if found.kind == "checksum" else "bit-restored"
+            else:
+                plan.marker(
+                    reason=f"damaged: {found.reason}",
+                    offset=kept_at,
+                    length=len(line) + 1,
+                    chain=found.chain if meta.chained else None,
+                    kept=True,
+                )
+                kind = "quarantined"
+            plan.actions.append(RepairAction(kind, seq, seq, i + 1, offsets[i], found.reason))
+            i += 1
+            continue
+        plan.keep(line, event, chain)
+        i += 1
+    plan.end = offsets[i]
+    tail = data[offsets[i] :]
+    first_seq = plan.at.seq + 1
+    if tail:
+        if first_change is None:
+            first_change = offsets[i]
+            plan.quarantine_name = _quarantine_name(directory, first_change)
+        kept_at = len(plan.removed)
+        plan.removed += tail
+        complete = len(lines) - i
+        why = (
+            "an unterminated fragment (an interrupted append, never acknowledged)"
+            if complete == 0
+            else "from here on no record can be proven to belong to this log (spliced, "
+            "reordered, copied from another log, two damaged in a row, or lines lost before it)"
+        )
+        plan.actions.append(
+            RepairAction("cut", first_seq, plan.at.seq + complete, i + 1, offsets[i], why)
+        )
+        # Every complete line moved out may have been a record at the next seqs: those seqs
+        # are taken by markers, so no later event reuses a removed record's seq or id.
+        for _ in range(complete):
+            plan.marker(
+                reason=f"moved out: {why}", offset=kept_at, length=len(tail), chain=None, kept=True
+            )
+    if durable is not None and durable.seq > plan.at.seq:
+        lost_from = plan.at.seq + 1
+        plan.missing = (lost_from, durable.seq)
+        plan.actions.append(
+            RepairAction(
+                "missing",
+                lost_from,
+                durable.seq,
+                len(lines) + 1,
+                len(data),
+                "acknowledged (below the high-water mark) but no longer in the file",
+            )
+        )
+        while plan.at.seq < durable.seq:
+            plan.marker(
+                reason="missing: acknowledged, but the file had already lost it",
+                offset=0,
+                length=0,
+                chain=None,
+                kept=False,
+            )
+    return plan
+
+
+def _quarantine_name(directory: Path, offset: int) -> str:
+    name = f"{QUARANTINE_PREFIX}repair-{offset}"
+    n = 0
+    while (directory / name).exists():
+        n += 1
+        name = f"{QUARANTINE_PREFIX}repair-{offset}.{n}"
+    return name
 
 
 def _is_crlf(data: bytes) -> bool:

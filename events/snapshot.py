@@ -7,12 +7,16 @@ A snapshot is one JSON file per projection, ``<dir>/<name>.snapshot.json``, writ
 
 It is trusted only if everything still matches: the format, the projection's name and *code*
 version (bump ``snapshot_version`` whenever ``apply`` or the state's shape changes), the stream,
-the id and checksum of the event at ``seq`` in today's log (so a replaced or rewritten log is noticed), and the
-checksum. Anything else is logged and the projection is rebuilt from the log, never trusted.
+the id and checksum of the event at ``seq`` in today's log (so a replaced or rewritten log is noticed), the
+checksum, and — what makes it provably the fold of the log — its SHA-256, which the log's writer
+recorded in ``durable.json`` when the snapshot was taken (:meth:`EventLog.attest_snapshot`). A
+snapshot edited by hand and re-checksummed, one copied from another log, or one whose state does
+not restore is logged once and the projection rebuilt from the log, never trusted.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import zlib
@@ -23,12 +27,14 @@ from typing import Any, ClassVar, Final, Protocol, TypeVar
 
 from . import _fs
 from .envelope import Event
-from .errors import EventStoreError
+from .errors import EventStoreError, LogLockedError
 from .log import (
+    EventLog,
     LogPosition,
     check_position,
     position_from_json,
     position_to_json,
+    read_durable_record,
     read_log,
     read_log_after,
     read_meta,
@@ -76,24 +82,31 @@ def snapshot_path(directory: Path, name: str) -> Path:
 
 
 def save_snapshot(
-    directory: Path | str,
-    projection: Snapshottable,
-    *,
-    log_dir: Path | str,
-    position: LogPosition | None = None,
+    directory: Path | str, projection: Snapshottable, *, log: EventLog | Path | str
 ) -> Path:
-    """Write ``projection``'s snapshot (at its ``last_seq``) for the log at ``log_dir``.
+    """Write ``projection``'s snapshot (at its ``last_seq``, > 0) of ``log`` and have the log's
+    writer attest it.
 
-    ``position`` is where the log stands at that seq (a writer knows it: ``EventLog.position``);
-    with it the snapshot records the chain checksum there, which covers every record before, and
-    a restore resumes reading at that byte instead of reading the log from the start.
+    ``log`` is the open writer (the agent, at shutdown: the attestation is written when it
+    closes), or the folder of a log no one is writing (a writer is opened for the attestation;
+    :class:`LogLockedError` if another holds it). When the projection is at the writer's end,
+    the snapshot records that position, whose chain checksum covers every record before it, and
+    a restore resumes reading at that byte instead of from the start.
     """
-    directory = Path(directory)
+    if isinstance(log, EventLog):
+        return _save(Path(directory), projection, log)
+    with EventLog.open(log, read_meta(Path(log)).stream, create=False) as writer:
+        return _save(Path(directory), projection, writer)
+
+
+def _save(directory: Path, projection: Snapshottable, writer: EventLog) -> Path:
     seq = projection.last_seq
-    if position is not None and position.seq != seq:
-        raise ValueError(f"position is at seq {position.seq}, the projection at {seq}")
+    if not 0 < seq <= writer.last_seq:
+        raise ValueError(f"projection is at seq {seq}, outside 1..{writer.last_seq} of the log")
+    log_dir = writer.directory
+    position = writer.position if seq == writer.last_seq else None
     at = None
-    if seq and position is None:
+    if position is None:
         at = next(iter(read_log(log_dir, from_seq=seq, to_seq=seq, upcast=False)), None)
         if at is None:
             raise ValueError(f"projection is at seq {seq}, beyond the end of {log_dir}")
@@ -109,9 +122,11 @@ def save_snapshot(
     }
     text = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False)
     doc = text[:-1] + f',"crc32":"{zlib.crc32(text.encode()):08x}"}}'
+    data = doc.encode() + b"\n"
     _fs.make_dirs(directory)
     path = snapshot_path(directory, projection.snapshot_name)
-    _fs.write_atomic(path, doc.encode() + b"\n")
+    _fs.write_atomic(path, data)
+    writer.attest_snapshot(seq, hashlib.sha256(data).hexdigest())
     return path
 
 
@@ -134,18 +149,28 @@ def restore(
     if path.exists():
         try:
             state, seq, position = _load(path, fresh, log_dir)
-            projection = from_snapshot(state, seq)
+            try:
+                projection = from_snapshot(state, seq)
+            except Exception as exc:  # any shape the state may have: rebuilt, never a traceback
+                raise _Untrusted(
+                    f"its state does not restore ({type(exc).__name__}: {exc})"
+                ) from None
             start = seq
         except _Untrusted as exc:
             rejected = str(exc)
-            _log.info("snapshot %s not used, rebuilding: %s", path, rejected)
+            position = None
+            _log.warning("snapshot %s not used, rebuilding from the log: %s", path, rejected)
     before = projection.last_seq
     if position is not None:
         fold(read_log_after(log_dir, position), projection)
     else:
         fold(read_log(log_dir, from_seq=start + 1), projection)
-    if save and (projection.last_seq != start or rejected is not None or not path.exists()):
-        save_snapshot(snapshot_dir, projection, log_dir=log_dir)
+    changed = projection.last_seq != start or rejected is not None or not path.exists()
+    if save and changed and projection.last_seq:
+        try:
+            save_snapshot(snapshot_dir, projection, log=log_dir)
+        except LogLockedError:
+            _log.info("snapshot %s not saved: the log's writer is running", path)
     return projection, Restored(start, projection.last_seq - before, rejected)
 
 
@@ -156,7 +181,8 @@ class _Untrusted(Exception):
 def _load(
     path: Path, fresh: Snapshottable, log_dir: Path | str
 ) -> tuple[dict[str, Any], int, LogPosition | None]:
-    raw = path.read_bytes().rstrip(b"\n")
+    whole = path.read_bytes()
+    raw = whole.rstrip(b"\n")
     text, sep, crc = raw.rpartition(b',"crc32":"')
     if not sep or crc != b"%08x" % zlib.crc32(text + b"}") + b'"}':
         raise _Untrusted("checksum mismatch (damaged file)")
@@ -178,6 +204,15 @@ def _load(
     seq = doc.get("seq")
     if not isinstance(seq, int) or seq < 0:
         raise _Untrusted(f"bad seq {seq!r}")
+    try:
+        record = read_durable_record(Path(log_dir))
+    except EventStoreError as exc:
+        raise _Untrusted(f"the log's {exc}") from None
+    if record is None or (seq, hashlib.sha256(whole).hexdigest()) not in record.attested:
+        raise _Untrusted(
+            "its digest is not one the log's writer attested (durable.json): edited since it "
+            "was taken, taken of another log, or of a log since repaired"
+        )
     if doc.get("position") is not None:
         try:
             position = position_from_json(doc["position"])

@@ -25,11 +25,15 @@ def register(sub: Any) -> None:
 
     repair = log_sub.add_parser(
         "repair",
-        help="cut a damaged log back to its clean prefix, keeping what is removed beside it",
-        description="Converts CR LF line endings back when that makes the log clean; otherwise "
-        "moves everything from the first damaged record on into events.log.repair-<offset> "
-        "beside the log and keeps the clean prefix. Nothing is deleted. Reports acknowledged "
-        "records the file had already lost (a log cut short before its high-water mark).",
+        help="take only the damage out of a log, keeping what is removed beside it",
+        description="Converts CR LF line endings back when that makes the log clean. Otherwise "
+        "each bad record is judged by the next one, whose checksum chains from it: damaged "
+        "checksum digits are rewritten, a single flipped bit is corrected, a record damaged "
+        "otherwise is replaced by a record_quarantined event at its seq (every later record "
+        "stays); from the first record nothing proves (spliced, reordered, lines lost) the rest "
+        "is moved out. The bytes taken out go to events.log.repair-<offset> beside the log; "
+        "nothing is deleted, and removed or lost seqs stay taken, so no later event reuses "
+        "their ids. Prints every change, with its line, byte offset and reason.",
     )
     repair.add_argument("log", metavar="LOG", type=t.existing_dir, help="event log folder")
     repair.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -78,18 +82,32 @@ def cmd_log_repair(args: argparse.Namespace) -> int:
         print(f"ok: {result.directory} is clean ({result.kept_events} events); nothing changed")
         return 0
     print(f"repaired {result.directory}: {result.problem}")
+    for action in result.actions:
+        seqs = (
+            f"seq {action.first_seq}"
+            if action.first_seq == action.last_seq
+            else f"seqs {action.first_seq}..{action.last_seq}"
+        )
+        what = _ACTION_WORDS[action.kind]
+        print(f"  {seqs} (line {action.line}, byte {action.offset}): {what}: {action.reason}")
     if result.removed_bytes:
         print(
-            f"  moved {result.removed_bytes} byte(s) ({result.removed_lines} line(s)) from the end "
-            f"of events.log to {result.quarantine}"
+            f"  {result.removed_bytes} byte(s) ({result.removed_lines} line(s)) taken out of "
+            f"events.log are kept in {result.quarantine}"
         )
     elif result.quarantine is not None:
         print(f"  converted CR LF line endings back; the original is kept in {result.quarantine}")
-    print(f"  the log keeps {result.kept_events} events (seq 1..{result.kept_last_seq})")
-    if result.missing_seqs is not None:
-        first, last = result.missing_seqs
-        print(
-            f"  acknowledged seqs {first}..{last} were already missing from the file; they "
-            "cannot be recovered from this log"
-        )
+    print(
+        f"  the log keeps {result.kept_events} events; it ends at seq {result.kept_last_seq} "
+        "(removed and lost seqs stay taken by record_quarantined events)"
+    )
     return 0
+
+
+_ACTION_WORDS = {
+    "checksum-rewritten": "checksum rewritten, record kept",
+    "bit-restored": "flipped bit corrected, record kept",
+    "quarantined": "record moved out, its seq kept by a record_quarantined event",
+    "cut": "moved out with everything after it",
+    "missing": "already missing from the file, cannot be recovered",
+}

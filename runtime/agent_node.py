@@ -243,9 +243,7 @@ class AgentNode:
         if log_.closed or not self.memory.last_seq:
             return
         try:
-            self.memory.save(
-                log_.directory / WHERE_SNAPSHOT_DIR, log_dir=log_.directory, position=log_.position
-            )
+            self.memory.save(log_.directory / WHERE_SNAPSHOT_DIR, log=log_)
         except (ObjsearchError, OSError, ValueError) as exc:
             log.warning(
                 "where memory: snapshot not written (%s); the next start folds the log", exc

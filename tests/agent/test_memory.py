@@ -189,7 +189,7 @@ def test_live_memory_restarts_from_its_snapshot_with_the_same_answer(tmp_path: P
     home = load_context(HOME).home
     full = LiveMemory.restore(log, home, snapshots)
     assert isinstance(full.state.graph(), InstanceMemory)
-    full.save(snapshots, log_dir=log, position=None)
+    full.save(snapshots, log=log)
     again, restored = restore(
         log,
         lambda: AgentState(counterfactual=MEMORY),

@@ -10,7 +10,7 @@ import pytest
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import STRATEGIES, RunSpec
-from objsearch.events import EventLog, fold, read_log
+from objsearch.events import CorruptLogError, EventLog, fold, read_log
 from objsearch.events.lake import Lake, compact_log
 from objsearch.replay.analytics import open_analytics
 from objsearch.replay.audit import audit
@@ -138,6 +138,39 @@ def test_restart_from_a_snapshot_gives_the_state_a_full_fold_gives(tmp_path: Pat
         assert restored.run == full.run
     finally:
         session.close()
+
+
+def _flip_bit_in_record(log: Path, seq: int, *, in_checksum: bool = False) -> None:
+    path = log / "events.log"
+    data = bytearray(path.read_bytes())
+    start = 0
+    for _ in range(seq - 1):
+        start = data.index(b"\n", start) + 1
+    end = data.index(b"\n", start)
+    at = end - 3 if in_checksum else start + (end - start) // 2
+    data[at] ^= 0x04
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("in_checksum", [False, True])
+def test_a_restart_from_a_snapshot_refuses_damage_anywhere_before_it(
+    tmp_path: Path, in_checksum: bool
+) -> None:
+    """The fast restart checks every acknowledged byte (by its seals): one flipped bit in an
+    early record stops the agent before it appends anything on top of it."""
+    ctx = load_context(HOME)
+    log, snaps = tmp_path / "log", tmp_path / "snapshots"
+    _run(log, "wpl")
+    Session.open(ctx, log, snapshot_dir=snaps).close()  # writes and attests the snapshot
+    clean = Session.open(ctx, log, snapshot_dir=snaps)  # a clean restart, from the snapshot
+    clean.close()
+    assert clean.state.last_seq > 71
+    _flip_bit_in_record(log, 71, in_checksum=in_checksum)
+    before = {p.name: p.read_bytes() for p in log.iterdir() if p.is_file()}
+    spec = RunSpec.for_home(ctx.home, "wpl", schedule="table2")
+    with pytest.raises(CorruptLogError, match="line 71 "):
+        Session.start(ctx, log, spec, snapshot_dir=snaps)
+    assert {p.name: p.read_bytes() for p in log.iterdir() if p.is_file()} == before
 
 
 def test_a_log_keeps_the_relation_model_of_its_first_run(tmp_path: Path) -> None:

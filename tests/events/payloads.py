@@ -73,6 +73,13 @@ EXAMPLES: dict[str, dict[str, Any]] = {
     },
     "target_found": {"instance_id": "Cup|3", "position": [1.0, 2.0, 0.9], "approach": POSE},
     "search_failed": {"reason": "all candidates visited"},
+    "record_quarantined": {
+        "reason": "its bytes were damaged",
+        "quarantine": "events.log.repair-1024",
+        "offset": 0,
+        "length": 312,
+        "chain": None,
+    },
     "task_ended": {"target": "Cup", "success": True, "path_length": 12.5},
     "task_aborted": {"target": "Cup", "reason": "restart", "path_length": 3.25},
     "pose_observed": {"pose": POSE, "frame_id": "map", "topic": "/odom"},

@@ -583,3 +583,48 @@ def test_closed_log_refuses_appends(tmp_path: Path) -> None:
     assert log.closed
     with pytest.raises(LogClosedError, match="is closed"):
         log.append("search_failed", {"reason": "x"}, time_ns=0)
+
+
+def _sealed_log(directory: Path, n: int) -> bytes:
+    with EventLog.open(directory, STREAM) as log:
+        for i in range(n):
+            log.append("search_failed", {"reason": f"r{i}"}, time_ns=i)
+    return (directory / "events.log").read_bytes()
+
+
+def test_a_sealed_restart_checks_every_acknowledged_byte_before_it_appends(
+    tmp_path: Path,
+) -> None:
+    data = bytearray(_sealed_log(tmp_path, 40))
+    durable = json.loads((tmp_path / "durable.json").read_bytes())
+    assert durable["seals"] == [[0, len(data), f"{zlib.crc32(data):08x}"]]
+    with EventLog.open(tmp_path, STREAM, verify="sealed") as log:  # clean: appends as usual
+        log.append("search_failed", {"reason": "after"}, time_ns=99)
+    data = bytearray((tmp_path / "events.log").read_bytes())
+    data[len(data) // 5] ^= 0x10  # one flipped bit far before the high-water mark
+    (tmp_path / "events.log").write_bytes(bytes(data))
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    log = EventLog.open(tmp_path, STREAM, verify="sealed")
+    with pytest.raises(CorruptLogError, match="is damaged: one bit of it was flipped"):
+        log.append("search_failed", {"reason": "on top of damage"}, time_ns=100)
+    with pytest.raises(CorruptLogError):  # every later call too
+        log.append("search_failed", {"reason": "again"}, time_ns=100)
+    log.close()
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
+    with pytest.raises(CorruptLogError):  # a writer that appends nothing still hears of it
+        EventLog.open(tmp_path, STREAM, verify="sealed").close()
+
+
+def test_seals_that_do_not_match_intact_records_mean_durable_json_is_damaged(
+    tmp_path: Path,
+) -> None:
+    _sealed_log(tmp_path, 5)
+    doc = json.loads((tmp_path / "durable.json").read_bytes())
+    doc["seals"][0][2] = "00000000"
+    (tmp_path / "durable.json").write_text(json.dumps(doc))
+    for verify in ("all", "sealed"):
+        with (
+            pytest.raises(CorruptLogError, match=r"durable\.json is damaged"),
+            EventLog.open(tmp_path, STREAM, verify=verify) as log,
+        ):
+            log.append("search_failed", {"reason": "x"}, time_ns=9)

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
 from objsearch.cli import main
 from objsearch.events import CorruptLogError, EventLog, LogLockedError, read_log
+from objsearch.events.envelope import deterministic_event_id
 from objsearch.events.repair import repair_log, verify_log
 
 RUN = "00000000-0000-4000-8000-0000000000bb"
@@ -44,25 +46,109 @@ def test_repair_converts_crlf_back_and_keeps_the_original(tmp_path: Path) -> Non
     assert [e.payload["reason"] for e in read_log(tmp_path)] == ["r0", "r1", "r2", "r3"]
 
 
-def test_repair_keeps_the_clean_prefix_and_every_removed_byte(tmp_path: Path) -> None:
+def _damage(directory: Path, line: int, edit: Callable[[bytearray], None]) -> bytes:
+    lines = (directory / "events.log").read_bytes().splitlines(keepends=True)
+    changed = bytearray(lines[line - 1])
+    edit(changed)
+    lines[line - 1] = bytes(changed)
+    damaged = b"".join(lines)
+    (directory / "events.log").write_bytes(damaged)
+    return damaged
+
+
+def _reasons(directory: Path) -> list[tuple[int, str]]:
+    return [
+        (e.seq, e.payload["reason"] if e.type == "search_failed" else e.type)
+        for e in read_log(directory)
+    ]
+
+
+def test_a_record_damaged_in_place_is_the_only_one_moved_out(tmp_path: Path) -> None:
+    data = _write(tmp_path, 6)
+    line3 = data.splitlines(keepends=True)[2]
+    damaged = _damage(
+        tmp_path, 3, lambda b: b.__setitem__(slice(None), b.replace(b'"r2"', b'"rX"'))
+    )
+    with pytest.raises(CorruptLogError, match="record at seq 3 is damaged: its bytes were damaged"):
+        verify_log(tmp_path)
+    result = repair_log(tmp_path)
+    assert (result.kept_events, result.kept_last_seq, result.removed_lines) == (5, 6, 1)
+    assert [(a.kind, a.first_seq, a.line) for a in result.actions] == [("quarantined", 3, 3)]
+    assert result.quarantine is not None
+    assert result.quarantine.read_bytes() == damaged.splitlines(keepends=True)[2] != line3
+    assert _reasons(tmp_path) == [
+        (1, "r0"),
+        (2, "r1"),
+        (3, "record_quarantined"),
+        (4, "r3"),
+        (5, "r4"),
+        (6, "r5"),
+    ]
+    marker = list(read_log(tmp_path))[2]
+    assert marker.payload["quarantine"] == result.quarantine.name
+    assert verify_log(tmp_path).last_seq == 6
+    with EventLog.open(tmp_path, "robot") as log:  # the next writer continues after seq 6
+        after = log.append("search_failed", {"reason": "after"}, time_ns=9)
+    assert after.seq == 7
+    ids = [e.event_id for e in read_log(tmp_path)]
+    assert len(set(ids)) == 7 and deterministic_event_id(RUN, 3) not in ids  # never reused
+    assert repair_log(tmp_path).changed is False
+
+
+def test_a_flipped_bit_is_corrected_and_damaged_checksum_digits_are_rewritten(
+    tmp_path: Path,
+) -> None:
+    data = _write(tmp_path, 6)
+
+    def flip(b: bytearray) -> None:
+        b[40] ^= 0x02
+
+    def digit(b: bytearray) -> None:
+        b[-3] = ord("g")  # a checksum digit that is not even hex
+
+    for line, edit, kind in ((2, flip, "bit-restored"), (5, digit, "checksum-rewritten")):
+        damaged = _damage(tmp_path, line, edit)
+        with pytest.raises(CorruptLogError, match=f"record at seq {line} is damaged"):
+            verify_log(tmp_path)
+        result = repair_log(tmp_path)
+        assert [(a.kind, a.first_seq) for a in result.actions] == [(kind, line)]
+        assert (tmp_path / "events.log").read_bytes() == data  # exactly as written
+        assert result.quarantine is not None
+        assert result.quarantine.read_bytes() == damaged.splitlines(keepends=True)[line - 1]
+        assert (result.kept_events, result.kept_last_seq) == (6, 6)
+
+
+def test_records_that_do_not_belong_are_moved_out_and_their_seqs_stay_taken(
+    tmp_path: Path,
+) -> None:
     data = _write(tmp_path, 6)
     lines = data.splitlines(keepends=True)
-    lines[2] = lines[2].replace(b'"r2"', b'"rX"')
+    lines[2], lines[3] = lines[3], lines[2]  # reordered: nothing after line 3 can be proven
     damaged = b"".join(lines)
     (tmp_path / "events.log").write_bytes(damaged)
     result = repair_log(tmp_path)
     cut = sum(map(len, lines[:2]))
-    assert (result.kept_events, result.removed_bytes, result.removed_lines) == (
-        2,
-        len(damaged) - cut,
-        4,
-    )
+    assert [(a.kind, a.first_seq, a.last_seq) for a in result.actions] == [("cut", 3, 6)]
     assert result.quarantine == tmp_path / f"events.log.repair-{cut}"
-    assert (tmp_path / "events.log").read_bytes() + result.quarantine.read_bytes() == damaged
-    assert result.missing_seqs == (3, 6)  # acknowledged, now only in the quarantine file
-    with EventLog.open(tmp_path, "robot") as log:  # writable again, from seq 3
-        assert log.append("search_failed", {"reason": "after"}, time_ns=9).seq == 3
-    assert repair_log(tmp_path).changed is False
+    assert result.quarantine.read_bytes() == damaged[cut:]
+    assert (result.kept_events, result.kept_last_seq) == (2, 6)
+    assert [seq for seq, what in _reasons(tmp_path) if what == "record_quarantined"] == [3, 4, 5, 6]
+    with EventLog.open(tmp_path, "robot") as log:
+        assert log.append("search_failed", {"reason": "after"}, time_ns=9).seq == 7
+
+
+def test_acknowledged_records_the_file_lost_are_reported_and_their_seqs_kept(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data = _write(tmp_path, 6)
+    lines = data.splitlines(keepends=True)
+    (tmp_path / "events.log").write_bytes(b"".join(lines[:4]))  # cut at a record boundary
+    assert main(["log", "repair", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "seqs 5..6 (line 5, byte" in out and "already missing from the file" in out
+    assert [seq for seq, what in _reasons(tmp_path) if what == "record_quarantined"] == [5, 6]
+    with EventLog.open(tmp_path, "robot") as log:
+        assert log.append("search_failed", {"reason": "after"}, time_ns=9).seq == 7
 
 
 def test_repair_refuses_while_a_writer_holds_the_log(tmp_path: Path) -> None:
