@@ -406,8 +406,7 @@ def run_battery(
                 counts.problems.append(f"a fresh viewer could not connect: {exc}")
         agent.stop()
         deadline = time.monotonic() + DEADLINE_S
-        expected = agent.written[1:]
-        while len(probe.got) < len(expected) and probe.error is None:
+        while _matched(probe, agent.written)[0] < len(agent.written) and probe.error is None:
             if time.monotonic() > deadline:
                 break
             time.sleep(0.05)
@@ -441,18 +440,27 @@ def _check_probe(probe: _Probe, written: list[bytes], counts: Counts) -> None:
     if probe.first != written[0]:
         counts.loss += 1
         counts.problems.append("the probe did not get the latched first message")
-    at = 1
-    for got in probe.got:
-        if at < len(written) and got == written[at]:
-            at += 1
-        elif got != written[at - 1]:
-            counts.silent_change += 1
-            counts.problems.append(f"the probe got a message out of order (after {at - 1})")
+    at, strays = _matched(probe, written)
+    if strays:
+        counts.silent_change += strays
+        counts.problems.append(f"the probe got {strays} messages out of order")
     if at < len(written):
         counts.loss += len(written) - at
         counts.problems.append(
             f"the probe got {at - 1} of {len(written) - 1} messages ({probe.error or 'no error'})"
         )
+
+
+def _matched(probe: _Probe, written: list[bytes]) -> tuple[int, int]:
+    """(how many of ``written`` the probe got in order, counting the latched first; how many
+    messages it got that are neither the next one nor a repeat of the last)."""
+    at, strays = 1, 0
+    for got in list(probe.got):  # a copy: the probe's thread appends
+        if at < len(written) and got == written[at]:
+            at += 1
+        elif got != written[at - 1]:
+            strays += 1
+    return at, strays
 
 
 def _round(
