@@ -158,6 +158,7 @@ def ingest(
     if engine is None:
         engine = InlineEngine() if workers <= 1 or len(unique) <= 1 else ProcessEngine(workers)
     lake = BagLake(lake_dir)
+    lake.complete_merges()  # a commit killed between its steps in an earlier ingest
     known = lake.known_pieces()
     tasks = [
         BagTask(bag, topic_map, known, progress and engine.in_process, reingest) for bag in unique

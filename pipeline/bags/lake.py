@@ -221,6 +221,62 @@ class BagLake:
                 known[path.stem] = str(doc.get("converter", ""))
         return known
 
+    def complete_merges(self) -> list[str]:
+        """Finish what a commit killed between its steps left, and return the runs removed: a
+        run absorbed into its session's run but not yet removed (all its pieces are in a larger
+        run of the same robot, which holds their events), and pieces' copies in ``_bags/``
+        still naming the run they were in before."""
+        if not self._unfinished(self._sessions()):
+            return []
+        try:
+            with self.lake.locked():
+                sessions = self._sessions()
+                stale, moved = self._unfinished(sessions)
+                for s in stale:
+                    self.lake.remove_run(s.info)
+                for bag_id, doc in moved.items():
+                    self._write_report(bag_id, _json(doc))
+        except (OSError, EventStoreError) as exc:
+            raise BagCommitError(
+                f"finishing an interrupted merge in {self.root} failed: {exc}"
+            ) from exc
+        for s in stale:
+            _log.warning(
+                "%s: removed run %s, merged into its session's run by a commit that was "
+                "interrupted before it removed it",
+                self.root,
+                s.info.run,
+            )
+        return [s.info.run for s in stale]
+
+    def _unfinished(
+        self, sessions: Sequence[_SessionRun]
+    ) -> tuple[list[_SessionRun], dict[str, Mapping[str, Any]]]:
+        """Runs whose pieces a larger run of their robot holds, and the ``_bags/`` copies (bag
+        id → the doc to write) whose run is not the one that holds them now."""
+        pieces = {s.info.path: set(s.pieces) for s in sessions}
+        stale = [
+            s
+            for s in sessions
+            if pieces[s.info.path]
+            and any(
+                o.info.robot == s.info.robot and pieces[s.info.path] < pieces[o.info.path]
+                for o in sessions
+            )
+        ]
+        moved: dict[str, Mapping[str, Any]] = {}
+        for s in sessions:
+            if s in stale or "pieces" not in s.doc:
+                continue
+            for bag_id, doc in s.pieces.items():
+                try:
+                    copy = json.loads((self.root / MANIFESTS / f"{bag_id}.json").read_bytes())
+                except (OSError, ValueError):
+                    continue  # a missing copy is restore_report's to write
+                if isinstance(copy, dict) and copy.get("run") != s.info.run:
+                    moved[bag_id] = doc
+        return stale, moved
+
     def has_bag(self, bag_id: str) -> bool:
         return any(bag_id in s.pieces for s in self._sessions())
 

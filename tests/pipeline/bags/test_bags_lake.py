@@ -12,8 +12,11 @@ import pytest
 from objsearch.events.killtest import KillServer, tree
 from objsearch.events.lake import STAGING
 from objsearch.pipeline.bags.formats import BagFormat
+from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import MANIFESTS, RUN_REPORT, BagLake
 from objsearch.pipeline.bags.record import record
+
+from .splitter import split_ros1
 
 
 @pytest.fixture(scope="module")
@@ -59,8 +62,6 @@ def test_ingest_killed_at_every_step_then_rerun_equals_an_uninterrupted_ingest(
 
 
 def test_a_missing_report_is_restored_from_the_run(bag: Path, tmp_path: Path) -> None:
-    from objsearch.pipeline.bags.ingest import ingest
-
     lake = tmp_path / "lake"
     [done] = ingest([bag], lake)
     assert done.error is None and done.committed > 0
@@ -70,3 +71,41 @@ def test_a_missing_report_is_restored_from_the_run(bag: Path, tmp_path: Path) ->
     [again] = ingest([bag], lake)
     assert again.already and again.error is None
     assert report.read_bytes() == kept
+
+
+def test_a_session_merge_killed_at_every_step_then_rerun_equals_an_uninterrupted_one(
+    bag: Path, tmp_path: Path
+) -> None:
+    """Pieces without run_started make a provisional run; the piece holding it then merges
+    that run into the session's run and removes it. Killed between any two steps (the new run
+    committed, the old one not yet removed; the reports not yet rewritten), the re-run must
+    finish the merge: every event id once, the lake as an uninterrupted ingest leaves it."""
+    pieces = split_ros1(bag, tmp_path / "split", duration_s=2.0)
+    assert len(pieces) == 3
+    template = tmp_path / "template"
+    ingest(pieces[1:], template)
+    [provisional] = BagLake(template).lake.runs()
+    assert not provisional.identity.get("run_id")
+    lake = tmp_path / "lake"
+    argv = ["ingest", str(pieces[0]), "--lake", str(lake), "--no-progress"]
+    with KillServer(tmp_path) as server:
+        shutil.copytree(template, lake)
+        assert server.run(argv).code == 0
+        reference = tree(lake)
+        [run] = BagLake(lake).lake.runs()
+        assert run.identity.get("run_id") and run.run != provisional.run
+        n = 0
+        while True:
+            n += 1
+            shutil.rmtree(lake)
+            shutil.copytree(template, lake)
+            outcome = server.run(argv, kill_after=n)
+            if not outcome.killed:
+                assert outcome.code == 0, outcome.output
+                assert tree(lake) == reference
+                break
+            again = server.run(argv)
+            assert again.code == 0, f"re-run after a kill at step {n}: {again.output}"
+            assert tree(lake) == reference, f"kill at step {n}: the re-run left another lake"
+            assert n < 200
+    assert n > 5  # the merge has steps: the run's commit, the old run's removal, the reports
