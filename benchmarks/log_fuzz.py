@@ -1,13 +1,22 @@
-"""The event-log fuzzer at benchmark size: ≥ 10,000 seeded mutations of a real log.
+"""The event-log batteries at benchmark size: seeded damage to real logs and snapshots.
 
-    python benchmarks/log_fuzz.py                 # 10,000 cases, seed 0
+    python benchmarks/log_fuzz.py                 # 10,000 writer cases, seed 0, and the rest
     python benchmarks/log_fuzz.py --cases 50000 --seed 7
 
-Prints how the next writer met each damaged log (refused with an error / opened unchanged /
-torn fragment cut and kept aside / the two cases undetectable by design / traceback / silent
-change), per mutation, and the time per case. Exit status 1 if any case crashed the writer or
-changed a fact without an error. The suite runs the same harness with 2,000 cases
-(tests/events/test_logfuzz.py).
+Four batteries, each printed as tried / clear error / unchanged / traceback / silent change /
+loss (the last three must be 0; exit status 1 otherwise):
+
+- **writer**: the next writer opens each damaged log and appends (refused with an error / opened
+  unchanged; the cases undetectable by design are counted apart);
+- **restart**: the same, opened as an agent restarting from a snapshot does (``verify="sealed"``:
+  the prefix checked by its seals) — it must refuse whatever the full check refuses;
+- **repair**: ``objsearch log repair`` on damaged 300-event logs, then a verify and an append:
+  nothing neither kept nor quarantined (loss), no kept event that is not the one written, no
+  removed seq or id reused; also how many repairs moved intact records out, by mutation;
+- **snapshot**: attested snapshots damaged every way, restored: always the log's fold, a
+  rejected one said in one log line.
+
+The suite runs smaller versions of each (tests/events/test_logfuzz.py).
 """
 
 from __future__ import annotations
@@ -16,27 +25,82 @@ import argparse
 import sys
 import time
 
-from objsearch.events.logfuzz import run_log_fuzz
+from objsearch.events.logfuzz import run_log_fuzz, run_repair_fuzz, run_snapshot_fuzz
+
+HEADER = f"{'battery':9} {'tried':>7} {'clear error':>12} {'unchanged':>10} {'traceback':>10} {'silent change':>14} {'loss':>5}"
+
+
+def row(name: str, tried: int, error: int, same: int, tb: int, silent: int, loss: int) -> str:
+    return f"{name:9} {tried:7d} {error:12d} {same:10d} {tb:10d} {silent:14d} {loss:5d}"
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", type=int, default=10_000)
+    parser.add_argument("--cases", type=int, default=10_000, help="writer cases (10,000)")
+    parser.add_argument("--repairs", type=int, default=2_000, help="repair cases (2,000)")
+    parser.add_argument("--snapshots", type=int, default=1_000, help="snapshot cases (1,000)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--events", type=int, default=30, help="events in each base log (30)")
+    parser.add_argument("--events", type=int, default=30, help="events in each writer log (30)")
     args = parser.parse_args()
-    if args.cases < 1 or args.events < 6:
-        parser.error("--cases must be >= 1 and --events >= 6")
+    if min(args.cases, args.repairs, args.snapshots) < 1 or args.events < 6:
+        parser.error("--cases, --repairs and --snapshots must be >= 1 and --events >= 6")
+    rows, failures, ok = [], [], True
+    for name, verify in (("writer", "all"), ("restart", "sealed")):
+        start = time.perf_counter()
+        report = run_log_fuzz(args.cases, seed=args.seed, events=args.events, verify=verify)
+        print(f"{name}: {report.summary()} ({time.perf_counter() - start:.1f} s)")
+        for key, count in sorted(report.by_mutation.items()):
+            print(f"  {key:45} {count:6d}")
+        # undetectable by design (a clean prefix past the mark, a forgery past it): unchanged
+        same = report.unchanged + report.torn_kept + report.clean_prefix + report.forged
+        rows.append(
+            row(name, report.tried, report.refused, same, report.traceback, report.silent_change, 0)
+        )
+        failures += report.failures
+        ok &= report.ok
     start = time.perf_counter()
-    report = run_log_fuzz(args.cases, seed=args.seed, events=args.events)
-    elapsed = time.perf_counter() - start
-    print(f"log fuzz, seed {args.seed}, {args.events}-event logs: {report.summary()}")
-    for key, count in sorted(report.by_mutation.items()):
+    repair = run_repair_fuzz(args.repairs, seed=args.seed, events=300)
+    print(f"repair (300-event logs): {repair.summary()} ({time.perf_counter() - start:.1f} s)")
+    for key, count in sorted(repair.by_mutation.items()):
         print(f"  {key:45} {count:6d}")
-    print(f"{elapsed:.1f} s ({1000 * elapsed / report.tried:.2f} ms per case)")
-    for failure in report.failures[:20]:
+    print(
+        "  repairs that moved ≥ 1 intact record out, by mutation:", dict(repair.moved_by_mutation)
+    )
+    rows.append(
+        row(
+            "repair",
+            repair.tried,
+            repair.clear_error,
+            repair.unchanged + repair.repaired + repair.forged,
+            repair.traceback,
+            repair.silent_change,
+            repair.loss,
+        )
+    )
+    failures += repair.failures
+    ok &= repair.ok
+    start = time.perf_counter()
+    snaps = run_snapshot_fuzz(args.snapshots, seed=args.seed)
+    print(f"snapshot: {snaps.summary()} ({time.perf_counter() - start:.1f} s)")
+    rows.append(
+        row(
+            "snapshot",
+            snaps.tried,
+            snaps.rebuilt,
+            snaps.unchanged,
+            snaps.traceback,
+            snaps.silent_change,
+            0,
+        )
+    )
+    failures += snaps.failures
+    ok &= snaps.ok
+    print()
+    print(HEADER)
+    print("\n".join(rows))
+    for failure in failures[:20]:
         print("FAILURE", failure)
-    return 0 if report.ok else 1
+    return 0 if ok else 1
 
 
 if __name__ == "__main__":

@@ -30,7 +30,7 @@ from .envelope import Event, deterministic_event_id
 from .errors import InvalidEventError
 from .record import RECORD_SEPARATOR, RecordError, decode_record, record_checksum
 
-Kind = Literal["checksum", "bit", "body", "unproven"]
+Kind = Literal["extra", "lost", "checksum", "bit", "body", "unproven"]
 
 _POLY: Final = 0xEDB88320  # CRC-32 (reflected), as zlib computes it
 _TABLE: Final = tuple(
@@ -55,6 +55,8 @@ class Diagnosis:
     reason: str
     #: the record as its writer wrote it, when that could be recovered ("checksum", "bit")
     original: bytes | None = None
+    #: "lost": the seq this intact record holds (the seqs before it are lost)
+    found_seq: int = 0
 
 
 def diagnose(
@@ -81,14 +83,24 @@ def diagnose(
         )
     computed = zlib.crc32(body, prev)
 
-    def proves(value: int) -> bool:
+    def proves(value: int, *, expect: int = seq + 1) -> bool:
         if witness.next_line is not None:
             try:
                 event, _ = decode_record(witness.next_line, value)
             except RecordError:
                 return False
-            return event.seq == seq + 1 and event.stream == stream
-        return witness.mark_checksum is None or witness.mark_checksum == value
+            return event.seq == expect and event.stream == stream
+        return witness.mark_checksum is not None and witness.mark_checksum == value
+
+    # Not a record of this place at all: the next line continues the chain from the previous
+    # record, as if this line were not there (a duplicated or inserted line).
+    if witness.next_line is not None and proves(prev, expect=seq):
+        return Diagnosis(
+            "extra",
+            prev,
+            "a line out of place (duplicated, inserted or moved): the next record continues "
+            "the chain from the record before it",
+        )
 
     def witness_is_ours() -> bool:
         """The witness was written by this log's writer: the high-water mark, or a next record
@@ -102,6 +114,25 @@ def diagnose(
         )
 
     event = _event_of(body)
+    if (
+        event is not None
+        and event.stream == stream
+        and event.seq > seq
+        and event.event_id == deterministic_event_id(id_key, event.seq)
+    ):
+        # This log's own record of a later seq: the lines before it were lost. Its checksum
+        # chains from its lost predecessor's, which CRC-32's linearity recovers from it.
+        before = chain_before(body, stored) if stored is not None else None
+        if before is not None and (
+            witness.next_line is None or proves(stored or 0, expect=event.seq + 1)
+        ):
+            return Diagnosis(
+                "lost",
+                before,
+                f"the records of seqs {seq}..{event.seq - 1} before it are missing from the "
+                f"file; this one (seq {event.seq}) is intact and this log's own",
+                found_seq=event.seq,
+            )
     if _belongs(event, seq, stream) and proves(computed):
         return Diagnosis(
             "checksum",
@@ -110,21 +141,30 @@ def diagnose(
             "the next record)",
             body + sep + b"%08x" % computed,
         )
-    if stored is None or not proves(stored):
+    if stored is None:
         return Diagnosis("unproven", None, "")
     flipped = single_bit_error(computed ^ stored, len(body))
     if flipped is not None:
         index, bit = flipped
         fixed = bytearray(body)
         fixed[index] ^= 1 << bit
-        if _belongs(_event_of(bytes(fixed)), seq, stream):
+        original = _event_of(bytes(fixed))
+        # One flipped bit that turns it back into this log's own record at this seq is proof
+        # enough (a chance match is ~1 in 10^5 of random damage, and must also parse as that
+        # record); the next record's chain, when there is one, proves it again.
+        if _belongs(original, seq, stream) and (
+            proves(stored)
+            or (original is not None and original.event_id == deterministic_event_id(id_key, seq))
+        ):
             return Diagnosis(
                 "bit",
                 stored,
                 f"one bit of it was flipped (byte {index} of the record, bit {bit}): the original "
-                "is recovered exactly, proven by its own checksum and the next record's",
+                "is recovered exactly, proven by its own checksum",
                 bytes(fixed) + sep + crc,
             )
+    if not proves(stored):
+        return Diagnosis("unproven", None, "")
     ours = _belongs(event, seq, stream) and (
         event is not None and event.event_id == deterministic_event_id(id_key, seq)
     )
@@ -138,6 +178,33 @@ def diagnose(
         "its bytes were damaged in more than one bit (or edited): they no longer match its "
         "checksum, which the next record proves is the one its writer wrote",
     )
+
+
+def chain_before(body: bytes, checksum: int) -> int | None:
+    """The chain value ``prev`` with ``zlib.crc32(body, prev) == checksum``: CRC-32 is affine
+    in its starting value, so a 32 × 32 system over GF(2) gives it (None if singular)."""
+    base = zlib.crc32(body, 0)
+    columns = [zlib.crc32(body, 1 << k) ^ base for k in range(32)]
+    # Gaussian elimination on rows (bit i of every column) | bit i of the target.
+    target = checksum ^ base
+    rows = []
+    for i in range(32):
+        row = sum(((columns[k] >> i) & 1) << k for k in range(32))
+        rows.append((row, (target >> i) & 1))
+    solution = 0
+    pivots: list[tuple[int, int, int]] = []
+    for k in range(32):
+        pivot = next((r for r in range(len(rows)) if (rows[r][0] >> k) & 1), None)
+        if pivot is None:
+            return None
+        prow, pval = rows.pop(pivot)
+        rows = [(r ^ prow, v ^ pval) if (r >> k) & 1 else (r, v) for r, v in rows]
+        pivots.append((k, prow, pval))
+    for k, prow, pval in reversed(pivots):
+        others = prow & ~(1 << k)
+        bit = pval ^ (bin(others & solution).count("1") & 1)
+        solution |= bit << k
+    return solution if zlib.crc32(body, solution) == checksum else None
 
 
 def single_bit_error(syndrome: int, length: int) -> tuple[int, int] | None:

@@ -271,6 +271,13 @@ class _Scan:
                 chained=self.meta.chained,
                 witness=witness,
             )
+            if found.kind == "extra":
+                return f"{found.reason} ({reason})"
+            if found.kind == "lost":
+                return (
+                    f"this log's record of seq {found.found_seq} stands where seq {at.seq + 1} "
+                    f"belongs: the records before it are missing or out of order ({reason})"
+                )
             if found.kind != "unproven":
                 return f"record at seq {at.seq + 1} is damaged: {found.reason} ({reason})"
         if line.endswith(b"\r"):
@@ -527,7 +534,7 @@ class EventLog:
             for _ in scan:
                 pass
         else:
-            sealer = Sealer()
+            sealer = Sealer(crc=meta.genesis)
             scan = _Scan(log_path, meta, registry=registry, durable=durable, ids=ids, sealer=sealer)
             for _ in scan:
                 pass
@@ -898,7 +905,7 @@ def _check_sealed(
     reader gives); if they all verify, the seals themselves are what is damaged."""
     assert record.seals is not None
     path = directory / LOG_FILE
-    bad = check_seals(path, record.seals)
+    bad = check_seals(path, record.seals, meta.genesis)
     if bad is None:
         return
     scan = _Scan(path, meta, registry=registry, durable=record.position)
@@ -906,8 +913,9 @@ def _check_sealed(
         pass
     raise CorruptLogError(
         f"corrupt event log {path}: bytes {bad.start}..{bad.end} do not match their seal "
-        f"(CRC-32 {bad.crc:08x} in {DURABLE_FILE}) though every record there verifies: "
-        f"{DURABLE_FILE} is damaged; the log was not changed (`objsearch log repair` rewrites it)",
+        f"(CRC-32 {bad.crc:08x} in {DURABLE_FILE}, the first one seeded from {META_FILE}) "
+        f"though every record there verifies: {DURABLE_FILE} is damaged; the log was not "
+        "changed (`objsearch log repair` rewrites it)",
         path=str(directory / DURABLE_FILE),
         line=0,
         offset=bad.start,

@@ -25,6 +25,7 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, ClassVar
 
 from .envelope import Event
 from .errors import EventStoreError, TornTailWarning
@@ -316,8 +317,10 @@ def _write_files(directory: Path, files: Files) -> None:
         (directory / name).write_bytes(data)
 
 
-def run_log_fuzz(cases: int, *, seed: int = 0, events: int = 30) -> FuzzReport:
-    """Run ``cases`` seeded mutations; see the module docstring for what each must satisfy."""
+def run_log_fuzz(cases: int, *, seed: int = 0, events: int = 30, verify: str = "all") -> FuzzReport:
+    """Run ``cases`` seeded mutations; see the module docstring for what each must satisfy.
+    ``verify="sealed"`` opens each damaged log as an agent restarting from a snapshot does
+    (the prefix checked by its seals): it must meet the same promise."""
     rng = random.Random(seed)
     report = FuzzReport()
     with tempfile.TemporaryDirectory(prefix="objsearch-logfuzz-") as tmp:
@@ -338,7 +341,7 @@ def run_log_fuzz(cases: int, *, seed: int = 0, events: int = 30) -> FuzzReport:
             directory = root / f"case-{case}"
             directory.mkdir()
             _write_files(directory, files)
-            outcome = _open_as_writer(directory, files, original)
+            outcome = _open_as_writer(directory, files, original, verify)
             if outcome.startswith("changed past the mark"):
                 outcome = "forged" if mutation is edit_value_rechained else "silent change"
             report.tried += 1
@@ -364,7 +367,9 @@ def run_log_fuzz(cases: int, *, seed: int = 0, events: int = 30) -> FuzzReport:
     return report
 
 
-def _open_as_writer(directory: Path, files: Files, original: list[Event]) -> str:
+def _open_as_writer(
+    directory: Path, files: Files, original: list[Event], verify: str = "all"
+) -> str:
     """What the next writer does with the damaged log, classified."""
     quiet = logging.getLogger("objsearch.events.log")
     level = quiet.level
@@ -372,7 +377,7 @@ def _open_as_writer(directory: Path, files: Files, original: list[Event]) -> str
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", TornTailWarning)
-            log = EventLog.open(directory, STREAM)
+            log = EventLog.open(directory, STREAM, verify=verify)
             with log:
                 log.append("search_failed", {"reason": "next"}, time_ns=log.last_time_ns)
                 torn = log.torn_tail
@@ -421,3 +426,280 @@ def _acknowledged_before_mark(files: Files) -> set[int]:
     except (KeyError, ValueError, TypeError):
         return set()
     return set(range(1, int(mark) + 1)) if isinstance(mark, int) else set()
+
+
+# -- repair: the same damage, then `objsearch log repair` ------------------------------------
+
+
+@dataclass
+class RepairReport:
+    """How ``repair_log`` met each damaged log. ``loss``: a record the damaged file still held
+    that is neither in the repaired log nor in a quarantine file; ``silent_change``: a repaired
+    log that does not verify, holds an event that is not the one written at its seq, or hands a
+    removed record's seq or id to the next append."""
+
+    tried: int = 0
+    clear_error: int = 0  # refused with an error naming the problem, nothing changed
+    unchanged: int = 0  # nothing to repair (the damage was harmless or past what a writer reads)
+    repaired: int = 0
+    forged: int = 0  # a re-chained edit: undetectable by design, kept as written
+    traceback: int = 0
+    silent_change: int = 0
+    loss: int = 0
+    #: per repair: records the damaged file held intact that the repair moved out anyway
+    intact_moved_out: list[int] = field(default_factory=list)
+    #: per mutation: repairs that moved ≥ 1 intact record out
+    moved_by_mutation: Counter[str] = field(default_factory=Counter)
+    by_mutation: Counter[str] = field(default_factory=Counter)
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return self.traceback == 0 and self.silent_change == 0 and self.loss == 0
+
+    def summary(self) -> str:
+        moved = self.intact_moved_out
+        return (
+            f"tried {self.tried}: clear error {self.clear_error}, unchanged {self.unchanged}, "
+            f"repaired {self.repaired} (forged, kept as written: {self.forged}), traceback "
+            f"{self.traceback}, silent change {self.silent_change}, loss {self.loss}; repairs "
+            f"that moved intact records out: {sum(1 for m in moved if m)} "
+            f"(≥ 100: {sum(1 for m in moved if m >= 100)}; {sum(moved)} records in all)"
+        )
+
+
+def run_repair_fuzz(cases: int, *, seed: int = 0, events: int = 300) -> RepairReport:
+    """``cases`` seeded mutations of a closed and a crashed log, each repaired; see
+    :class:`RepairReport` for what counts as a failure."""
+    from .repair import repair_log, verify_log
+
+    rng = random.Random(seed)
+    report = RepairReport()
+    with tempfile.TemporaryDirectory(prefix="objsearch-repairfuzz-") as tmp:
+        root = Path(tmp)
+        bases: dict[str, tuple[Files, list[Event]]] = {}
+        for name, run, crash in (
+            ("closed", "00000000-0000-4000-8000-000000000001", None),
+            ("crashed", "00000000-0000-4000-8000-000000000002", 2 * events // 3),
+            ("other", "00000000-0000-4000-8000-000000000003", None),
+        ):
+            _make_log(root / name, run, events, crash_after=crash)
+            bases[name] = (_read_files(root / name), list(read_log(root / name)))
+        quiet = logging.getLogger("objsearch.events.log")
+        level = quiet.level
+        quiet.setLevel(logging.ERROR)
+        try:
+            for case in range(cases):
+                victim = "closed" if case % 2 == 0 else "crashed"
+                files, original = dict(bases[victim][0]), bases[victim][1]
+                mutation = MUTATIONS[rng.randrange(len(MUTATIONS))]
+                what = f"case {case} ({victim} log): " + mutation(rng, files, bases["other"][0])
+                directory = root / f"case-{case}"
+                directory.mkdir()
+                _write_files(directory, files)
+                outcome, moved = _repair_case(
+                    directory, files, bases[victim][0][LOG_FILE], original, repair_log, verify_log
+                )
+                if outcome.startswith("silent change: seq") and mutation is edit_value_rechained:
+                    outcome = "forged"  # re-chained past the high-water mark: undetectable
+                report.tried += 1
+                report.by_mutation[f"{mutation.__name__}: {outcome}"] += 1
+                if moved is not None:
+                    report.intact_moved_out.append(moved)
+                    if moved:
+                        report.moved_by_mutation[mutation.__name__] += 1
+                if outcome in ("clear error", "unchanged", "repaired", "forged"):
+                    attr = outcome.replace(" ", "_")
+                    setattr(report, attr, getattr(report, attr) + 1)
+                else:
+                    kind = outcome.partition(": ")[0]
+                    attr = kind.replace(" ", "_")
+                    setattr(report, attr, getattr(report, attr) + 1)
+                    report.failures.append(f"{what}: {outcome}")
+                shutil.rmtree(directory)
+        finally:
+            quiet.setLevel(level)
+    return report
+
+
+def _repair_case(
+    directory: Path,
+    files: Files,
+    written_log: bytes,
+    original: list[Event],
+    repair_log: Callable[[Path], Any],
+    verify_log: Callable[[Path], Any],
+) -> tuple[str, int | None]:
+    """(outcome, intact records moved out) of repairing one damaged log; ``written_log`` is
+    the undamaged events.log whose records are ``original``."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", TornTailWarning)
+            result = repair_log(directory)
+            verify_log(directory)
+            after = list(read_log(directory, upcast=False))
+            with EventLog.open(directory, STREAM) as log:
+                appended = log.append("search_failed", {"reason": "next"}, time_ns=log.last_time_ns)
+    except EventStoreError as exc:
+        if _read_files(directory) != files:
+            return f"silent change: refused ({exc}), but changed files", None
+        return "clear error", None
+    except Exception:
+        return "traceback: " + traceback.format_exc(limit=4).replace("\n", " | "), None
+    written = {e.seq: e for e in original}
+    for event in after:
+        if event.type != "record_quarantined" and written.get(event.seq) != event:
+            return f"silent change: seq {event.seq} is not the event written there", None
+    damaged_lines = set(_lines(files.get(LOG_FILE, b"")))
+    record_lines = list(zip(_lines(written_log), original, strict=True))
+    kept_lines = set(_lines((directory / LOG_FILE).read_bytes()))
+    quarantined = b"".join(
+        p.read_bytes() for p in directory.iterdir() if p.name.startswith(QUARANTINE_PREFIX)
+    )
+    still_there = [(line, e) for line, e in record_lines if line in damaged_lines]
+    lost = [e.seq for line, e in still_there if line not in kept_lines and line not in quarantined]
+    if lost:
+        return f"loss: seqs {lost[:5]} neither kept nor quarantined", None
+    mark = _acknowledged_before_mark(files)
+    known = {e.event_id for _, e in still_there} | {e.event_id for e in original if e.seq in mark}
+    if appended.event_id in known - {e.event_id for e in after}:
+        return f"silent change: the next append (seq {appended.seq}) reused a removed id", None
+    moved = sum(1 for line, _ in still_there if line not in kept_lines)
+    return ("repaired" if result.changed else "unchanged"), moved
+
+
+# -- snapshots: a restore trusts only what the log's writer attested -------------------------
+
+
+class _Counts:
+    """A small snapshottable projection: events per type (what the fuzzer restores)."""
+
+    snapshot_name: ClassVar[str] = "counts"
+    snapshot_version: ClassVar[int] = 1
+
+    def __init__(self, counts: dict[str, int] | None = None, last_seq: int = 0) -> None:
+        self.counts = dict(counts or {})
+        self.last_seq = last_seq
+
+    @property
+    def state(self) -> dict[str, int]:
+        return self.counts
+
+    def apply(self, event: Event) -> None:
+        self.counts[event.type] = self.counts.get(event.type, 0) + 1
+        self.last_seq = event.seq
+
+    def to_snapshot(self) -> dict[str, Any]:
+        return {"counts": self.counts}
+
+    @classmethod
+    def from_snapshot(cls, state: dict[str, Any], last_seq: int) -> _Counts:
+        counts = state["counts"]
+        if not (isinstance(counts, dict) and all(type(v) is int for v in counts.values())):
+            raise ValueError("counts: not a mapping of type to count")
+        return cls(counts, last_seq)
+
+
+@dataclass
+class SnapshotReport:
+    tried: int = 0
+    rebuilt: int = 0  # not trusted: logged once, rebuilt from the log (the clear error)
+    unchanged: int = 0  # the damage left the snapshot byte for byte valid (or it was trusted)
+    traceback: int = 0
+    silent_change: int = 0  # restored state differs from the log's fold
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return self.traceback == 0 and self.silent_change == 0
+
+    def summary(self) -> str:
+        return (
+            f"tried {self.tried}: rebuilt with one log line {self.rebuilt}, trusted unchanged "
+            f"{self.unchanged}, traceback {self.traceback}, silent change {self.silent_change}, "
+            "loss 0 (a restore never writes the log)"
+        )
+
+
+def run_snapshot_fuzz(cases: int, *, seed: int = 0, events: int = 60) -> SnapshotReport:
+    """Damage an attested snapshot every way (flipped bits, edited state with its CRC
+    recomputed, another log's snapshot, a stale one, malformed state, truncation) and restore:
+    the result must equal the log's fold every time."""
+    from .projection import fold
+    from .snapshot import restore, save_snapshot, snapshot_path
+
+    rng = random.Random(seed)
+    report = SnapshotReport()
+    with tempfile.TemporaryDirectory(prefix="objsearch-snapfuzz-") as tmp:
+        root = Path(tmp)
+        logs = {}
+        for name, run in (("mine", "01"), ("other", "02")):
+            _make_log(root / name, f"00000000-0000-4000-8000-0000000000{run}", events)
+            save_snapshot(
+                root / f"{name}-snaps", fold(read_log(root / name), _Counts()), log=root / name
+            )
+            logs[name] = snapshot_path(root / f"{name}-snaps", "counts").read_bytes()
+        truth = fold(read_log(root / "mine"), _Counts()).counts
+        path = snapshot_path(root / "mine-snaps", "counts")
+        quiet = logging.getLogger("objsearch.events.snapshot")
+        for case in range(cases):
+            data = bytearray(logs["mine"])
+            kind = rng.choice(["flip", "edit", "other", "truncate", "malformed", "none"])
+            if kind == "flip":
+                data[rng.randrange(len(data))] ^= 1 << rng.randrange(8)
+            elif kind in ("edit", "malformed"):
+                doc = json.loads(bytes(data))
+                del doc["crc32"]
+                if kind == "edit":
+                    key = rng.choice(sorted(doc["state"]["counts"]))
+                    doc["state"]["counts"][key] += rng.randint(1, 5)
+                else:
+                    doc["state"] = rng.choice([{}, {"counts": [1]}, None, {"counts": {"x": "1"}}])
+                text = json.dumps(doc, sort_keys=True, separators=(",", ":"))
+                data = bytearray(
+                    (text[:-1] + f',"crc32":"{zlib.crc32(text.encode()):08x}"}}\n').encode()
+                )
+            elif kind == "other":
+                data = bytearray(logs["other"])
+            elif kind == "truncate":
+                data = data[: rng.randrange(len(data))]
+            path.write_bytes(bytes(data))
+            report.tried += 1
+            records: list[logging.LogRecord] = []
+            handler = _Collect(records)
+            quiet.addHandler(handler)
+            try:
+                restored, how = restore(
+                    root / "mine",
+                    _Counts,
+                    _Counts.from_snapshot,
+                    snapshot_dir=path.parent,
+                    save=False,
+                )
+            except Exception:
+                report.traceback += 1
+                report.failures.append(f"case {case} ({kind}): " + traceback.format_exc(limit=3))
+                continue
+            finally:
+                quiet.removeHandler(handler)
+            if restored.counts != truth:
+                report.silent_change += 1
+                report.failures.append(f"case {case} ({kind}): restored {restored.counts}")
+            elif how.rejected is not None:
+                if len(records) != 1:
+                    report.failures.append(f"case {case} ({kind}): {len(records)} log lines")
+                    report.silent_change += 1
+                else:
+                    report.rebuilt += 1
+            else:
+                report.unchanged += 1
+    return report
+
+
+class _Collect(logging.Handler):
+    def __init__(self, records: list[logging.LogRecord]) -> None:
+        super().__init__(logging.INFO)
+        self.records = records
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.records.append(record)

@@ -7,6 +7,7 @@ takes out of ``events.log`` go to a quarantine file beside it, named in its repo
 
 from __future__ import annotations
 
+import json
 import os
 import time
 import uuid
@@ -16,12 +17,13 @@ from pathlib import Path
 
 from . import _fs
 from .diagnose import Witness, diagnose
-from .envelope import EVENT_ID_NAMESPACE, Event
+from .envelope import EVENT_ID_NAMESPACE, Event, deterministic_event_id
 from .errors import CorruptLogError, LogLockedError
 from .log import (
     DURABLE_FILE,
     LOCK_FILE,
     LOG_FILE,
+    META_FILE,
     QUARANTINE_PREFIX,
     QUARANTINED_TYPE,
     BadRecord,
@@ -39,7 +41,7 @@ from .log import (
 )
 from .record import encode_record
 from .schemas import default_registry
-from .seal import Sealer
+from .seal import Sealer, check_seals
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,7 +62,8 @@ class Verification:
 class RepairAction:
     """One thing :func:`repair_log` did, at one place of the original file."""
 
-    kind: str  # "checksum-rewritten", "bit-restored", "quarantined", "cut", "missing"
+    #: "checksum-rewritten", "bit-restored", "quarantined", "extra", "lost", "cut", "missing"
+    kind: str
     first_seq: int  # the seq(s) it concerns
     last_seq: int
     line: int  # line (1-based) and byte offset in the file as it was (the end, for "missing")
@@ -146,15 +149,17 @@ def repair_log(directory: Path | str, *, wall_clock: Callable[[], int] = time.ti
 def _repair_locked(directory: Path, meta: LogMeta, wall_clock: Callable[[], int]) -> Repair:
     path = directory / LOG_FILE
     data = path.read_bytes()
+    damaged_mark: str | None = None
     try:
         record = read_durable_record(directory)
-    except CorruptLogError:
-        quarantine(directory, "durable-damaged", (directory / DURABLE_FILE).read_bytes())
-        record = None
+    except CorruptLogError as exc:
+        damaged_mark, record = str(exc), None
     durable = None if record is None else record.position
-    problem = _first_problem(directory, meta, record)
+    problem = _first_problem(directory, meta, record) or damaged_mark
     if problem is None:
         return Repair(directory, False, *_count(path, meta), 0, 0, None, None, None)
+    if damaged_mark is not None:
+        quarantine(directory, "durable-damaged", (directory / DURABLE_FILE).read_bytes())
     if _is_crlf(data):
         converted = data.replace(b"\r\n", b"\n")
         plan = _plan(converted, meta, durable, wall_clock, directory)
@@ -164,6 +169,7 @@ def _repair_locked(directory: Path, meta: LogMeta, wall_clock: Callable[[], int]
             _write_mark(directory, plan.at)
             return Repair(directory, True, plan.events, plan.at.seq, 0, 0, problem, original, None)
     plan = _plan(data, meta, durable, wall_clock, directory)
+    _refuse_what_repair_cannot_judge(directory, meta, data, plan, record)
     kept: Path | None = None
     if plan.removed:
         kept = directory / plan.quarantine_name
@@ -190,6 +196,42 @@ def _repair_locked(directory: Path, meta: LogMeta, wall_clock: Callable[[], int]
     )
 
 
+def _refuse_what_repair_cannot_judge(
+    directory: Path, meta: LogMeta, data: bytes, plan: _Plan, record: DurableRecord | None
+) -> None:
+    """Raise :class:`CorruptLogError` (nothing changed) where a repair would be a guess."""
+    path = directory / LOG_FILE
+    if plan.events == 0 and data.count(b"\n") > 0 and not plan.actions_before_cut():
+        raise CorruptLogError(
+            f"cannot repair {path}: not one record belongs to the log meta.json describes "
+            f"(stream {meta.stream!r}, run id {meta.run_id}): meta.json was probably edited or "
+            "replaced, and a repair would move every record out; restore meta.json (nothing "
+            "was changed)",
+            path=str(directory / META_FILE),
+            line=1,
+            offset=0,
+        )
+    durable = None if record is None else record.position
+    if (
+        durable is not None
+        and plan.mark_chain is not None
+        and plan.mark_chain != durable.checksum
+        and record is not None
+        and record.seals
+        and check_seals(path, record.seals, meta.genesis) is not None
+    ):
+        raise CorruptLogError(
+            f"cannot repair {path}: every record verifies, but the chain does not reach the "
+            f"checksum its writer closed it with at seq {durable.seq}, and the bytes do not "
+            "match their seals: records before the high-water mark were edited and their "
+            "checksums recomputed. Which ones cannot be told from the log; compare it with a "
+            "copy (nothing was changed)",
+            path=str(path),
+            line=durable.line,
+            offset=durable.offset,
+        )
+
+
 def _first_problem(directory: Path, meta: LogMeta, record: DurableRecord | None) -> str | None:
     durable = None if record is None else record.position
     scan = _Scan(directory / LOG_FILE, meta, registry=default_registry(), durable=durable)
@@ -212,7 +254,7 @@ def _count(path: Path, meta: LogMeta) -> tuple[int, int]:
 
 
 def _write_mark(directory: Path, at: _Cursor) -> None:
-    sealer = Sealer()
+    sealer = Sealer(crc=read_meta(directory).genesis)
     sealer.add_file_range(directory / LOG_FILE, 0, at.offset)
     mark = LogPosition(at.seq, at.offset, at.checksum, at.line, at.time_ns)
     write_durable(directory, mark, sealer.seals())
@@ -232,6 +274,11 @@ class _Plan:
     events: int = 0
     end: int = 0  # bytes of the original file read as kept records
     missing: tuple[int, int] | None = None
+    mark_seq: int = 0  # the durable mark's seq, and the chain value the repair reached there
+    mark_chain: int | None = None
+
+    def actions_before_cut(self) -> bool:
+        return any(a.kind != "cut" and a.kind != "missing" for a in self.actions)
 
     def keep(self, line: bytes, event: Event, chain: int) -> None:
         self.lines.append(line + b"\n")
@@ -241,6 +288,8 @@ class _Plan:
         at.seq = event.seq
         at.checksum = chain
         at.time_ns = event.time_ns
+        if event.seq == self.mark_seq and not self.actions:
+            self.mark_chain = chain  # every record up to the mark verified as it stands
         if event.type != QUARANTINED_TYPE:
             self.events += 1
 
@@ -283,7 +332,7 @@ def _plan(
     directory: Path,
 ) -> _Plan:
     registry = default_registry()
-    plan = _Plan(meta, wall_clock)
+    plan = _Plan(meta, wall_clock, mark_seq=0 if durable is None else durable.seq)
     plan.at.checksum = meta.genesis
     lines = data.split(b"\n")
     lines.pop()  # the unterminated fragment after the last newline (b"" if none): part of the tail
@@ -318,16 +367,48 @@ def _plan(
                 )
             if found is None or found.kind == "unproven":
                 break
+            restored = None
+            if found.original is not None:
+                try:
+                    restored = check_record(found.original, at, meta, registry)
+                except BadRecord:
+                    break  # recovered bytes that are still not the next record: prove nothing
             if first_change is None:
                 first_change = offsets[i]
                 plan.quarantine_name = _quarantine_name(directory, first_change)
             kept_at = len(plan.removed)
             plan.removed += line + b"\n"
             seq = at.seq + 1
-            if found.original is not None:
-                event, chain = check_record(found.original, at, meta, registry)
-                plan.keep(found.original, event, chain)
+            if restored is not None and found.original is not None:
+                plan.keep(found.original, *restored)
                 kind = "checksum-rewritten" if found.kind == "checksum" else "bit-restored"
+            elif found.kind == "lost":
+                plan.removed = plan.removed[:kept_at]  # the line stays: only seqs were lost
+                last = found.found_seq - 1
+                while plan.at.seq < last:
+                    plan.marker(
+                        reason=f"missing: {found.reason}",
+                        offset=0,
+                        length=0,
+                        chain=found.chain if plan.at.seq + 1 == last else None,
+                        kept=False,
+                    )
+                try:
+                    kept_event, chain = check_record(line, plan.at, meta, registry)
+                except BadRecord:
+                    raise AssertionError("a solved chain that does not verify") from None
+                plan.keep(line, kept_event, chain)
+                plan.actions.append(
+                    RepairAction("lost", seq, last, i + 1, offsets[i], found.reason)
+                )
+                i += 1
+                continue
+            elif found.kind == "extra":
+                plan.actions.append(
+                    RepairAction("extra", seq, seq, i + 1, offsets[i], found.reason)
+                )
+                i += 1
+                continue
             else:
                 plan.marker(
                     reason=f"damaged: {found.reason}",
@@ -358,12 +439,13 @@ def _plan(
             else "from here on no record can be proven to belong to this log (spliced, "
             "reordered, copied from another log, two damaged in a row, or lines lost before it)"
         )
-        plan.actions.append(
-            RepairAction("cut", first_seq, plan.at.seq + complete, i + 1, offsets[i], why)
-        )
-        # Every complete line moved out may have been a record at the next seqs: those seqs
-        # are taken by markers, so no later event reuses a removed record's seq or id.
-        for _ in range(complete):
+        # Every seq a removed line may have held is taken by a marker, so no later event reuses
+        # a removed record's seq or id: as many as there were lines, and up to the highest seq
+        # a removed line provably held (this log's own id at that seq; a line may have been
+        # lost before it).
+        last = max(plan.at.seq + complete, _highest_own_seq(lines[i:], meta))
+        plan.actions.append(RepairAction("cut", first_seq, last, i + 1, offsets[i], why))
+        while plan.at.seq < last:
             plan.marker(
                 reason=f"moved out: {why}", offset=kept_at, length=len(tail), chain=None, kept=True
             )
@@ -389,6 +471,25 @@ def _plan(
                 kept=False,
             )
     return plan
+
+
+def _highest_own_seq(lines: list[bytes], meta: LogMeta) -> int:
+    highest = 0
+    key = meta.id_key()
+    for line in lines:
+        try:
+            doc = json.loads(line.rpartition(b"\t")[0])
+            seq = doc["seq"]
+            if (
+                type(seq) is int
+                and seq > highest
+                and doc.get("stream") == meta.stream
+                and doc.get("event_id") == deterministic_event_id(key, seq)
+            ):
+                highest = seq
+        except (ValueError, KeyError, TypeError):
+            continue
+    return highest
 
 
 def _quarantine_name(directory: Path, offset: int) -> str:

@@ -64,9 +64,14 @@ def seals_from_json(doc: Any) -> tuple[Seal, ...]:
 
 
 class Sealer:
-    """The writer's running seals: closed ranges plus the open one it is appending to."""
+    """The writer's running seals: closed ranges plus the open one it is appending to. The
+    first range's CRC starts from the log's genesis value (from ``meta.json``), every other
+    range's from 0."""
 
     def __init__(self, closed: Sequence[Seal] = (), *, start: int = 0, crc: int = 0) -> None:
+        """``crc``: the CRC-32 so far of the open range; for a new log, its genesis value, so
+        the first seal also covers ``meta.json`` (a log whose stream or run id was edited
+        fails it)."""
         self._closed = list(closed)
         self._start = start  # where the open range begins
         self._end = start
@@ -117,8 +122,8 @@ class Sealer:
         return (*self._closed, Seal(self._start, self._end, self._crc))
 
 
-def check_seals(path: Path, seals: Sequence[Seal]) -> Seal | None:
-    """The first seal whose bytes in ``path`` do not match (or that the file is too short for),
+def check_seals(path: Path, seals: Sequence[Seal], genesis: int) -> Seal | None:
+    """(``genesis``: the log's, which the first seal's CRC starts from.) The first seal whose bytes in ``path`` do not match (or that the file is too short for),
     or None if all match. Reads through ``mmap`` and checks ranges on two threads (zlib releases
     the GIL), so the cost is the CRC of the sealed bytes and nothing per record."""
     if not seals:
@@ -137,7 +142,8 @@ def check_seals(path: Path, seals: Sequence[Seal]) -> Seal | None:
             with mmap.mmap(fd, length, flags=_MAP_FLAGS, prot=mmap.PROT_READ, offset=page) as m:
                 view = memoryview(m)
                 try:
-                    return zlib.crc32(view[seal.start - page :]) == seal.crc
+                    seed = genesis if seal.start == 0 else 0
+                    return zlib.crc32(view[seal.start - page :], seed) == seal.crc
                 finally:
                     view.release()
 

@@ -108,6 +108,8 @@ _ACTION_WORDS = {
     "checksum-rewritten": "checksum rewritten, record kept",
     "bit-restored": "flipped bit corrected, record kept",
     "quarantined": "record moved out, its seq kept by a record_quarantined event",
+    "extra": "line moved out (out of place here; no seq lost)",
+    "lost": "missing from the file; the seqs are kept by record_quarantined events",
     "cut": "moved out with everything after it",
     "missing": "already missing from the file, cannot be recovered",
 }

@@ -365,7 +365,7 @@ def test_intact_records_out_of_place_break_the_chain(tmp_path: Path, how: str) -
     raw, donor = lines(tmp_path / "a"), lines(tmp_path / "b")
     if how == "swap":
         raw[1], raw[2] = raw[2], raw[1]
-        line, match = 2, "spliced, reordered"
+        line, match = 2, "a line out of place"
     elif how == "splice":
         raw = raw[:2] + donor[2:]
         line, match = 3, "spliced, reordered"
@@ -597,7 +597,9 @@ def test_a_sealed_restart_checks_every_acknowledged_byte_before_it_appends(
 ) -> None:
     data = bytearray(_sealed_log(tmp_path, 40))
     durable = json.loads((tmp_path / "durable.json").read_bytes())
-    assert durable["seals"] == [[0, len(data), f"{zlib.crc32(data):08x}"]]
+    meta = json.loads((tmp_path / "meta.json").read_bytes())
+    genesis = zlib.crc32(f"{meta['format']}\n{meta['stream']}\n{meta['run_id']}\n".encode())
+    assert durable["seals"] == [[0, len(data), f"{zlib.crc32(data, genesis):08x}"]]
     with EventLog.open(tmp_path, STREAM, verify="sealed") as log:  # clean: appends as usual
         log.append("search_failed", {"reason": "after"}, time_ns=99)
     data = bytearray((tmp_path / "events.log").read_bytes())

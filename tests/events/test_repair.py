@@ -118,12 +118,37 @@ def test_a_flipped_bit_is_corrected_and_damaged_checksum_digits_are_rewritten(
         assert (result.kept_events, result.kept_last_seq) == (6, 6)
 
 
+def test_records_out_of_order_lose_only_their_place(tmp_path: Path) -> None:
+    data = _write(tmp_path, 6)
+    lines = data.splitlines(keepends=True)
+    lines[2], lines[3] = lines[3], lines[2]  # seq 4 where seq 3 belongs, then seq 3
+    (tmp_path / "events.log").write_bytes(b"".join(lines))
+    result = repair_log(tmp_path)
+    assert [(a.kind, a.first_seq, a.line) for a in result.actions] == [
+        ("extra", 3, 3),  # seq 4's record, out of place (seq 3 follows seq 2 in the chain)
+        ("lost", 4, 5),  # seq 4's place: a marker; seq 5 is kept, its chain solved
+    ]
+    assert _reasons(tmp_path) == [
+        (1, "r0"),
+        (2, "r1"),
+        (3, "r2"),
+        (4, "record_quarantined"),
+        (5, "r4"),
+        (6, "r5"),
+    ]
+    assert result.quarantine is not None and result.quarantine.read_bytes() == lines[2]
+
+
 def test_records_that_do_not_belong_are_moved_out_and_their_seqs_stay_taken(
     tmp_path: Path,
 ) -> None:
     data = _write(tmp_path, 6)
+    with EventLog.open(tmp_path / "other", "robot", wall_clock=lambda: 1) as other:
+        for i in range(6):
+            other.append("search_failed", {"reason": f"r{i}"}, time_ns=i)
+    donor = (tmp_path / "other" / "events.log").read_bytes().splitlines(keepends=True)
     lines = data.splitlines(keepends=True)
-    lines[2], lines[3] = lines[3], lines[2]  # reordered: nothing after line 3 can be proven
+    lines[2:] = donor[2:]  # spliced: nothing after line 3 belongs to this log
     damaged = b"".join(lines)
     (tmp_path / "events.log").write_bytes(damaged)
     result = repair_log(tmp_path)
