@@ -69,7 +69,7 @@ import pyarrow.parquet as pq
 from . import _fs
 from .arrow import event_schema, events_to_tables, tables_to_events
 from .derived import DERIVED_DIR, DerivedTable, derive_run, derived_tables
-from .envelope import Event
+from .envelope import Event, deterministic_event_id
 from .errors import EventStoreError
 from .lake_digest import (
     FILES_KEY,
@@ -619,6 +619,7 @@ def compact_log(
                 f"the lake as run {other.run!r} of robot {other.robot!r} ({other.path}, from "
                 f"{other.source}); adding it again would count its events twice"
             )
+    _refuse_runs_holding_events_of(log_dir, meta.id_key(), first.stream, lake, (robot, run))
 
     def all_events() -> Iterable[Event]:
         yield first
@@ -633,6 +634,34 @@ def compact_log(
         replace=replace,
         identity=identity,
     )
+
+
+def _refuse_runs_holding_events_of(
+    log_dir: Path, id_key: str, stream: str, lake: Lake, target: tuple[str, str]
+) -> None:
+    """An event id is in the lake at most once: refuse a log some of whose events a run of
+    unknown run id already holds (the pieces of a recording that started after ``run_started``,
+    ingested first). Its events carry the log's own ids, uuid5(run id, seq)."""
+    for other in lake.runs():
+        if "run_id" in other.identity or (other.robot, other.run) == target:
+            continue
+        for table in lake.read_tables(other).values():
+            if not {"event_id", "seq", "stream"} <= set(table.column_names):
+                continue
+            for event_id, seq, of in zip(
+                table["event_id"].to_pylist(),
+                table["seq"].to_pylist(),
+                table["stream"].to_pylist(),
+                strict=True,
+            ):
+                if of == stream and event_id == deterministic_event_id(id_key, seq):
+                    raise LakeError(
+                        f"event log {log_dir} is already partly in the lake: run "
+                        f"{other.run!r} of robot {other.robot!r} ({other.path}, from "
+                        f"{other.source}) holds its event seq {seq} ({event_id}); adding the log "
+                        "would count those events twice. Move that run's folder out of the lake "
+                        "first (the log holds every event the recording has)"
+                    )
 
 
 def _conform(event_type: str, table: pa.Table) -> pa.Table:

@@ -109,6 +109,21 @@ def test_pieces_of_a_log_already_in_the_lake_are_refused_naming_it(tmp_path: Pat
     assert len(ids) == len(set(ids)) == len(_log())
 
 
+def test_a_log_whose_pieces_are_already_in_the_lake_is_refused_naming_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    lake = tmp_path / "lake"
+    ingest(AGENT_PIECES, lake)
+    [run] = Lake(lake).runs()
+    before = _ids(lake)
+    args = ["lake", "add", str(FIXTURES / "log"), "--lake", str(lake), "--robot", "robot"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("objsearch: error: ") and f"run {run.run!r}" in err
+    assert "count those events twice" in err
+    assert _ids(lake) == before and len(before) == len(set(before))
+
+
 def test_a_piece_of_a_recording_refused_leaves_its_session_out(tmp_path: Path) -> None:
     """The same through the CLI: exit 2, `objsearch: error:` naming the run."""
     lake = tmp_path / "lake"
