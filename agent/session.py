@@ -25,7 +25,7 @@ from objsearch.agent.semmap import SemanticMap
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import World
-from objsearch.events import EventLog, fold, read_log
+from objsearch.events import CorruptLogError, EventLog, fold, read_log
 from objsearch.events.snapshot import restore, save_snapshot
 
 _log = logging.getLogger(__name__)
@@ -288,6 +288,8 @@ class Session:
             if self.snapshot_dir is not None and not self.log.closed and self.state.last_seq:
                 try:
                     save_snapshot(self.snapshot_dir, self.state, log=self.log)
+                except CorruptLogError:
+                    raise  # the log itself is damaged: that is the error, not a missing snapshot
                 except (ObjsearchError, OSError, ValueError) as exc:
                     # The log is the record; a missing snapshot only makes the next start fold it.
                     _log.warning("snapshot not written (%s); the next start folds the log", exc)

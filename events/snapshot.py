@@ -123,10 +123,11 @@ def _save(directory: Path, projection: Snapshottable, writer: EventLog) -> Path:
     text = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False)
     doc = text[:-1] + f',"crc32":"{zlib.crc32(text.encode()):08x}"}}'
     data = doc.encode() + b"\n"
+    # Attested first: a writer that refuses (a damaged log, a failed fsync) leaves no file behind.
+    writer.attest_snapshot(seq, hashlib.sha256(data).hexdigest())
     _fs.make_dirs(directory)
     path = snapshot_path(directory, projection.snapshot_name)
     _fs.write_atomic(path, data)
-    writer.attest_snapshot(seq, hashlib.sha256(data).hexdigest())
     return path
 
 

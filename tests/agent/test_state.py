@@ -166,11 +166,13 @@ def test_a_restart_from_a_snapshot_refuses_damage_anywhere_before_it(
     clean.close()
     assert clean.state.last_seq > 71
     _flip_bit_in_record(log, 71, in_checksum=in_checksum)
-    before = {p.name: p.read_bytes() for p in log.iterdir() if p.is_file()}
+    before = {p: p.read_bytes() for d in (log, snaps) for p in d.iterdir() if p.is_file()}
     spec = RunSpec.for_home(ctx.home, "wpl", schedule="table2")
     with pytest.raises(CorruptLogError, match="line 71 "):
         Session.start(ctx, log, spec, snapshot_dir=snaps)
-    assert {p.name: p.read_bytes() for p in log.iterdir() if p.is_file()} == before
+    with pytest.raises(CorruptLogError, match="line 71 "):  # a session that appends nothing
+        Session.open(ctx, log, snapshot_dir=snaps).close()
+    assert {p: p.read_bytes() for d in (log, snaps) for p in d.iterdir() if p.is_file()} == before
 
 
 def test_a_log_keeps_the_relation_model_of_its_first_run(tmp_path: Path) -> None:
