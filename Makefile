@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SHARED ?= ../shared/data
 
-.PHONY: demo test lint typecheck bench data bless clean
+.PHONY: demo test lint typecheck bench data bless figures check-figures clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -51,6 +51,17 @@ data: $(STAMP)
 GOLDEN ?= tests/replay/golden
 bless: $(STAMP)
 	$(BIN)/python -m objsearch.experiments.golden $(GOLDEN)
+
+# Figures in the docs that a command prints live between <!-- figures:NAME --> markers
+# (experiments/figures.py). `figures` reruns every command and rewrites its block; `check-figures`
+# compares every block with a fresh run (about 5 minutes, bench paper the longest), exit 1 naming
+# the stale ones. `make test` checks only the cheap ones (tests/experiments/test_figures.py).
+FIGURE_DOCS := README.md docs/replay.md
+figures: $(STAMP)
+	$(BIN)/python -m objsearch.experiments.figures $(FIGURE_DOCS)
+
+check-figures: $(STAMP)
+	$(BIN)/python -m objsearch.experiments.figures --check $(FIGURE_DOCS)
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache

@@ -5,6 +5,8 @@ AI2-THOR rearrangement episodes (iTHOR-based homes only)."""
 from __future__ import annotations
 
 import json
+import os
+import re
 import statistics
 import time
 from collections.abc import Sequence
@@ -150,6 +152,44 @@ def _with_spread(rows: Sequence[Row]) -> dict[str, Any]:
     }
 
 
+def data_build_commands(data: Path) -> list[str]:
+    """The ``objsearch data build`` commands a data folder's PROVENANCE.md records, each with
+    ``--out`` naming the folder: what rebuilds it from a clean clone."""
+    provenance = data / "PROVENANCE.md"
+    if not provenance.is_file():
+        return []
+    found = re.findall(r"objsearch data build [^`\n]*", provenance.read_text(encoding="utf-8"))
+    commands = dict.fromkeys(c.strip() for c in found)  # in order, once each
+    return [c if " --out " in c else f"{c} --out {data}" for c in commands]
+
+
+def homes_command(summary: dict[str, Any], folder: Path) -> str:
+    """The full command that produced a bench homes output: as recorded, or rebuilt from the
+    summary's fields for runs from before summaries recorded it. A run with no camera recorded
+    predates the occluding camera, so it used the geometric one."""
+    camera = str(summary.get("camera", "geometric"))
+    command = summary.get("command")
+    if command is None:
+        strategies = [k for k in summary.get("strategies", {}) if "/" not in k]
+        scenes, starts = summary.get("scenes"), summary.get("starts_per_search")
+        command = command_line(
+            "objsearch bench homes",
+            {
+                "out": folder,
+                "homes": summary.get("homes"),
+                "schedules": summary.get("schedules"),
+                "seeds": len(summary["seeds"]) if "seeds" in summary else None,
+                "scenes": scenes if isinstance(scenes, int) else None,
+                "strategies": strategies or None,
+                "starts": starts if isinstance(starts, int) else None,
+                "workers": summary.get("workers"),
+            },
+        )
+    if camera != DEFAULT_CAMERA and "--camera" not in command:
+        command += f" --camera {camera}"
+    return str(command)
+
+
 def homes_summary(rows: Sequence[Row]) -> dict[str, Any]:
     keys = list(dict.fromkeys(_key(r) for r in rows))
     out: dict[str, Any] = {"overall": {}, "by_schedule": {}, "by_family": {}, "by_home": {}}
@@ -261,6 +301,7 @@ def run_homes(
     rows = run_jobs(jobs, workers=workers, progress=progress, label="bench homes")
     elapsed = time.perf_counter() - started
     parquet, csv = write_rows(rows, out, "homes_trials")
+    data = os.environ.get("OBJSEARCH_DATA") or None
     command = command_line(
         "objsearch bench homes",
         {
@@ -271,11 +312,14 @@ def run_homes(
             "scenes": scenes,
             "strategies": strategies,
             "starts": starts_per_search,
+            "camera": None if camera == DEFAULT_CAMERA else camera,
             "workers": workers,
         },
     )
     summary = {
-        "command": command,
+        "command": f"OBJSEARCH_DATA={data} {command}" if data else command,
+        # How the data folder the homes came from was built, so the run can be repeated.
+        "data_build": data_build_commands(Path(data)) if data else [],
         "camera": camera,
         # Every search of this bench starts from this prior; dist-oracle alone also reads the
         # schedule's own distribution (a reference, never a default).

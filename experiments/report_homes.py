@@ -277,8 +277,14 @@ def homes_section(
     out = [
         f"## {title}",
         "",
-        f"Command: `{summary.get('command', 'objsearch bench homes')}` — {summary['searches']} "
-        f"searches, {summary['elapsed_s']} s with {summary['workers']} process(es).",
+        f"Commands ({summary['searches']} searches, {summary['elapsed_s']} s with "
+        f"{summary['workers']} process(es)):",
+        "",
+        "```sh",
+        *summary.get("data_build", ()),
+        *summary.get("commands", [summary.get("command", "objsearch bench homes")]),
+        "```",
+        "",
         f"Homes ({len(homes)}): {', '.join(homes)}. Schedules: {', '.join(kinds)}, seeds "
         f"{seeds}. Prior: `{summary.get('prior', 'vg-cooccurrence')}` (Visual Genome only; no "
         "AI2-THOR statistics) for every strategy, which then learns from its own searches only; "

@@ -210,10 +210,13 @@ def demo_summary(out: Path) -> dict[str, Any]:
     modes: dict[str, dict[str, Any]] = {}
     with (out / "path_lengths.csv").open(newline="", encoding="utf-8") as fh:
         for row in csv.DictReader(fh):
-            m = modes.setdefault(row["update_mode"], {"searches": 0, "found": 0, "length": 0.0})
+            m = modes.setdefault(
+                row["update_mode"], {"searches": 0, "found": 0, "length": 0.0, "discovery": 0.0}
+            )
             m["searches"] += 1
             m["found"] += row["success"] == "True"
             m["length"] += float(row["path_length"])
+            m["discovery"] += float(row["path_to_discovery"])
     return {
         "out": str(out),
         "table": str(out / "path_lengths.csv"),
@@ -223,6 +226,7 @@ def demo_summary(out: Path) -> dict[str, Any]:
             mode: {
                 "searches": m["searches"],
                 "success_rate": round(m["found"] / m["searches"], 4),
+                "mean_path_to_discovery_m": round(m["discovery"] / m["searches"], 4),
                 "mean_path_length_m": round(m["length"] / m["searches"], 4),
             }
             for mode, m in modes.items()

@@ -129,7 +129,7 @@ def cmd_bench_table1(args: argparse.Namespace) -> int:
 def cmd_bench_report(args: argparse.Namespace) -> int:
     from objsearch.experiments.report import ReportInputs, write_report
 
-    homes = [Path(d) for d in args.homes or ["out/bench-homes"]]
+    homes = [Path(d) for d in args.homes or ()]
     heldout = None if args.heldout is None else [Path(d) for d in args.heldout]
     missing = [str(d) for d in (Path(args.paper), *homes) if not (d / "summary.json").is_file()]
     if args.rearr:
@@ -137,7 +137,7 @@ def cmd_bench_report(args: argparse.Namespace) -> int:
 
         target = Path(args.rearr_out) if args.rearr_out else Path(args.out).parent / RESULTS_FILE
         print(f"wrote {write_rearr_report(Path(args.rearr), target)}")
-        # results.md needs both other runs; without them only the rearrangement page is written.
+        # results.md needs a bench paper run; without one only the rearrangement page is written.
         if missing:
             print(f"kept {args.out}: no bench summary in {', '.join(missing)}")
             return 0
@@ -154,7 +154,8 @@ def cmd_bench_report(args: argparse.Namespace) -> int:
         heldout=None if heldout is None else tuple(heldout),
         paper_geometric=None if args.paper_geometric is None else Path(args.paper_geometric),
     )
-    path = write_report(inputs, Path(args.out), Path(args.img))
+    out = Path(args.out)
+    path = write_report(inputs, out, Path(args.img) if args.img else out.parent / "img")
     print(f"wrote {path}")
     return 0
 
@@ -304,22 +305,35 @@ def register(sub: Any) -> None:
     t.camera_option(table1)
     table1.set_defaults(func=cmd_bench_table1)
 
-    report = bsub.add_parser("report", help="write docs/results.md from bench outputs")
+    report = bsub.add_parser(
+        "report",
+        help="write the results page (docs/results.md's generator) from bench outputs",
+        description="Write the results page and its plots from bench outputs. Each section whose "
+        "input is not given says which command produces it. Writes under out/report/ unless "
+        "--out says otherwise (the committed page is docs/results.md: pass --out "
+        "docs/results.md --img docs/img to regenerate it).",
+    )
     report.add_argument(
-        "--paper", default="out/bench-paper", type=t.dir_path, help="bench paper output folder"
+        "--paper",
+        default="out/bench-paper",
+        type=t.dir_path,
+        help="bench paper output folder (out/bench-paper)",
     )
     report.add_argument(
         "--homes",
         action="append",
         type=t.dir_path,
         help="bench homes output folder; repeat to report several runs (e.g. one per schedule "
-        "kind) as one (out/bench-homes)",
+        "kind) as one (default: none, the homes section says how to make one)",
     )
     report.add_argument(
-        "--out", default="docs/results.md", type=t.file_path, help="the results page to write"
+        "--out",
+        default="out/report/results.md",
+        type=t.file_path,
+        help="the results page to write (out/report/results.md)",
     )
     report.add_argument(
-        "--img", default="docs/img", type=t.dir_path, help="folder for the PNG plots"
+        "--img", type=t.dir_path, help="folder for the PNG plots (default: img/ beside --out)"
     )
     report.add_argument(
         "--table1",
@@ -344,12 +358,12 @@ def register(sub: Any) -> None:
     report.add_argument(
         "--rearr",
         type=t.existing_dir,
-        help="a bench homes output with --schedules rearr[,stats]: also write "
-        "docs/results-rearrangement.md (results.md only if --paper and --homes outputs exist)",
+        help="a bench homes output with --schedules rearr[,stats]: also write the "
+        "rearrangement page (the results page only if the --paper output exists)",
     )
     report.add_argument(
         "--rearr-out",
         type=t.file_path,
-        help="where the rearrangement page goes (beside --out: results-rearrangement.md)",
+        help="where the rearrangement page goes (default: results-rearrangement.md beside --out)",
     )
     report.set_defaults(func=cmd_bench_report)

@@ -66,7 +66,7 @@ def test_demo_summary_reads_the_demos_table(tmp_path: Path) -> None:
     from objsearch.agent.home import load_home
     from objsearch.agent.scene_graph import UpdateMode
     from objsearch.agent.strategies import RunSpec
-    from objsearch.sim.demo import write_csv
+    from objsearch.sim.demo import discovery, write_csv
     from objsearch.sim.longterm import run_schedule
 
     spec = RunSpec.for_home(load_home("paper"), schedule="table2")
@@ -80,6 +80,10 @@ def test_demo_summary_reads_the_demos_table(tmp_path: Path) -> None:
     assert mode["mean_path_length_m"] == pytest.approx(
         sum(t.path_length for t in trials) / 2, abs=1e-3
     )
+    assert mode["mean_path_to_discovery_m"] == pytest.approx(
+        sum(discovery(t) for t in trials) / 2, abs=1e-3
+    )
+    assert mode["mean_path_to_discovery_m"] < mode["mean_path_length_m"]
     assert doc["logs"] == {"all": str(tmp_path / "log-all")}
 
 

@@ -123,7 +123,8 @@ def test_every_optional_section_from_its_own_run(
     for prior in ("vg-cooccurrence", "vg-hoz-masked"):
         assert f"### Prior `{prior}`" in text and f"| {prior} | 1 |" in text
     held = text.split("## Held-out homes (looked at only at the end)")[1]
-    assert "Homes (1): ithor-02." in held and "ithor-02" not in text.split("## Held-out")[0]
+    homes = text.split("## Homes (not tuned on)")[1].split("## Held-out")[0]
+    assert "Homes (1): ithor-02." in held and "ithor-02" not in homes
     assert "![heldout_stats](img/heldout_stats.png)" in held
     # Both runs used the same camera: the section says there is nothing to compare.
     assert "Both runs used the occluding camera" in text
@@ -238,3 +239,33 @@ def test_a_run_without_a_camera_gets_no_computed_cause(runs: dict[str, Path]) ->
     rows = read_rows(runs["homes"] / "homes_trials.parquet")
     failed = dataclasses.replace(rows[0], success=False)
     assert "not computed: the run predates" in failure_lines([failed], None)[-1]
+
+
+def test_report_with_only_paper_writes_under_out(
+    runs: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """By default the page and its plots go to out/report/, never over docs/; the homes section,
+    like every other whose input is not given, says which command produces it."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["bench", "report", "--paper", str(runs["paper"])]) == 0
+    text = (tmp_path / "out" / "report" / "results.md").read_text(encoding="utf-8")
+    assert (tmp_path / "out" / "report" / "img" / "scene_graph_before_after.png").is_file()
+    assert "![scene graph](img/scene_graph_before_after.png)" in text
+    assert "## Homes (not tuned on)\n\nNot in this report: run `objsearch bench homes" in text
+    assert text.count("Not in this report:") == 4
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_report_help_shows_its_defaults(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("COLUMNS", "400")  # no help line wrapped inside a word
+    assert main(["bench", "report", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    for default in (
+        "(out/bench-paper)",
+        "(out/report/results.md)",
+        "(default: img/ beside --out)",
+        "(default: results-rearrangement.md beside --out)",
+    ):
+        assert default in text, default
