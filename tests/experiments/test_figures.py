@@ -3,6 +3,7 @@ at most about 16 s each; ``make check-figures`` runs them all), and a stale bloc
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -96,3 +97,24 @@ def test_an_unknown_figure_is_a_clear_error(
     doc.write_text("<!-- figures:nope -->\n<!-- /figures -->\n", encoding="utf-8")
     assert main([str(doc)]) == 2
     assert "objsearch: error: unknown figure(s) nope" in capsys.readouterr().err
+
+
+def test_quoted_long_figures_are_on_the_pages_they_link() -> None:
+    """The README quotes the long experiments (hours to rerun) from their generated pages: every
+    number it quotes must be on a page the row links, so a regenerated page shows a stale quote
+    (a presence check: a number that also stands elsewhere on the page passes)."""
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    checked = 0
+    for row in readme.split("## What we measured", 1)[1].split("\n## ", 1)[0].splitlines():
+        cells = [c.strip() for c in row.strip("|").split(" | ")]
+        pages = re.findall(r"\(docs/(results[a-z0-9-]*\.md)", cells[-1]) if len(cells) == 3 else []
+        if not pages:
+            continue
+        text = "".join((REPO / "docs" / p).read_text(encoding="utf-8") for p in pages)
+        text = text.replace("−", "-")
+        for number in re.findall(r"\d+(?:\.\d+)?", cells[1].replace("−", "-")):
+            assert re.search(rf"(?<![\d.]){re.escape(number)}(?![\d])", text), (
+                f"README quotes {number} ({cells[1]}), not on {', '.join(pages)}"
+            )
+        checked += 1
+    assert checked >= 3
