@@ -54,7 +54,7 @@ bless: $(STAMP)
 
 # Figures in the docs that a command prints live between <!-- figures:NAME --> markers
 # (experiments/figures.py). `figures` reruns every command and rewrites its block; `check-figures`
-# compares every block with a fresh run (about 5 minutes, bench paper the longest), exit 1 naming
+# compares every block with a fresh run (about 2 minutes, bench paper the longest), exit 1 naming
 # the stale ones. `make test` checks only the cheap ones (tests/experiments/test_figures.py).
 FIGURE_DOCS := README.md docs/replay.md
 figures: $(STAMP)

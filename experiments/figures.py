@@ -8,8 +8,8 @@ A document marks each such figure as a block::
 
 :data:`FIGURES` says, per name, the command and which lines of its output are the figure.
 ``python -m objsearch.experiments.figures [--check] [--only NAME,...] FILE...`` runs the commands
-(each in a fresh temporary folder, so nothing in the checkout is touched; relative ``out/`` paths
-in a command land there) and rewrites the blocks, or with ``--check`` exits 1 naming each block
+(in one fresh temporary folder, so nothing in the checkout is touched: relative ``out/`` paths
+land there, and a figure that reads another's output, such as the demo's log, finds it) and rewrites the blocks, or with ``--check`` exits 1 naming each block
 that differs from a fresh run. ``make figures`` and ``make check-figures`` run it over the README
 and docs; the test suite checks the cheap ones (``FIGURES[name].cheap``).
 """
