@@ -229,9 +229,9 @@ def render(summary: dict[str, Any]) -> str:
             )
         lines.append(f"(the paper reports {PAPER_REDUCTION_PCT:+.2f} % with updates)")
         lines.append("")
-    lines.append("Metrics (all searches of each run)")
+    lines.append("Metrics (all searches of each run; full path, with the approach to the target)")
     lines.append(
-        f"{'experiment':10} {'strategy/updates':22}{'n':>6}{'path m':>9}{'success':>9}{'SPL':>7}{'oracle×':>9}"
+        f"{'experiment':10} {'strategy/updates':22}{'n':>6}{'full m':>9}{'success':>9}{'SPL':>7}{'oracle×':>9}"
     )
     for exp in ("table1", "longterm"):
         for key, s in summary[exp].items():
