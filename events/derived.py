@@ -124,7 +124,10 @@ def derive_run(
 
     from .arrow import event_schema
 
-    con = duckdb.connect(":memory:")
+    # One thread: a parallel SUM of doubles adds in whatever order the threads finish, so the
+    # same run could derive a file that differs in its last bits (seen: searches.v3.parquet one
+    # byte longer on a busy machine), and the file's recorded digest would not reproduce.
+    con = duckdb.connect(":memory:", config={"threads": 1})
     try:
         day = date.isoformat() if isinstance(date, dt.date) else date
         for event_type in default_registry().types:

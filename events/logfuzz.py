@@ -317,6 +317,20 @@ def _write_files(directory: Path, files: Files) -> None:
         (directory / name).write_bytes(data)
 
 
+def _base_logs(root: Path, events: int) -> dict[str, tuple[Files, list[Event]]]:
+    """The logs every case damages a copy of: one closed, one whose writer crashed after two
+    thirds, and another log (of the same stream) to splice from."""
+    bases: dict[str, tuple[Files, list[Event]]] = {}
+    for name, run, crash in (
+        ("closed", "00000000-0000-4000-8000-000000000001", None),
+        ("crashed", "00000000-0000-4000-8000-000000000002", 2 * events // 3),
+        ("other", "00000000-0000-4000-8000-000000000003", None),
+    ):
+        _make_log(root / name, run, events, crash_after=crash)
+        bases[name] = (_read_files(root / name), list(read_log(root / name)))
+    return bases
+
+
 def run_log_fuzz(cases: int, *, seed: int = 0, events: int = 30, verify: str = "all") -> FuzzReport:
     """Run ``cases`` seeded mutations; see the module docstring for what each must satisfy.
     ``verify="sealed"`` opens each damaged log as an agent restarting from a snapshot does
@@ -325,14 +339,7 @@ def run_log_fuzz(cases: int, *, seed: int = 0, events: int = 30, verify: str = "
     report = FuzzReport()
     with tempfile.TemporaryDirectory(prefix="objsearch-logfuzz-") as tmp:
         root = Path(tmp)
-        bases: dict[str, tuple[Files, list[Event]]] = {}
-        for name, run, crash in (
-            ("closed", "00000000-0000-4000-8000-000000000001", None),
-            ("crashed", "00000000-0000-4000-8000-000000000002", 2 * events // 3),
-            ("other", "00000000-0000-4000-8000-000000000003", None),
-        ):
-            _make_log(root / name, run, events, crash_after=crash)
-            bases[name] = (_read_files(root / name), list(read_log(root / name)))
+        bases = _base_logs(root, events)
         for case in range(cases):
             victim = "closed" if case % 2 == 0 else "crashed"
             files, original = dict(bases[victim][0]), bases[victim][1]
@@ -477,14 +484,7 @@ def run_repair_fuzz(cases: int, *, seed: int = 0, events: int = 300) -> RepairRe
     report = RepairReport()
     with tempfile.TemporaryDirectory(prefix="objsearch-repairfuzz-") as tmp:
         root = Path(tmp)
-        bases: dict[str, tuple[Files, list[Event]]] = {}
-        for name, run, crash in (
-            ("closed", "00000000-0000-4000-8000-000000000001", None),
-            ("crashed", "00000000-0000-4000-8000-000000000002", 2 * events // 3),
-            ("other", "00000000-0000-4000-8000-000000000003", None),
-        ):
-            _make_log(root / name, run, events, crash_after=crash)
-            bases[name] = (_read_files(root / name), list(read_log(root / name)))
+        bases = _base_logs(root, events)
         quiet = logging.getLogger("objsearch.events.log")
         level = quiet.level
         quiet.setLevel(logging.ERROR)

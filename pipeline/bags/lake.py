@@ -226,7 +226,7 @@ class BagLake:
         run absorbed into its session's run but not yet removed (all its pieces are in a larger
         run of the same robot, which holds their events), and pieces' copies in ``_bags/``
         still naming the run they were in before."""
-        if not self._unfinished(self._sessions()):
+        if not any(self._unfinished(self._sessions())):  # nothing to finish: take no lock
             return []
         try:
             with self.lake.locked():
