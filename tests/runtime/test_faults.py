@@ -148,3 +148,18 @@ def test_agent_restart_rebuilds_from_its_log(zenoh_only: Net, tmp_path: Path) ->
     events = list(read_log(tmp_path / "log"))
     assert [e.type for e in events].count("run_started") == 2
     assert [e.type for e in events].count("scene_graph_seeded") == 1
+    # Issue 21: one flipped bit in an early record, then a restart from the snapshots. The
+    # agent must not start (let alone acknowledge events on top of the damage), nor change a file.
+    log = tmp_path / "log"
+    data = bytearray((log / "events.log").read_bytes())
+    line = 7
+    start = [0, *[i + 1 for i, b in enumerate(data) if b == 0x0A]][line - 1]
+    data[start + 40] ^= 0x08
+    (log / "events.log").write_bytes(bytes(data))
+    files = {p: p.read_bytes() for p in log.rglob("*") if p.is_file() and p.name != "LOCK"}
+    agent = _agent(net, tmp_path, "agent-damaged")
+    assert agent.wait(STARTUP_S) == 2
+    said = (tmp_path / "agent-damaged.txt").read_text()
+    assert f"objsearch: error: corrupt event log {log / 'events.log'}: line {line} " in said
+    assert "is damaged: one bit of it was flipped" in said and "Traceback" not in said
+    assert {p: p.read_bytes() for p in log.rglob("*") if p.is_file() and p.name != "LOCK"} == files
