@@ -41,13 +41,17 @@ Key = tuple[str, str]  # (object class, static id)
 
 @dataclass(frozen=True, slots=True)
 class Sighting:
-    """Where a class was last seen: the static instance and its class, the room, when."""
+    """Where a class was last seen: the nearest static instance and its class (None in a room
+    with none), whether it stood at that static (``at``: what the belief counts) or away from
+    every mapped place, its position (map frame, metres), and when."""
 
-    static_id: str
-    static_class: str
+    static_id: str | None
+    static_class: str | None
     task_id: str | None
     time_ns: int
     scene: int | None
+    at: bool = True
+    position: tuple[float, float, float] | None = None
 
 
 @dataclass
@@ -101,16 +105,26 @@ class InstanceMemory:
         elif kind == "detection":
             detected = decode(event, Detected)
             support = detected.support
-            if detected.accepted and support is not None and support.at:
-                d, sid = detected.object_class, support.static_id
-                self.static_class[sid] = support.static_class
-                self._seen_at.setdefault(d, set()).add(sid)
+            if detected.accepted:
+                d = detected.object_class
+                at = support is not None and support.at
+                if support is not None and support.at:
+                    self.static_class[support.static_id] = support.static_class
+                    self._seen_at.setdefault(d, set()).add(support.static_id)
+                # Every accepted sighting is where the object was last seen, at a mapped place
+                # or away from all of them (only the former counts in the belief).
                 self._sightings[d] = Sighting(
-                    sid,
-                    support.static_class,
+                    None if support is None else support.static_id,
+                    None if support is None else support.static_class,
                     self._task_id,
                     int(getattr(event, "time_ns", 0)),
                     self._scene,
+                    at,
+                    (
+                        float(detected.position[0]),
+                        float(detected.position[1]),
+                        float(detected.position[2]),
+                    ),
                 )
         elif kind == "task_ended":
             self._end_task()
@@ -177,7 +191,7 @@ class InstanceMemory:
     # -- snapshots ------------------------------------------------------------------------------
 
     snapshot_name: ClassVar[str] = "instance_memory"
-    snapshot_version: ClassVar[int] = 1
+    snapshot_version: ClassVar[int] = 2  # 2: sightings away from mapped places, with position
 
     def to_snapshot(self) -> dict[str, Any]:
         def rows(d: Mapping[Key, float]) -> list[list[Any]]:
@@ -220,16 +234,30 @@ class InstanceMemory:
             recent_seen=rows(state["recent_seen"]),
             recent_missed=rows(state["recent_missed"]),
             static_class=dict(state["static_class"]),
-            last_seen={d: Sighting(*r) for d, r in state["last_seen"].items()},
+            last_seen={d: _sighting(r) for d, r in state["last_seen"].items()},
             update_mode=UpdateMode(state["update_mode"]),
             _target=target,
             _task_id=task_id,
             _scene=scene,
             _seen_at={d: set(s) for d, s in state["seen_at"].items()},
             _viewed=set(state["viewed"]),
-            _sightings={d: Sighting(*r) for d, r in state["sightings"].items()},
+            _sightings={d: _sighting(r) for d, r in state["sightings"].items()},
         )
 
 
-def _sighting_row(s: Sighting) -> tuple[str, str, str | None, int, int | None]:
-    return (s.static_id, s.static_class, s.task_id, s.time_ns, s.scene)
+def _sighting_row(s: Sighting) -> tuple[Any, ...]:
+    position = None if s.position is None else list(s.position)
+    return (s.static_id, s.static_class, s.task_id, s.time_ns, s.scene, s.at, position)
+
+
+def _sighting(row: list[Any]) -> Sighting:
+    static_id, static_class, task_id, time_ns, scene, at, position = row
+    return Sighting(
+        static_id,
+        static_class,
+        task_id,
+        int(time_ns),
+        scene,
+        bool(at),
+        None if position is None else (float(position[0]), float(position[1]), float(position[2])),
+    )

@@ -87,7 +87,7 @@ class AgentState:
     last_time_ns: int = 0
 
     snapshot_name: ClassVar[str] = "agent_state"
-    snapshot_version: ClassVar[int] = 1
+    snapshot_version: ClassVar[int] = 2  # 2: the memory's sightings carry position and ``at``
 
     @property
     def state(self) -> AgentState:

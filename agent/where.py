@@ -12,6 +12,7 @@ log; only the robot's own plans used another model, and the answer says so (``mo
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -72,6 +73,12 @@ def answer(state: AgentState, target: str, home: Home, *, top: int = 3) -> dict[
     counts = {sid: n for (d, sid), n in memory.seen.items() if d == target}
     usual = max(sorted(counts), key=counts.__getitem__) if counts else None
     last = memory.last_seen.get(target)
+    last_room = None
+    if last is not None:
+        if last.static_id in statics:
+            last_room = statics[last.static_id].room
+        elif last.position is not None:
+            last_room = _room_at(home, last.position[0], last.position[1])
     return {
         "target": target,
         # The run id names the run, not the file it was read from: a log and the lake run made
@@ -82,13 +89,20 @@ def answer(state: AgentState, target: str, home: Home, *, top: int = 3) -> dict[
         "last_seen": None
         if last is None
         else {
+            # at: it stood at static_id's viewpoint (a mapped place, what the belief counts);
+            # otherwise static_id is only the nearest static of its room (or null).
             "static_id": last.static_id,
             "static_class": last.static_class,
-            "room": statics[last.static_id].room if last.static_id in statics else None,
+            "at": last.at,
+            "position": None if last.position is None else [round(v, 3) for v in last.position],
+            "room": last_room,
             "task_id": last.task_id,
             "time_ns": last.time_ns,
             "scene": last.scene,
         },
+        # most_likely_now is a share over these places only: those the log has planned over or
+        # seen something at; places never planned over are not in it.
+        "belief_over_places": len(values),
         "usually": None
         if usual is None
         else {
@@ -165,12 +179,20 @@ def _fresh() -> AgentState:
 def render(answer: dict[str, Any]) -> str:
     lines = [f"{answer['target']} ({answer['tasks']} searches folded)"]
     last = answer["last_seen"]
-    lines.append(
-        "  last seen: never"
-        if last is None
-        else f"  last seen: {last['static_id']} in {last['room']} "
-        f"(task {last['task_id']}, scene {last['scene']})"
-    )
+    if last is None:
+        lines.append("  last seen: never")
+    elif last.get("at", True):
+        lines.append(
+            f"  last seen: {last['static_id']} in {last['room']} "
+            f"(task {last['task_id']}, scene {last['scene']})"
+        )
+    else:
+        x, y, _ = last["position"]
+        near = "" if last["static_id"] is None else f", nearest static {last['static_id']}"
+        lines.append(
+            f"  last seen: away from every mapped place, at ({x:.2f}, {y:.2f}) in "
+            f"{last['room']}{near} (task {last['task_id']}, scene {last['scene']})"
+        )
     usual = answer["usually"]
     if usual is not None:
         lines.append(
@@ -178,6 +200,18 @@ def render(answer: dict[str, Any]) -> str:
             f"(seen there in {usual['seen_tasks']:g} searches, "
             f"{usual['share_of_sightings']:.0%} of its sightings)"
         )
+    if answer["most_likely_now"]:
+        lines.append(
+            f"  most likely now (shares of the {answer['belief_over_places']} places the log "
+            "has planned over or seen it at):"
+        )
     for p in answer["most_likely_now"]:
         lines.append(f"  {p['belief']:6.1%}  {p['static_id']} in {p['room']}")
     return "\n".join(lines)
+
+
+def _room_at(home: Home, x: float, y: float) -> str:
+    """The room of the viewpoint nearest (x, y)."""
+    return min(
+        ((math.hypot(p.x - x, p.y - y), room.name) for room in home.rooms for p in room.viewpoints),
+    )[1]

@@ -4,6 +4,7 @@ asked with ``objsearch where``; and the excess decomposition sums to path − or
 from __future__ import annotations
 
 import json
+import uuid
 from pathlib import Path
 
 import pytest
@@ -14,7 +15,7 @@ from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import MEMORY, RunSpec
 from objsearch.agent.where import LiveMemory, where
 from objsearch.cli import main
-from objsearch.events.log import read_log
+from objsearch.events.log import EventLog, read_log
 from objsearch.events.projection import fold
 from objsearch.events.snapshot import restore
 from objsearch.experiments.decompose import decompose
@@ -202,3 +203,44 @@ def test_live_memory_restarts_from_its_snapshot_with_the_same_answer(tmp_path: P
     from_snapshot = LiveMemory.restore(log, home, snapshots)
     assert from_snapshot.answer("Cup") == full.answer("Cup") == where(read_log(log), "Cup")
     assert full.answer("Cup")["model_of_run"] == "eq4"
+
+
+def test_where_remembers_a_sighting_away_from_every_mapped_place(
+    memory_log: tuple[Path, list[Trial]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The log's last Cup sighting, moved 1.5 m off its static (``at`` false), as a search that
+    found a Cup on the floor records it: ``where`` says so instead of "never" or the old place."""
+    log, _ = memory_log
+    events = list(read_log(log))
+    last = max(
+        i
+        for i, e in enumerate(events)
+        if e.type == "detection" and e.payload["object_class"] == "Cup" and e.payload["accepted"]
+    )
+    before = where(events, "Cup")
+    copy = tmp_path / "log"
+    with EventLog.open(copy, "robot", run_id=str(uuid.uuid4())) as writer:
+        for i, e in enumerate(events):
+            payload = dict(e.payload)
+            if i == last:
+                x, y, z = payload["position"]
+                payload["position"] = [x + 1.5, y, z]
+                payload["support"] = {**payload["support"], "at": False}
+            writer.append(e.type, payload, time_ns=e.time_ns, task_id=e.task_id)
+    answer = where(read_log(copy), "Cup")
+    seen = answer["last_seen"]
+    assert seen["at"] is False and seen["position"][0] == pytest.approx(
+        events[last].payload["position"][0] + 1.5, abs=1e-3
+    )
+    assert seen["task_id"] == events[last].task_id and seen["room"] is not None
+    assert answer["belief_over_places"] > 0
+    assert before["last_seen"]["at"] is True
+    assert main(["where", "Cup", "--log", str(copy)]) == 0
+    out = capsys.readouterr().out
+    assert "last seen: away from every mapped place" in out
+    assert f"shares of the {answer['belief_over_places']} places" in out
+    # The same answer from the live memory, restored from a snapshot (format 2) of that log.
+    home = load_context(HOME).home
+    live = LiveMemory.restore(copy, home, tmp_path / "snaps")
+    live.save(tmp_path / "snaps", log=copy)
+    assert LiveMemory.restore(copy, home, tmp_path / "snaps").answer("Cup") == answer
