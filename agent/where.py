@@ -12,7 +12,6 @@ log; only the robot's own plans used another model, and the answer says so (``mo
 
 from __future__ import annotations
 
-import math
 import threading
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -22,6 +21,7 @@ from typing import Any
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.memory import InstanceMemory
+from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import MEMORY
@@ -78,7 +78,8 @@ def answer(state: AgentState, target: str, home: Home, *, top: int = 3) -> dict[
         if last.static_id in statics:
             last_room = statics[last.static_id].room
         elif last.position is not None:
-            last_room = _room_at(home, last.position[0], last.position[1])
+            # Rare (a sighting away from every static): the map is built only then (~12 ms).
+            last_room = NavigationMap.from_home(home).room_at(last.position[0], last.position[1])
     return {
         "target": target,
         # The run id names the run, not the file it was read from: a log and the lake run made
@@ -208,10 +209,3 @@ def render(answer: dict[str, Any]) -> str:
     for p in answer["most_likely_now"]:
         lines.append(f"  {p['belief']:6.1%}  {p['static_id']} in {p['room']}")
     return "\n".join(lines)
-
-
-def _room_at(home: Home, x: float, y: float) -> str:
-    """The room of the viewpoint nearest (x, y)."""
-    return min(
-        ((math.hypot(p.x - x, p.y - y), room.name) for room in home.rooms for p in room.viewpoints),
-    )[1]

@@ -33,7 +33,14 @@ from pathlib import Path
 
 from objsearch.events import read_log
 from objsearch.runtime.standin import in_process_search
-from objsearch.runtime.wsflood import DEADLINE_S, Viewer, handshake, report, run_battery
+from objsearch.runtime.wsflood import (
+    DEADLINE_S,
+    Viewer,
+    closed_by_server,
+    handshake,
+    report,
+    run_battery,
+)
 from objsearch.runtime.wsfront import DEFAULT_HANDSHAKE_TIMEOUT_S, FrontLimits
 
 
@@ -101,7 +108,7 @@ def _drip_at(agent: subprocess.Popen[str], n: int) -> bool:
     deadline = time.monotonic() + DEFAULT_HANDSHAKE_TIMEOUT_S + DEADLINE_S
     closed = 0
     while time.monotonic() < deadline:
-        closed = sum(_ended(sock) for sock in drippers)
+        closed = sum(closed_by_server(sock) for sock in drippers)
         if closed == n:
             break
         time.sleep(0.5)
@@ -113,15 +120,6 @@ def _drip_at(agent: subprocess.Popen[str], n: int) -> bool:
         f"{'yes' if got_in else 'NO'}; drippers closed by the agent: {closed} of {n}"
     )
     return got_in and closed == n and peak[0] == before[0]
-
-
-def _ended(sock: socket.socket) -> bool:
-    try:
-        return sock.recv(65536, socket.MSG_DONTWAIT) == b""
-    except BlockingIOError:
-        return False
-    except OSError:
-        return True
 
 
 def main() -> int:

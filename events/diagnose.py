@@ -150,8 +150,10 @@ def diagnose(
         fixed[index] ^= 1 << bit
         original = _event_of(bytes(fixed))
         # One flipped bit that turns it back into this log's own record at this seq is proof
-        # enough (a chance match is ~1 in 10^5 of random damage, and must also parse as that
-        # record); the next record's chain, when there is one, proves it again.
+        # enough: of the 2^32 syndromes, only 8 per byte name a single bit (for a 400-byte
+        # record, random damage matches one by chance ~7 times in 10^7, counted, not measured),
+        # and the result must also parse as that record; the next record's chain, when there is
+        # one, proves it again.
         if _belongs(original, seq, stream) and (
             proves(stored)
             or (original is not None and original.event_id == deterministic_event_id(id_key, seq))

@@ -238,11 +238,13 @@ class Lake:
             except LakeError as exc:
                 damaged.append(DamagedRun(folder, str(exc), (str(exc),)))
         hashed = (
-            file_digests(r.path / name for r in infos for name in r.files) if check_digests else {}
+            file_digests(r.path / name for r in infos for name in r.files)
+            if check_digests
+            else None
         )
         runs: list[RunInfo] = []
         for info in infos:
-            problems = _run_problems(info, hashed if check_digests else None)
+            problems = _run_problems(info, hashed)
             if problems:
                 damaged.append(DamagedRun(info.path, "; ".join(problems), tuple(problems)))
             else:
@@ -845,13 +847,13 @@ def parquet_problem(path: Path) -> str | None:
     return None
 
 
-def deep_check(run: RunInfo) -> str | None:
-    """Why a run's files are not the ones committed (digests compared, for a run that has them)
-    or its Parquet files cannot be opened (footers parsed), or None."""
-    if run.files:
-        problems = _run_problems(run, file_digests(run.path / name for name in run.files))
-        if problems:
-            return "; ".join(problems)
+def deep_check(run: RunInfo, *, digests_checked: bool = False) -> str | None:
+    """Why a run's files are not the ones committed (digests compared, for a run that has them,
+    unless ``digests_checked``: a ``scan(check_digests=True)`` just did) or its Parquet files
+    cannot be opened (footers parsed), or None."""
+    problems = [] if digests_checked else _damage(run)
+    if problems:
+        return "; ".join(problems)
     for path in sorted(run.path.glob("*.parquet")) + sorted(
         (run.path / DERIVED_DIR).glob("*.parquet")
     ):

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from collections.abc import Iterable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import suppress
@@ -21,12 +20,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
+from .sql_limits import DEFAULT_THREADS
+
 ALGORITHM: Final = "sha256"
 #: Manifest key of the files' digests: run-relative POSIX path → {"bytes": n, "digest": "sha256:…"}.
 FILES_KEY: Final = "files"
 #: Manifest key of the digest of the manifest itself (computed without this key).
 SELF_KEY: Final = "manifest_digest"
-_THREADS: Final = max(1, min(4, os.cpu_count() or 1))
+#: The same cap as the query's DuckDB threads.
+_THREADS: Final = DEFAULT_THREADS
 #: Below this many bytes starting threads costs more than it saves (measured: ≈ 40 ms of pool
 #: start-up on a busy machine against < 1 ms of hashing for a small run).
 _THREADED_BYTES: Final = 16 << 20

@@ -155,9 +155,10 @@ def _repair_locked(directory: Path, meta: LogMeta, wall_clock: Callable[[], int]
     except CorruptLogError as exc:
         damaged_mark, record = str(exc), None
     durable = None if record is None else record.position
-    problem = _first_problem(directory, meta, record) or damaged_mark
+    problem, events, last_seq = _first_problem(directory, meta, record)
+    problem = problem or damaged_mark
     if problem is None:
-        return Repair(directory, False, *_count(path, meta), 0, 0, None, None, None)
+        return Repair(directory, False, events, last_seq, 0, 0, None, None, None)
     if damaged_mark is not None:
         quarantine(directory, "durable-damaged", (directory / DURABLE_FILE).read_bytes())
     if _is_crlf(data):
@@ -166,7 +167,7 @@ def _repair_locked(directory: Path, meta: LogMeta, wall_clock: Callable[[], int]
         if not plan.actions and plan.end == len(converted):
             original = quarantine(directory, "crlf", data)
             _fs.write_atomic(path, converted)
-            _write_mark(directory, plan.at)
+            _write_mark(directory, meta, plan)
             return Repair(directory, True, plan.events, plan.at.seq, 0, 0, problem, original, None)
     plan = _plan(data, meta, durable, wall_clock, directory)
     _refuse_what_repair_cannot_judge(directory, meta, data, plan, record)
@@ -178,7 +179,7 @@ def _repair_locked(directory: Path, meta: LogMeta, wall_clock: Callable[[], int]
     if new != data:
         _fs.write_atomic(path, new)
     if plan.at.seq:
-        _write_mark(directory, plan.at)
+        _write_mark(directory, meta, plan)
     elif record is not None:
         (directory / DURABLE_FILE).unlink()
         _fs.fsync_dir(directory)
@@ -232,30 +233,34 @@ def _refuse_what_repair_cannot_judge(
         )
 
 
-def _first_problem(directory: Path, meta: LogMeta, record: DurableRecord | None) -> str | None:
+def _first_problem(
+    directory: Path, meta: LogMeta, record: DurableRecord | None
+) -> tuple[str | None, int, int]:
+    """(the first problem, or None; the events before it, markers not counted; their last
+    seq)."""
     durable = None if record is None else record.position
     scan = _Scan(directory / LOG_FILE, meta, registry=default_registry(), durable=durable)
+    events = 0
     try:
-        for _ in scan:
-            pass
+        for event in scan:
+            events += event.type != QUARANTINED_TYPE
         if record is not None and record.seals:
             _check_sealed(directory, meta, default_registry(), record)
     except CorruptLogError as exc:
-        return str(exc)
+        return str(exc), events, scan.last_seq
     if scan.torn_tail is not None:
-        return f"unterminated fragment of {scan.torn_tail.length} byte(s) at the end"
-    return None
+        problem = f"unterminated fragment of {scan.torn_tail.length} byte(s) at the end"
+        return problem, events, scan.last_seq
+    return None, events, scan.last_seq
 
 
-def _count(path: Path, meta: LogMeta) -> tuple[int, int]:
-    scan = _Scan(path, meta, registry=default_registry())
-    events = sum(1 for e in scan if e.type != QUARANTINED_TYPE)
-    return events, scan.at.seq
-
-
-def _write_mark(directory: Path, at: _Cursor) -> None:
-    sealer = Sealer(crc=read_meta(directory).genesis)
-    sealer.add_file_range(directory / LOG_FILE, 0, at.offset)
+def _write_mark(directory: Path, meta: LogMeta, plan: _Plan) -> None:
+    """The high-water mark at the repaired file's end, sealed from the lines just written (no
+    second read of the file)."""
+    sealer = Sealer(crc=meta.genesis)
+    for line in plan.lines:
+        sealer.add(line)
+    at = plan.at
     mark = LogPosition(at.seq, at.offset, at.checksum, at.line, at.time_ns)
     write_durable(directory, mark, sealer.seals())
 

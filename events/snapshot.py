@@ -95,7 +95,8 @@ def save_snapshot(
     """
     if isinstance(log, EventLog):
         return _save(Path(directory), projection, log)
-    with EventLog.open(log, read_meta(Path(log)).stream, create=False) as writer:
+    # Sealed: the caller usually just folded this log, so its records need no second parse.
+    with EventLog.open(log, read_meta(Path(log)).stream, create=False, verify="sealed") as writer:
         return _save(Path(directory), projection, writer)
 
 

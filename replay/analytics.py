@@ -198,7 +198,11 @@ def open_analytics(
         con = _views(lake, runs, restricted=bool(damaged))
     except duckdb.Error:
         # Damage the 8-byte check cannot see: parse every footer, leave out what fails, retry.
-        more = [DamagedRun(r.path, why) for r in runs if (why := deep_check(r)) is not None]
+        more = [
+            DamagedRun(r.path, why)
+            for r in runs
+            if (why := deep_check(r, digests_checked=True)) is not None
+        ]
         if not more:
             raise
         left_out = {d.path for d in more}

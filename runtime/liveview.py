@@ -58,13 +58,13 @@ OCCUPANCY_GRID: Final = "nav_msgs/msg/OccupancyGrid"
 MARKER_ARRAY: Final = "visualization_msgs/msg/MarkerArray"
 PATH: Final = "nav_msgs/msg/Path"
 
-#: Every channel with its message type, in the order a viewer lists them.
 #: A log whose clock is already past this (2001-09-09) is on a wall clock: a robot's, or a bag
 #: run's, which ingest put on the agent's header stamps. A simulated log's clock starts at 0.
 WALL_CLOCK_NS: Final = 10**18
 #: ROS time's seconds are an int32 (builtin_interfaces/Time): the last stamp a message can carry.
 MAX_STAMP_NS: Final = (2**31 - 1) * 10**9
 
+#: Every channel with its message type, in the order a viewer lists them.
 CHANNELS: Final[Mapping[str, str]] = {
     MAP: OCCUPANCY_GRID,
     STATICS: MARKER_ARRAY,

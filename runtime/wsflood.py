@@ -64,6 +64,16 @@ COLUMNS: Final = ("tried", "clear error", "unchanged", "traceback", "silent chan
 DEADLINE_S: Final = 120.0
 
 
+def closed_by_server(sock: socket.socket) -> bool:
+    """True once the server has ended ``sock`` (EOF or reset); reads nothing else."""
+    try:
+        return sock.recv(65536, socket.MSG_DONTWAIT) == b""
+    except BlockingIOError:
+        return False
+    except OSError:
+        return True
+
+
 def handshake(subprotocol: str | None = SDK_SUBPROTOCOL) -> bytes:
     key = base64.b64encode(os.urandom(16)).decode()
     return (

@@ -17,6 +17,7 @@ time (which gives no rate) is mapped like the rest of its recording.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, Final
@@ -107,5 +108,4 @@ def fit_clock(pairs: Iterable[tuple[int, int]]) -> ClockMap | None:
     recv_ns = int(recv[0]) + round(x_mean)
     stamp_ns = int(stamp[0]) + round(y_mean)
     clock = ClockMap(recv_ns, stamp_ns, rate, len(pairs), 0, fitted)
-    residual = int(np.abs(clock.apply(recv) - stamp).max())
-    return ClockMap(recv_ns, stamp_ns, rate, len(pairs), residual, fitted)
+    return dataclasses.replace(clock, residual_ns=int(np.abs(clock.apply(recv) - stamp).max()))

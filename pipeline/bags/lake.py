@@ -277,9 +277,6 @@ class BagLake:
                     moved[bag_id] = doc
         return stale, moved
 
-    def has_bag(self, bag_id: str) -> bool:
-        return any(bag_id in s.pieces for s in self._sessions())
-
     def commit_piece(self, piece: Piece, *, robot: str) -> Commit:
         """Commit a bag into its session's run, under the lake's lock: a new run, or the
         session's run replaced by the merge of what it held and this piece (absorbing

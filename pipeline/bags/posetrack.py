@@ -208,8 +208,7 @@ class PoseTrack:
 
     def on_clock(self, time: Ints) -> PoseTrack:
         """The same rows with ``time`` on another clock, their receive times kept."""
-        received = self.time if self.received is None else self.received
-        return dataclasses.replace(self, time=time, received=received)
+        return dataclasses.replace(self, time=time, received=self.recorded_at)
 
     @property
     def recorded_at(self) -> Ints:

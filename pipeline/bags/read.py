@@ -551,7 +551,8 @@ class Converter:
         poses, derived = self.numbered
         if clock is not None:
             poses = poses.on_clock(clock.apply(poses.time))
-            derived = [_retimed(e, clock.at(e.time_ns)) for e in derived]
+            # recorded_at_ns keeps each derived event's receive time
+            derived = [_shifted(e, clock.at(e.time_ns) - e.time_ns) for e in derived]
         return Finished(tuple(agent), tuple(derived), poses, losses, notes, offset, clock, pairs)
 
     def time_range(self, done: Finished) -> tuple[int | None, int | None]:
@@ -578,13 +579,6 @@ def clock_offset(agent: Sequence[Event], stamps: Mapping[str, int]) -> int:
 def _shifted(event: Event, offset: int) -> Event:
     doc = event.to_json_dict()
     doc["time_ns"] += offset
-    return Event._adopt(doc)
-
-
-def _retimed(event: Event, time_ns: int) -> Event:
-    """A derived event on the run's clock; ``recorded_at_ns`` keeps its receive time."""
-    doc = event.to_json_dict()
-    doc["time_ns"] = time_ns
     return Event._adopt(doc)
 
 

@@ -25,6 +25,7 @@ from objsearch.agent.session import load_context
 from objsearch.events import Event, read_log
 from objsearch.runtime import liveview as lv
 from objsearch.runtime import messages as m
+from objsearch.runtime.wsflood import closed_by_server
 from objsearch.runtime.wsfront import (
     LEGACY_SUBPROTOCOL,
     SDK_SUBPROTOCOL,
@@ -221,16 +222,6 @@ def until(check: Callable[[], bool], what: str) -> None:
     while not check():
         assert time.monotonic() < deadline, f"not within {DEADLINE_S:g} s: {what}"
         time.sleep(0.05)
-
-
-def closed_by_server(sock: socket.socket) -> bool:
-    """True once the server has ended ``sock`` (EOF or reset); reads nothing else."""
-    try:
-        return sock.recv(65536, socket.MSG_DONTWAIT) == b""
-    except BlockingIOError:
-        return False
-    except OSError:
-        return True
 
 
 @pytest.fixture

@@ -34,16 +34,7 @@ def split_ros1(bag: Path, out_dir: Path, duration_s: float) -> list[Path]:
                 opened_ns = t
                 conns = {}
             if conn.id not in conns:
-                ext = conn.ext
-                assert isinstance(ext, ConnectionExtRosbag1)
-                conns[conn.id] = writer.add_connection(
-                    conn.topic,
-                    conn.msgtype,
-                    msgdef=conn.msgdef.data,
-                    md5sum=conn.digest,
-                    callerid=ext.callerid,
-                    latching=ext.latching,
-                )
+                conns[conn.id] = _copy_connection(writer, conn)
             writer.write(conns[conn.id], t, raw)
     if writer is not None:
         writer.close()
@@ -60,15 +51,20 @@ def rerecord_ros1(bag: Path, out: Path, *, rate: float, start_ns: int) -> Path:
         for conn, t, raw in reader.messages():
             first = t if first is None else first
             if conn.id not in conns:
-                ext = conn.ext
-                assert isinstance(ext, ConnectionExtRosbag1)
-                conns[conn.id] = writer.add_connection(
-                    conn.topic,
-                    conn.msgtype,
-                    msgdef=conn.msgdef.data,
-                    md5sum=conn.digest,
-                    callerid=ext.callerid,
-                    latching=ext.latching,
-                )
+                conns[conn.id] = _copy_connection(writer, conn)
             writer.write(conns[conn.id], start_ns + round((t - first) / rate), raw)
     return out
+
+
+def _copy_connection(writer: Writer, conn: Connection) -> Connection:
+    """``conn`` of a ROS 1 bag added to ``writer`` as it was (definition, caller, latching)."""
+    ext = conn.ext
+    assert isinstance(ext, ConnectionExtRosbag1)
+    return writer.add_connection(
+        conn.topic,
+        conn.msgtype,
+        msgdef=conn.msgdef.data,
+        md5sum=conn.digest,
+        callerid=ext.callerid,
+        latching=ext.latching,
+    )
