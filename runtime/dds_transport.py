@@ -19,6 +19,7 @@ numbers (little endian) and the message's own CDR body.
 from __future__ import annotations
 
 import itertools
+import logging
 import os
 import struct
 import threading
@@ -35,6 +36,25 @@ from objsearch.runtime.udpfilter import interface_address, restrict, udp_sockets
 
 #: How often a client sends its request again while unanswered (discovery still under way).
 RETRY_S = 0.5
+#: Samples taken per read; a listener loops until the reader is empty.
+BATCH = 64
+
+log = logging.getLogger("objsearch.runtime")
+
+#: DDS QoS policy ids (the DDS specification's numbering, Cyclone's ``dds_qos_policy_id_t``), as
+#: an incompatible-QoS status names the last policy that failed to match.
+POLICY_NAMES = {
+    2: "durability",
+    3: "presentation",
+    4: "deadline",
+    5: "latency budget",
+    6: "ownership",
+    8: "liveliness",
+    10: "partition",
+    11: "reliability",
+    12: "destination order",
+    25: "data representation",
+}
 
 _BASE = {
     "bool": "bool",
@@ -119,6 +139,50 @@ def unwrap(data: bytes) -> tuple[int, int, bytes]:
     return guid, seq, data[:4] + data[20:]
 
 
+def valid_samples(reader: Any) -> list[bytes]:
+    """Everything ``reader`` holds, as CDR bytes, without the samples that carry no data.
+
+    When a writer leaves (a node exits) or disposes an instance, DDS hands each reader an
+    *invalid* sample — only a key and a changed instance state, which Cyclone's Python binding
+    returns as an ``InvalidSample`` — in the same batch as the data around it. Those are skipped,
+    never allowed to cost the valid samples of the batch."""
+    out: list[bytes] = []
+    while batch := reader.take(N=BATCH):
+        out += [bytes(s.serialize()) for s in batch if s.sample_info.valid_data]
+        if len(batch) < BATCH:
+            break
+    return out
+
+
+def describe_qos(qos: QoS) -> str:
+    return f"{qos.reliability.value}, {qos.durability.value}, depth {qos.depth}"
+
+
+def _incompatible(what: str, name: str, qos: QoS) -> Any:
+    """A listener argument that logs a QoS mismatch naming the topic, our QoS and the policy the
+    peer disagrees on (each new mismatch once: ``total_count_change``)."""
+    side, peer = (
+        ("reader", "a writer offers") if what == "requested" else ("writer", "a reader requests")
+    )
+
+    def on_incompatible(entity: Any, status: Any) -> None:
+        if status.total_count_change <= 0:
+            return
+        policy = POLICY_NAMES.get(status.last_policy_id, f"policy {status.last_policy_id}")
+        log.warning(
+            "QoS mismatch on %s: %s QoS this %s (%s) cannot match: %s differs "
+            "(%d incompatible so far); nothing flows between them",
+            name,
+            peer,
+            side,
+            describe_qos(qos),
+            policy,
+            status.total_count,
+        )
+
+    return {f"on_{what}_incompatible_qos": on_incompatible}
+
+
 def _qos(qos: QoS) -> Any:
     from cyclonedds.core import Policy, Qos
 
@@ -176,13 +240,16 @@ class _DdsClient:
         self._cond = threading.Condition()
         self._replies: dict[int, bytes] = {}
         self._writer = DataWriter(
-            transport.participant, transport._topic(rq, self._req_cls), _qos(SERVICES)
+            transport.participant,
+            transport._topic(rq, self._req_cls),
+            _qos(SERVICES),
+            listener=Listener(**_incompatible("offered", rq, SERVICES)),  # type: ignore[no-untyped-call]
         )
         resp_cls = idl_type(f"{srvtype}_Response", request_header=True)
 
         def on_data(reader: Any) -> None:
-            for sample in reader.take(N=64):
-                guid, seq, body = unwrap(bytes(sample.serialize()))
+            for data in valid_samples(reader):
+                guid, seq, body = unwrap(data)
                 if guid == self._guid:  # replies to other clients share the topic
                     with self._cond:
                         self._replies[seq] = body
@@ -192,7 +259,9 @@ class _DdsClient:
             transport.participant,
             transport._topic(rr, resp_cls),
             _qos(SERVICES),
-            listener=Listener(on_data_available=on_data),  # type: ignore[no-untyped-call]
+            listener=Listener(  # type: ignore[no-untyped-call]
+                on_data_available=on_data, **_incompatible("requested", rr, SERVICES)
+            ),
         )
         transport._entities += [self._writer, self._reader]
 
@@ -246,10 +315,14 @@ class DdsTransport:
         return self._topics[name]
 
     def publisher(self, topic: str, msgtype: str, qos: QoS) -> _DdsPublisher:
+        from cyclonedds.core import Listener
         from cyclonedds.pub import DataWriter
 
         writer = DataWriter(
-            self.participant, self._topic(topic_name(topic), idl_type(msgtype)), _qos(qos)
+            self.participant,
+            self._topic(topic_name(topic), idl_type(msgtype)),
+            _qos(qos),
+            listener=Listener(**_incompatible("offered", topic, qos)),  # type: ignore[no-untyped-call]
         )
         self._entities.append(writer)
         return _DdsPublisher(writer, idl_type(msgtype), msgtype)
@@ -259,14 +332,16 @@ class DdsTransport:
         from cyclonedds.sub import DataReader
 
         def on_data(reader: Any) -> None:
-            for sample in reader.take(N=64):
-                handler(bytes(sample.serialize()))
+            for data in valid_samples(reader):
+                handler(data)
 
         reader = DataReader(
             self.participant,
             self._topic(topic_name(topic), idl_type(msgtype)),
             _qos(qos),
-            listener=Listener(on_data_available=on_data),  # type: ignore[no-untyped-call]
+            listener=Listener(  # type: ignore[no-untyped-call]
+                on_data_available=on_data, **_incompatible("requested", topic, qos)
+            ),
         )
         self._entities.append(reader)
 
@@ -278,11 +353,16 @@ class DdsTransport:
         rq, rr = service_topics(service)
         req_cls = idl_type(f"{srvtype}_Request", request_header=True)
         resp_cls = idl_type(f"{srvtype}_Response", request_header=True)
-        writer = DataWriter(self.participant, self._topic(rr, resp_cls), _qos(SERVICES))
+        writer = DataWriter(
+            self.participant,
+            self._topic(rr, resp_cls),
+            _qos(SERVICES),
+            listener=Listener(**_incompatible("offered", rr, SERVICES)),  # type: ignore[no-untyped-call]
+        )
 
         def on_data(reader: Any) -> None:
-            for sample in reader.take(N=64):
-                guid, seq, body = unwrap(bytes(sample.serialize()))
+            for data in valid_samples(reader):
+                guid, seq, body = unwrap(data)
 
                 def respond(response: bytes, guid: int = guid, seq: int = seq) -> None:
                     writer.write(resp_cls.deserialize(wrap(response, guid, seq)))
@@ -293,7 +373,9 @@ class DdsTransport:
             self.participant,
             self._topic(rq, req_cls),
             _qos(SERVICES),
-            listener=Listener(on_data_available=on_data),  # type: ignore[no-untyped-call]
+            listener=Listener(  # type: ignore[no-untyped-call]
+                on_data_available=on_data, **_incompatible("requested", rq, SERVICES)
+            ),
         )
         self._entities += [writer, reader]
 

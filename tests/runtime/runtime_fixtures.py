@@ -25,6 +25,11 @@ _domains = itertools.count(1 + os.getpid() % 150)
 STARTUP_S = 120.0
 
 
+def next_domain() -> int:
+    """A DDS domain id no other test of this run uses (1..200)."""
+    return next(_domains) % 200 + 1
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -56,7 +61,7 @@ def net(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Net]:
         wait_listening(port, router)
         n = Net("zenoh", ["--transport", "zenoh", "--connect", endpoint], router)
     else:
-        n = Net("dds", ["--transport", "dds", "--domain-id", str(next(_domains) % 200 + 1)])
+        n = Net("dds", ["--transport", "dds", "--domain-id", str(next_domain())])
     yield n
     if n.router is not None:
         stop(n.router)
