@@ -18,7 +18,8 @@ from objsearch.agent.home import available_homes, load_home
 from objsearch.agent.session import DEFAULT_PRIOR
 from objsearch.experiments.learning import (
     learning_summary,
-    paired_bootstrap,
+    paired_differences,
+    paired_json,
     plot_curves,
     render_learning,
     render_paired,
@@ -340,10 +341,11 @@ def run_homes(
     summary["strategies"] = {k: {m: s[m] for m in keys} for k, s in summary["overall"].items()}
     learning = learning_summary(rows)
     summary["learning"] = learning
-    summary["paired_vs_wpl"] = paired_bootstrap(rows) if "wpl" in strategies else {}
-    summary["plots"] = [p.name for p in plot_curves(learning, out)]
+    paired = paired_differences(rows) if "wpl" in strategies else {}
+    summary["paired_vs_wpl"] = paired_json(paired)
+    summary["plots"] = [p.name for p in plot_curves(rows, out)]
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     tables = render(summary) + "\n" + render_learning(learning)
-    tables += "\n" + render_paired(summary["paired_vs_wpl"]) + "\n"
+    tables += "\n" + render_paired(paired) + "\n"
     (out / "tables.txt").write_text(tables, encoding="utf-8")
     return summary

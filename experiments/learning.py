@@ -10,8 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.experiments.runner import Row
-
-_PARTS = ("wrong_rooms_m", "start_room_m", "right_room_m", "approach_m")
+from objsearch.experiments.stats import CI, MIN_RUNS, Spread, spread
 
 
 def key(r: Row) -> str:
@@ -34,14 +33,25 @@ def ratio(rows: Sequence[Row]) -> float:
 
 
 def excess_breakdown(rows: Iterable[Row]) -> dict[str, float]:
-    """Mean metres per successful search of each part of the excess (they sum to ``excess``)."""
+    """Mean metres per successful search: the full path split into parts that are never negative
+    (``wrong_rooms`` — of which ``start_room`` —, ``right_room`` before the final approach,
+    ``approach``; they sum to ``path``), the oracle's walk and ``excess = path − oracle``.
+
+    The oracle is shown beside the parts, not subtracted from one: its own walk crosses other
+    rooms on the way to the target's room, so ``right room − oracle`` is often negative and a
+    wrong-rooms share *of the excess* can pass 100 %. A share of the path cannot."""
     ok = [r for r in rows if r.success and r.wrong_rooms_m is not None]
     if not ok:
         return {"n": 0}
-    out: dict[str, float] = {"n": len(ok)}
-    for part in _PARTS:
-        out[part.removesuffix("_m")] = math.fsum(getattr(r, part) for r in ok) / len(ok)
-    out["excess"] = math.fsum(r.path_length - r.oracle_length for r in ok) / len(ok)
+    n = len(ok)
+    out: dict[str, float] = {"n": n}
+    for part in ("wrong_rooms_m", "start_room_m", "approach_m"):
+        out[part.removesuffix("_m")] = math.fsum(getattr(r, part) for r in ok) / n
+    # Rows store the right room net of the oracle (experiments/decompose.py); add it back.
+    out["right_room"] = math.fsum((r.right_room_m or 0.0) + r.oracle_length for r in ok) / n
+    out["path"] = math.fsum(r.path_length for r in ok) / n
+    out["oracle"] = math.fsum(r.oracle_length for r in ok) / n
+    out["excess"] = out["path"] - out["oracle"]
     return out
 
 
@@ -77,15 +87,13 @@ def learning_summary(rows: Sequence[Row], *, after: int = 10) -> dict[str, Any]:
     return out
 
 
-def render_paired(paired: dict[str, dict[str, float]], base: str = "wpl") -> str:
+def render_paired(paired: dict[str, Spread], base: str = "wpl") -> str:
     lines = [
-        f"\npath length minus {base}'s, per (home, schedule) run (m), paired bootstrap 95 % CI"
+        f"\npath length minus {base}'s, mean over (home, schedule, seed) runs (m), "
+        f"{CI} or, under {MIN_RUNS} runs, the range"
     ]
     for k, d in paired.items():
-        lines.append(
-            f"  {k:22}{d['mean_diff_m']:+8.2f}  [{d['ci_low']:+.2f}, {d['ci_high']:+.2f}]"
-            f"  runs {d['runs']:g}"
-        )
+        lines.append(f"  {k:22}{d.mean:+8.2f}  {d.text()}  runs {d.n}")
     return "\n".join(lines)
 
 
@@ -93,93 +101,176 @@ def full_path(row: Row) -> float:
     return row.path_length
 
 
-def paired_bootstrap(
+def run_of(r: Row) -> tuple[str, str, int]:
+    """The run a search belongs to: (home, schedule with its seed, strategy seed)."""
+    return (r.home, r.placements, r.seed)
+
+
+def paired_differences(
     rows: Sequence[Row],
     *,
     base: str = "wpl",
-    resamples: int = 10_000,
-    seed: int = 0,
     metric: Callable[[Row], float] = full_path,
-) -> dict[str, dict[str, float]]:
-    """Per strategy: the mean over (home, schedule) runs of (its run mean ``metric`` − ``base``'s),
-    with a paired bootstrap 95 % CI over runs (resampling runs with replacement, seeded)."""
-    import random
-
+) -> dict[str, Spread]:
+    """Per strategy: over the runs both it and ``base`` made, its run mean ``metric`` minus
+    ``base``'s, summarised by :func:`experiments.stats.spread` (a 95 % interval only over enough
+    runs)."""
     means: dict[tuple[str, str, str], list[float]] = {}
     for r in rows:
         means.setdefault((key(r), r.home, r.placements), []).append(metric(r))
     run_mean = {k: math.fsum(v) / len(v) for k, v in means.items()}
-    out: dict[str, dict[str, float]] = {}
-    rng = random.Random(seed)
+    out: dict[str, Spread] = {}
     for k in dict.fromkeys(key(r) for r in rows):
         diffs = [
             m - run_mean[(base, home, spec)]
             for (kk, home, spec), m in sorted(run_mean.items())
             if kk == k and (base, home, spec) in run_mean
         ]
-        if not diffs or k == base:
-            continue
-        boot = sorted(
-            math.fsum(rng.choice(diffs) for _ in diffs) / len(diffs) for _ in range(resamples)
-        )
-        out[k] = {
-            "runs": len(diffs),
-            "mean_diff_m": math.fsum(diffs) / len(diffs),
-            "ci_low": boot[int(0.025 * resamples)],
-            "ci_high": boot[int(0.975 * resamples) - 1],
-        }
+        if diffs and k != base:
+            out[k] = spread(diffs)
+    return out
+
+
+def paired_json(paired: dict[str, Spread]) -> dict[str, dict[str, Any]]:
+    """summary.json's ``paired_vs_wpl``: ``ci_low``/``ci_high`` only where there is an interval."""
+    out: dict[str, dict[str, Any]] = {}
+    for k, d in paired.items():
+        doc: dict[str, Any] = {"runs": d.n, "mean_diff_m": d.mean, "spread": d.kind}
+        if d.is_interval:
+            doc |= {"ci_low": d.low, "ci_high": d.high}
+        else:
+            doc |= {"min": d.low, "max": d.high}
+        out[k] = doc
     return out
 
 
 def render_learning(summary: dict[str, Any], *, after: int = 10) -> str:
     lines: list[str] = []
     for kind, per in summary.items():
-        lines.append(f"\n{kind} schedules: excess over the oracle per successful search (m)")
         lines.append(
-            f"  {'strategy':22}{'excess':>8}{'wrong rm':>9}{'(start)':>9}{'right rm':>9}"
-            f"{'approach':>9}{'all×':>7}{'first×':>8}{f'all×>{after}':>9}{f'1st×>{after}':>9}"
+            f"\n{kind} schedules: full path of a successful search by where it went, and the "
+            "oracle beside it (m; parts sum to the path)"
+        )
+        lines.append(
+            f"  {'strategy':22}{'path':>7}{'oracle':>8}{'excess':>8}{'wrong rm':>9}{'(start)':>9}"
+            f"{'right rm':>9}{'approach':>9}{'all×':>7}{'first×':>8}{f'all×>{after}':>9}"
+            f"{f'1st×>{after}':>9}"
         )
         for k, s in per.items():
             e = s["excess"]
             if not e.get("n"):
                 continue
             lines.append(
-                f"  {k:22}{e['excess']:8.2f}{e['wrong_rooms']:9.2f}{e['start_room']:9.2f}"
-                f"{e['right_room']:9.2f}{e['approach']:9.2f}{s['all_ratio']:7.2f}"
-                f"{s['first_ratio']:8.2f}{s['all_ratio_after']:9.2f}{s['first_ratio_after']:9.2f}"
+                f"  {k:22}{e['path']:7.2f}{e['oracle']:8.2f}{e['excess']:8.2f}"
+                f"{e['wrong_rooms']:9.2f}{e['start_room']:9.2f}{e['right_room']:9.2f}"
+                f"{e['approach']:9.2f}{s['all_ratio']:7.2f}{s['first_ratio']:8.2f}"
+                f"{s['all_ratio_after']:9.2f}{s['first_ratio_after']:9.2f}"
             )
     return "\n".join(lines)
 
 
-def plot_curves(summary: dict[str, Any], out: Path, *, prefix: str = "learning") -> list[Path]:
-    """One PNG per schedule kind (``<prefix>_<kind>.png``): oracle ratio per scene, first search
-    of the day (solid) and all searches (dashed), per strategy."""
-    import matplotlib
+def run_curves(rows: Sequence[Row]) -> dict[str, dict[int, list[float]]]:
+    """Per scene, each run's Σ path / Σ oracle (all searches, and first searches of the day)."""
+    out: dict[str, dict[int, list[float]]] = {"all": {}, "first": {}}
+    for which, group in (("all", list(rows)), ("first", first_of_day(rows))):
+        cells: dict[tuple[int, tuple[str, str, int]], list[Row]] = {}
+        for r in group:
+            cells.setdefault((r.scene, run_of(r)), []).append(r)
+        for (scene, _), rs in sorted(cells.items()):
+            value = ratio(rs)
+            if not math.isnan(value):
+                out[which].setdefault(scene, []).append(value)
+    return out
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+#: Bootstrap resamples for a curve's band at each scene (a picture, not a table figure).
+BAND_RESAMPLES = 2_000
+
+
+def plot_curves(
+    rows: Sequence[Row], out: Path, *, prefix: str = "learning", base: str = "wpl"
+) -> list[Path]:
+    """One figure per schedule kind (``<prefix>_<kind>.png``, with .svg and .pdf beside it): a
+    panel per strategy, the first search of the day as the mean over runs with its band (95 %
+    CI with enough runs, else the runs' range: experiments/stats.py), all searches dashed, and
+    ``base``'s first-search curve in grey in every other panel for reference."""
+    from objsearch.experiments.plots import pyplot, save_figure
+
+    plt = pyplot()
+    from matplotlib.ticker import MaxNLocator
 
     paths: list[Path] = []
-    for kind, per in summary.items():
-        fig, ax = plt.subplots(figsize=(7, 4))
-        for i, (k, s) in enumerate(per.items()):
-            color = f"C{i % 10}"
-            for which, style in (("first", "-"), ("all", "--")):
-                pts = sorted((int(x), y) for x, y in s["curve"][which].items())
+    for kind in sorted({r.placements.partition("-")[0] for r in rows}):
+        mine = [r for r in rows if r.placements.partition("-")[0] == kind]
+        keys = list(dict.fromkeys(key(r) for r in mine))
+        curves = {k: run_curves([r for r in mine if key(r) == k]) for k in keys}
+        cols = min(3, len(keys))
+        nrows = math.ceil(len(keys) / cols)
+        fig, axes = plt.subplots(
+            nrows, cols, figsize=(3.2 * cols, 2.4 * nrows + 0.6), sharex=True, sharey=True,
+            squeeze=False,
+        )  # fmt: skip
+        kinds_drawn: set[str] = set()
+        for i, k in enumerate(keys):
+            ax = axes[i // cols][i % cols]
+            if base in curves and k != base:
+                ref = sorted(curves[base]["first"].items())
                 ax.plot(
-                    [p[0] for p in pts],
-                    [p[1] for p in pts],
-                    style,
-                    color=color,
-                    label=f"{k} ({which})",
+                    [s for s, _ in ref],
+                    [math.fsum(v) / len(v) for _, v in ref],
+                    color="0.6",
+                    lw=1,
+                    label=f"{base}, first search (reference)",
                 )
-        ax.set_xlabel("scene (day)")
-        ax.set_ylabel("path / oracle path")
-        ax.set_title(f"{kind} schedules: first search of the day (solid) vs all (dashed)")
-        ax.legend(fontsize=6, ncol=2)
-        fig.tight_layout()
+            runs = 0
+            for which, style in (("first", "-"), ("all", "--")):
+                pts = sorted(curves[k][which].items())
+                spreads = [spread(v, resamples=BAND_RESAMPLES) for _, v in pts]
+                scenes = [s for s, _ in pts]
+                ax.plot(
+                    scenes,
+                    [d.mean for d in spreads],
+                    style,
+                    color="C0" if which == "first" else "C1",
+                    lw=1.5,
+                    label="first search of the day" if which == "first" else "all searches",
+                )
+                if which == "first" and spreads:
+                    runs = max(d.n for d in spreads)
+                    kinds_drawn |= {d.kind for d in spreads}
+                    ax.fill_between(
+                        scenes,
+                        [d.low for d in spreads],
+                        [d.high for d in spreads],
+                        color="C0",
+                        alpha=0.2,
+                        lw=0,
+                        label="band (first search)",
+                    )
+            ax.set_title(f"{k} ({runs} run{'s' if runs != 1 else ''})")
+            if i % cols == 0:
+                ax.set_ylabel("path / oracle path (×)")
+            if i // cols == nrows - 1 or i + cols >= len(keys):
+                ax.set_xlabel("scene (day)")
+                ax.tick_params(labelbottom=True)
+        axes[0][0].xaxis.set_major_locator(MaxNLocator(integer=True))
+        for j in range(len(keys), nrows * cols):
+            axes[j // cols][j % cols].set_visible(False)
+        band = " or ".join(sorted(kinds_drawn)) or "none"
+        fig.suptitle(
+            f"{kind} schedules: mean over runs of each run's Σ path / Σ oracle per scene; "
+            f"band: {band} over runs (CI only with ≥ {MIN_RUNS} runs)",
+            fontsize=9,
+        )
+        handles, labels = [], []
+        for ax in axes.flat:
+            for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+                if lab not in labels:
+                    handles.append(h)
+                    labels.append(lab)
+        fig.legend(handles, labels, loc="lower center", ncol=len(labels), frameon=False)
+        fig.tight_layout(rect=(0, 0.06 + 0.02 / nrows, 1, 0.95))
         path = out / f"{prefix}_{kind}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+        save_figure(fig, path)
         paths.append(path)
     return paths

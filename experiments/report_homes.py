@@ -4,7 +4,8 @@ the searches it summarises.
 
 Per strategy: path to discovery (the paper's metric) and the full path; Σpath/Σoracle of all
 searches and of the *first search of the day*, overall and after scene :data:`AFTER`; success;
-the exact excess decomposition; learning curves (PNG); paired bootstrap CIs against ``wpl``; how
+the exact excess decomposition; learning curves and per-home error bars (PNG, SVG, PDF); paired differences against ``wpl``
+(a 95 % CI only over enough runs, experiments/stats.py); how
 often updates made a strategy longer than its no-update twin; every failure with its cause; and
 the strategy table again per home family and per schedule kind.
 """
@@ -26,14 +27,15 @@ from objsearch.experiments.learning import (
     excess_breakdown,
     first_of_day,
     key,
-    learning_summary,
-    paired_bootstrap,
+    paired_differences,
     plot_curves,
     ratio,
+    run_of,
 )
 from objsearch.experiments.paper import discovery
-from objsearch.experiments.report_paper import pyplot
+from objsearch.experiments.plots import pyplot, save_figure
 from objsearch.experiments.runner import Row
+from objsearch.experiments.stats import CI, MIN_RUNS, method_note, spread
 from objsearch.sim.longterm import scenes_of
 from objsearch.sim.world import DEFAULT_CAMERA, Placement, first_sighting, search_camera
 
@@ -75,36 +77,34 @@ def strategy_table(rows: Sequence[Row]) -> list[str]:
 
 def excess_table(rows: Sequence[Row]) -> list[str]:
     lines = [
-        "| strategy | excess m | wrong rooms m | of which start room m | right room m | approach m "
-        "| wrong rooms share |",
-        "|---|---|---|---|---|---|---|",
+        "| strategy | full path m | oracle m | excess m | wrong rooms m | of which start room m "
+        "| right room m | approach m | wrong rooms share of the path |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for k, rs in _by_key(rows).items():
         e = excess_breakdown(rs)
         if not e.get("n"):
             continue
-        share = e["wrong_rooms"] / e["excess"] if e["excess"] > 0 else math.nan
+        share = e["wrong_rooms"] / e["path"] if e["path"] > 0 else math.nan
         lines.append(
-            f"| {k} | {e['excess']:.2f} | {e['wrong_rooms']:.2f} | {e['start_room']:.2f} "
-            f"| {e['right_room']:.2f} | {e['approach']:.2f} "
-            f"| {'–' if math.isnan(share) else f'{100 * share:.0f} %'} |"
+            f"| {k} | {e['path']:.2f} | {e['oracle']:.2f} | {e['excess']:.2f} "
+            f"| {e['wrong_rooms']:.2f} | {e['start_room']:.2f} | {e['right_room']:.2f} "
+            f"| {e['approach']:.2f} | {'–' if math.isnan(share) else f'{100 * share:.0f} %'} |"
         )
     return lines
 
 
 def paired_table(rows: Sequence[Row]) -> list[str]:
-    paired = paired_bootstrap(rows, metric=discovery)
+    paired = paired_differences(rows, metric=discovery)
     if not paired:
         return ["(no `wpl` runs to pair with: run bench homes with wpl among --strategies)"]
     lines = [
-        "| strategy | Δ path to discovery vs wpl m | 95 % CI | runs |",
+        f"| strategy | Δ path to discovery vs wpl m | {CI} (or the range, under {MIN_RUNS} "
+        "runs) | runs |",
         "|---|---|---|---|",
     ]
     for k, d in paired.items():
-        lines.append(
-            f"| {k} | {d['mean_diff_m']:+.2f} | [{d['ci_low']:+.2f}, {d['ci_high']:+.2f}] "
-            f"| {d['runs']:g} |"
-        )
+        lines.append(f"| {k} | {d.mean:+.2f} | {d.text()} | {d.n} |")
     return lines
 
 
@@ -239,24 +239,43 @@ def failure_lines(rows: Sequence[Row], camera: str | None = DEFAULT_CAMERA) -> l
     return lines
 
 
-def plot_homes(summary: dict[str, Any], path: Path) -> None:
-    """Mean path length per held-out home and strategy."""
+def plot_homes(rows: Sequence[Row], path: Path) -> list[Path]:
+    """Mean path to discovery per home and strategy: the mean over that home's runs with an error
+    bar (95 % CI with enough runs, else the runs' range: experiments/stats.py)."""
     plt = pyplot()
-    homes = list(summary["by_home"])
-    keys = list(summary["overall"])
-    fig, ax = plt.subplots(figsize=(max(8, len(homes) * 0.45), 4), dpi=100)
+    homes = sorted({r.home for r in rows})
+    keys = list(_by_key(rows))
+    runs: dict[tuple[str, str], dict[tuple[str, str, int], list[float]]] = {}
+    for r in rows:
+        runs.setdefault((r.home, key(r)), {}).setdefault(run_of(r), []).append(discovery(r))
+    fig, ax = plt.subplots(figsize=(max(6.5, len(homes) * 0.5 + 1.5), 3.6))
     width = 0.8 / len(keys)
+    kinds: set[str] = set()
     for i, k in enumerate(keys):
-        vals = [summary["by_home"][h].get(k, {}).get("mean_path_length", math.nan) for h in homes]
-        ax.bar([x + i * width for x in range(len(homes))], vals, width, label=k)
-    ax.set_xticks([x + 0.4 - width / 2 for x in range(len(homes))])
-    ax.set_xticklabels(homes, rotation=60, ha="right", fontsize=7)
-    ax.set_ylabel("mean path length (m)")
-    ax.set_title("Mean path length per home and strategy (updates of all pairs)")
-    ax.legend(fontsize=7, ncol=4)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+        xs, means, lows, highs = [], [], [], []
+        for x, h in enumerate(homes):
+            per_run = runs.get((h, k))
+            if not per_run:
+                continue
+            d = spread([statistics.fmean(v) for v in per_run.values()])
+            kinds.add(d.kind)
+            xs.append(x - 0.4 + width * (i + 0.5))
+            means.append(d.mean)
+            lows.append(d.mean - d.low)
+            highs.append(d.high - d.mean)
+        ax.bar(xs, means, width, label=k, color=f"C{i % 10}")
+        ax.errorbar(xs, means, yerr=[lows, highs], fmt="none", ecolor="k", elinewidth=0.7,
+                    capsize=1.5)  # fmt: skip
+    ax.set_xticks(range(len(homes)))
+    ax.set_xticklabels(homes, rotation=60, ha="right")
+    ax.set_xlabel("home")
+    ax.set_ylabel("mean path to discovery (m)")
+    ax.set_title(
+        "Per home and strategy; error bars: " + " or ".join(sorted(kinds))
+        + f" over runs (CI only with ≥ {MIN_RUNS} runs)"
+    )  # fmt: skip
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, title="strategy")
+    return save_figure(fig, path)
 
 
 def homes_section(
@@ -271,8 +290,8 @@ def homes_section(
     homes = sorted({r.home for r in rows})
     kinds = sorted({schedule_kind(r.placements) for r in rows})
     seeds = sorted({r.seed for r in rows})
-    plots = plot_curves(learning_summary(rows, after=AFTER), img, prefix=plot_prefix)
-    plot_homes(summary, img / f"{plot_prefix}_per_home.png")
+    plots = plot_curves(rows, img, prefix=plot_prefix)
+    plot_homes(rows, img / f"{plot_prefix}_per_home.png")
     plots.append(img / f"{plot_prefix}_per_home.png")
     out = [
         f"## {title}",
@@ -296,15 +315,25 @@ def homes_section(
         "",
         *strategy_table(rows),
         "",
-        "### Where the excess over the oracle goes (per successful search)",
-        "Parts sum to the excess (experiments/decompose.py).",
+        "### Where the path goes (per successful search)",
+        "Each leg is charged to the room it ends in (experiments/decompose.py); the parts — "
+        "wrong rooms, the right room before the final approach, the approach — sum to the full "
+        "path and are never negative. The oracle's walk is shown beside them, not subtracted "
+        "from a part: it crosses other rooms on its way, so a part net of it could be negative "
+        "and a share of the excess could pass 100 %.",
         "",
         *excess_table(rows),
         "",
         "### Learning curves",
+        "A panel per strategy: the mean over runs of each run's Σ path / Σ oracle per scene, its "
+        "band over runs (as below), and wpl's curve in grey for reference; error bars per home "
+        "likewise.",
+        "",
         *(f"![{p.stem}]({img_link}/{p.name})" for p in plots),
         "",
-        "### Against the paper's WPL: paired bootstrap over (home, schedule, seed) runs",
+        "### Against the paper's WPL: paired differences over (home, schedule, seed) runs",
+        method_note(),
+        "",
         *paired_table(rows),
         "",
         "### Updates against no update",

@@ -4,11 +4,12 @@ difference the camera makes, and the figures drawn from the paper run (route, sc
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
 from objsearch.experiments.paper import render as render_paper
+from objsearch.experiments.plots import pyplot, save_figure
+from objsearch.experiments.route_map import plot_route_map
 
 #: The data each named prior (docs/paper-readings.md) saw: Visual Genome images (and HOZ's
 #: adjacency graph), never AI2-THOR's placements or the homes evaluated.
@@ -32,37 +33,30 @@ def prior_line(summary: dict[str, Any]) -> str:
     return f"prior `{name}` ({PRIOR_DATA.get(name, 'see docs/paper-readings.md')})"
 
 
-def pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def plot_longterm(summary: dict[str, Any], path: Path) -> None:
+def plot_longterm(summary: dict[str, Any], path: Path) -> list[Path]:
     """Fig. 6-like: mean path length per Table II scene, per strategy and update mode."""
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7.5, 4), dpi=100)
+    fig, ax = plt.subplots(figsize=(7.5, 3.6))
     for key, s in summary["longterm"].items():
         scenes = list(s["per_scene"])
         ax.plot(
-            [int(x) for x in scenes], [s["per_scene"][x] for x in scenes], marker="o", label=key
-        )
+            [int(x) for x in scenes], [s["per_scene"][x] for x in scenes], marker="o", ms=3,
+            label=key,
+        )  # fmt: skip
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("scene (Table II)")
     ax.set_ylabel("mean path length (m)")
     ax.set_title("Long-term search on the paper home (8 targets × 8 starts per scene)")
-    ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, title="strategy/update")
+    return save_figure(fig, path)
 
 
 def plot_route(
     path: Path, home_name: str = "paper", target: str = "Vase", start: str = "kitchen-1"
 ) -> str:
-    """Fig. 7-like: one WPL search drawn over the home's viewpoints and static objects."""
+    """Fig. 7-like: one WPL search, cut to the rooms it visited, room changes marked."""
     import tempfile
 
     from objsearch.agent.scene_graph import UpdateMode
@@ -81,50 +75,17 @@ def plot_route(
             result = session.search(world, target, start)
         finally:
             session.close()
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(10, 3.6), dpi=100)
-    pts = list(ctx.navmap.room_of)
-    ax.scatter([p.x for p in pts], [p.y for p in pts], s=2, c="#cccccc", label="viewpoints")
-    for s in ctx.semmap.statics:
-        ax.add_patch(
-            plt.Rectangle(
-                (s.box.center[0] - s.box.size[0] / 2, s.box.center[1] - s.box.size[1] / 2),
-                s.box.size[0],
-                s.box.size[1],
-                fill=False,
-                ec="#4477aa",
-                lw=0.8,
-            )
-        )
-        ax.annotate(s.cls, (s.loc.x, s.loc.y), fontsize=5, color="#4477aa")
-    xs, ys = [p.x for p in result.route], [p.y for p in result.route]
-    # Teleports between doors are drawn as separate segments (no walking between them).
-    seg_x, seg_y = [xs[0]], [ys[0]]
-    for x, y in zip(xs[1:], ys[1:], strict=True):
-        if math.hypot(x - seg_x[-1], y - seg_y[-1]) > 0.5:
-            ax.plot(seg_x, seg_y, c="#cc3311", lw=1.5)
-            seg_x, seg_y = [], []
-        seg_x.append(x)
-        seg_y.append(y)
-    ax.plot(seg_x, seg_y, c="#cc3311", lw=1.5, label=f"route ({result.path_length:.1f} m)")
-    ax.scatter([xs[0]], [ys[0]], c="green", s=30, zorder=3, label=f"start {start}")
-    found = [p for p in placements.values() if p.cls == target]
-    ax.scatter(
-        [p.box.center[0] for p in found],
-        [p.box.center[1] for p in found],
-        marker="*",
-        s=90,
-        c="gold",
-        ec="k",
-        zorder=3,
-        label=target,
+    found = [p.box.center for p in placements.values() if p.cls == target]
+    plot_route_map(
+        ctx,
+        result.route,
+        path,
+        title=f"WPL search for the {target} from {start} (paper home, Table I placements), "
+        f"{result.path_length:.1f} m",
+        start_label=start,
+        target=target,
+        targets_at=[(c[0], c[1]) for c in found],
     )
-    ax.set_aspect("equal")
-    ax.set_title(f"WPL search for the {target} from {start} (paper home, Table I placements)")
-    ax.legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
     return f"{target} from {start}: {result.path_length:.2f} m, rooms " + " → ".join(
         r for r, _ in result.plans
     )
@@ -157,18 +118,18 @@ def plot_graph_before_after(log: Path, path: Path) -> None:
     plt = pyplot()
     dyn = sorted(tables[0][1])
     stat = sorted({s for row in tables[0][1].values() for s in row})
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), dpi=100)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for ax, (title, table) in zip(axes, tables, strict=True):
         grid = [[table[d].get(s, 0.0) for s in stat] for d in dyn]
         im = ax.imshow(grid, vmin=0, vmax=1, cmap="viridis")
+        ax.grid(False)
         ax.set_xticks(range(len(stat)))
         ax.set_xticklabels(stat, rotation=70, fontsize=6)
         ax.set_yticks(range(len(dyn)))
         ax.set_yticklabels(dyn, fontsize=7)
         ax.set_title(title, fontsize=8)
-    fig.colorbar(im, ax=axes, shrink=0.8, label="Rel")
-    fig.savefig(path, bbox_inches="tight")
-    plt.close(fig)
+    fig.colorbar(im, ax=axes, shrink=0.8, label="Rel (0–1)")
+    save_figure(fig, path)
 
 
 def paper_section(summary: dict[str, Any], folder: Path, img: Path, img_link: str) -> str:

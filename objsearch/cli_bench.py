@@ -14,7 +14,13 @@ from objsearch.agent.outdir import claim
 
 #: What bench paper and bench homes write into --out (an earlier run's files are replaced).
 PAPER_OUTPUTS = ("paper_trials.parquet", "paper_trials.csv", "summary.json", "tables.txt", "logs")
-HOMES_OUTPUTS = ("homes_trials.parquet", "homes_trials.csv", "summary.json", "tables.txt")
+HOMES_OUTPUTS = (
+    "homes_trials.parquet",
+    "homes_trials.csv",
+    "summary.json",
+    "tables.txt",
+    "learning_*",  # the learning curves, as PNG, SVG and PDF
+)
 
 
 def _strategies(text: str | None, default: str) -> list[str]:
@@ -157,6 +163,10 @@ def cmd_bench_report(args: argparse.Namespace) -> int:
     out = Path(args.out)
     path = write_report(inputs, out, Path(args.img) if args.img else out.parent / "img")
     print(f"wrote {path}")
+    if args.html:
+        from objsearch.experiments.report_html import write_results_html
+
+        print(f"wrote {write_results_html(path)}")
     return 0
 
 
@@ -365,5 +375,11 @@ def register(sub: Any) -> None:
         "--rearr-out",
         type=t.file_path,
         help="where the rearrangement page goes (default: results-rearrangement.md beside --out)",
+    )
+    report.add_argument(
+        "--html",
+        action="store_true",
+        help="also write index.html beside --out: the same page, self-contained (sortable "
+        "tables, inline SVG figures)",
     )
     report.set_defaults(func=cmd_bench_report)

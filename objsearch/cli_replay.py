@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +44,8 @@ def register(sub: Any) -> None:
         "audit",
         help="a per-task report: timeline, route, relation values, anomalies",
         description="Writes index.md and one Markdown file per task (with a route PNG for "
-        "flagged tasks, or all with --plots all) to --out.",
+        "flagged tasks, or all with --plots all) to --out; with --html also index.html and a "
+        "self-contained page per task.",
     )
     au.add_argument(
         "log",
@@ -79,6 +82,12 @@ def register(sub: Any) -> None:
         help="... and the oracle by this many m (10)",
     )
     au.add_argument("--json", action="store_true", help="print the anomalies as JSON")
+    au.add_argument(
+        "--html",
+        action="store_true",
+        help="also write index.html and a page per task (sortable tables, inline SVG routes "
+        "for the tasks --plots names), self-contained: open index.html from disk",
+    )
     au.set_defaults(func=cmd_audit)
 
 
@@ -147,7 +156,14 @@ def cmd_audit(args: argparse.Namespace) -> int:
         oracle_excess_m=args.oracle_excess,
     )
     out = Path(args.out)
-    write_report(auditor, out, plots=args.plots, max_plots=args.max_plots, title=f"audit of {name}")
+    title = f"audit of {name}"
+    html: Callable[[Any, Path], list[Path]] | None = None
+    if args.html:
+        from objsearch.experiments.report_html import write_audit_html
+
+        html = partial(write_audit_html, plots=args.plots, max_plots=args.max_plots, title=title)
+
+    write_report(auditor, out, plots=args.plots, max_plots=args.max_plots, title=title, html=html)
     counts = anomaly_counts(auditor.tasks)
     if args.json:
         anomalies = [
@@ -161,5 +177,5 @@ def cmd_audit(args: argparse.Namespace) -> int:
             f"{len(auditor.tasks)} tasks audited; anomalies: "
             + (", ".join(f"{k} {v}" for k, v in sorted(counts.items())) or "none")
         )
-        print(f"report: {out / 'index.md'}")
+        print(f"report: {out / 'index.md'}" + (f", {out / 'index.html'}" if args.html else ""))
     return 0

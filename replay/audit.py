@@ -14,7 +14,7 @@ Anomalies flagged (each with the event sequence numbers that show it):
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -300,7 +300,7 @@ class Auditor:
 
 
 #: What a report writes into its folder (an earlier report's are replaced).
-REPORT_FILES = ("index.md", "task-*.md", "task-*.png")
+REPORT_FILES = ("index.md", "task-*.md", "task-*.png", "index.html", "task-*.html")
 
 
 def audit(events: Iterable[Any], **thresholds: float) -> Auditor:
@@ -316,13 +316,16 @@ def write_report(
     plots: str = "flagged",
     max_plots: int | None = 25,
     title: str = "audit",
+    html: Callable[[Auditor, Path], list[Path]] | None = None,
 ) -> list[Path]:
     """Markdown per task, an index, and route PNGs (``plots``: all, flagged or none; at most
-    ``max_plots`` of them, in log order, since each takes a noticeable fraction of a second)."""
+    ``max_plots`` of them, in log order, since each takes a noticeable fraction of a second);
+    ``html`` writes the web pages into the same claimed folder (``audit --html``)."""
     # An earlier report's pages must not mix with this one, so they go; nothing else in ``out`` is
     # touched, and a folder holding anything else where the report writes is refused.
     with claim(out, command="audit", owns=REPORT_FILES, replace_needs_force=False):
-        return _write_report(auditor, out, plots=plots, max_plots=max_plots, title=title)
+        written = _write_report(auditor, out, plots=plots, max_plots=max_plots, title=title)
+        return written + (html(auditor, out) if html is not None else [])
 
 
 def _write_report(

@@ -13,11 +13,13 @@ from pathlib import Path
 import pytest
 
 from objsearch.cli import main
-from objsearch.experiments.learning import paired_bootstrap
+from objsearch.experiments.learning import paired_differences
 from objsearch.experiments.paper import discovery
 from objsearch.experiments.report_homes import failure_lines, update_regressions
 from objsearch.experiments.report_paper import cameras_section
 from objsearch.experiments.runner import read_rows
+
+from .browser import IMAGES_RENDERED, Browser, check_screenshot
 
 
 def _bench(*argv: str) -> None:
@@ -84,9 +86,12 @@ def test_without_optional_inputs_their_sections_say_how_to_produce_them(
     assert "objsearch bench homes --out" in text and "--schedules stats --seeds 1" in text
     for heading in (
         "| strategy | path to discovery m | full path m | oracle× all | oracle× first of day",
-        "| strategy | excess m | wrong rooms m | of which start room m | right room m | approach m",
+        "| strategy | full path m | oracle m | excess m | wrong rooms m | of which start room m "
+        "| right room m | approach m | wrong rooms share of the path |",
         "![homes_stats](img/homes_stats.png)",
-        "| strategy | Δ path to discovery vs wpl m | 95 % CI | runs |",
+        "| strategy | Δ path to discovery vs wpl m | 95 % CI (or the range, under 10 runs) | runs |",
+        # Two runs (one per home): the range and n, never a "95 % CI" over 2 runs.
+        "(no CI: < 10 runs) | 2 |",
         "updates made it longer than wpl/none in **",
         "Success 100.00 % (768 of 768 searches); no failures.",
         "### Home family: ithor",
@@ -94,7 +99,9 @@ def test_without_optional_inputs_their_sections_say_how_to_produce_them(
         "### Schedule kind: stats",
     ):
         assert heading in text, heading
-    assert (tmp_path / "docs" / "img" / "homes_stats.png").stat().st_size > 0
+    for suffix in (".png", ".svg", ".pdf"):  # every figure also as SVG and PDF
+        assert (tmp_path / "docs" / "img" / "homes_stats").with_suffix(suffix).stat().st_size > 0
+        assert (tmp_path / "docs" / "img" / "homes_per_home").with_suffix(suffix).is_file()
     assert "| epl |" in text and "| wpl/none |" in text
 
 
@@ -190,7 +197,7 @@ def test_report_dirs_are_checked(tmp_path: Path, capsys: pytest.CaptureFixture[s
 
 def test_the_paired_difference_is_in_the_paper_metric(runs: dict[str, Path]) -> None:
     rows = read_rows(runs["homes"] / "homes_trials.parquet")
-    paired = paired_bootstrap(rows, metric=discovery)["epl"]
+    paired = paired_differences(rows, metric=discovery)["epl"]
     per_run = {}
     for strategy in ("wpl", "epl"):
         for home in ("ithor-01", "procthor-00"):
@@ -201,9 +208,9 @@ def test_the_paired_difference_is_in_the_paper_metric(runs: dict[str, Path]) -> 
             ]
             per_run[strategy, home] = sum(mine) / len(mine)
     diffs = [per_run["epl", h] - per_run["wpl", h] for h in ("ithor-01", "procthor-00")]
-    assert paired["runs"] == 2
-    assert paired["mean_diff_m"] == pytest.approx(sum(diffs) / 2)
-    assert paired["ci_low"] <= paired["mean_diff_m"] <= paired["ci_high"]
+    assert (paired.n, paired.kind) == (2, "range")
+    assert paired.mean == pytest.approx(sum(diffs) / 2)
+    assert paired.low == pytest.approx(min(diffs)) and paired.high == pytest.approx(max(diffs))
 
 
 def test_several_homes_runs_are_reported_as_one(runs: dict[str, Path], tmp_path: Path) -> None:
@@ -269,3 +276,20 @@ def test_report_help_shows_its_defaults(
         "(default: results-rearrangement.md beside --out)",
     ):
         assert default in text, default
+
+
+def test_the_html_report_renders_in_chromium(runs: dict[str, Path], tmp_path: Path) -> None:
+    _report(runs, tmp_path, "--html")
+    index = tmp_path / "docs" / "index.html"
+    html = index.read_text(encoding="utf-8")
+    assert "<img" not in html and "<script src" not in html  # every figure inline, as SVG
+    with Browser() as browser:
+        browser.open(index)
+        drawn = browser.evaluate(IMAGES_RENDERED)
+        # longterm, route, scene graph, the learning curves and the per-home bars
+        assert drawn["svgs"] == 5 and drawn["bad"] == []
+        tables = browser.evaluate("document.querySelectorAll('table.sortable').length")
+        assert tables >= 5
+        browser.evaluate("window.scrollTo(0, document.querySelector('figure').offsetTop)")
+        check_screenshot(browser.screenshot(tmp_path / "results.png"), 1280, 900)
+        assert browser.errors == []
