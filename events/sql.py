@@ -25,6 +25,7 @@ import pyarrow as pa
 from .arrow import ENVELOPE_COLUMNS, event_schema
 from .errors import EventStoreError
 from .lake import Lake, RunInfo
+from .lake_table import DataFile, TableLake
 from .schemas import default_registry
 
 PARTITION_COLUMNS: Final = (("robot", "VARCHAR"), ("date", "DATE"), ("run", "VARCHAR"))
@@ -144,3 +145,53 @@ def check_read_only(con: duckdb.DuckDBPyConnection, sql: str) -> None:
             f"({text[:60]}{'…' if len(text) > 60 else ''}); to write a result file, use --out "
             "PATH; a PIVOT runs as SELECT * FROM (PIVOT …)"
         )
+
+
+def create_fleet_views(
+    con: duckdb.DuckDBPyConnection, lake: TableLake, files: Sequence[DataFile]
+) -> None:
+    """The per-type views and ``events`` over the fleet lake's table (:mod:`.lake_table`),
+    reading ``files`` (its current data files, damaged ones left out): one ``read_parquet`` of
+    a few files per type, however many runs the table holds. Same columns as
+    :func:`create_type_views`. A remote lake's types are read through its Arrow datasets."""
+    by_kind: dict[str, list[str]] = {}
+    for f in files:
+        by_kind.setdefault(f.kind, []).append(f.path)
+    envelope = ", ".join(quote_ident(f.name) for f in ENVELOPE_COLUMNS)
+    parts = []
+    for event_type in default_registry().types:
+        view = quote_ident(event_type)
+        source = fleet_source(con, lake, event_type, by_kind.get(event_type, []))
+        if source is not None:
+            con.execute(
+                f"CREATE OR REPLACE VIEW {view} AS SELECT robot, date, run, {envelope}, "
+                f"{view}.*, {_TIME} FROM {source}"
+            )
+        else:
+            empty = pa.Table.from_pylist([], schema=event_schema(event_type))
+            name = f"_empty_{event_type}"
+            con.register(name, empty)
+            partitions = ", ".join(f"NULL::{t} AS {n}" for n, t in PARTITION_COLUMNS)
+            con.execute(
+                f"CREATE OR REPLACE VIEW {view} AS SELECT {partitions}, *, {_TIME} "
+                f"FROM {quote_ident(name)}"
+            )
+        parts.append(
+            f"SELECT robot, date, run, {envelope}, time, {quote_literal(event_type)} AS type "
+            f"FROM {view}"
+        )
+    con.execute("CREATE OR REPLACE VIEW events AS " + "\nUNION ALL ".join(parts))
+
+
+def fleet_source(
+    con: duckdb.DuckDBPyConnection, lake: TableLake, kind: str, paths: Sequence[str]
+) -> str | None:
+    """What a view reads for the rows of ``kind`` (a ``type`` partition), or None if none."""
+    if not paths:
+        return None
+    if lake.remote:
+        name = f"_fleet_{kind}"
+        con.register(name, lake.table().to_pyarrow_dataset(partitions=[("type", "=", kind)]))
+        return quote_ident(name)
+    listed = ", ".join(quote_literal(f"{lake.uri}/{p}") for p in paths)
+    return f"read_parquet([{listed}], hive_partitioning = false)"

@@ -45,10 +45,13 @@ from objsearch.agent.scene_graph_sql import LIMIT_SEQ, LIMIT_TIME, SCENE_GRAPH_B
 from objsearch.events import EventStoreError
 from objsearch.events.derived import DERIVED_DIR, DerivedTable, derived_tables
 from objsearch.events.lake import DamagedRun, Lake, RunInfo, deep_check
+from objsearch.events.lake_table import TableLake, derived_column, derived_kind, is_table_lake
 from objsearch.events.schemas import default_registry
 from objsearch.events.sql import (
     check_read_only,
     connect,
+    create_fleet_views,
+    fleet_source,
     lock_down,
     parquet_source,
     quote_ident,
@@ -110,6 +113,11 @@ def create_views(
             f"CREATE OR REPLACE VIEW {spec.name} AS "
             + _derived_source(lake, spec, any(not r.missing_derived() for r in runs), legacy, only)
         )
+    _common_views(con)
+
+
+def _common_views(con: duckdb.DuckDBPyConnection) -> None:
+    """``plans``, ``detections`` and the scene-graph macros: over the views, whatever the lake."""
     for ddl in (_PLANS, _DETECTIONS):
         con.execute(ddl)
     con.execute(
@@ -177,6 +185,12 @@ def open_analytics(
     gets only the cheap checks, with one warning. A commit a killed writer left half done is
     finished first if no writer holds the lake.
     """
+    if is_table_lake(lake_dir):
+        return _open_fleet(
+            TableLake(lake_dir if "://" in str(lake_dir) else Path(lake_dir).absolute()),
+            memory_limit=memory_limit,
+            threads=threads,
+        )
     lake = Lake(Path(lake_dir).absolute())
     if lake.needs_recovery():
         try:
@@ -213,6 +227,36 @@ def open_analytics(
         _log.warning("%s: damaged run left out of every view: %s", run.path, run.reason)
     apply_limits(con, memory_limit=memory_limit, threads=threads)
     lock_down(con, [lake.root])
+    return con
+
+
+def _open_fleet(
+    lake: TableLake, *, memory_limit: int, threads: int
+) -> duckdb.DuckDBPyConnection:
+    """:func:`open_analytics` of the fleet lake (:mod:`objsearch.events.lake_table`): views over
+    the table's current files, a handful per type once compacted, whatever the number of runs.
+    A data file that is missing, of another size than the table's log records, or cut is left
+    out with a warning naming it."""
+    table = lake.table()
+    files, damaged = lake.scan(table)
+    for f, why in damaged:
+        _log.warning("%s: damaged data file left out of every view: %s", lake.root, why)
+    con = duckdb.connect(":memory:")
+    create_fleet_views(con, lake, files)
+    by_kind = {f.kind for f in files}
+    current = {spec.name: derived_kind(spec.name, spec.version) for spec in derived_tables()}
+    for spec in derived_tables():
+        kind = current[spec.name]
+        if kind in by_kind:
+            source = fleet_source(con, lake, kind, [f.path for f in files if f.kind == kind])
+            column = quote_ident(derived_column(spec.name))
+            body = f"SELECT robot, date, run, {column}.* FROM {source}"
+        else:  # no run has it at this version (older code wrote them): the same SQL, live
+            body = f"SELECT robot, date, run, * EXCLUDE (robot, date, run) FROM ({spec.sql})"
+        con.execute(f"CREATE OR REPLACE VIEW {spec.name} AS {body}")
+    _common_views(con)
+    apply_limits(con, memory_limit=memory_limit, threads=threads)
+    lock_down(con, [] if lake.remote else [Path(lake.root)])
     return con
 
 

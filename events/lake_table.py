@@ -1,0 +1,757 @@
+"""The fleet lake: every run in one Delta Lake table, one transaction per run.
+
+Layout (a local folder, or ``s3://bucket/prefix``)::
+
+    LAKE/events/_delta_log/…                 the table's transaction log (JSON + checkpoints)
+    LAKE/events/type=<event type>/*.parquet  rows of that event type, every run
+    LAKE/events/type=derived.<name>.v<N>/    a derived table's rows (per-run summaries)
+    LAKE/events/type=_run/                   one row a run: what it holds (digest, rows, source)
+
+One table, partitioned by ``type``; the run is a column (``robot``, ``date``, ``run``,
+``commit``), so the number of files does not grow with the number of runs once the table is
+compacted (:meth:`TableLake.compact`; ``lake add`` compacts when the table holds more than
+:data:`COMPACT_AT_FILES` files). Each event type's payload is one struct column named after the
+type (``detection.mask_area``); the envelope columns are shared. Because a run's events, its
+derived tables and its ``_run`` row are added in **one Delta transaction**, a reader (or a
+crash) sees all of a run or none of it, with no staging folder, rename or lock of ours:
+
+* **commit**: an append carrying the Delta *application transaction* ``objsearch/<robot>/<run>``.
+  Two writers committing the same run at once conflict on it (the table's optimistic
+  concurrency); the loser re-reads and finds the run there — the same content is a no-op,
+  other content needs ``replace``. Writers of different runs never conflict (blind appends);
+  a commit that loses a race with another transaction is retried (:data:`COMMIT_TRIES`).
+* **replace** / **remove**: an overwrite (or delete) with the predicate ``robot = … AND run = …``,
+  one transaction, bumping the run's application-transaction version.
+* **damage**: the table records every data file's size; readers leave out a file that is
+  missing, has another size or is cut (no ``PAR1`` at both ends), naming it, and ``verify``
+  decodes every file in full and compares its row count with the table's statistics.
+
+Any Delta reader reads the table: DuckDB's ``delta_scan`` (the ``delta`` extension),
+``polars.scan_delta``, ``deltalake.DeltaTable(…).to_pyarrow_dataset()``; ``docs/analytics.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import functools
+import json
+import logging
+import os
+import time
+import uuid
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.dataset as pds
+
+from . import _fs
+from .arrow import ENVELOPE_COLUMNS, event_schema, events_to_tables, tables_to_events
+from .derived import PARTITION_NAMES, derive_run, derived_tables
+from .envelope import Event
+from .errors import EventStoreError
+from .lake import LakeError, _check_date, _check_name, _conform, _digest, parquet_problem
+from .log import LOCK_FILE, read_log, read_meta
+from .schemas import default_registry
+from .upcast import default_upcaster
+
+TABLE_FORMAT: Final = "objsearch.lake/2"
+TABLE_DIR: Final = "events"
+RUN_TYPE: Final = "_run"
+#: The struct column holding a ``_run`` row's description of its run.
+RUN_COLUMN: Final = "run_info"
+BASE_COLUMNS: Final = (
+    pa.field("robot", pa.string(), nullable=False),
+    pa.field("date", pa.date32(), nullable=False),
+    pa.field("run", pa.string(), nullable=False),
+    pa.field("commit", pa.string(), nullable=False),
+    pa.field("type", pa.string(), nullable=False),
+)
+_RUN_STRUCT: Final = pa.struct(
+    [
+        ("format", pa.string()),
+        ("digest", pa.string()),
+        ("rows", pa.string()),  # JSON: event type → rows
+        ("source", pa.string()),
+        ("identity", pa.string()),  # JSON
+        ("attachments", pa.string()),  # JSON: name → text
+        ("committed_at_ns", pa.int64()),
+    ]
+)
+#: How often a commit that lost a race with another transaction is tried again.
+COMMIT_TRIES: Final = 50
+#: ``lake add`` compacts the table once it holds more data files than this.
+COMPACT_AT_FILES: Final = 256
+#: Files compaction aims for (bytes); a table of a fleet's year is a few thousand of them.
+TARGET_FILE_BYTES: Final = 256 << 20
+_log = logging.getLogger(__name__)
+
+
+class TableLakeError(LakeError):
+    """The fleet lake cannot do what was asked."""
+
+
+@dataclass(frozen=True, slots=True)
+class TableRun:
+    """One committed run of the fleet lake (its ``_run`` row)."""
+
+    robot: str
+    date: str
+    run: str
+    commit: str
+    rows: Mapping[str, int]
+    digest: str
+    source: str
+    identity: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    attachments: Mapping[str, str] = dataclasses.field(default_factory=dict)
+
+    @property
+    def events(self) -> int:
+        return sum(self.rows.values())
+
+
+@dataclass(frozen=True, slots=True)
+class DataFile:
+    """One data file of the table's current version, as its log records it."""
+
+    path: str  # relative to the table
+    kind: str  # the ``type`` partition
+    size: int
+    rows: int | None
+
+
+@dataclass(frozen=True, slots=True)
+class TableCheck:
+    files: int
+    bytes: int
+    runs: int
+    damaged: list[tuple[str, str]]  # (file, why)
+
+
+def _nullable(kind: pa.DataType) -> pa.DataType:
+    if pa.types.is_struct(kind):
+        return pa.struct([pa.field(f.name, _nullable(f.type)) for f in kind])
+    if pa.types.is_list(kind):
+        return pa.list_(_nullable(kind.value_type))
+    return kind
+
+
+def payload_struct(event_type: str) -> pa.StructType:
+    envelope = {f.name for f in ENVELOPE_COLUMNS}
+    return pa.struct(
+        [pa.field(f.name, _nullable(f.type)) for f in event_schema(event_type) if f.name not in envelope]
+    )
+
+
+def derived_column(name: str) -> str:
+    return f"derived_{name}"
+
+
+def derived_kind(name: str, version: int) -> str:
+    return f"derived.{name}.v{version}"
+
+
+@functools.cache
+def derived_structs() -> dict[str, pa.StructType]:
+    """The columns of each derived table (what :func:`derive_run` gives for an empty run)."""
+    out = derive_run({}, robot="r", date="1970-01-01", run="r")
+    return {name: pa.struct([pa.field(f.name, _nullable(f.type)) for f in t.schema]) for name, t in out.items()}
+
+
+@functools.cache
+def table_schema() -> pa.Schema:
+    """The fleet table's columns: run, envelope, one struct per event type and derived table,
+    and the ``_run`` row's description."""
+    fields = [*BASE_COLUMNS, *(pa.field(f.name, f.type) for f in ENVELOPE_COLUMNS)]
+    fields += [pa.field(t, payload_struct(t)) for t in default_registry().types]
+    fields += [pa.field(derived_column(n), s) for n, s in derived_structs().items()]
+    fields.append(pa.field(RUN_COLUMN, _RUN_STRUCT))
+    return pa.schema(fields)
+
+
+def is_table_lake(root: Path | str) -> bool:
+    """Whether ``root`` holds a fleet lake (a Delta table at ``root/events``)."""
+    text = str(root)
+    if "://" in text:
+        from deltalake import DeltaTable
+
+        return bool(DeltaTable.is_deltatable(f"{text.rstrip('/')}/{TABLE_DIR}", storage_options()))
+    return (Path(root) / TABLE_DIR / "_delta_log").is_dir()
+
+
+def storage_options() -> dict[str, str]:
+    """Object-store settings from the standard environment: ``AWS_ENDPOINT_URL`` (e.g. a local
+    S3 server), ``AWS_ACCESS_KEY_ID``, ``AWS_SECRET_ACCESS_KEY``, ``AWS_REGION`` — read by
+    delta-rs itself; only what it cannot infer is added (plain HTTP for an ``http://``
+    endpoint)."""
+    endpoint = os.environ.get("AWS_ENDPOINT_URL", "")
+    return {"AWS_ALLOW_HTTP": "true"} if endpoint.startswith("http://") else {}
+
+
+class TableLake:
+    """The fleet lake at ``root`` (a folder or an ``s3://`` URI). Cheap to create."""
+
+    def __init__(self, root: Path | str) -> None:
+        text = str(root)
+        self.remote = "://" in text
+        self.root: Path | str = text.rstrip("/") if self.remote else Path(root)
+        self.uri = f"{text.rstrip('/')}/{TABLE_DIR}" if self.remote else str(Path(root).absolute() / TABLE_DIR)
+        self.options = storage_options() if self.remote else {}
+
+    def __repr__(self) -> str:
+        return f"TableLake({str(self.root)!r})"
+
+    # -- the table ------------------------------------------------------------------------------
+
+    def exists(self) -> bool:
+        return is_table_lake(self.root)
+
+    def table(self) -> Any:
+        """The Delta table at its latest version (``deltalake.DeltaTable``)."""
+        from deltalake import DeltaTable
+        from deltalake.exceptions import TableNotFoundError
+
+        try:
+            return DeltaTable(self.uri, storage_options=self.options)
+        except TableNotFoundError:
+            raise TableLakeError(f"no fleet lake at {self.root} (no Delta table at {self.uri})") from None
+
+    def create(self) -> None:
+        """Create the (empty) table if it does not exist; safe to race with other writers."""
+        from deltalake import write_deltalake
+
+        if self.exists():
+            return
+        if not self.remote:
+            _fs.make_dirs(Path(self.uri).parent)
+        empty = table_schema().empty_table()
+        try:
+            write_deltalake(
+                self.uri,
+                empty,
+                mode="ignore",
+                partition_by=["type"],
+                name="objsearch events",
+                description=TABLE_FORMAT,
+                storage_options=self.options,
+            )
+        except Exception:
+            if not self.exists():
+                raise
+
+    # -- reading --------------------------------------------------------------------------------
+
+    def data_files(self, table: Any | None = None) -> list[DataFile]:
+        """The data files of the table's current version."""
+        table = self.table() if table is None else table
+        actions = pa.table(table.get_add_actions(flatten=True))
+        kinds = actions.column("partition.type").to_pylist()
+        rows = actions.column("num_records").to_pylist() if "num_records" in actions.column_names else [None] * len(kinds)
+        return [
+            DataFile(str(p), str(k), int(s), None if n is None else int(n))
+            for p, k, s, n in zip(
+                actions.column("path").to_pylist(),
+                kinds,
+                actions.column("size_bytes").to_pylist(),
+                rows,
+                strict=True,
+            )
+        ]
+
+    def _dataset(self, table: Any, kinds: Sequence[str]) -> pds.Dataset:
+        return table.to_pyarrow_dataset(partitions=[("type", "in", list(kinds))])
+
+    def runs(self, table: Any | None = None) -> list[TableRun]:
+        """Every committed run, sorted by (robot, date, run)."""
+        return self._runs(self.table() if table is None else table, None)
+
+    def _runs(self, table: Any, where: pc.Expression | None) -> list[TableRun]:
+        dataset = self._dataset(table, [RUN_TYPE])
+        rows = dataset.to_table(
+            columns=["robot", "date", "run", "commit", RUN_COLUMN], filter=where
+        ).to_pylist()
+        found = [_run_of(r) for r in rows]
+        return sorted(found, key=lambda r: (r.robot, r.date, r.run))
+
+    def find(self, robot: str, run: str, table: Any | None = None) -> TableRun | None:
+        table = self.table() if table is None else table
+        found = self._runs(table, (pc.field("robot") == robot) & (pc.field("run") == run))
+        if len(found) > 1:  # cannot happen through this class: its commits conflict
+            raise TableLakeError(f"{self.root}: run {run!r} of robot {robot!r} is there twice")
+        return found[0] if found else None
+
+    def holding(self, identity: Mapping[str, str]) -> list[TableRun]:
+        wanted = {(k, v) for k, v in identity.items() if v}
+        return [r for r in self.runs() if wanted & set(r.identity.items())]
+
+    def read_tables(self, run: TableRun) -> dict[str, pa.Table]:
+        """The event tables of one run, one per type, as :func:`event_schema` types them."""
+        table = self.table()
+        dataset = self._dataset(table, sorted(run.rows))
+        rows = dataset.to_table(
+            filter=(pc.field("robot") == run.robot)
+            & (pc.field("run") == run.run)
+            & (pc.field("commit") == run.commit)
+        )
+        envelope = [f.name for f in ENVELOPE_COLUMNS]
+        out = {}
+        for event_type in sorted(run.rows):
+            part = rows.filter(pc.field("type") == event_type).sort_by("seq")
+            payload = part.column(event_type).combine_chunks()
+            schema = event_schema(event_type)
+            columns = [part.column(n) for n in envelope] + [
+                payload.field(f.name) for f in schema if f.name not in envelope
+            ]
+            out[event_type] = pa.Table.from_arrays(columns, names=schema.names).cast(schema)
+        return out
+
+    def read_events(self, run: TableRun) -> list[Event]:
+        upcast = default_upcaster().upcast
+        return [upcast(e) for e in tables_to_events(self.read_tables(run).values())]
+
+    def scan(self, table: Any | None = None) -> tuple[list[DataFile], list[tuple[DataFile, str]]]:
+        """The data files readers may read, and those they must leave out (missing, another
+        size than the log records, or cut). Cheap: one ``stat`` and 8 bytes a file, and the
+        number of files does not grow with the runs once the table is compacted."""
+        files = self.data_files(table)
+        if self.remote:
+            return files, []  # the object store checks what it serves (sizes, checksums)
+        good, bad = [], []
+        base = Path(self.uri)
+        for f in files:
+            path = base / f.path
+            try:
+                size = path.stat().st_size
+            except OSError as exc:
+                bad.append((f, f"{f.path}: {exc.strerror or exc}"))
+                continue
+            if size != f.size:
+                bad.append((f, f"{f.path} has {size} bytes, the table's log records {f.size}"))
+                continue
+            problem = parquet_problem(path)
+            if problem is not None:
+                bad.append((f, f"{f.path}: {problem}"))
+                continue
+            good.append(f)
+        return good, bad
+
+    def verify(self) -> TableCheck:
+        """Read every byte: decode each data file in full and compare its rows with the log's
+        statistics (plus the checks of :meth:`scan`). Changes nothing."""
+        import pyarrow.parquet as pq
+
+        table = self.table()
+        good, bad = self.scan(table)
+        size = 0
+        checked = 0
+        for f in good:
+            where = f"{self.uri}/{f.path}"
+            try:
+                if self.remote:
+                    data = pq.read_table(where, filesystem=_filesystem(self.uri, self.options))
+                else:
+                    data = pq.ParquetFile(where, page_checksum_verification=True).read()
+            except (OSError, pa.ArrowException) as exc:
+                bad.append((f, f"{f.path} does not decode: {exc}"))
+                continue
+            if f.rows is not None and data.num_rows != f.rows:
+                bad.append((f, f"{f.path} holds {data.num_rows} rows, the table's log records {f.rows}"))
+                continue
+            checked += 1
+            size += f.size
+        return TableCheck(
+            files=checked,
+            bytes=size,
+            runs=len(self.runs(table)),
+            damaged=[(f.path, why) for f, why in bad],
+        )
+
+    # -- writing --------------------------------------------------------------------------------
+
+    def commit_events(
+        self,
+        events: Iterable[Event],
+        *,
+        robot: str,
+        run: str,
+        date: str | dt.date | None = None,
+        source: str = "",
+        replace: bool = False,
+        identity: Mapping[str, str] | None = None,
+    ) -> TableRun:
+        """Commit events (any versions; upcast to latest) as one run; ``date`` defaults to the
+        UTC day of the first event's ``recorded_at_ns``."""
+        first: list[Event] = []
+
+        def remember(stream: Iterable[Event]) -> Iterable[Event]:
+            for event in stream:
+                if not first:
+                    first.append(event)
+                yield event
+
+        tables = events_to_tables(remember(events))
+        if date is None:
+            if not first:
+                raise TableLakeError("an empty run needs an explicit date")
+            date = dt.datetime.fromtimestamp(first[0].recorded_at_ns / 1e9, dt.UTC).date()
+        return self.commit_tables(
+            tables, robot=robot, run=run, date=date, source=source, replace=replace, identity=identity
+        )
+
+    def commit_tables(
+        self,
+        tables: Mapping[str, pa.Table],
+        *,
+        robot: str,
+        run: str,
+        date: str | dt.date,
+        source: str = "",
+        replace: bool = False,
+        attachments: Mapping[str, str] | None = None,
+        identity: Mapping[str, str] | None = None,
+    ) -> TableRun:
+        """Commit one table per event type as one run, in one transaction (see the module)."""
+        _check_name("robot", robot)
+        _check_name("run", run)
+        day = _check_date(date)
+        checked = {t: _conform(t, table) for t, table in sorted(tables.items())}
+        run_info = TableRun(
+            robot=robot,
+            date=day,
+            run=run,
+            commit=_token(),
+            rows={t: table.num_rows for t, table in checked.items()},
+            digest=_digest(checked),
+            source=source,
+            identity=dict(sorted((identity or {}).items())),
+            attachments=dict(sorted((attachments or {}).items())),
+        )
+        rows = run_rows(checked, run_info)
+        self.create()
+        return self._commit(run_info, rows, replace=replace)
+
+    def _commit(self, info: TableRun, rows: pa.Table, *, replace: bool) -> TableRun:
+        from deltalake import CommitProperties, Transaction, write_deltalake
+        from deltalake.exceptions import CommitFailedError
+
+        app = _app_id(info.robot, info.run)
+        for attempt in range(COMMIT_TRIES):
+            table = self.table()
+            existing = self.find(info.robot, info.run, table)
+            version = table.transaction_version(app) or 0
+            if existing is not None:
+                if existing.digest == info.digest and existing.date == info.date:
+                    return existing  # the same run again: nothing to do
+                if not replace:
+                    raise TableLakeError(
+                        f"{self.root} already holds run {info.run!r} of robot {info.robot!r} "
+                        "with other content; pass replace=True to replace it"
+                    )
+            commit = CommitProperties(app_transactions=[Transaction(app, version + 1)])
+            try:
+                if existing is None:
+                    write_deltalake(
+                        table,
+                        rows,
+                        mode="append",
+                        partition_by=["type"],
+                        commit_properties=commit,
+                        storage_options=self.options,
+                    )
+                else:
+                    write_deltalake(
+                        table,
+                        rows,
+                        mode="overwrite",
+                        predicate=_run_predicate(info.robot, info.run),
+                        partition_by=["type"],
+                        commit_properties=commit,
+                        storage_options=self.options,
+                    )
+            except CommitFailedError as exc:
+                _log.debug("%s: commit of %s/%s lost a race (%s); again", self.root, info.robot, info.run, exc)
+                time.sleep(min(0.5, 0.01 * (attempt + 1)))
+                continue
+            self._maybe_compact()
+            return info
+        raise TableLakeError(
+            f"{self.root}: the commit of run {info.run!r} lost {COMMIT_TRIES} races with other "
+            "writers; try again"
+        )
+
+    def commit_many(self, runs: Sequence[tuple[TableRun, pa.Table]]) -> None:
+        """Commit new runs (none in the lake yet) in one transaction: the migration's and the
+        benchmarks' bulk path. Raises if one is there already."""
+        from deltalake import CommitProperties, Transaction, write_deltalake
+
+        if not runs:
+            return
+        self.create()
+        table = self.table()
+        apps = []
+        for info, _ in runs:
+            app = _app_id(info.robot, info.run)
+            if table.transaction_version(app) is not None and self.find(info.robot, info.run, table):
+                raise TableLakeError(f"{self.root}: run {info.robot}/{info.run} is already there")
+            apps.append(Transaction(app, (table.transaction_version(app) or 0) + 1))
+        write_deltalake(
+            table,
+            pa.concat_tables([rows for _, rows in runs]),
+            mode="append",
+            partition_by=["type"],
+            commit_properties=CommitProperties(app_transactions=apps),
+            storage_options=self.options,
+        )
+
+    def remove_run(self, robot: str, run: str) -> bool:
+        """Take a run out of the lake (one transaction); False if it was not there."""
+        from deltalake import CommitProperties, Transaction
+        from deltalake.exceptions import CommitFailedError
+
+        app = _app_id(robot, run)
+        for attempt in range(COMMIT_TRIES):
+            table = self.table()
+            if self.find(robot, run, table) is None:
+                return False
+            version = table.transaction_version(app) or 0
+            try:
+                table.delete(
+                    _run_predicate(robot, run),
+                    commit_properties=CommitProperties(app_transactions=[Transaction(app, version + 1)]),
+                )
+            except CommitFailedError:
+                time.sleep(min(0.5, 0.01 * (attempt + 1)))
+                continue
+            return True
+        raise TableLakeError(f"{self.root}: removing run {run!r} lost {COMMIT_TRIES} races; try again")
+
+    def _maybe_compact(self) -> None:
+        table = self.table()
+        if len(table.file_uris()) > COMPACT_AT_FILES:
+            self.compact(vacuum_hours=None)
+
+    def compact(self, *, vacuum_hours: float | None = 1.0) -> dict[str, int]:
+        """Rewrite the small files into few large ones (per ``type``, sorted by robot, run,
+        seq), checkpoint the log, and with ``vacuum_hours`` delete files no version younger
+        than that reads (readers that began earlier may still need them). Concurrent commits
+        are not lost: compaction changes no data, and a race is retried."""
+        from deltalake.exceptions import CommitFailedError
+
+        before = len(self.table().file_uris())
+        for attempt in range(COMMIT_TRIES):
+            table = self.table()
+            try:
+                table.optimize.compact(target_size=TARGET_FILE_BYTES)
+                break
+            except CommitFailedError:
+                time.sleep(min(0.5, 0.01 * (attempt + 1)))
+        table = self.table()
+        table.create_checkpoint()
+        removed = 0
+        if vacuum_hours is not None:
+            removed = len(
+                table.vacuum(
+                    retention_hours=int(vacuum_hours) if vacuum_hours >= 1 else 0,
+                    enforce_retention_duration=False,
+                    dry_run=False,
+                )
+            )
+            table.cleanup_metadata()
+        return {"files_before": before, "files_after": len(table.file_uris()), "vacuumed": removed}
+
+
+def _filesystem(uri: str, options: Mapping[str, str]) -> Any:
+    import pyarrow.fs as pafs
+
+    endpoint = os.environ.get("AWS_ENDPOINT_URL")
+    return pafs.S3FileSystem(endpoint_override=endpoint, scheme="http" if endpoint and endpoint.startswith("http://") else "https")
+
+
+def _token() -> str:
+    return f"{time.time_ns():x}-{uuid.uuid4().hex}"
+
+
+def _app_id(robot: str, run: str) -> str:
+    return f"objsearch/{robot}/{run}"
+
+
+def _run_predicate(robot: str, run: str) -> str:
+    # _check_name allows no quote in either name.
+    return f"robot = '{robot}' AND run = '{run}'"
+
+
+def _run_of(row: Mapping[str, Any]) -> TableRun:
+    info = row[RUN_COLUMN]
+    return TableRun(
+        robot=row["robot"],
+        date=row["date"].isoformat(),
+        run=row["run"],
+        commit=row["commit"],
+        rows=json.loads(info["rows"]),
+        digest=info["digest"],
+        source=info["source"],
+        identity=json.loads(info["identity"]),
+        attachments=json.loads(info["attachments"]),
+    )
+
+
+def run_rows(tables: Mapping[str, pa.Table], info: TableRun) -> pa.Table:
+    """A run's rows in the fleet table: its events, its derived tables and its ``_run`` row."""
+    derived = derive_run(tables, robot=info.robot, date=info.date, run=info.run)
+    pieces = [_widen(t, table, t, info) for t, table in sorted(tables.items())]
+    specs = {d.name: d for d in derived_tables()}
+    for name, table in derived.items():
+        spec = specs[name]
+        pieces.append(_widen(derived_kind(name, spec.version), table, derived_column(name), info))
+    description = {
+        "format": TABLE_FORMAT,
+        "digest": info.digest,
+        "rows": json.dumps(dict(info.rows), sort_keys=True),
+        "source": info.source,
+        "identity": json.dumps(dict(info.identity), sort_keys=True),
+        "attachments": json.dumps(dict(info.attachments), sort_keys=True),
+        "committed_at_ns": time.time_ns(),
+    }
+    pieces.append(
+        _widen(RUN_TYPE, pa.table({k: [v] for k, v in description.items()}), RUN_COLUMN, info)
+    )
+    return pa.concat_tables(pieces)
+
+
+def _widen(kind: str, table: pa.Table, column: str, info: TableRun) -> pa.Table:
+    """``table`` as rows of the fleet table: the run's columns, its envelope (if it has one)
+    and its other columns as the struct ``column``; every other struct null."""
+    schema = table_schema()
+    n = table.num_rows
+    envelope = {f.name for f in ENVELOPE_COLUMNS}
+    base = {
+        "robot": pa.array([info.robot] * n, pa.string()),
+        "date": pa.array([dt.date.fromisoformat(info.date)] * n, pa.date32()),
+        "run": pa.array([info.run] * n, pa.string()),
+        "commit": pa.array([info.commit] * n, pa.string()),
+        "type": pa.array([kind] * n, pa.string()),
+    }
+    arrays = []
+    for field in schema:
+        if field.name in base:
+            arrays.append(base[field.name])
+        elif field.name in envelope:
+            arrays.append(
+                table.column(field.name).combine_chunks().cast(field.type)
+                if field.name in table.column_names
+                else pa.nulls(n, field.type)
+            )
+        elif field.name == column:
+            parts = [
+                (table.column(f.name).combine_chunks() if f.name in table.column_names else pa.nulls(n, f.type)).cast(f.type)
+                for f in field.type
+                if f.name not in PARTITION_NAMES
+            ]
+            names = [f for f in field.type if f.name not in PARTITION_NAMES]
+            arrays.append(pa.StructArray.from_arrays(parts, fields=names) if n else pa.array([], field.type))
+        else:
+            arrays.append(pa.nulls(n, field.type))
+    return pa.Table.from_arrays(arrays, schema=schema)
+
+
+def add_log(
+    log_dir: Path | str,
+    lake: TableLake,
+    *,
+    robot: str,
+    run: str | None = None,
+    date: str | dt.date | None = None,
+    replace: bool = False,
+) -> TableRun:
+    """Seal an event log into the fleet lake as one run (``run`` defaults to the log's stream);
+    as :func:`objsearch.events.lake.compact_log`, without reading any other run."""
+    log_dir = Path(log_dir)
+    if _fs.is_locked(log_dir / LOCK_FILE):
+        raise TableLakeError(
+            f"event log {log_dir} is being written (its lock is held{_fs.lock_holder_hint(log_dir / LOCK_FILE)}); "
+            "close the writer before compacting it"
+        )
+    events = read_log(log_dir)
+    first = next(events, None)
+    if first is None:
+        raise TableLakeError(f"event log {log_dir} is empty; there is nothing to compact")
+    run = run or first.stream
+    identity = {"first_event_id": first.event_id}
+    meta = read_meta(log_dir)
+    if meta.run_id is not None:
+        identity["run_id"] = meta.run_id
+
+    def all_events() -> Iterable[Event]:
+        yield first
+        yield from events
+
+    info = lake.commit_events(
+        all_events(),
+        robot=robot,
+        run=run,
+        date=date,
+        source=f"event log {log_dir.resolve()}",
+        replace=replace,
+        identity=identity,
+    )
+    return info
+
+
+def migrate(old_root: Path, lake: TableLake, *, batch: int = 64) -> tuple[int, list[str]]:
+    """Copy every healthy run of a per-run-folder lake (``objsearch.lake/1``) into the fleet
+    table, ``batch`` runs a transaction; runs already there are skipped. Returns the runs
+    copied and the damaged ones left behind (each named)."""
+    from .lake import Lake
+
+    old = Lake(old_root)
+    healthy, damaged = old.scan(check_digests=True)
+    lake.create()
+    known = {(r.robot, r.run) for r in lake.runs()}
+    pending: list[tuple[TableRun, pa.Table]] = []
+    copied = 0
+    for info in healthy:
+        if (info.robot, info.run) in known:
+            continue
+        tables = old.read_tables(info)
+        attachments = {
+            p.name: p.read_text(encoding="utf-8")
+            for p in sorted(info.path.glob("_*"))
+            if p.is_file() and p.name != "_run.json"
+        }
+        run = TableRun(
+            robot=info.robot,
+            date=info.date,
+            run=info.run,
+            commit=_token(),
+            rows=dict(info.rows),
+            digest=info.digest,
+            source=info.source,
+            identity=dict(info.identity),
+            attachments=attachments,
+        )
+        pending.append((run, run_rows(tables, run)))
+        if len(pending) >= batch:
+            lake.commit_many(pending)
+            copied += len(pending)
+            pending = []
+    lake.commit_many(pending)
+    copied += len(pending)
+    return copied, [f"{d.path}: {d.reason}" for d in damaged]
+
+
+__all__ = [
+    "TABLE_FORMAT",
+    "EventStoreError",
+    "TableLake",
+    "TableLakeError",
+    "TableRun",
+    "add_log",
+    "is_table_lake",
+    "migrate",
+    "run_rows",
+    "table_schema",
+]
