@@ -143,7 +143,11 @@ def _nullable(kind: pa.DataType) -> pa.DataType:
 def payload_struct(event_type: str) -> pa.StructType:
     envelope = {f.name for f in ENVELOPE_COLUMNS}
     return pa.struct(
-        [pa.field(f.name, _nullable(f.type)) for f in event_schema(event_type) if f.name not in envelope]
+        [
+            pa.field(f.name, _nullable(f.type))
+            for f in event_schema(event_type)
+            if f.name not in envelope
+        ]
     )
 
 
@@ -159,7 +163,10 @@ def derived_kind(name: str, version: int) -> str:
 def derived_structs() -> dict[str, pa.StructType]:
     """The columns of each derived table (what :func:`derive_run` gives for an empty run)."""
     out = derive_run({}, robot="r", date="1970-01-01", run="r")
-    return {name: pa.struct([pa.field(f.name, _nullable(f.type)) for f in t.schema]) for name, t in out.items()}
+    return {
+        name: pa.struct([pa.field(f.name, _nullable(f.type)) for f in t.schema])
+        for name, t in out.items()
+    }
 
 
 @functools.cache
@@ -199,7 +206,11 @@ class TableLake:
         text = str(root)
         self.remote = "://" in text
         self.root: Path | str = text.rstrip("/") if self.remote else Path(root)
-        self.uri = f"{text.rstrip('/')}/{TABLE_DIR}" if self.remote else str(Path(root).absolute() / TABLE_DIR)
+        self.uri = (
+            f"{text.rstrip('/')}/{TABLE_DIR}"
+            if self.remote
+            else str(Path(root).absolute() / TABLE_DIR)
+        )
         self.options = storage_options() if self.remote else {}
 
     def __repr__(self) -> str:
@@ -218,7 +229,9 @@ class TableLake:
         try:
             return DeltaTable(self.uri, storage_options=self.options)
         except TableNotFoundError:
-            raise TableLakeError(f"no fleet lake at {self.root} (no Delta table at {self.uri})") from None
+            raise TableLakeError(
+                f"no fleet lake at {self.root} (no Delta table at {self.uri})"
+            ) from None
 
     def create(self) -> None:
         """Create the (empty) table if it does not exist; safe to race with other writers."""
@@ -250,7 +263,11 @@ class TableLake:
         table = self.table() if table is None else table
         actions = pa.table(table.get_add_actions(flatten=True))
         kinds = actions.column("partition.type").to_pylist()
-        rows = actions.column("num_records").to_pylist() if "num_records" in actions.column_names else [None] * len(kinds)
+        rows = (
+            actions.column("num_records").to_pylist()
+            if "num_records" in actions.column_names
+            else [None] * len(kinds)
+        )
         return [
             DataFile(str(p), str(k), int(s), None if n is None else int(n))
             for p, k, s, n in zip(
@@ -263,7 +280,18 @@ class TableLake:
         ]
 
     def _dataset(self, table: Any, kinds: Sequence[str]) -> pds.Dataset:
-        return table.to_pyarrow_dataset(partitions=[("type", "in", list(kinds))])
+        where = [("type", "in", list(kinds))]
+        if self.remote:
+            return table.to_pyarrow_dataset(file_pruning_predicate=where)
+        # Local files through Arrow's own file system: delta-rs's Python file-system handler
+        # can abort the interpreter at exit ("terminate called without an active exception").
+        return pds.dataset(
+            table.file_uris(file_pruning_predicate=where),
+            schema=table_schema(),
+            format="parquet",
+            partitioning=pds.partitioning(pa.schema([("type", pa.string())]), flavor="hive"),
+            partition_base_dir=self.uri,
+        )
 
     def runs(self, table: Any | None = None) -> list[TableRun]:
         """Every committed run, sorted by (robot, date, run)."""
@@ -359,7 +387,9 @@ class TableLake:
                 bad.append((f, f"{f.path} does not decode: {exc}"))
                 continue
             if f.rows is not None and data.num_rows != f.rows:
-                bad.append((f, f"{f.path} holds {data.num_rows} rows, the table's log records {f.rows}"))
+                bad.append(
+                    (f, f"{f.path} holds {data.num_rows} rows, the table's log records {f.rows}")
+                )
                 continue
             checked += 1
             size += f.size
@@ -399,7 +429,13 @@ class TableLake:
                 raise TableLakeError("an empty run needs an explicit date")
             date = dt.datetime.fromtimestamp(first[0].recorded_at_ns / 1e9, dt.UTC).date()
         return self.commit_tables(
-            tables, robot=robot, run=run, date=date, source=source, replace=replace, identity=identity
+            tables,
+            robot=robot,
+            run=run,
+            date=date,
+            source=source,
+            replace=replace,
+            identity=identity,
         )
 
     def commit_tables(
@@ -473,7 +509,13 @@ class TableLake:
                         storage_options=self.options,
                     )
             except CommitFailedError as exc:
-                _log.debug("%s: commit of %s/%s lost a race (%s); again", self.root, info.robot, info.run, exc)
+                _log.debug(
+                    "%s: commit of %s/%s lost a race (%s); again",
+                    self.root,
+                    info.robot,
+                    info.run,
+                    exc,
+                )
                 time.sleep(min(0.5, 0.01 * (attempt + 1)))
                 continue
             self._maybe_compact()
@@ -495,7 +537,9 @@ class TableLake:
         apps = []
         for info, _ in runs:
             app = _app_id(info.robot, info.run)
-            if table.transaction_version(app) is not None and self.find(info.robot, info.run, table):
+            if table.transaction_version(app) is not None and self.find(
+                info.robot, info.run, table
+            ):
                 raise TableLakeError(f"{self.root}: run {info.robot}/{info.run} is already there")
             apps.append(Transaction(app, (table.transaction_version(app) or 0) + 1))
         write_deltalake(
@@ -521,13 +565,17 @@ class TableLake:
             try:
                 table.delete(
                     _run_predicate(robot, run),
-                    commit_properties=CommitProperties(app_transactions=[Transaction(app, version + 1)]),
+                    commit_properties=CommitProperties(
+                        app_transactions=[Transaction(app, version + 1)]
+                    ),
                 )
             except CommitFailedError:
                 time.sleep(min(0.5, 0.01 * (attempt + 1)))
                 continue
             return True
-        raise TableLakeError(f"{self.root}: removing run {run!r} lost {COMMIT_TRIES} races; try again")
+        raise TableLakeError(
+            f"{self.root}: removing run {run!r} lost {COMMIT_TRIES} races; try again"
+        )
 
     def _maybe_compact(self) -> None:
         table = self.table()
@@ -568,7 +616,10 @@ def _filesystem(uri: str, options: Mapping[str, str]) -> Any:
     import pyarrow.fs as pafs
 
     endpoint = os.environ.get("AWS_ENDPOINT_URL")
-    return pafs.S3FileSystem(endpoint_override=endpoint, scheme="http" if endpoint and endpoint.startswith("http://") else "https")
+    return pafs.S3FileSystem(
+        endpoint_override=endpoint,
+        scheme="http" if endpoint and endpoint.startswith("http://") else "https",
+    )
 
 
 def _token() -> str:
@@ -647,12 +698,18 @@ def _widen(kind: str, table: pa.Table, column: str, info: TableRun) -> pa.Table:
             )
         elif field.name == column:
             parts = [
-                (table.column(f.name).combine_chunks() if f.name in table.column_names else pa.nulls(n, f.type)).cast(f.type)
+                (
+                    table.column(f.name).combine_chunks()
+                    if f.name in table.column_names
+                    else pa.nulls(n, f.type)
+                ).cast(f.type)
                 for f in field.type
                 if f.name not in PARTITION_NAMES
             ]
             names = [f for f in field.type if f.name not in PARTITION_NAMES]
-            arrays.append(pa.StructArray.from_arrays(parts, fields=names) if n else pa.array([], field.type))
+            arrays.append(
+                pa.StructArray.from_arrays(parts, fields=names) if n else pa.array([], field.type)
+            )
         else:
             arrays.append(pa.nulls(n, field.type))
     return pa.Table.from_arrays(arrays, schema=schema)
@@ -684,6 +741,14 @@ def add_log(
     meta = read_meta(log_dir)
     if meta.run_id is not None:
         identity["run_id"] = meta.run_id
+    lake.create()
+    for other in lake.holding(identity):
+        if (other.robot, other.run) != (robot, run):
+            raise TableLakeError(
+                f"event log {log_dir} (agent run {meta.run_id or first.stream}) is already in "
+                f"the lake as run {other.run!r} of robot {other.robot!r} (from {other.source}); "
+                "adding it again would count its events twice"
+            )
 
     def all_events() -> Iterable[Event]:
         yield first

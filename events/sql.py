@@ -191,7 +191,9 @@ def fleet_source(
         return None
     if lake.remote:
         name = f"_fleet_{kind}"
-        con.register(name, lake.table().to_pyarrow_dataset(partitions=[("type", "=", kind)]))
+        con.register(
+            name, lake.table().to_pyarrow_dataset(file_pruning_predicate=[("type", "=", kind)])
+        )
         return quote_ident(name)
     listed = ", ".join(quote_literal(f"{lake.uri}/{p}") for p in paths)
     return f"read_parquet([{listed}], hive_partitioning = false)"

@@ -46,13 +46,14 @@ def cmd_query(args: argparse.Namespace) -> int:
     from objsearch.replay.analytics import open_analytics, stream_query
 
     lake = Path(args.lake)
-    if not lake.is_dir():
+    remote = _remote(args.lake)
+    if not remote and not lake.is_dir():
         return _fail(f"no lake at {lake} (add runs with `objsearch lake add LOG --lake {lake}`)")
     out = Path(args.out) if args.out is not None else None
     if out is not None:
         if not args.out.strip():
             return _fail("--out needs a file path")
-        if out.resolve().is_relative_to(lake.resolve()):
+        if not remote and out.resolve().is_relative_to(lake.resolve()):
             return _fail(f"--out {args.out} is inside the lake {lake}; write results elsewhere")
         if out.is_dir():
             return _fail(f"--out {args.out} is a directory, not a file")
@@ -60,7 +61,7 @@ def cmd_query(args: argparse.Namespace) -> int:
         return _fail('no SQL given (e.g. "SELECT count(*) FROM events")')
     con = None
     try:
-        con = open_analytics(lake, memory_limit=args.memory_limit)
+        con = open_analytics(args.lake if remote else lake, memory_limit=args.memory_limit)
         names, batches = stream_query(con, args.sql, timeout_s=args.timeout)
         if out is None:
             write_batches(names, batches, args.format, sys.stdout)
@@ -209,11 +210,23 @@ def _cell(value: Any) -> str:
     return json.dumps(plain, ensure_ascii=False)
 
 
+def _remote(lake: str) -> bool:
+    return "://" in lake
+
+
+def _is_fleet(lake: str) -> bool:
+    from objsearch.events.lake_table import is_table_lake
+
+    return is_table_lake(lake)
+
+
 def cmd_lake_add(args: argparse.Namespace) -> int:
     from objsearch.events.lake import Lake, compact_log
 
     if not (args.wait >= 0 and math.isfinite(args.wait)):
         return _fail(f"--wait must be seconds ≥ 0, not {args.wait}")
+    if _remote(args.lake) or _is_fleet(args.lake):
+        return _lake_add_fleet(args)
     if Path(args.lake).exists() and not Path(args.lake).is_dir():
         return _fail(f"--lake {args.lake} is a file, not a lake folder")
     try:
@@ -244,9 +257,59 @@ def cmd_lake_add(args: argparse.Namespace) -> int:
     return 0
 
 
+def _lake_add_fleet(args: argparse.Namespace) -> int:
+    from objsearch.events.lake_table import TableLake, add_log
+
+    info = add_log(
+        Path(args.log),
+        TableLake(args.lake),
+        robot=args.robot,
+        run=args.run,
+        date=args.date,
+        replace=args.replace,
+    )
+    if args.json:
+        doc = {
+            "lake": str(args.lake),
+            "robot": info.robot,
+            "date": info.date,
+            "run": info.run,
+            "commit": info.commit,
+            "events": info.events,
+            "rows": dict(info.rows),
+            "digest": info.digest,
+            "source": info.source,
+        }
+        print(json.dumps(doc, indent=2))
+        return 0
+    print(
+        f"{args.lake}: run {info.robot}/{info.run}: {info.events} events in {len(info.rows)} "
+        f"tables ({info.digest[:19]}…)"
+    )
+    return 0
+
+
+def cmd_lake_compact(args: argparse.Namespace) -> int:
+    from objsearch.events.lake_table import TableLake
+
+    if not _is_fleet(args.lake):
+        return _fail(
+            f"{args.lake} is not a fleet lake (a Delta table); `objsearch lake upgrade --to "
+            "fleet` migrates a per-run-folder lake"
+        )
+    done = TableLake(args.lake).compact(vacuum_hours=args.keep_hours)
+    print(
+        f"{args.lake}: {done['files_before']} data file(s) → {done['files_after']}; "
+        f"{done['vacuumed']} unreferenced file(s) deleted"
+    )
+    return 0
+
+
 def cmd_lake_upgrade(args: argparse.Namespace) -> int:
     from objsearch.events.lake import Lake
 
+    if args.to == "fleet":
+        return _upgrade_to_fleet(args)
     lake = Path(args.lake)
     if not lake.is_dir():
         return _fail(f"no lake at {lake}")
@@ -260,6 +323,42 @@ def cmd_lake_upgrade(args: argparse.Namespace) -> int:
     return 0
 
 
+def _upgrade_to_fleet(args: argparse.Namespace) -> int:
+    """Copy a per-run-folder lake's runs into a fleet table in the same folder (or --into)."""
+    import shutil
+
+    from objsearch.events.lake_table import TableLake, migrate
+
+    source = Path(args.lake)
+    target = args.into or args.lake
+    if _remote(args.lake):
+        return _fail(
+            "--lake of an upgrade is a local per-run-folder lake; name the bucket with --into"
+        )
+    if not source.is_dir():
+        if args.into is not None:
+            return _fail(f"no lake at {source}")
+        TableLake(target).create()  # a new, empty fleet lake
+        print(f"{target}: created an empty fleet lake")
+        return 0
+    fleet = TableLake(target)
+    copied, damaged = migrate(source, fleet)
+    for line in damaged:
+        print(f"objsearch: warning: damaged run not copied: {line}", file=sys.stderr)
+    removed = 0
+    if args.into is None and not damaged:
+        # The runs live in the table now; their folders would only be read by older code.
+        for folder in sorted(source.glob("robot=*")):
+            shutil.rmtree(folder)
+            removed += 1
+    print(
+        f"{target}: {copied} run(s) copied into the fleet table ({len(fleet.runs())} in all)"
+        + (f"; the per-run folders of {removed} robot(s) removed" if removed else "")
+        + (f"; {len(damaged)} damaged run(s) left in place" if damaged else "")
+    )
+    return 2 if damaged else 0
+
+
 def cmd_lake_verify(args: argparse.Namespace) -> int:
     import time
 
@@ -267,7 +366,10 @@ def cmd_lake_verify(args: argparse.Namespace) -> int:
 
     if args.lake_dir is not None and args.lake is not None and args.lake_dir != args.lake:
         return _fail(f"two lakes given ({args.lake_dir} and --lake {args.lake}); give one")
-    lake = Path(args.lake_dir or args.lake or _default_lake())
+    where = args.lake_dir or args.lake or _default_lake()
+    if _remote(where) or _is_fleet(where):
+        return _verify_fleet(where, args.json)
+    lake = Path(where)
     if not lake.is_dir():
         return _fail(f"no lake at {lake}")
     started = time.perf_counter()
@@ -310,9 +412,49 @@ def cmd_lake_verify(args: argparse.Namespace) -> int:
     return 0
 
 
+def _verify_fleet(where: str, as_json: bool) -> int:
+    import time
+
+    from objsearch.events.lake_table import TableLake
+
+    started = time.perf_counter()
+    check = TableLake(where).verify()
+    seconds = time.perf_counter() - started
+    if as_json:
+        doc = {
+            "lake": where,
+            "runs": check.runs,
+            "files_checked": check.files,
+            "bytes_checked": check.bytes,
+            "seconds": round(seconds, 3),
+            "damaged": [{"file": f, "problems": [why]} for f, why in check.damaged],
+        }
+        print(json.dumps(doc, indent=2))
+    else:
+        for name, why in check.damaged:
+            print(f"DAMAGED  {name}: {why}")
+        print(
+            f"{check.runs} run(s), {check.files} file(s), {check.bytes / 1e6:.1f} MB checked in "
+            f"{seconds:.2f} s; {len(check.damaged)} damaged file(s)"
+        )
+    if check.damaged:
+        return _fail(
+            f"{len(check.damaged)} damaged data file(s) in {where}; queries leave them out "
+            "(see docs/analytics.md)"
+        )
+    return 0
+
+
 def cmd_lake_ls(args: argparse.Namespace) -> int:
     from objsearch.events.lake import Lake
 
+    if _remote(args.lake) or _is_fleet(args.lake):
+        from objsearch.events.lake_table import TableLake
+
+        fleet = TableLake(args.lake)
+        rows = [(r.robot, r.date, r.run, r.events, r.source) for r in fleet.runs()]
+        write_rows(["robot", "date", "run", "events", "source"], rows, args.format, sys.stdout)
+        return 0
     if not Path(args.lake).is_dir():  # as query says: listing nothing would hide a wrong path
         return _fail(
             f"no lake at {args.lake} (add runs with `objsearch lake add LOG --lake {args.lake}`)"
@@ -434,4 +576,35 @@ def register(sub: Any) -> None:
         type=t.dir_path,
         help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})",
     )
+    upgrade.add_argument(
+        "--to",
+        choices=["fleet"],
+        help="fleet: copy every run into one Delta Lake table (objsearch.lake/2; one transaction "
+        "a run, many writers, object storage) and remove the per-run folders; on a missing "
+        "folder, create an empty fleet lake",
+    )
+    upgrade.add_argument(
+        "--into",
+        metavar="LAKE",
+        help="with --to fleet: write the fleet table there (a folder or s3://bucket/prefix) and "
+        "leave --lake as it is",
+    )
     upgrade.set_defaults(func=cmd_lake_upgrade)
+    compact = lake_sub.add_parser(
+        "compact",
+        help="fleet lake: rewrite small data files into few large ones, checkpoint the log, "
+        "delete files no recent version reads",
+    )
+    compact.add_argument(
+        "--lake",
+        default=_default_lake(),
+        help=f"fleet lake folder or s3:// URI ($OBJSEARCH_LAKE or {DEFAULT_LAKE})",
+    )
+    compact.add_argument(
+        "--keep-hours",
+        type=t.float_range(0.0, 10_000.0),
+        default=1.0,
+        metavar="HOURS",
+        help="keep replaced files this long for readers that started before (1)",
+    )
+    compact.set_defaults(func=cmd_lake_compact)

@@ -230,16 +230,14 @@ def open_analytics(
     return con
 
 
-def _open_fleet(
-    lake: TableLake, *, memory_limit: int, threads: int
-) -> duckdb.DuckDBPyConnection:
+def _open_fleet(lake: TableLake, *, memory_limit: int, threads: int) -> duckdb.DuckDBPyConnection:
     """:func:`open_analytics` of the fleet lake (:mod:`objsearch.events.lake_table`): views over
     the table's current files, a handful per type once compacted, whatever the number of runs.
     A data file that is missing, of another size than the table's log records, or cut is left
     out with a warning naming it."""
     table = lake.table()
     files, damaged = lake.scan(table)
-    for f, why in damaged:
+    for _, why in damaged:
         _log.warning("%s: damaged data file left out of every view: %s", lake.root, why)
     con = duckdb.connect(":memory:")
     create_fleet_views(con, lake, files)

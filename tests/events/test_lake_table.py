@@ -1,0 +1,201 @@
+"""The fleet lake (one Delta table, one transaction a run): commit, idempotency, replace,
+removal, damage, many writers, plain readers, and the same answers as the per-run-folder lake."""
+
+from __future__ import annotations
+
+import logging
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import duckdb
+import polars as pl
+import pytest
+from deltalake import DeltaTable
+
+from objsearch.events import EventLog, read_log
+from objsearch.events.arrow import events_to_tables
+from objsearch.events.lake import Lake, LakeError, compact_log
+from objsearch.events.lake_table import (
+    TABLE_DIR,
+    TableLake,
+    TableLakeError,
+    add_log,
+    is_table_lake,
+    migrate,
+)
+from objsearch.events.sql_limits import close
+from objsearch.replay.analytics import open_analytics, run_query
+
+from .payloads import EXAMPLES
+
+V1_LOG = Path(__file__).parent / "fixtures" / "v1-log"
+GOLDEN = Path(__file__).resolve().parents[1] / "replay" / "golden"
+
+
+def small_log(directory: Path, *, stream: str = "run-a", n: int = 3) -> Path:
+    with EventLog.open(directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000) as log:
+        for i, (event_type, payload) in enumerate(EXAMPLES.items()):
+            log.append(event_type, payload, time_ns=i, task_id="t1")
+        for i in range(n):
+            log.append("search_failed", {"reason": f"r{i}"}, time_ns=100 + i)
+    return directory
+
+
+def table_counts(lake: TableLake) -> list[tuple[str, str, int]]:
+    con = open_analytics(lake.root)
+    try:
+        rows = run_query(con, "SELECT robot, run, count(*) FROM events GROUP BY ALL ORDER BY ALL")
+        return [(str(r[0]), str(r[1]), int(r[2])) for r in rows[1]]
+    finally:
+        close(con)
+
+
+def test_a_run_commits_whole_reads_back_and_again_is_a_no_op(tmp_path: Path) -> None:
+    lake = TableLake(tmp_path / "lake")
+    info = add_log(small_log(tmp_path / "log"), lake, robot="r2d2")
+    assert is_table_lake(tmp_path / "lake")
+    assert (info.robot, info.date, info.run) == ("r2d2", "2023-11-14", "run-a")
+    assert lake.runs() == [info]
+    tables = events_to_tables(read_log(tmp_path / "log"))
+    got = lake.read_tables(info)
+    assert sorted(got) == sorted(tables)
+    for event_type, table in tables.items():
+        assert got[event_type].equals(table), event_type
+    version = DeltaTable(str(tmp_path / "lake" / TABLE_DIR)).version()
+    assert add_log(tmp_path / "log", lake, robot="r2d2") == info
+    assert DeltaTable(str(tmp_path / "lake" / TABLE_DIR)).version() == version  # nothing written
+
+
+def test_other_content_needs_replace_and_replace_swaps_the_run_in_one_version(
+    tmp_path: Path,
+) -> None:
+    lake = TableLake(tmp_path / "lake")
+    add_log(small_log(tmp_path / "a", n=3), lake, robot="r", run="x")
+    with pytest.raises(TableLakeError, match="other content; pass replace=True"):
+        add_log(small_log(tmp_path / "b", n=5), lake, robot="r", run="x")
+    before = DeltaTable(str(tmp_path / "lake" / TABLE_DIR)).version()
+    new = add_log(tmp_path / "b", lake, robot="r", run="x", replace=True)
+    assert DeltaTable(str(tmp_path / "lake" / TABLE_DIR)).version() == before + 1
+    assert new.rows["search_failed"] == 1 + 5  # EXAMPLES has one
+    assert lake.runs() == [new]
+    assert table_counts(lake) == [("r", "x", len(EXAMPLES) + 5)]
+    assert lake.remove_run("r", "x") and lake.runs() == []
+    assert table_counts(lake) == []
+    assert not lake.remove_run("r", "x")
+
+
+def test_the_same_log_under_a_second_name_is_refused(tmp_path: Path) -> None:
+    lake = TableLake(tmp_path / "lake")
+    add_log(small_log(tmp_path / "log"), lake, robot="r", run="one")
+    with pytest.raises(TableLakeError, match="already in the lake as run 'one'"):
+        add_log(tmp_path / "log", lake, robot="r", run="two")
+
+
+def test_views_answer_as_the_per_run_folder_lake_after_upgrade(tmp_path: Path) -> None:
+    old = tmp_path / "old"
+    compact_log(GOLDEN / "sim-wpl-updates", Lake(old), robot="sim")
+    compact_log(small_log(tmp_path / "log"), Lake(old), robot="r2d2")
+    queries = [
+        "SELECT robot, run, type, count(*) FROM events GROUP BY ALL ORDER BY ALL",
+        "SELECT * FROM searches ORDER BY ALL",
+        "SELECT * FROM scene_graph ORDER BY ALL",
+        "SELECT * FROM scene_graph_at_seq(300) ORDER BY ALL",
+        "SELECT * FROM detections ORDER BY ALL",
+        "SELECT * FROM plans ORDER BY ALL",
+    ]
+    con = open_analytics(old)
+    want = [run_query(con, q)[1] for q in queries]
+    close(con)
+    fleet = TableLake(tmp_path / "fleet")
+    copied, damaged = migrate(old, fleet)
+    assert (copied, damaged) == (2, [])
+    assert migrate(old, fleet) == (0, [])  # runs already there are skipped
+    con = open_analytics(tmp_path / "fleet")
+    try:
+        assert [run_query(con, q)[1] for q in queries] == want
+    finally:
+        close(con)
+
+
+def test_plain_duckdb_and_polars_read_the_table(tmp_path: Path) -> None:
+    lake = TableLake(tmp_path / "lake")
+    add_log(small_log(tmp_path / "log"), lake, robot="r2d2")
+    table = str(tmp_path / "lake" / TABLE_DIR)
+    frame = (
+        pl.scan_delta(table)
+        .filter(pl.col("type") == "search_failed")
+        .select("run", "seq", pl.col("search_failed").struct.field("reason"))
+        .sort("seq")
+        .collect()
+    )
+    assert frame["reason"].to_list() == ["all candidates visited", "r0", "r1", "r2"]
+    files = DeltaTable(table).file_uris()
+    got = duckdb.execute(
+        "SELECT search_failed.reason FROM read_parquet($files, hive_partitioning = true) "
+        "WHERE type = 'search_failed' ORDER BY seq",
+        {"files": files},
+    ).fetchall()
+    assert [r[0] for r in got] == ["all candidates visited", "r0", "r1", "r2"]
+
+
+def test_a_damaged_data_file_is_left_out_and_verify_names_it(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    lake = TableLake(tmp_path / "lake")
+    add_log(small_log(tmp_path / "log"), lake, robot="r2d2")
+    victim = next(f for f in lake.data_files() if f.kind == "search_failed")
+    path = tmp_path / "lake" / TABLE_DIR / victim.path
+    path.write_bytes(path.read_bytes()[:-10])
+    with caplog.at_level(logging.WARNING):
+        con = open_analytics(tmp_path / "lake")
+    try:
+        assert run_query(con, "SELECT count(*) FROM search_failed")[1] == [(0,)]
+        assert run_query(con, "SELECT count(*) FROM task_ended")[1] == [(1,)]
+    finally:
+        close(con)
+    assert victim.path in caplog.text and "left out" in caplog.text
+    check = lake.verify()
+    assert [name for name, _ in check.damaged] == [victim.path]
+
+
+WRITER = """
+import sys
+from pathlib import Path
+from objsearch.events.lake_table import TableLake, add_log
+lake = TableLake(sys.argv[1])
+for log in sys.argv[2:]:
+    add_log(Path(log), lake, robot="r", run=Path(log).name)
+"""
+
+
+def test_concurrent_writers_lose_and_duplicate_nothing(tmp_path: Path) -> None:
+    logs = [small_log(tmp_path / "logs" / f"log{i}", stream=f"s{i}", n=i) for i in range(4)]
+    writers = 3
+    # Every writer commits every log: the same runs race from all sides.
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", WRITER, str(tmp_path / "lake"), *map(str, logs[w:] + logs[:w])],
+            env={**os.environ},
+        )
+        for w in range(writers)
+    ]
+    assert [p.wait(timeout=120) for p in procs] == [0] * writers
+    sequential = TableLake(tmp_path / "seq")
+    for log in logs:
+        add_log(log, sequential, robot="r", run=log.name)
+    concurrent = TableLake(tmp_path / "lake")
+    assert [(r.run, r.digest) for r in concurrent.runs()] == [
+        (r.run, r.digest) for r in sequential.runs()
+    ]
+    assert table_counts(concurrent) == table_counts(sequential)
+    assert len(table_counts(concurrent)) == len(logs)
+
+
+def test_an_empty_run_name_or_a_bad_date_is_refused(tmp_path: Path) -> None:
+    lake = TableLake(tmp_path / "lake")
+    with pytest.raises(LakeError, match="must start with a letter"):
+        lake.commit_tables({}, robot="r", run="../x", date="2024-01-01")
+    with pytest.raises(LakeError, match="not an ISO date"):
+        lake.commit_tables({}, robot="r", run="x", date="yesterday")
