@@ -37,7 +37,7 @@ import pyarrow as pa
 
 from objsearch.events.lake import RUN_FILE, Lake, compact_log
 from objsearch.events.lake_digest import FILES_KEY, SELF_KEY, manifest_digest
-from objsearch.events.lake_table import TableLake, TableRun, add_log, run_rows
+from objsearch.events.lake_table import TableLake, TableRun, add_log, run_parts
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query
 
@@ -72,23 +72,26 @@ def build_fleet(root: Path, template: Path, n: int) -> TableLake:
     info = source.runs()[0]
     tables = source.read_tables(info)
     base = TableRun(info.robot, info.date, info.run, "c", dict(info.rows), info.digest, "bench")
-    rows = run_rows(tables, base)
+    parts = run_parts(tables, base)
     pending = []
     for i in range(n):
         robot, day, run = names(i)
         one = TableRun(robot, day, run, f"c{i}", dict(info.rows), info.digest, "bench")
-        col = {
-            "robot": pa.array([robot] * rows.num_rows),
-            "date": pa.array([dt.date.fromisoformat(day)] * rows.num_rows, pa.date32()),
-            "run": pa.array([run] * rows.num_rows),
-            "commit": pa.array([one.commit] * rows.num_rows),
-        }
-        copy = rows
-        for name, values in col.items():
-            copy = copy.set_column(
-                copy.schema.get_field_index(name), copy.schema.field(name), values
-            )
-        pending.append((one, copy))
+        copies = {}
+        for kind, part in parts.items():
+            rows = part.num_rows
+            values = {
+                "robot": pa.array([robot] * rows),
+                "date": pa.array([dt.date.fromisoformat(day)] * rows, pa.date32()),
+                "run": pa.array([run] * rows),
+                "commit": pa.array([one.commit] * rows),
+            }
+            copy = part
+            for name, column in values.items():
+                index = copy.schema.get_field_index(name)
+                copy = copy.set_column(index, copy.schema.field(name), column)
+            copies[kind] = copy
+        pending.append((one, copies))
         if len(pending) == BATCH:
             lake.commit_many(pending)
             pending = []

@@ -37,10 +37,12 @@ import datetime as dt
 import functools
 import json
 import logging
+import math
 import os
 import time
 import uuid
 from collections.abc import Iterable, Mapping, Sequence
+from contextlib import suppress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
@@ -48,13 +50,22 @@ from typing import Any, Final
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.dataset as pds
+import pyarrow.parquet as pq
 
 from . import _fs
 from .arrow import ENVELOPE_COLUMNS, event_schema, events_to_tables, tables_to_events
 from .derived import PARTITION_NAMES, derive_run, derived_tables
 from .envelope import Event
 from .errors import EventStoreError
-from .lake import LakeError, _check_date, _check_name, _conform, _digest, parquet_problem
+from .lake import (
+    ROW_GROUP_ROWS,
+    LakeError,
+    _check_date,
+    _check_name,
+    _conform,
+    _digest,
+    parquet_problem,
+)
 from .log import LOCK_FILE, read_log, read_meta
 from .schemas import default_registry
 from .upcast import default_upcaster
@@ -370,7 +381,6 @@ class TableLake:
     def verify(self) -> TableCheck:
         """Read every byte: decode each data file in full and compare its rows with the log's
         statistics (plus the checks of :meth:`scan`). Changes nothing."""
-        import pyarrow.parquet as pq
 
         table = self.table()
         good, bad = self.scan(table)
@@ -380,7 +390,8 @@ class TableLake:
             where = f"{self.uri}/{f.path}"
             try:
                 if self.remote:
-                    data = pq.read_table(where, filesystem=_filesystem(self.uri, self.options))
+                    fs, base = _filesystem(self.uri)
+                    data = pq.read_table(f"{base}/{f.path}", filesystem=fs)
                 else:
                     data = pq.ParquetFile(where, page_checksum_verification=True).read()
             except (OSError, pa.ArrowException) as exc:
@@ -466,18 +477,22 @@ class TableLake:
             identity=dict(sorted((identity or {}).items())),
             attachments=dict(sorted((attachments or {}).items())),
         )
-        rows = run_rows(checked, run_info)
+        parts = run_parts(checked, run_info)
         self.create()
-        return self._commit(run_info, rows, replace=replace)
+        return self._commit(run_info, parts, replace=replace)
 
-    def _commit(self, info: TableRun, rows: pa.Table, *, replace: bool) -> TableRun:
+    def _commit(self, info: TableRun, parts: Mapping[str, pa.Table], *, replace: bool) -> TableRun:
         from deltalake import CommitProperties, Transaction, write_deltalake
         from deltalake.exceptions import CommitFailedError
 
         app = _app_id(info.robot, info.run)
+        adds: list[Any] | None = None  # files written for an append, kept across retries
         for attempt in range(COMMIT_TRIES):
             table = self.table()
             existing = self.find(info.robot, info.run, table)
+            if existing is not None and adds is not None:
+                self._delete_files(adds)  # another writer committed the run first
+                adds = None
             version = table.transaction_version(app) or 0
             if existing is not None:
                 if existing.digest == info.digest and existing.date == info.date:
@@ -490,18 +505,19 @@ class TableLake:
             commit = CommitProperties(app_transactions=[Transaction(app, version + 1)])
             try:
                 if existing is None:
-                    write_deltalake(
-                        table,
-                        rows,
+                    if adds is None:
+                        adds = self._write_files({k: [t] for k, t in parts.items()}, info.commit)
+                    table.create_write_transaction(
+                        adds,
                         mode="append",
+                        schema=table_schema(),
                         partition_by=["type"],
                         commit_properties=commit,
-                        storage_options=self.options,
                     )
                 else:
                     write_deltalake(
                         table,
-                        rows,
+                        pa.concat_tables(parts.values()),
                         mode="overwrite",
                         predicate=_run_predicate(info.robot, info.run),
                         partition_by=["type"],
@@ -520,15 +536,17 @@ class TableLake:
                 continue
             self._maybe_compact()
             return info
+        if adds is not None:
+            self._delete_files(adds)
         raise TableLakeError(
             f"{self.root}: the commit of run {info.run!r} lost {COMMIT_TRIES} races with other "
             "writers; try again"
         )
 
-    def commit_many(self, runs: Sequence[tuple[TableRun, pa.Table]]) -> None:
+    def commit_many(self, runs: Sequence[tuple[TableRun, Mapping[str, pa.Table]]]) -> None:
         """Commit new runs (none in the lake yet) in one transaction: the migration's and the
         benchmarks' bulk path. Raises if one is there already."""
-        from deltalake import CommitProperties, Transaction, write_deltalake
+        from deltalake import CommitProperties, Transaction
 
         if not runs:
             return
@@ -542,14 +560,69 @@ class TableLake:
             ):
                 raise TableLakeError(f"{self.root}: run {info.robot}/{info.run} is already there")
             apps.append(Transaction(app, (table.transaction_version(app) or 0) + 1))
-        write_deltalake(
-            table,
-            pa.concat_tables([rows for _, rows in runs]),
-            mode="append",
-            partition_by=["type"],
-            commit_properties=CommitProperties(app_transactions=apps),
-            storage_options=self.options,
-        )
+        by_kind: dict[str, list[pa.Table]] = {}
+        for _, parts in runs:
+            for kind, part in parts.items():
+                by_kind.setdefault(kind, []).append(part)
+        adds = self._write_files(by_kind, _token())
+        try:
+            table.create_write_transaction(
+                adds,
+                mode="append",
+                schema=table_schema(),
+                partition_by=["type"],
+                commit_properties=CommitProperties(app_transactions=apps),
+            )
+        except BaseException:
+            self._delete_files(adds)
+            raise
+
+    def _write_files(self, parts: Mapping[str, Sequence[pa.Table]], token: str) -> list[Any]:
+        """Write each ``type``'s rows (runs in the order given, each by seq) as one Parquet
+        file (zstd, page checksums) where the table keeps that partition, not yet part of the
+        table: the commit that names them makes them so (vacuum removes them if none does)."""
+        from deltalake.transaction import AddAction
+
+        adds = []
+        for kind in sorted(parts):
+            part = pa.concat_tables(parts[kind]).drop_columns(["type"])
+            sink = pa.BufferOutputStream()
+            pq.write_table(
+                part,
+                sink,
+                compression="zstd",
+                row_group_size=ROW_GROUP_ROWS,
+                write_page_checksum=True,
+            )
+            data = sink.getvalue()
+            rel = f"type={kind}/part-{token}.zstd.parquet"
+            self._put(rel, data)
+            stats = _stats(part)
+            adds.append(
+                AddAction(rel, data.size, {"type": kind}, int(time.time() * 1000), True, stats)
+            )
+        return adds
+
+    def _put(self, rel: str, data: pa.Buffer) -> None:
+        if self.remote:
+            fs, base = _filesystem(self.uri)
+            with fs.open_output_stream(f"{base}/{rel}") as out:
+                out.write(data)
+            return
+        path = Path(self.uri) / rel
+        _fs.make_dirs(path.parent)
+        with path.open("wb") as fh:
+            fh.write(memoryview(data))
+        _fs.fsync_file(path)
+
+    def _delete_files(self, adds: Sequence[Any]) -> None:
+        for add in adds:
+            with suppress(OSError):
+                if self.remote:
+                    fs, base = _filesystem(self.uri)
+                    fs.delete_file(f"{base}/{add.path}")
+                else:
+                    (Path(self.uri) / add.path).unlink()
 
     def remove_run(self, robot: str, run: str) -> bool:
         """Take a run out of the lake (one transaction); False if it was not there."""
@@ -603,22 +676,52 @@ class TableLake:
         if vacuum_hours is not None:
             removed = len(
                 table.vacuum(
-                    retention_hours=int(vacuum_hours) if vacuum_hours >= 1 else 0,
+                    retention_hours=math.ceil(vacuum_hours),  # whole hours; never rounded down
                     enforce_retention_duration=False,
                     dry_run=False,
+                    # also files no commit ever named (a writer killed before its commit);
+                    # one younger than the retention may be a commit in flight: kept
+                    full=True,
                 )
             )
             table.cleanup_metadata()
         return {"files_before": before, "files_after": len(table.file_uris()), "vacuumed": removed}
 
 
-def _filesystem(uri: str, options: Mapping[str, str]) -> Any:
+def _filesystem(uri: str) -> tuple[Any, str]:
+    """Arrow's file system for a remote table URI and the path in it (S3: the standard AWS_*
+    variables, ``AWS_ENDPOINT_URL`` included)."""
     import pyarrow.fs as pafs
 
     endpoint = os.environ.get("AWS_ENDPOINT_URL")
-    return pafs.S3FileSystem(
-        endpoint_override=endpoint,
-        scheme="http" if endpoint and endpoint.startswith("http://") else "https",
+    if uri.startswith("s3://"):
+        fs = pafs.S3FileSystem(
+            endpoint_override=endpoint,
+            scheme="http" if endpoint and endpoint.startswith("http://") else "https",
+            region=os.environ.get("AWS_REGION", os.environ.get("AWS_DEFAULT_REGION", "us-east-1")),
+        )
+        return fs, uri.removeprefix("s3://")
+    fs, path = pafs.FileSystem.from_uri(uri)
+    return fs, path
+
+
+def _stats(part: pa.Table) -> str:
+    """A data file's statistics as the Delta log keeps them: rows, and min / max of the run
+    columns and of ``seq`` and ``time_ns`` (file pruning by robot, run or time)."""
+    low: dict[str, Any] = {}
+    high: dict[str, Any] = {}
+    nulls: dict[str, int] = {}
+    for name in ("robot", "date", "run", "commit", "seq", "time_ns"):
+        column = part.column(name)
+        nulls[name] = column.null_count
+        if column.null_count == len(column):
+            continue
+        bounds = pc.min_max(column)
+        lo, hi = bounds["min"].as_py(), bounds["max"].as_py()
+        low[name] = lo.isoformat() if isinstance(lo, dt.date) else lo
+        high[name] = hi.isoformat() if isinstance(hi, dt.date) else hi
+    return json.dumps(
+        {"numRecords": part.num_rows, "minValues": low, "maxValues": high, "nullCount": nulls}
     )
 
 
@@ -651,13 +754,19 @@ def _run_of(row: Mapping[str, Any]) -> TableRun:
 
 
 def run_rows(tables: Mapping[str, pa.Table], info: TableRun) -> pa.Table:
-    """A run's rows in the fleet table: its events, its derived tables and its ``_run`` row."""
+    """A run's rows in the fleet table, as one table (see :func:`run_parts`)."""
+    return pa.concat_tables(run_parts(tables, info).values())
+
+
+def run_parts(tables: Mapping[str, pa.Table], info: TableRun) -> dict[str, pa.Table]:
+    """A run's rows in the fleet table by ``type`` partition: its events (by seq), its derived
+    tables and its ``_run`` row."""
     derived = derive_run(tables, robot=info.robot, date=info.date, run=info.run)
-    pieces = [_widen(t, table, t, info) for t, table in sorted(tables.items())]
+    parts = {t: _widen(t, table.sort_by("seq"), t, info) for t, table in sorted(tables.items())}
     specs = {d.name: d for d in derived_tables()}
     for name, table in derived.items():
-        spec = specs[name]
-        pieces.append(_widen(derived_kind(name, spec.version), table, derived_column(name), info))
+        kind = derived_kind(name, specs[name].version)
+        parts[kind] = _widen(kind, table, derived_column(name), info)
     description = {
         "format": TABLE_FORMAT,
         "digest": info.digest,
@@ -667,10 +776,10 @@ def run_rows(tables: Mapping[str, pa.Table], info: TableRun) -> pa.Table:
         "attachments": json.dumps(dict(info.attachments), sort_keys=True),
         "committed_at_ns": time.time_ns(),
     }
-    pieces.append(
-        _widen(RUN_TYPE, pa.table({k: [v] for k, v in description.items()}), RUN_COLUMN, info)
+    parts[RUN_TYPE] = _widen(
+        RUN_TYPE, pa.table({k: [v] for k, v in description.items()}), RUN_COLUMN, info
     )
-    return pa.concat_tables(pieces)
+    return parts
 
 
 def _widen(kind: str, table: pa.Table, column: str, info: TableRun) -> pa.Table:
@@ -776,7 +885,7 @@ def migrate(old_root: Path, lake: TableLake, *, batch: int = 64) -> tuple[int, l
     healthy, damaged = old.scan(check_digests=True)
     lake.create()
     known = {(r.robot, r.run) for r in lake.runs()}
-    pending: list[tuple[TableRun, pa.Table]] = []
+    pending: list[tuple[TableRun, dict[str, pa.Table]]] = []
     copied = 0
     for info in healthy:
         if (info.robot, info.run) in known:
@@ -798,7 +907,7 @@ def migrate(old_root: Path, lake: TableLake, *, batch: int = 64) -> tuple[int, l
             identity=dict(info.identity),
             attachments=attachments,
         )
-        pending.append((run, run_rows(tables, run)))
+        pending.append((run, run_parts(tables, run)))
         if len(pending) >= batch:
             lake.commit_many(pending)
             copied += len(pending)
@@ -817,6 +926,7 @@ __all__ = [
     "add_log",
     "is_table_lake",
     "migrate",
+    "run_parts",
     "run_rows",
     "table_schema",
 ]

@@ -3,6 +3,7 @@ removal, damage, many writers, plain readers, and the same answers as the per-ru
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import subprocess
@@ -24,6 +25,7 @@ from objsearch.events.lake_table import (
     add_log,
     is_table_lake,
     migrate,
+    run_parts,
 )
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query
@@ -199,3 +201,38 @@ def test_an_empty_run_name_or_a_bad_date_is_refused(tmp_path: Path) -> None:
         lake.commit_tables({}, robot="r", run="../x", date="2024-01-01")
     with pytest.raises(LakeError, match="not an ISO date"):
         lake.commit_tables({}, robot="r", run="x", date="yesterday")
+
+
+def test_compaction_keeps_every_row_and_bounds_the_files(tmp_path: Path) -> None:
+    lake = TableLake(tmp_path / "lake")
+    for i in range(3):
+        add_log(small_log(tmp_path / f"log{i}", stream=f"s{i}", n=i), lake, robot="r")
+    before = table_counts(lake)
+    kinds = {f.kind for f in lake.data_files()}
+    assert len(lake.data_files()) == 3 * len(kinds)  # one file a type a commit
+    done = lake.compact(vacuum_hours=0)
+    after = [f.kind for f in lake.data_files()]
+    assert done["files_after"] == len(after) == len(set(after))  # at most one file a type
+    assert set(after) <= kinds
+    assert table_counts(lake) == before
+    # The files the old versions read are gone from the folder, not only from the table.
+    on_disk = sorted((tmp_path / "lake" / TABLE_DIR).glob("type=*/*.parquet"))
+    assert len(on_disk) == len(after)
+
+
+def test_files_of_a_writer_killed_before_its_commit_are_never_read(tmp_path: Path) -> None:
+    lake = TableLake(tmp_path / "lake")
+    add_log(small_log(tmp_path / "a", stream="a"), lake, robot="r")
+    before = table_counts(lake)
+    # What a writer killed between writing its files and committing leaves: files the log
+    # does not name (the crash point itself is not simulated, only what it leaves).
+    info = lake.runs()[0]
+    orphan = dataclasses.replace(info, run="b", commit="dead")
+    lake._write_files(
+        {k: [t] for k, t in run_parts(lake.read_tables(info), orphan).items()}, "dead"
+    )
+    assert len(list((tmp_path / "lake" / TABLE_DIR).glob("type=*/part-dead*"))) > 0
+    assert table_counts(lake) == before
+    assert [r.run for r in lake.runs()] == ["a"]
+    lake.compact(vacuum_hours=0)  # vacuum removes files no version names
+    assert not list((tmp_path / "lake" / TABLE_DIR).glob("type=*/part-dead*"))
