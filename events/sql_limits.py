@@ -105,13 +105,17 @@ def apply_limits(con: duckdb.DuckDBPyConnection, *, memory_limit: int, threads: 
     check_limits(memory_limit, threads)
     temp = Path(tempfile.mkdtemp(prefix="objsearch-duckdb-"))
     _REMOVERS[con] = weakref.finalize(con, shutil.rmtree, temp, True)
-    for setting in (
+    settings = [
         f"temp_directory = {quote_literal(str(temp))}",
         f"memory_limit = '{memory_limit}B'",
         f"max_temp_directory_size = '{SPILL_FACTOR * memory_limit}B'",
         f"threads = {threads}",
-        "enable_progress_bar = false",
-    ):
+    ]
+    # Under Jupyter DuckDB has the bar off already and refuses any change to it without
+    # ipywidgets (open_analytics in a notebook failed): turn it off only where it is on.
+    if con.execute("SELECT current_setting('enable_progress_bar')").fetchone() != (False,):
+        settings.append("enable_progress_bar = false")
+    for setting in settings:
         con.execute(f"SET {setting}")
     return temp
 

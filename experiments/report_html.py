@@ -5,16 +5,13 @@ values behind each plan, the update and the timeline). Every page is self-contai
 
 from __future__ import annotations
 
-import itertools
 import tempfile
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from objsearch.agent.geometry import Point
 from objsearch.agent.session import load_context
 from objsearch.experiments.html import bar, document, esc, figure, markdown, table
-from objsearch.experiments.route_map import plot_route_map
+from objsearch.experiments.route_map import plot_route_map, walked
 
 INDEX = "index.html"
 
@@ -34,18 +31,6 @@ def page_name(task_id: str) -> str:
     return task_id.replace("(", "").replace(")", "").replace(" ", "-") + ".html"
 
 
-def _dense(navmap: Any, stops: Sequence[Point]) -> list[Point]:
-    """Every point walked between the recorded stops (the map's shortest paths)."""
-    out = list(stops[:1])
-    for a, b in itertools.pairwise(stops):
-        try:
-            walk = navmap.path(a, b)
-        except (ValueError, KeyError):
-            walk = [a, b]
-        out += walk[1:]
-    return out
-
-
 def _route(task: Any, folder: Path) -> str:
     """The task's route figure, inline; empty when it has no route or no home."""
     if not task.home or len(task.route) < 2:
@@ -55,7 +40,7 @@ def _route(task: Any, folder: Path) -> str:
     length = f", {task.path_length:.1f} m" if task.path_length is not None else ""
     plot_route_map(
         ctx,
-        _dense(ctx.navmap, task.route),
+        walked(ctx.navmap, task.route),
         png,
         title=f"{task.task_id}: find {task.target} from {task.start}{length}",
         start_label=task.start,

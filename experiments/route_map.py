@@ -32,6 +32,19 @@ def rooms_in_order(navmap: Any, route: Sequence[Point]) -> list[tuple[str, int]]
     return out
 
 
+def walked(navmap: Any, stops: Sequence[Point]) -> list[Point]:
+    """Every point walked between the recorded stops (the map's shortest paths between them;
+    two stops the map cannot join are drawn as a straight step)."""
+    out = list(stops[:1])
+    for a, b in itertools.pairwise(stops):
+        try:
+            walk = navmap.path(a, b)
+        except (ValueError, KeyError):
+            walk = [a, b]
+        out += walk[1:]
+    return out
+
+
 def plot_route_map(
     ctx: Any,
     route: Sequence[Point],
@@ -135,4 +148,4 @@ def plot_route_map(
     return save_figure(fig, path)
 
 
-__all__ = ["plot_route_map", "rooms_in_order"]
+__all__ = ["plot_route_map", "rooms_in_order", "walked"]
