@@ -690,10 +690,17 @@ class TableLake:
 
 def _filesystem(uri: str) -> tuple[Any, str]:
     """Arrow's file system for a remote table URI and the path in it (S3: the standard AWS_*
-    variables, ``AWS_ENDPOINT_URL`` included)."""
+    variables, ``AWS_ENDPOINT_URL`` included); one per URI and settings (making one costs a
+    round of the SDK's credential lookup)."""
+    keys = ("AWS_ENDPOINT_URL", "AWS_REGION", "AWS_DEFAULT_REGION", "AWS_ACCESS_KEY_ID")
+    return _filesystem_for(uri, tuple(os.environ.get(k, "") for k in keys))
+
+
+@functools.cache
+def _filesystem_for(uri: str, settings: tuple[str, ...]) -> tuple[Any, str]:
     import pyarrow.fs as pafs
 
-    endpoint = os.environ.get("AWS_ENDPOINT_URL")
+    endpoint = settings[0] or None
     if uri.startswith("s3://"):
         fs = pafs.S3FileSystem(
             endpoint_override=endpoint,

@@ -1,0 +1,147 @@
+"""The fleet lake on S3: a local S3 server (moto's, started here on a free loopback port),
+endpoint and credentials from the standard AWS_* variables, as a fleet points at a bucket."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from collections.abc import Iterator
+from pathlib import Path
+
+import boto3
+import pytest
+
+from objsearch.events import EventLog
+from objsearch.events.lake import Lake, compact_log
+from objsearch.events.lake_table import TableLake, TableLakeError, add_log, is_table_lake
+from objsearch.events.sql_limits import close
+from objsearch.replay.analytics import open_analytics, run_query
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.fixture(scope="module")
+def s3_server() -> Iterator[dict[str, str]]:
+    port = _free_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "moto.server", "-H", "127.0.0.1", "-p", str(port)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + 60
+    try:
+        while True:  # until it answers (no fixed sleep: it starts as fast as the machine lets it)
+            try:
+                urllib.request.urlopen(url, timeout=1).close()
+                break
+            except OSError:
+                if proc.poll() is not None or time.monotonic() > deadline:
+                    raise RuntimeError(f"the S3 server on {url} did not start") from None
+                time.sleep(0.05)
+        yield {
+            "AWS_ENDPOINT_URL": url,
+            "AWS_ACCESS_KEY_ID": "testing",
+            "AWS_SECRET_ACCESS_KEY": "testing",
+            "AWS_REGION": "us-east-1",
+        }
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+
+
+@pytest.fixture
+def bucket(
+    s3_server: dict[str, str], monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest
+) -> str:
+    for name, value in s3_server.items():
+        monkeypatch.setenv(name, value)
+    name = request.node.name.replace("_", "-")[:50].lower()
+    boto3.client("s3").create_bucket(Bucket=name)
+    return f"s3://{name}/lake"
+
+
+def small_log(directory: Path, *, stream: str, n: int = 3) -> Path:
+    with EventLog.open(directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000) as log:
+        for i in range(n):
+            log.append("search_failed", {"reason": f"r{i}"}, time_ns=i)
+    return directory
+
+
+def test_a_run_commits_to_the_bucket_and_queries_read_it(bucket: str, tmp_path: Path) -> None:
+    lake = TableLake(bucket)
+    info = add_log(small_log(tmp_path / "a", stream="a"), lake, robot="r")
+    assert is_table_lake(bucket)
+    assert add_log(tmp_path / "a", lake, robot="r") == info  # again: a no-op
+    with pytest.raises(TableLakeError, match="other content"):
+        add_log(small_log(tmp_path / "b", stream="a", n=5), lake, robot="r", run="a")
+    con = open_analytics(bucket)
+    try:
+        assert run_query(con, "SELECT run, count(*) FROM search_failed GROUP BY 1")[1] == [("a", 3)]
+        with pytest.raises(Exception, match="read-only"):
+            run_query(con, "COPY (SELECT 1) TO 'x.csv'")
+    finally:
+        close(con)
+    assert lake.verify().damaged == []
+    keys = [
+        o["Key"]
+        for o in boto3.client("s3").list_objects_v2(Bucket=bucket[5:].split("/")[0])["Contents"]
+    ]
+    assert any(k.startswith("lake/events/_delta_log/") for k in keys)
+    assert any(k.startswith("lake/events/type=search_failed/") for k in keys)
+
+
+WRITER = """
+import sys
+from pathlib import Path
+from objsearch.events.lake_table import TableLake, add_log
+lake = TableLake(sys.argv[1])
+for log in sys.argv[2:]:
+    add_log(Path(log), lake, robot="r", run=Path(log).name)
+"""
+
+
+def test_concurrent_writers_to_the_bucket_lose_and_duplicate_nothing(
+    bucket: str, tmp_path: Path
+) -> None:
+    logs = [small_log(tmp_path / f"log{i}", stream=f"s{i}", n=i + 1) for i in range(3)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", WRITER, bucket, *map(str, logs[w:] + logs[:w])],
+            env={**os.environ},
+        )
+        for w in range(2)
+    ]
+    assert [p.wait(timeout=180) for p in procs] == [0, 0]
+    runs = TableLake(bucket).runs()
+    assert [(r.run, r.events) for r in runs] == [("log0", 1), ("log1", 2), ("log2", 3)]
+    con = open_analytics(bucket)
+    try:
+        assert run_query(con, "SELECT count(*), count(DISTINCT run) FROM events")[1] == [(6, 3)]
+    finally:
+        close(con)
+
+
+def test_the_cli_migrates_a_folder_lake_into_the_bucket_and_queries_it(
+    bucket: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from objsearch.cli import main
+
+    folder = tmp_path / "lake"
+    compact_log(small_log(tmp_path / "a", stream="a"), Lake(folder), robot="r")
+    assert main(["lake", "upgrade", "--to", "fleet", "--lake", str(folder), "--into", bucket]) == 0
+    assert Lake(folder).runs() != []  # --into leaves the folder as it was
+    log_b = small_log(tmp_path / "b", stream="b", n=2)
+    assert main(["lake", "add", str(log_b), "--robot", "r", "--lake", bucket]) == 0
+    capsys.readouterr()
+    sql = "SELECT run, count(*) AS n FROM events GROUP BY 1 ORDER BY 1"
+    assert main(["query", "--lake", bucket, "--format", "csv", sql]) == 0
+    assert capsys.readouterr().out.splitlines() == ["run,n", "a,3", "b,2"]
