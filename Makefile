@@ -12,12 +12,16 @@ $(STAMP): pyproject.toml
 	# torch first and pinned: here pip finds the local CPU wheel; unpinned, it pulls CUDA.
 	$(BIN)/pip install --quiet torch==2.13.0
 	$(BIN)/pip install --quiet -e '.[dev]'
+	# nav2_msgs, vision_msgs, tf2_msgs, objsearch_msgs have no wheel: generated and compiled into
+	# .venv for rclpy (--transport ros2), as a ROS 2 workspace would (runtime/ros2_types.py).
+	$(BIN)/python -m objsearch.runtime.ros2_types
 	touch $(STAMP)
 
 demo: $(STAMP)
 	$(BIN)/objsearch demo --out out/demo --force
 
 test: $(STAMP) lint typecheck
+	$(BIN)/python -m objsearch.runtime.ros2_types
 	$(BIN)/pytest
 
 lint: $(STAMP)

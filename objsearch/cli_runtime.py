@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import signal
 import sys
 import time
@@ -28,7 +29,11 @@ def _transport_options(p: argparse.ArgumentParser) -> None:
         type=t.existing_file,
         help="robot.toml (transport, domain, endpoints, topics, QoS)",
     )
-    p.add_argument("--transport", choices=["zenoh", "dds"], help="middleware (zenoh)")
+    p.add_argument(
+        "--transport",
+        choices=["zenoh", "dds", "ros2"],
+        help="zenoh or dds (no ROS 2 needed), or ros2 (an rclpy node) (zenoh)",
+    )
     p.add_argument("--domain-id", type=t.int_range(0, 232), help="ROS_DOMAIN_ID, 0-232 (0)")
     p.add_argument(
         "--connect",
@@ -75,6 +80,17 @@ def runtime_config(args: argparse.Namespace) -> RuntimeConfig:
     if args.home:
         config = replace(config, home=args.home)
     return config
+
+
+def _node_named(config: RuntimeConfig, name: str) -> RuntimeConfig:
+    """On ROS 2 every node is listed by name and two of one name confuse the graph tools: the
+    stand-in and the clients take their own unless robot.toml names the node."""
+    from objsearch.runtime.transport import Backend, TransportConfig
+
+    t = config.transport
+    if t.backend is not Backend.ROS2 or t.node != TransportConfig().node:
+        return config
+    return replace(config, transport=replace(t, node=name))
 
 
 def _stop_on_signals(stop: Any) -> None:
@@ -160,6 +176,7 @@ def cmd_agent_run(args: argparse.Namespace) -> int:
         seed=args.seed,
         update_mode=UpdateMode(args.update_mode),
         live=sinks,
+        live_topics=args.live_topics,
     )
     _stop_on_signals(node.stop)
     print(f"objsearch agent: serving searches, log {args.log}", file=sys.stderr, flush=True)
@@ -239,7 +256,7 @@ def _ask(
 
     from objsearch.runtime.client import AgentClient
 
-    config = runtime_config(args)
+    config = _node_named(runtime_config(args), f"objsearch_client_{os.getpid()}")
     with AgentClient(config) as client:
 
         def hint_if_alone() -> None:
@@ -301,7 +318,7 @@ def cmd_robot_sim(args: argparse.Namespace) -> int:
 
     _logging()
     robot = StandInRobot(
-        runtime_config(args),
+        _node_named(runtime_config(args), "objsearch_robot"),
         schedule=args.schedule,
         scene=args.scene,
         start=args.start,
@@ -360,6 +377,11 @@ def register(sub: Any) -> None:
         type=t.optional_host_port,
         help="serve the live view to Foxglove on this WebSocket port (host 127.0.0.1 unless "
         "given; 0 picks a free port); off by default",
+    )
+    run.add_argument(
+        "--live-topics",
+        action="store_true",
+        help="also publish the live view's channels as topics of the robot's graph (RViz2)",
     )
     run.add_argument(
         "--live-mcap",

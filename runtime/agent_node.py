@@ -29,6 +29,7 @@ from objsearch.events import Event, read_log
 from objsearch.runtime import messages as m
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import RobotError
+from objsearch.runtime.livesinks import TopicSink
 from objsearch.runtime.liveview import LiveSink, LiveView
 from objsearch.runtime.node import Node, Server
 from objsearch.runtime.requests import (
@@ -94,25 +95,33 @@ class AgentNode:
         seed: int = 0,
         update_mode: UpdateMode = UpdateMode.ALL,
         live: Sequence[LiveSink] = (),
+        live_topics: bool = False,
     ) -> None:
         """``live``: sinks of the live view (:mod:`objsearch.runtime.livesinks`); the node owns
-        them from here on and closes them with itself."""
+        them from here on and closes them with itself. ``live_topics``: the live channels are
+        also published as topics by the agent's own node (:class:`TopicSink`)."""
         self.config = config
         self.live_sinks = tuple(live)
+        transport = None
         try:
             self.ctx = load_context(config.home)
             # Restored once here, like the session's own state (from its snapshot and the log
             # after it), then kept current as an observer: no question re-reads the log.
             self.memory = LiveMemory.restore(log_dir, self.ctx.home, log_dir / WHERE_SNAPSHOT_DIR)
             observers: list[Any] = [self.memory]
+            transport = open_transport(config.transport)
+            if live_topics:
+                self.live_sinks += (TopicSink(transport),)
             if self.live_sinks:
                 view = LiveView(self.ctx, self.live_sinks)
                 if (log_dir / "meta.json").exists():
                     view.fold(read_log(log_dir))  # a restart: the graph so far, not redrawn
                 observers.append(GuardedLiveView(view))
-            self.node = Node(open_transport(config.transport))
+            self.node = Node(transport)
         except BaseException:
             self._close_live()
+            if transport is not None:
+                transport.close()
             raise
         try:
             self.events = EventPublisher(self.node, config)

@@ -1,6 +1,6 @@
 """The agent's view of one robot: middleware, topics, QoS and patience (``robot.toml``)::
 
-transport = "zenoh"            # or "dds": what the robot's RMW_IMPLEMENTATION speaks
+transport = "zenoh"            # or "dds" (both without ROS 2), or "ros2": a real rclpy node
 domain_id = 0                  # ROS_DOMAIN_ID
 home = "paper"
 strategy = "wpl"               # any of objsearch.agent.strategies (objsearch bench compares them)
@@ -164,7 +164,7 @@ class RuntimeConfig:
             backend = Backend(doc.get("transport", "zenoh"))
         except ValueError:
             raise RuntimeConfigError(
-                f"{source}: transport must be zenoh or dds, not {doc['transport']!r}"
+                f"{source}: transport must be zenoh, dds or ros2, not {doc['transport']!r}"
             ) from None
         z, d = doc.get("zenoh", {}), doc.get("dds", {})
         base = TransportConfig()

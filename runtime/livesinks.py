@@ -1,6 +1,7 @@
 """The live view's two sinks: a Foxglove WebSocket server and an MCAP file (ROS 2 profile).
 
-Both take the same :class:`~objsearch.runtime.liveview.LiveMessage` (topic, ROS 2 type, CDR
+They (and :class:`TopicSink`, the same channels as topics of the robot's graph) take the same
+:class:`~objsearch.runtime.liveview.LiveMessage` (topic, ROS 2 type, CDR
 bytes), so a channel looks the same live and in the file: encoding ``cdr``, schema the type's
 ``ros2msg`` definition with its dependencies (what ``ros2 bag record`` writes).
 
@@ -26,6 +27,7 @@ from typing import Any
 from objsearch.agent.errors import ObjsearchError
 from objsearch.runtime import messages as m
 from objsearch.runtime.liveview import LiveMessage
+from objsearch.runtime.transport import Publisher, Transport
 from objsearch.runtime.wsfront import FrontLimits, FrontStats, SubprotocolFront
 
 log = logging.getLogger("objsearch.liveview")
@@ -241,3 +243,37 @@ class FoxgloveSink:
         self._front.close()
         with contextlib.suppress(Exception):  # already stopped
             self._server.stop()
+
+
+class TopicSink:
+    """The live channels as topics of the robot's own graph, published by the agent's node:
+    readable by any ROS 2 node and RViz2 (``runtime/rviz/objsearch.rviz``) with the standard
+    types. The map and the statics are latched (transient local, depth 1), so a viewer that
+    starts late still gets them; the events as the agent's event stream; the rest default."""
+
+    def __init__(self, transport: Transport) -> None:
+        self._transport = transport
+        self._publishers: dict[str, Publisher] = {}
+        self.counts: dict[str, int] = {}
+
+    def write(self, message: LiveMessage) -> None:
+        from objsearch.ros import qos
+        from objsearch.runtime import liveview as lv
+
+        publisher = self._publishers.get(message.topic)
+        if publisher is None:
+            profile = (
+                qos.LATCHED
+                if message.topic in (lv.MAP, lv.STATICS)
+                else qos.EVENTS
+                if message.topic == lv.EVENTS
+                else qos.DEFAULT
+            )
+            publisher = self._transport.publisher(message.topic, message.msgtype, profile)
+            self._publishers[message.topic] = publisher
+        publisher.publish(message.data)
+        self.counts[message.topic] = self.counts.get(message.topic, 0) + 1
+
+    def close(self) -> None:
+        """The publishers go with the node (the transport is the agent's)."""
+        self._publishers.clear()

@@ -1,7 +1,9 @@
 """The transport seam: topics of CDR bytes with ROS 2 names, types and QoS.
 
-Two backends implement it: :mod:`objsearch.runtime.zenoh_transport` (what ``rmw_zenoh_cpp`` puts
-on the wire) and :mod:`objsearch.runtime.dds_transport` (what ``rmw_cyclonedds_cpp`` does). The
+Three backends implement it: :mod:`objsearch.runtime.zenoh_transport` (what ``rmw_zenoh_cpp`` puts
+on the wire) and :mod:`objsearch.runtime.dds_transport` (what ``rmw_cyclonedds_cpp`` does), for
+robots without ROS 2 installed beside the agent, and :mod:`objsearch.runtime.ros2_transport`, a
+real rclpy node on whatever middleware the robot's ROS 2 runs. The
 agent's own requests and results (search requests, container openings) are topic pairs with a
 correlation id in the JSON body, so they work the same over both; ROS 2 services (Nav2's action)
 are request/reply the way each RMW does them.
@@ -59,6 +61,7 @@ class Transport(Protocol):
 class Backend(enum.Enum):
     ZENOH = "zenoh"
     DDS = "dds"
+    ROS2 = "ros2"
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,6 +97,10 @@ def open_transport(config: TransportConfig) -> Transport:
         from objsearch.runtime.zenoh_transport import ZenohTransport
 
         return ZenohTransport(config)
+    if config.backend is Backend.ROS2:  # rclpy is imported only here
+        from objsearch.runtime.ros2_transport import Ros2Transport
+
+        return Ros2Transport(config)
     from objsearch.runtime.dds_transport import DdsTransport
 
     return DdsTransport(config)
