@@ -306,6 +306,13 @@ class DdsTransport:
         except TransportError:
             self.close()
             raise
+        log.info(
+            "joined DDS domain %d (ROS_DOMAIN_ID) on %s (%s), unicast discovery with %s",
+            config.domain_id,
+            config.interface,
+            self.address,
+            ", ".join(config.peers) or "no peers",
+        )
 
     def _topic(self, name: str, cls: Any) -> Any:
         from cyclonedds.topic import Topic

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import logging
 import os
 import struct
 import threading
@@ -28,6 +29,8 @@ from objsearch.runtime.transport import Handler, ServiceHandler, TransportConfig
 GID_SIZE = 16
 #: How often a client asks again while no server answers (discovery still under way).
 RETRY_S = 0.2
+
+log = logging.getLogger("objsearch.runtime")
 
 
 def topic_key(domain_id: int, topic: str, msgtype: str) -> str:
@@ -142,6 +145,18 @@ class ZenohTransport:
         self._tokens: list[Any] = [self._token(0, "NN")]
         self._subscribers: list[Any] = []
         self._closed = False
+        routers = [str(z) for z in self.session.info.routers_zid()]
+        # On a shared host the default endpoint and domain may be someone else's router: say
+        # exactly what was joined, so a stranger's graph is noticed.
+        log.info(
+            "joined zenoh as %s %s, ROS domain %d: connect %s, listen %s; routers reached: %s",
+            config.mode,
+            self.session_id,
+            config.domain_id,
+            ", ".join(config.connect) or "none",
+            ", ".join(config.listen) or "none",
+            ", ".join(routers) or "none yet",
+        )
 
     def _token(self, entity_id: int, kind: str, *args: Any) -> Any:
         key = liveliness_key(

@@ -116,7 +116,9 @@ def test_a_qos_mismatch_is_named_in_the_log(caplog: pytest.LogCaptureFixture) ->
     """A best-effort odometry publisher (a sensor-data profile) never meets the agent's reliable
     reader; the agent says so within seconds, naming the topic and the policy."""
     domain = next_domain()
-    agent = open_transport(TransportConfig(backend=Backend.DDS, domain_id=domain))
+    with caplog.at_level(logging.INFO, "objsearch.runtime"):
+        agent = open_transport(TransportConfig(backend=Backend.DDS, domain_id=domain))
+    assert f"joined DDS domain {domain} (ROS_DOMAIN_ID) on lo (127.0.0.1)" in caplog.text
     try:
         with caplog.at_level(logging.WARNING, "objsearch.runtime"):
             agent.subscribe("/chatter", m.STRING, EVENTS, lambda data: None)

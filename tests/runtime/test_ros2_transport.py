@@ -30,7 +30,7 @@ from objsearch.runtime.transport import Backend, Transport, TransportConfig, ope
 
 from .runtime_fixtures import STARTUP_S, Net, next_domain, objsearch, stop
 from .test_end_to_end import TRIALS, client_config, in_process
-from .test_nav2 import ACTION, _config, _decisions, _find
+from .test_nav2 import ACTION, TF, _config, _decisions, _find
 
 NAV = "nav2_msgs/action/NavigateToPose"
 
@@ -192,9 +192,11 @@ def test_navigate_to_pose_both_ways() -> None:
 
 def test_whole_searches_over_ros2_equal_the_simulator(tmp_path: Path) -> None:
     """The agent and the stand-in robot as rclpy nodes in processes of their own, the robot
-    driven through Nav2's action: the simulator's decisions and path lengths. An rclpy viewer
+    driven through Nav2's action, its pose from /tf (tf2_msgs, generated): the simulator's
+    decisions and path lengths. An rclpy viewer
     started with them reads every live channel (``--live-topics``) with the standard types,
     as RViz2 would."""
+    from geometry_msgs.msg import PoseStamped
     from nav_msgs.msg import OccupancyGrid
     from nav_msgs.msg import Path as PathMsg
     from objsearch_msgs.msg import Event
@@ -208,12 +210,13 @@ def test_whole_searches_over_ros2_equal_the_simulator(tmp_path: Path) -> None:
     expected = in_process(tmp_path / "inproc")
     domain = next_domain()
     net = Net("ros2", ["--transport", "ros2", "--domain-id", str(domain)])
-    args = [*net.args, *_config(tmp_path, ACTION)]
+    args = [*net.args, *_config(tmp_path, ACTION + TF)]
     types = {
         lv.MAP: OccupancyGrid,
         lv.STATICS: MarkerArray,
         lv.PLAN: PathMsg,
         lv.ROUTE: PathMsg,
+        lv.ROBOT: PoseStamped,
         lv.DETECTIONS: Detection2DArray,
         lv.DETECTION_MARKERS: MarkerArray,
         lv.SCENE_GRAPH: String,
@@ -289,6 +292,12 @@ def test_the_dds_transport_meets_rclpy_on_topics_not_services() -> None:
             out = peer.create_publisher(String, "/x_in", 10)
             publish_until(lambda: out.publish(String(data="b")), lambda: bool(got), "the reverse")
             assert (heard[0], m.decode(got[0], m.STRING).data) == ("a", "b")
+            # ROS 2's graph sees a bare DDS participant: no node, no type hash
+            (info,) = peer.get_publishers_info_by_topic("/x_out")
+            assert (info.node_name, str(info.topic_type_hash)) == (
+                "_CREATED_BY_BARE_DDS_APP_",
+                "INVALID",
+            )
 
             def execute(goal_handle: Any) -> Any:
                 goal_handle.succeed()
