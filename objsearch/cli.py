@@ -97,6 +97,19 @@ def run_spec(args: argparse.Namespace, home: Any, **extra: Any) -> Any:
     )
 
 
+#: The paper's Table II schedule belongs to the paper home alone (data/schedules/table2.json).
+PAPER_HOME = "paper"
+PAPER_SCHEDULE = "table2"
+
+
+def _paper_schedule_only(home: str, what: str, how: str) -> str:
+    """The error for a non-paper home asked to run the paper home's Table II schedule."""
+    return (
+        f"{what} on home {home!r}: its schedule, {PAPER_SCHEDULE} (the paper's Table II), is "
+        f"the {PAPER_HOME} home's only; {how}"
+    )
+
+
 def cmd_search(args: argparse.Namespace) -> int:
     from objsearch.agent.session import Session, load_context
     from objsearch.sim.longterm import with_camera
@@ -111,6 +124,13 @@ def cmd_search(args: argparse.Namespace) -> int:
     if args.scene is None:
         placements = base_placements(ctx.home, table1_removals(ctx.home))
     else:
+        if args.schedule == PAPER_SCHEDULE and ctx.home.name != PAPER_HOME:
+            how = (
+                "pass --schedule stats-<seed> (drawn from AI2-THOR placement statistics), "
+                "habit-<seed> (objects with habits) or rearr-<seed> (real rearrangements, iTHOR homes "
+                "only), e.g. --schedule stats-0"
+            )
+            return _fail(_paper_schedule_only(ctx.home.name, "search --scene", how))
         schedule = load_schedule(ctx.home, args.schedule)
         if args.scene not in schedule.scenes:
             return _fail(
@@ -187,6 +207,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     from objsearch.sim.demo import run_demo
 
+    if args.home != PAPER_HOME:
+        how = (
+            f"for its own schedules run objsearch bench homes --homes {args.home} "
+            f"(--schedules stats,habit,rearr), or objsearch search --home {args.home} "
+            "--scene N --schedule stats-0"
+        )
+        return _fail(_paper_schedule_only(args.home, "demo", how))
     # With --json the human report goes to stderr and stdout holds only the JSON summary.
     with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
         code = run_demo(

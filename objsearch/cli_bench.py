@@ -267,8 +267,8 @@ def register(sub: Any) -> None:
         default="stats",
         type=t.name_list,
         help="comma-separated schedule kinds, each run with seeds 0..N-1: stats (drawn from "
-        "AI2-THOR placement statistics), rearr (real rearrangement episodes; iTHOR homes only) "
-        "(stats)",
+        "AI2-THOR placement statistics), rearr (real rearrangement episodes; iTHOR homes only), "
+        "habit (objects with a usual place and alternates, 30 scenes) (stats)",
     )
     homes.add_argument(
         "--starts",

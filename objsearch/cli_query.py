@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch import cli_types as t
+from objsearch.agent.errors import ObjsearchError
 from objsearch.events.sql_limits import (
     DEFAULT_MEMORY_LIMIT,
     DEFAULT_TIMEOUT_S,
@@ -221,6 +222,20 @@ def _is_fleet(lake: str) -> bool:
 
 
 def cmd_lake_add(args: argparse.Namespace) -> int:
+    try:
+        return _lake_add(args)
+    except ObjsearchError as exc:
+        # The lake speaks Python (replace=True); say it with this command's flags.
+        text = str(exc).replace(
+            "pass replace=True to replace it",
+            "pass --replace to replace it, or --run NAME to add this log as another run",
+        )
+        if text == str(exc):
+            raise
+        raise ObjsearchError(text) from exc
+
+
+def _lake_add(args: argparse.Namespace) -> int:
     from objsearch.events.lake import Lake, compact_log
 
     if not (args.wait >= 0 and math.isfinite(args.wait)):

@@ -53,6 +53,12 @@ DETECTIONS: Final = "/objsearch/live/detections"
 DETECTION_MARKERS: Final = "/objsearch/live/detection_markers"
 SCENE_GRAPH: Final = "/objsearch/live/scene_graph"
 EVENTS: Final = "/objsearch/live/events"
+#: Per-task metrics as numbers a Plot panel draws, one message per ended task (std_msgs/Float64).
+PATH_LENGTH: Final = "/objsearch/live/metrics/path_length"
+SUCCESS: Final = "/objsearch/live/metrics/success"
+TARGET_REL: Final = "/objsearch/live/metrics/target_rel"
+FLOAT64: Final = "std_msgs/msg/Float64"
+METRICS: Final = (PATH_LENGTH, SUCCESS, TARGET_REL)
 
 OCCUPANCY_GRID: Final = "nav_msgs/msg/OccupancyGrid"
 MARKER_ARRAY: Final = "visualization_msgs/msg/MarkerArray"
@@ -75,6 +81,9 @@ CHANNELS: Final[Mapping[str, str]] = {
     DETECTION_MARKERS: MARKER_ARRAY,
     SCENE_GRAPH: m.STRING,
     EVENTS: m.EVENT,
+    PATH_LENGTH: FLOAT64,
+    SUCCESS: FLOAT64,
+    TARGET_REL: FLOAT64,
 }
 
 # OccupancyGrid cell values (nav_msgs convention): free, occupied, unknown.
@@ -104,6 +113,10 @@ class LiveSink(Protocol):
 
 
 # -- message builders --------------------------------------------------------------------------
+
+
+def _float64(value: float) -> Any:
+    return m.types()[FLOAT64](data=float(value))
 
 
 def _color(r: float, g: float, b: float, a: float = 1.0) -> Any:
@@ -301,6 +314,8 @@ class _Task:
     detection_markers: list[tuple[Any, ...]] = field(default_factory=list)
     found: str | None = None
     status: str = "searching"
+    #: Rel(target, ·) as the task began (before this task's Eq. 4 update).
+    rel_before: dict[str, float] = field(default_factory=dict)
 
 
 class LiveView:
@@ -360,6 +375,8 @@ class LiveView:
         started = decode(event, TaskStarted)
         self.pose = _pose_of(started.pose)
         self.task = _Task(event.task_id or "", started.target, route=[self._on_grid(self.pose)])
+        model = self.agent.model
+        self.task.rel_before = model.as_table().get(started.target, {}) if model else {}
         self.task.route_poses = [path_pose(self.task.route, 0, stamp)]
         self._send(ROBOT, stamp, m.pose_stamped(self.pose, stamp))
         self._send(ROUTE, stamp, path(self.task.route, stamp))
@@ -447,7 +464,23 @@ class LiveView:
         # The graph has folded the task's experience (Eq. 4) by now: show the updated values.
         if self.task is not None and self.task.status == "searching":
             self.task.status = "ended"
-        self._send_graph(event, stamp, path_length=decode(event, TaskEnded).path_length)
+        ended = decode(event, TaskEnded)
+        self._send_graph(event, stamp, path_length=ended.path_length)
+        self._send(PATH_LENGTH, stamp, _float64(ended.path_length))
+        self._send(SUCCESS, stamp, _float64(1.0 if ended.success else 0.0))
+        found_at = self._found_static()
+        if self.task is not None and found_at is not None:
+            self._send(TARGET_REL, stamp, _float64(self.task.rel_before.get(found_at, 0.0)))
+
+    def _found_static(self) -> str | None:
+        """The static class the found target stood at (its accepted detection's support)."""
+        task = self.task
+        if task is None or task.found is None:
+            return None
+        for d in task.detections:
+            if d.instance_id == task.found and d.support is not None and d.support.at:
+                return d.support.static_class
+        return None
 
     # -- helpers ------------------------------------------------------------------------------
 

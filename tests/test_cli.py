@@ -67,6 +67,11 @@ def test_search_records_its_camera_and_the_camera_tilt(
         (["--target", "Apple", "--start", "garage-3"], "unknown start point 'garage-3'"),
         (["--target", "Apple", "--start", "kitchen-1", "--home", "castle"], "no home 'castle'"),
         (["--target", "Apple", "--start", "kitchen-1", "--scene", "99"], "not 99"),
+        # Another home with the paper's schedule: the error names the option that fixes it.
+        (
+            ["--target", "Apple", "--start", "kitchen-1", "--home", "ithor-01", "--scene", "2"],
+            "is the paper home's only; pass --schedule stats-<seed>",
+        ),
     ],
 )
 def test_bad_search_input_is_a_clear_error_and_writes_nothing(
@@ -78,6 +83,16 @@ def test_bad_search_input_is_a_clear_error_and_writes_nothing(
     assert err.startswith("objsearch: error: ")
     assert message in err
     assert not log.exists()
+
+
+def test_demo_on_another_home_says_what_runs_there(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["demo", "--home", "ithor-01", "--out", str(tmp_path / "demo")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("objsearch: error: demo on home 'ithor-01'")
+    assert "objsearch bench homes --homes ithor-01" in err and "--schedule stats-0" in err
+    assert not (tmp_path / "demo").exists()
 
 
 def _data_copy(tmp_path: Path, *, drop: str) -> dict[str, str]:

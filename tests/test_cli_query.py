@@ -379,3 +379,29 @@ def test_lake_verify_names_every_damaged_file(
     assert len(doc["damaged"][0]["problems"]) == 2 and doc["runs"] == 2
     assert main(["lake", "verify", str(copy), "--lake", str(lake)]) == 2
     assert "two lakes given" in capsys.readouterr().err
+
+
+def test_lake_add_over_another_run_names_the_flags(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    copy = tmp_path / "lake"
+    shutil.copytree(lake, copy)
+    other = tmp_path / "log"  # another log's content under the run name "apple"
+    search = [
+        "search",
+        "--target",
+        "Cup",
+        "--start",
+        "kitchen-1",
+        "--log",
+        str(other),
+        "--strategy",
+        "rvp",
+    ]
+    assert main(search) == 0
+    argv = ["lake", "add", str(other), "--robot", "r1", "--run", "apple", "--lake", str(copy)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "already holds run 'apple'" in err and "replace=True" not in err
+    assert "pass --replace to replace it, or --run NAME" in err
+    assert main([*argv, "--replace"]) == 0

@@ -18,6 +18,7 @@ from rosbags.rosbag2 import Reader
 from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.agent.session import load_context
+from objsearch.agent.state import AgentState
 from objsearch.cli import main
 from objsearch.events import Event, fold, read_log
 from objsearch.pipeline.bags.record import DEFAULT_START_NS
@@ -98,6 +99,37 @@ def test_route_length_is_the_task_path_length(drawn: Path, events: list[Event]) 
     assert any(len(r) > 10 for r in routes)
 
 
+def test_per_task_metrics_are_numbers_a_plot_panel_draws(drawn: Path, events: list[Event]) -> None:
+    topics = read_all(drawn)
+    ends = [e for e in events if e.type == "task_ended"]
+    stamps = [DEFAULT_START_NS + e.time_ns for e in ends]
+    assert [(t, msg.data) for t, msg in topics[lv.PATH_LENGTH]] == [
+        (t, pytest.approx(e.payload["path_length"])) for t, e in zip(stamps, ends, strict=True)
+    ]
+    assert [msg.data for _, msg in topics[lv.SUCCESS]] == [
+        float(e.payload["success"]) for e in ends
+    ]
+    # Rel(target, the static class it was found at), as the graph held it when the task began:
+    # the fold of every event before the task's start.
+    starts = {e.task_id: i for i, e in enumerate(events) if e.type == "task_started"}
+    found_at: dict[str, str] = {}
+    found = {e.task_id: e.payload["instance_id"] for e in events if e.type == "target_found"}
+    for e in events:
+        p = e.payload
+        at = bool(p.get("support") and p["support"]["at"])
+        if e.type == "detection" and at and p["instance_id"] == found.get(e.task_id):
+            found_at.setdefault(str(e.task_id), p["support"]["static_class"])
+    expected = []
+    for e in ends:
+        if str(e.task_id) in found_at:
+            before = fold(events[: starts[e.task_id]], AgentState()).graph()
+            target = events[starts[e.task_id]].payload["target"]
+            expected.append(before.rel(target, found_at[str(e.task_id)]))
+    rels = [msg.data for _, msg in topics[lv.TARGET_REL]]
+    assert rels == pytest.approx(expected) and len(rels) >= 1
+    assert all(0.0 <= r <= 1.0 for r in rels)
+
+
 def test_plan_follows_the_plan_events_order(drawn: Path, events: list[Event]) -> None:
     topics = read_all(drawn)
     plans = [e for e in events if e.type == "plan_computed"]
@@ -176,7 +208,7 @@ def test_cli_writes_the_mcap_and_never_overwrites(
     out = tmp_path / "v.mcap"
     assert main(["liveview", str(GOLDEN), "--mcap", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "9 channels" in text and lv.ROUTE in text
+    assert "12 channels" in text and lv.ROUTE in text
     size = out.stat().st_size
     assert main(["liveview", str(GOLDEN), "--mcap", str(out)]) == 2
     assert "already exists" in capsys.readouterr().err
@@ -257,7 +289,8 @@ def test_server_binds_loopback_and_streams_the_channels(events: list[Event]) -> 
             info = client.json()
             assert info["op"] == "serverInfo" and info["name"] == "objsearch"
             advertised: dict[str, dict[str, Any]] = {}
-            while set(advertised) != set(lv.CHANNELS) - {lv.DETECTIONS}:
+            # No detection yet, and no task has ended (the per-task metrics).
+            while set(advertised) != set(lv.CHANNELS) - {lv.DETECTIONS, *lv.METRICS}:
                 doc = client.json()
                 assert doc["op"] == "advertise"
                 advertised |= {c["topic"]: c for c in doc["channels"]}

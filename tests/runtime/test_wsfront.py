@@ -180,7 +180,8 @@ def test_foxglove_ws_protocol_client_gets_the_channels_and_messages(
     doc = json.loads(done.stdout.strip().splitlines()[-1])
     assert doc["subprotocol"] == LEGACY_SUBPROTOCOL  # what the published client offers
     assert doc["serverInfo"]["name"] == "objsearch"
-    assert set(doc["channels"]) == set(lv.CHANNELS) - {lv.DETECTIONS}  # none detected yet
+    # none detected yet, no task ended (the per-task metrics)
+    assert set(doc["channels"]) == set(lv.CHANNELS) - {lv.DETECTIONS, *lv.METRICS}
     assert doc["channels"][lv.MAP] == {
         "encoding": "cdr",
         "schemaName": lv.OCCUPANCY_GRID,
