@@ -26,7 +26,7 @@ from __future__ import annotations
 import datetime as dt
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Final, NamedTuple
+from typing import TYPE_CHECKING, Any, Final, NamedTuple
 
 from .catalogue import installed
 from .schemas import default_registry
@@ -140,17 +140,23 @@ def derive_run(
                 f"{_literal(day)}::DATE AS date, {_literal(run)}::VARCHAR AS run "
                 f'FROM "_arrow_{event_type}"'
             )
-        out: dict[str, pa.Table] = {}
-        for derived in derived_tables():
-            table = con.sql(
-                f"SELECT * FROM ({derived.sql}) ORDER BY {derived.order_by}"
-            ).to_arrow_table()
-            # A later table may read an earlier one (scene_graph reads eq4_updates).
-            con.register(derived.name, table)
-            out[derived.name] = table.drop_columns(list(PARTITION_NAMES))
-        return out
+        return derive_views(con)
     finally:
         con.close()
+
+
+def derive_views(con: Any) -> dict[str, pa.Table]:
+    """Every derived table from a DuckDB connection whose per-type views (with ``robot``,
+    ``date``, ``run``) hold one run, without the partition columns."""
+    out: dict[str, pa.Table] = {}
+    for derived in derived_tables():
+        table = con.sql(
+            f"SELECT * FROM ({derived.sql}) ORDER BY {derived.order_by}"
+        ).to_arrow_table()
+        # A later table may read an earlier one (scene_graph reads eq4_updates).
+        con.register(derived.name, table)
+        out[derived.name] = table.drop_columns(list(PARTITION_NAMES))
+    return out
 
 
 def _literal(text: str) -> str:

@@ -35,17 +35,18 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import functools
+import hashlib
 import json
 import logging
 import math
 import os
 import time
 import uuid
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import suppress
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final
+from typing import Any, Final, NamedTuple
 
 import pyarrow as pa
 import pyarrow.compute as pc
@@ -63,7 +64,6 @@ from .lake import (
     _check_date,
     _check_name,
     _conform,
-    _digest,
     parquet_problem,
 )
 from .log import LOCK_FILE, read_log, read_meta
@@ -323,9 +323,19 @@ class TableLake:
             raise TableLakeError(f"{self.root}: run {run!r} of robot {robot!r} is there twice")
         return found[0] if found else None
 
-    def holding(self, identity: Mapping[str, str]) -> list[TableRun]:
+    def holding(self, identity: Mapping[str, str], table: Any | None = None) -> list[TableRun]:
+        """The runs whose recorded identity shares a value with ``identity``: the ``_run``
+        rows whose identity text holds one of the values are decoded, no other."""
         wanted = {(k, v) for k, v in identity.items() if v}
-        return [r for r in self.runs() if wanted & set(r.identity.items())]
+        if not wanted:
+            return []
+        text = pc.field(RUN_COLUMN, "identity")
+        where: pc.Expression | None = None
+        for _, value in wanted:
+            hit = pc.match_substring(text, json.dumps(value))
+            where = hit if where is None else where | hit
+        found = self._runs(self.table() if table is None else table, where)
+        return [r for r in found if wanted & set(r.identity.items())]
 
     def read_tables(self, run: TableRun) -> dict[str, pa.Table]:
         """The event tables of one run, one per type, as :func:`event_schema` types them."""
@@ -472,7 +482,7 @@ class TableLake:
             run=run,
             commit=_token(),
             rows={t: table.num_rows for t, table in checked.items()},
-            digest=_digest(checked),
+            digest=table_digest(checked),
             source=source,
             identity=dict(sorted((identity or {}).items())),
             attachments=dict(sorted((attachments or {}).items())),
@@ -481,14 +491,23 @@ class TableLake:
         self.create()
         return self._commit(run_info, parts, replace=replace)
 
-    def _commit(self, info: TableRun, parts: Mapping[str, pa.Table], *, replace: bool) -> TableRun:
+    def _commit(
+        self,
+        info: TableRun,
+        parts: Mapping[str, pa.Table],
+        *,
+        replace: bool,
+        adds: list[Any] | None = None,
+        table: Any | None = None,
+    ) -> TableRun:
         from deltalake import CommitProperties, Transaction, write_deltalake
         from deltalake.exceptions import CommitFailedError
 
         app = _app_id(info.robot, info.run)
-        adds: list[Any] | None = None  # files written for an append, kept across retries
+        # ``adds``: files written for an append (given, or written on the first try), kept
+        # across retries
         for attempt in range(COMMIT_TRIES):
-            table = self.table()
+            table = self.table() if attempt or table is None else table
             existing = self.find(info.robot, info.run, table)
             if existing is not None and adds is not None:
                 self._delete_files(adds)  # another writer committed the run first
@@ -501,6 +520,11 @@ class TableLake:
                     raise TableLakeError(
                         f"{self.root} already holds run {info.run!r} of robot {info.robot!r} "
                         "with other content; pass replace=True to replace it"
+                    )
+                if not parts:  # a streamed commit raced another writer of this run
+                    raise TableLakeError(
+                        f"{self.root}: another writer committed run {info.run!r} of robot "
+                        f"{info.robot!r} while this one was writing it; run the command again"
                     )
             commit = CommitProperties(app_transactions=[Transaction(app, version + 1)])
             try:
@@ -534,7 +558,7 @@ class TableLake:
                 )
                 time.sleep(min(0.5, 0.01 * (attempt + 1)))
                 continue
-            self._maybe_compact()
+            self._maybe_compact(table)
             return info
         if adds is not None:
             self._delete_files(adds)
@@ -542,6 +566,150 @@ class TableLake:
             f"{self.root}: the commit of run {info.run!r} lost {COMMIT_TRIES} races with other "
             "writers; try again"
         )
+
+    def _open(self, rel: str) -> Any:
+        """An output stream for a new data file (its folder made)."""
+        if self.remote:
+            fs, base = _filesystem(self.uri)
+            return fs.open_output_stream(f"{base}/{rel}")
+        path = Path(self.uri) / rel
+        _fs.make_dirs(path.parent)
+        return pa.OSFile(str(path), "wb")
+
+    def _close(self, rel: str, out: Any) -> int:
+        """Close a data file's stream (fsync'ed when local); its size."""
+        size = int(out.tell())
+        out.close()
+        if not self.remote:
+            _fs.fsync_file(Path(self.uri) / rel)
+        return size
+
+    def commit_stream(
+        self,
+        open_events: Callable[[], Iterator[Event]],
+        *,
+        robot: str,
+        run: str,
+        date: str | dt.date | None = None,
+        source: str = "",
+        replace: bool = False,
+        identity: Mapping[str, str] | None = None,
+    ) -> TableRun:
+        """Commit the events ``open_events()`` yields as one run, reading them in chunks of
+        :data:`CHUNK_EVENTS` and writing each type's file as they come, so a run of any length
+        costs a bounded amount of memory (replacing a run still holds it whole). Calls
+        ``open_events`` again when it must read the events twice (the run is there already:
+        its digest is compared first)."""
+        _check_name("robot", robot)
+        _check_name("run", run)
+        first = next(open_events(), None)
+        if date is None:
+            if first is None:
+                raise TableLakeError("an empty run needs an explicit date")
+            date = dt.datetime.fromtimestamp(first.recorded_at_ns / 1e9, dt.UTC).date()
+        day = _check_date(date)
+        self.create()
+        table = self.table()
+        existing = self.find(robot, run, table)
+        if existing is not None:
+            digest, _ = stream_digest(open_events())
+            if existing.digest == digest and existing.date == day:
+                return existing
+            if not replace:
+                raise TableLakeError(
+                    f"{self.root} already holds run {run!r} of robot {robot!r} with other "
+                    "content; pass replace=True to replace it"
+                )
+            return self.commit_events(
+                open_events(),
+                robot=robot,
+                run=run,
+                date=day,
+                source=source,
+                replace=True,
+                identity=identity,
+            )
+        info = TableRun(
+            robot=robot,
+            date=day,
+            run=run,
+            commit=_token(),
+            rows={},
+            digest="",
+            source=source,
+            identity=dict(sorted((identity or {}).items())),
+        )
+        info, adds = self._write_stream(open_events(), info)
+        table.update_incremental()
+        return self._commit(info, {}, replace=replace, adds=adds, table=table)
+
+    def _write_stream(self, events: Iterable[Event], info: TableRun) -> tuple[TableRun, list[Any]]:
+        """Write a run's files from its events in chunks; the run's description (rows, digest)
+        and the files' add actions. The files are not part of the table until committed."""
+        import duckdb
+
+        from .derived import derive_views
+
+        files: dict[str, _StreamFile] = {}
+        digests: dict[str, _TypeDigest] = {}
+        rows: dict[str, int] = {}
+        try:
+            for chunk in _chunks(events):
+                for event_type, table in chunk.items():
+                    digests.setdefault(event_type, _TypeDigest()).add(table)
+                    rows[event_type] = rows.get(event_type, 0) + table.num_rows
+                    if event_type not in files:
+                        files[event_type] = _StreamFile(self, event_type, info.commit)
+                    files[event_type].add(_widen(event_type, table, event_type, info))
+            adds = [files[t].close() for t in sorted(files)]
+        except BaseException:
+            for f in files.values():
+                with suppress(Exception):
+                    f.writer.close()
+                    self._close(f.rel, f.out)
+            self._delete_files([_Named(f.rel) for f in files.values()])
+            raise
+        info = dataclasses.replace(
+            info, rows=rows, digest=_combine({t: d.hexdigest() for t, d in digests.items()})
+        )
+        # The derived tables, from the files just written (read back a batch at a time).
+        con = duckdb.connect(":memory:", config={"threads": 1})
+        try:
+            envelope = ", ".join(f'"{f.name}"' for f in ENVELOPE_COLUMNS)
+            for event_type in default_registry().types:
+                if event_type in files:
+                    con.execute(
+                        f'CREATE VIEW "{event_type}" AS SELECT robot, date, run, {envelope}, '
+                        f'"{event_type}".* FROM {self._file_source(con, files[event_type].rel)}'
+                    )
+                else:
+                    empty = event_schema(event_type).empty_table()
+                    con.register(f"_empty_{event_type}", empty)
+                    con.execute(
+                        f'CREATE VIEW "{event_type}" AS SELECT NULL::VARCHAR AS robot, '
+                        f'NULL::DATE AS date, NULL::VARCHAR AS run, * FROM "_empty_{event_type}"'
+                    )
+            derived = derive_views(con)
+        finally:
+            con.close()
+        small = _small_parts(derived, info)
+        try:
+            adds += self._write_files({k: [t] for k, t in small.items()}, info.commit)
+        except BaseException:
+            self._delete_files(adds)
+            raise
+        return info, adds
+
+    def _file_source(self, con: Any, rel: str) -> str:
+        """What DuckDB reads one of this commit's data files as: ``read_parquet`` (projection
+        pushed into the Parquet file) when local, an Arrow dataset of the object when remote."""
+        if self.remote:
+            fs, base = _filesystem(self.uri)
+            name = "_file_" + rel.replace("/", "_").replace("=", "_").replace(".", "_")
+            con.register(name, pds.dataset(f"{base}/{rel}", format="parquet", filesystem=fs))
+            return f'"{name}"'
+        path = str(Path(self.uri) / rel).replace("'", "''")
+        return f"read_parquet('{path}', hive_partitioning = false)"
 
     def commit_many(self, runs: Sequence[tuple[TableRun, Mapping[str, pa.Table]]]) -> None:
         """Commit new runs (none in the lake yet) in one transaction: the migration's and the
@@ -650,8 +818,8 @@ class TableLake:
             f"{self.root}: removing run {run!r} lost {COMMIT_TRIES} races; try again"
         )
 
-    def _maybe_compact(self) -> None:
-        table = self.table()
+    def _maybe_compact(self, table: Any) -> None:
+        table.update_incremental()
         if len(table.file_uris()) > COMPACT_AT_FILES:
             self.compact(vacuum_hours=None)
 
@@ -686,6 +854,150 @@ class TableLake:
             )
             table.cleanup_metadata()
         return {"files_before": before, "files_after": len(table.file_uris()), "vacuumed": removed}
+
+
+#: Rows of one event type hashed at a time by :func:`table_digest` (and by the streaming commit,
+#: so both give the same digest for the same events however they arrive).
+DIGEST_ROWS: Final = 1 << 16
+#: Events read from a log at a time by the streaming commit.
+CHUNK_EVENTS: Final = 1 << 16
+
+
+class _TypeDigest:
+    """SHA-256 of one type's rows in slices of :data:`DIGEST_ROWS` (each as one Arrow IPC
+    stream), whatever chunks they are fed in."""
+
+    def __init__(self) -> None:
+        self._hash = hashlib.sha256()
+        self._pending: list[pa.Table] = []
+        self._rows = 0
+
+    def add(self, table: pa.Table) -> None:
+        self._pending.append(table)
+        self._rows += table.num_rows
+        while self._rows >= DIGEST_ROWS:
+            joined = pa.concat_tables(self._pending)
+            self._slice(joined.slice(0, DIGEST_ROWS))
+            rest = joined.slice(DIGEST_ROWS)
+            self._pending, self._rows = [rest], rest.num_rows
+
+    def _slice(self, table: pa.Table) -> None:
+        # ``take`` copies the rows into fresh buffers: IPC writes a slice's whole parent
+        # buffers, so the bytes would depend on how the rows were chunked, not only on them.
+        compact = table.take(pa.array(range(table.num_rows), pa.int64())).combine_chunks()
+        sink = pa.BufferOutputStream()
+        with pa.ipc.new_stream(sink, table.schema) as writer:
+            writer.write_table(compact)
+        self._hash.update(sink.getvalue())
+
+    def hexdigest(self) -> str:
+        if self._rows:
+            self._slice(pa.concat_tables(self._pending))
+            self._pending, self._rows = [], 0
+        return self._hash.hexdigest()
+
+
+def _combine(per_type: Mapping[str, str]) -> str:
+    h = hashlib.sha256()
+    for event_type in sorted(per_type):
+        h.update(f"{event_type}\0{per_type[event_type]}\n".encode())
+    return "sha256:" + h.hexdigest()
+
+
+def table_digest(tables: Mapping[str, pa.Table]) -> str:
+    """The digest of a run's event tables (conformed to their schemas, by seq)."""
+    digests = {}
+    for event_type, table in tables.items():
+        d = _TypeDigest()
+        d.add(table)
+        digests[event_type] = d.hexdigest()
+    return _combine(digests)
+
+
+def _chunks(events: Iterable[Event]) -> Iterator[dict[str, pa.Table]]:
+    """The events as conformed typed tables, :data:`CHUNK_EVENTS` events at a time."""
+    batch: list[Event] = []
+    for event in events:
+        batch.append(event)
+        if len(batch) == CHUNK_EVENTS:
+            yield {t: _conform(t, table) for t, table in events_to_tables(batch).items()}
+            batch = []
+    if batch:
+        yield {t: _conform(t, table) for t, table in events_to_tables(batch).items()}
+
+
+def stream_digest(events: Iterable[Event]) -> tuple[str, dict[str, int]]:
+    """The digest :func:`table_digest` gives, and the rows per type, read in chunks."""
+    digests: dict[str, _TypeDigest] = {}
+    rows: dict[str, int] = {}
+    for chunk in _chunks(events):
+        for event_type, table in chunk.items():
+            digests.setdefault(event_type, _TypeDigest()).add(table)
+            rows[event_type] = rows.get(event_type, 0) + table.num_rows
+    return _combine({t: d.hexdigest() for t, d in digests.items()}), rows
+
+
+class _StreamFile:
+    """One ``type`` partition's Parquet file, written as rows arrive (row groups of
+    :data:`ROW_GROUP_ROWS`), with the statistics the Delta log keeps."""
+
+    def __init__(self, lake: TableLake, kind: str, token: str) -> None:
+        self.kind = kind
+        self.rel = f"type={kind}/part-{token}.zstd.parquet"
+        self.lake = lake
+        self.out = lake._open(self.rel)
+        self.writer = pq.ParquetWriter(
+            self.out,
+            table_schema().remove(table_schema().get_field_index("type")),
+            compression="zstd",
+            write_page_checksum=True,
+        )
+        self.pending: list[pa.Table] = []
+        self.buffered = 0
+        self.rows = 0
+        self.stats: list[str] = []
+
+    def add(self, table: pa.Table) -> None:
+        self.pending.append(table.drop_columns(["type"]))
+        self.buffered += table.num_rows
+        if self.buffered >= ROW_GROUP_ROWS:
+            self._flush()
+
+    def _flush(self) -> None:
+        if not self.pending:
+            return
+        part = pa.concat_tables(self.pending)
+        self.writer.write_table(part, row_group_size=ROW_GROUP_ROWS)
+        self.stats.append(_stats(part))
+        self.rows += part.num_rows
+        self.pending, self.buffered = [], 0
+
+    def close(self) -> Any:
+        from deltalake.transaction import AddAction
+
+        self._flush()
+        self.writer.close()
+        size = self.lake._close(self.rel, self.out)
+        return AddAction(
+            self.rel, size, {"type": self.kind}, int(time.time() * 1000), True, _merge(self.stats)
+        )
+
+
+def _merge(stats: Sequence[str]) -> str:
+    """The statistics of a file written in parts (min of mins, max of maxes, sums)."""
+    docs = [json.loads(s) for s in stats]
+    low: dict[str, Any] = {}
+    high: dict[str, Any] = {}
+    nulls: dict[str, int] = {}
+    for doc in docs:
+        for k, v in doc["minValues"].items():
+            low[k] = v if k not in low else min(low[k], v)
+        for k, v in doc["maxValues"].items():
+            high[k] = v if k not in high else max(high[k], v)
+        for k, v in doc["nullCount"].items():
+            nulls[k] = nulls.get(k, 0) + v
+    rows = sum(d["numRecords"] for d in docs)
+    return json.dumps({"numRecords": rows, "minValues": low, "maxValues": high, "nullCount": nulls})
 
 
 def _filesystem(uri: str) -> tuple[Any, str]:
@@ -770,6 +1082,12 @@ def run_parts(tables: Mapping[str, pa.Table], info: TableRun) -> dict[str, pa.Ta
     tables and its ``_run`` row."""
     derived = derive_run(tables, robot=info.robot, date=info.date, run=info.run)
     parts = {t: _widen(t, table.sort_by("seq"), t, info) for t, table in sorted(tables.items())}
+    return parts | _small_parts(derived, info)
+
+
+def _small_parts(derived: Mapping[str, pa.Table], info: TableRun) -> dict[str, pa.Table]:
+    """A run's derived tables and its ``_run`` row, by ``type`` partition."""
+    parts = {}
     specs = {d.name: d for d in derived_tables()}
     for name, table in derived.items():
         kind = derived_kind(name, specs[name].version)
@@ -787,6 +1105,10 @@ def run_parts(tables: Mapping[str, pa.Table], info: TableRun) -> dict[str, pa.Ta
         RUN_TYPE, pa.table({k: [v] for k, v in description.items()}), RUN_COLUMN, info
     )
     return parts
+
+
+class _Named(NamedTuple):
+    path: str
 
 
 def _widen(kind: str, table: pa.Table, column: str, info: TableRun) -> pa.Table:
@@ -858,7 +1180,7 @@ def add_log(
     if meta.run_id is not None:
         identity["run_id"] = meta.run_id
     lake.create()
-    for other in lake.holding(identity):
+    for other in lake.holding(identity, lake.table()):
         if (other.robot, other.run) != (robot, run):
             raise TableLakeError(
                 f"event log {log_dir} (agent run {meta.run_id or first.stream}) is already in "
@@ -866,12 +1188,8 @@ def add_log(
                 "adding it again would count its events twice"
             )
 
-    def all_events() -> Iterable[Event]:
-        yield first
-        yield from events
-
-    info = lake.commit_events(
-        all_events(),
+    return lake.commit_stream(
+        lambda: read_log(log_dir),
         robot=robot,
         run=run,
         date=date,
@@ -879,7 +1197,6 @@ def add_log(
         replace=replace,
         identity=identity,
     )
-    return info
 
 
 def migrate(old_root: Path, lake: TableLake, *, batch: int = 64) -> tuple[int, list[str]]:
@@ -909,7 +1226,7 @@ def migrate(old_root: Path, lake: TableLake, *, batch: int = 64) -> tuple[int, l
             run=info.run,
             commit=_token(),
             rows=dict(info.rows),
-            digest=info.digest,
+            digest=table_digest(tables),  # the fleet lake's digest (the old one hashed differently)
             source=info.source,
             identity=dict(info.identity),
             attachments=attachments,

@@ -180,7 +180,18 @@ def create_fleet_views(
             f"SELECT robot, date, run, {envelope}, time, {quote_literal(event_type)} AS type "
             f"FROM {view}"
         )
-    con.execute("CREATE OR REPLACE VIEW events AS " + "\nUNION ALL ".join(parts))
+    types = set(default_registry().types)
+    every = [f"{lake.uri}/{p}" for kind, paths in by_kind.items() if kind in types for p in paths]
+    if lake.remote or not every:
+        con.execute("CREATE OR REPLACE VIEW events AS " + "\nUNION ALL ".join(parts))
+        return
+    # One scan of every event type's files (the type from their partition folder): one file's
+    # schema to bind instead of every type view's.
+    listed = ", ".join(quote_literal(p) for p in sorted(every))
+    con.execute(
+        f"CREATE OR REPLACE VIEW events AS SELECT robot, date, run, {envelope}, {_TIME}, type "
+        f"FROM read_parquet([{listed}], hive_partitioning = true, hive_types = {{'type': 'VARCHAR'}})"
+    )
 
 
 def fleet_source(
