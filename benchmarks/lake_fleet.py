@@ -47,7 +47,7 @@ QUERY = (
 )
 PLAIN = (
     "SELECT detection.object_class, count(*) AS n, avg(detection.mask_area) AS area "
-    "FROM read_parquet($files) WHERE detection.accepted GROUP BY ALL ORDER BY ALL"
+    "FROM read_parquet($files, union_by_name = true) WHERE detection.accepted GROUP BY ALL ORDER BY ALL"
 )
 BATCH = 500
 

@@ -541,7 +541,9 @@ class TableLake:
                 else:
                     write_deltalake(
                         table,
-                        pa.concat_tables(parts.values()),
+                        pa.concat_tables(
+                            [p.cast(_widest(p)) for p in parts.values()], promote_options="default"
+                        ),
                         mode="overwrite",
                         predicate=_run_predicate(info.robot, info.run),
                         partition_by=["type"],
@@ -946,9 +948,10 @@ class _StreamFile:
         self.rel = f"type={kind}/part-{token}.zstd.parquet"
         self.lake = lake
         self.out = lake._open(self.rel)
+        schema = file_schema(kind, envelope=True)
         self.writer = pq.ParquetWriter(
             self.out,
-            table_schema().remove(table_schema().get_field_index("type")),
+            schema.remove(schema.get_field_index("type")),
             compression="zstd",
             write_page_checksum=True,
         )
@@ -960,7 +963,7 @@ class _StreamFile:
     def add(self, table: pa.Table) -> None:
         self.pending.append(table.drop_columns(["type"]))
         self.buffered += table.num_rows
-        if self.buffered >= ROW_GROUP_ROWS:
+        if self.buffered >= min(ROW_GROUP_ROWS, CHUNK_EVENTS):
             self._flush()
 
     def _flush(self) -> None:
@@ -1031,6 +1034,8 @@ def _stats(part: pa.Table) -> str:
     high: dict[str, Any] = {}
     nulls: dict[str, int] = {}
     for name in ("robot", "date", "run", "commit", "seq", "time_ns"):
+        if name not in part.column_names:
+            continue
         column = part.column(name)
         nulls[name] = column.null_count
         if column.null_count == len(column):
@@ -1072,9 +1077,13 @@ def _run_of(row: Mapping[str, Any]) -> TableRun:
     )
 
 
+def _widest(part: pa.Table) -> pa.Schema:
+    return pa.schema([table_schema().field(n) for n in part.column_names])
+
+
 def run_rows(tables: Mapping[str, pa.Table], info: TableRun) -> pa.Table:
     """A run's rows in the fleet table, as one table (see :func:`run_parts`)."""
-    return pa.concat_tables(run_parts(tables, info).values())
+    return pa.concat_tables(run_parts(tables, info).values(), promote_options="default")
 
 
 def run_parts(tables: Mapping[str, pa.Table], info: TableRun) -> dict[str, pa.Table]:
@@ -1113,8 +1122,10 @@ class _Named(NamedTuple):
 
 def _widen(kind: str, table: pa.Table, column: str, info: TableRun) -> pa.Table:
     """``table`` as rows of the fleet table: the run's columns, its envelope (if it has one)
-    and its other columns as the struct ``column``; every other struct null."""
-    schema = table_schema()
+    and its other columns as the struct ``column``. The other types' columns are left out of
+    the file (every Delta reader reads a column a file lacks as null; a file of nulls for
+    twenty-odd structs would cost more memory than the rows themselves)."""
+    schema = file_schema(column, envelope=kind in default_registry().types)
     n = table.num_rows
     envelope = {f.name for f in ENVELOPE_COLUMNS}
     base = {
@@ -1148,9 +1159,17 @@ def _widen(kind: str, table: pa.Table, column: str, info: TableRun) -> pa.Table:
             arrays.append(
                 pa.StructArray.from_arrays(parts, fields=names) if n else pa.array([], field.type)
             )
-        else:
-            arrays.append(pa.nulls(n, field.type))
     return pa.Table.from_arrays(arrays, schema=schema)
+
+
+@functools.cache
+def file_schema(column: str, *, envelope: bool) -> pa.Schema:
+    """The columns a data file of one ``type`` holds: the run's, the envelope (event types),
+    and its own struct ``column`` — in the table schema's order."""
+    names = {f.name for f in BASE_COLUMNS} | {column}
+    if envelope:
+        names |= {f.name for f in ENVELOPE_COLUMNS}
+    return pa.schema([f for f in table_schema() if f.name in names])
 
 
 def add_log(

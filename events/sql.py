@@ -190,7 +190,8 @@ def create_fleet_views(
     listed = ", ".join(quote_literal(p) for p in sorted(every))
     con.execute(
         f"CREATE OR REPLACE VIEW events AS SELECT robot, date, run, {envelope}, {_TIME}, type "
-        f"FROM read_parquet([{listed}], hive_partitioning = true, hive_types = {{'type': 'VARCHAR'}})"
+        f"FROM read_parquet([{listed}], hive_partitioning = true, "
+        "hive_types = {'type': 'VARCHAR'}, union_by_name = true)"
     )
 
 
@@ -207,4 +208,5 @@ def fleet_source(
         )
         return quote_ident(name)
     listed = ", ".join(quote_literal(f"{lake.uri}/{p}") for p in paths)
-    return f"read_parquet([{listed}], hive_partitioning = false)"
+    # union_by_name: a file holds its own type's columns only (a compacted one may hold all)
+    return f"read_parquet([{listed}], hive_partitioning = false, union_by_name = true)"

@@ -8,6 +8,7 @@ import logging
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import duckdb
@@ -133,10 +134,9 @@ def test_plain_duckdb_and_polars_read_the_table(tmp_path: Path) -> None:
         .collect()
     )
     assert frame["reason"].to_list() == ["all candidates visited", "r0", "r1", "r2"]
-    files = DeltaTable(table).file_uris()
+    files = DeltaTable(table).file_uris(file_pruning_predicate=[("type", "=", "search_failed")])
     got = duckdb.execute(
-        "SELECT search_failed.reason FROM read_parquet($files, hive_partitioning = true) "
-        "WHERE type = 'search_failed' ORDER BY seq",
+        "SELECT search_failed.reason FROM read_parquet($files, union_by_name = true) ORDER BY seq",
         {"files": files},
     ).fetchall()
     assert [r[0] for r in got] == ["all candidates visited", "r0", "r1", "r2"]
@@ -270,3 +270,27 @@ def test_a_streamed_commit_equals_an_in_memory_one_whatever_the_chunks(
     # The same log again is a no-op on both, and a migrated run keeps the same digest.
     assert add_log(log, whole, robot="sim") == by_memory
     assert add_log(log, streamed, robot="sim") == by_stream
+
+
+def test_a_writer_killed_mid_commit_leaves_whole_runs_and_the_next_one_finishes(
+    tmp_path: Path,
+) -> None:
+    logs = [small_log(tmp_path / "logs" / f"log{i}", stream=f"s{i}", n=i) for i in range(8)]
+    lake = TableLake(tmp_path / "lake")
+    lake.create()
+    writer = subprocess.Popen([sys.executable, "-c", WRITER, str(lake.root), *map(str, logs)])
+    deadline = time.monotonic() + 120
+    try:  # kill it once it has committed a few runs: it is then somewhere inside another
+        while len(lake.runs()) < 2 and writer.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+    finally:
+        writer.kill()
+        writer.wait()
+    committed = lake.runs()
+    assert 2 <= len(committed) < len(logs)
+    counts = {run: n for _, run, n in table_counts(lake)}
+    assert counts == {r.run: r.events for r in committed}  # every visible run is whole
+    rerun = subprocess.run([sys.executable, "-c", WRITER, str(lake.root), *map(str, logs)])
+    assert rerun.returncode == 0
+    assert [r.run for r in lake.runs()] == sorted(log.name for log in logs)
+    assert len(table_counts(lake)) == len(logs)
