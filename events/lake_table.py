@@ -861,8 +861,8 @@ class TableLake:
 #: Rows of one event type hashed at a time by :func:`table_digest` (and by the streaming commit,
 #: so both give the same digest for the same events however they arrive).
 DIGEST_ROWS: Final = 1 << 16
-#: Events read from a log at a time by the streaming commit.
-CHUNK_EVENTS: Final = 1 << 16
+#: Events read from a log at a time by the streaming commit (peak RSS of a 1 M-event add: 374 MB at 16 Ki, more at 64 Ki; benchmarks/lake_add_memory.py).
+CHUNK_EVENTS: Final = 1 << 14
 
 
 class _TypeDigest:
