@@ -24,13 +24,14 @@ import os
 import struct
 import threading
 import time
+from collections.abc import Sequence
 from functools import cache
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
 from objsearch.ros.qos import SERVICES, Durability, QoS, Reliability
 from objsearch.runtime.errors import MessageError, TransportError
-from objsearch.runtime.messages import dds_type_name, store
+from objsearch.runtime.messages import dds_type_name, store, type_hash
 from objsearch.runtime.transport import Handler, ServiceHandler, TransportConfig
 from objsearch.runtime.udpfilter import interface_address, restrict, udp_sockets
 
@@ -183,7 +184,9 @@ def _incompatible(what: str, name: str, qos: QoS) -> Any:
     return {f"on_{what}_incompatible_qos": on_incompatible}
 
 
-def _qos(qos: QoS) -> Any:
+def _qos(qos: QoS, type_hash: str | None = None) -> Any:
+    """``type_hash``: announced in USER_DATA as rmw_cyclonedds and rmw_fastrtps do
+    (``typehash=RIHS01_…;``), so ROS 2's graph shows the endpoint's type hash."""
     from cyclonedds.core import Policy, Qos
 
     reliability = (
@@ -196,7 +199,49 @@ def _qos(qos: QoS) -> Any:
         if qos.durability is Durability.TRANSIENT_LOCAL
         else Policy.Durability.Volatile
     )
-    return Qos(reliability, durability, Policy.History.KeepLast(qos.depth))
+    policies = [reliability, durability, Policy.History.KeepLast(qos.depth)]
+    if type_hash is not None:
+        policies.append(Policy.Userdata(f"typehash={type_hash};".encode()))
+    return Qos(*policies)
+
+
+#: ROS 2's graph topic (rmw_dds_common): each participant says which nodes it hosts and which
+#: readers and writers belong to each, by GID; latched, one sample per participant.
+DISCOVERY_TOPIC = "ros_discovery_info"
+
+
+@cache
+def discovery_type() -> Any:
+    """``rmw_dds_common/msg/ParticipantEntitiesInfo`` as Iron and later define it (a GID is 16
+    bytes: the DDS GUID; Humble's were 24)."""
+    import cyclonedds.idl.types as t
+    from cyclonedds.idl import make_idl_struct
+
+    ns = "rmw_dds_common::msg::dds_::"
+    gid = make_idl_struct("Gid_", f"{ns}Gid_", {"data": t.array[t.uint8, 16]})  # type: ignore[misc]
+    node = make_idl_struct(
+        "NodeEntitiesInfo_",
+        f"{ns}NodeEntitiesInfo_",
+        {
+            "node_namespace": t.bounded_str[256],  # type: ignore[misc]
+            "node_name": t.bounded_str[256],  # type: ignore[misc]
+            "reader_gid_seq": t.sequence[gid],  # type: ignore[misc]
+            "writer_gid_seq": t.sequence[gid],  # type: ignore[misc]
+        },
+    )
+    return (
+        make_idl_struct(
+            "ParticipantEntitiesInfo_",
+            f"{ns}ParticipantEntitiesInfo_",
+            {"gid": gid, "node_entities_info_seq": t.sequence[node]},  # type: ignore[misc]
+        ),
+        gid,
+        node,
+    )
+
+
+def _gid(entity: Any) -> bytes:
+    return bytes(entity.guid.bytes)
 
 
 def domain_xml(config: TransportConfig, address: str) -> str:
@@ -242,7 +287,7 @@ class _DdsClient:
         self._writer = DataWriter(
             transport.participant,
             transport._topic(rq, self._req_cls),
-            _qos(SERVICES),
+            _qos(SERVICES, type_hash(srvtype)),
             listener=Listener(**_incompatible("offered", rq, SERVICES)),  # type: ignore[no-untyped-call]
         )
         resp_cls = idl_type(f"{srvtype}_Response", request_header=True)
@@ -258,12 +303,13 @@ class _DdsClient:
         self._reader = DataReader(
             transport.participant,
             transport._topic(rr, resp_cls),
-            _qos(SERVICES),
+            _qos(SERVICES, type_hash(srvtype)),
             listener=Listener(  # type: ignore[no-untyped-call]
                 on_data_available=on_data, **_incompatible("requested", rr, SERVICES)
             ),
         )
         transport._entities += [self._writer, self._reader]
+        transport._announce(readers=[self._reader], writers=[self._writer])
 
     def call(self, request: bytes, timeout_s: float) -> bytes | None:
         deadline = time.monotonic() + timeout_s
@@ -306,12 +352,53 @@ class DdsTransport:
         except TransportError:
             self.close()
             raise
+        self._readers: list[bytes] = []
+        self._writers: list[bytes] = []
+        self._announcer: Any = None
+        try:
+            self._announce()
+        except Exception as exc:
+            self.close()
+            raise TransportError(f"cannot announce the node on {DISCOVERY_TOPIC}: {exc}") from exc
         log.info(
             "joined DDS domain %d (ROS_DOMAIN_ID) on %s (%s), unicast discovery with %s",
             config.domain_id,
             config.interface,
             self.address,
             ", ".join(config.peers) or "no peers",
+        )
+
+    def _announce(self, readers: Sequence[Any] = (), writers: Sequence[Any] = ()) -> None:
+        """Tells ROS 2's graph (``ros_discovery_info``) that this participant hosts the node
+        ``config.node`` with these readers and writers, as every rmw does, so ``ros2 node
+        list`` lists the agent and ties its endpoints to it. Sent again as entities are added
+        (latched: a graph that joins later gets the latest)."""
+        from cyclonedds.core import Policy, Qos
+        from cyclonedds.pub import DataWriter
+
+        info, gid, node = discovery_type()
+        self._readers += [_gid(r) for r in readers]
+        self._writers += [_gid(w) for w in writers]
+        if self._announcer is None:
+            qos = Qos(
+                Policy.Reliability.Reliable(max_blocking_time=100_000_000),
+                Policy.Durability.TransientLocal,
+                Policy.History.KeepLast(1),
+            )
+            self._announcer = DataWriter(self.participant, self._topic(DISCOVERY_TOPIC, info), qos)
+            self._entities.append(self._announcer)
+        self._announcer.write(
+            info(
+                gid=gid(data=list(_gid(self.participant))),
+                node_entities_info_seq=[
+                    node(
+                        node_namespace="/",
+                        node_name=self.config.node,
+                        reader_gid_seq=[gid(data=list(g)) for g in self._readers],
+                        writer_gid_seq=[gid(data=list(g)) for g in self._writers],
+                    )
+                ],
+            )
         )
 
     def _topic(self, name: str, cls: Any) -> Any:
@@ -328,10 +415,11 @@ class DdsTransport:
         writer = DataWriter(
             self.participant,
             self._topic(topic_name(topic), idl_type(msgtype)),
-            _qos(qos),
+            _qos(qos, type_hash(msgtype)),
             listener=Listener(**_incompatible("offered", topic, qos)),  # type: ignore[no-untyped-call]
         )
         self._entities.append(writer)
+        self._announce(writers=[writer])
         return _DdsPublisher(writer, idl_type(msgtype), msgtype)
 
     def subscribe(self, topic: str, msgtype: str, qos: QoS, handler: Handler) -> None:
@@ -345,12 +433,13 @@ class DdsTransport:
         reader = DataReader(
             self.participant,
             self._topic(topic_name(topic), idl_type(msgtype)),
-            _qos(qos),
+            _qos(qos, type_hash(msgtype)),
             listener=Listener(  # type: ignore[no-untyped-call]
                 on_data_available=on_data, **_incompatible("requested", topic, qos)
             ),
         )
         self._entities.append(reader)
+        self._announce(readers=[reader])
 
     def serve(self, service: str, srvtype: str, handler: ServiceHandler) -> None:
         from cyclonedds.core import Listener
@@ -363,7 +452,7 @@ class DdsTransport:
         writer = DataWriter(
             self.participant,
             self._topic(rr, resp_cls),
-            _qos(SERVICES),
+            _qos(SERVICES, type_hash(srvtype)),
             listener=Listener(**_incompatible("offered", rr, SERVICES)),  # type: ignore[no-untyped-call]
         )
 
@@ -379,12 +468,13 @@ class DdsTransport:
         reader = DataReader(
             self.participant,
             self._topic(rq, req_cls),
-            _qos(SERVICES),
+            _qos(SERVICES, type_hash(srvtype)),
             listener=Listener(  # type: ignore[no-untyped-call]
                 on_data_available=on_data, **_incompatible("requested", rq, SERVICES)
             ),
         )
         self._entities += [writer, reader]
+        self._announce(readers=[reader], writers=[writer])
 
     def client(self, service: str, srvtype: str) -> _DdsClient:
         return _DdsClient(self, service, srvtype)

@@ -268,8 +268,8 @@ def test_whole_searches_over_ros2_equal_the_simulator(tmp_path: Path) -> None:
 
 
 def test_the_dds_transport_meets_rclpy_on_topics_not_services() -> None:
-    """Our Cyclone DDS transport (no ROS 2 installed) and an rclpy node on Fast DDS: topics
-    flow both ways; a service does not (rmw_cyclonedds' request header travels in the payload,
+    """Our Cyclone DDS transport (no ROS 2 installed) and an rclpy node on Fast DDS: the agent
+    is a node of the graph with valid type hashes, topics flow both ways; a service does not (rmw_cyclonedds' request header travels in the payload,
     Fast DDS's in the RTPS inline QoS), which is what ``--transport ros2`` is for. Should the
     service ever work, this test fails and docs/runtime.md's matrix must change."""
     from nav2_msgs.action import NavigateToPose
@@ -292,12 +292,21 @@ def test_the_dds_transport_meets_rclpy_on_topics_not_services() -> None:
             out = peer.create_publisher(String, "/x_in", 10)
             publish_until(lambda: out.publish(String(data="b")), lambda: bool(got), "the reverse")
             assert (heard[0], m.decode(got[0], m.STRING).data) == ("a", "b")
-            # ROS 2's graph sees a bare DDS participant: no node, no type hash
-            (info,) = peer.get_publishers_info_by_topic("/x_out")
-            assert (info.node_name, str(info.topic_type_hash)) == (
-                "_CREATED_BY_BARE_DDS_APP_",
-                "INVALID",
+            # ROS 2's graph lists the agent's node (ros_discovery_info) and its endpoints' hashes
+            until(
+                lambda: ("objsearch", "/") in peer.get_node_names_and_namespaces(),
+                "the dds agent listed as a node",
             )
+            for infos in (
+                peer.get_publishers_info_by_topic("/x_out"),
+                peer.get_subscriptions_info_by_topic("/x_in"),
+            ):
+                assert [(i.node_name, str(i.topic_type_hash)) for i in infos] == [
+                    ("objsearch", m.type_hash(m.STRING))
+                ]
+            assert peer.get_publisher_names_and_types_by_node("objsearch", "/") == [
+                ("/x_out", [m.STRING])
+            ]
 
             def execute(goal_handle: Any) -> Any:
                 goal_handle.succeed()
