@@ -148,6 +148,8 @@ def valid_samples(reader: Any) -> list[bytes]:
     returns as an ``InvalidSample`` — in the same batch as the data around it. Those are skipped,
     never allowed to cost the valid samples of the batch."""
     out: list[bytes] = []
+    if reader is None:  # the listener fired while the transport closed: the reader is gone
+        return out
     while batch := reader.take(N=BATCH):
         out += [bytes(s.serialize()) for s in batch if s.sample_info.valid_data]
         if len(batch) < BATCH:

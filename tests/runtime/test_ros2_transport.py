@@ -240,6 +240,8 @@ def test_whole_searches_over_ros2_equal_the_simulator(tmp_path: Path) -> None:
             log=tmp_path / "agent.txt",
         )
         try:
+            # The event stream is volatile: the searches start once the viewer has found it.
+            until(lambda: viewer.count_publishers(lv.EVENTS) > 0, "the agent's event stream")
             with AgentClient(client_config(net)) as client:
                 for scene, target, start in TRIALS:
                     r = _find(client, scene, target, start)
@@ -260,7 +262,7 @@ def test_whole_searches_over_ros2_equal_the_simulator(tmp_path: Path) -> None:
     free = sum(1 for v in grid.data if v == lv.FREE)
     assert grid.info.resolution == 0.25 and free == len(load_context("paper").navmap.room_of)
     # Events appended before the viewer matched the agent's (volatile) writer are not resent;
-    # from the first one it got, it got every event, in order, each of every search.
+    # from the first one it got, it got every event, in order, and all of every search.
     heard = [e.seq for e in seen[lv.EVENTS]]
     assert heard == [e.seq for e in events if e.seq >= heard[0]]
     first_task = next(e.seq for e in events if e.type == "task_started")
