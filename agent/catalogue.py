@@ -6,8 +6,9 @@ type, nullability, enum and bound against the schema files). Records are built w
 are immutable. :func:`encode` turns one into the payload dict the log stores; :func:`decode` turns
 an event (latest version, as ``read_log`` upcasts it) back into its record, validating it on the
 way. The upcast steps for old versions live in :mod:`objsearch.agent.upcasters`;
-:data:`CATALOGUE` hands both to the event store (:mod:`objsearch.events.catalogue`), with the
-lake's Eq. 4 tables (:mod:`objsearch.agent.scene_graph_sql`).
+:data:`CATALOGUE` gathers both, with the lake's Eq. 4 tables
+(:mod:`objsearch.agent.scene_graph_sql`), and :data:`STORE` is the store built from it: the value
+the product hands the log, ``read_log``, snapshots and the lake (:mod:`objsearch.events.store`).
 
 Why msgspec rather than frozen dataclasses: ``msgspec.convert`` checks a payload dict against the
 record's types and bounds in C, about as strict as the JSON Schema (no coercion of strings to
@@ -37,6 +38,7 @@ from objsearch.agent.scene_graph_sql import DERIVED_TABLES
 from objsearch.agent.upcasters import STEPS
 from objsearch.events.catalogue import Catalogue
 from objsearch.events.errors import InvalidEventError
+from objsearch.events.store import Store
 
 NonNegative: TypeAlias = Annotated[float, msgspec.Meta(ge=0)]
 Probability: TypeAlias = Annotated[float, msgspec.Meta(ge=0, le=1)]
@@ -434,3 +436,7 @@ def _catalogue() -> Catalogue:
 #: The domain's catalogue: the schema files, the upcasters, the records' fast check and the
 #: lake's Eq. 4 tables.
 CATALOGUE: Final = _catalogue()
+#: The product's store, the one value every reader and writer of the agent's events is handed
+#: (``EventLog.open(..., store=STORE)``, ``read_log(dir, store=STORE)``, ``Lake(root,
+#: store=STORE)``). Building it reads nothing: its schemas compile on first use.
+STORE: Final = Store(CATALOGUE)

@@ -13,6 +13,7 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.categories import Vocabulary, read_json
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
@@ -23,7 +24,7 @@ from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import seed_relations
 from objsearch.agent.semmap import SemanticMap
 from objsearch.agent.state import AgentState
-from objsearch.agent.strategies import RunSpec
+from objsearch.agent.strategies import AGENT_MODELS, RelationModels, RunSpec
 from objsearch.agent.world import World
 from objsearch.events import CorruptLogError, EventLog, fold, read_log
 from objsearch.events.snapshot import restore, save_snapshot
@@ -143,6 +144,7 @@ class Session:
         wall_clock: Callable[[], int] | None = None,
         observers: Sequence[Projection] = (),
         snapshot_dir: Path | None = None,
+        models: RelationModels = AGENT_MODELS,
     ) -> Session:
         """Open (or create) the log at ``log_dir`` and restore what the agent knew.
 
@@ -160,18 +162,20 @@ class Session:
             # parses only what came after the last clean close; nothing acknowledged goes
             # unchecked before the first append.
             verify="all" if snapshot_dir is None else "sealed",
+            store=STORE,
         )
         try:
             if snapshot_dir is not None:
                 state, _ = restore(
                     log_dir,
-                    AgentState,
-                    AgentState.from_snapshot,
+                    lambda: AgentState(models=models),
+                    lambda doc, seq: AgentState.from_snapshot(doc, seq, models),
                     snapshot_dir=snapshot_dir,
                     save=False,
+                    store=STORE,
                 )
             else:
-                state = fold(read_log(log_dir), AgentState())
+                state = fold(read_log(log_dir, store=STORE), AgentState(models=models))
             session = cls(ctx, log, state, observers, snapshot_dir)
             session._close_open_task()
         except BaseException:

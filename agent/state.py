@@ -21,7 +21,7 @@ from objsearch.agent.catalogue import Moved, RunStarted, TaskStarted, decode
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import EventLike
-from objsearch.agent.strategies import RelationSpec, RunSpec
+from objsearch.agent.strategies import AGENT_MODELS, RelationModels, RelationSpec, RunSpec
 
 _TASK_NUMBER = re.compile(r"task-(\d+)")
 
@@ -83,6 +83,8 @@ class AgentState:
     #: Fold with this relation model instead of the run's: a counterfactual, never the agent's
     #: own state (``objsearch replay --strategy``).
     counterfactual: RelationSpec | None = None
+    #: Relation models outside the agent the log's spec may name (the simulator's dist-oracle).
+    models: RelationModels = field(default_factory=lambda: AGENT_MODELS, repr=False, compare=False)
     last_seq: int = 0
     last_time_ns: int = 0
 
@@ -98,7 +100,7 @@ class AgentState:
             self.run = RunSpec.from_record(decode(event, RunStarted))
             if self.model is None:
                 self.first_run = self.run
-                self.model = (self.counterfactual or self.run.relations).build()
+                self.model = (self.counterfactual or self.run.relations).build(self.models)
         elif event.type == "scene_graph_seeded":
             self.seeded = True
             self.seeded_source = str(event.payload.get("source", ""))
@@ -143,13 +145,15 @@ class AgentState:
         }
 
     @classmethod
-    def from_snapshot(cls, state: dict[str, Any], last_seq: int) -> AgentState:
+    def from_snapshot(
+        cls, state: dict[str, Any], last_seq: int, models: RelationModels = AGENT_MODELS
+    ) -> AgentState:
         first = None if state["first_run"] is None else RunSpec.from_payload(state["first_run"])
         cf = state.get("counterfactual")
         counterfactual = None if cf is None else RelationSpec(**cf)
         model = None
         if first is not None:
-            fresh = (counterfactual or first.relations).build()
+            fresh = (counterfactual or first.relations).build(models)
             restore = getattr(type(fresh), "from_snapshot", None)
             if restore is None:
                 raise ObjsearchError(f"{type(fresh).__name__} cannot be restored")
@@ -165,6 +169,7 @@ class AgentState:
             # Snapshots written before the source was kept lack it: unknown, not checked.
             seeded_source=state.get("seeded_source"),
             counterfactual=counterfactual,
+            models=models,
             last_seq=last_seq,
             last_time_ns=int(state["last_time_ns"]),
         )

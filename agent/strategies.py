@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 from typing import Any, Final, cast
 
 from objsearch.agent.catalogue import (
@@ -58,14 +59,14 @@ MEMORY_RECENT_WEIGHT = 10.0
 
 _RUN_STARTED_V2_TO_V3: Final = STEPS["run_started", 2]
 
-#: Relation models registered by other parts, by name: the agent cannot import them (dist-oracle
-#: reads the simulator's schedule generator; ``objsearch.sim`` registers it when imported).
-EXTERNAL_MODELS: dict[str, Callable[[], RelationModel]] = {}
-
-
-def register_relation_model(name: str, build: Callable[[], RelationModel]) -> None:
-    """Make ``RelationSpec(name).build()`` call ``build`` (a reference model outside the agent)."""
-    EXTERNAL_MODELS[name] = build
+#: Relation models built outside the agent, by name, handed to whatever folds a log
+#: (``AgentState(models=...)``, ``Session.open(..., models=...)``): the agent cannot import them
+#: (dist-oracle reads the simulator's schedule generator). The composition root passes the
+#: simulator's (:data:`objsearch.sim.distribution_oracle.SIM_MODELS`) when asked to; nothing is
+#: registered by importing anything.
+RelationModels = Mapping[str, Callable[[], RelationModel]]
+#: The agent's own models only (eq4, beta, memory).
+AGENT_MODELS: Final[RelationModels] = MappingProxyType({})
 
 
 RELATION_MODELS = ("eq4", "beta", "memory", "dist-oracle")
@@ -97,7 +98,8 @@ class RelationSpec:
         if self.half_life_tasks is not None and self.half_life_tasks <= 0:
             raise ObjsearchError(f"half-life must be positive, got {self.half_life_tasks}")
 
-    def build(self) -> RelationModel:
+    def build(self, models: RelationModels = AGENT_MODELS) -> RelationModel:
+        """A fresh model of this spec; ``models`` builds those outside the agent."""
         if self.model == "memory":
             from objsearch.agent.memory import InstanceMemory
 
@@ -107,13 +109,13 @@ class RelationSpec:
                 half_life_tasks=self.half_life_tasks,
                 recent_weight=self.recent_weight or 0.0,
             )
-        if self.model in EXTERNAL_MODELS:
-            return EXTERNAL_MODELS[self.model]()
+        if self.model in models:
+            return models[self.model]()
         if self.model == "dist-oracle":
             raise ObjsearchError(
                 "the dist-oracle relation model is a simulation reference that reads the "
-                "schedule's generator; it is registered by objsearch.sim (import it to fold "
-                "such a run)"
+                "schedule's generator; fold such a run with the simulator's models "
+                "(models=objsearch.sim.distribution_oracle.SIM_MODELS)"
             )
         if self.model == "beta":
             assert self.prior_strength is not None
@@ -315,9 +317,9 @@ class RunSpec:
             seed=self.seed,
         )
 
-    def relation_model(self) -> RelationModel:
+    def relation_model(self, models: RelationModels = AGENT_MODELS) -> RelationModel:
         """A fresh relation model of this spec (fold the log into it)."""
-        return self.relations.build()
+        return self.relations.build(models)
 
     def stop_planner(self) -> StopPlanner:
         if self.planner == "epl":

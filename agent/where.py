@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.memory import InstanceMemory
@@ -143,7 +144,12 @@ class LiveMemory:
         if not (log_dir / "meta.json").exists():
             return cls(_fresh(), home)
         state, _ = restore(
-            log_dir, _fresh, AgentState.from_snapshot, snapshot_dir=snapshot_dir, save=False
+            log_dir,
+            _fresh,
+            AgentState.from_snapshot,
+            snapshot_dir=snapshot_dir,
+            save=False,
+            store=STORE,
         )
         return cls(state, home)
 
@@ -151,7 +157,7 @@ class LiveMemory:
         """A snapshot for the next :meth:`restore`, attested by ``log`` (the running agent's
         writer, or the folder of a log no one writes)."""
         with self._lock:
-            save_snapshot(snapshot_dir, self._state, log=log)
+            save_snapshot(snapshot_dir, self._state, log=log, store=STORE)
 
     @property
     def last_seq(self) -> int:

@@ -17,6 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.policy import Recorder, SearchAgent
 from objsearch.agent.session import load_context
 from objsearch.agent.state import AgentState
@@ -36,7 +37,7 @@ def plan_times(home: str, strategy: str, scenes: int) -> list[float]:
     spec = RunSpec.for_home(ctx.home, strategy, schedule="habit-0")
     with tempfile.TemporaryDirectory() as tmp:
         run_schedule(Path(tmp), spec, scenes=range(1, scenes + 1), skip_absent_targets=True)
-        state = fold(read_log(Path(tmp)), AgentState())
+        state = fold(read_log(Path(tmp), store=STORE), AgentState())
     agent = SearchAgent(
         ctx.navmap,
         ctx.semmap,

@@ -43,6 +43,7 @@ import pyarrow as pa
 
 from objsearch.agent.catalogue import (
     LATEST,
+    STORE,
     Detected,
     Moved,
     PlanarPose,
@@ -53,12 +54,13 @@ from objsearch.agent.catalogue import (
 )
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.agent.strategies import RunSpec
-from objsearch.events import Event, EventLog, SchemaRegistry, fold, read_log
+from objsearch.events import Event, EventLog, fold, read_log
 from objsearch.events.arrow import events_to_tables
-from objsearch.events.catalogue import installed
-from objsearch.events.crashtest import run_crash_test
+from objsearch.events.catalogue import Catalogue
 from objsearch.events.lake import Lake
+from objsearch.events.store import Store
 from objsearch.replay.analytics import open_analytics
+from objsearch.testing.crashtest import run_crash_test
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "analytics.md"
 DYNAMIC = ("Apple", "Cup", "Bowl", "Phone", "Laptop", "Vase", "Pillow", "ToiletPaper")
@@ -133,13 +135,13 @@ def bench_append(n_each: int, reps: int, root: Path) -> None:
 
     def durable() -> None:
         d = Path(tempfile.mkdtemp(dir=root))
-        with EventLog.open(d, "a") as log:
+        with EventLog.open(d, "a", store=STORE) as log:
             for i in range(n_each):
                 log.append("search_failed", payload, time_ns=i)
 
     def batched() -> Path:
         d = Path(tempfile.mkdtemp(dir=root))
-        with EventLog.open(d, "a") as log:
+        with EventLog.open(d, "a", store=STORE) as log:
             for start in range(0, n_each * 10, 500):
                 with log.batch():
                     for i in range(start, min(start + 500, n_each * 10)):
@@ -148,7 +150,7 @@ def bench_append(n_each: int, reps: int, root: Path) -> None:
 
     t_durable, _ = median_time(durable, reps)
     t_batched, log_dir = median_time(batched, reps)
-    table = events_to_tables(read_log(log_dir))["search_failed"]
+    table = events_to_tables(read_log(log_dir, store=STORE))["search_failed"]
 
     def ipc() -> None:
         path = Path(tempfile.mkdtemp(dir=root)) / "rows.arrow"
@@ -168,7 +170,9 @@ def bench_append(n_each: int, reps: int, root: Path) -> None:
     print(f"{'writer':24} {'events/s':>12} {'baseline / this':>16}")
     for name, r in rate.items():
         print(f"{name:24} {r:12,.0f} {base / r:16.1f}")
-    t_read, _ = median_time(lambda: fold(read_log(log_dir), SceneGraphProjection()), reps)
+    t_read, _ = median_time(
+        lambda: fold(read_log(log_dir, store=STORE), SceneGraphProjection()), reps
+    )
     print(f"read_log + fold of the batched log: {n_each * 10 / t_read:,.0f} events/s")
 
 
@@ -197,13 +201,12 @@ def bench_typed_append(n: int, reps: int, root: Path) -> None:
     print(f"\n## typed append ({n} events of the agent's mix, 500/fsync; median of {reps})")
     records = _mix_records(n)
     dicts = [(r.TYPE, encode(r)) for r in records]
-    catalogue = installed()
-    schema_only = SchemaRegistry.from_directory(catalogue.schemas)  # today: jsonschema on each
-    with_records = SchemaRegistry.from_directory(catalogue.schemas, accepts=catalogue.accepts)
+    schema_only = Store(Catalogue(schemas=STORE.catalogue.schemas))  # jsonschema on each
+    with_records = STORE
 
-    def write(registry: SchemaRegistry, typed: bool) -> None:
+    def write(store: Store, typed: bool) -> None:
         d = Path(tempfile.mkdtemp(dir=root))
-        with EventLog.open(d, "a", registry=registry) as log:
+        with EventLog.open(d, "a", store=store) as log:
             for start in range(0, n, 500):
                 with log.batch():
                     for i in range(start, min(start + 500, n)):
@@ -280,9 +283,11 @@ def bench_projection(n: int, reps: int, root: Path) -> list[Event]:
     events = synthetic_run(n)
     print(f"(generated {len(events):,} events in {time.perf_counter() - t0:.1f} s)")
     t_py, graph = median_time(lambda: fold(iter(events), SceneGraphProjection()), reps)
-    lake = Lake(root / "fold-lake")
+    lake = Lake(root / "fold-lake", store=STORE)
     t0 = time.perf_counter()
-    lake.commit_tables(events_to_tables(events), robot="bench", run="r0000", date="2024-01-01")
+    lake.commit_tables(
+        events_to_tables(events, STORE), robot="bench", run="r0000", date="2024-01-01"
+    )
     print(f"(committed to the lake in {time.perf_counter() - t0:.1f} s)")
     con = open_analytics(lake.root)
     # scene_graph reads the table derived at commit; scene_graph_at_seq applies the closed form
@@ -335,22 +340,27 @@ def bench_restart(events: list[Event], reps: int, root: Path) -> None:
     print(f"\n## restart on a {n:,}-event log (median of {reps})")
     log_dir, snaps = root / "restart-log", root / "restart-snapshots"
     _write_log(log_dir, events)
-    state = fold(read_log(log_dir), AgentState())
-    with EventLog.open(log_dir, events[0].stream) as log:
-        save_snapshot(snaps, state, log=log)
+    state = fold(read_log(log_dir, store=STORE), AgentState())
+    with EventLog.open(log_dir, events[0].stream, store=STORE) as log:
+        save_snapshot(snaps, state, log=log, store=STORE)
 
     def open_only() -> None:
-        EventLog.open(log_dir, events[0].stream).close()
+        EventLog.open(log_dir, events[0].stream, store=STORE).close()
 
     def full() -> AgentState:
-        with EventLog.open(log_dir, events[0].stream):
-            return fold(read_log(log_dir), AgentState())
+        with EventLog.open(log_dir, events[0].stream, store=STORE):
+            return fold(read_log(log_dir, store=STORE), AgentState())
 
     def snapshot() -> AgentState:
         # What the agent does before it can plan: the seals are checked on their own thread.
-        log = EventLog.open(log_dir, events[0].stream, verify="sealed")
+        log = EventLog.open(log_dir, events[0].stream, verify="sealed", store=STORE)
         state, how = restore(
-            log_dir, AgentState, AgentState.from_snapshot, snapshot_dir=snaps, save=False
+            log_dir,
+            AgentState,
+            AgentState.from_snapshot,
+            snapshot_dir=snaps,
+            save=False,
+            store=STORE,
         )
         assert how.rejected is None, how.rejected
         log.close()  # waits for the seal check (timed apart below)
@@ -358,16 +368,30 @@ def bench_restart(events: list[Event], reps: int, root: Path) -> None:
 
     def snapshot_ready() -> float:
         t0 = time.perf_counter()
-        log = EventLog.open(log_dir, events[0].stream, verify="sealed")
-        restore(log_dir, AgentState, AgentState.from_snapshot, snapshot_dir=snaps, save=False)
+        log = EventLog.open(log_dir, events[0].stream, verify="sealed", store=STORE)
+        restore(
+            log_dir,
+            AgentState,
+            AgentState.from_snapshot,
+            snapshot_dir=snaps,
+            save=False,
+            store=STORE,
+        )
         ready = time.perf_counter() - t0
         log.close()
         return ready
 
     def first_append() -> None:
         # Restart until the first acknowledged event: the seal check of every byte included.
-        with EventLog.open(log_dir, events[0].stream, verify="sealed") as log:
-            restore(log_dir, AgentState, AgentState.from_snapshot, snapshot_dir=snaps, save=False)
+        with EventLog.open(log_dir, events[0].stream, verify="sealed", store=STORE) as log:
+            restore(
+                log_dir,
+                AgentState,
+                AgentState.from_snapshot,
+                snapshot_dir=snaps,
+                save=False,
+                store=STORE,
+            )
             log.append("search_failed", {"reason": "bench"}, time_ns=log.last_time_ns)
 
     t_open, _ = median_time(open_only, reps)
@@ -393,8 +417,8 @@ def bench_restart(events: list[Event], reps: int, root: Path) -> None:
 
 
 def bench_queries(events: list[Event], copies: int, reps: int, root: Path) -> None:
-    lake = Lake(root / "query-lake")
-    tables = events_to_tables(events)
+    lake = Lake(root / "query-lake", store=STORE)
+    tables = events_to_tables(events, STORE)
     t0 = time.perf_counter()
     for i in range(copies):
         lake.commit_tables(tables, robot="bench", run=f"r{i:04d}", date="2024-01-01")

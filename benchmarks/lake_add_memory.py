@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 from events import _write_log, synthetic_run
+from objsearch.agent.catalogue import STORE
 from objsearch.events.lake_table import TableLake
 
 PROBE = """
@@ -66,7 +67,7 @@ def main() -> int:
             for rep in range(args.reps):
                 lake = work / f"lake-{layout[:3]}-{rep}"
                 if layout == "fleet table":
-                    TableLake(lake).create()
+                    TableLake(lake, store=STORE).create()
                 seconds, mb = lake_add(log, lake)
                 times.append(seconds)
                 peaks.append(mb)

@@ -35,6 +35,7 @@ from pathlib import Path
 import duckdb
 import pyarrow as pa
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events.lake import RUN_FILE, Lake, compact_log
 from objsearch.events.lake_digest import FILES_KEY, SELF_KEY, manifest_digest
 from objsearch.events.lake_table import TableLake, TableRun, add_log, run_parts
@@ -67,12 +68,12 @@ def names(i: int) -> tuple[str, str, str]:
 
 
 def build_fleet(root: Path, template: Path, n: int) -> TableLake:
-    lake = TableLake(root)
-    source = Lake(template)
+    lake = TableLake(root, store=STORE)
+    source = Lake(template, store=STORE)
     info = source.runs()[0]
     tables = source.read_tables(info)
     base = TableRun(info.robot, info.date, info.run, "c", dict(info.rows), info.digest, "bench")
-    parts = run_parts(tables, base)
+    parts = run_parts(tables, base, STORE)
     pending = []
     for i in range(n):
         robot, day, run = names(i)
@@ -101,7 +102,7 @@ def build_fleet(root: Path, template: Path, n: int) -> TableLake:
 
 
 def build_folders(root: Path, template: Path, n: int) -> None:
-    source = Lake(template).runs()[0]
+    source = Lake(template, store=STORE).runs()[0]
     for i in range(n):
         robot, day, run = names(i)
         target = root / f"robot={robot}" / f"date={day}" / f"run={run}"
@@ -135,7 +136,7 @@ def main() -> int:
     )
     try:
         template = work / "template"
-        compact_log(Path(args.log), Lake(template), robot="t")
+        compact_log(Path(args.log), Lake(template, store=STORE), robot="t")
         print(f"{'runs':>7} {'layout':>14} {'build s':>9} {'files':>7} {'setup s':>9}")
         folder_setup = {}
         for n in folder_sizes:

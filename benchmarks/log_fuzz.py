@@ -25,7 +25,7 @@ import argparse
 import sys
 import time
 
-from objsearch.events.logfuzz import run_log_fuzz, run_repair_fuzz, run_snapshot_fuzz
+from objsearch.testing.logfuzz import run_log_fuzz, run_repair_fuzz, run_snapshot_fuzz
 
 HEADER = f"{'battery':9} {'tried':>7} {'clear error':>12} {'unchanged':>10} {'traceback':>10} {'silent change':>14} {'loss':>5}"
 

@@ -31,6 +31,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import read_log
 from objsearch.runtime.standin import in_process_search
 from objsearch.runtime.wsflood import (
@@ -136,7 +137,7 @@ def main() -> int:
     logging.getLogger("foxglove").setLevel(logging.CRITICAL)
     with tempfile.TemporaryDirectory() as tmp:
         in_process_search(Path(tmp) / "log", 1, "Apple", "kitchen-1")
-        events = list(read_log(Path(tmp) / "log"))
+        events = list(read_log(Path(tmp) / "log", store=STORE))
     limits = FrontLimits(
         max_clients=args.max_clients, client_queue_bytes=64 * 1024, handshake_timeout_s=2.0
     )

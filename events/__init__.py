@@ -1,10 +1,11 @@
 """objsearch.events: the event envelope, versioned payload schemas, the append-only log and
-projection plumbing. Knows nothing of robots.
+projection plumbing. Knows nothing of robots: a domain builds a :class:`Store` from its
+:class:`Catalogue` and hands it to what reads and writes its events.
 
 See ``docs/events.md`` for the on-disk format and the guarantees.
 """
 
-from .catalogue import Catalogue, install
+from .catalogue import Catalogue
 from .envelope import EVENT_ID_NAMESPACE, Event, deterministic_event_id
 from .errors import (
     CorruptLogError,
@@ -22,8 +23,9 @@ from .errors import (
 )
 from .log import EventLog, TornTail, follow_log, read_log
 from .projection import Projection, fold
-from .schemas import SchemaRegistry, default_registry
-from .upcast import Upcaster, default_upcaster
+from .schemas import SchemaRegistry
+from .store import Store, shipped
+from .upcast import Upcaster
 
 __all__ = [
     "EVENT_ID_NAMESPACE",
@@ -41,16 +43,15 @@ __all__ = [
     "Projection",
     "ProjectionError",
     "SchemaRegistry",
+    "Store",
     "StreamMismatchError",
     "TornTail",
     "TornTailWarning",
     "Upcaster",
     "WrongExpectedSeqError",
-    "default_registry",
-    "default_upcaster",
     "deterministic_event_id",
     "fold",
     "follow_log",
-    "install",
     "read_log",
+    "shipped",
 ]

@@ -9,7 +9,7 @@ import signal
 from pathlib import Path
 from typing import Final
 
-#: Test hook for the kill tests (:mod:`.killtest`): with ``OBJSEARCH_KILL_AFTER_STEP=N`` in its
+#: Test hook for the kill tests (:mod:`objsearch.testing.killtest`): with ``OBJSEARCH_KILL_AFTER_STEP=N`` in its
 #: environment, a process SIGKILLs itself right after its N-th durable step (an fsync or a rename
 #: made through this module). Unset, it costs one dictionary lookup per fsync.
 KILL_AFTER_STEP_ENV: Final = "OBJSEARCH_KILL_AFTER_STEP"

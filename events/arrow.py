@@ -20,8 +20,8 @@ import pyarrow as pa
 
 from .envelope import Event
 from .errors import EventStoreError
-from .schemas import SchemaRegistry, default_registry
-from .upcast import default_upcaster
+from .schemas import SchemaRegistry
+from .store import Store, shipped
 
 ENVELOPE_COLUMNS: Final = (
     pa.field("event_id", pa.string(), nullable=False),
@@ -86,15 +86,14 @@ def payload_schema(schema: Mapping[str, Any], where: str) -> list[pa.Field]:
     return fields
 
 
-@functools.cache
-def _cached_schema(event_type: str) -> pa.Schema:
-    return event_schema(event_type, default_registry())
+def event_schema(event_type: str, store: Store | None = None) -> pa.Schema:
+    """The Arrow schema of ``event_type``'s table (its latest version in ``store``'s catalogue),
+    built once per store."""
+    return _event_schema((store or shipped()).registry, event_type)
 
 
-def event_schema(event_type: str, registry: SchemaRegistry | None = None) -> pa.Schema:
-    """The Arrow schema of ``event_type``'s table (its latest version)."""
-    if registry is None:
-        return _cached_schema(event_type)
+@functools.cache  # by registry identity: one per store, which lives as long as the process
+def _event_schema(registry: SchemaRegistry, event_type: str) -> pa.Schema:
     version = registry.latest_version(event_type)
     schema = registry.schema(event_type, version)
     fields = payload_schema(schema, f"{event_type} v{version}")
@@ -107,9 +106,10 @@ def _free_form(value: Any, kind: pa.DataType) -> Any:
     return value
 
 
-def events_to_tables(events: Iterable[Event]) -> dict[str, pa.Table]:
+def events_to_tables(events: Iterable[Event], store: Store | None = None) -> dict[str, pa.Table]:
     """One typed table per event type present, rows in seq order; events upcast to latest."""
-    upcast = default_upcaster().upcast
+    store = store or shipped()
+    upcast = store.upcaster.upcast
     columns: dict[str, dict[str, list[Any]]] = {}
     schemas: dict[str, pa.Schema] = {}
     # Per type, once: (payload field, its column, whether it may hold free-form JSON text).
@@ -118,7 +118,7 @@ def events_to_tables(events: Iterable[Event]) -> dict[str, pa.Table]:
         event = upcast(raw)
         cols = columns.get(event.type)
         if cols is None:
-            schema = schemas[event.type] = event_schema(event.type)
+            schema = schemas[event.type] = event_schema(event.type, store)
             cols = columns[event.type] = {name: [] for name in schema.names}
             payload_fields[event.type] = [
                 (f.name, cols[f.name], pa.types.is_string(f.type))
@@ -139,24 +139,25 @@ def events_to_tables(events: Iterable[Event]) -> dict[str, pa.Table]:
     return {t: pa.Table.from_pydict(cols, schema=schemas[t]) for t, cols in sorted(columns.items())}
 
 
-def tables_to_events(tables: Iterable[pa.Table]) -> list[Event]:
+def tables_to_events(tables: Iterable[pa.Table], store: Store | None = None) -> list[Event]:
     """The inverse of :func:`events_to_tables`: events (latest versions) sorted by (stream, seq).
 
     Free-form objects come back from their JSON text; numbers come back as the column's type
     (a JSON integer in a ``number`` field reads as a float, which compares equal).
     """
+    store = store or shipped()
     events: list[Event] = []
     for table in tables:
         event_type = (table.schema.metadata or {}).get(b"event_type", b"").decode()
         if not event_type:
             raise EventStoreError("a lake table without its event_type metadata")
-        schema = event_schema(event_type)
+        schema = event_schema(event_type, store)
         free = {
             f.name
             for f in schema
             if f.name not in _ENVELOPE_NAMES
             and pa.types.is_string(f.type)
-            and _is_free(event_type, f.name)
+            and _is_free(store.registry, event_type, f.name)
         }
         for row in table.to_pylist():
             payload = {
@@ -180,7 +181,6 @@ def tables_to_events(tables: Iterable[pa.Table]) -> list[Event]:
     return sorted(events, key=lambda e: (e.stream, e.seq))
 
 
-def _is_free(event_type: str, field: str) -> bool:
-    registry = default_registry()
+def _is_free(registry: SchemaRegistry, event_type: str, field: str) -> bool:
     node = registry.schema(event_type, registry.latest_version(event_type))["properties"][field]
     return node.get("type") == "object" and not node.get("properties")

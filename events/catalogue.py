@@ -1,29 +1,23 @@
-"""The catalogue the store is handed: which event types exist and how old versions are read.
+"""The catalogue a store is built from: which event types exist and how old versions are read.
 
 ``events/`` knows no robot. A domain describes its events with a :class:`Catalogue` — the folder
-of ``<type>.v<version>.json`` schemas, the upcast steps from each old version to the next, and
-optionally a fast check that accepts valid payloads without ``jsonschema`` — and installs it as
-the process's default with :func:`install`. ``read_log(dir)``, ``EventLog.open(dir)``, the lake and
-the Arrow export all use the installed catalogue (through :func:`~objsearch.events.default_registry`
-and :func:`~objsearch.events.default_upcaster`), and the lake writes the catalogue's derived
-tables beside each committed run (:func:`~objsearch.events.derived.derived_tables`), so no formula
-of the domain's lives here. The ``objsearch`` package installs the agent's
-catalogue (:data:`objsearch.agent.catalogue.CATALOGUE`) when it is imported, so callers never
-have to; a test or another domain may install its own.
+of ``<type>.v<version>.json`` schemas, the upcast steps from each old version to the next,
+optionally a fast check that accepts valid payloads without ``jsonschema``, and the per-run
+tables the lake derives from its events — and builds a :class:`~objsearch.events.store.Store`
+from it, which it hands to the log, ``read_log``, snapshots and the lake. Nothing is installed
+process-wide. The product's catalogue is :data:`objsearch.agent.catalogue.CATALOGUE`.
+
+This module imports nothing else of ``objsearch.events``: every other module of the store may
+import it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from importlib import resources
 from importlib.resources.abc import Traversable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final
-
-if TYPE_CHECKING:
-    # Only the annotation: derived.py imports installed() from here, so no import at run time.
-    from .derived import DerivedTable
+from typing import Any, NamedTuple
 
 #: payload of version N (a fresh dict the step may keep) → payload of version N + 1
 UpcastStep = Callable[[dict[str, Any]], dict[str, Any]]
@@ -31,7 +25,24 @@ UpcastStep = Callable[[dict[str, Any]], dict[str, Any]]
 #: decide (and word the error). Must never say True for a payload the schema rejects.
 PayloadCheck = Callable[[str, int, Mapping[str, Any]], bool]
 
-_PACKAGE: Final = __name__.rpartition(".")[0]
+#: The folder of a run's derived files (``RUN/_derived/<name>.v<version>.parquet``).
+DERIVED_DIR = "_derived"
+
+
+class DerivedTable(NamedTuple):
+    """A per-run table the lake writes beside a committed run's events (see ``derived.py``)."""
+
+    name: str
+    version: int
+    sql: str  # over the per-type views; returns robot, date, run and the table's columns
+    order_by: str  # the rows' order in the file (an ORDER BY clause over the table's columns)
+
+    @property
+    def file_name(self) -> str:
+        return f"{self.name}.v{self.version}.parquet"
+
+    def path(self, run_dir: Path) -> Path:
+        return run_dir / DERIVED_DIR / self.file_name
 
 
 @dataclass(frozen=True)
@@ -43,26 +54,3 @@ class Catalogue:
     upcasters: Mapping[tuple[str, int], UpcastStep] = field(default_factory=dict)
     accepts: PayloadCheck | None = None
     derived: tuple[DerivedTable, ...] = ()
-
-
-def schemas_only() -> Catalogue:
-    """The schema files shipped in ``objsearch.events/schema/``, with no upcasters or check."""
-    return Catalogue(schemas=resources.files(_PACKAGE).joinpath("schema"))
-
-
-_installed: list[Catalogue] = []
-
-
-def install(catalogue: Catalogue) -> None:
-    """Make ``catalogue`` the default of every store function called without one."""
-    from .schemas import default_registry
-    from .upcast import default_upcaster
-
-    _installed[:] = [catalogue]
-    default_registry.cache_clear()
-    default_upcaster.cache_clear()
-
-
-def installed() -> Catalogue:
-    """The installed catalogue (:func:`schemas_only` if none was)."""
-    return _installed[0] if _installed else schemas_only()

@@ -14,7 +14,7 @@ the file. The file is ``RUN/_derived/<name>.v<version>.parquet``; bump ``version
 query's meaning changes, and runs holding an older version fall back to the live query until
 they are upgraded (:meth:`objsearch.events.lake.Lake.upgrade`).
 
-Which tables a run has is the installed catalogue's to say (:func:`derived_tables`): the store
+Which tables a run has is the store's catalogue's to say (:func:`derived_tables`): the store
 knows :data:`SEARCHES`, the per-task summary, and is handed the domain's others with its
 :class:`~objsearch.events.catalogue.Catalogue` — the agent's are Eq. 4's ``eq4_updates`` and
 ``scene_graph`` (:mod:`objsearch.agent.scene_graph_sql`, beside the fold they restate), so this
@@ -25,32 +25,18 @@ from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Mapping
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final, NamedTuple
+from typing import TYPE_CHECKING, Any, Final
 
-from .catalogue import installed
-from .schemas import default_registry
+from .catalogue import DERIVED_DIR, DerivedTable
+from .store import Store, shipped
 
 if TYPE_CHECKING:
     import pyarrow as pa
 
-DERIVED_DIR: Final = "_derived"
+__all__ = ["DERIVED_DIR", "PARTITION_NAMES", "RUN_MODES", "SEARCHES", "DerivedTable"]
+
 #: Columns a derived file does not store: the lake's partition columns supply them.
 PARTITION_NAMES: Final = ("robot", "date", "run")
-
-
-class DerivedTable(NamedTuple):
-    name: str
-    version: int
-    sql: str  # over the per-type views; returns robot, date, run and the table's columns
-    order_by: str  # the rows' order in the file (an ORDER BY clause over the table's columns)
-
-    @property
-    def file_name(self) -> str:
-        return f"{self.name}.v{self.version}.parquet"
-
-    def path(self, run_dir: Path) -> Path:
-        return run_dir / DERIVED_DIR / self.file_name
 
 
 # The run's update mode at a given seq: the latest run_started before it (``searches`` and the
@@ -106,19 +92,24 @@ LEFT JOIN modes r
 )
 
 
-def derived_tables() -> tuple[DerivedTable, ...]:
-    """Every derived table in dependency order: :data:`SEARCHES`, then the installed catalogue's
+def derived_tables(store: Store | None = None) -> tuple[DerivedTable, ...]:
+    """Every derived table in dependency order: :data:`SEARCHES`, then the store's catalogue's
     (:attr:`objsearch.events.catalogue.Catalogue.derived`; the agent's are Eq. 4's)."""
-    return (SEARCHES, *installed().derived)
+    return (SEARCHES, *(store or shipped()).catalogue.derived)
 
 
 def derive_run(
-    tables: Mapping[str, pa.Table], *, robot: str, date: str | dt.date, run: str
+    tables: Mapping[str, pa.Table],
+    *,
+    robot: str,
+    date: str | dt.date,
+    run: str,
+    store: Store | None = None,
 ) -> dict[str, pa.Table]:
     """Every derived table of one run from its event tables (one per type; missing types are
     empty), without the partition columns, sorted as the query orders them."""
-    # Imported here, not above: the agent's catalogue declares its tables with this module on
-    # every ``import objsearch`` (the robot's too), and DuckDB and Arrow take most of a second.
+    # Imported here, not above: a catalogue declares its tables with this module (the robot's
+    # too), and DuckDB and Arrow take most of a second to import.
     import duckdb
     import pyarrow as pa
 
@@ -127,29 +118,30 @@ def derive_run(
     # One thread: a parallel SUM of doubles adds in whatever order the threads finish, so the
     # same run could derive a file that differs in its last bits (seen: searches.v3.parquet one
     # byte longer on a busy machine), and the file's recorded digest would not reproduce.
+    store = store or shipped()
     con = duckdb.connect(":memory:", config={"threads": 1})
     try:
         day = date.isoformat() if isinstance(date, dt.date) else date
-        for event_type in default_registry().types:
+        for event_type in store.registry.types:
             table = tables.get(event_type)
             if table is None:
-                table = pa.Table.from_pylist([], schema=event_schema(event_type))
+                table = pa.Table.from_pylist([], schema=event_schema(event_type, store))
             con.register(f"_arrow_{event_type}", table)
             con.execute(
                 f'CREATE VIEW "{event_type}" AS SELECT *, {_literal(robot)}::VARCHAR AS robot, '
                 f"{_literal(day)}::DATE AS date, {_literal(run)}::VARCHAR AS run "
                 f'FROM "_arrow_{event_type}"'
             )
-        return derive_views(con)
+        return derive_views(con, store)
     finally:
         con.close()
 
 
-def derive_views(con: Any) -> dict[str, pa.Table]:
-    """Every derived table from a DuckDB connection whose per-type views (with ``robot``,
-    ``date``, ``run``) hold one run, without the partition columns."""
+def derive_views(con: Any, store: Store | None = None) -> dict[str, pa.Table]:
+    """Every derived table of ``store``'s catalogue from a DuckDB connection whose per-type
+    views (with ``robot``, ``date``, ``run``) hold one run, without the partition columns."""
     out: dict[str, pa.Table] = {}
-    for derived in derived_tables():
+    for derived in derived_tables(store):
         table = con.sql(
             f"SELECT * FROM ({derived.sql}) ORDER BY {derived.order_by}"
         ).to_arrow_table()

@@ -82,7 +82,7 @@ from .lake_digest import (
     parse_files,
 )
 from .log import LOCK_FILE, read_log, read_meta
-from .upcast import default_upcaster
+from .store import Store, shipped
 
 LAKE_FORMAT: Final = "objsearch.lake/1"
 RUN_FILE: Final = "_run.json"
@@ -147,6 +147,8 @@ class RunInfo:
     #: Size and digest of every file the commit wrote, by run-relative path (empty: a run
     #: committed before digests existed).
     files: Mapping[str, FileDigest] = dataclasses.field(default_factory=dict)
+    #: The derived tables a run of this lake has (its store's: ``derived_tables(store)``).
+    derived: tuple[DerivedTable, ...] = ()
 
     @property
     def events(self) -> int:
@@ -158,7 +160,7 @@ class RunInfo:
         it and recording it) counts as missing: readers compute those rows from the events."""
         return [
             d
-            for d in derived_tables()
+            for d in self.derived
             if not d.path(self.path).is_file()
             or (self.files and _relative(d.path(self.path), self.path) not in self.files)
         ]
@@ -167,7 +169,12 @@ class RunInfo:
 class Lake:
     """A directory of committed runs. Cheap to create; nothing is read until asked."""
 
-    def __init__(self, root: Path | str, *, lock_wait_s: float = LOCK_WAIT_S) -> None:
+    def __init__(
+        self, root: Path | str, *, lock_wait_s: float = LOCK_WAIT_S, store: Store | None = None
+    ) -> None:
+        #: What the lake's events are: their types, Arrow schemas, upcasters, derived tables.
+        self.store = store or shipped()
+        self.derived = derived_tables(self.store)
         self.root = Path(root)
         self.lock_wait_s = lock_wait_s
         self._lock_depth = 0
@@ -180,14 +187,16 @@ class Lake:
     def runs(self) -> list[RunInfo]:
         """Every committed run, sorted by (robot, date, run)."""
         found = [
-            _read_run_file(p) for p in sorted(self.root.glob(f"robot=*/date=*/run=*/{RUN_FILE}"))
+            _read_run_file(p, self.derived)
+            for p in sorted(self.root.glob(f"robot=*/date=*/run=*/{RUN_FILE}"))
         ]
         return sorted(found, key=lambda r: (r.robot, r.date, r.run))
 
     def find(self, robot: str, run: str) -> RunInfo | None:
         """The run ``run`` of ``robot``, whatever its date, or None."""
         matches = [
-            _read_run_file(p) for p in self.root.glob(f"robot={robot}/date=*/run={run}/{RUN_FILE}")
+            _read_run_file(p, self.derived)
+            for p in self.root.glob(f"robot={robot}/date=*/run={run}/{RUN_FILE}")
         ]
         if len(matches) > 1:
             raise LakeError(f"{self.root}: run {run!r} of robot {robot!r} is under two dates")
@@ -202,8 +211,9 @@ class Lake:
 
         A run committed by older code stores an older version of some types (its files are never
         rewritten); they are upcast here, as ``read_log`` does."""
-        upcast = default_upcaster().upcast
-        return [upcast(e) for e in tables_to_events(self.read_tables(run).values())]
+        upcast = self.store.upcaster.upcast
+        tables = self.read_tables(run).values()
+        return [upcast(e) for e in tables_to_events(tables, self.store)]
 
     def read_tables(self, run: RunInfo) -> dict[str, pa.Table]:
         """The event tables of one committed run as stored (one per type in its manifest), each
@@ -234,7 +244,7 @@ class Lake:
             if not folder.is_dir():
                 continue
             try:
-                infos.append(_read_run_file(folder / RUN_FILE))
+                infos.append(_read_run_file(folder / RUN_FILE, self.derived))
             except LakeError as exc:
                 damaged.append(DamagedRun(folder, str(exc), (str(exc),)))
         hashed = (
@@ -305,7 +315,9 @@ class Lake:
                 return False
             info = _record_digests(info)
         if info.missing_derived():
-            _write_derived(info.path, self.read_tables(info) if tables is None else tables, info)
+            _write_derived(
+                info.path, self.read_tables(info) if tables is None else tables, info, self.store
+            )
         return True
 
     def event_types(self) -> list[str]:
@@ -337,7 +349,7 @@ class Lake:
                     first.append(event)
                 yield event
 
-        tables = events_to_tables(remember(events))
+        tables = events_to_tables(remember(events), self.store)
         if date is None:
             if not first:
                 raise LakeError("an empty run needs an explicit date")
@@ -378,7 +390,7 @@ class Lake:
             if not (_ATTACHMENT.fullmatch(name) and name != RUN_FILE):
                 raise LakeError(f"attachment name {name!r} must be '_' then letters, digits, '.-_'")
         day = _check_date(date)
-        checked = {t: _conform(t, table) for t, table in sorted(tables.items())}
+        checked = {t: _conform(t, table, self.store) for t, table in sorted(tables.items())}
         digest = _digest(checked)
         with self.locked():
             existing = self.find(robot, run)
@@ -390,7 +402,7 @@ class Lake:
                     # (derived tables, the files' digests).
                     if existing.missing_derived() or not existing.files:
                         self._upgrade_run(existing, checked)
-                        return _read_run_file(existing.path / RUN_FILE)
+                        return _read_run_file(existing.path / RUN_FILE, self.derived)
                     return existing
                 if damage:
                     # The same content over a damaged copy: write it whole again (a replace).
@@ -420,7 +432,7 @@ class Lake:
                 manifest["identity"] = dict(sorted(identity.items()))
             _fs.make_dirs(staged)
             try:
-                _stage(staged, checked, manifest, attachments)
+                _stage(staged, checked, manifest, attachments, self.store)
             except BaseException:
                 shutil.rmtree(staged, ignore_errors=True)
                 raise
@@ -439,7 +451,7 @@ class Lake:
                 intent_path = self.root / STAGING / f"{token}{INTENT_SUFFIX}"
                 _fs.write_atomic(intent_path, _json_bytes(intent))
                 self._roll_forward(intent_path)
-            return _read_run_file(final / RUN_FILE)
+            return _read_run_file(final / RUN_FILE, self.derived)
 
     def remove_run(self, info: RunInfo) -> None:
         """Take a committed run out of the lake (e.g. a piece merged into its session's run):
@@ -605,7 +617,7 @@ def compact_log(
             f"event log {log_dir} is being written (its lock is held{_fs.lock_holder_hint(log_dir / LOCK_FILE)}); "
             "close the writer before compacting it"
         )
-    events = read_log(log_dir)
+    events = read_log(log_dir, store=lake.store)
     first = next(events, None)
     if first is None:
         raise LakeError(f"event log {log_dir} is empty; there is nothing to compact")
@@ -666,8 +678,8 @@ def _refuse_runs_holding_events_of(
                     )
 
 
-def _conform(event_type: str, table: pa.Table) -> pa.Table:
-    schema = event_schema(event_type)
+def _conform(event_type: str, table: pa.Table, store: Store) -> pa.Table:
+    schema = event_schema(event_type, store)
     missing = [name for name in schema.names if name not in table.column_names]
     extra = [name for name in table.column_names if name not in schema.names]
     if missing or extra:
@@ -685,6 +697,7 @@ def _stage(
     tables: Mapping[str, pa.Table],
     manifest: Mapping[str, Any],
     attachments: Mapping[str, bytes],
+    store: Store,
 ) -> None:
     """Write a run's files into its staging folder, each fsync'ed, the manifest last, with
     every file's digest and its own."""
@@ -693,10 +706,10 @@ def _stage(
         name = f"{event_type}.parquet"
         files[name] = _write_parquet(staged / name, table.sort_by("seq"))
     derived = derive_run(
-        tables, robot=manifest["robot"], date=manifest["date"], run=manifest["run"]
+        tables, robot=manifest["robot"], date=manifest["date"], run=manifest["run"], store=store
     )
     _fs.make_dirs(staged / DERIVED_DIR)
-    for spec in derived_tables():
+    for spec in derived_tables(store):
         path = spec.path(staged)
         files[_relative(path, staged)] = _write_parquet(path, derived[spec.name])
     _fs.fsync_dir(staged / DERIVED_DIR)
@@ -721,7 +734,7 @@ def _relative(path: Path, run_dir: Path) -> str:
 def _parquet_files(info: RunInfo) -> list[Path]:
     """The Parquet files readers may read of a run: its event tables, its current derived ones."""
     paths = [info.path / f"{t}.parquet" for t in sorted(info.rows)]
-    return paths + [p for d in derived_tables() if (p := d.path(info.path)).is_file()]
+    return paths + [p for d in info.derived if (p := d.path(info.path)).is_file()]
 
 
 def _owned_files(info: RunInfo) -> list[Path]:
@@ -744,7 +757,7 @@ def _record_digests(info: RunInfo) -> RunInfo:
             raise LakeError(f"{path}: cannot read it to record its digest: {got.strerror or got}")
         files[_relative(path, info.path)] = got
     _rewrite_manifest(info, files)
-    return _read_run_file(info.path / RUN_FILE)
+    return _read_run_file(info.path / RUN_FILE, info.derived)
 
 
 def _rewrite_manifest(info: RunInfo, files: Mapping[str, FileDigest]) -> None:
@@ -753,12 +766,14 @@ def _rewrite_manifest(info: RunInfo, files: Mapping[str, FileDigest]) -> None:
     _fs.write_atomic(info.path / RUN_FILE, _manifest_bytes(doc, files))
 
 
-def _write_derived(run_dir: Path, tables: Mapping[str, pa.Table], info: RunInfo) -> None:
+def _write_derived(
+    run_dir: Path, tables: Mapping[str, pa.Table], info: RunInfo, store: Store
+) -> None:
     """Add the missing derived tables to a committed run, each atomically (tmp file, rename),
     then record their digests in the manifest if it has digests. A kill between the two leaves a
     file the manifest does not list, which readers treat as missing (see
     :meth:`RunInfo.missing_derived`)."""
-    derived = derive_run(tables, robot=info.robot, date=info.date, run=info.run)
+    derived = derive_run(tables, robot=info.robot, date=info.date, run=info.run, store=store)
     _fs.make_dirs(run_dir / DERIVED_DIR)
     files = dict(info.files)
     for spec in info.missing_derived():
@@ -926,7 +941,7 @@ def _json_bytes(doc: Mapping[str, Any]) -> bytes:
     return json.dumps(doc, indent=1, sort_keys=True, ensure_ascii=False).encode() + b"\n"
 
 
-def _read_run_file(path: Path) -> RunInfo:
+def _read_run_file(path: Path, derived: tuple[DerivedTable, ...]) -> RunInfo:
     try:
         doc = json.loads(path.read_bytes())
     except (OSError, ValueError) as exc:
@@ -948,6 +963,7 @@ def _read_run_file(path: Path) -> RunInfo:
             source=str(doc["source"]),
             identity={str(k): str(v) for k, v in dict(doc.get("identity") or {}).items()},
             files=parse_files(doc[FILES_KEY]) if FILES_KEY in doc else {},
+            derived=derived,
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise LakeError(f"{path}: run manifest lacks or mistypes {exc}") from exc

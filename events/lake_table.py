@@ -67,8 +67,7 @@ from .lake import (
     parquet_problem,
 )
 from .log import LOCK_FILE, read_log, read_meta
-from .schemas import default_registry
-from .upcast import default_upcaster
+from .store import Store, shipped
 
 TABLE_FORMAT: Final = "objsearch.lake/2"
 TABLE_DIR: Final = "events"
@@ -151,12 +150,12 @@ def _nullable(kind: pa.DataType) -> pa.DataType:
     return kind
 
 
-def payload_struct(event_type: str) -> pa.StructType:
+def payload_struct(event_type: str, store: Store) -> pa.StructType:
     envelope = {f.name for f in ENVELOPE_COLUMNS}
     return pa.struct(
         [
             pa.field(f.name, _nullable(f.type))
-            for f in event_schema(event_type)
+            for f in event_schema(event_type, store)
             if f.name not in envelope
         ]
     )
@@ -170,23 +169,23 @@ def derived_kind(name: str, version: int) -> str:
     return f"derived.{name}.v{version}"
 
 
-@functools.cache
-def derived_structs() -> dict[str, pa.StructType]:
+@functools.cache  # per store (by identity)
+def derived_structs(store: Store) -> dict[str, pa.StructType]:
     """The columns of each derived table (what :func:`derive_run` gives for an empty run)."""
-    out = derive_run({}, robot="r", date="1970-01-01", run="r")
+    out = derive_run({}, robot="r", date="1970-01-01", run="r", store=store)
     return {
         name: pa.struct([pa.field(f.name, _nullable(f.type)) for f in t.schema])
         for name, t in out.items()
     }
 
 
-@functools.cache
-def table_schema() -> pa.Schema:
+@functools.cache  # per store (by identity)
+def table_schema(store: Store) -> pa.Schema:
     """The fleet table's columns: run, envelope, one struct per event type and derived table,
     and the ``_run`` row's description."""
     fields = [*BASE_COLUMNS, *(pa.field(f.name, f.type) for f in ENVELOPE_COLUMNS)]
-    fields += [pa.field(t, payload_struct(t)) for t in default_registry().types]
-    fields += [pa.field(derived_column(n), s) for n, s in derived_structs().items()]
+    fields += [pa.field(t, payload_struct(t, store)) for t in store.registry.types]
+    fields += [pa.field(derived_column(n), s) for n, s in derived_structs(store).items()]
     fields.append(pa.field(RUN_COLUMN, _RUN_STRUCT))
     return pa.schema(fields)
 
@@ -213,7 +212,9 @@ def storage_options() -> dict[str, str]:
 class TableLake:
     """The fleet lake at ``root`` (a folder or an ``s3://`` URI). Cheap to create."""
 
-    def __init__(self, root: Path | str) -> None:
+    def __init__(self, root: Path | str, *, store: Store | None = None) -> None:
+        #: What the lake's events are: their types, Arrow schemas, upcasters, derived tables.
+        self.store = store or shipped()
         text = str(root)
         self.remote = "://" in text
         self.root: Path | str = text.rstrip("/") if self.remote else Path(root)
@@ -252,7 +253,7 @@ class TableLake:
             return
         if not self.remote:
             _fs.make_dirs(Path(self.uri).parent)
-        empty = table_schema().empty_table()
+        empty = table_schema(self.store).empty_table()
         try:
             write_deltalake(
                 self.uri,
@@ -298,7 +299,7 @@ class TableLake:
         # can abort the interpreter at exit ("terminate called without an active exception").
         return pds.dataset(
             table.file_uris(file_pruning_predicate=where),
-            schema=table_schema(),
+            schema=table_schema(self.store),
             format="parquet",
             partitioning=pds.partitioning(pa.schema([("type", pa.string())]), flavor="hive"),
             partition_base_dir=self.uri,
@@ -351,7 +352,7 @@ class TableLake:
         for event_type in sorted(run.rows):
             part = rows.filter(pc.field("type") == event_type).sort_by("seq")
             payload = part.column(event_type).combine_chunks()
-            schema = event_schema(event_type)
+            schema = event_schema(event_type, self.store)
             columns = [part.column(n) for n in envelope] + [
                 payload.field(f.name) for f in schema if f.name not in envelope
             ]
@@ -359,8 +360,9 @@ class TableLake:
         return out
 
     def read_events(self, run: TableRun) -> list[Event]:
-        upcast = default_upcaster().upcast
-        return [upcast(e) for e in tables_to_events(self.read_tables(run).values())]
+        upcast = self.store.upcaster.upcast
+        tables = self.read_tables(run).values()
+        return [upcast(e) for e in tables_to_events(tables, self.store)]
 
     def scan(self, table: Any | None = None) -> tuple[list[DataFile], list[tuple[DataFile, str]]]:
         """The data files readers may read, and those they must leave out (missing, another
@@ -444,7 +446,7 @@ class TableLake:
                     first.append(event)
                 yield event
 
-        tables = events_to_tables(remember(events))
+        tables = events_to_tables(remember(events), self.store)
         if date is None:
             if not first:
                 raise TableLakeError("an empty run needs an explicit date")
@@ -475,7 +477,7 @@ class TableLake:
         _check_name("robot", robot)
         _check_name("run", run)
         day = _check_date(date)
-        checked = {t: _conform(t, table) for t, table in sorted(tables.items())}
+        checked = {t: _conform(t, table, self.store) for t, table in sorted(tables.items())}
         run_info = TableRun(
             robot=robot,
             date=day,
@@ -487,7 +489,7 @@ class TableLake:
             identity=dict(sorted((identity or {}).items())),
             attachments=dict(sorted((attachments or {}).items())),
         )
-        parts = run_parts(checked, run_info)
+        parts = run_parts(checked, run_info, self.store)
         self.create()
         return self._commit(run_info, parts, replace=replace)
 
@@ -534,7 +536,7 @@ class TableLake:
                     table.create_write_transaction(
                         adds,
                         mode="append",
-                        schema=table_schema(),
+                        schema=table_schema(self.store),
                         partition_by=["type"],
                         commit_properties=commit,
                     )
@@ -542,7 +544,8 @@ class TableLake:
                     write_deltalake(
                         table,
                         pa.concat_tables(
-                            [p.cast(_widest(p)) for p in parts.values()], promote_options="default"
+                            [p.cast(_widest(p, self.store)) for p in parts.values()],
+                            promote_options="default",
                         ),
                         mode="overwrite",
                         predicate=_run_predicate(info.robot, info.run),
@@ -614,7 +617,7 @@ class TableLake:
         table = self.table()
         existing = self.find(robot, run, table)
         if existing is not None:
-            digest, _ = stream_digest(open_events())
+            digest, _ = stream_digest(open_events(), self.store)
             if existing.digest == digest and existing.date == day:
                 return existing
             if not replace:
@@ -656,13 +659,13 @@ class TableLake:
         digests: dict[str, _TypeDigest] = {}
         rows: dict[str, int] = {}
         try:
-            for chunk in _chunks(events):
+            for chunk in _chunks(events, self.store):
                 for event_type, table in chunk.items():
                     digests.setdefault(event_type, _TypeDigest()).add(table)
                     rows[event_type] = rows.get(event_type, 0) + table.num_rows
                     if event_type not in files:
                         files[event_type] = _StreamFile(self, event_type, info.commit)
-                    files[event_type].add(_widen(event_type, table, event_type, info))
+                    files[event_type].add(_widen(event_type, table, event_type, info, self.store))
             adds = [files[t].close() for t in sorted(files)]
         except BaseException:
             for f in files.values():
@@ -678,23 +681,23 @@ class TableLake:
         con = duckdb.connect(":memory:", config={"threads": 1})
         try:
             envelope = ", ".join(f'"{f.name}"' for f in ENVELOPE_COLUMNS)
-            for event_type in default_registry().types:
+            for event_type in self.store.registry.types:
                 if event_type in files:
                     con.execute(
                         f'CREATE VIEW "{event_type}" AS SELECT robot, date, run, {envelope}, '
                         f'"{event_type}".* FROM {self._file_source(con, files[event_type].rel)}'
                     )
                 else:
-                    empty = event_schema(event_type).empty_table()
+                    empty = event_schema(event_type, self.store).empty_table()
                     con.register(f"_empty_{event_type}", empty)
                     con.execute(
                         f'CREATE VIEW "{event_type}" AS SELECT NULL::VARCHAR AS robot, '
                         f'NULL::DATE AS date, NULL::VARCHAR AS run, * FROM "_empty_{event_type}"'
                     )
-            derived = derive_views(con)
+            derived = derive_views(con, self.store)
         finally:
             con.close()
-        small = _small_parts(derived, info)
+        small = _small_parts(derived, info, self.store)
         try:
             adds += self._write_files({k: [t] for k, t in small.items()}, info.commit)
         except BaseException:
@@ -739,7 +742,7 @@ class TableLake:
             table.create_write_transaction(
                 adds,
                 mode="append",
-                schema=table_schema(),
+                schema=table_schema(self.store),
                 partition_by=["type"],
                 commit_properties=CommitProperties(app_transactions=apps),
             )
@@ -916,23 +919,25 @@ def table_digest(tables: Mapping[str, pa.Table]) -> str:
     return _combine(digests)
 
 
-def _chunks(events: Iterable[Event]) -> Iterator[dict[str, pa.Table]]:
+def _chunks(events: Iterable[Event], store: Store) -> Iterator[dict[str, pa.Table]]:
     """The events as conformed typed tables, :data:`CHUNK_EVENTS` events at a time."""
     batch: list[Event] = []
     for event in events:
         batch.append(event)
         if len(batch) == CHUNK_EVENTS:
-            yield {t: _conform(t, table) for t, table in events_to_tables(batch).items()}
+            tables = events_to_tables(batch, store)
+            yield {t: _conform(t, table, store) for t, table in tables.items()}
             batch = []
     if batch:
-        yield {t: _conform(t, table) for t, table in events_to_tables(batch).items()}
+        tables = events_to_tables(batch, store)
+        yield {t: _conform(t, table, store) for t, table in tables.items()}
 
 
-def stream_digest(events: Iterable[Event]) -> tuple[str, dict[str, int]]:
+def stream_digest(events: Iterable[Event], store: Store) -> tuple[str, dict[str, int]]:
     """The digest :func:`table_digest` gives, and the rows per type, read in chunks."""
     digests: dict[str, _TypeDigest] = {}
     rows: dict[str, int] = {}
-    for chunk in _chunks(events):
+    for chunk in _chunks(events, store):
         for event_type, table in chunk.items():
             digests.setdefault(event_type, _TypeDigest()).add(table)
             rows[event_type] = rows.get(event_type, 0) + table.num_rows
@@ -948,7 +953,7 @@ class _StreamFile:
         self.rel = f"type={kind}/part-{token}.zstd.parquet"
         self.lake = lake
         self.out = lake._open(self.rel)
-        schema = file_schema(kind, envelope=True)
+        schema = file_schema(kind, envelope=True, store=lake.store)
         self.writer = pq.ParquetWriter(
             self.out,
             schema.remove(schema.get_field_index("type")),
@@ -1077,30 +1082,34 @@ def _run_of(row: Mapping[str, Any]) -> TableRun:
     )
 
 
-def _widest(part: pa.Table) -> pa.Schema:
-    return pa.schema([table_schema().field(n) for n in part.column_names])
+def _widest(part: pa.Table, store: Store) -> pa.Schema:
+    return pa.schema([table_schema(store).field(n) for n in part.column_names])
 
 
-def run_rows(tables: Mapping[str, pa.Table], info: TableRun) -> pa.Table:
+def run_rows(tables: Mapping[str, pa.Table], info: TableRun, store: Store) -> pa.Table:
     """A run's rows in the fleet table, as one table (see :func:`run_parts`)."""
-    return pa.concat_tables(run_parts(tables, info).values(), promote_options="default")
+    return pa.concat_tables(run_parts(tables, info, store).values(), promote_options="default")
 
 
-def run_parts(tables: Mapping[str, pa.Table], info: TableRun) -> dict[str, pa.Table]:
+def run_parts(tables: Mapping[str, pa.Table], info: TableRun, store: Store) -> dict[str, pa.Table]:
     """A run's rows in the fleet table by ``type`` partition: its events (by seq), its derived
     tables and its ``_run`` row."""
-    derived = derive_run(tables, robot=info.robot, date=info.date, run=info.run)
-    parts = {t: _widen(t, table.sort_by("seq"), t, info) for t, table in sorted(tables.items())}
-    return parts | _small_parts(derived, info)
+    derived = derive_run(tables, robot=info.robot, date=info.date, run=info.run, store=store)
+    parts = {
+        t: _widen(t, table.sort_by("seq"), t, info, store) for t, table in sorted(tables.items())
+    }
+    return parts | _small_parts(derived, info, store)
 
 
-def _small_parts(derived: Mapping[str, pa.Table], info: TableRun) -> dict[str, pa.Table]:
+def _small_parts(
+    derived: Mapping[str, pa.Table], info: TableRun, store: Store
+) -> dict[str, pa.Table]:
     """A run's derived tables and its ``_run`` row, by ``type`` partition."""
     parts = {}
-    specs = {d.name: d for d in derived_tables()}
+    specs = {d.name: d for d in derived_tables(store)}
     for name, table in derived.items():
         kind = derived_kind(name, specs[name].version)
-        parts[kind] = _widen(kind, table, derived_column(name), info)
+        parts[kind] = _widen(kind, table, derived_column(name), info, store)
     description = {
         "format": TABLE_FORMAT,
         "digest": info.digest,
@@ -1111,7 +1120,7 @@ def _small_parts(derived: Mapping[str, pa.Table], info: TableRun) -> dict[str, p
         "committed_at_ns": time.time_ns(),
     }
     parts[RUN_TYPE] = _widen(
-        RUN_TYPE, pa.table({k: [v] for k, v in description.items()}), RUN_COLUMN, info
+        RUN_TYPE, pa.table({k: [v] for k, v in description.items()}), RUN_COLUMN, info, store
     )
     return parts
 
@@ -1120,12 +1129,12 @@ class _Named(NamedTuple):
     path: str
 
 
-def _widen(kind: str, table: pa.Table, column: str, info: TableRun) -> pa.Table:
+def _widen(kind: str, table: pa.Table, column: str, info: TableRun, store: Store) -> pa.Table:
     """``table`` as rows of the fleet table: the run's columns, its envelope (if it has one)
     and its other columns as the struct ``column``. The other types' columns are left out of
     the file (every Delta reader reads a column a file lacks as null; a file of nulls for
     twenty-odd structs would cost more memory than the rows themselves)."""
-    schema = file_schema(column, envelope=kind in default_registry().types)
+    schema = file_schema(column, envelope=kind in store.registry.types, store=store)
     n = table.num_rows
     envelope = {f.name for f in ENVELOPE_COLUMNS}
     base = {
@@ -1163,13 +1172,13 @@ def _widen(kind: str, table: pa.Table, column: str, info: TableRun) -> pa.Table:
 
 
 @functools.cache
-def file_schema(column: str, *, envelope: bool) -> pa.Schema:
+def file_schema(column: str, *, envelope: bool, store: Store) -> pa.Schema:
     """The columns a data file of one ``type`` holds: the run's, the envelope (event types),
     and its own struct ``column`` — in the table schema's order."""
     names = {f.name for f in BASE_COLUMNS} | {column}
     if envelope:
         names |= {f.name for f in ENVELOPE_COLUMNS}
-    return pa.schema([f for f in table_schema() if f.name in names])
+    return pa.schema([f for f in table_schema(store) if f.name in names])
 
 
 def add_log(
@@ -1189,7 +1198,7 @@ def add_log(
             f"event log {log_dir} is being written (its lock is held{_fs.lock_holder_hint(log_dir / LOCK_FILE)}); "
             "close the writer before compacting it"
         )
-    events = read_log(log_dir)
+    events = read_log(log_dir, store=lake.store)
     first = next(events, None)
     if first is None:
         raise TableLakeError(f"event log {log_dir} is empty; there is nothing to compact")
@@ -1208,7 +1217,7 @@ def add_log(
             )
 
     return lake.commit_stream(
-        lambda: read_log(log_dir),
+        lambda: read_log(log_dir, store=lake.store),
         robot=robot,
         run=run,
         date=date,
@@ -1224,7 +1233,7 @@ def migrate(old_root: Path, lake: TableLake, *, batch: int = 64) -> tuple[int, l
     copied and the damaged ones left behind (each named)."""
     from .lake import Lake
 
-    old = Lake(old_root)
+    old = Lake(old_root, store=lake.store)
     healthy, damaged = old.scan(check_digests=True)
     lake.create()
     known = {(r.robot, r.run) for r in lake.runs()}
@@ -1250,7 +1259,7 @@ def migrate(old_root: Path, lake: TableLake, *, batch: int = 64) -> tuple[int, l
             identity=dict(info.identity),
             attachments=attachments,
         )
-        pending.append((run, run_parts(tables, run)))
+        pending.append((run, run_parts(tables, run, lake.store)))
         if len(pending) >= batch:
             lake.commit_many(pending)
             copied += len(pending)

@@ -51,9 +51,9 @@ from .errors import (
     WrongExpectedSeqError,
 )
 from .record import RecordError, decode_record, encode_record
-from .schemas import SchemaRegistry, default_registry
+from .schemas import SchemaRegistry
 from .seal import Seal, Sealer, check_seals, seals_from_json, seals_to_json
-from .upcast import default_upcaster
+from .store import Store, shipped
 
 LOG_FORMAT: Final = "objsearch.events/2"
 #: Read and appended to as they are: plain CRC-32 per record, ids from the stream name.
@@ -389,7 +389,7 @@ class EventLog:
         at: _Cursor,
         durable: Durable | None,
         torn_tail: TornTail | None,
-        registry: SchemaRegistry,
+        store: Store,
         wall_clock: Callable[[], int],
         ids: dict[str, int] | None,
         sealer: Sealer,
@@ -404,7 +404,8 @@ class EventLog:
         self._at = at
         self._durable = durable
         self._torn_tail = torn_tail
-        self._registry = registry
+        self._store = store
+        self._registry = store.registry
         self._wall_clock = wall_clock
         # event id → byte offset of its record: what makes appends idempotent. None after a fast
         # open (verify="sealed") until the first explicit id asks for it.
@@ -427,7 +428,7 @@ class EventLog:
         *,
         create: bool = True,
         run_id: str | None = None,
-        registry: SchemaRegistry | None = None,
+        store: Store | None = None,
         wall_clock: Callable[[], int] = time.time_ns,
         verify: str = "all",
     ) -> EventLog:
@@ -439,6 +440,8 @@ class EventLog:
         with a :class:`TornTailWarning`, keeping its bytes in a quarantine file beside the log.
         ``run_id`` is the id a log created by this call gets (a random UUID if None; pass one
         derived from a seed for reproducible logs); an existing log keeps its own.
+        ``store`` says which event types and versions exist (:func:`~objsearch.events.store.shipped`
+        if None; the product's is :data:`objsearch.agent.catalogue.STORE`).
         ``wall_clock`` stamps ``recorded_at_ns``; pass a fixed one for byte-identical logs.
         ``verify="sealed"`` (an agent's fast restart) checks every byte before the durable
         high-water mark against its seals (CRC-32 of whole ranges, no parsing) and parses every
@@ -483,7 +486,7 @@ class EventLog:
                     f"event log {log_path} was replaced while it was being opened; try again"
                 )
             return cls._open_locked(
-                directory, stream, fd, lock_fd, run_id, registry, wall_clock, verify
+                directory, stream, fd, lock_fd, run_id, store or shipped(), wall_clock, verify
             )
         except BaseException:
             os.close(fd)
@@ -499,7 +502,7 @@ class EventLog:
         fd: int,
         lock_fd: int,
         run_id: str | None,
-        registry: SchemaRegistry | None,
+        store: Store,
         wall_clock: Callable[[], int],
         verify: str = "all",
     ) -> EventLog:
@@ -516,7 +519,7 @@ class EventLog:
             doc = {"format": meta.format, "stream": meta.stream, "run_id": meta.run_id}
             data = json.dumps(doc, sort_keys=True, ensure_ascii=False).encode() + b"\n"
             _fs.write_atomic(directory / META_FILE, data)
-        registry = registry if registry is not None else default_registry()
+        registry = store.registry
         record = read_durable_record(directory)
         durable = None if record is None else record.position
         log_path = directory / LOG_FILE
@@ -554,7 +557,7 @@ class EventLog:
             at=scan.at,
             durable=durable,
             torn_tail=tail,
-            registry=registry,
+            store=store,
             wall_clock=wall_clock,
             ids=ids,
             sealer=sealer,
@@ -567,6 +570,11 @@ class EventLog:
         """Where the log ends now (after the last appended record)."""
         at = self._at
         return LogPosition(at.seq, at.offset, at.checksum, at.line, at.time_ns)
+
+    @property
+    def store(self) -> Store:
+        """The store this log was opened with (its event types, versions and upcasters)."""
+        return self._store
 
     @property
     def directory(self) -> Path:
@@ -942,6 +950,7 @@ def read_log(
     from_seq: int = 1,
     to_seq: int | None = None,
     upcast: bool = True,
+    store: Store | None = None,
 ) -> Iterator[Event]:
     """Yield the events of a log with ``from_seq <= seq <= to_seq``, in order. Never writes.
 
@@ -951,14 +960,17 @@ def read_log(
     schemas: those were checked at append. An unterminated last fragment is skipped with a
     :class:`TornTailWarning`, silently while a writer holds the lock (an append in progress).
     Events of an old schema version are upcast to their type's latest (``upcast=False`` gives
-    them exactly as stored). Raises :class:`LogNotFoundError` at call time if there is no log.
+    them exactly as stored). ``store`` knows the types, versions and upcasters
+    (:func:`~objsearch.events.store.shipped` if None). Raises :class:`LogNotFoundError` at call
+    time if there is no log.
     """
     directory = Path(directory)
+    store = store or shipped()
     _check_seq_range(from_seq, to_seq)
     meta = read_meta(directory)
     durable = read_durable(directory)
-    events = _read(directory, meta, durable, from_seq, to_seq)
-    return _upcast_all(events) if upcast else events
+    events = _read(directory, meta, durable, from_seq, to_seq, store.registry)
+    return _upcast_all(events, store) if upcast else events
 
 
 def follow_log(
@@ -968,6 +980,7 @@ def follow_log(
     poll_interval: float = 0.05,
     idle_timeout: float | None = None,
     upcast: bool = True,
+    store: Store | None = None,
 ) -> Iterator[Event]:
     """Yield a log's events from ``from_seq`` on, waiting for new ones as a writer appends them.
 
@@ -977,18 +990,25 @@ def follow_log(
     ``idle_timeout`` seconds without a new event (never, if None).
     """
     directory = Path(directory)
+    store = store or shipped()
     _check_seq_range(from_seq, None)
     if poll_interval <= 0:
         raise ValueError(f"poll_interval must be > 0, got {poll_interval!r}")
     meta = read_meta(directory)
-    events = _follow(directory / LOG_FILE, meta, from_seq, poll_interval, idle_timeout)
-    return _upcast_all(events) if upcast else events
+    events = _follow(
+        directory / LOG_FILE, meta, from_seq, poll_interval, idle_timeout, store.registry
+    )
+    return _upcast_all(events, store) if upcast else events
 
 
 def _follow(
-    path: Path, meta: LogMeta, from_seq: int, poll_interval: float, idle_timeout: float | None
+    path: Path,
+    meta: LogMeta,
+    from_seq: int,
+    poll_interval: float,
+    idle_timeout: float | None,
+    registry: SchemaRegistry,
 ) -> Iterator[Event]:
-    registry = default_registry()
     position = _Cursor(checksum=meta.genesis)
     idle_since = time.monotonic()
     while True:
@@ -1003,8 +1023,8 @@ def _follow(
         time.sleep(poll_interval)
 
 
-def _upcast_all(events: Iterator[Event]) -> Iterator[Event]:
-    upcast = default_upcaster().upcast
+def _upcast_all(events: Iterator[Event], store: Store) -> Iterator[Event]:
+    upcast = store.upcaster.upcast
     for event in events:
         yield upcast(event)
 
@@ -1022,12 +1042,11 @@ def _read(
     durable: Durable | None,
     from_seq: int,
     to_seq: int | None,
+    registry: SchemaRegistry,
 ) -> Iterator[Event]:
     if to_seq is not None and to_seq < from_seq:
         return
-    scan = _Scan(
-        directory / LOG_FILE, meta, registry=default_registry(), durable=durable, stop_after=to_seq
-    )
+    scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable, stop_after=to_seq)
     for event in scan:
         if event.seq >= from_seq:
             yield event
@@ -1277,20 +1296,25 @@ def check_position(directory: Path, meta: LogMeta, at: LogPosition) -> None:
 
 
 def read_log_after(
-    directory: Path | str, position: LogPosition, *, upcast: bool = True
+    directory: Path | str,
+    position: LogPosition,
+    *,
+    upcast: bool = True,
+    store: Store | None = None,
 ) -> Iterator[Event]:
     """The events after ``position`` (checked to be where it says), verified like
     :func:`read_log` from there on; the prefix is not read (a restart from a snapshot)."""
     directory = Path(directory)
+    store = store or shipped()
     meta = read_meta(directory)
     check_position(directory, meta, position)
     durable = read_durable(directory)
     scan = _Scan(
         directory / LOG_FILE,
         meta,
-        registry=default_registry(),
+        registry=store.registry,
         durable=durable if durable is not None and durable.seq > position.seq else None,
         start=position,
     )
     events: Iterator[Event] = iter(scan)
-    return _upcast_all(events) if upcast else events
+    return _upcast_all(events, store) if upcast else events

@@ -40,8 +40,9 @@ from .log import (
     write_durable,
 )
 from .record import encode_record
-from .schemas import default_registry
+from .schemas import SchemaRegistry
 from .seal import Sealer, check_seals
+from .store import Store, shipped
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,14 +88,14 @@ class Repair:
     actions: tuple[RepairAction, ...] = ()
 
 
-def verify_log(directory: Path | str) -> Verification:
+def verify_log(directory: Path | str, *, store: Store | None = None) -> Verification:
     """Read every record and check it, and the seals of ``durable.json``; raise
     :class:`CorruptLogError` at the first problem."""
     directory = Path(directory)
     meta = read_meta(directory)
     record = read_durable_record(directory)
     durable = None if record is None else record.position
-    registry = default_registry()
+    registry = (store or shipped()).registry
     scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable)
     events = sum(1 for _ in scan)
     if record is not None and record.seals:
@@ -111,7 +112,12 @@ def verify_log(directory: Path | str) -> Verification:
     )
 
 
-def repair_log(directory: Path | str, *, wall_clock: Callable[[], int] = time.time_ns) -> Repair:
+def repair_log(
+    directory: Path | str,
+    *,
+    wall_clock: Callable[[], int] = time.time_ns,
+    store: Store | None = None,
+) -> Repair:
     """Make ``directory`` a clean log again, removing only what is damaged and keeping every
     byte it takes out.
 
@@ -139,14 +145,16 @@ def repair_log(directory: Path | str, *, wall_clock: Callable[[], int] = time.ti
                 f"event log {directory} is open for writing; stop its writer first"
             )
         try:
-            return _repair_locked(directory, meta, wall_clock)
+            return _repair_locked(directory, meta, wall_clock, (store or shipped()).registry)
         finally:
             os.close(lock_fd)
     finally:
         os.close(fd)
 
 
-def _repair_locked(directory: Path, meta: LogMeta, wall_clock: Callable[[], int]) -> Repair:
+def _repair_locked(
+    directory: Path, meta: LogMeta, wall_clock: Callable[[], int], registry: SchemaRegistry
+) -> Repair:
     path = directory / LOG_FILE
     data = path.read_bytes()
     damaged_mark: str | None = None
@@ -155,7 +163,7 @@ def _repair_locked(directory: Path, meta: LogMeta, wall_clock: Callable[[], int]
     except CorruptLogError as exc:
         damaged_mark, record = str(exc), None
     durable = None if record is None else record.position
-    problem, events, last_seq = _first_problem(directory, meta, record)
+    problem, events, last_seq = _first_problem(directory, meta, record, registry)
     problem = problem or damaged_mark
     if problem is None:
         return Repair(directory, False, events, last_seq, 0, 0, None, None, None)
@@ -163,13 +171,13 @@ def _repair_locked(directory: Path, meta: LogMeta, wall_clock: Callable[[], int]
         quarantine(directory, "durable-damaged", (directory / DURABLE_FILE).read_bytes())
     if _is_crlf(data):
         converted = data.replace(b"\r\n", b"\n")
-        plan = _plan(converted, meta, durable, wall_clock, directory)
+        plan = _plan(converted, meta, durable, wall_clock, directory, registry)
         if not plan.actions and plan.end == len(converted):
             original = quarantine(directory, "crlf", data)
             _fs.write_atomic(path, converted)
             _write_mark(directory, meta, plan)
             return Repair(directory, True, plan.events, plan.at.seq, 0, 0, problem, original, None)
-    plan = _plan(data, meta, durable, wall_clock, directory)
+    plan = _plan(data, meta, durable, wall_clock, directory, registry)
     _refuse_what_repair_cannot_judge(directory, meta, data, plan, record)
     kept: Path | None = None
     if plan.removed:
@@ -234,18 +242,18 @@ def _refuse_what_repair_cannot_judge(
 
 
 def _first_problem(
-    directory: Path, meta: LogMeta, record: DurableRecord | None
+    directory: Path, meta: LogMeta, record: DurableRecord | None, registry: SchemaRegistry
 ) -> tuple[str | None, int, int]:
     """(the first problem, or None; the events before it, markers not counted; their last
     seq)."""
     durable = None if record is None else record.position
-    scan = _Scan(directory / LOG_FILE, meta, registry=default_registry(), durable=durable)
+    scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable)
     events = 0
     try:
         for event in scan:
             events += event.type != QUARANTINED_TYPE
         if record is not None and record.seals:
-            _check_sealed(directory, meta, default_registry(), record)
+            _check_sealed(directory, meta, registry, record)
     except CorruptLogError as exc:
         return str(exc), events, scan.last_seq
     if scan.torn_tail is not None:
@@ -335,8 +343,8 @@ def _plan(
     durable: LogPosition | None,
     wall_clock: Callable[[], int],
     directory: Path,
+    registry: SchemaRegistry,
 ) -> _Plan:
-    registry = default_registry()
     plan = _Plan(meta, wall_clock, mark_seq=0 if durable is None else durable.seq)
     plan.at.checksum = meta.genesis
     lines = data.split(b"\n")

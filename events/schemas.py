@@ -9,24 +9,21 @@ own ``$defs``) so that editing one schema can never change the meaning of anothe
 from __future__ import annotations
 
 import copy
-import functools
 import json
 import re
 from collections.abc import Iterable, Mapping
-from importlib import resources
 from importlib.resources.abc import Traversable
 from pathlib import Path
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
-from jsonschema import Draft202012Validator
-from jsonschema.exceptions import SchemaError, ValidationError, best_match
-
-from .catalogue import PayloadCheck, installed
+from .catalogue import PayloadCheck
 from .envelope import Event
 from .errors import EventStoreError, InvalidEventError
 
+if TYPE_CHECKING:
+    from jsonschema import Draft202012Validator
+
 _FILE_NAME: Final = re.compile(r"(?P<type>[a-z][a-z0-9_]*)\.v(?P<version>[1-9][0-9]*)\.json")
-_PACKAGE: Final = __name__.rpartition(".")[0]
 
 
 def schema_id(event_type: str, version: int) -> str:
@@ -43,6 +40,11 @@ class SchemaRegistry:
         *,
         accepts: PayloadCheck | None = None,
     ) -> None:
+        # Here, not at the top: importing the store must not cost jsonschema's import (a tenth
+        # of a CPU-second) to a process that never builds a registry (``objsearch --help``).
+        from jsonschema import Draft202012Validator
+        from jsonschema.exceptions import SchemaError
+
         self._accepts = accepts
         self._schemas: dict[tuple[str, int], dict[str, Any]] = {}
         self._validators: dict[tuple[str, int], Draft202012Validator] = {}
@@ -91,11 +93,6 @@ class SchemaRegistry:
             schemas[match["type"], int(match["version"])] = schema
         return cls(schemas, accepts=accepts)
 
-    @classmethod
-    def from_package(cls) -> SchemaRegistry:
-        """The schemas shipped in ``objsearch.events/schema/``."""
-        return cls.from_directory(resources.files(_PACKAGE).joinpath("schema"))
-
     @property
     def types(self) -> tuple[str, ...]:
         return tuple(sorted(self._latest))
@@ -128,8 +125,10 @@ class SchemaRegistry:
         # the last word on the rest and words the error.
         if self._accepts is not None and self._accepts(event_type, version, instance):
             return
+        from jsonschema.exceptions import best_match
+
         validator = self._validators[key]
-        errors: list[ValidationError] = list(validator.iter_errors(instance))
+        errors = list(validator.iter_errors(instance))
         if not errors:
             return
         error = best_match(errors)
@@ -169,13 +168,6 @@ class SchemaRegistry:
                 reason="unknown version",
             )
         return key
-
-
-@functools.cache
-def default_registry() -> SchemaRegistry:
-    """The installed catalogue's schemas (and fast check), loaded once per process."""
-    catalogue = installed()
-    return SchemaRegistry.from_directory(catalogue.schemas, accepts=catalogue.accepts)
 
 
 def _json_path(root: str, parts: Iterable[str | int]) -> str:

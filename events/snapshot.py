@@ -41,6 +41,7 @@ from .log import (
 )
 from .projection import fold
 from .record import encode_record
+from .store import Store, shipped
 
 SNAPSHOT_FORMAT: Final = "objsearch.snapshot/1"
 _log = logging.getLogger(__name__)
@@ -82,7 +83,11 @@ def snapshot_path(directory: Path, name: str) -> Path:
 
 
 def save_snapshot(
-    directory: Path | str, projection: Snapshottable, *, log: EventLog | Path | str
+    directory: Path | str,
+    projection: Snapshottable,
+    *,
+    log: EventLog | Path | str,
+    store: Store | None = None,
 ) -> Path:
     """Write ``projection``'s snapshot (at its ``last_seq``, > 0) of ``log`` and have the log's
     writer attest it.
@@ -91,12 +96,15 @@ def save_snapshot(
     closes), or the folder of a log no one is writing (a writer is opened for the attestation;
     :class:`LogLockedError` if another holds it). When the projection is at the writer's end,
     the snapshot records that position, whose chain checksum covers every record before it, and
-    a restore resumes reading at that byte instead of from the start.
+    a restore resumes reading at that byte instead of from the start. ``store`` (for a folder;
+    an open writer has its own) knows the log's event types.
     """
     if isinstance(log, EventLog):
         return _save(Path(directory), projection, log)
     # Sealed: the caller usually just folded this log, so its records need no second parse.
-    with EventLog.open(log, read_meta(Path(log)).stream, create=False, verify="sealed") as writer:
+    with EventLog.open(
+        log, read_meta(Path(log)).stream, create=False, verify="sealed", store=store
+    ) as writer:
         return _save(Path(directory), projection, writer)
 
 
@@ -108,7 +116,10 @@ def _save(directory: Path, projection: Snapshottable, writer: EventLog) -> Path:
     position = writer.position if seq == writer.last_seq else None
     at = None
     if position is None:
-        at = next(iter(read_log(log_dir, from_seq=seq, to_seq=seq, upcast=False)), None)
+        at = next(
+            iter(read_log(log_dir, from_seq=seq, to_seq=seq, upcast=False, store=writer.store)),
+            None,
+        )
         if at is None:
             raise ValueError(f"projection is at seq {seq}, beyond the end of {log_dir}")
     body = {
@@ -139,9 +150,12 @@ def restore(
     *,
     snapshot_dir: Path | str,
     save: bool = True,
+    store: Store | None = None,
 ) -> tuple[P, Restored]:
     """The projection of the whole log: from a trusted snapshot plus the events after it, else
-    rebuilt by a full fold. With ``save``, a fresh snapshot is written at the end."""
+    rebuilt by a full fold (the log read with ``store``). With ``save``, a fresh snapshot is
+    written at the end."""
+    store = store or shipped()
     fresh = factory()
     path = snapshot_path(Path(snapshot_dir), fresh.snapshot_name)
     rejected = None
@@ -150,7 +164,7 @@ def restore(
     position = None
     if path.exists():
         try:
-            state, seq, position = _load(path, fresh, log_dir)
+            state, seq, position = _load(path, fresh, log_dir, store)
             try:
                 projection = from_snapshot(state, seq)
             except Exception as exc:  # any shape the state may have: rebuilt, never a traceback
@@ -164,13 +178,13 @@ def restore(
             _log.warning("snapshot %s not used, rebuilding from the log: %s", path, rejected)
     before = projection.last_seq
     if position is not None:
-        fold(read_log_after(log_dir, position), projection)
+        fold(read_log_after(log_dir, position, store=store), projection)
     else:
-        fold(read_log(log_dir, from_seq=start + 1), projection)
+        fold(read_log(log_dir, from_seq=start + 1, store=store), projection)
     changed = projection.last_seq != start or rejected is not None or not path.exists()
     if save and changed and projection.last_seq:
         try:
-            save_snapshot(snapshot_dir, projection, log=log_dir)
+            save_snapshot(snapshot_dir, projection, log=log_dir, store=store)
         except LogLockedError:
             _log.info("snapshot %s not saved: the log's writer is running", path)
     return projection, Restored(start, projection.last_seq - before, rejected)
@@ -181,7 +195,7 @@ class _Untrusted(Exception):
 
 
 def _load(
-    path: Path, fresh: Snapshottable, log_dir: Path | str
+    path: Path, fresh: Snapshottable, log_dir: Path | str, store: Store
 ) -> tuple[dict[str, Any], int, LogPosition | None]:
     whole = path.read_bytes()
     raw = whole.rstrip(b"\n")
@@ -227,7 +241,9 @@ def _load(
             ) from None
         return doc["state"], seq, position
     if seq:
-        at = next(iter(read_log(log_dir, from_seq=seq, to_seq=seq, upcast=False)), None)
+        at = next(
+            iter(read_log(log_dir, from_seq=seq, to_seq=seq, upcast=False, store=store)), None
+        )
         if at is None or _fingerprint(at) != doc.get("event"):
             raise _Untrusted(f"the log's event at seq {seq} is not the one the snapshot saw")
     return doc["state"], seq, None

@@ -26,7 +26,6 @@ from .arrow import ENVELOPE_COLUMNS, event_schema
 from .errors import EventStoreError
 from .lake import Lake, RunInfo
 from .lake_table import DataFile, TableLake
-from .schemas import default_registry
 
 PARTITION_COLUMNS: Final = (("robot", "VARCHAR"), ("date", "DATE"), ("run", "VARCHAR"))
 HIVE_TYPES: Final = "{" + ", ".join(f"'{n}': '{t}'" for n, t in PARTITION_COLUMNS) + "}"
@@ -82,7 +81,7 @@ def create_type_views(
     present = set(lake.event_types()) if runs is None else {t for r in runs for t in r.rows}
     envelope = ", ".join(quote_ident(f.name) for f in ENVELOPE_COLUMNS)
     parts = []
-    for event_type in default_registry().types:
+    for event_type in lake.store.registry.types:
         view = quote_ident(event_type)
         source = (
             parquet_source(lake, f"{event_type}.parquet", runs, union_by_name=True)
@@ -92,7 +91,7 @@ def create_type_views(
         if source is not None:
             con.execute(f"CREATE OR REPLACE VIEW {view} AS SELECT *, {_TIME} FROM {source}")
         else:
-            empty = pa.Table.from_pylist([], schema=event_schema(event_type))
+            empty = pa.Table.from_pylist([], schema=event_schema(event_type, lake.store))
             name = f"_empty_{event_type}"
             con.register(name, empty)
             partitions = ", ".join(f"NULL::{t} AS {n}" for n, t in PARTITION_COLUMNS)
@@ -159,7 +158,7 @@ def create_fleet_views(
         by_kind.setdefault(f.kind, []).append(f.path)
     envelope = ", ".join(quote_ident(f.name) for f in ENVELOPE_COLUMNS)
     parts = []
-    for event_type in default_registry().types:
+    for event_type in lake.store.registry.types:
         view = quote_ident(event_type)
         source = fleet_source(con, lake, event_type, by_kind.get(event_type, []))
         if source is not None:
@@ -168,7 +167,7 @@ def create_fleet_views(
                 f"{view}.*, {_TIME} FROM {source}"
             )
         else:
-            empty = pa.Table.from_pylist([], schema=event_schema(event_type))
+            empty = pa.Table.from_pylist([], schema=event_schema(event_type, lake.store))
             name = f"_empty_{event_type}"
             con.register(name, empty)
             partitions = ", ".join(f"NULL::{t} AS {n}" for n, t in PARTITION_COLUMNS)
@@ -180,7 +179,7 @@ def create_fleet_views(
             f"SELECT robot, date, run, {envelope}, time, {quote_literal(event_type)} AS type "
             f"FROM {view}"
         )
-    types = set(default_registry().types)
+    types = set(lake.store.registry.types)
     every = [f"{lake.uri}/{p}" for kind, paths in by_kind.items() if kind in types for p in paths]
     if lake.remote or not every:
         con.execute("CREATE OR REPLACE VIEW events AS " + "\nUNION ALL ".join(parts))

@@ -2,7 +2,7 @@
 
 A released schema version is frozen, and so are the events written with it. When a type's payload
 changes, its new schema gets the next version number and the domain's catalogue registers one
-*step* (:mod:`objsearch.events.catalogue`): a pure function from a version-N payload to a
+*step* (:class:`objsearch.events.catalogue.Catalogue`): a pure function from a version-N payload to a
 version-N+1 payload. Reading chains the steps, so a v1
 event reaches v3 through v1→v2→v3, and projections and the analytics lake only ever see the
 latest version of each type (the pattern of the ``eventsourcing`` library's upcasting).
@@ -13,31 +13,33 @@ output validates against the next schema.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Mapping
 from typing import Any
 
-from .catalogue import UpcastStep, installed
+from .catalogue import UpcastStep
 from .envelope import Event
 from .errors import EventStoreError
-from .schemas import SchemaRegistry, default_registry
+from .schemas import SchemaRegistry
 
 
 class Upcaster:
     """Brings events to their type's latest schema version by chaining registered steps."""
 
     def __init__(
-        self, registry: SchemaRegistry, steps: Mapping[tuple[str, int], UpcastStep]
+        self,
+        registry: SchemaRegistry,
+        steps: Mapping[tuple[str, int], UpcastStep],
+        *,
+        partial: bool = False,
     ) -> None:
+        """Every version below its type's latest needs a step, unless ``partial``: then a missing
+        step is an error when an event of that version is read (a store of schemas alone)."""
         self._latest = {t: registry.latest_version(t) for t in registry.types}
         self._steps = dict(steps)
         for event_type, latest in self._latest.items():
             for version in registry.versions(event_type):
-                if version < latest and (event_type, version) not in self._steps:
-                    raise EventStoreError(
-                        f"no upcaster for {event_type} v{version} → v{version + 1}; "
-                        f"every version below the latest (v{latest}) needs one"
-                    )
+                if not partial and version < latest and (event_type, version) not in self._steps:
+                    raise EventStoreError(_missing(event_type, version, latest))
 
     def latest_version(self, event_type: str) -> int | None:
         return self._latest.get(event_type)
@@ -51,7 +53,14 @@ class Upcaster:
             return version, payload
         current = _plain(payload)
         while version < latest:
-            current = self._steps[event_type, version](current)
+            step = self._steps.get((event_type, version))
+            if step is None:
+                raise EventStoreError(
+                    f"{_missing(event_type, version, latest)}: this store was built without the "
+                    "domain's upcasters (read with the product's store, "
+                    "objsearch.agent.catalogue.STORE)"
+                )
+            current = step(current)
             version += 1
         return version, current
 
@@ -83,7 +92,8 @@ def _plain(value: Any) -> Any:
     return value
 
 
-@functools.cache
-def default_upcaster() -> Upcaster:
-    """The installed catalogue's steps over its schemas, built once per process."""
-    return Upcaster(default_registry(), installed().upcasters)
+def _missing(event_type: str, version: int, latest: int) -> str:
+    return (
+        f"no upcaster for {event_type} v{version} → v{version + 1}; "
+        f"every version below the latest (v{latest}) needs one"
+    )

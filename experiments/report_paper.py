@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.catalogue import STORE
 from objsearch.experiments.paper import render as render_paper
 from objsearch.experiments.plots import pyplot, save_figure
 from objsearch.experiments.route_map import plot_route_map
@@ -102,11 +103,11 @@ def plot_graph_before_after(log: Path, path: Path) -> None:
 
     # The run's own fold (Eq. 4, from its spec), the prior alone, and — on purpose, a
     # counterfactual — the same log folded by the Beta model.
-    state = fold(read_log(log), AgentState())
+    state = fold(read_log(log, store=STORE), AgentState())
     eq4 = state.graph()
     before = SceneGraphProjection()
     beta = BetaRelations(prior_strength=PRIOR_STRENGTH, half_life_tasks=HALF_LIFE_TASKS)
-    for e in read_log(log):
+    for e in read_log(log, store=STORE):
         if e.type in ("run_started", "scene_graph_seeded"):
             before.apply(e)
         beta.apply(e)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
@@ -103,7 +104,9 @@ def run_job(job: Job) -> list[Row]:
             skip_absent_targets=True,
             keep_routes=job.keep_routes,
         )
-        parts = decompose(read_log(Path(job.log_dir) if job.log_dir else Path(tmp)), ctx.navmap)
+        parts = decompose(
+            read_log(Path(job.log_dir) if job.log_dir else Path(tmp), store=STORE), ctx.navmap
+        )
     return [_row(job, t, parts.get(t.task_id)) for t in trials]
 
 

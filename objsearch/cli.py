@@ -112,6 +112,7 @@ def _paper_schedule_only(home: str, what: str, how: str) -> str:
 
 def cmd_search(args: argparse.Namespace) -> int:
     from objsearch.agent.session import Session, load_context
+    from objsearch.product import relation_models
     from objsearch.sim.longterm import with_camera
     from objsearch.sim.placements import base_placements, table1_removals
     from objsearch.sim.schedule_names import load_schedule
@@ -144,7 +145,9 @@ def cmd_search(args: argparse.Namespace) -> int:
             run_spec(args, ctx.home, schedule=None if args.scene is None else args.schedule)
         )
         inputs = {"target": target, "start": args.start, "scene": args.scene}
-        session = Session.start(ctx, log_dir, spec, inputs=inputs)
+        session = Session.start(
+            ctx, log_dir, spec, inputs=inputs, models=relation_models(simulator=True)
+        )
         try:
             world = SimWorld(
                 ctx.home,
@@ -265,9 +268,10 @@ def demo_summary(out: Path) -> dict[str, Any]:
 
 
 def cmd_graph(args: argparse.Namespace) -> int:
+    from objsearch.product import relation_models
     from objsearch.replay.asof import scene_graph_at
 
-    graph = scene_graph_at(Path(args.log), args.at)
+    graph = scene_graph_at(Path(args.log), args.at, models=relation_models(simulator=True))
     table = graph.as_table()
     if args.json:
         print(
@@ -308,7 +312,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="objsearch",
         description="Long-term object search with an incrementally updated scene graph.",
     )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--version", action=_VersionAction)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     data = sub.add_parser("data", help="derive the project's data from public sources")
@@ -362,7 +366,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--target", required=True, type=t.text, help="object to find, e.g. Apple, phone, cup"
     )
     search.add_argument("--start", required=True, type=t.text, help="start point, e.g. kitchen-1")
-    _search_options(search)
+    search.add_argument("--home", default="paper", type=t.text, help="home in data/homes (paper)")
+    search.defer(_search_options)
     search.add_argument(
         "--scene",
         type=t.SCENE,
@@ -400,11 +405,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument("--no-progress", action="store_true", help="no progress bar")
     demo.add_argument("--no-baseline", action="store_true", help="skip the no-update baseline run")
-    demo.add_argument(
-        "--strategy",
-        default="wpl",
-        choices=_strategy_names(),
-        help="search strategy (wpl, the paper's method)",
+    demo.defer(
+        lambda p: p.add_argument(
+            "--strategy",
+            default="wpl",
+            choices=_strategy_names(),
+            help="search strategy (wpl, the paper's method)",
+        )
     )
     t.camera_option(demo)
     demo.add_argument(
@@ -431,6 +438,26 @@ def _strategy_names() -> list[str]:
     return list(STRATEGIES)
 
 
+class _VersionAction(argparse.Action):
+    """``--version``: like argparse's, but the version is looked up only when asked for (the
+    package metadata costs an import most commands never need)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS) -> None:
+        super().__init__(
+            option_strings, dest, default=argparse.SUPPRESS, nargs=0, help="show the version"
+        )
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: object,
+        option_string: str | None = None,
+    ) -> None:
+        print(f"{parser.prog} {_version()}")
+        parser.exit()
+
+
 def _version() -> str:
     """The installed distribution's version (the package's own if it is not installed)."""
     from importlib.metadata import PackageNotFoundError, version
@@ -444,7 +471,7 @@ def _version() -> str:
 
 
 def _search_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--home", default="paper", type=t.text, help="home in data/homes (paper)")
+    """Added when the command is first used: the strategies import the agent."""
     from objsearch.agent.strategies import DEFAULT_STRATEGY, STRATEGIES
 
     p.add_argument(

@@ -67,7 +67,10 @@ def prepare(scratch: Path) -> Path:
 def leaf_parsers(
     parser: argparse.ArgumentParser, path: tuple[str, ...] = ()
 ) -> Iterator[tuple[tuple[str, ...], argparse.ArgumentParser]]:
-    """Every runnable subcommand (a parser without subcommands of its own) and its words."""
+    """Every runnable subcommand (a parser without subcommands of its own) and its words, each
+    with its deferred arguments added."""
+    if isinstance(parser, cli_types.Parser):
+        parser.build_deferred()
     subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
     if not subs:
         yield path, parser

@@ -242,7 +242,7 @@ def register(sub: Any) -> None:
         help=f"comma-separated subset of Table II's scenes (1-{t.MAX_SCENE})",
     )
     paper.add_argument("--keep-logs", action="store_true", help="keep long-term event logs")
-    _prior_option(paper)
+    paper.defer(_prior_option)
     paper.set_defaults(func=cmd_bench_paper)
 
     homes = bsub.add_parser("homes", help="every strategy on the held-out homes")
@@ -310,7 +310,7 @@ def register(sub: Any) -> None:
         default=0,
         help=f"processes, at most {t.MAX_WORKERS} (0, the default: min(2, cores))",
     )
-    _prior_option(table1)
+    table1.defer(_prior_option)
     table1.add_argument("--no-progress", action="store_true", help="no progress output")
     t.camera_option(table1)
     table1.set_defaults(func=cmd_bench_table1)

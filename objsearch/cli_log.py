@@ -49,8 +49,9 @@ def _as_json(record: Any) -> str:
 
 def cmd_log_verify(args: argparse.Namespace) -> int:
     from objsearch.events.repair import verify_log
+    from objsearch.product import STORE
 
-    result = verify_log(Path(args.log))
+    result = verify_log(Path(args.log), store=STORE)
     if args.json:
         print(_as_json(result))
         return 0
@@ -73,8 +74,9 @@ def cmd_log_verify(args: argparse.Namespace) -> int:
 
 def cmd_log_repair(args: argparse.Namespace) -> int:
     from objsearch.events.repair import repair_log
+    from objsearch.product import STORE
 
-    result = repair_log(Path(args.log))
+    result = repair_log(Path(args.log), store=STORE)
     if args.json:
         print(_as_json(result))
         return 0

@@ -237,6 +237,7 @@ def cmd_lake_add(args: argparse.Namespace) -> int:
 
 def _lake_add(args: argparse.Namespace) -> int:
     from objsearch.events.lake import Lake, compact_log
+    from objsearch.product import STORE
 
     if not (args.wait >= 0 and math.isfinite(args.wait)):
         return _fail(f"--wait must be seconds ≥ 0, not {args.wait}")
@@ -247,7 +248,7 @@ def _lake_add(args: argparse.Namespace) -> int:
     try:
         info = compact_log(
             Path(args.log),
-            Lake(args.lake, lock_wait_s=args.wait),
+            Lake(args.lake, lock_wait_s=args.wait, store=STORE),
             robot=args.robot,
             run=args.run,
             date=args.date,
@@ -274,10 +275,11 @@ def _lake_add(args: argparse.Namespace) -> int:
 
 def _lake_add_fleet(args: argparse.Namespace) -> int:
     from objsearch.events.lake_table import TableLake, add_log
+    from objsearch.product import STORE
 
     info = add_log(
         Path(args.log),
-        TableLake(args.lake),
+        TableLake(args.lake, store=STORE),
         robot=args.robot,
         run=args.run,
         date=args.date,
@@ -306,13 +308,14 @@ def _lake_add_fleet(args: argparse.Namespace) -> int:
 
 def cmd_lake_compact(args: argparse.Namespace) -> int:
     from objsearch.events.lake_table import TableLake
+    from objsearch.product import STORE
 
     if not _is_fleet(args.lake):
         return _fail(
             f"{args.lake} is not a fleet lake (a Delta table); `objsearch lake upgrade --to "
             "fleet` migrates a per-run-folder lake"
         )
-    done = TableLake(args.lake).compact(vacuum_hours=args.keep_hours)
+    done = TableLake(args.lake, store=STORE).compact(vacuum_hours=args.keep_hours)
     print(
         f"{args.lake}: {done['files_before']} data file(s) → {done['files_after']}; "
         f"{done['vacuumed']} unreferenced file(s) deleted"
@@ -322,13 +325,14 @@ def cmd_lake_compact(args: argparse.Namespace) -> int:
 
 def cmd_lake_upgrade(args: argparse.Namespace) -> int:
     from objsearch.events.lake import Lake
+    from objsearch.product import STORE
 
     if args.to == "fleet":
         return _upgrade_to_fleet(args)
     lake = Path(args.lake)
     if not lake.is_dir():
         return _fail(f"no lake at {lake}")
-    upgraded = Lake(lake).upgrade()
+    upgraded = Lake(lake, store=STORE).upgrade()
     for info in upgraded:
         print(f"{info.path}: upgraded (derived tables and file digests)")
     print(
@@ -343,6 +347,7 @@ def _upgrade_to_fleet(args: argparse.Namespace) -> int:
     import shutil
 
     from objsearch.events.lake_table import TableLake, migrate
+    from objsearch.product import STORE
 
     source = Path(args.lake)
     target = args.into or args.lake
@@ -353,10 +358,10 @@ def _upgrade_to_fleet(args: argparse.Namespace) -> int:
     if not source.is_dir():
         if args.into is not None:
             return _fail(f"no lake at {source}")
-        TableLake(target).create()  # a new, empty fleet lake
+        TableLake(target, store=STORE).create()  # a new, empty fleet lake
         print(f"{target}: created an empty fleet lake")
         return 0
-    fleet = TableLake(target)
+    fleet = TableLake(target, store=STORE)
     copied, damaged = migrate(source, fleet)
     for line in damaged:
         print(f"objsearch: warning: damaged run not copied: {line}", file=sys.stderr)
@@ -378,6 +383,7 @@ def cmd_lake_verify(args: argparse.Namespace) -> int:
     import time
 
     from objsearch.events.lake import Lake
+    from objsearch.product import STORE
 
     if args.lake_dir is not None and args.lake is not None and args.lake_dir != args.lake:
         return _fail(f"two lakes given ({args.lake_dir} and --lake {args.lake}); give one")
@@ -388,7 +394,7 @@ def cmd_lake_verify(args: argparse.Namespace) -> int:
     if not lake.is_dir():
         return _fail(f"no lake at {lake}")
     started = time.perf_counter()
-    check = Lake(lake).verify()
+    check = Lake(lake, store=STORE).verify()
     seconds = time.perf_counter() - started
     if args.json:
         doc = {
@@ -431,9 +437,10 @@ def _verify_fleet(where: str, as_json: bool) -> int:
     import time
 
     from objsearch.events.lake_table import TableLake
+    from objsearch.product import STORE
 
     started = time.perf_counter()
-    check = TableLake(where).verify()
+    check = TableLake(where, store=STORE).verify()
     seconds = time.perf_counter() - started
     if as_json:
         doc = {
@@ -462,11 +469,12 @@ def _verify_fleet(where: str, as_json: bool) -> int:
 
 def cmd_lake_ls(args: argparse.Namespace) -> int:
     from objsearch.events.lake import Lake
+    from objsearch.product import STORE
 
     if _remote(args.lake) or _is_fleet(args.lake):
         from objsearch.events.lake_table import TableLake
 
-        fleet = TableLake(args.lake)
+        fleet = TableLake(args.lake, store=STORE)
         rows = [(r.robot, r.date, r.run, r.events, r.source) for r in fleet.runs()]
         write_rows(["robot", "date", "run", "events", "source"], rows, args.format, sys.stdout)
         return 0
@@ -474,7 +482,7 @@ def cmd_lake_ls(args: argparse.Namespace) -> int:
         return _fail(
             f"no lake at {args.lake} (add runs with `objsearch lake add LOG --lake {args.lake}`)"
         )
-    runs, damaged = Lake(args.lake).scan()
+    runs, damaged = Lake(args.lake, store=STORE).scan()
     for run in damaged:
         print(f"objsearch: warning: {run.path}: damaged run: {run.reason}", file=sys.stderr)
     rows = [(r.robot, r.date, r.run, r.events, r.source) for r in runs]

@@ -92,6 +92,7 @@ def register(sub: Any) -> None:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
+    from objsearch.product import relation_models
     from objsearch.replay.decisions import Overrides, replay, summarise
     from objsearch.replay.source import open_events
 
@@ -100,6 +101,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
         events,
         overrides=Overrides(method=args.method, alpha=args.alpha, strategy=args.strategy),
         until_seq=args.until,
+        models=relation_models(simulator=True),
     )
     decisions = replayer.decisions
     summary = summarise(decisions)
@@ -146,6 +148,7 @@ def _short(order: tuple[str, ...]) -> str:
 
 
 def cmd_audit(args: argparse.Namespace) -> int:
+    from objsearch.product import relation_models
     from objsearch.replay.audit import anomaly_counts, audit, write_report
     from objsearch.replay.source import open_events
 
@@ -154,6 +157,7 @@ def cmd_audit(args: argparse.Namespace) -> int:
         events,
         oracle_ratio=args.oracle_ratio,
         oracle_excess_m=args.oracle_excess,
+        models=relation_models(simulator=True),
     )
     out = Path(args.out)
     title = f"audit of {name}"

@@ -355,19 +355,48 @@ def cmd_robot_router(args: argparse.Namespace) -> int:
     return 0
 
 
+def _live_client_options(p: argparse.ArgumentParser) -> None:
+    """Added when ``agent run`` is first used: the limits come from the WebSocket front."""
+    from objsearch.runtime.wsfront import (
+        DEFAULT_CLIENT_QUEUE_BYTES,
+        DEFAULT_MAX_CLIENTS,
+        MAX_CLIENTS_LIMIT,
+    )
+
+    p.add_argument(
+        "--live-max-clients",
+        metavar="N",
+        type=t.int_range(1, MAX_CLIENTS_LIMIT),
+        help=f"serve at most N live-view clients at once, 1-{MAX_CLIENTS_LIMIT} "
+        f"({DEFAULT_MAX_CLIENTS}); more get HTTP 503",
+    )
+    p.add_argument(
+        "--live-client-queue",
+        metavar="MIB",
+        type=t.int_range(1, 1024),
+        help="drop a live-view client once more than MIB mebibytes wait for it, 1-1024 "
+        f"({DEFAULT_CLIENT_QUEUE_BYTES >> 20})",
+    )
+
+
+def _strategy_option(p: argparse.ArgumentParser) -> None:
+    """Added when ``agent run`` is first used: the strategies import the agent."""
+    from objsearch.agent.strategies import STRATEGIES
+
+    p.add_argument(
+        "--strategy",
+        choices=list(STRATEGIES),
+        help="search strategy (default: robot.toml's strategy, else wpl)",
+    )
+
+
 def register(sub: Any) -> None:
     agent = sub.add_parser("agent", help="the on-robot agent over ROS 2 (zenoh or DDS)")
     agent_sub = agent.add_subparsers(dest="agent_command", required=True, metavar="SUBCOMMAND")
     run = agent_sub.add_parser("run", help="serve search requests, driving the robot")
     _transport_options(run)
     run.add_argument("--log", required=True, type=t.dir_path, help="the agent's event log folder")
-    from objsearch.agent.strategies import STRATEGIES
-
-    run.add_argument(
-        "--strategy",
-        choices=list(STRATEGIES),
-        help="search strategy (default: robot.toml's strategy, else wpl)",
-    )
+    run.defer(_strategy_option)
     run.add_argument("--alpha", type=t.ALPHA, default=10.0, help="alpha of Eq. 3, 0-1000 (10)")
     run.add_argument("--seed", type=t.SEED, default=0, help="seed (0)")
     run.add_argument("--update-mode", default="all", choices=["none", "targets", "all"])
@@ -389,26 +418,7 @@ def register(sub: Any) -> None:
         type=t.new_path,
         help="also write the live view's channels to FILE.mcap",
     )
-    from objsearch.runtime.wsfront import (
-        DEFAULT_CLIENT_QUEUE_BYTES,
-        DEFAULT_MAX_CLIENTS,
-        MAX_CLIENTS_LIMIT,
-    )
-
-    run.add_argument(
-        "--live-max-clients",
-        metavar="N",
-        type=t.int_range(1, MAX_CLIENTS_LIMIT),
-        help=f"serve at most N live-view clients at once, 1-{MAX_CLIENTS_LIMIT} "
-        f"({DEFAULT_MAX_CLIENTS}); more get HTTP 503",
-    )
-    run.add_argument(
-        "--live-client-queue",
-        metavar="MIB",
-        type=t.int_range(1, 1024),
-        help="drop a live-view client once more than MIB mebibytes wait for it, 1-1024 "
-        f"({DEFAULT_CLIENT_QUEUE_BYTES >> 20})",
-    )
+    run.defer(_live_client_options)
     run.add_argument(
         "--no-compress",
         action="store_true",

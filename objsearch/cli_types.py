@@ -14,7 +14,7 @@ import math
 import os
 import re
 import stat
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn
 
@@ -29,7 +29,36 @@ Converter = Callable[[str], object]
 
 
 class Parser(argparse.ArgumentParser):
-    """An ArgumentParser whose errors read ``objsearch: error: …`` (exit 2) in every subcommand."""
+    """An ArgumentParser whose errors read ``objsearch: error: …`` (exit 2) in every subcommand.
+
+    Arguments whose choices or defaults need a heavy import (the strategies, the simulator's
+    cameras) are added by :meth:`defer`: only when this parser parses or shows its help, so
+    ``objsearch --help`` and every other command never pay for them.
+    """
+
+    def defer(self, add: Callable[[argparse.ArgumentParser], object]) -> None:
+        """Call ``add(self)`` just before this parser is first used."""
+        self.__dict__.setdefault("_deferred", []).append(add)
+
+    def build_deferred(self) -> None:
+        """Add the deferred arguments now (a walk over every parser's actions needs them)."""
+        deferred = self.__dict__.get("_deferred", [])
+        while deferred:
+            deferred.pop(0)(self)
+
+    def parse_known_args(  # type: ignore[override]
+        self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
+    ) -> tuple[argparse.Namespace, list[str]]:
+        self.build_deferred()
+        return super().parse_known_args(args, namespace)
+
+    def format_help(self) -> str:
+        self.build_deferred()
+        return super().format_help()
+
+    def format_usage(self) -> str:
+        self.build_deferred()
+        return super().format_usage()
 
     def error(self, message: str) -> NoReturn:
         # The message first, as every other objsearch error; the full usage is one --help away.
@@ -402,7 +431,15 @@ SCENE = int_range(1, MAX_SCENE)
 
 
 def camera_option(p: argparse.ArgumentParser) -> None:
-    """``--camera``: the simulated search camera (docs/perception.md), recorded in the run."""
+    """``--camera``: the simulated search camera (docs/perception.md), recorded in the run
+    (added when ``p`` is first used: the choices come from the simulator)."""
+    if isinstance(p, Parser):
+        p.defer(_add_camera_option)
+    else:
+        _add_camera_option(p)
+
+
+def _add_camera_option(p: argparse.ArgumentParser) -> None:
     from objsearch.sim.world import CAMERAS, DEFAULT_CAMERA
 
     p.add_argument(

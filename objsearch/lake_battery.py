@@ -48,10 +48,10 @@ import pyarrow.parquet as pq
 
 from objsearch.cli_battery import Outcome, run_in_process
 from objsearch.events.derived import derived_tables
-from objsearch.events.killtest import tree
 from objsearch.events.lake import RUN_FILE
 from objsearch.events.lake_digest import FILES_KEY, SELF_KEY
-from objsearch.events.schemas import default_registry
+from objsearch.product import STORE
+from objsearch.testing.killtest import tree
 
 COLUMNS = ("clear error", "unchanged", "traceback", "silent change", "loss")
 #: The runs of the battery's lake: (run name, target); every search starts in kitchen-1.
@@ -76,7 +76,7 @@ def build_lake(root: Path) -> Path:
 
 def every_row_sql() -> str:
     """One query over every view, each row hashed: any changed value changes the answer."""
-    views = [*default_registry().types, *(d.name for d in derived_tables())]
+    views = [*STORE.registry.types, *(d.name for d in derived_tables(STORE))]
     parts = [
         f"SELECT '{v}' AS view, run, md5(CAST(x AS VARCHAR)) AS row FROM \"{v}\" x" for v in views
     ]

@@ -41,12 +41,12 @@ from typing import Any, Final
 
 import duckdb
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.scene_graph_sql import LIMIT_SEQ, LIMIT_TIME, SCENE_GRAPH_BODY
 from objsearch.events import EventStoreError
 from objsearch.events.derived import DERIVED_DIR, DerivedTable, derived_tables
 from objsearch.events.lake import DamagedRun, Lake, RunInfo, deep_check
 from objsearch.events.lake_table import TableLake, derived_column, derived_kind, is_table_lake
-from objsearch.events.schemas import default_registry
 from objsearch.events.sql import (
     check_read_only,
     connect,
@@ -108,7 +108,7 @@ def create_views(
     legacy = sorted({(r.robot, r.run) for r in runs if r.missing_derived()})
     if legacy:
         _create_legacy_views(con, legacy)
-    for spec in derived_tables():
+    for spec in derived_tables(STORE):
         con.execute(
             f"CREATE OR REPLACE VIEW {spec.name} AS "
             + _derived_source(lake, spec, any(not r.missing_derived() for r in runs), legacy, only)
@@ -134,13 +134,13 @@ def _create_legacy_views(con: duckdb.DuckDBPyConnection, legacy: list[tuple[str,
     con.execute(f"CREATE SCHEMA IF NOT EXISTS {_LEGACY}")
     con.execute(f"CREATE OR REPLACE TABLE {_LEGACY}._runs (robot VARCHAR, run VARCHAR)")
     con.executemany(f"INSERT INTO {_LEGACY}._runs VALUES (?, ?)", legacy)
-    for event_type in default_registry().types:
+    for event_type in STORE.registry.types:
         view = quote_ident(event_type)
         con.execute(
             f"CREATE OR REPLACE VIEW {_LEGACY}.{view} AS SELECT t.* FROM main.{view} t "
             f"SEMI JOIN {_LEGACY}._runs USING (robot, run)"
         )
-    for spec in derived_tables():
+    for spec in derived_tables(STORE):
         # A view in the legacy schema binds the type names to that schema's (filtered) views.
         con.execute(f"CREATE OR REPLACE VIEW {_LEGACY}.{spec.name} AS {spec.sql}")
 
@@ -187,11 +187,13 @@ def open_analytics(
     """
     if is_table_lake(lake_dir):
         return _open_fleet(
-            TableLake(lake_dir if "://" in str(lake_dir) else Path(lake_dir).absolute()),
+            TableLake(
+                lake_dir if "://" in str(lake_dir) else Path(lake_dir).absolute(), store=STORE
+            ),
             memory_limit=memory_limit,
             threads=threads,
         )
-    lake = Lake(Path(lake_dir).absolute())
+    lake = Lake(Path(lake_dir).absolute(), store=STORE)
     if lake.needs_recovery():
         try:
             lake.recover()
@@ -242,8 +244,8 @@ def _open_fleet(lake: TableLake, *, memory_limit: int, threads: int) -> duckdb.D
     con = duckdb.connect(":memory:")
     create_fleet_views(con, lake, files)
     by_kind = {f.kind for f in files}
-    current = {spec.name: derived_kind(spec.name, spec.version) for spec in derived_tables()}
-    for spec in derived_tables():
+    current = {spec.name: derived_kind(spec.name, spec.version) for spec in derived_tables(STORE)}
+    for spec in derived_tables(STORE):
         kind = current[spec.name]
         if kind in by_kind:
             source = fleet_source(con, lake, kind, [f.path for f in files if f.kind == kind])

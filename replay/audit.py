@@ -38,6 +38,8 @@ from objsearch.agent.outdir import claim
 from objsearch.agent.policy import stop_statics, stop_value
 from objsearch.agent.relations import instance_value, per_instance
 from objsearch.agent.session import load_context
+from objsearch.agent.state import AgentState
+from objsearch.agent.strategies import AGENT_MODELS, RelationModels
 from objsearch.replay.state import ReplayState
 
 ORACLE_RATIO = 5.0
@@ -83,11 +85,15 @@ class Auditor:
     """Folds a log and builds a :class:`TaskAudit` per task."""
 
     def __init__(
-        self, *, oracle_ratio: float = ORACLE_RATIO, oracle_excess_m: float = ORACLE_EXCESS_M
+        self,
+        *,
+        oracle_ratio: float = ORACLE_RATIO,
+        oracle_excess_m: float = ORACLE_EXCESS_M,
+        models: RelationModels = AGENT_MODELS,
     ) -> None:
         self.oracle_ratio = oracle_ratio
         self.oracle_excess_m = oracle_excess_m
-        self.state = ReplayState()
+        self.state = ReplayState(AgentState(models=models))
         self.tasks: list[TaskAudit] = []
         self.log_anomalies: list[Anomaly] = []
         self._current: TaskAudit | None = None
@@ -303,8 +309,10 @@ class Auditor:
 REPORT_FILES = ("index.md", "task-*.md", "task-*.png", "index.html", "task-*.html")
 
 
-def audit(events: Iterable[Any], **thresholds: float) -> Auditor:
-    auditor = Auditor(**thresholds)
+def audit(
+    events: Iterable[Any], *, models: RelationModels = AGENT_MODELS, **thresholds: float
+) -> Auditor:
+    auditor = Auditor(models=models, **thresholds)
     auditor.feed(events)
     return auditor
 

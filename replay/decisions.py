@@ -23,7 +23,7 @@ from objsearch.agent.planner import wpl_terms
 from objsearch.agent.policy import Method, Recorder, SearchAgent, SearchConfig, Stop
 from objsearch.agent.session import HomeContext, load_context
 from objsearch.agent.state import AgentState
-from objsearch.agent.strategies import RelationSpec, RunSpec, strategy
+from objsearch.agent.strategies import AGENT_MODELS, RelationModels, RelationSpec, RunSpec, strategy
 from objsearch.replay.state import ReplayState, TaskState
 
 REL_TOLERANCE = 1e-9
@@ -118,9 +118,11 @@ class _NoSink:
 class Replayer:
     """Folds a log event by event and re-plans at every ``plan_computed``."""
 
-    def __init__(self, overrides: Overrides = Overrides()) -> None:
+    def __init__(
+        self, overrides: Overrides = Overrides(), *, models: RelationModels = AGENT_MODELS
+    ) -> None:
         self.overrides = overrides
-        self.state = ReplayState(AgentState(counterfactual=overrides.relations()))
+        self.state = ReplayState(AgentState(counterfactual=overrides.relations(), models=models))
         self.decisions: list[DecisionReplay] = []
         self.notes: list[str] = []
         self._room_orders: dict[str, list[str]] = {}
@@ -259,10 +261,15 @@ def _reasons(
 
 
 def replay(
-    events: Iterable[Any], *, overrides: Overrides = Overrides(), until_seq: int | None = None
+    events: Iterable[Any],
+    *,
+    overrides: Overrides = Overrides(),
+    until_seq: int | None = None,
+    models: RelationModels = AGENT_MODELS,
 ) -> Replayer:
-    """Replay a whole stream of events; the result holds every decision and note."""
-    replayer = Replayer(overrides)
+    """Replay a whole stream of events; the result holds every decision and note (``models``:
+    the relation models outside the agent its spec may name)."""
+    replayer = Replayer(overrides, models=models)
     for _ in replayer.feed(events, until_seq=until_seq):
         pass
     return replayer

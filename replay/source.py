@@ -6,6 +6,7 @@ import logging
 from collections.abc import Iterable
 from pathlib import Path
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.errors import ObjsearchError
 from objsearch.events import Event, read_log
 from objsearch.events.lake import Lake, RunInfo, deep_check
@@ -20,7 +21,7 @@ def is_log(path: Path) -> bool:
 def lake_run(path: Path, *, run: str | None = None, robot: str | None = None) -> RunInfo:
     """The one run of the lake at ``path`` that ``run`` / ``robot`` select; damaged runs are
     left out with a warning, and selecting one is an error that names it."""
-    lake = Lake(path)
+    lake = Lake(path, store=STORE)
     if lake.needs_recovery():
         lake.recover()
     healthy, damaged = lake.scan()
@@ -74,6 +75,8 @@ def open_events(
     if is_log(path):
         if run is not None or robot is not None:
             raise ObjsearchError(f"{path} is an event log, not a lake: --run/--robot do not apply")
-        return read_log(path), str(path)
+        return read_log(path, store=STORE), str(path)
     info = lake_run(path, run=run, robot=robot)
-    return agent_events(Lake(path).read_events(info)), f"{path} ({info.robot}/{info.run})"
+    return agent_events(
+        Lake(path, store=STORE).read_events(info)
+    ), f"{path} ({info.robot}/{info.run})"

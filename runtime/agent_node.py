@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from objsearch.agent.catalogue import SearchFailed, TaskEnded
+from objsearch.agent.catalogue import STORE, SearchFailed, TaskEnded
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.scene_graph import EventLike, UpdateMode
 from objsearch.agent.session import Session, load_context
@@ -115,7 +115,9 @@ class AgentNode:
             if self.live_sinks:
                 view = LiveView(self.ctx, self.live_sinks)
                 if (log_dir / "meta.json").exists():
-                    view.fold(read_log(log_dir))  # a restart: the graph so far, not redrawn
+                    view.fold(
+                        read_log(log_dir, store=STORE)
+                    )  # a restart: the graph so far, not redrawn
                 observers.append(GuardedLiveView(view))
             self.node = Node(transport)
         except BaseException:

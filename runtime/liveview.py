@@ -38,6 +38,7 @@ from objsearch.agent.geometry import Point, Pose, heading
 from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.session import HomeContext
 from objsearch.agent.state import AgentState
+from objsearch.agent.strategies import AGENT_MODELS, RelationModels
 from objsearch.agent.world import Detection
 from objsearch.events import Event
 from objsearch.runtime import messages as m
@@ -327,13 +328,18 @@ class LiveView:
     """
 
     def __init__(
-        self, ctx: HomeContext, sinks: Sequence[LiveSink], *, clock_offset_ns: int = 0
+        self,
+        ctx: HomeContext,
+        sinks: Sequence[LiveSink],
+        *,
+        clock_offset_ns: int = 0,
+        models: RelationModels = AGENT_MODELS,
     ) -> None:
         self.ctx = ctx
         self.sinks = tuple(sinks)
         self.clock_offset_ns = clock_offset_ns
         #: What the agent knew: the same fold (run spec, relation model, tasks) as everywhere.
-        self.agent = AgentState()
+        self.agent = AgentState(models=models)
         self.pose: Pose | None = None
         self.task: _Task | None = None
         self.written: dict[str, int] = {}

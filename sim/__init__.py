@@ -1,10 +1,6 @@
 """objsearch.sim: the simulated home, its placements and schedules, the long-term loop.
 
-Importing it registers the distribution oracle (a reference relation model that reads the
-schedule's generator) with the agent's strategies, which cannot import the simulator.
+Importing it does nothing else: the distribution oracle (a reference relation model that reads
+the schedule's generator, which the agent cannot import) is handed to a fold as
+:data:`objsearch.sim.distribution_oracle.SIM_MODELS`.
 """
-
-from objsearch.agent.strategies import register_relation_model
-from objsearch.sim.distribution_oracle import DistributionOracle
-
-register_relation_model("dist-oracle", DistributionOracle)

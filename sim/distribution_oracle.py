@@ -17,11 +17,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Final
 
 from objsearch.agent.catalogue import RunStarted, decode
 from objsearch.agent.home import load_home
 from objsearch.agent.scene_graph import EventLike, Pair
+from objsearch.agent.strategies import RelationModels
 from objsearch.sim.habit_schedule import habit_distribution, stats_distribution
 from objsearch.sim.schedule_names import parse_seeded
 from objsearch.sim.stats_schedule import PlacementStats
@@ -93,3 +94,8 @@ class DistributionOracle:
         if state["home"] is not None:
             oracle._load(state["home"], state["schedule"])
         return oracle
+
+
+#: The simulator's relation models by name, for a fold of a log whose spec may name one
+#: (``AgentState(models=SIM_MODELS)``, ``Session.open(..., models=SIM_MODELS)``).
+SIM_MODELS: Final[RelationModels] = MappingProxyType({"dist-oracle": DistributionOracle})

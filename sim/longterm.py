@@ -17,6 +17,7 @@ from objsearch.agent.errors import DataFileError
 from objsearch.agent.geometry import Point, Pose
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
+from objsearch.sim.distribution_oracle import SIM_MODELS
 from objsearch.sim.placements import Placements, base_placements, table1_removals
 from objsearch.sim.schedule_names import load_schedule
 from objsearch.sim.seeable import seeable_scenes
@@ -126,6 +127,7 @@ def run_schedule(
         "skip_absent_targets": skip_absent_targets,
     }
     session_options.setdefault("inputs", inputs)
+    session_options.setdefault("models", SIM_MODELS)
     session = Session.start(ctx, log_dir, spec, **session_options)
     try:
         clock = SimClock(session.resume_time_ns)

@@ -16,7 +16,13 @@ with these rules (``ALLOWED`` lists each part's permitted imports; anything else
 * ``replay`` imports neither ``experiments`` nor ``sim`` nor ``pipeline``;
 * nothing but the CLI imports the CLI package (``objsearch.cli*`` and the rest of ``objsearch/``);
   the root ``objsearch`` itself (only ``__version__``) may be imported by any part but ``events``
-  and ``agent``.
+  and ``agent``, and imports nothing;
+* ``testing`` (the crash, kill and fuzz harnesses) may import every part, the CLI too, and no
+  part but the CLI imports it.
+
+Imports written inside string literals count too: a string that parses as Python code with
+imports in it (a script a harness hands a child interpreter) and the module named by
+``importlib.import_module("…")`` / ``__import__("…")``.
 
 ``python tests/test_architecture.py`` prints the import graph (the table in ``docs/architecture.md``).
 """
@@ -24,6 +30,7 @@ with these rules (``ALLOWED`` lists each part's permitted imports; anything else
 from __future__ import annotations
 
 import ast
+import subprocess
 import sys
 import tomllib
 from collections import defaultdict
@@ -48,15 +55,13 @@ ALLOWED: Mapping[str, frozenset[str]] = {
     # objsearch record runs the simulator to write bags
     "pipeline": frozenset({"events", "agent", "ros", "sim", ROOT}),
     "experiments": frozenset({"events", "agent", "ros", "sim", "replay", "pipeline", ROOT}),
+    "testing": frozenset(
+        {"events", "agent", "ros", "sim", "runtime", "replay", "pipeline", "experiments", ROOT, CLI}
+    ),
     ROOT: frozenset(),
 }
 #: (module, part it may import although its part may not), each with the reason.
 EXCEPTIONS: Mapping[tuple[str, str], str] = {
-    ("objsearch", "agent"): (
-        "the composition root: importing objsearch installs the domain's event catalogue (typed "
-        "records, upcasters) into the store, so every entry point reads logs the same way"
-    ),
-    ("objsearch", "events"): "the composition root hands the store its catalogue",
     ("objsearch.runtime.standin", "sim"): (
         "the stand-in robot is the simulator behind the robot's ROS 2 topics; it never runs on a "
         "robot, and nothing on the robot's path imports it"
@@ -94,8 +99,20 @@ def modules(root: Path = REPO) -> dict[str, Path]:
 def imports_of(
     module: str, source: str, *, is_package: bool, known: frozenset[str]
 ) -> Iterator[Import]:
-    """The objsearch imports in ``source`` (all of them, wherever they stand in the module)."""
+    """The objsearch imports in ``source`` (all of them, wherever they stand in the module, and
+    those written in its string literals)."""
     for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str):
+            for i in _imports_in_code(module, node.value, is_package=is_package, known=known):
+                yield Import(module, i.target, node.lineno + i.line - 1)
+        elif (
+            isinstance(node, ast.Call)
+            and _called_name(node.func) in ("import_module", "__import__")
+            and node.args
+            and isinstance(node.args[0], ast.Constant)
+            and isinstance(node.args[0].value, str)
+        ):
+            yield Import(module, node.args[0].value, node.lineno)
         if isinstance(node, ast.Import):
             for alias in node.names:
                 yield Import(module, alias.name, node.lineno)
@@ -113,6 +130,27 @@ def imports_of(
                 # objsearch.runtime.messages; ``from objsearch import __version__`` the root.
                 sub = f"{origin}.{alias.name}"
                 yield Import(module, sub if sub in known else origin, node.lineno)
+
+
+def _imports_in_code(
+    module: str, text: str, *, is_package: bool, known: frozenset[str]
+) -> Iterator[Import]:
+    """The imports of ``text`` if it is Python code with an import statement in it, else none."""
+    if "import" not in text or "\n" not in text.strip():
+        return
+    try:
+        ast.parse(text)
+    except SyntaxError:
+        return
+    yield from imports_of(module, text, is_package=is_package, known=known)
+
+
+def _called_name(func: ast.expr) -> str | None:
+    if isinstance(func, ast.Name):
+        return func.id
+    if isinstance(func, ast.Attribute):
+        return func.attr
+    return None
 
 
 def part(module: str) -> str | None:
@@ -165,7 +203,19 @@ def graph(imports: list[Import]) -> dict[str, dict[str, int]]:
     return out
 
 
-ORDER = ("events", "agent", "ros", "sim", "runtime", "replay", "pipeline", "experiments", CLI, ROOT)
+ORDER = (
+    "events",
+    "agent",
+    "ros",
+    "sim",
+    "runtime",
+    "replay",
+    "pipeline",
+    "experiments",
+    "testing",
+    CLI,
+    ROOT,
+)
 
 
 def table(imports: list[Import]) -> str:
@@ -242,6 +292,54 @@ def test_each_rule_fails_an_import_against_it() -> None:
         assert found.endswith(f"({message})"), found
     assert violations([Import("objsearch.runtime.standin", "objsearch.sim.world", 1)]) == []
     assert violations([Import("objsearch.cli_bags", "objsearch.pipeline.bags.read", 1)]) == []
+
+
+def test_imports_inside_strings_are_seen() -> None:
+    source = (
+        "import importlib\n"
+        'SCRIPT = """\n'
+        "import json\n"
+        "import objsearch.cli\n"
+        '"""\n'
+        "DOC = 'how to import objsearch.sim: you cannot'\n"
+        "def f():\n"
+        "    return importlib.import_module('objsearch.sim.world')\n"
+    )
+    found = list(imports_of("objsearch.events.x", source, is_package=False, known=frozenset()))
+    assert sorted((i.target, i.line) for i in found if part(i.target)) == [
+        ("objsearch.cli", 4),
+        ("objsearch.sim.world", 8),
+    ]
+    assert len(violations(found)) == 2
+
+
+def test_no_product_part_imports_the_testing_harnesses() -> None:
+    for src in set(ALLOWED) - {"testing"}:
+        assert "testing" not in ALLOWED[src], src
+    (found,) = violations([Import("objsearch.events.log", "objsearch.testing.crashtest", 1)])
+    assert found.endswith("(events may not import testing)")
+    assert violations([Import("objsearch.testing.killtest", "objsearch.cli", 1)]) == []
+
+
+def loaded_by(statement: str) -> list[str]:
+    """The objsearch modules a fresh interpreter has loaded after running ``statement``."""
+    code = f"{statement}\nimport sys\nprint('\\n'.join(sorted(sys.modules)))"
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
+    return [m for m in out.split() if m == ROOT or m.startswith(ROOT + ".")]
+
+
+def test_importing_the_event_store_loads_nothing_of_the_domain() -> None:
+    """``import objsearch.events`` loads the store's own modules and the (empty) root, no agent:
+    no import installs a catalogue or registers anything."""
+    loaded = loaded_by("import objsearch.events")
+    assert loaded[0] == ROOT
+    assert [m for m in loaded[1:] if part(m) != "events"] == [], loaded
+
+
+def test_importing_the_root_loads_nothing() -> None:
+    assert loaded_by("import objsearch") == [ROOT]
 
 
 def test_the_documented_graph_is_the_real_one() -> None:

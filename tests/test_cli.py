@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.datapaths import data_dir
 from objsearch.cli import main
 from objsearch.events import read_log
@@ -38,7 +39,7 @@ def test_search_prints_the_route_and_writes_the_log(
     assert out["success"] is True
     assert out["path_length_m"] >= out["oracle_length_m"] > 0
     assert out["route"][0] != out["route"][-1]
-    events = list(read_log(log))
+    events = list(read_log(log, store=STORE))
     assert events[-1].type == "task_ended"
     assert events[-1].payload["path_length"] == pytest.approx(out["path_length_m"], abs=1e-3)
 
@@ -51,7 +52,7 @@ def test_search_records_its_camera_and_the_camera_tilt(
     args = ["search", "--target", "Pillow", "--start", "kitchen-1", "--camera", camera]
     assert main([*args, "--log", str(log), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["camera"] == camera
-    events = list(read_log(log))
+    events = list(read_log(log, store=STORE))
     (started,) = (e for e in events if e.type == "run_started")
     assert started.payload["params"]["camera"] == camera
     looks = [e.payload["pitch"] for e in events if e.type == "view_taken"]
@@ -113,7 +114,7 @@ def test_a_missing_data_file_is_named_and_nothing_is_written(tmp_path: Path, mis
     assert proc.stderr.startswith("objsearch: error: ")
     assert Path(missing).stem in proc.stderr
     assert "Traceback" not in proc.stderr
-    assert not (log / "events.log").exists() or not list(read_log(log))
+    assert not (log / "events.log").exists() or not list(read_log(log, store=STORE))
 
 
 def _logged_search(log: Path, target: str = "Apple") -> None:
@@ -145,7 +146,7 @@ def test_a_torn_tail_is_cut_with_a_warning_and_acknowledged_events_survive(
 ) -> None:
     log = tmp_path / "log"
     _logged_search(log)
-    acknowledged = list(read_log(log))
+    acknowledged = list(read_log(log, store=STORE))
     path = log / "events.log"
     with path.open("ab") as f:  # an append interrupted half way through its line
         f.write(b'{"event_id": "x", "stream": "robot", "seq": ')
@@ -154,7 +155,7 @@ def test_a_torn_tail_is_cut_with_a_warning_and_acknowledged_events_survive(
     with caplog.at_level(logging.WARNING):
         _logged_search(log, "Cup")
     assert "torn tail" in caplog.text and "cut 44 byte(s)" in caplog.text
-    events = list(read_log(log))
+    events = list(read_log(log, store=STORE))
     assert events[: len(acknowledged)] == acknowledged
     assert [e.seq for e in events] == list(range(1, len(events) + 1))
 
@@ -162,7 +163,7 @@ def test_a_torn_tail_is_cut_with_a_warning_and_acknowledged_events_survive(
 def test_graph_at_seq(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     log = tmp_path / "log"
     _logged_search(log)
-    last = list(read_log(log))[-1].seq
+    last = list(read_log(log, store=STORE))[-1].seq
     capsys.readouterr()
     assert main(["graph", "--log", str(log), "--at", "2", "--json"]) == 0
     at2 = json.loads(capsys.readouterr().out)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
 from objsearch.events import EventLog
 from objsearch.events.lake import Lake, compact_log
@@ -15,7 +16,9 @@ EVENTS = 4
 
 
 def small_log(directory: Path, *, stream: str) -> Path:
-    with EventLog.open(directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000) as log:
+    with EventLog.open(
+        directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000, store=STORE
+    ) as log:
         for i in range(EVENTS):
             log.append("search_failed", {"reason": f"r{i}"}, time_ns=i)
     return directory
@@ -25,7 +28,7 @@ def test_upgrade_add_ls_verify_compact_query(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     lake = str(tmp_path / "lake")
-    compact_log(small_log(tmp_path / "a", stream="a"), Lake(lake), robot="r")
+    compact_log(small_log(tmp_path / "a", stream="a"), Lake(lake, store=STORE), robot="r")
     assert main(["lake", "upgrade", "--to", "fleet", "--lake", lake]) == 0
     assert "1 run(s) copied" in capsys.readouterr().out
     assert not list(Path(lake).glob("robot=*"))
@@ -80,6 +83,8 @@ def test_the_sandbox_holds_over_the_fleet_lake(
 def test_compact_refuses_a_per_run_folder_lake(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    compact_log(small_log(tmp_path / "a", stream="a"), Lake(tmp_path / "lake"), robot="r")
+    compact_log(
+        small_log(tmp_path / "a", stream="a"), Lake(tmp_path / "lake", store=STORE), robot="r"
+    )
     assert main(["lake", "compact", "--lake", str(tmp_path / "lake")]) == 2
     assert "upgrade --to fleet" in capsys.readouterr().err

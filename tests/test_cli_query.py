@@ -16,9 +16,10 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
-from objsearch.events.killtest import tree
 from objsearch.events.lake import Lake
+from objsearch.testing.killtest import tree
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +76,7 @@ ATTACKS = {
 def test_sql_cannot_write_read_elsewhere_or_reconfigure(
     lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], attack: str
 ) -> None:
-    [run] = [r for r in Lake(lake).runs() if r.run == "apple"]
+    [run] = [r for r in Lake(lake, store=STORE).runs() if r.run == "apple"]
     before = tree(lake)
     mean = _mean_path(lake, capsys)
     sql = ATTACKS[attack].format(run=run.path, tmp=tmp_path)
@@ -156,7 +157,7 @@ def test_every_result_type_prints_in_every_format(
 
 def test_csv_dates_are_not_quoted_twice(lake: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(_query(lake, "SELECT date FROM searches LIMIT 1", "--format", "csv")) == 0
-    assert capsys.readouterr().out.splitlines()[1] == str(Lake(lake).runs()[0].date)
+    assert capsys.readouterr().out.splitlines()[1] == str(Lake(lake, store=STORE).runs()[0].date)
 
 
 @pytest.mark.parametrize("damage", ["truncated", "empty", "footer", "bit flip"])
@@ -169,7 +170,7 @@ def test_a_damaged_run_is_named_and_left_out(
 ) -> None:
     copy = tmp_path / "lake"
     shutil.copytree(lake, copy)
-    [bad] = [r for r in Lake(copy).runs() if r.run == "cup"]
+    [bad] = [r for r in Lake(copy, store=STORE).runs() if r.run == "cup"]
     path = bad.path / "task_ended.parquet"
     data = path.read_bytes()
     if damage == "truncated":
@@ -362,7 +363,7 @@ def test_lake_verify_names_every_damaged_file(
     assert out.endswith("0 damaged run(s)\n") and "2 run(s)" in out
     copy = tmp_path / "lake"
     shutil.copytree(lake, copy)
-    [cup] = [r for r in Lake(copy).runs() if r.run == "cup"]
+    [cup] = [r for r in Lake(copy, store=STORE).runs() if r.run == "cup"]
     for name in ("moved.parquet", "_derived/searches.v3.parquet"):
         data = bytearray((cup.path / name).read_bytes())
         data[len(data) // 3] ^= 0x01

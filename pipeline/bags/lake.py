@@ -40,6 +40,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import Event, EventStoreError, _fs
 from objsearch.events.lake import Lake, RunInfo
 from objsearch.pipeline.bags.clock import fit_clock, pairs_from_doc
@@ -193,7 +194,7 @@ class BagLake:
 
     def __init__(self, root: Path) -> None:
         self.root = Path(root)
-        self.lake = Lake(self.root)
+        self.lake = Lake(self.root, store=STORE)
 
     def _sessions(self, runs: Sequence[RunInfo] | None = None) -> list[_SessionRun]:
         """Every bag run with its ingest record (one small file a run)."""

@@ -34,9 +34,9 @@ import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import Event, EventStoreError, deterministic_event_id
 from objsearch.events.arrow import event_schema
-from objsearch.events.upcast import default_upcaster
 from objsearch.pipeline.bags.fastdecode import (
     Decoded,
     LayoutReader,
@@ -216,12 +216,12 @@ class PoseTrack:
 
     def table(self, stream: str) -> pa.Table:
         """The rows as :func:`~objsearch.events.arrow.events_to_tables` would make them."""
-        if default_upcaster().latest_version(POSE_TYPE) != POSE_VERSION:
+        if STORE.upcaster.latest_version(POSE_TYPE) != POSE_VERSION:
             raise EventStoreError(
                 f"{POSE_TYPE} has a newer schema than v{POSE_VERSION}: the pose track must "
                 "build that version"
             )
-        schema = event_schema(POSE_TYPE)
+        schema = event_schema(POSE_TYPE, STORE)
         n = len(self)
         seqs = self.seq.tolist()
         pose_type = schema.field("pose").type

@@ -33,7 +33,8 @@ from typing import Any, Final, Protocol, TypeVar
 import numpy as np
 import pyarrow as pa
 
-from objsearch.events import Event, InvalidEventError, default_registry, deterministic_event_id
+from objsearch.agent.catalogue import STORE
+from objsearch.events import Event, InvalidEventError, deterministic_event_id
 from objsearch.events.arrow import events_to_tables
 from objsearch.events.record import encode_record
 from objsearch.pipeline.bags import fastdecode
@@ -221,7 +222,7 @@ class BagContents:
     def tables(self) -> dict[str, pa.Table]:
         """The lake's typed tables: ``events_to_tables(self.events)``, with the pose track's
         table built from its columns instead of an event per pose."""
-        tables = events_to_tables([*self.agent, *self.derived])
+        tables = events_to_tables([*self.agent, *self.derived], STORE)
         if len(self.poses):
             track = self.poses.table(self.stream)
             if POSE_TYPE in tables:  # the agent's own poses come first, as in self.events
@@ -280,7 +281,7 @@ class Converter:
         self.map = topic_map
         self.distro = distro
         self.stream = f"bag:{bag_id[:16]}"
-        self.registry = default_registry()
+        self.registry = STORE.registry
         self.topics: dict[int, _TopicState] = {}
         self.skipped: dict[int, tuple[RawConnection, str]] = {}
         self.skipped_messages: Counter[int] = Counter()

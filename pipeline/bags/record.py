@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from objsearch.agent.camera_frames import CameraIntrinsics
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.geometry import Pose
 from objsearch.agent.world import Detection
 from objsearch.events import Event, read_log
@@ -518,7 +519,7 @@ def record(
             observer=timeline,
             on_trial=searched,
         )
-        events = list(read_log(log))
+        events = list(read_log(log, store=STORE))
         messages = bag_messages(
             timeline, events, fmt.distro, topic_map, start_ns=start_ns, odom_hz=odom_hz
         )

@@ -14,6 +14,7 @@ from objsearch.agent import catalogue
 from objsearch.agent.catalogue import (
     LATEST,
     RECORDS,
+    STORE,
     Detected,
     Moved,
     PlanarPose,
@@ -21,7 +22,7 @@ from objsearch.agent.catalogue import (
     decode,
     encode,
 )
-from objsearch.events import Event, InvalidEventError, default_registry, read_log
+from objsearch.events import Event, InvalidEventError, read_log
 
 GOLDEN = Path(__file__).parent.parent / "replay" / "golden"
 V1_LOG = Path(__file__).parent.parent / "events" / "fixtures" / "v1-log"
@@ -123,7 +124,7 @@ def _agree(node: dict[str, Any], info: inspect.Type, root: dict[str, Any], at: s
 
 
 def test_every_schema_has_a_record_and_every_record_a_schema() -> None:
-    registry = default_registry()
+    registry = STORE.registry
     schemas = {(t, v) for t in registry.types for v in registry.versions(t)}
     assert set(RECORDS) == schemas
     assert {t: r.VERSION for t, r in LATEST.items()} == {
@@ -133,15 +134,15 @@ def test_every_schema_has_a_record_and_every_record_a_schema() -> None:
 
 @pytest.mark.parametrize("key", sorted(RECORDS), ids=lambda k: f"{k[0]}.v{k[1]}")
 def test_record_agrees_with_its_schema(key: tuple[str, int]) -> None:
-    schema = default_registry().schema(*key)
+    schema = STORE.registry.schema(*key)
     _agree(schema, inspect.type_info(RECORDS[key]), schema, f"{key[0]}.v{key[1]}")
 
 
 def _golden_events() -> list[Event]:
     events: list[Event] = []
     for log_dir in sorted(p.parent for p in GOLDEN.rglob("meta.json")):
-        events.extend(read_log(log_dir))
-    events.extend(read_log(V1_LOG))
+        events.extend(read_log(log_dir, store=STORE))
+    events.extend(read_log(V1_LOG, store=STORE))
     return events
 
 
@@ -177,7 +178,7 @@ def test_decode_as_type_checks_the_event_type() -> None:
 
 
 def test_record_check_agrees_with_the_schema_on_bad_payloads() -> None:
-    registry = default_registry()
+    registry = STORE.registry
     good = {
         "object_class": "Cup",
         "instance_id": "Cup|1",
@@ -215,7 +216,7 @@ def test_encode_gives_json_types_only() -> None:
     payload = encode(record)
     assert payload["position"] == [1.0, 2.0, 3.0]
     assert msgspec.json.decode(msgspec.json.encode(payload)) == payload
-    default_registry().validate("detection", 2, payload)
+    STORE.registry.validate("detection", 2, payload)
 
 
 def _event(event_type: str, payload: dict[str, Any]) -> Event:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.memory import InstanceMemory
 from objsearch.agent.session import load_context
 from objsearch.agent.state import AgentState
@@ -19,6 +20,7 @@ from objsearch.events.log import EventLog, read_log
 from objsearch.events.projection import fold
 from objsearch.events.snapshot import restore
 from objsearch.experiments.decompose import decompose
+from objsearch.sim.distribution_oracle import SIM_MODELS
 from objsearch.sim.longterm import Trial, run_schedule
 from objsearch.sim.world import Placement
 
@@ -45,7 +47,7 @@ def test_the_spec_records_the_memory_and_the_fold_rebuilds_it(
 ) -> None:
     log, trials = memory_log
     assert all(t.success for t in trials)
-    state = fold(read_log(log), AgentState())
+    state = fold(read_log(log, store=STORE), AgentState())
     assert state.run is not None and state.run.relations.model == "memory"
     assert state.run.method.value == "ecost"
     model = state.graph()
@@ -61,7 +63,7 @@ def test_a_place_seen_rises_above_its_class_and_a_miss_falls_below(
     memory_log: tuple[Path, list[Trial]],
 ) -> None:
     log, _ = memory_log
-    model = fold(read_log(log), AgentState()).graph()
+    model = fold(read_log(log, store=STORE), AgentState()).graph()
     assert isinstance(model, InstanceMemory)
     (d, sid), _ = max(model.seen.items(), key=lambda kv: kv[1])
     cls = model.static_class[sid]
@@ -119,7 +121,7 @@ def test_excess_decomposition_sums_to_path_minus_oracle(
     memory_log: tuple[Path, list[Trial]],
 ) -> None:
     log, trials = memory_log
-    parts = decompose(read_log(log), load_context(HOME).navmap)
+    parts = decompose(read_log(log, store=STORE), load_context(HOME).navmap)
     for t in trials:
         e = parts[t.task_id]
         assert e.start_room <= e.wrong_rooms + 1e-9
@@ -131,7 +133,7 @@ def test_excess_decomposition_sums_to_path_minus_oracle(
 def test_distribution_oracle_is_a_reference_that_runs(tmp_path: Path) -> None:
     trials = _run(tmp_path / "log", "dist-oracle", scenes=(1,))
     assert all(t.success for t in trials)
-    state = fold(read_log(tmp_path / "log"), AgentState())
+    state = fold(read_log(tmp_path / "log", store=STORE), AgentState(models=SIM_MODELS))
     assert state.run is not None and state.run.relations.model == "dist-oracle"
 
 
@@ -197,11 +199,16 @@ def test_live_memory_restarts_from_its_snapshot_with_the_same_answer(tmp_path: P
         AgentState.from_snapshot,
         snapshot_dir=snapshots,
         save=False,
+        store=STORE,
     )
     assert restored.from_snapshot_seq == full.last_seq and restored.rejected is None
     assert isinstance(again.graph(), InstanceMemory)
     from_snapshot = LiveMemory.restore(log, home, snapshots)
-    assert from_snapshot.answer("Cup") == full.answer("Cup") == where(read_log(log), "Cup")
+    assert (
+        from_snapshot.answer("Cup")
+        == full.answer("Cup")
+        == where(read_log(log, store=STORE), "Cup")
+    )
     assert full.answer("Cup")["model_of_run"] == "eq4"
 
 
@@ -211,7 +218,7 @@ def test_where_remembers_a_sighting_away_from_every_mapped_place(
     """The log's last Cup sighting, moved 1.5 m off its static (``at`` false), as a search that
     found a Cup on the floor records it: ``where`` says so instead of "never" or the old place."""
     log, _ = memory_log
-    events = list(read_log(log))
+    events = list(read_log(log, store=STORE))
     last = max(
         i
         for i, e in enumerate(events)
@@ -219,7 +226,7 @@ def test_where_remembers_a_sighting_away_from_every_mapped_place(
     )
     before = where(events, "Cup")
     copy = tmp_path / "log"
-    with EventLog.open(copy, "robot", run_id=str(uuid.uuid4())) as writer:
+    with EventLog.open(copy, "robot", run_id=str(uuid.uuid4()), store=STORE) as writer:
         for i, e in enumerate(events):
             payload = dict(e.payload)
             if i == last:
@@ -227,7 +234,7 @@ def test_where_remembers_a_sighting_away_from_every_mapped_place(
                 payload["position"] = [x + 1.5, y, z]
                 payload["support"] = {**payload["support"], "at": False}
             writer.append(e.type, payload, time_ns=e.time_ns, task_id=e.task_id)
-    answer = where(read_log(copy), "Cup")
+    answer = where(read_log(copy, store=STORE), "Cup")
     seen = answer["last_seen"]
     assert seen["at"] is False and seen["position"][0] == pytest.approx(
         events[last].payload["position"][0] + 1.5, abs=1e-3

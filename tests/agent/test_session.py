@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.policy import Method
 from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
@@ -49,7 +50,7 @@ def test_search_finds_the_apple_and_logs_every_step_in_order(tmp_path: Path) -> 
     assert length > 0
     assert length >= oracle - 1e-9
 
-    events = list(read_log(tmp_path))
+    events = list(read_log(tmp_path, store=STORE))
     assert [e.seq for e in events] == list(range(1, len(events) + 1))
     assert all(a.time_ns <= b.time_ns for a, b in itertools.pairwise(events))
     kinds = [e.type for e in events]
@@ -107,7 +108,7 @@ def schedule_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_rebuilding_from_scratch_equals_the_live_fold(schedule_log: Path) -> None:
     ctx = load_context(HOME)
-    rebuilt = fold(read_log(schedule_log), SceneGraphProjection())
+    rebuilt = fold(read_log(schedule_log, store=STORE), SceneGraphProjection())
     # A session continuing the log folds it on open; its live graph then advances event by event.
     session = Session.start(ctx, schedule_log, RunSpec.for_home(ctx.home))
     graph = session.graph
@@ -126,11 +127,11 @@ def test_rebuilding_from_scratch_equals_the_live_fold(schedule_log: Path) -> Non
     finally:
         session.close()
     assert live != rebuilt.relations  # the extra task changed something
-    assert fold(read_log(schedule_log), SceneGraphProjection()).relations == live
+    assert fold(read_log(schedule_log, store=STORE), SceneGraphProjection()).relations == live
 
 
 def test_graph_at_seq_is_the_fold_up_to_that_event(schedule_log: Path) -> None:
-    events = list(read_log(schedule_log))
+    events = list(read_log(schedule_log, store=STORE))
     seeded = next(e for e in events if e.type == "scene_graph_seeded")
     first_end = next(e for e in events if e.type == "task_ended")
     before = scene_graph_at(schedule_log, first_end.seq - 1)
@@ -152,7 +153,9 @@ def test_update_modes_change_only_what_they_promise(tmp_path: Path) -> None:
         graph = scene_graph_at(tmp_path / mode.value)
         assert isinstance(graph, SceneGraphProjection)
         graphs[mode] = graph
-    seeded = next(e for e in read_log(tmp_path / "none") if e.type == "scene_graph_seeded")
+    seeded = next(
+        e for e in read_log(tmp_path / "none", store=STORE) if e.type == "scene_graph_seeded"
+    )
     prior = {(v["dynamic"], v["static"]): v["rel"] for v in seeded.payload["values"]}
     assert graphs[UpdateMode.NONE].relations == prior
     changed_targets = {
@@ -171,7 +174,7 @@ def _without_wall_clock(events: list[Event]) -> list[Event]:
 def test_same_inputs_give_the_same_log(tmp_path: Path) -> None:
     for name in ("a", "b"):
         _schedule(tmp_path / name, UpdateMode.ALL, scenes=(3,))
-    a, b = (list(read_log(tmp_path / name)) for name in ("a", "b"))
+    a, b = (list(read_log(tmp_path / name, store=STORE)) for name in ("a", "b"))
     assert a and _without_wall_clock(a) == _without_wall_clock(b)
 
 
@@ -192,7 +195,7 @@ def test_sdp_room_order_depends_on_the_seed_only(tmp_path: Path) -> None:
         )
         return [
             tuple(e.payload["room_order"])
-            for e in read_log(tmp_path / name)
+            for e in read_log(tmp_path / name, store=STORE)
             if e.type == "plan_computed"
         ]
 
@@ -202,9 +205,9 @@ def test_sdp_room_order_depends_on_the_seed_only(tmp_path: Path) -> None:
 
 def test_a_continued_log_keeps_its_sequence_and_clock(tmp_path: Path) -> None:
     _search(tmp_path, "Apple", "kitchen-1")
-    n = len(list(read_log(tmp_path)))
+    n = len(list(read_log(tmp_path, store=STORE)))
     _search(tmp_path, "Cup", "living-1")
-    events = list(read_log(tmp_path))
+    events = list(read_log(tmp_path, store=STORE))
     assert [e.seq for e in events] == list(range(1, len(events) + 1))
     assert events[n].type == "run_started"
     assert all(a.time_ns <= b.time_ns for a, b in itertools.pairwise(events))
@@ -220,7 +223,9 @@ def test_a_named_prior_is_recorded_in_the_seed_and_changes_the_values(tmp_path: 
         spec = RunSpec.for_home(ctx.home, "wpl", prior=prior)
         session = Session.start(ctx, tmp_path / prior, spec)
         session.close()
-        (seed,) = [e for e in read_log(tmp_path / prior) if e.type == "scene_graph_seeded"]
+        (seed,) = [
+            e for e in read_log(tmp_path / prior, store=STORE) if e.type == "scene_graph_seeded"
+        ]
         seeded[prior] = seed.payload
     assert seeded["vg-hoz-masked"]["source"].startswith("vg-hoz-masked: ")
     assert not seeded["vg-cooccurrence"]["source"].startswith("vg-")
@@ -249,4 +254,4 @@ def test_a_log_continued_with_another_prior_is_refused(
     assert (tmp_path / "events.log").read_bytes() == before
     # The same prior continues the log (and is not seeded again).
     Session.start(ctx, tmp_path, RunSpec.for_home(ctx.home, "wpl", prior=first)).close()
-    assert sum(e.type == "scene_graph_seeded" for e in read_log(tmp_path)) == 1
+    assert sum(e.type == "scene_graph_seeded" for e in read_log(tmp_path, store=STORE)) == 1

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import STRATEGIES, RunSpec
@@ -16,6 +17,7 @@ from objsearch.replay.analytics import open_analytics
 from objsearch.replay.audit import audit
 from objsearch.replay.decisions import replay
 from objsearch.runtime.liveview import LiveView
+from objsearch.sim.distribution_oracle import SIM_MODELS
 from objsearch.sim.longterm import run_schedule
 from objsearch.sim.placements import Schedule
 from objsearch.sim.world import SimClock, SimWorld
@@ -34,21 +36,21 @@ def _run(log: Path, name: str) -> None:
 def test_replay_audit_live_view_and_lake_fold_as_the_agent_did(tmp_path: Path, name: str) -> None:
     log = tmp_path / "log"
     _run(log, name)
-    agent = fold(read_log(log), AgentState())
+    agent = fold(read_log(log, store=STORE), AgentState(models=SIM_MODELS))
     assert agent.run is not None and agent.run.strategy == name
     rel = agent.graph().as_table()
 
-    replayed = replay(read_log(log))
+    replayed = replay(read_log(log, store=STORE), models=SIM_MODELS)
     assert replayed.decisions and all(d.same for d in replayed.decisions)
-    audited = audit(read_log(log))
+    audited = audit(read_log(log, store=STORE), models=SIM_MODELS)
     stale = [a for t in audited.tasks for a in t.anomalies if a.kind == "stale-plan"]
     assert stale == []
 
-    view = LiveView(load_context(HOME), [])
-    view.fold(read_log(log))
+    view = LiveView(load_context(HOME), [], models=SIM_MODELS)
+    view.fold(read_log(log, store=STORE))
     assert view.agent.graph().as_table() == rel
 
-    lake = Lake(tmp_path / "lake")
+    lake = Lake(tmp_path / "lake", store=STORE)
     compact_log(log, lake, robot="sim", run=name)
     con = open_analytics(lake.root)
     rows = con.sql("SELECT dynamic, static, rel FROM scene_graph").fetchall()
@@ -102,7 +104,7 @@ def test_a_task_left_open_by_a_crash_is_aborted_on_restart_and_its_id_never_reus
     finally:
         session.close()
     assert result.task_id == "task-00003"
-    events = list(read_log(log))
+    events = list(read_log(log, store=STORE))
     started = [e.task_id for e in events if e.type == "task_started"]
     assert started == ["task-00001", "task-00002", "task-00003"]
     aborted = [e for e in events if e.type == "task_aborted"]
@@ -112,7 +114,7 @@ def test_a_task_left_open_by_a_crash_is_aborted_on_restart_and_its_id_never_reus
     )
     assert aborted[0].payload["path_length"] == pytest.approx(moved, abs=1e-4)
 
-    lake = Lake(tmp_path / "lake")
+    lake = Lake(tmp_path / "lake", store=STORE)
     compact_log(log, lake, robot="sim", run="r")
     con = open_analytics(lake.root)
     rows = con.sql("SELECT task_id, success, aborted FROM searches ORDER BY task_id").fetchall()
@@ -127,7 +129,7 @@ def test_restart_from_a_snapshot_gives_the_state_a_full_fold_gives(tmp_path: Pat
     ctx = load_context(HOME)
     log, snaps = tmp_path / "log", tmp_path / "snapshots"
     _run(log, "wpl-neg-decay")
-    full = fold(read_log(log), AgentState())
+    full = fold(read_log(log, store=STORE), AgentState())
     session = Session.open(ctx, log, snapshot_dir=snaps)
     session.close()  # writes the snapshot
     session = Session.open(ctx, log, snapshot_dir=snaps)
@@ -181,7 +183,7 @@ def test_a_log_keeps_the_relation_model_of_its_first_run(tmp_path: Path) -> None
     Session.start(ctx, tmp_path, RunSpec.for_home(ctx.home, "epl")).close()  # same fold
     with pytest.raises(Exception, match="needs a new log"):
         Session.start(ctx, tmp_path, RunSpec.for_home(ctx.home, "wpl-neg"))
-    with EventLog.open(tmp_path, "robot") as log:  # and the refused run wrote nothing
+    with EventLog.open(tmp_path, "robot", store=STORE) as log:  # and the refused run wrote nothing
         assert log.last_seq == 3  # run_started, scene_graph_seeded, run_started
 
 
@@ -219,12 +221,12 @@ def test_sigkill_mid_schedule_then_restart_never_repeats_a_task(
     ctx = load_context(HOME)
     spec = RunSpec.for_home(ctx.home, schedule="table2")
     run_schedule(log, spec, scenes=(4,), targets=("Cup",), starts=("kitchen-1", "bedroom-1"))
-    events = list(read_log(log))
+    events = list(read_log(log, store=STORE))
     started = [str(e.task_id) for e in events if e.type == "task_started"]
     closed = [str(e.task_id) for e in events if e.type in ("task_ended", "task_aborted")]
     assert len(started) == len(set(started))  # no task id ever repeats
     assert sorted(closed) == sorted(started)  # every task ends exactly once, aborted or not
-    lake = Lake(tmp_path / "lake")
+    lake = Lake(tmp_path / "lake", store=STORE)
     compact_log(log, lake, robot="sim", run="r")
     rows = open_analytics(lake.root).execute(
         "SELECT count(*), count(DISTINCT task_id) FROM searches"

@@ -8,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import CorruptLogError, EventLog, TornTailWarning, read_log
-from objsearch.events.crashtest import CrashReport, CrashTestFailure, _check, run_crash_test
+from objsearch.testing.crashtest import CrashReport, CrashTestFailure, _check, run_crash_test
 
 KILLS = 200
 
@@ -28,7 +29,7 @@ def test_every_acknowledged_event_survives_200_random_sigkills(tmp_path: Path) -
 
 def _log_with(directory: Path, n: int) -> dict[int, tuple[str, str, int]]:
     acked = {}
-    with EventLog.open(directory, "crash") as log:
+    with EventLog.open(directory, "crash", store=STORE) as log:
         for i in range(n):
             e = log.append("search_failed", {"reason": f"1.{i}:xx"}, time_ns=i)
             acked[e.seq] = (e.event_id, f"1.{i}", 2)
@@ -52,7 +53,7 @@ def test_the_harness_notices_an_event_that_differs_from_its_ack(tmp_path: Path) 
 @pytest.mark.parametrize("seed", range(40))
 def test_damage_in_the_middle_is_reported_at_its_record(tmp_path: Path, seed: int) -> None:
     rng = random.Random(seed)
-    with EventLog.open(tmp_path, "s") as log:
+    with EventLog.open(tmp_path, "s", store=STORE) as log:
         for i in range(rng.randint(3, 12)):
             log.append("search_failed", {"reason": "r" * rng.randint(0, 300)}, time_ns=i)
     path = tmp_path / "events.log"
@@ -72,7 +73,10 @@ def test_damage_in_the_middle_is_reported_at_its_record(tmp_path: Path, seed: in
         data[pos] = ord("\n") if data[pos] != ord("\n") else ord("x")
     path.write_bytes(bytes(data))
     before = path.read_bytes()
-    for attempt in (lambda: list(read_log(tmp_path)), lambda: EventLog.open(tmp_path, "s")):
+    for attempt in (
+        lambda: list(read_log(tmp_path, store=STORE)),
+        lambda: EventLog.open(tmp_path, "s", store=STORE),
+    ):
         with pytest.raises(CorruptLogError) as info:
             attempt()
         assert info.value.offset == starts[victim], damage

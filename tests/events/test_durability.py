@@ -16,14 +16,16 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog, LogLockedError, TornTailWarning, read_log
 
 WRITER = r"""
 import sys
+from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog
 
 directory, batch = sys.argv[1], int(sys.argv[2])
-with EventLog.open(directory, "crash") as log:
+with EventLog.open(directory, "crash", store=STORE) as log:
     print("ready", flush=True)
     i = 0
     while True:
@@ -58,7 +60,7 @@ def test_every_acknowledged_event_survives_sigkill(tmp_path: Path, batch: int) -
             assert proc.stdout.readline() == "ready\n"
             if kill_after == 5:  # once: the lock is held across processes, naming the holder
                 with pytest.raises(LogLockedError, match=f"pid {proc.pid}"):
-                    EventLog.open(tmp_path, "crash")
+                    EventLog.open(tmp_path, "crash", store=STORE)
             for _ in range(kill_after):
                 seq, event_id, reason = proc.stdout.readline().split()
                 acked[int(seq)] = (event_id, reason)
@@ -74,7 +76,11 @@ def test_every_acknowledged_event_survives_sigkill(tmp_path: Path, batch: int) -
         with warnings.catch_warnings():
             # A kill inside write() may leave a torn tail; it holds no acknowledged event.
             warnings.simplefilter("ignore", TornTailWarning)
-            on_disk = {e.seq: (e.event_id, e.payload["reason"]) for e in read_log(tmp_path)}
-            with EventLog.open(tmp_path, "crash") as log:  # the dead writer's lock is gone
+            on_disk = {
+                e.seq: (e.event_id, e.payload["reason"]) for e in read_log(tmp_path, store=STORE)
+            }
+            with EventLog.open(
+                tmp_path, "crash", store=STORE
+            ) as log:  # the dead writer's lock is gone
                 assert log.last_seq >= max(acked)
         assert {seq: on_disk.get(seq) for seq in acked} == acked

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import (
     DuplicateEventError,
     EventLog,
@@ -24,20 +25,24 @@ def import_events(log: EventLog, n: int) -> None:
 
 
 def test_re_running_an_import_never_duplicates(tmp_path: Path) -> None:
-    with EventLog.open(tmp_path, "s") as log:
+    with EventLog.open(tmp_path, "s", store=STORE) as log:
         import_events(log, 3)
     size = (tmp_path / "events.log").stat().st_size
-    with EventLog.open(tmp_path, "s") as log:  # a new writer learns the ids from the file
+    with EventLog.open(
+        tmp_path, "s", store=STORE
+    ) as log:  # a new writer learns the ids from the file
         import_events(log, 3)
         assert log.last_seq == 3
     assert (tmp_path / "events.log").stat().st_size == size
-    with EventLog.open(tmp_path, "s") as log:  # an interrupted import resumes where it stopped
+    with EventLog.open(
+        tmp_path, "s", store=STORE
+    ) as log:  # an interrupted import resumes where it stopped
         import_events(log, 5)
-    assert [e.event_id for e in read_log(tmp_path)] == IDS
+    assert [e.event_id for e in read_log(tmp_path, store=STORE)] == IDS
 
 
 def test_a_duplicate_returns_the_stored_event(tmp_path: Path) -> None:
-    with EventLog.open(tmp_path, "s", wall_clock=lambda: 7) as log:
+    with EventLog.open(tmp_path, "s", wall_clock=lambda: 7, store=STORE) as log:
         first = log.append("search_failed", {"reason": "x"}, time_ns=1, event_id=IDS[0])
         log.append("search_failed", {"reason": "y"}, time_ns=2)
         with log.batch():  # also inside a batch, before the fsync
@@ -47,7 +52,7 @@ def test_a_duplicate_returns_the_stored_event(tmp_path: Path) -> None:
                 in_batch
             )
     assert again == first
-    assert [e.seq for e in read_log(tmp_path)] == [1, 2, 3]
+    assert [e.seq for e in read_log(tmp_path, store=STORE)] == [1, 2, 3]
 
 
 @pytest.mark.parametrize(
@@ -71,7 +76,7 @@ def test_the_same_id_for_another_fact_is_refused(
         "time_ns": 1,
         "task_id": "t-1",
     }
-    with EventLog.open(tmp_path, "s") as log:
+    with EventLog.open(tmp_path, "s", store=STORE) as log:
         log.append(event_id=IDS[0], **args)  # type: ignore[arg-type]
         before = (tmp_path / "events.log").read_bytes()
         with pytest.raises(DuplicateEventError, match=f"at seq 1 with a different .*{named}"):
@@ -81,7 +86,7 @@ def test_the_same_id_for_another_fact_is_refused(
 
 
 def test_an_explicit_id_that_takes_a_future_default_id_is_caught(tmp_path: Path) -> None:
-    with EventLog.open(tmp_path, "s") as log:
+    with EventLog.open(tmp_path, "s", store=STORE) as log:
         assert log.run_id is not None
         log.append(
             "search_failed",
@@ -95,7 +100,7 @@ def test_an_explicit_id_that_takes_a_future_default_id_is_caught(tmp_path: Path)
 
 
 def test_expected_last_seq(tmp_path: Path) -> None:
-    with EventLog.open(tmp_path, "s") as log:
+    with EventLog.open(tmp_path, "s", store=STORE) as log:
         log.append("search_failed", {"reason": "a"}, time_ns=0, expected_last_seq=0)
         log.append(
             "search_failed", {"reason": "b"}, time_ns=0, event_id=IDS[1], expected_last_seq=1

@@ -12,7 +12,8 @@ import pyarrow.dataset as ds
 import pyarrow.parquet as pq
 import pytest
 
-from objsearch.events import EventLog, default_registry, read_log
+from objsearch.agent.catalogue import STORE
+from objsearch.events import EventLog, read_log
 from objsearch.events.arrow import event_schema, events_to_tables
 from objsearch.events.derived import DERIVED_DIR, derived_tables
 from objsearch.events.lake import ROW_GROUP_ROWS, Lake, LakeError, compact_log
@@ -24,7 +25,9 @@ V1_LOG = Path(__file__).parent / "fixtures" / "v1-log"
 
 
 def small_log(directory: Path, *, stream: str = "run-a", n: int = 3) -> Path:
-    with EventLog.open(directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000) as log:
+    with EventLog.open(
+        directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000, store=STORE
+    ) as log:
         for i, (event_type, payload) in enumerate(EXAMPLES.items()):
             log.append(event_type, payload, time_ns=i, task_id="t1")
         log.append("detection", OLD_EXAMPLES["detection", 1], time_ns=99, version=1)
@@ -34,8 +37,8 @@ def small_log(directory: Path, *, stream: str = "run-a", n: int = 3) -> Path:
 
 
 def test_every_type_has_typed_columns_and_no_json_text_but_params() -> None:
-    for event_type in default_registry().types:
-        schema = event_schema(event_type)
+    for event_type in STORE.registry.types:
+        schema = event_schema(event_type, STORE)
         assert schema.names[:7] == [
             "event_id",
             "stream",
@@ -52,19 +55,19 @@ def test_every_type_has_typed_columns_and_no_json_text_but_params() -> None:
             ):
                 continue
             assert set(EXAMPLES[event_type]) | set(schema.names[:7]) >= {field.name}
-    detection = event_schema("detection")
+    detection = event_schema("detection", STORE)
     assert detection.field("support").type == pa.struct(
         [("static_id", pa.string()), ("static_class", pa.string()), ("at", pa.bool_())]
     )
     assert detection.field("position").type == pa.list_(pa.float64())
-    assert event_schema("moved").field("start").type == pa.struct(
+    assert event_schema("moved", STORE).field("start").type == pa.struct(
         [("x", pa.float64()), ("y", pa.float64()), ("yaw", pa.float64())]
     )
-    assert event_schema("task_started").field("scene").type == pa.int64()
+    assert event_schema("task_started", STORE).field("scene").type == pa.int64()
 
 
 def test_tables_hold_every_event_upcast(tmp_path: Path) -> None:
-    tables = events_to_tables(read_log(small_log(tmp_path)))
+    tables = events_to_tables(read_log(small_log(tmp_path), store=STORE), STORE)
     assert sum(t.num_rows for t in tables.values()) == len(EXAMPLES) + 4
     detections = tables["detection"].to_pylist()
     assert [d["version"] for d in detections] == [2, 2]
@@ -75,7 +78,7 @@ def test_tables_hold_every_event_upcast(tmp_path: Path) -> None:
 
 
 def test_compact_commits_a_run_any_parquet_reader_can_read(tmp_path: Path) -> None:
-    lake = Lake(tmp_path / "lake")
+    lake = Lake(tmp_path / "lake", store=STORE)
     info = compact_log(small_log(tmp_path / "log"), lake, robot="r2d2")
     assert (info.robot, info.date, info.run) == ("r2d2", "2023-11-14", "run-a")
     assert info.path == tmp_path / "lake" / "robot=r2d2" / "date=2023-11-14" / "run=run-a"
@@ -98,9 +101,9 @@ def test_compact_commits_a_run_any_parquet_reader_can_read(tmp_path: Path) -> No
 
 
 def test_views_exist_for_types_that_never_occurred(tmp_path: Path) -> None:
-    with EventLog.open(tmp_path / "log", "only", wall_clock=lambda: 0) as log:
+    with EventLog.open(tmp_path / "log", "only", wall_clock=lambda: 0, store=STORE) as log:
         log.append("search_failed", {"reason": "x"}, time_ns=0)
-    lake = Lake(tmp_path / "lake")
+    lake = Lake(tmp_path / "lake", store=STORE)
     compact_log(tmp_path / "log", lake, robot="r")
     con = connect(lake)
     assert con.execute("SELECT count(*) FROM detection").fetchone() == (0,)
@@ -110,7 +113,7 @@ def test_views_exist_for_types_that_never_occurred(tmp_path: Path) -> None:
 
 
 def test_recommitting_the_same_run_is_a_no_op(tmp_path: Path) -> None:
-    lake = Lake(tmp_path / "lake")
+    lake = Lake(tmp_path / "lake", store=STORE)
     first = compact_log(V1_LOG, lake, robot="sim")
     mtime = (first.path / "detection.parquet").stat().st_mtime_ns
     assert compact_log(V1_LOG, lake, robot="sim") == first
@@ -118,8 +121,8 @@ def test_recommitting_the_same_run_is_a_no_op(tmp_path: Path) -> None:
 
 
 def test_tables_are_written_by_seq_with_the_derived_tables_beside_them(tmp_path: Path) -> None:
-    lake = Lake(tmp_path / "lake")
-    tables = events_to_tables(read_log(V1_LOG))
+    lake = Lake(tmp_path / "lake", store=STORE)
+    tables = events_to_tables(read_log(V1_LOG, store=STORE), STORE)
     shuffled = {t: table.take(list(range(table.num_rows))[::-1]) for t, table in tables.items()}
     info = lake.commit_tables(shuffled, robot="sim", run="rev", date="2024-01-01")
     stored = pq.ParquetFile(info.path / "detection.parquet")
@@ -128,7 +131,7 @@ def test_tables_are_written_by_seq_with_the_derived_tables_beside_them(tmp_path:
     assert stored.metadata.num_row_groups == -(-len(seqs) // ROW_GROUP_ROWS)
     assert info.missing_derived() == []
     assert sorted(p.name for p in (info.path / DERIVED_DIR).iterdir()) == sorted(
-        d.file_name for d in derived_tables()
+        d.file_name for d in derived_tables(STORE)
     )
     # Derived files are not event types and not events.
     assert lake.event_types() == sorted(tables)
@@ -136,10 +139,10 @@ def test_tables_are_written_by_seq_with_the_derived_tables_beside_them(tmp_path:
 
 
 def test_other_content_for_a_run_needs_replace(tmp_path: Path) -> None:
-    lake = Lake(tmp_path / "lake")
+    lake = Lake(tmp_path / "lake", store=STORE)
     log = small_log(tmp_path / "log")
     compact_log(log, lake, robot="r")
-    with EventLog.open(log, "run-a") as writer:
+    with EventLog.open(log, "run-a", store=STORE) as writer:
         writer.append("search_failed", {"reason": "later"}, time_ns=1000)
     with pytest.raises(LakeError, match=r"already holds run 'run-a'.*replace=True"):
         compact_log(log, lake, robot="r")
@@ -150,8 +153,8 @@ def test_other_content_for_a_run_needs_replace(tmp_path: Path) -> None:
 
 def test_a_log_being_written_is_not_compacted(tmp_path: Path) -> None:
     log = small_log(tmp_path / "log")
-    with EventLog.open(log, "run-a"), pytest.raises(LakeError, match="being written"):
-        compact_log(log, Lake(tmp_path / "lake"), robot="r")
+    with EventLog.open(log, "run-a", store=STORE), pytest.raises(LakeError, match="being written"):
+        compact_log(log, Lake(tmp_path / "lake", store=STORE), robot="r")
 
 
 def test_a_failed_commit_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -167,7 +170,7 @@ def test_a_failed_commit_leaves_nothing(tmp_path: Path, monkeypatch: pytest.Monk
         real(path, table)
 
     monkeypatch.setattr(lake_module, "_write_parquet", failing)
-    lake = Lake(tmp_path / "lake")
+    lake = Lake(tmp_path / "lake", store=STORE)
     with pytest.raises(OSError, match="No space"):
         compact_log(small_log(tmp_path / "log"), lake, robot="r")
     assert lake.runs() == []
@@ -190,18 +193,18 @@ def test_bad_partition_values_are_refused(
     tmp_path: Path, kwargs: dict[str, Any], message: str
 ) -> None:
     with pytest.raises(LakeError, match=message):
-        compact_log(small_log(tmp_path / "log"), Lake(tmp_path / "lake"), **kwargs)
+        compact_log(small_log(tmp_path / "log"), Lake(tmp_path / "lake", store=STORE), **kwargs)
     assert not list((tmp_path / "lake").glob("robot=*"))
 
 
 def test_a_truncated_or_empty_file_is_named_and_its_run_left_out(tmp_path: Path) -> None:
-    lake = Lake(tmp_path / "lake")
+    lake = Lake(tmp_path / "lake", store=STORE)
     good = compact_log(small_log(tmp_path / "a"), lake, robot="r", run="a")
     truncated = compact_log(small_log(tmp_path / "b", stream="b"), lake, robot="r", run="b")
     empty = compact_log(small_log(tmp_path / "c", stream="c"), lake, robot="r", run="c")
     path = truncated.path / "detection.parquet"
     path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
-    derived_tables()[0].path(empty.path).write_bytes(b"")
+    derived_tables(STORE)[0].path(empty.path).write_bytes(b"")
     runs, damaged = lake.scan()
     assert runs == [good]
     assert [(d.path, d.reason) for d in damaged] == [
@@ -211,7 +214,7 @@ def test_a_truncated_or_empty_file_is_named_and_its_run_left_out(tmp_path: Path)
             + str(path.stat().st_size)
             + " bytes, no PAR1 at both ends)",
         ),
-        (empty.path, f"{derived_tables()[0].file_name} is empty"),
+        (empty.path, f"{derived_tables(STORE)[0].file_name} is empty"),
     ]
     with pytest.raises(LakeError, match=r"detection.parquet: damaged Parquet file"):
         lake.read_events(truncated)
@@ -220,15 +223,17 @@ def test_a_truncated_or_empty_file_is_named_and_its_run_left_out(tmp_path: Path)
 def test_a_table_that_does_not_fit_its_schema_is_refused(tmp_path: Path) -> None:
     table = pa.table({"event_id": ["x"], "stream": ["s"]})
     with pytest.raises(LakeError, match="missing"):
-        Lake(tmp_path).commit_tables({"moved": table}, robot="r", run="a", date="2024-01-01")
+        Lake(tmp_path, store=STORE).commit_tables(
+            {"moved": table}, robot="r", run="a", date="2024-01-01"
+        )
 
 
 def test_duckdb_reads_the_files_without_objsearch(tmp_path: Path) -> None:
-    info = compact_log(V1_LOG, Lake(tmp_path), robot="sim")
+    info = compact_log(V1_LOG, Lake(tmp_path, store=STORE), robot="sim")
     rows = (
         duckdb.connect()
         .execute(f"SELECT count(*), sum(support.at::INT) FROM '{info.path}/detection.parquet'")
         .fetchone()
     )
-    raw = [e for e in read_log(V1_LOG, upcast=False) if e.type == "detection"]
+    raw = [e for e in read_log(V1_LOG, upcast=False, store=STORE) if e.type == "detection"]
     assert rows == (len(raw), sum(e.payload["at_static"] for e in raw))

@@ -11,6 +11,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events.derived import DERIVED_DIR, derived_tables
 from objsearch.events.lake import RUN_FILE, Lake, LakeError, RunInfo, compact_log
 from objsearch.events.lake_digest import FILES_KEY, SELF_KEY, file_digest, manifest_digest
@@ -36,7 +37,7 @@ def _as_older_code_wrote_it(info: RunInfo) -> None:
 
 @pytest.fixture
 def lake(tmp_path: Path) -> tuple[Lake, RunInfo, RunInfo]:
-    lake = Lake(tmp_path / "lake")
+    lake = Lake(tmp_path / "lake", store=STORE)
     a = compact_log(small_log(tmp_path / "a"), lake, robot="r", run="a")
     b = compact_log(small_log(tmp_path / "b", stream="b"), lake, robot="r", run="b")
     return lake, a, b
@@ -50,9 +51,9 @@ def test_the_manifest_records_every_file_and_itself(lake: tuple[Lake, RunInfo, R
         if p.is_file() and p.name != RUN_FILE
     )
     assert sorted(a.files) == on_disk
-    assert {f"{d.path(a.path).relative_to(a.path).as_posix()}" for d in derived_tables()} < set(
-        a.files
-    )
+    assert {
+        f"{d.path(a.path).relative_to(a.path).as_posix()}" for d in derived_tables(STORE)
+    } < set(a.files)
     for name, want in a.files.items():
         assert file_digest(a.path / name) == want
     doc = json.loads((a.path / RUN_FILE).read_bytes())
@@ -144,7 +145,7 @@ def test_a_lake_without_digests_is_read_upgraded_and_then_checked(
 
 
 def test_committing_the_same_content_again_records_the_digests(tmp_path: Path) -> None:
-    store = Lake(tmp_path / "lake")
+    store = Lake(tmp_path / "lake", store=STORE)
     first = compact_log(V1_LOG, store, robot="sim")
     _as_older_code_wrote_it(first)
     again = compact_log(V1_LOG, store, robot="sim")
@@ -157,7 +158,7 @@ def test_a_derived_table_the_manifest_does_not_list_is_recomputed(
     # An upgrade killed between writing a derived file and recording it: readers must not
     # trust the file (no digest) and compute its rows from the events; the next upgrade lists it.
     store, a, _ = lake
-    spec = derived_tables()[0]
+    spec = derived_tables(STORE)[0]
     manifest = a.path / RUN_FILE
     doc = json.loads(manifest.read_bytes())
     del doc[FILES_KEY][f"{DERIVED_DIR}/{spec.file_name}"]
@@ -172,7 +173,7 @@ def test_a_derived_table_the_manifest_does_not_list_is_recomputed(
 
 
 def test_committing_the_same_content_over_a_damaged_run_restores_it(tmp_path: Path) -> None:
-    store = Lake(tmp_path / "lake")
+    store = Lake(tmp_path / "lake", store=STORE)
     first = compact_log(V1_LOG, store, robot="sim")
     _flip_in_data_page(first.path / "detection.parquet", at=3)
     (first.path / "moved.parquet").unlink()

@@ -11,17 +11,20 @@ import subprocess
 import sys
 from pathlib import Path
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog
 from objsearch.events._fs import KILL_AFTER_STEP_ENV
-from objsearch.events.killtest import KillServer, tree
 from objsearch.events.lake import STAGING, Lake
+from objsearch.testing.killtest import KillServer, tree
 
 from .payloads import EXAMPLES
 
 
 def small_log(directory: Path) -> Path:
     """Two event types: every kind of step of a commit, few files (each kill costs a commit)."""
-    with EventLog.open(directory, "run-a", wall_clock=lambda: 1_700_000_000_000_000_000) as log:
+    with EventLog.open(
+        directory, "run-a", wall_clock=lambda: 1_700_000_000_000_000_000, store=STORE
+    ) as log:
         log.append("task_started", EXAMPLES["task_started"], time_ns=1, task_id="t1")
         for i in range(3):
             log.append("search_failed", {"reason": f"r{i}"}, time_ns=100 + i)
@@ -82,12 +85,12 @@ def test_replace_killed_at_every_step_leaves_a_whole_run_and_the_rerun_finishes(
     lake = tmp_path / "lake"
     with KillServer(tmp_path) as server:
         assert server.run(_add(log, start)).code == 0
-        old = Lake(start).runs()[0].digest
-        with EventLog.open(log, "run-a") as writer:
+        old = Lake(start, store=STORE).runs()[0].digest
+        with EventLog.open(log, "run-a", store=STORE) as writer:
             writer.append("search_failed", {"reason": "later"}, time_ns=1000)
         shutil.copytree(start, lake)
         assert server.run(_add(log, lake, "--replace")).code == 0
-        [new_run] = Lake(lake).runs()
+        [new_run] = Lake(lake, store=STORE).runs()
         reference = tree(lake)
         seen: dict[str, list[int]] = {"old": [], "new": [], "gap": []}
         n = 0
@@ -104,13 +107,13 @@ def test_replace_killed_at_every_step_leaves_a_whole_run_and_the_rerun_finishes(
                 if (lake / STAGING).is_dir()
                 else []
             )
-            if not (lake / "robot=r").exists() or not Lake(lake).runs():
+            if not (lake / "robot=r").exists() or not Lake(lake, store=STORE).runs():
                 seen["gap"].append(n)  # the moment the issue found: neither run in place
-            assert Lake(lake).recover()
-            runs = Lake(lake).runs()
+            assert Lake(lake, store=STORE).recover()
+            runs = Lake(lake, store=STORE).runs()
             assert len(runs) == 1, f"kill at step {n} ({staging}): runs {runs}"
             assert runs[0].digest in (old, new_run.digest)
-            assert Lake(lake).read_events(runs[0])  # whole: every file reads
+            assert Lake(lake, store=STORE).read_events(runs[0])  # whole: every file reads
             seen["old" if runs[0].digest == old else "new"].append(n)
             assert not list((lake / STAGING).iterdir())
             again = server.run(_add(log, lake, "--replace"))
@@ -159,4 +162,4 @@ def test_stale_staging_from_a_dead_writer_is_removed_by_the_next(tmp_path: Path)
     assert outcome.code == 0, outcome.output
     assert "removed 2 unfinished commit(s)" in outcome.output
     assert not list((lake / STAGING).iterdir())
-    assert len(Lake(lake).runs()) == 1
+    assert len(Lake(lake, store=STORE).runs()) == 1

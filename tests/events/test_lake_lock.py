@@ -13,6 +13,7 @@ import threading
 from pathlib import Path
 from typing import IO
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events.lake import STAGING, Lake
 
 from .test_lake_kill import small_log
@@ -81,7 +82,7 @@ def test_two_concurrent_adds_of_one_log_give_one_run_and_no_traceback(tmp_path: 
         for code, out, err in results:
             assert code == 0, err
             assert "Traceback" not in err and "run=run-a" in out
-        assert len(Lake(lake).runs()) == 1
+        assert len(Lake(lake, store=STORE).runs()) == 1
         assert not list((lake / STAGING).iterdir())
 
 
@@ -103,7 +104,7 @@ def test_a_writer_that_will_not_wait_says_who_holds_the_lake(tmp_path: Path) -> 
     assert busy.returncode == 2
     assert busy.stderr.startswith("objsearch: error: ")
     assert f"another commit holds the lake by pid {holder.pid}" in busy.stderr
-    assert Lake(lake).runs() == []
+    assert Lake(lake, store=STORE).runs() == []
 
 
 def test_a_writer_waits_for_the_lock_then_commits(tmp_path: Path) -> None:
@@ -121,12 +122,12 @@ def test_a_writer_waits_for_the_lock_then_commits(tmp_path: Path) -> None:
         while not said or "another commit holds the lake" not in said[-1]:
             said.append(lines.get(timeout=DEADLINE_S))
             assert said[-1], f"the writer ended without saying that it waits: {said}"
-        assert Lake(lake).runs() == []  # it waits, it has not committed
+        assert Lake(lake, store=STORE).runs() == []  # it waits, it has not committed
     finally:
         _release(holder)
     assert writer.wait(timeout=DEADLINE_S) == 0, said
     assert "waiting up to 600 s" in said[-1]
-    assert len(Lake(lake).runs()) == 1
+    assert len(Lake(lake, store=STORE).runs()) == 1
 
 
 def test_a_holder_killed_mid_commit_releases_the_lake(tmp_path: Path) -> None:

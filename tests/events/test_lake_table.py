@@ -16,6 +16,7 @@ import polars as pl
 import pytest
 from deltalake import DeltaTable
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog, read_log
 from objsearch.events.arrow import events_to_tables
 from objsearch.events.lake import Lake, LakeError, compact_log
@@ -38,7 +39,9 @@ GOLDEN = Path(__file__).resolve().parents[1] / "replay" / "golden"
 
 
 def small_log(directory: Path, *, stream: str = "run-a", n: int = 3) -> Path:
-    with EventLog.open(directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000) as log:
+    with EventLog.open(
+        directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000, store=STORE
+    ) as log:
         for i, (event_type, payload) in enumerate(EXAMPLES.items()):
             log.append(event_type, payload, time_ns=i, task_id="t1")
         for i in range(n):
@@ -56,12 +59,12 @@ def table_counts(lake: TableLake) -> list[tuple[str, str, int]]:
 
 
 def test_a_run_commits_whole_reads_back_and_again_is_a_no_op(tmp_path: Path) -> None:
-    lake = TableLake(tmp_path / "lake")
+    lake = TableLake(tmp_path / "lake", store=STORE)
     info = add_log(small_log(tmp_path / "log"), lake, robot="r2d2")
     assert is_table_lake(tmp_path / "lake")
     assert (info.robot, info.date, info.run) == ("r2d2", "2023-11-14", "run-a")
     assert lake.runs() == [info]
-    tables = events_to_tables(read_log(tmp_path / "log"))
+    tables = events_to_tables(read_log(tmp_path / "log", store=STORE), STORE)
     got = lake.read_tables(info)
     assert sorted(got) == sorted(tables)
     for event_type, table in tables.items():
@@ -74,7 +77,7 @@ def test_a_run_commits_whole_reads_back_and_again_is_a_no_op(tmp_path: Path) -> 
 def test_other_content_needs_replace_and_replace_swaps_the_run_in_one_version(
     tmp_path: Path,
 ) -> None:
-    lake = TableLake(tmp_path / "lake")
+    lake = TableLake(tmp_path / "lake", store=STORE)
     add_log(small_log(tmp_path / "a", n=3), lake, robot="r", run="x")
     with pytest.raises(TableLakeError, match="other content; pass replace=True"):
         add_log(small_log(tmp_path / "b", n=5), lake, robot="r", run="x")
@@ -90,7 +93,7 @@ def test_other_content_needs_replace_and_replace_swaps_the_run_in_one_version(
 
 
 def test_the_same_log_under_a_second_name_is_refused(tmp_path: Path) -> None:
-    lake = TableLake(tmp_path / "lake")
+    lake = TableLake(tmp_path / "lake", store=STORE)
     add_log(small_log(tmp_path / "log"), lake, robot="r", run="one")
     with pytest.raises(TableLakeError, match="already in the lake as run 'one'"):
         add_log(tmp_path / "log", lake, robot="r", run="two")
@@ -98,8 +101,8 @@ def test_the_same_log_under_a_second_name_is_refused(tmp_path: Path) -> None:
 
 def test_views_answer_as_the_per_run_folder_lake_after_upgrade(tmp_path: Path) -> None:
     old = tmp_path / "old"
-    compact_log(GOLDEN / "sim-wpl-updates", Lake(old), robot="sim")
-    compact_log(small_log(tmp_path / "log"), Lake(old), robot="r2d2")
+    compact_log(GOLDEN / "sim-wpl-updates", Lake(old, store=STORE), robot="sim")
+    compact_log(small_log(tmp_path / "log"), Lake(old, store=STORE), robot="r2d2")
     queries = [
         "SELECT robot, run, type, count(*) FROM events GROUP BY ALL ORDER BY ALL",
         "SELECT * FROM searches ORDER BY ALL",
@@ -111,7 +114,7 @@ def test_views_answer_as_the_per_run_folder_lake_after_upgrade(tmp_path: Path) -
     con = open_analytics(old)
     want = [run_query(con, q)[1] for q in queries]
     close(con)
-    fleet = TableLake(tmp_path / "fleet")
+    fleet = TableLake(tmp_path / "fleet", store=STORE)
     copied, damaged = migrate(old, fleet)
     assert (copied, damaged) == (2, [])
     assert migrate(old, fleet) == (0, [])  # runs already there are skipped
@@ -123,7 +126,7 @@ def test_views_answer_as_the_per_run_folder_lake_after_upgrade(tmp_path: Path) -
 
 
 def test_plain_duckdb_and_polars_read_the_table(tmp_path: Path) -> None:
-    lake = TableLake(tmp_path / "lake")
+    lake = TableLake(tmp_path / "lake", store=STORE)
     add_log(small_log(tmp_path / "log"), lake, robot="r2d2")
     table = str(tmp_path / "lake" / TABLE_DIR)
     frame = (
@@ -145,7 +148,7 @@ def test_plain_duckdb_and_polars_read_the_table(tmp_path: Path) -> None:
 def test_a_damaged_data_file_is_left_out_and_verify_names_it(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
-    lake = TableLake(tmp_path / "lake")
+    lake = TableLake(tmp_path / "lake", store=STORE)
     add_log(small_log(tmp_path / "log"), lake, robot="r2d2")
     victim = next(f for f in lake.data_files() if f.kind == "search_failed")
     path = tmp_path / "lake" / TABLE_DIR / victim.path
@@ -165,8 +168,9 @@ def test_a_damaged_data_file_is_left_out_and_verify_names_it(
 WRITER = """
 import sys
 from pathlib import Path
+from objsearch.agent.catalogue import STORE
 from objsearch.events.lake_table import TableLake, add_log
-lake = TableLake(sys.argv[1])
+lake = TableLake(sys.argv[1], store=STORE)
 for log in sys.argv[2:]:
     add_log(Path(log), lake, robot="r", run=Path(log).name)
 """
@@ -184,10 +188,10 @@ def test_concurrent_writers_lose_and_duplicate_nothing(tmp_path: Path) -> None:
         for w in range(writers)
     ]
     assert [p.wait(timeout=120) for p in procs] == [0] * writers
-    sequential = TableLake(tmp_path / "seq")
+    sequential = TableLake(tmp_path / "seq", store=STORE)
     for log in logs:
         add_log(log, sequential, robot="r", run=log.name)
-    concurrent = TableLake(tmp_path / "lake")
+    concurrent = TableLake(tmp_path / "lake", store=STORE)
     assert [(r.run, r.digest) for r in concurrent.runs()] == [
         (r.run, r.digest) for r in sequential.runs()
     ]
@@ -196,7 +200,7 @@ def test_concurrent_writers_lose_and_duplicate_nothing(tmp_path: Path) -> None:
 
 
 def test_an_empty_run_name_or_a_bad_date_is_refused(tmp_path: Path) -> None:
-    lake = TableLake(tmp_path / "lake")
+    lake = TableLake(tmp_path / "lake", store=STORE)
     with pytest.raises(LakeError, match="must start with a letter"):
         lake.commit_tables({}, robot="r", run="../x", date="2024-01-01")
     with pytest.raises(LakeError, match="not an ISO date"):
@@ -204,7 +208,7 @@ def test_an_empty_run_name_or_a_bad_date_is_refused(tmp_path: Path) -> None:
 
 
 def test_compaction_keeps_every_row_and_bounds_the_files(tmp_path: Path) -> None:
-    lake = TableLake(tmp_path / "lake")
+    lake = TableLake(tmp_path / "lake", store=STORE)
     for i in range(3):
         add_log(small_log(tmp_path / f"log{i}", stream=f"s{i}", n=i), lake, robot="r")
     before = table_counts(lake)
@@ -221,7 +225,7 @@ def test_compaction_keeps_every_row_and_bounds_the_files(tmp_path: Path) -> None
 
 
 def test_files_of_a_writer_killed_before_its_commit_are_never_read(tmp_path: Path) -> None:
-    lake = TableLake(tmp_path / "lake")
+    lake = TableLake(tmp_path / "lake", store=STORE)
     add_log(small_log(tmp_path / "a", stream="a"), lake, robot="r")
     before = table_counts(lake)
     # What a writer killed between writing its files and committing leaves: files the log
@@ -229,7 +233,7 @@ def test_files_of_a_writer_killed_before_its_commit_are_never_read(tmp_path: Pat
     info = lake.runs()[0]
     orphan = dataclasses.replace(info, run="b", commit="dead")
     lake._write_files(
-        {k: [t] for k, t in run_parts(lake.read_tables(info), orphan).items()}, "dead"
+        {k: [t] for k, t in run_parts(lake.read_tables(info), orphan, STORE).items()}, "dead"
     )
     assert len(list((tmp_path / "lake" / TABLE_DIR).glob("type=*/part-dead*"))) > 0
     assert table_counts(lake) == before
@@ -247,12 +251,12 @@ def test_a_streamed_commit_equals_an_in_memory_one_whatever_the_chunks(
     # Small digest slices (a format constant: both paths use it), then tiny chunks and row
     # groups for the streamed commit: every seam of the streaming path is crossed.
     monkeypatch.setattr(lt, "DIGEST_ROWS", 11)
-    whole = TableLake(tmp_path / "whole")
-    tables = events_to_tables(read_log(log))
+    whole = TableLake(tmp_path / "whole", store=STORE)
+    tables = events_to_tables(read_log(log, store=STORE), STORE)
     by_memory = whole.commit_tables(tables, robot="sim", run="robot", date="2026-01-01")
     monkeypatch.setattr(lt, "CHUNK_EVENTS", 37)
     monkeypatch.setattr(lt, "ROW_GROUP_ROWS", 50)
-    streamed = TableLake(tmp_path / "streamed")
+    streamed = TableLake(tmp_path / "streamed", store=STORE)
     by_stream = add_log(log, streamed, robot="sim")
     assert (by_stream.digest, dict(by_stream.rows)) == (by_memory.digest, dict(by_memory.rows))
     got = streamed.read_tables(by_stream)
@@ -276,7 +280,7 @@ def test_a_writer_killed_mid_commit_leaves_whole_runs_and_the_next_one_finishes(
     tmp_path: Path,
 ) -> None:
     logs = [small_log(tmp_path / "logs" / f"log{i}", stream=f"s{i}", n=i) for i in range(8)]
-    lake = TableLake(tmp_path / "lake")
+    lake = TableLake(tmp_path / "lake", store=STORE)
     lake.create()
     writer = subprocess.Popen([sys.executable, "-c", WRITER, str(lake.root), *map(str, logs)])
     deadline = time.monotonic() + 120

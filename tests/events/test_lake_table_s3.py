@@ -15,6 +15,7 @@ from pathlib import Path
 import boto3
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog
 from objsearch.events.lake import Lake, compact_log
 from objsearch.events.lake_table import TableLake, TableLakeError, add_log, is_table_lake
@@ -70,14 +71,16 @@ def bucket(
 
 
 def small_log(directory: Path, *, stream: str, n: int = 3) -> Path:
-    with EventLog.open(directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000) as log:
+    with EventLog.open(
+        directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000, store=STORE
+    ) as log:
         for i in range(n):
             log.append("search_failed", {"reason": f"r{i}"}, time_ns=i)
     return directory
 
 
 def test_a_run_commits_to_the_bucket_and_queries_read_it(bucket: str, tmp_path: Path) -> None:
-    lake = TableLake(bucket)
+    lake = TableLake(bucket, store=STORE)
     info = add_log(small_log(tmp_path / "a", stream="a"), lake, robot="r")
     assert is_table_lake(bucket)
     assert add_log(tmp_path / "a", lake, robot="r") == info  # again: a no-op
@@ -102,8 +105,9 @@ def test_a_run_commits_to_the_bucket_and_queries_read_it(bucket: str, tmp_path: 
 WRITER = """
 import sys
 from pathlib import Path
+from objsearch.agent.catalogue import STORE
 from objsearch.events.lake_table import TableLake, add_log
-lake = TableLake(sys.argv[1])
+lake = TableLake(sys.argv[1], store=STORE)
 for log in sys.argv[2:]:
     add_log(Path(log), lake, robot="r", run=Path(log).name)
 """
@@ -121,7 +125,7 @@ def test_concurrent_writers_to_the_bucket_lose_and_duplicate_nothing(
         for w in range(2)
     ]
     assert [p.wait(timeout=180) for p in procs] == [0, 0]
-    runs = TableLake(bucket).runs()
+    runs = TableLake(bucket, store=STORE).runs()
     assert [(r.run, r.events) for r in runs] == [("log0", 1), ("log1", 2), ("log2", 3)]
     con = open_analytics(bucket)
     try:
@@ -136,9 +140,9 @@ def test_the_cli_migrates_a_folder_lake_into_the_bucket_and_queries_it(
     from objsearch.cli import main
 
     folder = tmp_path / "lake"
-    compact_log(small_log(tmp_path / "a", stream="a"), Lake(folder), robot="r")
+    compact_log(small_log(tmp_path / "a", stream="a"), Lake(folder, store=STORE), robot="r")
     assert main(["lake", "upgrade", "--to", "fleet", "--lake", str(folder), "--into", bucket]) == 0
-    assert Lake(folder).runs() != []  # --into leaves the folder as it was
+    assert Lake(folder, store=STORE).runs() != []  # --into leaves the folder as it was
     log_b = small_log(tmp_path / "b", stream="b", n=2)
     assert main(["lake", "add", str(log_b), "--robot", "r", "--lake", bucket]) == 0
     capsys.readouterr()

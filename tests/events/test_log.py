@@ -12,6 +12,7 @@ from typing import Any
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import (
     CorruptLogError,
     Event,
@@ -37,7 +38,7 @@ LINE = re.compile(rb"^(\{[^\t\n]*\})\t([0-9a-f]{8})\n$")
 def open_log(directory: Path, stream: str = STREAM, **kwargs: Any) -> EventLog:
     kwargs.setdefault("wall_clock", lambda: 42)
     kwargs.setdefault("run_id", RUN)
-    return EventLog.open(directory, stream, **kwargs)
+    return EventLog.open(directory, stream, **kwargs, store=STORE)
 
 
 def write_events(
@@ -89,7 +90,7 @@ def test_append_then_read_round_trips_every_event_type(tmp_path: Path) -> None:
             for i, (t, p) in enumerate(EXAMPLES.items())
         ]
         assert log.last_seq == len(EXAMPLES)
-    read = list(read_log(tmp_path / "log"))
+    read = list(read_log(tmp_path / "log", store=STORE))
     assert read == written
     assert [e.seq for e in read] == list(range(1, len(EXAMPLES) + 1))
     assert read[0].event_id == deterministic_event_id(RUN, 1)
@@ -121,7 +122,7 @@ def test_unicode_line_separators_in_payloads_do_not_split_records(tmp_path: Path
     with open_log(tmp_path) as log:
         log.append("search_failed", {"reason": reason}, time_ns=1)
         log.append("search_failed", {"reason": "next"}, time_ns=2)
-    assert [e.payload["reason"] for e in read_log(tmp_path)] == [reason, "next"]
+    assert [e.payload["reason"] for e in read_log(tmp_path, store=STORE)] == [reason, "next"]
     assert len(lines(tmp_path)) == 2
     assert "café".encode() in lines(tmp_path)[0]  # UTF-8, not \\u escapes
 
@@ -133,7 +134,7 @@ def test_reopening_continues_the_sequence(tmp_path: Path) -> None:
         event = log.append("search_failed", {"reason": "again"}, time_ns=9)
     assert event.seq == 4
     assert event.event_id == deterministic_event_id(RUN, 4)
-    assert [e.seq for e in read_log(tmp_path)] == [1, 2, 3, 4]
+    assert [e.seq for e in read_log(tmp_path, store=STORE)] == [1, 2, 3, 4]
 
 
 def test_same_inputs_give_byte_identical_logs(tmp_path: Path) -> None:
@@ -153,26 +154,26 @@ def test_explicit_event_id_and_version_are_kept(tmp_path: Path) -> None:
             "search_failed", {"reason": "x"}, time_ns=1, version=1, event_id=event_id
         )
     assert event.event_id == event_id
-    assert next(read_log(tmp_path)).event_id == event_id
+    assert next(read_log(tmp_path, store=STORE)).event_id == event_id
 
 
 def test_read_range(tmp_path: Path) -> None:
     write_events(tmp_path, 6)
-    assert [e.seq for e in read_log(tmp_path, from_seq=3)] == [3, 4, 5, 6]
-    assert [e.seq for e in read_log(tmp_path, from_seq=2, to_seq=4)] == [2, 3, 4]
-    assert list(read_log(tmp_path, from_seq=5, to_seq=4)) == []
-    assert list(read_log(tmp_path, from_seq=9)) == []
+    assert [e.seq for e in read_log(tmp_path, from_seq=3, store=STORE)] == [3, 4, 5, 6]
+    assert [e.seq for e in read_log(tmp_path, from_seq=2, to_seq=4, store=STORE)] == [2, 3, 4]
+    assert list(read_log(tmp_path, from_seq=5, to_seq=4, store=STORE)) == []
+    assert list(read_log(tmp_path, from_seq=9, store=STORE)) == []
     with pytest.raises(ValueError, match="from_seq must be an integer >= 1"):
-        read_log(tmp_path, from_seq=0)
+        read_log(tmp_path, from_seq=0, store=STORE)
 
 
 def test_a_new_log_is_empty(tmp_path: Path) -> None:
     with open_log(tmp_path / "new") as log:
         assert log.last_seq == 0
-    assert list(read_log(tmp_path / "new")) == []
+    assert list(read_log(tmp_path / "new", store=STORE)) == []
     # A crash between writing meta.json and creating events.log leaves an empty log, not an error.
     (tmp_path / "new" / "events.log").unlink()
-    assert list(read_log(tmp_path / "new")) == []
+    assert list(read_log(tmp_path / "new", store=STORE)) == []
     with open_log(tmp_path / "new", create=False) as log:
         assert log.append("search_failed", {"reason": "x"}, time_ns=0).seq == 1
 
@@ -245,7 +246,7 @@ def test_torn_last_record_is_cut_on_open_kept_aside_and_warned(
         assert log.torn_tail.quarantine.read_bytes() == data[last_start:cut_at]
         assert str(log.torn_tail.quarantine) in message
         assert log.append("search_failed", {"reason": "after"}, time_ns=5).seq == 3
-    assert [e.payload["reason"] for e in read_log(tmp_path)] == ["r0", "r1", "after"]
+    assert [e.payload["reason"] for e in read_log(tmp_path, store=STORE)] == ["r0", "r1", "after"]
 
 
 @pytest.mark.parametrize("garbage", [b"garbage without newline", b"\x00" * 300, b'{"half": "a rec'])
@@ -258,7 +259,7 @@ def test_an_unterminated_fragment_after_the_last_record_is_a_torn_tail(
     with pytest.warns(TornTailWarning, match=f"cut {len(garbage)} byte"), open_log(tmp_path) as log:
         assert log.last_seq == 2
         log.append("search_failed", {"reason": "ok"}, time_ns=3)
-    assert [e.seq for e in read_log(tmp_path)] == [1, 2, 3]
+    assert [e.seq for e in read_log(tmp_path, store=STORE)] == [1, 2, 3]
     assert (tmp_path / f"events.log.torn-{len(good)}").read_bytes() == garbage
 
 
@@ -287,7 +288,7 @@ def test_a_log_cut_before_its_high_water_mark_is_corruption(tmp_path: Path) -> N
     _assert_corrupt(tmp_path, 3, "closed it at seq 3 .* acknowledged records are missing")
     (tmp_path / "events.log").write_bytes(b"".join(raw) + raw[2][:10])
     with pytest.warns(TornTailWarning):  # past the mark, an unterminated fragment is torn
-        assert [e.seq for e in read_log(tmp_path)] == [1, 2, 3]
+        assert [e.seq for e in read_log(tmp_path, store=STORE)] == [1, 2, 3]
     (tmp_path / "events.log").write_bytes(b"".join(raw[:2]) + raw[2][:-1])
     _assert_corrupt(tmp_path, 3, "acknowledged records are missing")
 
@@ -304,7 +305,7 @@ def test_reader_skips_a_torn_tail_with_a_warning_and_changes_nothing(tmp_path: P
     torn = (tmp_path / "events.log").read_bytes()[:-7]
     (tmp_path / "events.log").write_bytes(torn)
     with pytest.warns(TornTailWarning, match="skipping .* the file was not changed"):
-        events = list(read_log(tmp_path))
+        events = list(read_log(tmp_path, store=STORE))
     assert [e.seq for e in events] == [1, 2]
     assert (tmp_path / "events.log").read_bytes() == torn
 
@@ -317,7 +318,7 @@ def test_reader_is_silent_about_an_append_in_progress(tmp_path: Path) -> None:
             f.write(b'{"event_id":"partial')
         with warnings.catch_warnings():
             warnings.simplefilter("error")
-            assert [e.seq for e in read_log(tmp_path)] == [1, 2]
+            assert [e.seq for e in read_log(tmp_path, store=STORE)] == [1, 2]
 
 
 # --- corruption in the middle ------------------------------------------------------------------
@@ -327,7 +328,7 @@ def _assert_corrupt(tmp_path: Path, line: int, match: str) -> None:
     before = (tmp_path / "events.log").read_bytes()
     offset = sum(len(x) for x in lines(tmp_path)[: line - 1])
     with pytest.raises(CorruptLogError, match=match) as info:
-        list(read_log(tmp_path))
+        list(read_log(tmp_path, store=STORE))
     assert f"line {line} (byte offset {offset})" in str(info.value)
     assert (info.value.line, info.value.offset) == (line, offset)
     assert str(tmp_path / "events.log") in str(info.value)
@@ -359,7 +360,7 @@ def test_missing_newline_in_the_middle_is_corruption(tmp_path: Path) -> None:
 def test_intact_records_out_of_place_break_the_chain(tmp_path: Path, how: str) -> None:
     write_events(tmp_path / "a", 4)
     # The same stream name, another run: before the chain, its records passed every check.
-    with EventLog.open(tmp_path / "b", STREAM, wall_clock=lambda: 42) as other:
+    with EventLog.open(tmp_path / "b", STREAM, wall_clock=lambda: 42, store=STORE) as other:
         for i in range(4):
             other.append("search_failed", {"reason": f"r{i}"}, time_ns=i)
     raw, donor = lines(tmp_path / "a"), lines(tmp_path / "b")
@@ -460,13 +461,13 @@ def test_missing_logs_raise_log_not_found(tmp_path: Path) -> None:
         open_log(missing, create=False)
     assert not missing.exists()
     with pytest.raises(FileNotFoundError):
-        read_log(missing)  # raised at call time, not at the first next()
+        read_log(missing, store=STORE)  # raised at call time, not at the first next()
     missing.mkdir()
     with pytest.raises(LogNotFoundError, match=r"meta\.json is missing"):
         open_log(missing, create=False)
     assert list(missing.iterdir()) == []  # no LOCK left behind
     with pytest.raises(LogNotFoundError, match=r"meta\.json is missing"):
-        read_log(missing)
+        read_log(missing, store=STORE)
 
 
 def test_events_log_without_meta_is_not_adopted(tmp_path: Path) -> None:
@@ -480,12 +481,12 @@ def test_unknown_format_is_refused(tmp_path: Path) -> None:
     write_events(tmp_path, 1)
     (tmp_path / "meta.json").write_text('{"format": "objsearch.events/3", "stream": "run-1"}')
     with pytest.raises(EventStoreError, match=r"unsupported log format 'objsearch\.events/3'"):
-        read_log(tmp_path)
+        read_log(tmp_path, store=STORE)
 
 
 def test_creates_missing_parent_directories(tmp_path: Path) -> None:
     write_events(tmp_path / "a" / "b" / "c", 1)
-    assert [e.seq for e in read_log(tmp_path / "a" / "b" / "c")] == [1]
+    assert [e.seq for e in read_log(tmp_path / "a" / "b" / "c", store=STORE)] == [1]
 
 
 # --- durability: fsync, batches, failures ------------------------------------------------------
@@ -525,7 +526,7 @@ def test_batch_fsyncs_once_at_exit(tmp_path: Path, monkeypatch: pytest.MonkeyPat
         with log.batch():
             pass
         assert counter.calls == 1  # nothing to sync
-    assert len(list(read_log(tmp_path))) == 11
+    assert len(list(read_log(tmp_path, store=STORE))) == 11
 
 
 def test_batch_is_not_a_transaction(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -536,7 +537,7 @@ def test_batch_is_not_a_transaction(tmp_path: Path, monkeypatch: pytest.MonkeyPa
             log.append("search_failed", {}, time_ns=1)
         assert counter.calls == 1
         assert log.last_seq == 1
-    assert [e.payload["reason"] for e in read_log(tmp_path)] == ["kept"]
+    assert [e.payload["reason"] for e in read_log(tmp_path, store=STORE)] == ["kept"]
 
 
 def test_failed_write_is_undone(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -556,7 +557,7 @@ def test_failed_write_is_undone(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
         assert (tmp_path / "events.log").read_bytes() == before
         assert log.last_seq == 1
         assert log.append("search_failed", {"reason": "ok"}, time_ns=2).seq == 2
-    assert [e.seq for e in read_log(tmp_path)] == [1, 2]
+    assert [e.seq for e in read_log(tmp_path, store=STORE)] == [1, 2]
 
 
 def test_failed_fsync_stops_the_writer(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -586,7 +587,7 @@ def test_closed_log_refuses_appends(tmp_path: Path) -> None:
 
 
 def _sealed_log(directory: Path, n: int) -> bytes:
-    with EventLog.open(directory, STREAM) as log:
+    with EventLog.open(directory, STREAM, store=STORE) as log:
         for i in range(n):
             log.append("search_failed", {"reason": f"r{i}"}, time_ns=i)
     return (directory / "events.log").read_bytes()
@@ -600,13 +601,15 @@ def test_a_sealed_restart_checks_every_acknowledged_byte_before_it_appends(
     meta = json.loads((tmp_path / "meta.json").read_bytes())
     genesis = zlib.crc32(f"{meta['format']}\n{meta['stream']}\n{meta['run_id']}\n".encode())
     assert durable["seals"] == [[0, len(data), f"{zlib.crc32(data, genesis):08x}"]]
-    with EventLog.open(tmp_path, STREAM, verify="sealed") as log:  # clean: appends as usual
+    with EventLog.open(
+        tmp_path, STREAM, verify="sealed", store=STORE
+    ) as log:  # clean: appends as usual
         log.append("search_failed", {"reason": "after"}, time_ns=99)
     data = bytearray((tmp_path / "events.log").read_bytes())
     data[len(data) // 5] ^= 0x10  # one flipped bit far before the high-water mark
     (tmp_path / "events.log").write_bytes(bytes(data))
     before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
-    log = EventLog.open(tmp_path, STREAM, verify="sealed")
+    log = EventLog.open(tmp_path, STREAM, verify="sealed", store=STORE)
     with pytest.raises(CorruptLogError, match="is damaged: one bit of it was flipped"):
         log.append("search_failed", {"reason": "on top of damage"}, time_ns=100)
     with pytest.raises(CorruptLogError):  # every later call too
@@ -614,7 +617,7 @@ def test_a_sealed_restart_checks_every_acknowledged_byte_before_it_appends(
     log.close()
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
     with pytest.raises(CorruptLogError):  # a writer that appends nothing still hears of it
-        EventLog.open(tmp_path, STREAM, verify="sealed").close()
+        EventLog.open(tmp_path, STREAM, verify="sealed", store=STORE).close()
 
 
 def test_seals_that_do_not_match_intact_records_mean_durable_json_is_damaged(
@@ -627,6 +630,6 @@ def test_seals_that_do_not_match_intact_records_mean_durable_json_is_damaged(
     for verify in ("all", "sealed"):
         with (
             pytest.raises(CorruptLogError, match=r"durable\.json is damaged"),
-            EventLog.open(tmp_path, STREAM, verify=verify) as log,
+            EventLog.open(tmp_path, STREAM, verify=verify, store=STORE) as log,
         ):
             log.append("search_failed", {"reason": "x"}, time_ns=9)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from objsearch.events.logfuzz import MUTATIONS, run_log_fuzz, run_repair_fuzz, run_snapshot_fuzz
+from objsearch.testing.logfuzz import MUTATIONS, run_log_fuzz, run_repair_fuzz, run_snapshot_fuzz
 
 
 def test_no_mutation_is_silently_accepted_or_crashes_the_writer() -> None:

@@ -4,6 +4,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import (
     Event,
     EventLog,
@@ -68,10 +69,10 @@ def test_projection_protocol_is_satisfied_structurally() -> None:
 
 
 def test_fold_over_a_log(tmp_path: Path) -> None:
-    with EventLog.open(tmp_path, "s") as log:
+    with EventLog.open(tmp_path, "s", store=STORE) as log:
         for i in range(5):
             log.append("search_failed", {"reason": f"r{i + 1}"}, time_ns=i)
-    assert fold(read_log(tmp_path), Reasons()).state == ["r1", "r2", "r3", "r4", "r5"]
+    assert fold(read_log(tmp_path, store=STORE), Reasons()).state == ["r1", "r2", "r3", "r4", "r5"]
 
 
 def test_until_seq_gives_the_state_as_of_that_event_without_consuming_more() -> None:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
 from objsearch.events import CorruptLogError, EventLog, LogLockedError, read_log
 from objsearch.events.envelope import deterministic_event_id
@@ -16,7 +17,7 @@ RUN = "00000000-0000-4000-8000-0000000000bb"
 
 
 def _write(directory: Path, n: int) -> bytes:
-    with EventLog.open(directory, "robot", run_id=RUN, wall_clock=lambda: 1) as log:
+    with EventLog.open(directory, "robot", run_id=RUN, wall_clock=lambda: 1, store=STORE) as log:
         for i in range(n):
             log.append("search_failed", {"reason": f"r{i}"}, time_ns=i)
     return (directory / "events.log").read_bytes()
@@ -24,26 +25,31 @@ def _write(directory: Path, n: int) -> bytes:
 
 def test_verify_reads_a_clean_log_and_names_the_first_problem(tmp_path: Path) -> None:
     data = _write(tmp_path, 5)
-    result = verify_log(tmp_path)
+    result = verify_log(tmp_path, store=STORE)
     assert (result.events, result.last_seq, result.durable_seq, result.run_id) == (5, 5, 5, RUN)
     lines = data.splitlines(keepends=True)
     lines[3] = lines[3].replace(b'"r3"', b'"r7"')
     (tmp_path / "events.log").write_bytes(b"".join(lines))
     with pytest.raises(CorruptLogError, match="line 4"):
-        verify_log(tmp_path)
+        verify_log(tmp_path, store=STORE)
 
 
 def test_repair_converts_crlf_back_and_keeps_the_original(tmp_path: Path) -> None:
     data = _write(tmp_path, 4)
     (tmp_path / "events.log").write_bytes(data.replace(b"\n", b"\r\n"))
     with pytest.raises(CorruptLogError, match="CR LF"):
-        list(read_log(tmp_path))
-    result = repair_log(tmp_path)
+        list(read_log(tmp_path, store=STORE))
+    result = repair_log(tmp_path, store=STORE)
     assert result.changed and result.kept_events == 4 and result.removed_bytes == 0
     assert (tmp_path / "events.log").read_bytes() == data
     assert result.quarantine is not None
     assert result.quarantine.read_bytes() == data.replace(b"\n", b"\r\n")
-    assert [e.payload["reason"] for e in read_log(tmp_path)] == ["r0", "r1", "r2", "r3"]
+    assert [e.payload["reason"] for e in read_log(tmp_path, store=STORE)] == [
+        "r0",
+        "r1",
+        "r2",
+        "r3",
+    ]
 
 
 def _damage(directory: Path, line: int, edit: Callable[[bytearray], None]) -> bytes:
@@ -59,7 +65,7 @@ def _damage(directory: Path, line: int, edit: Callable[[bytearray], None]) -> by
 def _reasons(directory: Path) -> list[tuple[int, str]]:
     return [
         (e.seq, e.payload["reason"] if e.type == "search_failed" else e.type)
-        for e in read_log(directory)
+        for e in read_log(directory, store=STORE)
     ]
 
 
@@ -70,8 +76,8 @@ def test_a_record_damaged_in_place_is_the_only_one_moved_out(tmp_path: Path) -> 
         tmp_path, 3, lambda b: b.__setitem__(slice(None), b.replace(b'"r2"', b'"rX"'))
     )
     with pytest.raises(CorruptLogError, match="record at seq 3 is damaged: its bytes were damaged"):
-        verify_log(tmp_path)
-    result = repair_log(tmp_path)
+        verify_log(tmp_path, store=STORE)
+    result = repair_log(tmp_path, store=STORE)
     assert (result.kept_events, result.kept_last_seq, result.removed_lines) == (5, 6, 1)
     assert [(a.kind, a.first_seq, a.line) for a in result.actions] == [("quarantined", 3, 3)]
     assert result.quarantine is not None
@@ -84,15 +90,17 @@ def test_a_record_damaged_in_place_is_the_only_one_moved_out(tmp_path: Path) -> 
         (5, "r4"),
         (6, "r5"),
     ]
-    marker = list(read_log(tmp_path))[2]
+    marker = list(read_log(tmp_path, store=STORE))[2]
     assert marker.payload["quarantine"] == result.quarantine.name
-    assert verify_log(tmp_path).last_seq == 6
-    with EventLog.open(tmp_path, "robot") as log:  # the next writer continues after seq 6
+    assert verify_log(tmp_path, store=STORE).last_seq == 6
+    with EventLog.open(
+        tmp_path, "robot", store=STORE
+    ) as log:  # the next writer continues after seq 6
         after = log.append("search_failed", {"reason": "after"}, time_ns=9)
     assert after.seq == 7
-    ids = [e.event_id for e in read_log(tmp_path)]
+    ids = [e.event_id for e in read_log(tmp_path, store=STORE)]
     assert len(set(ids)) == 7 and deterministic_event_id(RUN, 3) not in ids  # never reused
-    assert repair_log(tmp_path).changed is False
+    assert repair_log(tmp_path, store=STORE).changed is False
 
 
 def test_a_flipped_bit_is_corrected_and_damaged_checksum_digits_are_rewritten(
@@ -109,8 +117,8 @@ def test_a_flipped_bit_is_corrected_and_damaged_checksum_digits_are_rewritten(
     for line, edit, kind in ((2, flip, "bit-restored"), (5, digit, "checksum-rewritten")):
         damaged = _damage(tmp_path, line, edit)
         with pytest.raises(CorruptLogError, match=f"record at seq {line} is damaged"):
-            verify_log(tmp_path)
-        result = repair_log(tmp_path)
+            verify_log(tmp_path, store=STORE)
+        result = repair_log(tmp_path, store=STORE)
         assert [(a.kind, a.first_seq) for a in result.actions] == [(kind, line)]
         assert (tmp_path / "events.log").read_bytes() == data  # exactly as written
         assert result.quarantine is not None
@@ -123,7 +131,7 @@ def test_records_out_of_order_lose_only_their_place(tmp_path: Path) -> None:
     lines = data.splitlines(keepends=True)
     lines[2], lines[3] = lines[3], lines[2]  # seq 4 where seq 3 belongs, then seq 3
     (tmp_path / "events.log").write_bytes(b"".join(lines))
-    result = repair_log(tmp_path)
+    result = repair_log(tmp_path, store=STORE)
     assert [(a.kind, a.first_seq, a.line) for a in result.actions] == [
         ("extra", 3, 3),  # seq 4's record, out of place (seq 3 follows seq 2 in the chain)
         ("lost", 4, 5),  # seq 4's place: a marker; seq 5 is kept, its chain solved
@@ -143,7 +151,7 @@ def test_records_that_do_not_belong_are_moved_out_and_their_seqs_stay_taken(
     tmp_path: Path,
 ) -> None:
     data = _write(tmp_path, 6)
-    with EventLog.open(tmp_path / "other", "robot", wall_clock=lambda: 1) as other:
+    with EventLog.open(tmp_path / "other", "robot", wall_clock=lambda: 1, store=STORE) as other:
         for i in range(6):
             other.append("search_failed", {"reason": f"r{i}"}, time_ns=i)
     donor = (tmp_path / "other" / "events.log").read_bytes().splitlines(keepends=True)
@@ -151,14 +159,14 @@ def test_records_that_do_not_belong_are_moved_out_and_their_seqs_stay_taken(
     lines[2:] = donor[2:]  # spliced: nothing after line 3 belongs to this log
     damaged = b"".join(lines)
     (tmp_path / "events.log").write_bytes(damaged)
-    result = repair_log(tmp_path)
+    result = repair_log(tmp_path, store=STORE)
     cut = sum(map(len, lines[:2]))
     assert [(a.kind, a.first_seq, a.last_seq) for a in result.actions] == [("cut", 3, 6)]
     assert result.quarantine == tmp_path / f"events.log.repair-{cut}"
     assert result.quarantine.read_bytes() == damaged[cut:]
     assert (result.kept_events, result.kept_last_seq) == (2, 6)
     assert [seq for seq, what in _reasons(tmp_path) if what == "record_quarantined"] == [3, 4, 5, 6]
-    with EventLog.open(tmp_path, "robot") as log:
+    with EventLog.open(tmp_path, "robot", store=STORE) as log:
         assert log.append("search_failed", {"reason": "after"}, time_ns=9).seq == 7
 
 
@@ -172,14 +180,14 @@ def test_acknowledged_records_the_file_lost_are_reported_and_their_seqs_kept(
     out = capsys.readouterr().out
     assert "seqs 5..6 (line 5, byte" in out and "already missing from the file" in out
     assert [seq for seq, what in _reasons(tmp_path) if what == "record_quarantined"] == [5, 6]
-    with EventLog.open(tmp_path, "robot") as log:
+    with EventLog.open(tmp_path, "robot", store=STORE) as log:
         assert log.append("search_failed", {"reason": "after"}, time_ns=9).seq == 7
 
 
 def test_repair_refuses_while_a_writer_holds_the_log(tmp_path: Path) -> None:
     _write(tmp_path, 1)
-    with EventLog.open(tmp_path, "robot"), pytest.raises(LogLockedError):
-        repair_log(tmp_path)
+    with EventLog.open(tmp_path, "robot", store=STORE), pytest.raises(LogLockedError):
+        repair_log(tmp_path, store=STORE)
 
 
 def test_cli_refuses_a_damaged_log_then_repairs_it(
@@ -198,17 +206,17 @@ def test_cli_refuses_a_damaged_log_then_repairs_it(
 
 def test_deleting_the_lock_file_does_not_let_a_second_writer_in(tmp_path: Path) -> None:
     _write(tmp_path, 1)
-    with EventLog.open(tmp_path, "robot"):
+    with EventLog.open(tmp_path, "robot", store=STORE):
         (tmp_path / "LOCK").unlink()
         with pytest.raises(LogLockedError):
-            EventLog.open(tmp_path, "robot")
+            EventLog.open(tmp_path, "robot", store=STORE)
 
 
 def test_a_writer_whose_log_is_deleted_stops_acknowledging(tmp_path: Path) -> None:
     from objsearch.events import LogClosedError
 
     _write(tmp_path, 1)
-    with EventLog.open(tmp_path, "robot") as log:
+    with EventLog.open(tmp_path, "robot", store=STORE) as log:
         (tmp_path / "events.log").unlink()
         with pytest.raises(LogClosedError, match="deleted"):
             log.append("search_failed", {"reason": "lost"}, time_ns=5)

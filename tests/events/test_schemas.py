@@ -10,7 +10,8 @@ from typing import Any
 import pytest
 from jsonschema import Draft202012Validator
 
-from objsearch.events import EventStoreError, InvalidEventError, SchemaRegistry, default_registry
+from objsearch.agent.catalogue import STORE
+from objsearch.events import EventStoreError, InvalidEventError, SchemaRegistry
 from objsearch.events.schemas import schema_id
 
 from .payloads import EXAMPLES, LATEST, OLD_EXAMPLES
@@ -21,7 +22,7 @@ SCHEMA_DIR = REPO / "events" / "schema"
 
 @pytest.fixture(scope="module")
 def registry() -> SchemaRegistry:
-    return default_registry()
+    return STORE.registry
 
 
 def test_registry_knows_every_documented_type(registry: SchemaRegistry) -> None:

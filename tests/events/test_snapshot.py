@@ -11,6 +11,7 @@ from typing import Any, ClassVar
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.events import EventLog, fold, read_log
 from objsearch.events.snapshot import restore, save_snapshot, snapshot_path
@@ -26,18 +27,22 @@ def log(tmp_path: Path) -> Path:
 
 def _restore(log: Path, snaps: Path) -> tuple[SceneGraphProjection, object]:
     return restore(
-        log, SceneGraphProjection, SceneGraphProjection.from_snapshot, snapshot_dir=snaps
+        log,
+        SceneGraphProjection,
+        SceneGraphProjection.from_snapshot,
+        snapshot_dir=snaps,
+        store=STORE,
     )
 
 
 def full(log: Path) -> SceneGraphProjection:
-    return fold(read_log(log), SceneGraphProjection())
+    return fold(read_log(log, store=STORE), SceneGraphProjection())
 
 
 def test_a_snapshot_mid_task_then_the_rest_equals_a_full_fold(log: Path, tmp_path: Path) -> None:
-    partial = fold(read_log(log), SceneGraphProjection(), until_seq=400)
+    partial = fold(read_log(log, store=STORE), SceneGraphProjection(), until_seq=400)
     assert partial.experience  # mid-task: the experience pool is part of the state
-    save_snapshot(tmp_path / "snaps", partial, log=log)
+    save_snapshot(tmp_path / "snaps", partial, log=log, store=STORE)
     graph, how = _restore(log, tmp_path / "snaps")
     assert how.from_snapshot_seq == 400 and how.rejected is None  # type: ignore[attr-defined]
     assert how.folded == 812 - 400  # type: ignore[attr-defined]
@@ -66,14 +71,19 @@ def test_a_snapshot_that_does_not_match_is_rebuilt(
     log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, spoil: str, reason: str
 ) -> None:
     snaps = tmp_path / "snaps"
-    save_snapshot(snaps, fold(read_log(log), SceneGraphProjection(), until_seq=500), log=log)
+    save_snapshot(
+        snaps,
+        fold(read_log(log, store=STORE), SceneGraphProjection(), until_seq=500),
+        log=log,
+        store=STORE,
+    )
     if spoil == "version":
         _corrupt_version(snapshot_path(snaps, "scene_graph"))
     elif spoil == "code_version":
         monkeypatch.setattr(SceneGraphProjection, "snapshot_version", 2)
     else:  # same stream, different history after seq 1
         shutil.rmtree(log)
-        with EventLog.open(log, "robot") as writer:
+        with EventLog.open(log, "robot", store=STORE) as writer:
             for i in range(600):
                 writer.append(
                     "search_failed",
@@ -99,7 +109,7 @@ def test_a_snapshot_edited_and_rechecksummed_is_not_believed(
     log: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
     snaps = tmp_path / "snaps"
-    save_snapshot(snaps, full(log), log=log)
+    save_snapshot(snaps, full(log), log=log, store=STORE)
     assert _restore(log, snaps)[1].rejected is None  # type: ignore[attr-defined]
 
     def bump(doc: dict[str, Any]) -> None:
@@ -132,7 +142,7 @@ def test_an_attested_snapshot_whose_state_does_not_restore_is_rebuilt(
     log: Path, tmp_path: Path
 ) -> None:
     snaps = tmp_path / "snaps"
-    save_snapshot(snaps, _Garbage(), log=log)  # valid CRC, attested, malformed state
+    save_snapshot(snaps, _Garbage(), log=log, store=STORE)  # valid CRC, attested, malformed state
     graph, how = _restore(log, snaps)
     assert how.from_snapshot_seq == 0 and "does not restore" in str(how.rejected)  # type: ignore[attr-defined]
     assert graph.relations == full(log).relations

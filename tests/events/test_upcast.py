@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
@@ -19,8 +20,6 @@ from objsearch.events import (
     EventStoreError,
     SchemaRegistry,
     Upcaster,
-    default_registry,
-    default_upcaster,
     fold,
     read_log,
 )
@@ -34,7 +33,7 @@ V1_LOG = FIXTURES / "v1-log"
 
 
 def test_every_old_version_has_an_upcast_step() -> None:
-    registry = default_registry()
+    registry = STORE.registry
     for event_type in registry.types:
         for version in registry.versions(event_type)[:-1]:
             assert (event_type, version) in STEPS, (event_type, version)
@@ -55,9 +54,9 @@ def test_a_missing_step_is_refused(tmp_path: Path) -> None:
 @pytest.mark.parametrize("key", sorted(OLD_EXAMPLES))
 def test_upcast_payloads_validate_against_the_latest_schema(key: tuple[str, int]) -> None:
     event_type, version = key
-    latest, payload = default_upcaster().upcast_payload(event_type, version, OLD_EXAMPLES[key])
+    latest, payload = STORE.upcaster.upcast_payload(event_type, version, OLD_EXAMPLES[key])
     assert latest == LATEST[event_type]
-    default_registry().validate(event_type, latest, payload)
+    STORE.registry.validate(event_type, latest, payload)
     if event_type == "run_started":  # what the v1 example was: the strategy it named, its spec
         assert {k: v for k, v in payload.items() if k != "params"} == {
             k: v for k, v in EXAMPLES[event_type].items() if k != "params"
@@ -76,20 +75,20 @@ def test_upcast_payloads_validate_against_the_latest_schema(key: tuple[str, int]
 def test_detection_v1_without_a_static_upcasts_to_no_support() -> None:
     old = dict(OLD_EXAMPLES["detection", 1], nearest_static_id=None, nearest_static_class=None)
     old["at_static"] = False
-    _, payload = default_upcaster().upcast_payload("detection", 1, old)
+    _, payload = STORE.upcaster.upcast_payload("detection", 1, old)
     assert payload["support"] is None
 
 
 def test_old_events_are_upcast_on_read_and_kept_as_written_on_disk(tmp_path: Path) -> None:
-    with EventLog.open(tmp_path, "s", wall_clock=lambda: 1) as log:
+    with EventLog.open(tmp_path, "s", wall_clock=lambda: 1, store=STORE) as log:
         written = log.append("detection", OLD_EXAMPLES["detection", 1], time_ns=5, version=1)
         log.append("detection", EXAMPLES["detection"], time_ns=6)
-    raw = list(read_log(tmp_path, upcast=False))
+    raw = list(read_log(tmp_path, upcast=False, store=STORE))
     assert [(e.version, dict(e.payload)) for e in raw] == [
         (1, OLD_EXAMPLES["detection", 1]),
         (2, EXAMPLES["detection"]),
     ]
-    [old, new] = read_log(tmp_path)
+    [old, new] = read_log(tmp_path, store=STORE)
     assert old.version == new.version == 2
     assert dict(old.payload) == dict(new.payload) == EXAMPLES["detection"]
     assert (old.event_id, old.seq, old.time_ns) == (written.event_id, 1, 5)
@@ -105,24 +104,24 @@ def _expected_graph() -> dict[tuple[str, str], float]:
 
 
 def test_the_fixture_really_holds_version_1_detections() -> None:
-    raw = [e for e in read_log(V1_LOG, upcast=False) if e.type == "detection"]
+    raw = [e for e in read_log(V1_LOG, upcast=False, store=STORE) if e.type == "detection"]
     assert raw and all(e.version == 1 for e in raw)
     assert any(e.payload["at_static"] and e.payload["accepted"] for e in raw)
 
 
 def test_the_v1_log_reads_as_valid_latest_events() -> None:
-    registry = default_registry()
-    for event in read_log(V1_LOG):
+    registry = STORE.registry
+    for event in read_log(V1_LOG, store=STORE):
         assert event.version == registry.latest_version(event.type)
         registry.validate_event(event)
 
 
 def test_the_v1_log_folds_to_the_scene_graph_the_v1_code_folded() -> None:
-    graph = fold(read_log(V1_LOG), SceneGraphProjection())
+    graph = fold(read_log(V1_LOG, store=STORE), SceneGraphProjection())
     expected = _expected_graph()
     assert graph.relations == expected
     assert graph.tasks_folded == 12
-    seeded = next(e for e in read_log(V1_LOG) if e.type == "scene_graph_seeded")
+    seeded = next(e for e in read_log(V1_LOG, store=STORE) if e.type == "scene_graph_seeded")
     prior = {(v["dynamic"], v["static"]): v["rel"] for v in seeded.payload["values"]}
     assert sum(abs(expected[k] - prior[k]) for k in prior) > 1.0  # the updates did something
 
@@ -179,9 +178,9 @@ def _decision_facts(event: Event) -> dict[str, Any]:
 
 def test_todays_code_writes_v2_and_decides_as_the_upcast_v1_log(tmp_path: Path) -> None:
     _rerun_fixture_searches(tmp_path / "today")
-    today = list(read_log(tmp_path / "today", upcast=False))
+    today = list(read_log(tmp_path / "today", upcast=False, store=STORE))
     assert {e.version for e in today if e.type == "detection"} == {2}
-    old = [_decision_facts(e) for e in read_log(V1_LOG)]
+    old = [_decision_facts(e) for e in read_log(V1_LOG, store=STORE)]
     # target_detected (the paper's metric) is newer than the fixture; without it, and so
     # without the seq numbers it shifts, today's log is the fixture's.
     now = [_decision_facts(e) for e in today if e.type != "target_detected"]
@@ -193,9 +192,9 @@ def test_todays_code_writes_v2_and_decides_as_the_upcast_v1_log(tmp_path: Path) 
 def test_a_v1_log_can_be_continued_by_todays_writer(tmp_path: Path) -> None:
     log_dir = tmp_path / "continued"
     shutil.copytree(V1_LOG, log_dir)
-    with EventLog.open(log_dir, "robot") as log:
+    with EventLog.open(log_dir, "robot", store=STORE) as log:
         n = log.last_seq
         log.append("detection", EXAMPLES["detection"], time_ns=10**15, task_id="task-99999")
-    events = list(read_log(log_dir))
+    events = list(read_log(log_dir, store=STORE))
     assert len(events) == n + 1
     assert {e.version for e in events if e.type == "detection"} == {2}

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
 from objsearch.events import read_log
 from objsearch.experiments.report_html import page_name
@@ -22,7 +23,7 @@ def test_audit_html_pages_render_in_chromium(tmp_path: Path) -> None:
     out = tmp_path / "audit"
     argv = ["audit", str(LOG), "--out", str(out), "--html", "--plots", "all", "--max-plots", "2"]
     assert main(argv) == 0
-    tasks = audit(read_log(LOG)).tasks
+    tasks = audit(read_log(LOG, store=STORE)).tasks
     pages = [out / page_name(t.task_id) for t in tasks]
     assert all(p.is_file() for p in pages) and (out / "index.md").is_file()
     html = (out / "index.html").read_text()

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
@@ -48,7 +49,7 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 @pytest.fixture(scope="session")
 def lake(tmp_path_factory: pytest.TempPathFactory, logs: dict[str, Path]) -> Lake:
-    lake = Lake(tmp_path_factory.mktemp("lake"))
+    lake = Lake(tmp_path_factory.mktemp("lake"), store=STORE)
     for log_dir in logs.values():
         compact_log(log_dir, lake, robot="sim")
     return lake

@@ -11,6 +11,7 @@ import duckdb
 import pyarrow.parquet as pq
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.agent.scene_graph_sql import EQ4_UPDATES
 from objsearch.cli import main
@@ -27,7 +28,7 @@ QUESTIONS = re.findall(r"### (\d+)\. [^\n]*\n.*?```sql\n(.*?)```", DOC.read_text
 def _without_derived(lake: Lake, root: Path, runs: set[str]) -> Lake:
     """A copy of ``lake`` as older code wrote it: ``runs`` have no derived tables."""
     shutil.copytree(lake.root, root)
-    copy = Lake(root)
+    copy = Lake(root, store=STORE)
     for info in copy.runs():
         if info.run in runs:
             shutil.rmtree(info.path / DERIVED_DIR)
@@ -70,7 +71,7 @@ def _graph_sql(con: duckdb.DuckDBPyConnection, run: str, seq: int) -> dict[tuple
 def test_closed_form_equals_the_fold_at_every_task_end(
     con: duckdb.DuckDBPyConnection, logs: dict[str, Path], run: str
 ) -> None:
-    events = list(read_log(logs[run]))
+    events = list(read_log(logs[run], store=STORE))
     checkpoints = [e.seq for e in events if e.type in ("task_ended", "scene_graph_seeded")]
     checkpoints += [events[-1].seq, checkpoints[-1] - 1]
     changed = 0
@@ -89,7 +90,7 @@ def test_closed_form_equals_the_fold_at_every_task_end(
 def test_scene_graph_is_the_fold_of_the_whole_run(
     con: duckdb.DuckDBPyConnection, logs: dict[str, Path], run: str
 ) -> None:
-    graph = fold(read_log(logs[run]), SceneGraphProjection())
+    graph = fold(read_log(logs[run], store=STORE), SceneGraphProjection())
     rows = con.execute(
         "SELECT dynamic, static, rel, updates FROM scene_graph WHERE run = ?", [run]
     ).fetchall()
@@ -112,7 +113,7 @@ def test_targets_mode_updates_only_targets(con: duckdb.DuckDBPyConnection) -> No
 def test_scene_graph_as_of_time_matches_as_of_seq(
     con: duckdb.DuckDBPyConnection, logs: dict[str, Path]
 ) -> None:
-    events = list(read_log(logs["robot"]))
+    events = list(read_log(logs["robot"], store=STORE))
     ended = [e for e in events if e.type == "task_ended"][5]
     last_at_time = max(e.seq for e in events if e.time_ns <= ended.time_ns)
     by_time = con.execute(
@@ -123,7 +124,7 @@ def test_scene_graph_as_of_time_matches_as_of_seq(
 
 
 def test_searches_agree_with_the_log(con: duckdb.DuckDBPyConnection, logs: dict[str, Path]) -> None:
-    ended = [e for e in read_log(logs["targets"]) if e.type == "task_ended"]
+    ended = [e for e in read_log(logs["targets"], store=STORE) if e.type == "task_ended"]
     rows = con.execute(
         "SELECT task_id, target, success, path_length, method, update_mode FROM searches "
         "WHERE run = 'targets' ORDER BY task_index"
@@ -141,7 +142,7 @@ def test_searches_agree_with_the_log(con: duckdb.DuckDBPyConnection, logs: dict[
 
 
 def test_plans_keep_the_chosen_order(con: duckdb.DuckDBPyConnection, logs: dict[str, Path]) -> None:
-    plans = [e for e in read_log(logs["robot"]) if e.type == "plan_computed"]
+    plans = [e for e in read_log(logs["robot"], store=STORE) if e.type == "plan_computed"]
     rows = con.execute(
         "SELECT seq, chosen_order, first_choice, candidates FROM plans WHERE run = 'robot' "
         "ORDER BY seq"
@@ -176,10 +177,10 @@ def test_a_run_without_derived_tables_is_computed_live_and_upgraded(
 ) -> None:
     old = _without_derived(lake, tmp_path / "l", {"targets"})
     (info,) = [r for r in old.runs() if r.run == "targets"]
-    assert info.missing_derived() == list(derived_tables())
+    assert info.missing_derived() == list(derived_tables(STORE))
     before = open_analytics(old.root).execute("SELECT * FROM scene_graph ORDER BY ALL").fetchall()
     # Committing the same content again adds what is missing, and nothing else changes.
-    tables = events_to_tables(read_log(logs["targets"]))
+    tables = events_to_tables(read_log(logs["targets"], store=STORE), STORE)
     again = old.commit_tables(tables, robot="sim", run="targets", date=info.date)
     assert again.digest == info.digest and not again.missing_derived()
     shutil.rmtree(info.path / DERIVED_DIR)

@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.outdir import claim
 from objsearch.cli import main
 from objsearch.events import Event, EventLog, read_log
@@ -19,7 +20,7 @@ LOG = Path(__file__).resolve().parent / "golden" / "sim-wpl-updates"
 
 def _rewrite(events: Iterable[Event], out: Path) -> Path:
     """Write events (payloads possibly edited) as a fresh, valid log."""
-    log = EventLog.open(out, "robot")
+    log = EventLog.open(out, "robot", store=STORE)
     try:
         for e in events:
             log.append(e.type, e.payload, time_ns=e.time_ns, task_id=e.task_id)
@@ -30,7 +31,7 @@ def _rewrite(events: Iterable[Event], out: Path) -> Path:
 
 def _kinds(log: Path) -> dict[str, set[str]]:
     found: dict[str, set[str]] = {}
-    for task in audit(read_log(log)).tasks:
+    for task in audit(read_log(log, store=STORE)).tasks:
         for a in task.anomalies:
             found.setdefault(a.kind, set()).add(task.task_id)
     return found
@@ -39,7 +40,7 @@ def _kinds(log: Path) -> dict[str, set[str]]:
 def test_a_clean_run_has_no_integrity_anomalies() -> None:
     kinds = _kinds(LOG)
     assert not kinds.keys() & {"target-not-acted-on", "stale-plan", "out-of-order"}
-    tasks = audit(read_log(LOG)).tasks
+    tasks = audit(read_log(LOG, store=STORE)).tasks
     assert len(tasks) == 8
     assert all(t.success and t.oracle_length is not None for t in tasks)
     assert all(
@@ -52,7 +53,7 @@ def test_a_clean_run_has_no_integrity_anomalies() -> None:
 
 def _task_found_by_looking() -> tuple[str, str, int]:
     """A task whose target turned up in a view, with the seq of an earlier view in that task."""
-    events = list(read_log(LOG))
+    events = list(read_log(LOG, store=STORE))
     for i, e in enumerate(events):
         if e.type != "target_found":
             continue
@@ -64,7 +65,7 @@ def _task_found_by_looking() -> tuple[str, str, int]:
 
 
 def _edited(log: Path, out: Path, edit: Callable[[Event], list[Event]]) -> Path:
-    return _rewrite([x for e in read_log(log) for x in edit(e)], out)
+    return _rewrite([x for e in read_log(log, store=STORE) for x in edit(e)], out)
 
 
 def test_a_detection_the_robot_ignored_is_flagged(tmp_path: Path) -> None:
@@ -88,7 +89,7 @@ def test_a_detection_the_robot_ignored_is_flagged(tmp_path: Path) -> None:
 
 
 def test_a_plan_from_a_stale_scene_graph_is_flagged(tmp_path: Path) -> None:
-    plans = [e for e in read_log(LOG) if e.type == "plan_computed"]
+    plans = [e for e in read_log(LOG, store=STORE) if e.type == "plan_computed"]
     victim = plans[len(plans) // 2]
 
     def stale(e: Event) -> list[Event]:
@@ -103,23 +104,23 @@ def test_a_plan_from_a_stale_scene_graph_is_flagged(tmp_path: Path) -> None:
 
 
 def test_a_missing_move_is_flagged(tmp_path: Path) -> None:
-    moves = [e for e in read_log(LOG) if e.type == "moved" and e.payload["metres"] > 0]
+    moves = [e for e in read_log(LOG, store=STORE) if e.type == "moved" and e.payload["metres"] > 0]
     victim = moves[3]
     kinds = _kinds(_edited(LOG, tmp_path / "log", lambda e: [] if e.seq == victim.seq else [e]))
     assert kinds.get("out-of-order") == {victim.task_id}
 
 
 def test_a_task_that_never_ended_is_flagged(tmp_path: Path) -> None:
-    events = list(read_log(LOG))
+    events = list(read_log(LOG, store=STORE))
     last_end = max(e.seq for e in events if e.type == "task_ended")
     log = _rewrite([e for e in events if e.seq < last_end], tmp_path / "log")
-    tasks = audit(read_log(log)).tasks
+    tasks = audit(read_log(log, store=STORE)).tasks
     assert any(a.message.startswith("the task never ended") for a in tasks[-1].anomalies)
 
 
 def test_far_above_oracle_uses_the_thresholds() -> None:
-    strict = audit(read_log(LOG), oracle_ratio=1.0, oracle_excess_m=0.0).tasks
-    lenient = audit(read_log(LOG), oracle_ratio=1e6, oracle_excess_m=1e6).tasks
+    strict = audit(read_log(LOG, store=STORE), oracle_ratio=1.0, oracle_excess_m=0.0).tasks
+    lenient = audit(read_log(LOG, store=STORE), oracle_ratio=1e6, oracle_excess_m=1e6).tasks
     far = {t.task_id for t in strict if any(a.kind == "far-above-oracle" for a in t.anomalies)}
     assert far == {
         t.task_id

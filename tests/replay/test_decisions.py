@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.planner import wpl_plan
 from objsearch.agent.session import load_context
@@ -24,7 +25,7 @@ def _independent_orders(alpha: float) -> dict[int, tuple[str, ...]]:
     nav = load_context("paper").navmap
     state = ReplayState()
     orders = {}
-    for event in read_log(LOG):
+    for event in read_log(LOG, store=STORE):
         if event.type == "plan_computed":
             assert state.pose is not None
             cands = event.payload["candidates"]
@@ -40,7 +41,7 @@ def _independent_orders(alpha: float) -> dict[int, tuple[str, ...]]:
 
 
 def test_unchanged_parameters_reproduce_every_decision() -> None:
-    replayer = replay(read_log(LOG))
+    replayer = replay(read_log(LOG, store=STORE))
     assert len(replayer.decisions) > 10
     assert all(d.same for d in replayer.decisions)
     assert all(
@@ -50,13 +51,15 @@ def test_unchanged_parameters_reproduce_every_decision() -> None:
 
 def test_another_alpha_reports_exactly_the_decisions_it_changes() -> None:
     recorded = {
-        e.seq: tuple(e.payload["order"]) for e in read_log(LOG) if e.type == "plan_computed"
+        e.seq: tuple(e.payload["order"])
+        for e in read_log(LOG, store=STORE)
+        if e.type == "plan_computed"
     }
     expected = _independent_orders(3.0)
     should_change = {seq for seq in recorded if expected[seq] != recorded[seq]}
     assert should_change, "α = 3 should change some plan of this log"
 
-    replayer = replay(read_log(LOG), overrides=Overrides(alpha=3.0))
+    replayer = replay(read_log(LOG, store=STORE), overrides=Overrides(alpha=3.0))
     changed = {d.seq for d in replayer.decisions if not d.same}
     assert changed == should_change
     for d in replayer.decisions:
@@ -67,8 +70,8 @@ def test_another_alpha_reports_exactly_the_decisions_it_changes() -> None:
 
 
 def test_replay_until_stops_there() -> None:
-    plans = [e.seq for e in read_log(LOG) if e.type == "plan_computed"]
-    replayer = replay(read_log(LOG), until_seq=plans[2])
+    plans = [e.seq for e in read_log(LOG, store=STORE) if e.type == "plan_computed"]
+    replayer = replay(read_log(LOG, store=STORE), until_seq=plans[2])
     assert [d.seq for d in replayer.decisions] == plans[:3]
 
 
@@ -83,15 +86,17 @@ def test_cli_exit_status_says_whether_anything_changed(
 
 
 def test_a_log_with_plans_but_no_run_is_refused() -> None:
-    events = [e for e in read_log(LOG) if e.type != "run_started"]
+    events = [e for e in read_log(LOG, store=STORE) if e.type != "run_started"]
     with pytest.raises(ObjsearchError, match="incomplete"):
         replay(events)
 
 
 def test_a_log_of_an_older_schema_version_replays_through_the_upcasters() -> None:
     old = Path(__file__).parent.parent / "events" / "fixtures" / "v1-log"
-    assert any(e.version == 1 for e in read_log(old, upcast=False) if e.type == "detection")
-    replayer = replay(read_log(old))
+    assert any(
+        e.version == 1 for e in read_log(old, upcast=False, store=STORE) if e.type == "detection"
+    )
+    replayer = replay(read_log(old, store=STORE))
     assert replayer.decisions
     assert all(d.same for d in replayer.decisions)
 
@@ -112,11 +117,11 @@ def test_runs_of_other_strategies_replay_with_their_own_model_and_planner(
         targets=("Apple", "Vase"),
         starts=("kitchen-2", "bedroom-1"),
     )
-    replayer = replay(read_log(tmp_path))
+    replayer = replay(read_log(tmp_path, store=STORE))
     assert len(replayer.decisions) >= 8
     assert all(d.same for d in replayer.decisions), [
         d.as_dict() for d in replayer.decisions if not d.same
     ]
     # Replayed as the paper's method instead, some plan must come out differently.
-    paper = replay(read_log(tmp_path), overrides=Overrides(strategy="wpl"))
+    paper = replay(read_log(tmp_path, store=STORE), overrides=Overrides(strategy="wpl"))
     assert any(not d.same for d in paper.decisions)

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.cli import build_parser
@@ -85,6 +86,6 @@ def test_same_decisions_as_in_process(net: Net, tmp_path: Path) -> None:
     got = run_over(net, tmp_path, TRIALS)
     assert got == expected
     # Every event is in the agent's log, whole tasks only.
-    events = list(read_log(tmp_path / "log"))
+    events = list(read_log(tmp_path / "log", store=STORE))
     assert sum(e.type == "task_ended" for e in events) == len(TRIALS)
     assert {e.type for e in events} >= {"plan_computed", "moved", "detection", "target_found"}

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 
@@ -76,7 +77,7 @@ def test_robot_vanishes_then_restarts(zenoh_only: Net, tmp_path: Path) -> None:
     finally:
         stop(agent)
         stop(robot)
-    events = list(read_log(tmp_path / "log"))
+    events = list(read_log(tmp_path / "log", store=STORE))
     ended = [e for e in events if e.type == "task_ended"]
     assert [e.payload["success"] for e in ended] == [False, True]
     reason = next(e for e in events if e.type == "search_failed").payload["reason"]
@@ -145,7 +146,7 @@ def test_agent_restart_rebuilds_from_its_log(zenoh_only: Net, tmp_path: Path) ->
                     assert stop(agent) == 0
     finally:
         stop(robot)
-    events = list(read_log(tmp_path / "log"))
+    events = list(read_log(tmp_path / "log", store=STORE))
     assert [e.type for e in events].count("run_started") == 2
     assert [e.type for e in events].count("scene_graph_seeded") == 1
     # Issue 21: one flipped bit in an early record, then a restart from the snapshots. The

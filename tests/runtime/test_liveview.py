@@ -15,6 +15,7 @@ import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.agent.session import load_context
@@ -31,7 +32,7 @@ GOLDEN = Path(__file__).resolve().parents[1] / "replay" / "golden" / "sim-wpl-up
 
 @pytest.fixture(scope="module")
 def events() -> list[Event]:
-    return list(read_log(GOLDEN))
+    return list(read_log(GOLDEN, store=STORE))
 
 
 @pytest.fixture(scope="module")
@@ -386,7 +387,7 @@ def test_agent_run_serves_and_records_the_live_view(net: Any, tmp_path: Path) ->
         assert stop(agent) == 0, (tmp_path / "agent.txt").read_text()
         stop(robot)
     assert f"live view on ws://127.0.0.1:{port}" in (tmp_path / "agent.txt").read_text()
-    logged = list(read_log(log))
+    logged = list(read_log(log, store=STORE))
     topics_read = read_all(mcap)
     assert len(topics_read[lv.EVENTS]) == len(logged)
     route = topics_read[lv.ROUTE][-1][1]

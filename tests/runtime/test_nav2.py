@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 
@@ -95,7 +96,7 @@ def test_rejected_aborted_and_stuck_goals(net: Net, tmp_path: Path) -> None:
     assert stuck["ok"], stuck
     assert _decisions(stuck) == expected
     assert "cancel_goal answered 0" in (tmp_path / "agent.txt").read_text()
-    events = list(read_log(tmp_path / "log"))
+    events = list(read_log(tmp_path / "log", store=STORE))
     reasons = [e.payload["reason"] for e in events if e.type == "search_failed"]
     assert len(reasons) == 2 and all(r.startswith("robot: ") for r in reasons)
     ended = [e.payload["success"] for e in events if e.type == "task_ended"]
@@ -117,5 +118,5 @@ def test_robot_never_answers_send_goal(net: Net, tmp_path: Path) -> None:
         stop(robot)
     assert not r["ok"] and "no answer to /navigate_to_pose goal" in r["error"], r
     assert "(send_goal) within 3 s" in r["error"]
-    events = list(read_log(tmp_path / "log"))
+    events = list(read_log(tmp_path / "log", store=STORE))
     assert [e.type for e in events][-2:] == ["search_failed", "task_ended"]

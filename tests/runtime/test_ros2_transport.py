@@ -19,6 +19,7 @@ from rclpy.action import ActionServer as RclpyActionServer
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.geometry import Pose
 from objsearch.events import read_log
 from objsearch.ros.qos import DEFAULT, SENSOR_DATA
@@ -247,7 +248,7 @@ def test_whole_searches_over_ros2_equal_the_simulator(tmp_path: Path) -> None:
                     r = _find(client, scene, target, start)
                     assert r["ok"], r
                     got.append(_decisions(r))
-            events = list(read_log(tmp_path / "log"))
+            events = list(read_log(tmp_path / "log", store=STORE))
             last = events[-1].seq
             until(lambda: any(e.seq == last for e in seen[lv.EVENTS]), "the last event, live")
         finally:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import read_log
 from objsearch.runtime.standin import in_process_search
 
@@ -17,7 +18,7 @@ def test_hostile_clients_get_clear_errors_and_the_viewer_loses_nothing(tmp_path:
     from objsearch.runtime.wsflood import KINDS, report, run_battery
 
     in_process_search(tmp_path / "log", 1, "Apple", "kitchen-1")
-    counts = run_battery(list(read_log(tmp_path / "log")), 120, seed=3)
+    counts = run_battery(list(read_log(tmp_path / "log", store=STORE)), 120, seed=3)
     print("\n".join(report(counts)))
     assert (counts.traceback, counts.silent_change, counts.loss) == (0, 0, 0), counts.problems
     assert counts.tried == 120 == counts.clear_error + counts.unchanged

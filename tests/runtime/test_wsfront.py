@@ -21,6 +21,7 @@ from typing import Any
 
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.session import load_context
 from objsearch.events import Event, read_log
 from objsearch.runtime import liveview as lv
@@ -69,7 +70,7 @@ def test_choose_refuses_with_the_reason() -> None:
 
 @pytest.fixture(scope="module")
 def events() -> list[Event]:
-    return list(read_log(GOLDEN))
+    return list(read_log(GOLDEN, store=STORE))
 
 
 @pytest.fixture

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events import Event, read_log
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.record import Recording, record
@@ -35,4 +36,4 @@ def record_run(root: Path, fmt: BagFormat, **kwargs: object) -> Recorded:
         chunk_bytes=16 * 1024,  # several chunks, so damage tests can lose some and keep others
         **kwargs,  # type: ignore[arg-type]
     )
-    return Recorded(root / name, rec, tuple(read_log(log_dir)))
+    return Recorded(root / name, rec, tuple(read_log(log_dir, store=STORE)))

@@ -9,12 +9,12 @@ from pathlib import Path
 
 import pytest
 
-from objsearch.events.killtest import KillServer, tree
 from objsearch.events.lake import STAGING
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import MANIFESTS, RUN_REPORT, BagLake
 from objsearch.pipeline.bags.record import record
+from objsearch.testing.killtest import KillServer, tree
 
 from .splitter import split_ros1
 

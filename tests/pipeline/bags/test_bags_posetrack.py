@@ -11,6 +11,7 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.geometry import Pose
 from objsearch.events.arrow import events_to_tables
 from objsearch.pipeline.bags import posetrack
@@ -25,7 +26,7 @@ from .bag_fixtures import Recorded
 
 def _assert_tables_are_the_events_tables(contents: BagContents) -> None:
     fast = contents.tables()
-    general = events_to_tables(contents.events)
+    general = events_to_tables(contents.events, STORE)
     assert list(fast) == list(general)
     for event_type, table in general.items():
         assert fast[event_type].schema.equals(table.schema, check_metadata=True), event_type

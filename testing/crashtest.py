@@ -33,24 +33,26 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Final
 
-from .errors import EventStoreError, TornTailWarning
-from .log import LOG_FILE, EventLog, read_log
+from objsearch.agent.catalogue import STORE
+from objsearch.events.errors import EventStoreError, TornTailWarning
+from objsearch.events.log import LOG_FILE, EventLog, read_log
 
 STREAM: Final = "crash"
 
 _SERVER: Final = r"""
 import os, random, sys, warnings
-from objsearch.events import EventLog, default_registry, default_upcaster
+from objsearch.agent.catalogue import STORE
+from objsearch.events import EventLog
 
 warnings.simplefilter("ignore")
-default_registry(), default_upcaster()  # compiled once here, not in every forked writer
+STORE.upcaster  # compiled once here, not in every forked writer
 for command in sys.stdin:
     directory, seed = command.split()
     pid = os.fork()
     if pid == 0:
         rng = random.Random(int(seed))
         try:
-            log = EventLog.open(directory, "crash")
+            log = EventLog.open(directory, "crash", store=STORE)
             os.write(1, b"ready\n")
             n = 0
             while True:
@@ -227,7 +229,7 @@ def _check(
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            log = EventLog.open(log_dir, STREAM)
+            log = EventLog.open(log_dir, STREAM, store=STORE)
         if log.torn_tail is not None:
             report.torn_tails_cut += 1
             if not any(issubclass(w.category, TornTailWarning) for w in caught):
@@ -236,7 +238,7 @@ def _check(
         with log:
             with warnings.catch_warnings(record=True) as after:
                 warnings.simplefilter("always")
-                events = list(read_log(log_dir))
+                events = list(read_log(log_dir, store=STORE))
             if after:
                 raise CrashTestFailure(f"{where}: a torn tail survived the reopen: {after[0]}")
             seqs = [e.seq for e in events]
@@ -254,7 +256,7 @@ def _check(
                 if event.type != "search_failed" or set(fill) - {"x"} or "." not in tag:
                     raise CrashTestFailure(f"{where}: seq {event.seq} was never appended")
             probe = log.append("search_failed", {"reason": "probe.0:"}, time_ns=log.last_time_ns)
-        last = list(read_log(log_dir, from_seq=probe.seq))
+        last = list(read_log(log_dir, from_seq=probe.seq, store=STORE))
         if last != [probe]:
             raise CrashTestFailure(f"{where}: the append after recovery did not read back")
         # The probe is a real event now; later rounds must find it too.

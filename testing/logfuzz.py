@@ -27,9 +27,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
-from .envelope import Event
-from .errors import EventStoreError, TornTailWarning
-from .log import DURABLE_FILE, LOG_FILE, META_FILE, QUARANTINE_PREFIX, EventLog, read_log
+from objsearch.agent.catalogue import STORE
+from objsearch.events.envelope import Event
+from objsearch.events.errors import EventStoreError, TornTailWarning
+from objsearch.events.log import (
+    DURABLE_FILE,
+    LOG_FILE,
+    META_FILE,
+    QUARANTINE_PREFIX,
+    EventLog,
+    read_log,
+)
 
 STREAM = "robot"
 Files = dict[str, bytes]
@@ -86,10 +94,10 @@ def _make_log(directory: Path, run_id: str, n: int, *, crash_after: int | None =
                 log.append("task_ended", done, time_ns=10 * i, task_id=task)
 
     clean = n if crash_after is None else crash_after
-    with EventLog.open(directory, STREAM, run_id=run_id, wall_clock=lambda: 7) as log:
+    with EventLog.open(directory, STREAM, run_id=run_id, wall_clock=lambda: 7, store=STORE) as log:
         write(log, 0, clean)
     if crash_after is not None:
-        log = EventLog.open(directory, STREAM, wall_clock=lambda: 7)
+        log = EventLog.open(directory, STREAM, wall_clock=lambda: 7, store=STORE)
         write(log, clean, n)
         log._sync()  # acknowledged, then the process dies: no close, no new high-water mark
         log._closed = True
@@ -327,7 +335,7 @@ def _base_logs(root: Path, events: int) -> dict[str, tuple[Files, list[Event]]]:
         ("other", "00000000-0000-4000-8000-000000000003", None),
     ):
         _make_log(root / name, run, events, crash_after=crash)
-        bases[name] = (_read_files(root / name), list(read_log(root / name)))
+        bases[name] = (_read_files(root / name), list(read_log(root / name, store=STORE)))
     return bases
 
 
@@ -384,11 +392,11 @@ def _open_as_writer(
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", TornTailWarning)
-            log = EventLog.open(directory, STREAM, verify=verify)
+            log = EventLog.open(directory, STREAM, verify=verify, store=STORE)
             with log:
                 log.append("search_failed", {"reason": "next"}, time_ns=log.last_time_ns)
                 torn = log.torn_tail
-            after = list(read_log(directory))
+            after = list(read_log(directory, store=STORE))
     except EventStoreError:
         now = _read_files(directory)
         if now != files:
@@ -478,7 +486,7 @@ class RepairReport:
 def run_repair_fuzz(cases: int, *, seed: int = 0, events: int = 300) -> RepairReport:
     """``cases`` seeded mutations of a closed and a crashed log, each repaired; see
     :class:`RepairReport` for what counts as a failure."""
-    from .repair import repair_log, verify_log
+    from objsearch.events.repair import repair_log, verify_log
 
     rng = random.Random(seed)
     report = RepairReport()
@@ -527,18 +535,18 @@ def _repair_case(
     files: Files,
     written_log: bytes,
     original: list[Event],
-    repair_log: Callable[[Path], Any],
-    verify_log: Callable[[Path], Any],
+    repair_log: Callable[..., Any],
+    verify_log: Callable[..., Any],
 ) -> tuple[str, int | None]:
     """(outcome, intact records moved out) of repairing one damaged log; ``written_log`` is
     the undamaged events.log whose records are ``original``."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", TornTailWarning)
-            result = repair_log(directory)
-            verify_log(directory)
-            after = list(read_log(directory, upcast=False))
-            with EventLog.open(directory, STREAM) as log:
+            result = repair_log(directory, store=STORE)
+            verify_log(directory, store=STORE)
+            after = list(read_log(directory, upcast=False, store=STORE))
+            with EventLog.open(directory, STREAM, store=STORE) as log:
                 appended = log.append("search_failed", {"reason": "next"}, time_ns=log.last_time_ns)
     except EventStoreError as exc:
         if _read_files(directory) != files:
@@ -625,8 +633,8 @@ def run_snapshot_fuzz(cases: int, *, seed: int = 0, events: int = 60) -> Snapsho
     """Damage an attested snapshot every way (flipped bits, edited state with its CRC
     recomputed, another log's snapshot, a stale one, malformed state, truncation) and restore:
     the result must equal the log's fold every time."""
-    from .projection import fold
-    from .snapshot import restore, save_snapshot, snapshot_path
+    from objsearch.events.projection import fold
+    from objsearch.events.snapshot import restore, save_snapshot, snapshot_path
 
     rng = random.Random(seed)
     report = SnapshotReport()
@@ -636,10 +644,13 @@ def run_snapshot_fuzz(cases: int, *, seed: int = 0, events: int = 60) -> Snapsho
         for name, run in (("mine", "01"), ("other", "02")):
             _make_log(root / name, f"00000000-0000-4000-8000-0000000000{run}", events)
             save_snapshot(
-                root / f"{name}-snaps", fold(read_log(root / name), _Counts()), log=root / name
+                root / f"{name}-snaps",
+                fold(read_log(root / name, store=STORE), _Counts()),
+                log=root / name,
+                store=STORE,
             )
             logs[name] = snapshot_path(root / f"{name}-snaps", "counts").read_bytes()
-        truth = fold(read_log(root / "mine"), _Counts()).counts
+        truth = fold(read_log(root / "mine", store=STORE), _Counts()).counts
         path = snapshot_path(root / "mine-snaps", "counts")
         quiet = logging.getLogger("objsearch.events.snapshot")
         for case in range(cases):
@@ -675,6 +686,7 @@ def run_snapshot_fuzz(cases: int, *, seed: int = 0, events: int = 60) -> Snapsho
                     _Counts.from_snapshot,
                     snapshot_dir=path.parent,
                     save=False,
+                    store=STORE,
                 )
             except Exception:
                 report.traceback += 1

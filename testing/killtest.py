@@ -23,7 +23,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Final
 
-from ._fs import KILL_AFTER_STEP_ENV
+from objsearch.events._fs import KILL_AFTER_STEP_ENV
 
 _SERVER: Final = r"""
 import json, os, signal, sys, traceback

@@ -1,0 +1,81 @@
+"""The store value: a catalogue and what the event store compiles from it, handed to every reader
+and writer.
+
+``events/`` knows no robot. A domain describes its events with a
+:class:`~objsearch.events.catalogue.Catalogue` and builds one :class:`Store` from it; that value
+is passed to the log (``EventLog.open(..., store=)``), ``read_log``, snapshots, the Arrow export
+and the lake — the way ``eventsourcing`` hands an application its mapper. Nothing is installed
+anywhere and no import has a side effect: two stores with different catalogues live side by side
+in one process, and each compiles its schemas, upcasters and Arrow schemas once, on first use.
+
+The product's store is :data:`objsearch.agent.catalogue.STORE`. A function called without a
+store uses :func:`shipped`: the schema files in ``objsearch.events/schema/`` alone, with no
+upcasters (reading an old version is then an error that says so), no fast payload check (the
+JSON Schema validates every append) and no derived tables besides ``searches``.
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+from importlib import resources
+from typing import Final
+
+from .catalogue import Catalogue
+from .schemas import SchemaRegistry
+from .upcast import Upcaster
+
+_PACKAGE: Final = __name__.rpartition(".")[0]
+
+
+class Store:
+    """A catalogue and its compiled parts: the schema registry and the upcaster.
+
+    Cheap to build (nothing is read or compiled until first asked for), immutable once built,
+    and safe to share between threads.
+    """
+
+    __slots__ = ("_lock", "_registry", "_upcaster", "catalogue")
+
+    def __init__(self, catalogue: Catalogue) -> None:
+        self.catalogue: Final = catalogue
+        self._lock = threading.Lock()
+        self._registry: SchemaRegistry | None = None
+        self._upcaster: Upcaster | None = None
+
+    @property
+    def registry(self) -> SchemaRegistry:
+        """The catalogue's schemas with compiled validators (and its fast check)."""
+        registry = self._registry
+        if registry is None:
+            with self._lock:
+                if self._registry is None:
+                    self._registry = SchemaRegistry.from_directory(
+                        self.catalogue.schemas, accepts=self.catalogue.accepts
+                    )
+                registry = self._registry
+        return registry
+
+    @property
+    def upcaster(self) -> Upcaster:
+        """The catalogue's upcast steps over its schemas (every old version needs one, unless the
+        catalogue has none at all: then an old version is an error when it is read)."""
+        upcaster = self._upcaster
+        if upcaster is None:
+            registry = self.registry
+            with self._lock:
+                if self._upcaster is None:
+                    self._upcaster = Upcaster(
+                        registry, self.catalogue.upcasters, partial=not self.catalogue.upcasters
+                    )
+                upcaster = self._upcaster
+        return upcaster
+
+    def __repr__(self) -> str:
+        return f"Store({self.catalogue.schemas!s})"
+
+
+@functools.cache
+def shipped() -> Store:
+    """The store of the schema files shipped in ``objsearch.events/schema/`` and nothing else."""
+    return Store(Catalogue(schemas=resources.files(_PACKAGE).joinpath("schema")))
