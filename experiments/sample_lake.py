@@ -14,6 +14,7 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
+from objsearch.agent.catalogue import STORE
 from objsearch.events.lake import Lake, compact_log
 from objsearch.experiments.runner import Job, run_job
 
@@ -39,7 +40,7 @@ def write_sample_lake(
 ) -> Lake:
     """Run every (home, strategy, seed) on ``stats-<seed>`` schedules and compact each log into
     a lake at ``out``; returns the lake."""
-    lake = Lake(out)
+    lake = Lake(out, store=STORE)
     with tempfile.TemporaryDirectory(prefix="objsearch-sample-") as tmp:
         for home in homes:
             for strategy in strategies:
