@@ -609,6 +609,7 @@ def register(sub: Any) -> None:
     upgrade.add_argument(
         "--into",
         metavar="LAKE",
+        type=t.text,
         help="with --to fleet: write the fleet table there (a folder or s3://bucket/prefix) and "
         "leave --lake as it is",
     )
@@ -621,6 +622,7 @@ def register(sub: Any) -> None:
     compact.add_argument(
         "--lake",
         default=_default_lake(),
+        type=t.text,
         help=f"fleet lake folder or s3:// URI ($OBJSEARCH_LAKE or {DEFAULT_LAKE})",
     )
     compact.add_argument(
