@@ -18,7 +18,7 @@ which lets the store trust it instead of the schema validator (see ``docs/events
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from importlib import resources
 from typing import (
     Annotated,
@@ -37,6 +37,7 @@ import msgspec
 from objsearch.agent.scene_graph_sql import DERIVED_TABLES
 from objsearch.agent.upcasters import STEPS
 from objsearch.events.catalogue import Catalogue
+from objsearch.events.envelope import ReadPayload
 from objsearch.events.errors import InvalidEventError
 from objsearch.events.store import Store
 
@@ -344,6 +345,10 @@ LATEST: Final[Mapping[str, type[Record]]] = {
 }
 
 R = TypeVar("R", bound=Record)
+#: Each record's decoder straight from a payload's JSON text (what ``read_log`` keeps).
+_JSON_DECODERS: Final[Mapping[type[Record], Callable[[Any], Any]]] = {
+    record: msgspec.json.Decoder(record, strict=True).decode for record in RECORDS.values()
+}
 _json_encode: Final = msgspec.json.Encoder().encode
 _json_decode: Final = msgspec.json.Decoder(dict[str, Any]).decode
 
@@ -393,6 +398,13 @@ def decode_payload(record_type: type[R], payload: Mapping[str, Any]) -> R:
 
 def _convert(record_type: type[R], payload: Mapping[str, Any]) -> R:
     try:
+        if type(payload) is ReadPayload:
+            raw = payload.unread
+            if raw is not None:
+                # Read from a log and not decoded yet: its JSON straight into the record, in
+                # C, the one decode this event gets (the same checks as converting the dict).
+                record: R = _JSON_DECODERS[record_type](raw)
+                return record
         return msgspec.convert(
             payload if type(payload) is dict else dict(payload), record_type, strict=True
         )

@@ -12,7 +12,13 @@
 2. projection: the scene graph of a synthetic run of --fold-events events (a realistic mix of
    tasks, detections and moves), folded in Python (events in memory; and read_log + fold, as a
    rate) vs the SQL closed form over the lake; the two must agree.
-3. query: every query of docs/analytics.md over a lake of --lake-events events (the synthetic run
+3. read path (issue 22): on one log of --read-events events, CPU time of read_log + fold
+   (the agent's state, and the scene graph), of read_log alone and of verify_log, each against
+   decoding every line's JSON with msgspec (the same file, the same run); and batched appends
+   against a minimal JSON-lines writer with the same CRC chain (json.dumps + crc32 + one buffered
+   write, one fsync at the end). Targets: read + verify + fold ≤ 2×, verify ≤ 1.5×, batched
+   append ≤ 1.5×.
+4. query: every query of docs/analytics.md over a lake of --lake-events events (the synthetic run
    committed --lake-events / --fold-events times under different run names) vs a full scan
    (SELECT count(*) FROM events) as the baseline.
 
@@ -34,11 +40,13 @@ import statistics
 import tempfile
 import time
 import warnings
+import zlib
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Final
 
 import duckdb
+import msgspec
 import pyarrow as pa
 
 from objsearch.agent.catalogue import (
@@ -53,6 +61,7 @@ from objsearch.agent.catalogue import (
     encode,
 )
 from objsearch.agent.scene_graph import SceneGraphProjection
+from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import RunSpec
 from objsearch.events import Event, EventLog, fold, read_log
 from objsearch.events.arrow import events_to_tables
@@ -445,25 +454,121 @@ def bench_queries(events: list[Event], copies: int, reps: int, root: Path) -> No
         print(f"{name:44} {t:9.3f} {t / t_base:7.1f}")
 
 
+def cpu_time(fn: Callable[[], Any], reps: int) -> float:
+    """Median CPU seconds (user + system) of ``fn`` in this process: on a shared machine CPU time
+    is what a busy neighbour inflates least."""
+    times = []
+    for _ in range(reps):
+        start = time.process_time()
+        fn()
+        times.append(time.process_time() - start)
+    return statistics.median(times)
+
+
+def bench_read_path(n: int, reps: int, root: Path) -> None:
+    """Reading, verifying and folding a log against msgspec decoding its lines."""
+    from objsearch.events.repair import verify_log
+
+    events = synthetic_run(n)
+    log_dir = root / "read-log"
+    _write_log(log_dir, events)
+    path = log_dir / "events.log"
+    size = path.stat().st_size
+    print(f"\n## read path: {len(events):,} events, {size / 1e6:.0f} MB (CPU s, median of {reps})")
+    decode = msgspec.json.decode
+
+    def msgspec_lines() -> None:
+        with path.open("rb") as f:
+            for line in f:
+                decode(line[: line.rindex(b"\t")])
+
+    def read_only() -> None:
+        for _ in read_log(log_dir, store=STORE):
+            pass
+
+    _ = STORE.upcaster  # compiled once, outside the timings
+    base = cpu_time(msgspec_lines, reps)
+    runs = {
+        "read_log + fold (agent state)": lambda: fold(read_log(log_dir, store=STORE), AgentState()),
+        "read_log + fold (scene graph)": lambda: fold(
+            read_log(log_dir, store=STORE), SceneGraphProjection()
+        ),
+        "read_log alone": read_only,
+        "verify_log": lambda: verify_log(log_dir, store=STORE),
+    }
+    print(f"{'what':40} {'CPU s':>8} {'÷ msgspec':>10}")
+    print(f"{'msgspec line decoding (baseline)':40} {base:8.3f} {1.0:10.2f}")
+    for name, fn in runs.items():
+        t = cpu_time(fn, reps)
+        print(f"{name:40} {t:8.3f} {t / base:10.2f}")
+    print("(targets: read + fold ≤ 2.0, verify ≤ 1.5)")
+
+    batch = 500
+    appended = events[: min(len(events), 100_000)]
+    items = [(e.type, dict(e.payload), e.time_ns, e.task_id) for e in appended]
+
+    def ours() -> None:
+        d = Path(tempfile.mkdtemp(dir=root))
+        with EventLog.open(d, "bench", store=STORE, wall_clock=lambda: 1) as log:
+            for start in range(0, len(items), batch):
+                with log.batch():
+                    for event_type, payload, time_ns, task_id in items[start : start + batch]:
+                        log.append(event_type, payload, time_ns=time_ns, task_id=task_id)
+        shutil.rmtree(d)
+
+    def minimal() -> None:
+        """A JSON-lines writer with the same chained CRC: the floor any safe log pays."""
+        d = Path(tempfile.mkdtemp(dir=root))
+        prev = 0
+        with (d / "events.log").open("wb") as f:
+            for seq, (event_type, payload, time_ns, task_id) in enumerate(items, 1):
+                body = json.dumps(
+                    {"event_id": f"00000000-0000-4000-8000-{seq:012x}", "stream": "bench",
+                     "seq": seq, "time_ns": time_ns, "recorded_at_ns": 1, "type": event_type,
+                     "version": 1, "task_id": task_id, "payload": payload},
+                    sort_keys=True, separators=(",", ":"), ensure_ascii=False,
+                ).encode()  # fmt: skip
+                prev = zlib.crc32(body, prev)
+                f.write(body + b"\t%08x\n" % prev)
+                if seq % batch == 0:
+                    f.flush()
+                    os.fsync(f.fileno())
+            f.flush()
+            os.fsync(f.fileno())
+        shutil.rmtree(d)
+
+    t_min = cpu_time(minimal, reps)
+    t_ours = cpu_time(ours, reps)
+    k = len(items)
+    print(f"{'batched append (' + str(batch) + '/fsync)':40} {'µs/event':>8} {'ratio':>10}")
+    print(f"{'minimal JSON-lines + CRC (baseline)':40} {1e6 * t_min / k:8.1f} {1.0:10.2f}")
+    print(f"{'EventLog.append, validated':40} {1e6 * t_ours / k:8.1f} {t_ours / t_min:10.2f}")
+    print("(target: ≤ 1.5)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--append-events", type=int, default=2000)
     ap.add_argument("--fold-events", type=int, default=1_000_000)
     ap.add_argument("--lake-events", type=int, default=10_000_000)
+    ap.add_argument("--read-events", type=int, default=1_000_000)
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--kills", type=int, default=0, help="also run the crash test this many times")
     ap.add_argument("--quick", action="store_true", help="all sizes ÷ 100")
-    ap.add_argument("--only", choices=["append", "projection", "query", "restart", "crash"])
+    ap.add_argument("--only", choices=["append", "read", "projection", "query", "restart", "crash"])
     args = ap.parse_args()
     if args.quick:
         args.append_events //= 10
         args.fold_events //= 100
         args.lake_events //= 100
+        args.read_events //= 100
     root = Path(tempfile.mkdtemp(prefix="objsearch-bench-"))
     try:
         if args.only in (None, "append"):
             bench_append(args.append_events, args.reps, root)
             bench_typed_append(args.append_events * 10, args.reps, root)
+        if args.only in (None, "read"):
+            bench_read_path(args.read_events, args.reps, root)
         if args.only in (None, "projection", "query"):
             events = bench_projection(args.fold_events, args.reps, root)
             if args.only != "projection":

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import numbers
 import re
 import uuid
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Iterator, Mapping
 from types import MappingProxyType
-from typing import Any, Final, NoReturn, TypeGuard
+from typing import Annotated, Any, Final, NoReturn, TypeGuard
+
+import msgspec
 
 from .errors import InvalidEventError
 
@@ -50,24 +52,37 @@ def deterministic_event_id(run: str, seq: int) -> str:
 _NAMESPACE_BYTES: Final = EVENT_ID_NAMESPACE.bytes
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class Event:
+# The envelope's rules as msgspec constraints: a record's envelope is checked in C as it is
+# decoded (``check_envelope`` states the same rules for events built in Python).
+# \Z, not $: "$" also matches before a trailing newline.
+_UUID_PATTERN: Final = r"^[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}\Z"
+_Id = Annotated[str, msgspec.Meta(pattern=_UUID_PATTERN)]
+_Name = Annotated[str, msgspec.Meta(min_length=1)]
+_Count = Annotated[int, msgspec.Meta(ge=0)]
+_Positive = Annotated[int, msgspec.Meta(ge=1)]
+
+
+class Event(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
     """One immutable fact in a stream.
 
     ``payload`` is deep-copied on construction (tuples become lists, numpy scalars plain numbers,
     so an event equals itself after a JSON round trip) and exposed through a read-only mapping, so
     neither the caller's dict nor ``event.payload[...] = ...`` can change a recorded fact. Nested
     containers are plain JSON lists/dicts: treat them as read-only too.
+
+    A ``msgspec.Struct`` rather than a dataclass: a log's record decodes straight into one, its
+    envelope checked in C on the way (:func:`decode_event`), which is most of what reading costs.
+    Equal events compare equal however they were made (built, or read back).
     """
 
-    event_id: str
-    stream: str
-    seq: int
-    time_ns: int
-    recorded_at_ns: int
-    type: str
-    version: int
-    task_id: str | None
+    event_id: _Id
+    stream: _Name
+    seq: _Positive
+    time_ns: _Count
+    recorded_at_ns: _Count
+    type: _Name
+    version: _Positive
+    task_id: _Name | None
     payload: Mapping[str, Any]
 
     def __post_init__(self) -> None:
@@ -91,12 +106,31 @@ class Event:
                 reason="not a mapping",
             )
         copied = _json_copy(self.payload, "payload", self.type, self.version)
-        object.__setattr__(self, "payload", MappingProxyType(copied))
+        msgspec.structs.force_setattr(self, "payload", MappingProxyType(copied))
 
-    # The generated hash would fail on the mapping proxy; (stream, seq, id) identifies an event
-    # and is equal for equal events, which is all hashing needs.
+    # (stream, seq, id) identifies an event and is equal for equal events, which is all hashing
+    # needs (the payload, a mapping, has no hash).
     def __hash__(self) -> int:
         return hash((self.stream, self.seq, self.event_id))
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Event):
+            return NotImplemented
+        return (
+            self.seq == other.seq
+            and self.event_id == other.event_id
+            and self.stream == other.stream
+            and self.time_ns == other.time_ns
+            and self.recorded_at_ns == other.recorded_at_ns
+            and self.type == other.type
+            and self.version == other.version
+            and self.task_id == other.task_id
+            and self.payload == other.payload
+        )
+
+    def __repr__(self) -> str:
+        fields = ", ".join(f"{name}={getattr(self, name)!r}" for name in ENVELOPE_FIELDS)
+        return f"Event({fields})"
 
     def to_json_dict(self) -> dict[str, Any]:
         """A fresh, mutable, JSON-serialisable dict (the caller may change it freely)."""
@@ -118,7 +152,7 @@ class Event:
             "type": self.type,
             "version": self.version,
             "task_id": self.task_id,
-            "payload": dict(self.payload),
+            "payload": _plain_dict(self.payload),
         }
 
     @classmethod
@@ -131,9 +165,8 @@ class Event:
     def _adopt(cls, d: dict[str, Any]) -> Event:
         """Build from a dict the caller owns outright (fresh from ``json.loads``), without copying.
 
-        The reader's hot path, for records whose checksum already proved they are what a writer
-        wrote: the fields' presence and JSON types are checked, but neither the payload's deep
-        copy nor the UUID parse, which together would double the cost of reading a log.
+        For records whose checksum already proved they are what a writer wrote: the fields'
+        presence and JSON types are checked, but not the payload's deep copy.
         """
         if d.keys() != _FIELD_SET:
             _check_field_names(d)
@@ -146,11 +179,133 @@ class Event:
                 path="payload",
                 reason="not an object",
             )
-        event = object.__new__(cls)
-        for name in _SCALAR_FIELDS:
-            object.__setattr__(event, name, d[name])
-        object.__setattr__(event, "payload", MappingProxyType(payload))
-        return event
+        d = dict(d, payload=MappingProxyType(payload))
+        return _Adopted(**d)
+
+
+class _Adopted(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
+    """An event from a dict its builder owns (``_adopt``): checked there, wrapped, not copied."""
+
+    def __post_init__(self) -> None:
+        pass
+
+
+class ReadPayload(Mapping[str, Any]):
+    """The payload of an event read from a log, decoded only when first looked at.
+
+    A read that only verifies never builds it; a fold that wants the typed record decodes it
+    from these JSON bytes straight into the record (:func:`payload_json`), one decode per event.
+    Read-only, like every event's payload.
+    """
+
+    __slots__ = ("_dict", "_raw", "unread")
+
+    def __init__(self, raw: bytes | msgspec.Raw) -> None:
+        self._raw = raw
+        self._dict: dict[str, Any] | None = None
+        #: The JSON text while the payload has not been decoded (then None): a reader that wants
+        #: a typed record decodes it from here, once.
+        self.unread: bytes | msgspec.Raw | None = raw
+
+    def _materialize(self) -> dict[str, Any]:
+        d = self._dict
+        if d is None:
+            try:
+                d = _decode_payload(self._raw)
+            except msgspec.MsgspecError:  # what json reads and msgspec does not (1e400: inf)
+                d = json.loads(bytes(self._raw))
+            self._dict = d
+            self.unread = None
+        return d
+
+    def __getitem__(self, key: str) -> Any:
+        return self._materialize()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._materialize())
+
+    def __len__(self) -> int:
+        return len(self._materialize())
+
+    def __contains__(self, key: object) -> bool:
+        return key in self._materialize()
+
+    def get(self, key: str, default: Any = None) -> Any:
+        return self._materialize().get(key, default)
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, ReadPayload):
+            return self._materialize() == other._materialize()
+        if isinstance(other, Mapping):
+            return self._materialize() == (other if type(other) is dict else dict(other))
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        return f"ReadPayload({self._materialize()!r})"
+
+    def copy(self) -> dict[str, Any]:
+        """A shallow copy as a plain dict (nested values shared: do not change them)."""
+        return dict(self._materialize())
+
+
+def payload_json(payload: Mapping[str, Any]) -> bytes | msgspec.Raw | None:
+    """The JSON text of a payload read from a log and not decoded yet (None otherwise): a reader
+    that wants a typed record decodes it from here, once."""
+    if type(payload) is ReadPayload:
+        return payload.unread
+    return None
+
+
+class _Read(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
+    """An event decoded from a record: its envelope was checked by the decoder's constraints and
+    its payload is kept as the record's JSON text until someone reads it (:class:`ReadPayload`)."""
+
+    payload: msgspec.Raw  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        raw = self.payload
+        if memoryview(raw)[0] != 0x7B:  # "{": a payload is a JSON object
+            raise ValueError("payload is not a JSON object")
+        msgspec.structs.force_setattr(self, "payload", ReadPayload(raw))
+
+
+class _Checked(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
+    """A record checked and not read: its payload stays JSON text (``msgspec.Raw``), never a
+    mapping. Only scans that verify a log and look at no payload see these."""
+
+    payload: msgspec.Raw  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if memoryview(self.payload)[0] != 0x7B:  # "{": a payload is a JSON object
+            raise ValueError("payload is not a JSON object")
+
+
+_decode_json: Final = msgspec.json.Decoder(_Read).decode
+_check_json: Final = msgspec.json.Decoder(_Checked).decode
+_decode_payload: Final = msgspec.json.Decoder(dict[str, Any]).decode
+
+
+def decode_event(body: bytes) -> Event:
+    """The event of a record's JSON (the writer's compact, UTF-8 form), envelope checked; raises
+    ``msgspec.DecodeError`` / ``msgspec.ValidationError`` for anything else (a caller that must
+    say what is wrong reads it again with ``json.loads`` and :meth:`Event._adopt`)."""
+    event: Event = _decode_json(body)
+    return event
+
+
+def check_event(body: bytes) -> Event:
+    """Like :func:`decode_event`, but the payload is left as JSON text, not made a mapping: for a
+    scan that verifies records and reads no payload."""
+    event: Event = _check_json(body)
+    return event
+
+
+def _plain_dict(payload: Mapping[str, Any]) -> dict[str, Any]:
+    if type(payload) is ReadPayload:
+        return payload.copy()
+    return dict(payload)
 
 
 _FIELD_SET: Final = frozenset(ENVELOPE_FIELDS)
@@ -255,23 +410,51 @@ def _json_copy(value: Any, path: str, event_type: str, version: int) -> Any:
     Normalising here (tuple → list, numpy scalar → int/float) keeps an appended event equal to
     the same event read back; refusing NaN/inf and non-JSON objects here keeps them off disk.
     """
-    if value is None or type(value) in (str, int, bool):
+    kind = type(value)
+    if kind is dict:  # the common case first, scalars inline: a path is spelled out only
+        out: dict[str, Any] = {}  # for a value that needs a closer look (every append)
+        for key, item in value.items():
+            if type(key) is not str:
+                if not isinstance(key, str):
+                    _not_json(key, path, event_type, version, "is not a string key")
+                key = str.__str__(key)
+            item_kind = type(item)
+            if (
+                item_kind is str
+                or item_kind is int
+                or item_kind is bool
+                or item is None
+                or (item_kind is float and math.isfinite(item))
+            ):
+                out[key] = item
+            else:
+                out[key] = _json_copy(item, f"{path}.{key}", event_type, version)
+        return out
+    if kind is list or kind is tuple:
+        copied = []
+        for i, item in enumerate(value):
+            item_kind = type(item)
+            if (
+                item_kind is str
+                or item_kind is int
+                or item_kind is bool
+                or item is None
+                or (item_kind is float and math.isfinite(item))
+            ):
+                copied.append(item)
+            else:
+                copied.append(_json_copy(item, f"{path}[{i}]", event_type, version))
+        return copied
+    if value is None or kind in (str, int, bool):
         return value
-    if type(value) is float:
+    if kind is float:
         if not math.isfinite(value):
             _not_json(value, path, event_type, version, "is not a finite number")
         return value
     if isinstance(value, Mapping):
-        out: dict[str, Any] = {}
-        for key, item in value.items():
-            if not isinstance(key, str):
-                _not_json(key, path, event_type, version, "is not a string key")
-            out[str.__str__(key)] = _json_copy(item, f"{path}.{key}", event_type, version)
-        return out
+        return _json_copy(dict(value.items()), path, event_type, version)
     if isinstance(value, list | tuple):
-        return [
-            _json_copy(item, f"{path}[{i}]", event_type, version) for i, item in enumerate(value)
-        ]
+        return _json_copy(list(value), path, event_type, version)
     # Subclasses (StrEnum, IntEnum, numpy scalars) become the plain value JSON would store.
     if isinstance(value, str):
         return str.__str__(value)

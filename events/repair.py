@@ -96,7 +96,7 @@ def verify_log(directory: Path | str, *, store: Store | None = None) -> Verifica
     record = read_durable_record(directory)
     durable = None if record is None else record.position
     registry = (store or shipped()).registry
-    scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable)
+    scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable, payloads=False)
     events = sum(1 for _ in scan)
     if record is not None and record.seals:
         _check_sealed(directory, meta, registry, record)
@@ -247,7 +247,7 @@ def _first_problem(
     """(the first problem, or None; the events before it, markers not counted; their last
     seq)."""
     durable = None if record is None else record.position
-    scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable)
+    scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable, payloads=False)
     events = 0
     try:
         for event in scan:

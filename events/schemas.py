@@ -66,6 +66,7 @@ class SchemaRegistry:
             self._schemas[event_type, version] = owned
             self._validators[event_type, version] = Draft202012Validator(owned)
             self._latest[event_type] = max(version, self._latest.get(event_type, 0))
+        self._known = frozenset(self._schemas)
 
     @classmethod
     def from_directory(
@@ -92,6 +93,11 @@ class SchemaRegistry:
                 raise EventStoreError(f"schema file {entry.name!r} is not a JSON object")
             schemas[match["type"], int(match["version"])] = schema
         return cls(schemas, accepts=accepts)
+
+    @property
+    def known(self) -> frozenset[tuple[str, int]]:
+        """Every (type, version) this registry has a schema for."""
+        return self._known
 
     @property
     def types(self) -> tuple[str, ...]:

@@ -41,6 +41,11 @@ class Upcaster:
                 if not partial and version < latest and (event_type, version) not in self._steps:
                     raise EventStoreError(_missing(event_type, version, latest))
 
+    @property
+    def latest_versions(self) -> Mapping[str, int]:
+        """Each known type's latest version."""
+        return self._latest
+
     def latest_version(self, event_type: str) -> int | None:
         return self._latest.get(event_type)
 
