@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 from pathlib import Path
 
+import msgspec
 import pytest
 
 from objsearch.agent.catalogue import STORE
@@ -168,7 +168,7 @@ def test_update_modes_change_only_what_they_promise(tmp_path: Path) -> None:
 
 
 def _without_wall_clock(events: list[Event]) -> list[Event]:
-    return [dataclasses.replace(e, recorded_at_ns=0) for e in events]
+    return [msgspec.structs.replace(e, recorded_at_ns=0) for e in events]
 
 
 def test_same_inputs_give_the_same_log(tmp_path: Path) -> None:

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import pytest
 
 from objsearch.agent.catalogue import STORE
@@ -82,7 +82,7 @@ def test_a_detection_the_robot_ignored_is_flagged(tmp_path: Path) -> None:
             "accepted": True,
             "support": None,
         }
-        return [e, dataclasses.replace(e, type="detection", payload=missed)]
+        return [e, msgspec.structs.replace(e, type="detection", payload=missed)]
 
     kinds = _kinds(_edited(LOG, tmp_path / "log", inject))
     assert kinds.get("target-not-acted-on") == {task_id}
@@ -97,7 +97,7 @@ def test_a_plan_from_a_stale_scene_graph_is_flagged(tmp_path: Path) -> None:
             return [e]
         cands = [dict(c) for c in e.payload["candidates"]]
         cands[0]["rel"] = min(1.0, float(cands[0]["rel"]) + 0.25)
-        return [dataclasses.replace(e, payload={**e.payload, "candidates": cands})]
+        return [msgspec.structs.replace(e, payload={**e.payload, "candidates": cands})]
 
     kinds = _kinds(_edited(LOG, tmp_path / "log", stale))
     assert kinds.get("stale-plan") == {victim.task_id}
