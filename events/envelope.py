@@ -191,7 +191,8 @@ class _Adopted(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=
     """An event from a dict its builder owns (``_adopt``): checked there, wrapped, not copied."""
 
     def __post_init__(self) -> None:
-        pass
+        if type(self.payload) is not MappingProxyType:  # a copy with another payload
+            Event.__post_init__(self)
 
 
 class ReadPayload(Mapping[str, Any]):
@@ -270,6 +271,9 @@ class _Read(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=Fal
 
     def __post_init__(self) -> None:
         raw = self.payload
+        if type(raw) is not msgspec.Raw:  # built in Python (msgspec.structs.replace): check it
+            Event.__post_init__(self)
+            return
         if memoryview(raw)[0] != 0x7B:  # "{": a payload is a JSON object
             raise ValueError("payload is not a JSON object")
         msgspec.structs.force_setattr(self, "payload", ReadPayload(raw))
@@ -282,7 +286,9 @@ class _Checked(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=
     payload: msgspec.Raw  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
-        if memoryview(self.payload)[0] != 0x7B:  # "{": a payload is a JSON object
+        if type(self.payload) is not msgspec.Raw:  # built in Python (msgspec.structs.replace)
+            Event.__post_init__(self)
+        elif memoryview(self.payload)[0] != 0x7B:  # "{": a payload is a JSON object
             raise ValueError("payload is not a JSON object")
 
 

@@ -19,21 +19,8 @@ from objsearch.events.derived import DERIVED_DIR, derived_tables
 from objsearch.events.lake import ROW_GROUP_ROWS, Lake, LakeError, compact_log
 from objsearch.events.sql import connect
 
-from .payloads import EXAMPLES, OLD_EXAMPLES
-
-V1_LOG = Path(__file__).parent / "fixtures" / "v1-log"
-
-
-def small_log(directory: Path, *, stream: str = "run-a", n: int = 3) -> Path:
-    with EventLog.open(
-        directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000, store=STORE
-    ) as log:
-        for i, (event_type, payload) in enumerate(EXAMPLES.items()):
-            log.append(event_type, payload, time_ns=i, task_id="t1")
-        log.append("detection", OLD_EXAMPLES["detection", 1], time_ns=99, version=1)
-        for i in range(n):
-            log.append("search_failed", {"reason": f"r{i}"}, time_ns=100 + i)
-    return directory
+from .lake_logs import V1_LOG, small_log
+from .payloads import EXAMPLES
 
 
 def test_every_type_has_typed_columns_and_no_json_text_but_params() -> None:

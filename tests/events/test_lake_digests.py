@@ -16,7 +16,7 @@ from objsearch.events.derived import DERIVED_DIR, derived_tables
 from objsearch.events.lake import RUN_FILE, Lake, LakeError, RunInfo, compact_log
 from objsearch.events.lake_digest import FILES_KEY, SELF_KEY, file_digest, manifest_digest
 
-from .test_lake import V1_LOG, small_log
+from .lake_logs import V1_LOG, small_log
 
 
 def _flip_in_data_page(path: Path, at: int = 0) -> None:

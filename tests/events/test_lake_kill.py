@@ -11,24 +11,18 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog
 from objsearch.events._fs import KILL_AFTER_STEP_ENV
 from objsearch.events.lake import STAGING, Lake
 from objsearch.testing.killtest import KillServer, tree
 
-from .payloads import EXAMPLES
+from .lake_logs import two_type_log
 
-
-def small_log(directory: Path) -> Path:
-    """Two event types: every kind of step of a commit, few files (each kill costs a commit)."""
-    with EventLog.open(
-        directory, "run-a", wall_clock=lambda: 1_700_000_000_000_000_000, store=STORE
-    ) as log:
-        log.append("task_started", EXAMPLES["task_started"], time_ns=1, task_id="t1")
-        for i in range(3):
-            log.append("search_failed", {"reason": f"r{i}"}, time_ns=100 + i)
-    return directory
+#: Each test runs a command or a fuzzer thousands of times: tens of seconds.
+pytestmark = pytest.mark.slow
 
 
 def _add(log: Path, lake: Path, *extra: str) -> list[str]:
@@ -66,7 +60,7 @@ def _sweep(
 def test_lake_add_killed_at_every_step_then_rerun_equals_an_uninterrupted_add(
     tmp_path: Path,
 ) -> None:
-    log = small_log(tmp_path / "log")
+    log = two_type_log(tmp_path / "log")
     lake = tmp_path / "lake"
     with KillServer(tmp_path) as server:
         assert server.run(_add(log, lake)).code == 0
@@ -80,7 +74,7 @@ def test_lake_add_killed_at_every_step_then_rerun_equals_an_uninterrupted_add(
 def test_replace_killed_at_every_step_leaves_a_whole_run_and_the_rerun_finishes(
     tmp_path: Path,
 ) -> None:
-    log = small_log(tmp_path / "log")
+    log = two_type_log(tmp_path / "log")
     start = tmp_path / "start"
     lake = tmp_path / "lake"
     with KillServer(tmp_path) as server:
@@ -151,7 +145,7 @@ def test_replace_killed_at_every_step_leaves_a_whole_run_and_the_rerun_finishes(
 
 
 def test_stale_staging_from_a_dead_writer_is_removed_by_the_next(tmp_path: Path) -> None:
-    log = small_log(tmp_path / "log")
+    log = two_type_log(tmp_path / "log")
     lake = tmp_path / "lake"
     stale = lake / STAGING / "0123abcd"
     stale.mkdir(parents=True)

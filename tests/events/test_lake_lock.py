@@ -16,7 +16,7 @@ from typing import IO
 from objsearch.agent.catalogue import STORE
 from objsearch.events.lake import STAGING, Lake
 
-from .test_lake_kill import small_log
+from .lake_logs import two_type_log
 
 CLI = [sys.executable, "-m", "objsearch.cli"]
 #: Holds the lake's lock from "locked" on stdout until a line (or the end) on stdin.
@@ -69,7 +69,7 @@ def _lines(stream: IO[str] | None) -> queue.Queue[str]:
 
 
 def test_two_concurrent_adds_of_one_log_give_one_run_and_no_traceback(tmp_path: Path) -> None:
-    log = small_log(tmp_path / "log")
+    log = two_type_log(tmp_path / "log")
     lake = tmp_path / "lake"
     for _ in range(3):
         procs = [
@@ -87,7 +87,7 @@ def test_two_concurrent_adds_of_one_log_give_one_run_and_no_traceback(tmp_path: 
 
 
 def test_a_writer_that_will_not_wait_says_who_holds_the_lake(tmp_path: Path) -> None:
-    log = small_log(tmp_path / "log")
+    log = two_type_log(tmp_path / "log")
     lake = tmp_path / "lake"
     lake.mkdir()
     holder = _holder(lake)
@@ -108,7 +108,7 @@ def test_a_writer_that_will_not_wait_says_who_holds_the_lake(tmp_path: Path) -> 
 
 
 def test_a_writer_waits_for_the_lock_then_commits(tmp_path: Path) -> None:
-    log = small_log(tmp_path / "log")
+    log = two_type_log(tmp_path / "log")
     lake = tmp_path / "lake"
     lake.mkdir()
     holder = _holder(lake)
@@ -131,7 +131,7 @@ def test_a_writer_waits_for_the_lock_then_commits(tmp_path: Path) -> None:
 
 
 def test_a_holder_killed_mid_commit_releases_the_lake(tmp_path: Path) -> None:
-    log = small_log(tmp_path / "log")
+    log = two_type_log(tmp_path / "log")
     lake = tmp_path / "lake"
     lake.mkdir()
     holder = _holder(lake)

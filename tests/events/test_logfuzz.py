@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import pytest
+
 from objsearch.testing.logfuzz import MUTATIONS, run_log_fuzz, run_repair_fuzz, run_snapshot_fuzz
+
+#: Each test runs a command or a fuzzer thousands of times: tens of seconds.
+pytestmark = pytest.mark.slow
 
 
 def test_no_mutation_is_silently_accepted_or_crashes_the_writer() -> None:

@@ -7,52 +7,11 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.catalogue import STORE
-from objsearch.agent.session import Session, load_context
-from objsearch.agent.strategies import RunSpec
-from objsearch.cli import build_parser
-from objsearch.cli_runtime import runtime_config
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
-from objsearch.runtime.config import RuntimeConfig
-from objsearch.sim.placements import Schedule
-from objsearch.sim.world import SimClock, SimWorld
 
 from .runtime_fixtures import STARTUP_S, Net, objsearch, stop
-
-# Scene 1 of Table II, in the long-term runner's order (scene → target → start), cut short for CI.
-TRIALS = [(1, "Apple", "kitchen-1"), (1, "Apple", "bedroom-1"), (1, "Cup", "living-1")]
-
-
-def client_config(net: Net) -> RuntimeConfig:
-    return runtime_config(build_parser().parse_args(["agent", "find", "x", *net.args]))
-
-
-def in_process(log_dir: Path) -> list[dict[str, Any]]:
-    ctx = load_context("paper")
-    schedule = Schedule.load(ctx.home, "table2")
-    session = Session.start(ctx, log_dir, RunSpec.for_home(ctx.home))
-    out = []
-    try:
-        for scene, target, start in TRIALS:
-            world = SimWorld(
-                ctx.home,
-                ctx.navmap,
-                schedule.scenes[scene],
-                ctx.home.start(start),
-                clock=SimClock(),
-            )
-            r = session.search(world, target, start, scene=scene)
-            out.append(
-                {
-                    "success": r.success,
-                    "path_length": r.path_length,
-                    "found": r.found_instance,
-                    "plans": [[room, list(order)] for room, order in r.plans],
-                }
-            )
-    finally:
-        session.close()
-    return out
+from .searches import TRIALS, client_config, in_process
 
 
 def run_over(net: Net, tmp_path: Path, trials: list[tuple[int, str, str]]) -> list[dict[str, Any]]:

@@ -13,7 +13,7 @@ from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 
 from .runtime_fixtures import STARTUP_S, Net, objsearch, stop
-from .test_end_to_end import client_config
+from .searches import client_config, in_process
 
 FAST = "[timeouts]\nrobot_s = 3.0\narrival_s = 1.5\nattempts = 3\ndetections_s = 1.5\n"
 
@@ -112,14 +112,7 @@ def test_dropped_and_malformed_messages(zenoh_only: Net, tmp_path: Path) -> None
     finally:
         stop(agent)
         stop(robot)
-    from . import test_end_to_end
-    from .test_end_to_end import in_process
-
-    test_end_to_end.TRIALS, saved = [(1, "Apple", "bedroom-1")], test_end_to_end.TRIALS
-    try:
-        (expected,) = in_process(tmp_path / "inproc")
-    finally:
-        test_end_to_end.TRIALS = saved
+    (expected,) = in_process(tmp_path / "inproc", [(1, "Apple", "bedroom-1")])
     assert r["ok"] and {k: r[k] for k in expected} == expected
     assert "dropped a message" in (tmp_path / "agent.txt").read_text()
 

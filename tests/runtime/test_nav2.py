@@ -5,7 +5,6 @@ of the action (rejected, aborted, stuck, silent) ending a search cleanly with a 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import pytest
 
@@ -13,30 +12,19 @@ from objsearch.agent.catalogue import STORE
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 
-from .runtime_fixtures import STARTUP_S, Net, objsearch, stop
-from .test_end_to_end import TRIALS, client_config, in_process
+from .runtime_fixtures import Net, objsearch, stop
+from .searches import (
+    ACTION,
+    TF,
+    TRIALS,
+    client_config,
+    decisions,
+    find_after_reset,
+    in_process,
+    robot_config,
+)
 
-ACTION = '[navigation]\ninterface = "navigate_to_pose"\n'
-TF = '[pose]\nsource = "tf"\n'
 FAST = "[timeouts]\nrobot_s = 3.0\narrival_s = 1.5\nattempts = 3\ndetections_s = 1.5\n"
-
-
-def _config(tmp_path: Path, text: str) -> list[str]:
-    path = tmp_path / "robot.toml"
-    path.write_text(text)
-    return ["--config", str(path)]
-
-
-def _find(client: AgentClient, scene: int, target: str, start: str) -> dict[str, Any]:
-    reset = client.reset_sim(scene, start, timeout_s=STARTUP_S)
-    assert reset["ok"]
-    return client.find(
-        target, start=start, scene=scene, timeout_s=STARTUP_S, not_before_ns=reset["stamp_ns"]
-    )
-
-
-def _decisions(r: dict[str, Any]) -> dict[str, Any]:
-    return {k: r[k] for k in ("success", "path_length", "found", "plans")}
 
 
 @pytest.mark.parametrize(
@@ -47,7 +35,7 @@ def _decisions(r: dict[str, Any]) -> dict[str, Any]:
 )
 def test_same_decisions_as_in_process(net: Net, config: str, tmp_path: Path) -> None:
     expected = in_process(tmp_path / "inproc")
-    args = [*net.args, *_config(tmp_path, config)]
+    args = [*net.args, *robot_config(tmp_path, config)]
     robot = objsearch("robot", "sim", *args, log=tmp_path / "robot.txt")
     agent = objsearch(
         "agent", "run", *args, "--log", str(tmp_path / "log"), log=tmp_path / "agent.txt"
@@ -56,9 +44,9 @@ def test_same_decisions_as_in_process(net: Net, config: str, tmp_path: Path) -> 
     try:
         with AgentClient(client_config(net)) as client:
             for scene, target, start in TRIALS:
-                r = _find(client, scene, target, start)
+                r = find_after_reset(client, scene, target, start)
                 assert r["ok"], r
-                got.append(_decisions(r))
+                got.append(decisions(r))
     finally:
         stop(agent)
         stop(robot)
@@ -70,7 +58,7 @@ def test_rejected_aborted_and_stuck_goals(net: Net, tmp_path: Path) -> None:
     """Goal 1 rejected and goal 2 aborted: two searches fail saying so. Goal 3 is never finished:
     the agent cancels it (cancel_goal) and sends the waypoint again; that search succeeds with
     the simulator's decisions."""
-    args = [*net.args, *_config(tmp_path, ACTION + FAST)]
+    args = [*net.args, *robot_config(tmp_path, ACTION + FAST)]
     faults = ["--reject-after", "1", "--abort-after", "2", "--stall-after", "3"]
     robot = objsearch("robot", "sim", *args, *faults, log=tmp_path / "robot.txt")
     agent = objsearch(
@@ -78,23 +66,17 @@ def test_rejected_aborted_and_stuck_goals(net: Net, tmp_path: Path) -> None:
     )
     try:
         with AgentClient(client_config(net)) as client:
-            rejected = _find(client, 1, "Apple", "kitchen-1")
-            aborted = _find(client, 1, "Apple", "kitchen-1")
-            stuck = _find(client, 1, "Apple", "bedroom-1")
+            rejected = find_after_reset(client, 1, "Apple", "kitchen-1")
+            aborted = find_after_reset(client, 1, "Apple", "kitchen-1")
+            stuck = find_after_reset(client, 1, "Apple", "bedroom-1")
     finally:
         stop(agent)
         stop(robot)
     assert not rejected["ok"] and "rejected the /navigate_to_pose goal" in rejected["error"]
     assert not aborted["ok"] and "ended aborted" in aborted["error"], aborted
-    from . import test_end_to_end
-
-    test_end_to_end.TRIALS, saved = [(1, "Apple", "bedroom-1")], test_end_to_end.TRIALS
-    try:
-        (expected,) = in_process(tmp_path / "inproc")
-    finally:
-        test_end_to_end.TRIALS = saved
+    (expected,) = in_process(tmp_path / "inproc", [(1, "Apple", "bedroom-1")])
     assert stuck["ok"], stuck
-    assert _decisions(stuck) == expected
+    assert decisions(stuck) == expected
     assert "cancel_goal answered 0" in (tmp_path / "agent.txt").read_text()
     events = list(read_log(tmp_path / "log", store=STORE))
     reasons = [e.payload["reason"] for e in events if e.type == "search_failed"]
@@ -105,14 +87,14 @@ def test_rejected_aborted_and_stuck_goals(net: Net, tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("net", ["zenoh"], indirect=True)
 def test_robot_never_answers_send_goal(net: Net, tmp_path: Path) -> None:
-    args = [*net.args, *_config(tmp_path, ACTION + FAST)]
+    args = [*net.args, *robot_config(tmp_path, ACTION + FAST)]
     robot = objsearch("robot", "sim", *args, "--mute-after", "2", log=tmp_path / "robot.txt")
     agent = objsearch(
         "agent", "run", *args, "--log", str(tmp_path / "log"), log=tmp_path / "agent.txt"
     )
     try:
         with AgentClient(client_config(net)) as client:
-            r = _find(client, 1, "Apple", "bedroom-1")
+            r = find_after_reset(client, 1, "Apple", "bedroom-1")
     finally:
         stop(agent)
         stop(robot)

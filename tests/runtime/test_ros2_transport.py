@@ -30,8 +30,16 @@ from objsearch.runtime.node import Node
 from objsearch.runtime.transport import Backend, Transport, TransportConfig, open_transport
 
 from .runtime_fixtures import STARTUP_S, Net, next_domain, objsearch, stop
-from .test_end_to_end import TRIALS, client_config, in_process
-from .test_nav2 import ACTION, TF, _config, _decisions, _find
+from .searches import (
+    ACTION,
+    TF,
+    TRIALS,
+    client_config,
+    decisions,
+    find_after_reset,
+    in_process,
+    robot_config,
+)
 
 NAV = "nav2_msgs/action/NavigateToPose"
 
@@ -211,7 +219,7 @@ def test_whole_searches_over_ros2_equal_the_simulator(tmp_path: Path) -> None:
     expected = in_process(tmp_path / "inproc")
     domain = next_domain()
     net = Net("ros2", ["--transport", "ros2", "--domain-id", str(domain)])
-    args = [*net.args, *_config(tmp_path, ACTION + TF)]
+    args = [*net.args, *robot_config(tmp_path, ACTION + TF)]
     types = {
         lv.MAP: OccupancyGrid,
         lv.STATICS: MarkerArray,
@@ -245,9 +253,9 @@ def test_whole_searches_over_ros2_equal_the_simulator(tmp_path: Path) -> None:
             until(lambda: viewer.count_publishers(lv.EVENTS) > 0, "the agent's event stream")
             with AgentClient(client_config(net)) as client:
                 for scene, target, start in TRIALS:
-                    r = _find(client, scene, target, start)
+                    r = find_after_reset(client, scene, target, start)
                     assert r["ok"], r
-                    got.append(_decisions(r))
+                    got.append(decisions(r))
             events = list(read_log(tmp_path / "log", store=STORE))
             last = events[-1].seq
             until(lambda: any(e.seq == last for e in seen[lv.EVENTS]), "the last event, live")

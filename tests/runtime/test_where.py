@@ -16,7 +16,7 @@ from objsearch.runtime.node import Requester
 from objsearch.runtime.requests import check_where_result
 
 from .runtime_fixtures import STARTUP_S, Net, objsearch, stop
-from .test_end_to_end import client_config
+from .searches import client_config
 
 
 @pytest.mark.parametrize("net", ["zenoh"], indirect=True)
