@@ -82,6 +82,7 @@ def register(sub: Any) -> None:
         "benchmarks/mapping.py)",
     )
     build.add_argument("--json", action="store_true", help="print the report as JSON")
+    t.progress_option(build)
     build.set_defaults(func=cmd_map_build)
 
 
@@ -171,7 +172,9 @@ def cmd_map_build(args: argparse.Namespace) -> int:
     else:
         builder = SemanticMapBuilder(ctx.navmap, classes, config, device=device)
         camera = SimulatedCamera(ctx.home, placements)
-        builder.fuse(detected(SurveyFrames(camera, poses).frames(), detector))
+        frames = SurveyFrames(camera, poses).frames()
+        on = not args.no_progress
+        builder.fuse(detected(t.progress(frames, "survey", " frames", enabled=on), detector))
         built = builder.build()
     seconds = time.perf_counter() - t0
     accuracy = compare(ctx.semmap, built.semmap)
@@ -202,7 +205,13 @@ def cmd_map_build(args: argparse.Namespace) -> int:
             "notes": list(bag_report.notes),
         }
     if not args.no_search:
-        pairs = search_cost(ctx, built.semmap, placements, TARGET_ORDER)
+        total = len(TARGET_ORDER) * len(ctx.home.starts)
+        with t.progress_bar(
+            "search cost", " pairs", total=total, enabled=not args.no_progress
+        ) as bar:
+            pairs = search_cost(
+                ctx, built.semmap, placements, TARGET_ORDER, on_pair=lambda _: bar.update()
+            )
         report["search_cost"] = cost_summary(pairs)
     if args.out:
         out = Path(args.out)

@@ -38,6 +38,7 @@ def register(sub: Any) -> None:
     )
     rp.add_argument("--json", action="store_true", help="print every decision as JSON")
     rp.add_argument("--all", action="store_true", help="list unchanged decisions too")
+    t.progress_option(rp)
     rp.set_defaults(func=cmd_replay)
 
     au = sub.add_parser(
@@ -88,6 +89,7 @@ def register(sub: Any) -> None:
         help="also write index.html and a page per task (sortable tables, inline SVG routes "
         "for the tasks --plots names), self-contained: open index.html from disk",
     )
+    t.progress_option(au)
     au.set_defaults(func=cmd_audit)
 
 
@@ -98,7 +100,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
     events, _ = open_events(Path(args.log), run=args.run, robot=args.robot)
     replayer = replay(
-        events,
+        t.progress(events, "replay", " events", enabled=not args.no_progress),
         overrides=Overrides(method=args.method, alpha=args.alpha, strategy=args.strategy),
         until_seq=args.until,
         models=relation_models(simulator=True),
@@ -154,7 +156,7 @@ def cmd_audit(args: argparse.Namespace) -> int:
 
     events, name = open_events(Path(args.log), run=args.run, robot=args.robot)
     auditor = audit(
-        events,
+        t.progress(events, "audit", " events", enabled=not args.no_progress),
         oracle_ratio=args.oracle_ratio,
         oracle_excess_m=args.oracle_excess,
         models=relation_models(simulator=True),

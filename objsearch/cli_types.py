@@ -14,9 +14,10 @@ import math
 import os
 import re
 import stat
-from collections.abc import Callable, Sequence
+import sys
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn, TypeVar
 
 #: The most processes a command starts, whatever ``--workers`` says; the job count caps it too.
 MAX_WORKERS = 64
@@ -26,6 +27,7 @@ MAX_SCENE = 10
 MAX_HABIT_SCENES = 30
 
 Converter = Callable[[str], object]
+T = TypeVar("T")
 
 
 class Parser(argparse.ArgumentParser):
@@ -455,3 +457,40 @@ def _add_camera_option(p: argparse.ArgumentParser) -> None:
 def is_validated(convert: object) -> bool:
     """Whether an argparse ``type`` comes from this module (the battery test checks every one)."""
     return getattr(convert, "__module__", None) == __name__
+
+
+def progress_option(p: argparse.ArgumentParser) -> None:
+    """``--no-progress``: the progress line :func:`progress` draws on a terminal."""
+    p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
+
+
+def progress(
+    items: Iterable[T], label: str, unit: str, *, total: int | None = None, enabled: bool = True
+) -> Iterable[T]:
+    """``items`` as they are consumed, counted on stderr (tqdm) — on a terminal only, so logs
+    and pipes get no carriage-return lines; ``enabled=False`` (``--no-progress``) never."""
+    bar: Iterable[T] = progress_bar(label, unit, total=total, enabled=enabled, items=items)
+    return bar
+
+
+def progress_bar(
+    label: str,
+    unit: str,
+    *,
+    total: int | None = None,
+    enabled: bool = True,
+    items: Iterable[object] | None = None,
+) -> Any:
+    """As :func:`progress`, a bar to ``update()`` by hand (a context manager)."""
+    from tqdm import tqdm
+
+    return tqdm(
+        items,
+        desc=label,
+        unit=unit,
+        total=total,
+        file=sys.stderr,
+        disable=None if enabled else True,  # None: off when stderr is not a terminal
+        leave=False,
+        mininterval=0.5,
+    )

@@ -20,7 +20,7 @@ from objsearch.agent.session import HomeContext, Session
 from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
 from objsearch.sim.longterm import with_camera
-from objsearch.sim.world import REACH_M, Placement, SimWorld
+from objsearch.sim.world import REACH_M, Placement, SimClock, SimWorld
 
 MATCH_RADIUS_M = 0.5
 
@@ -199,13 +199,21 @@ def search_cost(
             name: Session.start(c, Path(tmp) / name, spec)
             for name, c in (("truth", ctx), ("built", built_ctx))
         }
+        # One clock per log, carried from search to search: a new world's clock at 0 would step
+        # each log's time back (a warning per search).
+        clocks = {name: SimClock(session.resume_time_ns) for name, session in sessions.items()}
         try:
             for target in targets:
                 for start, pose in ctx.home.starts.items():
-                    w_truth = SimWorld(ctx.home, navmap, placements, pose, camera=camera)
+                    w_truth = SimWorld(
+                        ctx.home, navmap, placements, pose, camera=camera, clock=clocks["truth"]
+                    )
                     r_truth = sessions["truth"].search(w_truth, target, start)
                     w_built = BuiltMapWorld(
-                        SimWorld(ctx.home, navmap, placements, pose, camera=camera), built
+                        SimWorld(
+                            ctx.home, navmap, placements, pose, camera=camera, clock=clocks["built"]
+                        ),
+                        built,
                     )
                     r_built = sessions["built"].search(w_built, target, start)
                     pair = SearchCost(

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import io
+import sys
 from pathlib import Path
 
 import pytest
@@ -122,3 +124,20 @@ def test_one_error_root_is_expected() -> None:
     assert expected_errors() == (ObjsearchError,)
     assert issubclass(EventStoreError, ObjsearchError) and issubclass(BuildError, ObjsearchError)
     assert not issubclass(RuntimeError, expected_errors())  # bugs keep their traceback
+
+
+def test_progress_stays_off_a_pipe(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Not a terminal (a pipe, a log file): no progress line.
+    piped = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", piped)
+    assert list(t.progress(range(3), "count", " items")) == [0, 1, 2]
+    assert piped.getvalue() == ""
+
+
+@pytest.mark.parametrize("command", [["audit", "LOG"], ["replay", "LOG"], ["map", "build"]])
+def test_long_commands_take_no_progress(command: list[str], tmp_path: Path) -> None:
+    from objsearch.cli import build_parser
+
+    argv = [c.replace("LOG", str(tmp_path)) for c in command]
+    args = build_parser().parse_args([*argv, "--no-progress"])
+    assert args.no_progress is True
