@@ -50,7 +50,7 @@ Box: TypeAlias = tuple[float, float, float, float]
 MethodName: TypeAlias = Literal["wpl", "rvp", "sdp", "ecost"]
 PlannerName: TypeAlias = Literal["wpl", "rvp", "sdp", "epl"]
 UpdateModeName: TypeAlias = Literal["none", "targets", "all"]
-RelationModelName: TypeAlias = Literal["eq4", "beta", "memory", "dist-oracle"]
+RelationModelName: TypeAlias = Literal["eq4", "beta", "memory", "belief", "dist-oracle"]
 ViewReason: TypeAlias = Literal["look", "inside", "on_the_way"]
 
 

@@ -89,7 +89,7 @@ class AgentState:
     last_time_ns: int = 0
 
     snapshot_name: ClassVar[str] = "agent_state"
-    snapshot_version: ClassVar[int] = 2  # 2: the memory's sightings carry position and ``at``
+    snapshot_version: ClassVar[int] = 3  # 2: sightings with position and ``at``; 3: oracle's today
 
     @property
     def state(self) -> AgentState:

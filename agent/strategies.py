@@ -69,7 +69,12 @@ RelationModels = Mapping[str, Callable[[], RelationModel]]
 AGENT_MODELS: Final[RelationModels] = MappingProxyType({})
 
 
-RELATION_MODELS = ("eq4", "beta", "memory", "dist-oracle")
+#: The belief's prior weight (episodes) and its short memory's half-life (episodes). Fixed before
+#: any run (docs/results.md, "The belief's protocol"), not tuned.
+BELIEF_PRIOR_STRENGTH = 1.0
+BELIEF_HALF_LIFE_SCENES = 3.0
+
+RELATION_MODELS = ("eq4", "beta", "memory", "belief", "dist-oracle")
 PLANNERS = ("wpl", "rvp", "sdp", "epl")
 
 
@@ -87,7 +92,7 @@ class RelationSpec:
             raise ObjsearchError(
                 f"unknown relation model {self.model!r}; known: {', '.join(RELATION_MODELS)}"
             )
-        if self.model in ("beta", "memory") and not (
+        if self.model in ("beta", "memory", "belief") and not (
             self.prior_strength and self.prior_strength > 0
         ):
             raise ObjsearchError(f"the {self.model} relation model needs a prior strength > 0")
@@ -95,6 +100,8 @@ class RelationSpec:
             self.half_life_tasks is None or self.recent_weight is None or self.recent_weight < 0
         ):
             raise ObjsearchError("the memory model needs a half-life and a recent weight >= 0")
+        if self.model == "belief" and self.half_life_tasks is None:
+            raise ObjsearchError("the belief model needs a half-life (episodes)")
         if self.half_life_tasks is not None and self.half_life_tasks <= 0:
             raise ObjsearchError(f"half-life must be positive, got {self.half_life_tasks}")
 
@@ -108,6 +115,13 @@ class RelationSpec:
                 prior_strength=self.prior_strength,
                 half_life_tasks=self.half_life_tasks,
                 recent_weight=self.recent_weight or 0.0,
+            )
+        if self.model == "belief":
+            from objsearch.agent.belief import PlaceBelief
+
+            assert self.prior_strength is not None and self.half_life_tasks is not None
+            return PlaceBelief(
+                prior_strength=self.prior_strength, half_life_scenes=self.half_life_tasks
             )
         if self.model in models:
             return models[self.model]()
@@ -142,6 +156,8 @@ class RelationSpec:
 
 EQ4 = RelationSpec()
 MEMORY = RelationSpec("memory", PRIOR_STRENGTH, MEMORY_HALF_LIFE_TASKS, MEMORY_RECENT_WEIGHT)
+#: For the belief, ``half_life_tasks`` holds the short memory's half-life in *episodes*.
+BELIEF = RelationSpec("belief", BELIEF_PRIOR_STRENGTH, BELIEF_HALF_LIFE_SCENES)
 
 
 @dataclass(frozen=True, slots=True)
@@ -219,6 +235,14 @@ STRATEGIES: dict[str, Strategy] = {
             "rooms by expected cost, stops by EPL, on a per-instance memory",
             False,
             MEMORY,
+            "epl",
+        ),
+        Strategy(
+            "ecost-belief",
+            Method.ECOST,
+            "rooms by expected cost, stops by EPL, on a probability over places (agent/belief.py)",
+            False,
+            BELIEF,
             "epl",
         ),
         Strategy(

@@ -3,13 +3,20 @@
 :class:`DistributionOracle` is a relation model (``RelationSpec("dist-oracle")``) that, on
 ``run_started``, reads the run's home and schedule and values each static instance by the
 probability that the schedule's generator puts the target there in a scene — nothing of today's
-draw. It is the best any memory of the schedule could learn, so a strategy's first search of the
-day can be read as regret against it. It folds no evidence.
+draw — conditioned, as a learning strategy may be, on what the robot saw earlier in the same scene
+(:class:`~objsearch.agent.belief.Today`: sightings, and looks that did not see the target). It is
+the best any memory of the schedule could learn, so a strategy's searches can be read as regret
+against it. It learns nothing across scenes.
 
 - ``habit-<seed>``: the exact per-scene distribution (:func:`habit_distribution`);
+- ``moved-<seed>``: the same before ``MOVE_SCENE``, the new habits' from then on (it knows the day
+  of the move: a reference, not a robot);
 - ``stats-<seed>`` / ``rearr-<seed>``'s stats fallback: the first scene's draw
-  (:func:`stats_distribution`); later scenes keep the object with probability 1 − move rate, and
-  the marginal of a Markov chain started there stays close to it but not equal (an approximation).
+  (:func:`stats_distribution`); later scenes keep the object with probability 1 − move rate, so
+  once the robot has seen the object in scene n₀, scene n's distribution is the chain's
+  (1 − m)^(n−n₀)·δ(where it was seen) + (1 − (1 − m)^(n−n₀))·draw (an approximation: a move
+  excludes the old place, and visibility redraws are left out). Without this the "reference"
+  lost to a memory that simply remembers yesterday.
 """
 
 from __future__ import annotations
@@ -19,20 +26,30 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, ClassVar, Final
 
-from objsearch.agent.catalogue import RunStarted, decode
+from objsearch.agent.belief import Today
+from objsearch.agent.catalogue import RunStarted, SceneGraphSeeded, TaskStarted, decode
 from objsearch.agent.home import load_home
 from objsearch.agent.scene_graph import EventLike, Pair
 from objsearch.agent.strategies import RelationModels
-from objsearch.sim.habit_schedule import habit_distribution, stats_distribution
+from objsearch.sim.habit_schedule import (
+    MOVE_SCENE,
+    habit_distribution,
+    moved_habits,
+    stats_distribution,
+)
 from objsearch.sim.schedule_names import parse_seeded
 from objsearch.sim.stats_schedule import PlacementStats
 
 
-def schedule_distribution(home_name: str, schedule: str | None) -> dict[str, dict[str, float]]:
-    """class → static id → P(there in a scene) under the schedule's generator."""
+def schedule_distribution(
+    home_name: str, schedule: str | None, *, scene: int | None = None
+) -> dict[str, dict[str, float]]:
+    """class → static id → P(there in ``scene``) under the schedule's generator."""
     home = load_home(home_name)
     seeded = parse_seeded(schedule) if schedule else None
-    if seeded is not None and seeded[0] == "habit":
+    if seeded is not None and seeded[0] == "moved" and scene is not None and scene >= MOVE_SCENE:
+        return habit_distribution(home, seeded[1], moved_habits(home, seeded[1]))
+    if seeded is not None and seeded[0] in ("habit", "moved"):
         return habit_distribution(home, seeded[1])
     stats = PlacementStats.load()
     statics = sorted(home.statics.values(), key=lambda s: s.id)
@@ -47,18 +64,44 @@ class DistributionOracle:
     schedule: str | None = None
     dist: dict[str, dict[str, float]] = field(default_factory=dict)
     by_class: dict[Pair, float] = field(default_factory=dict)
+    #: ``moved-<seed>``: the distribution from the move on.
+    moved: dict[str, dict[str, float]] | None = None
+    #: ``stats-<seed>``: the move rate of its Markov chain, and where each class was last seen
+    #: (place, scene).
+    move_rate: float | None = None
+    last_seen: dict[str, tuple[str, int]] = field(default_factory=dict)
+    today: Today = field(default_factory=Today)
+    _cache: dict[str, dict[str, float]] = field(default_factory=dict, repr=False, compare=False)
 
     def apply(self, event: EventLike) -> None:
+        self._cache = {}
         if event.type == "run_started" and self.home is None:
             run = decode(event, RunStarted)
             self._load(run.home, run.schedule)
-        elif event.type == "task_ended":
+        elif event.type == "scene_graph_seeded":
+            seeded = decode(event, SceneGraphSeeded)
+            self.today.classes = tuple(sorted({v.dynamic for v in seeded.values}))
+        elif event.type == "task_started":
+            started = decode(event, TaskStarted)
+            if self.today.starts(event, started):
+                key = self.today.key
+                if key is not None and key[0] == "scene":
+                    for d, place in self.today.seen.items():
+                        self.last_seen[d] = (place, key[1])
+                self.today.open(event, started)
+        self.today.apply(event)
+        if event.type == "task_ended":
             self.tasks_folded += 1
         self.last_seq = event.seq
 
     def _load(self, home: str, schedule: str | None) -> None:
         self.home, self.schedule = home, schedule
         self.dist = schedule_distribution(home, schedule)
+        seeded = parse_seeded(schedule) if schedule else None
+        if seeded is not None and seeded[0] == "moved":
+            self.moved = schedule_distribution(home, schedule, scene=MOVE_SCENE)
+        if seeded is not None and seeded[0] == "stats":
+            self.move_rate = PlacementStats.load().move_rate
         statics = load_home(home).statics
         self.by_class = {}
         for cls, per in self.dist.items():
@@ -67,7 +110,20 @@ class DistributionOracle:
                 self.by_class[pair] = min(1.0, self.by_class.get(pair, 0.0) + p)
 
     def instance_rel(self, dynamic: str, static_id: str, static_class: str) -> float:
-        return self.dist.get(dynamic, {}).get(static_id, 0.0)
+        now = self._cache.get(dynamic)
+        if now is None:
+            key = self.today.key
+            after = self.moved is not None and key is not None and key[0] == "scene"
+            dist = self.moved if after and key is not None and key[1] >= MOVE_SCENE else self.dist
+            assert dist is not None
+            base = dist.get(dynamic, {})
+            last = self.last_seen.get(dynamic)
+            if self.move_rate is not None and last is not None and key is not None:
+                stay = (1 - self.move_rate) ** max(key[1] - last[1], 0)
+                base = {p: (1 - stay) * v for p, v in base.items()}
+                base[last[0]] = base.get(last[0], 0.0) + stay
+            now = self._cache[dynamic] = self.today.condition(dynamic, base)
+        return now.get(static_id, 0.0)
 
     def rel(self, dynamic: str, static: str) -> float:
         return self.by_class.get((dynamic, static), 0.0)
@@ -83,14 +139,25 @@ class DistributionOracle:
         return table
 
     snapshot_name: ClassVar[str] = "distribution_oracle"
-    snapshot_version: ClassVar[int] = 1
+    snapshot_version: ClassVar[int] = 2  # 2: today's evidence
 
     def to_snapshot(self) -> dict[str, Any]:
-        return {"home": self.home, "schedule": self.schedule, "tasks_folded": self.tasks_folded}
+        return {
+            "home": self.home,
+            "schedule": self.schedule,
+            "tasks_folded": self.tasks_folded,
+            "today": self.today.to_snapshot(),
+            "last_seen": {d: list(v) for d, v in sorted(self.last_seen.items())},
+        }
 
     @classmethod
     def from_snapshot(cls, state: Mapping[str, Any], last_seq: int) -> DistributionOracle:
-        oracle = cls(last_seq=last_seq, tasks_folded=int(state["tasks_folded"]))
+        oracle = cls(
+            last_seq=last_seq,
+            tasks_folded=int(state["tasks_folded"]),
+            today=Today.from_snapshot(state["today"]),
+            last_seen={d: (str(v[0]), int(v[1])) for d, v in state["last_seen"].items()},
+        )
         if state["home"] is not None:
             oracle._load(state["home"], state["schedule"])
         return oracle

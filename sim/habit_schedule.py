@@ -14,6 +14,10 @@ and then, every scene independently:
 - with ``P_ALTERNATE`` at one of the alternates (uniformly),
 - with ``P_ANYWHERE`` at a fresh draw from the stats distribution over *all* valid statics.
 
+``moved-<seed>`` is the same schedule until scene ``MOVE_SCENE`` (the same draws, scene for scene),
+from which on every class has new habits: a usual place in *another room* than before and new
+alternates (:func:`moved_habits`) — a household that rearranged itself on one day.
+
 The parameters were fixed before any run (docs/results.md, "Schedules with a past") and are not
 tuned. If a home has too few valid statics for two alternates, an alternate's share goes to the
 usual place. :func:`habit_distribution` is that per-scene distribution (the distribution oracle's
@@ -45,6 +49,8 @@ P_USUAL = 0.7
 P_ALTERNATE = 0.2
 P_ANYWHERE = 0.1
 ALTERNATES = 2
+#: The first scene of ``moved-<seed>`` with the new habits (fixed before any run).
+MOVE_SCENE = 11
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,6 +88,34 @@ def habits(home: Home, seed: int) -> dict[str, Habit]:
     return out
 
 
+def moved_habits(home: Home, seed: int) -> dict[str, Habit]:
+    """The habits of ``moved-<seed>`` from ``MOVE_SCENE`` on: each class's usual place drawn
+    among the statics of the rooms other than its old usual place's (kept if there is none),
+    alternates drawn as before among the rest."""
+    stats = PlacementStats.load()
+    rng = random.Random(f"moved-schedule:habits:{home.name}:{seed}")
+    statics = _statics(home)
+    out: dict[str, Habit] = {}
+    for cls, old in habits(home, seed).items():
+        old_room = home.statics[old.usual].room
+        elsewhere = [s for s in statics if s.room != old_room]
+        usual = _draw_static(rng, stats.counts[cls], elsewhere, None)
+        if usual is None:
+            out[cls] = old
+            continue
+        taken = {usual.id}
+        alternates: list[str] = []
+        for _ in range(ALTERNATES):
+            rest = [s for s in statics if s.id not in taken]
+            alt = _draw_static(rng, stats.counts[cls], rest, None)
+            if alt is None:
+                break
+            taken.add(alt.id)
+            alternates.append(alt.id)
+        out[cls] = Habit(usual.id, tuple(alternates))
+    return out
+
+
 def stats_distribution(
     weights: Mapping[str, float], statics: Sequence[StaticObject]
 ) -> dict[str, float]:
@@ -94,12 +128,15 @@ def stats_distribution(
     return {sid: weights[t] / total / len(ids) for t, ids in sorted(by_type.items()) for sid in ids}
 
 
-def habit_distribution(home: Home, seed: int) -> dict[str, dict[str, float]]:
-    """class → static id → P(the object is there in any one scene)."""
+def habit_distribution(
+    home: Home, seed: int, table: Mapping[str, Habit] | None = None
+) -> dict[str, dict[str, float]]:
+    """class → static id → P(the object is there in any one scene) under ``table`` (default: the
+    habits of ``habit-<seed>``)."""
     stats = PlacementStats.load()
     statics = _statics(home)
     out: dict[str, dict[str, float]] = {}
-    for cls, habit in habits(home, seed).items():
+    for cls, habit in (table if table is not None else habits(home, seed)).items():
         dist = {
             sid: P_ANYWHERE * p for sid, p in stats_distribution(stats.counts[cls], statics).items()
         }
@@ -112,16 +149,21 @@ def habit_distribution(home: Home, seed: int) -> dict[str, dict[str, float]]:
     return out
 
 
-def habit_schedule(home: Home, seed: int, *, scenes: int = HABIT_SCENES) -> Schedule:
-    """A schedule for ``home`` where objects keep habits (see the module doc)."""
+def habit_schedule(
+    home: Home, seed: int, *, scenes: int = HABIT_SCENES, moved: bool = False
+) -> Schedule:
+    """A schedule for ``home`` where objects keep habits; with ``moved``, new habits from
+    ``MOVE_SCENE`` on (see the module doc)."""
     stats = PlacementStats.load()
     rng = random.Random(f"habit-schedule:scenes:{home.name}:{seed}")
     statics = _statics(home)
     by_id = home.statics
-    table = habits(home, seed)
+    before = habits(home, seed)
+    after = moved_habits(home, seed) if moved else before
     out: dict[int, Placements] = {}
     redrawn = 0
     for scene in range(1, scenes + 1):
+        table = after if scene >= MOVE_SCENE else before
         placed: dict[str, Placement] = {}
         for cls in sorted(table):
             habit = table[cls]
@@ -141,4 +183,5 @@ def habit_schedule(home: Home, seed: int, *, scenes: int = HABIT_SCENES) -> Sche
             if p is not None:
                 placed[p.instance_id] = p
         out[scene] = placed
-    return Schedule(name=f"habit-{seed}", home=home.name, scenes=out, redrawn=redrawn)
+    name = f"{'moved' if moved else 'habit'}-{seed}"
+    return Schedule(name=name, home=home.name, scenes=out, redrawn=redrawn)

@@ -3,7 +3,8 @@
 - ``table2`` (and any other ``data/schedules/<name>.json``): a schedule written by the converter;
 - ``stats-<seed>``: drawn from AI2-THOR placement statistics (``sim/stats_schedule.py``);
 - ``rearr-<seed>``: taken from real AI2-THOR rearrangement episodes (``sim/rearr_schedule.py``);
-- ``habit-<seed>``: objects with habits, 30 scenes (``sim/habit_schedule.py``).
+- ``habit-<seed>``: objects with habits, 30 scenes (``sim/habit_schedule.py``);
+- ``moved-<seed>``: the same habits until scene 11, new ones (another room) from then on.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from objsearch.sim.rearr_schedule import rearr_schedule
 from objsearch.sim.stats_schedule import SCENES, stats_schedule
 
 #: Seeded schedule kinds: ``<kind>-<seed>``.
-SEEDED_KINDS = ("stats", "rearr", "habit")
+SEEDED_KINDS = ("stats", "rearr", "habit", "moved")
 
 
 class UnknownScheduleError(ObjsearchError, ValueError):
@@ -54,8 +55,8 @@ def load_schedule(home: Home, name: str, *, scenes: int | None = None) -> Schedu
     seeded = parse_seeded(name)
     if seeded is not None:
         kind, seed = seeded
-        if kind == "habit":
-            return habit_schedule(home, seed, scenes=scenes or HABIT_SCENES)
+        if kind in ("habit", "moved"):
+            return habit_schedule(home, seed, scenes=scenes or HABIT_SCENES, moved=kind == "moved")
         scenes = scenes or SCENES
         if kind == "stats":
             return stats_schedule(home, seed, scenes=scenes)
