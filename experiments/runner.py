@@ -18,6 +18,7 @@ from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.events.log import read_log
+from objsearch.experiments.calibration import Forecast, forecasts
 from objsearch.experiments.decompose import Excess, decompose
 from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule, scenes_of
 from objsearch.sim.seeable import seeable_scenes
@@ -72,6 +73,12 @@ class Row:
     start_room_m: float | None = None
     right_room_m: float | None = None
     approach_m: float | None = None
+    #: The belief's forecast at the start of the search (experiments/calibration.py, whatever the
+    #: run's strategy); None for a search that did not find its target.
+    belief_top_p: float | None = None
+    belief_top_hit: bool | None = None
+    belief_p_found: float | None = None
+    belief_brier: float | None = None
 
     def record(self) -> dict[str, object]:
         d = asdict(self)
@@ -104,13 +111,13 @@ def run_job(job: Job) -> list[Row]:
             skip_absent_targets=True,
             keep_routes=job.keep_routes,
         )
-        parts = decompose(
-            read_log(Path(job.log_dir) if job.log_dir else Path(tmp), store=STORE), ctx.navmap
-        )
-    return [_row(job, t, parts.get(t.task_id)) for t in trials]
+        log = Path(job.log_dir) if job.log_dir else Path(tmp)
+        parts = decompose(read_log(log, store=STORE), ctx.navmap)
+        forecast = forecasts(read_log(log, store=STORE))
+    return [_row(job, t, parts.get(t.task_id), forecast.get(t.task_id)) for t in trials]
 
 
-def _row(job: Job, t: Trial, excess: Excess | None) -> Row:
+def _row(job: Job, t: Trial, excess: Excess | None, forecast: Forecast | None = None) -> Row:
     return Row(
         job.experiment,
         job.home,
@@ -131,6 +138,10 @@ def _row(job: Job, t: Trial, excess: Excess | None) -> Row:
         start_room_m=None if excess is None else round(excess.start_room, 4),
         right_room_m=None if excess is None else round(excess.right_room(t.oracle_length), 4),
         approach_m=None if excess is None else round(excess.approach, 4),
+        belief_top_p=None if forecast is None else round(forecast.top_p, 6),
+        belief_top_hit=None if forecast is None else forecast.top_hit,
+        belief_p_found=None if forecast is None else round(forecast.p_found, 6),
+        belief_brier=None if forecast is None else round(forecast.brier, 6),
     )
 
 
