@@ -50,6 +50,7 @@ from objsearch.agent.catalogue import (
 )
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.scene_graph import EventLike, Pair, UpdateMode
+from objsearch.agent.sightings import LastSeen
 
 #: The place that is no mapped static: on the floor, in a hand, in a room never mapped.
 ELSEWHERE = "(elsewhere)"
@@ -217,6 +218,8 @@ class PlaceBelief:
     last_outcome: dict[str, int] = field(default_factory=dict)
     episodes: int = 0
     today: Today = field(default_factory=Today)
+    #: Where each class was last seen (with its position), for ``where``.
+    sightings: LastSeen = field(default_factory=LastSeen)
     _cache: dict[str, dict[str, float]] = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -248,6 +251,7 @@ class PlaceBelief:
                 if c.static_id not in self.places:
                     self.places[c.static_id] = Place(c.static_id, c.static_class, "")
         self.today.apply(event)
+        self.sightings.apply(event)
         if kind == "task_ended":
             self.tasks_folded += 1
             if self.today.key is not None and self.today.key[0] == "task":
@@ -420,6 +424,7 @@ class PlaceBelief:
             "last_outcome": dict(sorted(self.last_outcome.items())),
             "episodes": self.episodes,
             "today": self.today.to_snapshot(),
+            "sightings": self.sightings.to_snapshot(),
         }
 
     @classmethod
@@ -449,4 +454,5 @@ class PlaceBelief:
             last_outcome={d: int(v) for d, v in state["last_outcome"].items()},
             episodes=int(state["episodes"]),
             today=Today.from_snapshot(state["today"]),
+            sightings=LastSeen.from_snapshot(state["sightings"]),
         )

@@ -35,23 +35,9 @@ from objsearch.agent.catalogue import (
 )
 from objsearch.agent.relations import BetaRelations
 from objsearch.agent.scene_graph import EventLike, Pair, UpdateMode
+from objsearch.agent.sightings import LastSeen, Sighting, sighting, sighting_row
 
 Key = tuple[str, str]  # (object class, static id)
-
-
-@dataclass(frozen=True, slots=True)
-class Sighting:
-    """Where a class was last seen: the nearest static instance and its class (None in a room
-    with none), whether it stood at that static (``at``: what the belief counts) or away from
-    every mapped place, its position (map frame, metres), and when."""
-
-    static_id: str | None
-    static_class: str | None
-    task_id: str | None
-    time_ns: int
-    scene: int | None
-    at: bool = True
-    position: tuple[float, float, float] | None = None
 
 
 @dataclass
@@ -67,30 +53,30 @@ class InstanceMemory:
     recent_seen: dict[Key, float] = field(default_factory=dict)
     recent_missed: dict[Key, float] = field(default_factory=dict)
     static_class: dict[str, str] = field(default_factory=dict)
-    last_seen: dict[str, Sighting] = field(default_factory=dict)
+    sightings: LastSeen = field(default_factory=LastSeen)
     update_mode: UpdateMode = UpdateMode.ALL
     _target: str | None = None
-    _task_id: str | None = None
-    _scene: int | None = None
     _seen_at: dict[str, set[str]] = field(default_factory=dict)
     _viewed: set[str] = field(default_factory=set)
-    _sightings: dict[str, Sighting] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.prior_strength <= 0 or self.half_life_tasks <= 0 or self.recent_weight < 0:
             raise ValueError("memory needs prior strength > 0, half-life > 0, recent weight >= 0")
         self.classes.prior_strength = self.prior_strength
 
+    @property
+    def last_seen(self) -> Mapping[str, Sighting]:
+        return self.sightings.last
+
     def apply(self, event: EventLike) -> None:
         self.classes.apply(event)
+        self.sightings.apply(event)
         kind = event.type
         if kind == "run_started":
             self.update_mode = UpdateMode(decode(event, RunStarted).update_mode)
         elif kind == "task_started":
             started = decode(event, TaskStarted)
             self._target = started.target
-            self._task_id = getattr(event, "task_id", None)
-            self._scene = started.scene
             self._reset_task()
             factor = 0.5 ** (1.0 / self.half_life_tasks)
             self.recent_seen = {k: v * factor for k, v in self.recent_seen.items() if v > 1e-6}
@@ -105,27 +91,9 @@ class InstanceMemory:
         elif kind == "detection":
             detected = decode(event, Detected)
             support = detected.support
-            if detected.accepted:
-                d = detected.object_class
-                at = support is not None and support.at
-                if support is not None and support.at:
-                    self.static_class[support.static_id] = support.static_class
-                    self._seen_at.setdefault(d, set()).add(support.static_id)
-                # Every accepted sighting is where the object was last seen, at a mapped place
-                # or away from all of them (only the former counts in the belief).
-                self._sightings[d] = Sighting(
-                    None if support is None else support.static_id,
-                    None if support is None else support.static_class,
-                    self._task_id,
-                    int(getattr(event, "time_ns", 0)),
-                    self._scene,
-                    at,
-                    (
-                        float(detected.position[0]),
-                        float(detected.position[1]),
-                        float(detected.position[2]),
-                    ),
-                )
+            if detected.accepted and support is not None and support.at:
+                self.static_class[support.static_id] = support.static_class
+                self._seen_at.setdefault(detected.object_class, set()).add(support.static_id)
         elif kind == "task_ended":
             self._end_task()
         elif kind == "task_aborted":
@@ -135,7 +103,6 @@ class InstanceMemory:
     def _reset_task(self) -> None:
         self._seen_at = {}
         self._viewed = set()
-        self._sightings = {}
 
     def _end_task(self) -> None:
         if self.update_mode is UpdateMode.ALL:
@@ -154,7 +121,6 @@ class InstanceMemory:
             for sid in self._viewed - found:
                 self.missed[(target, sid)] = self.missed.get((target, sid), 0.0) + 1.0
                 self.recent_missed[(target, sid)] = self.recent_missed.get((target, sid), 0.0) + 1.0
-        self.last_seen.update(self._sightings)  # a fact, whatever the update mode
         self._target = None
         self._reset_task()
         self.tasks_folded += 1
@@ -208,12 +174,14 @@ class InstanceMemory:
             "recent_seen": rows(self.recent_seen),
             "recent_missed": rows(self.recent_missed),
             "static_class": dict(sorted(self.static_class.items())),
-            "last_seen": {d: list(_sighting_row(s)) for d, s in sorted(self.last_seen.items())},
+            "last_seen": {d: list(sighting_row(s)) for d, s in sorted(self.last_seen.items())},
             "update_mode": self.update_mode.value,
-            "task": [self._target, self._task_id, self._scene],
+            "task": [self._target, self.sightings.task_id, self.sightings.scene],
             "seen_at": {d: sorted(s) for d, s in sorted(self._seen_at.items())},
             "viewed": sorted(self._viewed),
-            "sightings": {d: list(_sighting_row(s)) for d, s in sorted(self._sightings.items())},
+            "sightings": {
+                d: list(sighting_row(s)) for d, s in sorted(self.sightings.pending.items())
+            },
         }
 
     @classmethod
@@ -234,30 +202,14 @@ class InstanceMemory:
             recent_seen=rows(state["recent_seen"]),
             recent_missed=rows(state["recent_missed"]),
             static_class=dict(state["static_class"]),
-            last_seen={d: _sighting(r) for d, r in state["last_seen"].items()},
+            sightings=LastSeen(
+                last={d: sighting(r) for d, r in state["last_seen"].items()},
+                task_id=task_id,
+                scene=scene,
+                pending={d: sighting(r) for d, r in state["sightings"].items()},
+            ),
             update_mode=UpdateMode(state["update_mode"]),
             _target=target,
-            _task_id=task_id,
-            _scene=scene,
             _seen_at={d: set(s) for d, s in state["seen_at"].items()},
             _viewed=set(state["viewed"]),
-            _sightings={d: _sighting(r) for d, r in state["sightings"].items()},
         )
-
-
-def _sighting_row(s: Sighting) -> tuple[Any, ...]:
-    position = None if s.position is None else list(s.position)
-    return (s.static_id, s.static_class, s.task_id, s.time_ns, s.scene, s.at, position)
-
-
-def _sighting(row: list[Any]) -> Sighting:
-    static_id, static_class, task_id, time_ns, scene, at, position = row
-    return Sighting(
-        static_id,
-        static_class,
-        task_id,
-        int(time_ns),
-        scene,
-        bool(at),
-        None if position is None else (float(position[0]), float(position[1]), float(position[2])),
-    )

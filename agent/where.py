@@ -1,12 +1,13 @@
 """``objsearch where TARGET``: where an object was last seen, where it usually is, how sure —
-answered from the memory projection of a log (:class:`~objsearch.agent.memory.InstanceMemory`).
+answered from the belief of a log (:class:`~objsearch.agent.belief.PlaceBelief`): probabilities
+per place and per room that sum, with "elsewhere" (at no mapped place), to one.
 
 One fold answers every way of asking: a log folder and a lake run (``objsearch where``) are folded
 by :func:`where`, and the running agent keeps the same projection live (:class:`LiveMemory`,
 ``objsearch agent where``), so the three cannot disagree about the same events.
 
-A log whose run used another relation model is folded with the memory model as a counterfactual
-(``AgentState(counterfactual=MEMORY)``): the facts it answers from (sightings, looks) are in every
+A log whose run used another relation model is folded with the belief as a counterfactual
+(``AgentState(counterfactual=BELIEF)``): the facts it answers from (sightings, looks) are in every
 log; only the robot's own plans used another model, and the answer says so (``model_of_run``).
 """
 
@@ -14,34 +15,25 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.belief import ELSEWHERE, PlaceBelief
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
-from objsearch.agent.memory import InstanceMemory
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.state import AgentState
-from objsearch.agent.strategies import MEMORY
+from objsearch.agent.strategies import BELIEF
 from objsearch.events.envelope import Event
 from objsearch.events.log import EventLog
 from objsearch.events.projection import fold
 from objsearch.events.snapshot import restore, save_snapshot
 
 
-@dataclass(frozen=True, slots=True)
-class Place:
-    static_id: str
-    static_class: str
-    room: str
-    belief: float  # share of the memory's mass over every known static
-
-
 def memory_state(events: Iterable[Event]) -> AgentState:
-    """The projection ``where`` answers from: ``events`` folded with the memory model."""
+    """The projection ``where`` answers from: ``events`` folded with the belief."""
     return fold(events, _fresh())
 
 
@@ -55,25 +47,23 @@ def where(events: Iterable[Event], target: str, *, top: int = 3) -> dict[str, An
 
 def answer(state: AgentState, target: str, home: Home, *, top: int = 3) -> dict[str, Any]:
     """What the folded ``state`` says about ``target`` (``home``: the run's, for rooms)."""
-    memory = state.graph()
-    assert isinstance(memory, InstanceMemory)
+    belief = state.graph()
+    assert isinstance(belief, PlaceBelief)
     assert state.run is not None
-    if target not in {d for d, _ in memory.classes.prior}:
-        known = sorted({d for d, _ in memory.classes.prior})
+    known = sorted({d for d, _ in belief.prior})
+    if target not in known:
         raise ObjsearchError(
             f"unknown object class {target!r} in this run's scene graph; known: {', '.join(known)}"
         )
     statics = home.statics
-    values = {sid: v for sid, v in memory.instances(target).items() if v > 0 and sid in statics}
-    total = sum(values.values())
-    ranked = sorted(values, key=lambda s: (-values[s], s))[:top]
-    likely = [
-        Place(s, statics[s].cls, statics[s].room, values[s] / total if total else 0.0)
-        for s in ranked
-    ]
-    counts = {sid: n for (d, sid), n in memory.seen.items() if d == target}
-    usual = max(sorted(counts), key=counts.__getitem__) if counts else None
-    last = memory.last_seen.get(target)
+    dist = belief.distribution(target)
+    places = sorted((p for p in dist if p in statics), key=lambda p: (-dist[p], p))
+    rooms = belief.rooms(target)
+    counts = belief.long.get(target)
+    usual = None
+    if counts is not None and counts.at:
+        usual = max(sorted(counts.at), key=counts.at.__getitem__)
+    last = belief.sightings.last.get(target)
     last_room = None
     if last is not None:
         if last.static_id in statics:
@@ -81,13 +71,15 @@ def answer(state: AgentState, target: str, home: Home, *, top: int = 3) -> dict[
         elif last.position is not None:
             # Rare (a sighting away from every static): the map is built only then (~12 ms).
             last_room = NavigationMap.from_home(home).room_at(last.position[0], last.position[1])
+    weights = belief.weights.get(target, (1 / 3, 1 / 3, 1 / 3))
+    last_outcome = belief.last_outcome.get(target)
     return {
         "target": target,
         # The run id names the run, not the file it was read from: a log and the lake run made
         # from it give the same answer.
         "run_id": state.run.params.get("run_id"),
         "model_of_run": state.run.relations.model,
-        "tasks": memory.tasks_folded,
+        "tasks": belief.tasks_folded,
         "last_seen": None
         if last is None
         else {
@@ -102,25 +94,41 @@ def answer(state: AgentState, target: str, home: Home, *, top: int = 3) -> dict[
             "time_ns": last.time_ns,
             "scene": last.scene,
         },
-        # most_likely_now is a share over these places only: those the log has planned over or
-        # seen something at; places never planned over are not in it.
-        "belief_over_places": len(values),
+        # Every mapped place the belief gives mass, over which (with elsewhere) it sums to one.
+        "belief_over_places": len(places),
+        "elsewhere": round(dist.get(ELSEWHERE, 0.0), 4),
+        "evidence": {
+            "episodes": round(counts.total, 3) if counts is not None else 0.0,
+            "episodes_since_last": None
+            if last_outcome is None
+            else belief.episodes - 1 - last_outcome,
+            "weights": {
+                "long": round(weights[0], 4),
+                "short": round(weights[1], 4),
+                "yesterday": round(weights[2], 4),
+            },
+        },
         "usually": None
-        if usual is None
+        if usual is None or counts is None
         else {
             "static_id": usual,
             "room": statics[usual].room if usual in statics else None,
-            "seen_tasks": counts[usual],
-            "share_of_sightings": counts[usual] / sum(counts.values()),
+            "episodes": round(counts.at[usual], 3),
+            "share_of_episodes": round(counts.at[usual] / counts.total, 4),
         },
+        "rooms": [
+            {"room": r, "probability": round(v, 4)}
+            for r, v in sorted(rooms.items(), key=lambda rv: (-rv[1], rv[0]))
+            if v > 0
+        ],
         "most_likely_now": [
             {
-                "static_id": p.static_id,
-                "static_class": p.static_class,
-                "room": p.room,
-                "belief": round(p.belief, 4),
+                "static_id": p,
+                "static_class": statics[p].cls,
+                "room": statics[p].room,
+                "probability": round(dist[p], 4),
             }
-            for p in likely
+            for p in places[:top]
         ],
     }
 
@@ -180,7 +188,7 @@ class LiveMemory:
 
 
 def _fresh() -> AgentState:
-    return AgentState(counterfactual=MEMORY)
+    return AgentState(counterfactual=BELIEF)
 
 
 def render(answer: dict[str, Any]) -> str:
@@ -204,14 +212,26 @@ def render(answer: dict[str, Any]) -> str:
     if usual is not None:
         lines.append(
             f"  usually:   {usual['static_id']} in {usual['room']} "
-            f"(seen there in {usual['seen_tasks']:g} searches, "
-            f"{usual['share_of_sightings']:.0%} of its sightings)"
+            f"(seen there in {usual['episodes']:g} of {answer['evidence']['episodes']:g} days, "
+            f"{usual['share_of_episodes']:.0%})"
         )
+    evidence = answer["evidence"]
+    if evidence["episodes_since_last"] is not None:
+        w = evidence["weights"]
+        n = evidence["episodes_since_last"]
+        latest = "the last day before today" if n == 0 else f"{n} day(s) before the last"
+        lines.append(
+            f"  evidence:  its latest from {latest}; trusting the long memory {w['long']:.0%}, "
+            f"the recent {w['short']:.0%}, yesterday {w['yesterday']:.0%}"
+        )
+    if answer["rooms"]:
+        rooms = ", ".join(f"{r['room']} {r['probability']:.1%}" for r in answer["rooms"])
+        lines.append(f"  rooms:     {rooms}; elsewhere (no mapped place) {answer['elsewhere']:.1%}")
     if answer["most_likely_now"]:
         lines.append(
-            f"  most likely now (shares of the {answer['belief_over_places']} places the log "
-            "has planned over or seen it at):"
+            f"  most likely now (probabilities over the {answer['belief_over_places']} places "
+            "it could be at, and elsewhere):"
         )
     for p in answer["most_likely_now"]:
-        lines.append(f"  {p['belief']:6.1%}  {p['static_id']} in {p['room']}")
+        lines.append(f"  {p['probability']:6.1%}  {p['static_id']} in {p['room']}")
     return "\n".join(lines)

@@ -132,6 +132,22 @@ def cmd_bench_table1(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_belief(args: argparse.Namespace) -> int:
+    from objsearch.experiments.report_belief import report
+
+    folders = [Path(d) for d in args.homes]
+    missing = [str(d) for d in folders if not (d / "homes_trials.parquet").is_file()]
+    if missing:
+        raise ObjsearchError(
+            f"not a bench homes output (no homes_trials.parquet): {', '.join(missing)}"
+        )
+    text = report(folders, Path(args.out))
+    print(text)
+    (Path(args.out) / "belief.md").write_text(text + "\n", encoding="utf-8")
+    print(f"\nwrote {Path(args.out) / 'belief.md'}")
+    return 0
+
+
 def cmd_bench_report(args: argparse.Namespace) -> int:
     from objsearch.experiments.report import ReportInputs, write_report
 
@@ -314,6 +330,24 @@ def register(sub: Any) -> None:
     table1.add_argument("--no-progress", action="store_true", help="no progress output")
     t.camera_option(table1)
     table1.set_defaults(func=cmd_bench_table1)
+
+    belief = bsub.add_parser(
+        "belief",
+        help="the belief's figures from bench homes outputs (docs/results-belief.md)",
+        description="First search of the day against the distribution oracle with bootstrap "
+        "CIs over runs, paired differences, what a moved habit costs day by day, calibration of "
+        "the belief's forecasts, failures, and learning curves with CI bands (PNG and SVG).",
+    )
+    belief.add_argument(
+        "homes", nargs="+", type=t.existing_dir, help="bench homes output folder(s), read as one"
+    )
+    belief.add_argument(
+        "--out",
+        default="out/belief-report",
+        type=t.dir_path,
+        help="folder for belief.md and the curves (out/belief-report)",
+    )
+    belief.set_defaults(func=cmd_bench_belief)
 
     report = bsub.add_parser(
         "report",

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.belief import PlaceBelief
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.memory import InstanceMemory
 from objsearch.agent.session import load_context
@@ -112,6 +113,11 @@ def test_where_answers_from_the_log(
     assert answer["last_seen"]["static_id"] == truth.support
     assert answer["last_seen"]["room"] == truth.room
     assert answer["most_likely_now"][0]["static_id"] == truth.support
+    # Probabilities: the rooms' and elsewhere's sum to one, each room's is its places' sum.
+    rooms = {r["room"]: r["probability"] for r in answer["rooms"]}
+    assert sum(rooms.values()) + answer["elsewhere"] == pytest.approx(1.0, abs=1e-3)
+    top = answer["most_likely_now"][0]
+    assert rooms[top["room"]] >= top["probability"]
     assert main(["where", "Cup", "--log", str(log)]) == 0
     assert "last seen" in capsys.readouterr().out
     assert main(["where", "Unicorn", "--log", str(log)]) != 0
@@ -191,7 +197,7 @@ def test_live_memory_restarts_from_its_snapshot_with_the_same_answer(tmp_path: P
     _run(log, "wpl", scenes=(1,))
     home = load_context(HOME).home
     full = LiveMemory.restore(log, home, snapshots)
-    assert isinstance(full.state.graph(), InstanceMemory)
+    assert isinstance(full.state.graph(), PlaceBelief)
     full.save(snapshots, log=log)
     again, restored = restore(
         log,
@@ -202,7 +208,7 @@ def test_live_memory_restarts_from_its_snapshot_with_the_same_answer(tmp_path: P
         store=STORE,
     )
     assert restored.from_snapshot_seq == full.last_seq and restored.rejected is None
-    assert isinstance(again.graph(), InstanceMemory)
+    assert isinstance(again.graph(), PlaceBelief)
     from_snapshot = LiveMemory.restore(log, home, snapshots)
     assert (
         from_snapshot.answer("Cup")
@@ -245,7 +251,7 @@ def test_where_remembers_a_sighting_away_from_every_mapped_place(
     assert main(["where", "Cup", "--log", str(copy)]) == 0
     out = capsys.readouterr().out
     assert "last seen: away from every mapped place" in out
-    assert f"shares of the {answer['belief_over_places']} places" in out
+    assert f"probabilities over the {answer['belief_over_places']} places" in out
     # The same answer from the live memory, restored from a snapshot (format 2) of that log.
     home = load_context(HOME).home
     live = LiveMemory.restore(copy, home, tmp_path / "snaps")

@@ -1,0 +1,288 @@
+"""``objsearch bench belief DIR [DIR ...]``: the belief's figures from ``bench homes`` outputs
+(docs/results-belief.md's protocol): first search of the day against the distribution oracle with
+bootstrap CIs over runs, paired differences, what a moved habit costs day by day, the calibration
+of the belief's forecasts, success and failures, and learning curves with CI bands.
+
+A *run* is one (home, schedule) pair of one strategy; every interval resamples runs with
+replacement (10 000 resamples, seed 0) and is shown only with at least ``MIN_RUNS`` runs (below
+that: n and the range of the run values).
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from objsearch.experiments.calibration import ece
+from objsearch.experiments.learning import first_of_day, ratio
+from objsearch.experiments.runner import Row, read_rows
+
+AFTER = 10
+MIN_RUNS = 10
+RESAMPLES = 10_000
+ORACLE = "dist-oracle"
+#: moved-<seed>: the first scene with new habits (sim/habit_schedule.py MOVE_SCENE).
+MOVE_SCENE = 11
+
+
+def kind(r: Row) -> str:
+    return r.placements.partition("-")[0]
+
+
+def _runs(rows: Sequence[Row]) -> dict[tuple[str, str], list[Row]]:
+    out: dict[tuple[str, str], list[Row]] = {}
+    for r in rows:
+        out.setdefault((r.home, r.placements), []).append(r)
+    return out
+
+
+def _boot(
+    keys: Sequence[tuple[str, str]],
+    stat: Callable[[Sequence[tuple[str, str]]], float],
+    seed: int = 0,
+) -> tuple[float, float]:
+    rng = random.Random(seed)
+    values = sorted(stat([rng.choice(keys) for _ in keys]) for _ in range(RESAMPLES))
+    return values[int(0.025 * RESAMPLES)], values[int(0.975 * RESAMPLES) - 1]
+
+
+def _interval(value: float, low: float, high: float, n: int) -> str:
+    return f"{value:.3f} [{low:.3f}, {high:.3f}]" if n >= MIN_RUNS else f"{value:.3f} (n={n})"
+
+
+def ratio_table(rows: Sequence[Row], after: int = AFTER) -> list[str]:
+    """Per strategy: first-of-day oracle× after ``after``, and its ratio to the oracle's, with
+    CIs over runs (paired: the same runs resampled for both)."""
+    late = [r for r in first_of_day(rows) if r.scene > after]
+    by = {
+        s: _runs([r for r in late if r.strategy == s])
+        for s in dict.fromkeys(r.strategy for r in rows)
+    }
+    lines = [
+        f"| strategy | first× all | first× after day {after} | ÷ {ORACLE} after day {after} "
+        "| success | searches |",
+        "|---|---|---|---|---|---|",
+    ]
+    oracle = by.get(ORACLE, {})
+    firsts = first_of_day(rows)
+    for s, runs in by.items():
+        keys = sorted(runs)
+        if not keys:
+            continue
+
+        def own(
+            ks: Sequence[tuple[str, str]], runs: dict[tuple[str, str], list[Row]] = runs
+        ) -> float:
+            return ratio([r for k in ks for r in runs[k]])
+
+        mine = [r for r in firsts if r.strategy == s]
+        lo, hi = _boot(keys, own)
+        cell = _interval(own(keys), lo, hi, len(keys))
+        vs = "–"
+        shared = [k for k in keys if k in oracle]
+        if s != ORACLE and shared:
+
+            def rel(
+                ks: Sequence[tuple[str, str]], runs: dict[tuple[str, str], list[Row]] = runs
+            ) -> float:
+                return ratio([r for k in ks for r in runs[k]]) / ratio(
+                    [r for k in ks for r in oracle[k]]
+                )
+
+            lo2, hi2 = _boot(shared, rel)
+            vs = _interval(rel(shared), lo2, hi2, len(shared))
+        success = sum(r.success for r in mine) / len(mine)
+        lines.append(f"| {s} | {ratio(mine):.3f} | {cell} | {vs} | {success:.2%} | {len(mine)} |")
+    return lines
+
+
+def paired_lines(
+    rows: Sequence[Row], pairs: Sequence[tuple[str, str]], after: int = AFTER
+) -> list[str]:
+    """Mean over runs of (a's − b's mean first-of-day full path, after ``after``), metres, CI."""
+    late = [r for r in first_of_day(rows) if r.scene > after]
+    means: dict[tuple[str, str, str], float] = {}
+    for (home, spec), rs in _runs(late).items():
+        for s in {r.strategy for r in rs}:
+            mine = [r.path_length for r in rs if r.strategy == s]
+            means[(s, home, spec)] = math.fsum(mine) / len(mine)
+    lines = [
+        f"| a − b (first search, after day {after}, m) | runs | mean | 95 % CI |",
+        "|---|---|---|---|",
+    ]
+    for a, b in pairs:
+        diffs = [
+            means[(a, h, sp)] - means[(b, h, sp)]
+            for (s, h, sp) in sorted(means)
+            if s == a and (b, h, sp) in means
+        ]
+        if not diffs:
+            continue
+        rng = random.Random(0)
+        boot = sorted(
+            math.fsum(rng.choice(diffs) for _ in diffs) / len(diffs) for _ in range(RESAMPLES)
+        )
+        mean = math.fsum(diffs) / len(diffs)
+        ci = (
+            f"[{boot[int(0.025 * RESAMPLES)]:.2f}, {boot[int(0.975 * RESAMPLES) - 1]:.2f}]"
+            if len(diffs) >= MIN_RUNS
+            else f"n={len(diffs)}: range [{min(diffs):.2f}, {max(diffs):.2f}]"
+        )
+        lines.append(f"| {a} − {b} | {len(diffs)} | {mean:.2f} | {ci} |")
+    return lines
+
+
+def per_day(rows: Sequence[Row]) -> dict[str, dict[int, float]]:
+    """Per strategy, per scene: first-of-day oracle×."""
+    firsts = first_of_day(rows)
+    out: dict[str, dict[int, float]] = {}
+    for s in dict.fromkeys(r.strategy for r in rows):
+        mine = [r for r in firsts if r.strategy == s]
+        out[s] = {
+            n: ratio([r for r in mine if r.scene == n]) for n in sorted({r.scene for r in mine})
+        }
+    return out
+
+
+def moved_lines(rows: Sequence[Row]) -> list[str]:
+    """What a move costs: per strategy the pre-move level (days 6–10), the days after the move
+    until the first-search ratio is back within 10 % of it, and days worse than ``ecost``."""
+    days = per_day(rows)
+    lines = [
+        "| strategy | days 6–10 | "
+        + " | ".join(f"day {n}" for n in range(MOVE_SCENE, MOVE_SCENE + 5))
+        + " | back within 10 % after | days worse than ecost (from the move) |",
+        "|---|---|" + "---|" * 5 + "---|---|",
+    ]
+    ecost = days.get("ecost", {})
+    for s, curve in days.items():
+        before = [curve[n] for n in range(6, MOVE_SCENE) if n in curve]
+        if not before:
+            continue
+        level = math.fsum(before) / len(before)
+        after = [n for n in sorted(curve) if n >= MOVE_SCENE]
+        back = next((n - MOVE_SCENE for n in after if curve[n] <= 1.1 * level), None)
+        worse = sum(1 for n in after if n in ecost and curve[n] > ecost[n]) if s != "ecost" else 0
+        cells = " | ".join(
+            f"{curve[n]:.2f}" if n in curve else "–" for n in range(MOVE_SCENE, MOVE_SCENE + 5)
+        )
+        lines.append(
+            f"| {s} | {level:.2f} | {cells} | "
+            f"{'not within the run' if back is None else f'{back} day(s)'} | {worse} |"
+        )
+    return lines
+
+
+def calibration_lines(rows: Sequence[Row]) -> list[str]:
+    """The belief's forecast at each search's start, per strategy's runs: top-label ECE, mean
+    Brier score, and the mean probability it gave the place the target was found at."""
+    lines = [
+        "| runs of | searches scored | ECE (top place) | Brier | P(found place) |",
+        "|---|---|---|---|---|",
+    ]
+    for s in dict.fromkeys(r.strategy for r in rows):
+        scored = [r for r in rows if r.strategy == s and r.belief_top_p is not None]
+        if not scored:
+            continue
+        pairs = [(float(r.belief_top_p or 0.0), bool(r.belief_top_hit)) for r in scored]
+        brier = math.fsum(float(r.belief_brier or 0.0) for r in scored) / len(scored)
+        pf = math.fsum(float(r.belief_p_found or 0.0) for r in scored) / len(scored)
+        lines.append(f"| {s} | {len(scored)} | {ece(pairs):.4f} | {brier:.4f} | {pf:.3f} |")
+    return lines
+
+
+def failure_lines(rows: Sequence[Row]) -> list[str]:
+    failed = [r for r in rows if not r.success]
+    if not failed:
+        return ["no failures"]
+    counts: dict[tuple[str, str, str], int] = {}
+    for r in failed:
+        counts[(r.strategy, r.home, r.target)] = counts.get((r.strategy, r.home, r.target), 0) + 1
+    return [f"- {s}: {home} {target} ×{n}" for (s, home, target), n in sorted(counts.items())]
+
+
+def plot_curves(rows: Sequence[Row], path: Path) -> None:
+    """Panels per schedule kind: first-search oracle× per day, mean over runs with a 95 %
+    bootstrap band (runs resampled), one line per strategy; PNG and SVG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    kinds = sorted({kind(r) for r in rows})
+    fig, axes = plt.subplots(1, len(kinds), figsize=(4.2 * len(kinds), 3.4), squeeze=False)
+    for ax, k in zip(axes[0], kinds, strict=True):
+        mine = first_of_day([r for r in rows if kind(r) == k])
+        for s in dict.fromkeys(r.strategy for r in mine):
+            runs = _runs([r for r in mine if r.strategy == s])
+            keys = sorted(runs)
+            days = sorted({r.scene for r in mine})
+            mean, low, high = [], [], []
+            rng = random.Random(0)
+            for n in days:
+                per = {key: [r for r in runs[key] if r.scene == n] for key in keys}
+                per = {key: v for key, v in per.items() if v}
+                ks = sorted(per)
+                mean.append(ratio([r for key in ks for r in per[key]]))
+                boot = sorted(
+                    ratio([r for key in (rng.choice(ks) for _ in ks) for r in per[key]])
+                    for _ in range(500)
+                )
+                low.append(boot[12])
+                high.append(boot[487])
+            ax.plot(days, mean, label=s, linewidth=1.5)
+            ax.fill_between(days, low, high, alpha=0.2)
+        if k == "moved":
+            ax.axvline(MOVE_SCENE - 0.5, color="grey", linestyle=":", linewidth=1)
+        ax.set_title(f"{k} schedules")
+        ax.set_xlabel("day (scene)")
+        ax.set_ylabel("first search: path ÷ oracle path")
+        ax.grid(alpha=0.3)
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), frameon=False)
+    fig.tight_layout(rect=(0, 0.1, 1, 1))
+    fig.savefig(path.with_suffix(".png"), dpi=130)
+    fig.savefig(path.with_suffix(".svg"))
+    plt.close(fig)
+
+
+def report(folders: Sequence[Path], out: Path | None = None) -> str:
+    rows: list[Row] = []
+    for folder in folders:
+        rows.extend(read_rows(folder / "homes_trials.parquet"))
+    if not rows:
+        return "no searches in these outputs"
+    homes = sorted({r.home for r in rows})
+    seeds = sorted({r.seed for r in rows})
+    lines = [
+        f"{len(rows)} searches; homes ({len(homes)}): {', '.join(homes)}; seeds {seeds}; "
+        f"intervals: 95 % bootstrap over runs (home × schedule), shown from {MIN_RUNS} runs",
+    ]
+    for k in sorted({kind(r) for r in rows}):
+        mine = [r for r in rows if kind(r) == k]
+        lines += ["", f"### {k} schedules", "", *ratio_table(mine), ""]
+        lines += paired_lines(
+            mine,
+            [("ecost-belief", "ecost-memory"), ("ecost-belief", ORACLE), ("ecost-belief", "ecost")],
+        )
+        if k == "moved":
+            lines += ["", *moved_lines(mine)]
+        lines += ["", "Calibration of the belief's forecast at the start of each search:", ""]
+        lines += calibration_lines(mine)
+        lines += ["", "Failures (strategy: home target ×searches):", *failure_lines(mine)]
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        plot_curves(rows, out / "belief_curves")
+        lines += ["", f"Learning curves with CI bands: {out / 'belief_curves.png'} (and .svg)"]
+    return "\n".join(lines)
+
+
+def main_summary(folders: Sequence[Path]) -> dict[str, Any]:
+    """The per-day curves as JSON (for a notebook or a plot of one's own)."""
+    rows: list[Row] = []
+    for folder in folders:
+        rows.extend(read_rows(folder / "homes_trials.parquet"))
+    return {k: per_day([r for r in rows if kind(r) == k]) for k in sorted({kind(r) for r in rows})}
