@@ -57,6 +57,11 @@ from objsearch.agent.world import Detection, Navigation, World
 _log = logging.getLogger(__name__)
 
 LOOK_OFFSETS = (0.0, math.pi / 4, -math.pi / 4)  # θ_s and ±45° (paper §5.1)
+#: Inspection ``cover`` (a reading of §4 beside the paper's single N_s): when a search found nothing,
+#: a second pass looks at each static longer than this from the viewpoint nearest each stretch of
+#: this length along its long side.
+COVER_SPAN_M = 1.5
+INSPECTIONS = ("single", "cover")
 
 
 class Method(enum.Enum):
@@ -72,6 +77,9 @@ class SearchConfig:
     alpha: float = 10.0
     support_radius: float = 0.5  # an object this close to a static's box is "at" it (Eq. 4)
     seed: int = 0
+    #: "single": each static from its N_s (the paper); "cover": when that finds nothing, a second
+    #: pass looks at long statics from the viewpoints nearest each stretch (:func:`cover_points`).
+    inspection: str = "single"
 
     @property
     def effective_alpha(self) -> float:
@@ -193,6 +201,19 @@ def static_pitch(here: Point, static: MappedStatic) -> float:
     c, size = static.box.center, static.box.size
     z = c[2] if static.container else c[2] + size[2] / 2
     return pitch_towards((here.x, here.y), (static.loc.x, static.loc.y, z))
+
+
+def cover_points(static: MappedStatic) -> list[Point]:
+    """Points along a long static's long side, one per ``COVER_SPAN_M`` stretch (the centre of
+    each); none for a static shorter than that."""
+    sx, sy = static.box.size[0], static.box.size[1]
+    length = max(sx, sy)
+    if length <= COVER_SPAN_M:
+        return []
+    n = math.ceil(length / COVER_SPAN_M)
+    cx, cy = static.box.center[0], static.box.center[1]
+    along = [-length / 2 + (k + 0.5) * length / n for k in range(n)]
+    return [Point(cx + a, cy) if sx >= sy else Point(cx, cy + a) for a in along]
 
 
 def stop_value(graph: RelationModel, target: str, statics: Sequence[MappedStatic]) -> float:
@@ -348,11 +369,21 @@ class SearchAgent:
             run.emit(self._plan(room, rooms[i:], stops, ordering))
             result.plans.append((room, tuple(s.key for s in ordered)))
             for stop in ordered:
-                found = run.go(stop.viewpoint, result) or run.inspect(stop)
+                found = run.go(stop.viewpoint, result) or run.inspect(stop, result)
                 if found:
                     break
             if found:
                 break
+        if found is None and self.config.inspection == "cover":
+            # A second pass, only when the first found nothing: the long statics' stretches their
+            # N_s may not see, room by room in the same order, likeliest stops first.
+            for room in rooms:
+                for stop in sorted(room_stops[room], key=lambda st: (-st.rel, st.key)):
+                    found = run.cover(stop, result)
+                    if found:
+                        break
+                if found:
+                    break
         if found is None:
             run.emit(SearchFailed(reason=f"{target} not found in any room"))
         else:
@@ -484,7 +515,7 @@ class _Task:
         )
         return found[0] if found else None
 
-    def inspect(self, stop: Stop) -> _Found | None:
+    def inspect(self, stop: Stop, result: SearchResult) -> _Found | None:
         """Open each container of the stop and look in; look at the others from θ_s and ±45°.
         Each view tilts the camera at the static (:func:`static_pitch`)."""
         room = stop.statics[0].room
@@ -508,6 +539,32 @@ class _Task:
                 hit = self._view(self.world.pose(), pitch, s.id, "look", dets, room)
                 if hit:
                     return hit
+        return None
+
+    def cover(self, stop: Stop, result: SearchResult) -> _Found | None:
+        """The stretches of the stop's long statics that its viewpoint may not see, each from
+        the viewpoint nearest it, nearest-first from here."""
+        navmap = self.agent.navmap
+        todo: list[tuple[Point, Point, MappedStatic]] = []
+        for s in stop.statics:
+            if s.container:
+                continue
+            for point in cover_points(s):
+                vp = navmap.nearest_viewpoint(point.x, point.y, s.room)
+                if vp != stop.viewpoint and all(vp != v for v, _, _ in todo):
+                    todo.append((vp, point, s))
+        while todo:
+            here = self.world.pose().point
+            vp, point, s = min(todo, key=lambda t: (navmap.distance(here, t[0]), t[0]))
+            todo.remove((vp, point, s))
+            found = self.go(vp, result)
+            if found:
+                return found
+            pitch = static_pitch(vp, s)
+            dets = self.world.look(heading(vp, point), pitch)
+            hit = self._view(self.world.pose(), pitch, s.id, "look", dets, s.room)
+            if hit:
+                return hit
         return None
 
     def _view(

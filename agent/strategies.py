@@ -339,6 +339,8 @@ class RunSpec:
             alpha=self.alpha,
             support_radius=self.support_radius,
             seed=self.seed,
+            # Recorded in the run's params (absent: the paper's single N_s).
+            inspection=str(self.params.get("inspection", "single")),
         )
 
     def relation_model(self, models: RelationModels = AGENT_MODELS) -> RelationModel:

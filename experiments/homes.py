@@ -59,6 +59,7 @@ def homes_jobs(
     schedules: Sequence[str] = ("stats",),
     starts_per_search: int | None = None,
     camera: str = DEFAULT_CAMERA,
+    inspection: str = "single",
 ) -> list[Job]:
     known = set(available_homes())
     unknown = [h for h in homes if h not in known]
@@ -102,6 +103,7 @@ def homes_jobs(
                             scene_ids,
                             starts_per_search=starts_per_search,
                             camera=camera,
+                            inspection=inspection,
                         )
                     )
                 if "wpl" in strategies:
@@ -117,6 +119,7 @@ def homes_jobs(
                             scene_ids,
                             starts_per_search=starts_per_search,
                             camera=camera,
+                            inspection=inspection,
                         )
                     )
     return jobs
@@ -285,6 +288,7 @@ def run_homes(
     schedules: Sequence[str] = ("stats",),
     starts_per_search: int | None = None,
     camera: str = DEFAULT_CAMERA,
+    inspection: str = "single",
 ) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     homes = list(homes) if homes else list(heldout_homes())
@@ -297,6 +301,7 @@ def run_homes(
         schedules=schedules,
         starts_per_search=starts_per_search,
         camera=camera,
+        inspection=inspection,
     )
     started = time.perf_counter()
     rows = run_jobs(jobs, workers=workers, progress=progress, label="bench homes")
@@ -314,6 +319,7 @@ def run_homes(
             "strategies": strategies,
             "starts": starts_per_search,
             "camera": None if camera == DEFAULT_CAMERA else camera,
+            "inspection": None if inspection == "single" else inspection,
             "workers": workers,
         },
     )
@@ -322,6 +328,7 @@ def run_homes(
         # How the data folder the homes came from was built, so the run can be repeated.
         "data_build": data_build_commands(Path(data)) if data else [],
         "camera": camera,
+        "inspection": inspection,
         # Every search of this bench starts from this prior; dist-oracle alone also reads the
         # schedule's own distribution (a reference, never a default).
         "prior": DEFAULT_PRIOR,

@@ -47,6 +47,8 @@ class Job:
     #: Search each target from this many seeded start points per scene (None: from every start).
     starts_per_search: int | None = None
     camera: str = DEFAULT_CAMERA
+    #: How statics are inspected (agent/policy.py INSPECTIONS), recorded in the run's params.
+    inspection: str = "single"
 
 
 @dataclass(frozen=True)
@@ -97,7 +99,9 @@ def run_job(job: Job) -> list[Row]:
         update_mode=UpdateMode(job.update_mode),
         schedule=job.placements,
         prior=job.prior,
-        params={"camera": job.camera},
+        params={"camera": job.camera}
+        if job.inspection == "single"
+        else {"camera": job.camera, "inspection": job.inspection},
     )
     scenes = scenes_of(job.home, job.placements, upto=_last_scene(job))
     with tempfile.TemporaryDirectory(prefix="objsearch-bench-") as tmp:

@@ -97,6 +97,7 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
             schedules=args.schedules,
             starts_per_search=args.starts,
             camera=args.camera,
+            inspection=args.inspection,
         )
     if args.json:
         print(json.dumps(_headline(summary), indent=2))
@@ -291,6 +292,14 @@ def register(sub: Any) -> None:
         type=t.int_range(1, 100),
         help="search each target from this many start points per scene, drawn per (seed, scene, "
         "target), 1-100 (default: from every start point, as the paper)",
+    )
+    homes.add_argument(
+        "--inspection",
+        type=t.text,
+        choices=("single", "cover"),
+        default="single",
+        help="single: each static from its nearest viewpoint N_s (the paper); cover: statics "
+        "longer than 1.5 m also from the viewpoints nearest each 1.5 m stretch (single)",
     )
     homes.set_defaults(func=cmd_bench_homes)
 
