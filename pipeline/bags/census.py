@@ -52,6 +52,16 @@ class FileCensus:
     #: a whole number of entries; an Index Data's length is 12 bytes per entry): the per-chunk
     #: claims are then preferred to a whole-file total that disagrees (a flipped count).
     chunks_verified: bool = False
+    #: Ids declared twice with different topics (a flipped id in a declaration): which topic
+    #: their counts belong to is unknown, so they claim nothing.
+    ambiguous: set[int] = field(default_factory=set)
+
+    def declare(self, cid: int, topic: str) -> None:
+        """A declaration of ``cid`` as ``topic`` (a file repeats them; they must agree)."""
+        known = self.topics.get(cid)
+        if known is not None and known != topic:
+            self.ambiguous.add(cid)
+        self.topics[cid] = topic
 
     def chunk_sum(self) -> Counter[int]:
         total: Counter[int] = Counter()
@@ -96,10 +106,15 @@ class Census:
                         f"{f.path.name}: its {source} disagree with its chunk indexes, "
                         "which are used"
                     )
+            for cid in sorted(f.ambiguous):
+                notes.append(
+                    f"{f.path.name}: id {cid} is declared as different topics; its counts are "
+                    "not used"
+                )
             for source, counts in sources.items():
                 for cid, n in counts.items():
                     name = f.topics.get(cid)
-                    if name is not None:
+                    if name is not None and cid not in f.ambiguous:
                         claim(source, name, n)
         out: dict[str, int] = {}
         for topic, by_source in sorted(claims.items()):
@@ -226,7 +241,7 @@ def _mcap_summary(buf: Buffer, census: FileCensus) -> bool:
             pos = rec.end
             if op == 0x04:
                 cid, _sid = rec.u16(), rec.u16()
-                census.topics[cid] = rec.string()
+                census.declare(cid, rec.string())
             elif op == 0x0B:
                 rec.take(8 + 2 + 4 + 4 + 4 + 4 + 8 + 8)
                 n = rec.u32()
@@ -368,7 +383,7 @@ def _ros1_index(buf: Buffer, pos: int, census: FileCensus) -> bool:
             pos = rec.end
             op = fields["op"]
             if op == b"\x07":
-                census.topics[_u(fields, "conn", "<I")] = fields["topic"].decode("utf-8", "replace")
+                census.declare(_u(fields, "conn", "<I"), fields["topic"].decode("utf-8", "replace"))
             elif op == b"\x06":
                 chunk_pos = _u(fields, "chunk_pos", "<Q")
                 counts: Counter[int] = Counter()
@@ -432,7 +447,7 @@ def _ros1_walk(buf: Buffer, pos: int, census: FileCensus) -> None:
             elif op in (b"\x06", b"\x07"):
                 if op == b"\x07":
                     cid = _u(fields, "conn", "<I")
-                    census.topics[cid] = fields.get("topic", b"").decode("utf-8", "replace")
+                    census.declare(cid, fields.get("topic", b"").decode("utf-8", "replace"))
                 chunk = None
             pos = rec.end
         except _Cut:
@@ -449,7 +464,7 @@ def _sqlite(census: FileCensus) -> None:
     db = sqlite3.connect(f"file:{census.path}?mode=ro&immutable=1", uri=True)
     try:
         for tid, name in db.execute("SELECT id, name FROM topics"):
-            census.topics[int(tid)] = str(name)
+            census.declare(int(tid), str(name))
         counts: Counter[int] = Counter()
         for tid, n in db.execute("SELECT topic_id, count(*) FROM messages GROUP BY topic_id"):
             counts[int(tid)] += int(n)

@@ -89,3 +89,20 @@ def test_a_flipped_ros1_index_count_is_not_a_loss(recorded: Recorded, tmp_path: 
     contents = read_bag(bag)
     assert all(t.lost == 0 for t in contents.report.topics)
     assert any("disagree" in n for n in contents.report.notes), contents.report.notes
+
+
+def test_an_id_declared_as_two_topics_claims_nothing() -> None:
+    """A flipped id in a channel record (5 → 4) declares id 4 twice: its counts belong to no
+    known topic, so they are not claimed for either (seen by the battery as '151 lost > 16')."""
+    from collections import Counter
+
+    from objsearch.pipeline.bags.census import Census, FileCensus
+
+    f = FileCensus(Path("run.mcap"), complete=True)
+    f.declare(4, "/tf")
+    f.declare(6, "/objsearch/detections")
+    f.declare(4, "/camera/color/camera_info")  # the damaged record
+    f.totals["MCAP statistics"] = Counter({4: 151, 5: 16, 6: 16})
+    claimed, notes = Census((f,), None).per_topic()
+    assert claimed == {"/objsearch/detections": 16}
+    assert any("declared as different topics" in n for n in notes)
