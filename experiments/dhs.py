@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import bisect
 import contextlib
+import dataclasses
 import hashlib
 import importlib
 import io
@@ -66,6 +67,7 @@ import random
 import statistics
 import sys
 import time
+import traceback
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -458,6 +460,8 @@ class AgentRun:
     max_attempts: int
     queries: list[Query] = field(default_factory=list)
     elapsed_s: float = 0.0
+    #: Its code raised: the run stops there and its queries so far count.
+    crash: str | None = None
 
     @property
     def mean_attempts(self) -> float:
@@ -525,38 +529,53 @@ def run_agent(job: Job) -> AgentRun:
         out = AgentRun(job.experiment, job.agent, job.seed, int(cfg.task.max_attempts))
         scene_num, current_scene, query_nodes = 0, None, None
         for _ in range(int(cfg.task.num_steps)):
-            if task.scene is None or current_scene != task.scene:
-                if current_scene is None:
-                    query_nodes = task.reset()
-                scene_num += 1
-                current_scene = task.scene
-                agent.transition_to_new_scene(current_scene)
-            prediction = agent.make_predictions(
-                find_object, current_scene, query_nodes, top_k=cfg.task.top_k
-            )
-            obs, score, done, info = task.step(
-                prediction,
-                agent=agent,
-                current_scene=current_scene,
-                query_nodes=query_nodes,
-                max_attempts=cfg.task.max_attempts,
-                top_k=cfg.task.top_k,
-            )
-            agent.receive_observation(obs)
-            if done:
-                query_nodes = task.reset()
-                agent.step()
-            out.queries.append(
-                Query(
-                    scene_num,
-                    int(score),
-                    int(score) <= out.max_attempts,
-                    float(info["acc_cost"]),
-                    agent.last_looks if isinstance(agent, BeliefAgent) else None,
+            try:
+                if task.scene is None or current_scene != task.scene:
+                    if current_scene is None:
+                        query_nodes = task.reset()
+                    scene_num += 1
+                    current_scene = task.scene
+                    agent.transition_to_new_scene(current_scene)
+                prediction = agent.make_predictions(
+                    find_object, current_scene, query_nodes, top_k=cfg.task.top_k
                 )
-            )
+                obs, score, done, info = task.step(
+                    prediction,
+                    agent=agent,
+                    current_scene=current_scene,
+                    query_nodes=query_nodes,
+                    max_attempts=cfg.task.max_attempts,
+                    top_k=cfg.task.top_k,
+                )
+                agent.receive_observation(obs)
+                found = int(score) <= out.max_attempts
+                out.queries.append(Query(scene_num, int(score), found, float(info["acc_cost"])))
+                if done:
+                    query_nodes = task.reset()
+                    agent.step()
+                if isinstance(agent, BeliefAgent):
+                    out.queries[-1] = dataclasses.replace(out.queries[-1], looks=agent.last_looks)
+            except Exception as error:
+                if not _raised_by_their_code(error):
+                    raise
+                out.crash = (
+                    f"{type(error).__name__}: {error} in its code at query "
+                    f"{len(out.queries) + 1}, scene {scene_num}"
+                )
+                break
     out.elapsed_s = round(time.perf_counter() - started, 2)
     return out
+
+
+def _raised_by_their_code(error: BaseException) -> bool:
+    """True unless, below the frame that caught it, a frame of ours (but the 3.8 draw it lends
+    its code) is on the way to the raise: our agent's bugs are not its crashes."""
+    ours = Path(__file__).resolve().parents[1]
+    for frame in traceback.extract_tb(error.__traceback__)[1:]:
+        path = Path(frame.filename).resolve()
+        if path.is_relative_to(ours) and frame.name != "_choices_py38":
+            return False
+    return True
 
 
 def _spread(values: Sequence[float]) -> dict[str, float]:
@@ -587,6 +606,7 @@ def summarise(runs: Sequence[AgentRun]) -> dict[str, Any]:
                 "found_per_seed": [round(r.found, 4) for r in rs],
                 "cost": statistics.fmean(r.mean_cost for r in rs),
                 "elapsed_s": round(math.fsum(r.elapsed_s for r in rs), 1),
+                "crashes": [f"seed {r.seed}: {r.crash}" for r in rs if r.crash],
             }
         experiments[experiment] = {"agents": rows, "targets": _targets(rows)}
     return {"pinned_commit": PINNED_COMMIT, "experiments": experiments}
@@ -665,18 +685,23 @@ def render(summary: Mapping[str, Any]) -> str:
         lines.append("")
         rows = block["agents"]
         seeds = next(iter(rows.values()))["seeds"]
+        lines.append(f"{experiment} (seeds {','.join(map(str, seeds))})")
         lines.append(
-            f"{experiment} (seeds {','.join(map(str, seeds))}; "
-            f"{next(iter(rows.values()))['queries']} queries per agent)"
+            f"  {'agent':<14} {'attempts':>9} {'found':>7} {'cost':>7} {'queries':>8}  "
+            "attempts per seed"
         )
-        lines.append(f"  {'agent':<14} {'attempts':>9} {'found':>7} {'cost':>7}  attempts per seed")
+        crashes = []
         for agent, row in sorted(rows.items(), key=lambda kv: kv[1]["attempts"]):
             name = DISPLAY.get(agent, agent)
             per_seed = " ".join(f"{v:.2f}" for v in row["attempts_per_seed"])
             lines.append(
                 f"  {name:<14} {row['attempts']:>9.3f} {row['found']:>7.1%} "
-                f"{row['cost']:>7.2f}  {per_seed}"
+                f"{row['cost']:>7.2f} {row['queries']:>8}  {per_seed}"
             )
+            crashes += [f"  {name} {crash}" for crash in row["crashes"]]
+        if crashes:
+            lines.append("  runs its code ended by raising (their queries so far count):")
+            lines += crashes
         targets = block["targets"]
         if targets:
             closed = targets["gap_closed"]

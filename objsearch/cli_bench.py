@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -234,10 +235,13 @@ def cmd_bench_dhs(args: argparse.Namespace) -> int:
     seeds = list(range(args.seeds))
 
     def progress(run: Any) -> None:
-        if not args.no_progress and not args.json:
+        if not args.no_progress:  # on stderr with --json, so stdout stays JSON
+            crash = f"; its code raised: {run.crash}" if run.crash else ""
             print(
                 f"  {run.experiment} {run.agent} seed {run.seed}: {run.mean_attempts:.3f} "
-                f"attempts, {run.found:.1%} found ({run.elapsed_s} s)",
+                f"attempts, {run.found:.1%} found, {len(run.queries)} queries "
+                f"({run.elapsed_s} s){crash}",
+                file=sys.stderr if args.json else sys.stdout,
                 flush=True,
             )
 

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.agent.belief import PlaceBelief
 from objsearch.agent.errors import ObjsearchError
 from objsearch.experiments import dhs
 
@@ -73,6 +74,23 @@ def test_the_py38_draw_is_pythons_own_when_the_weights_sum_above_zero() -> None:
     random.seed(11)
     theirs = [random.choices(options, weights=weights)[0] for _ in range(50)]
     assert ours == theirs
+
+
+def test_only_an_error_raised_in_their_code_ends_a_run_quietly(tmp_path: Path) -> None:
+    # A module outside objsearch stands for the simulator's code.
+    theirs = tmp_path / "theirs.py"
+    theirs.write_text("def reset(weights):\n    return weights[-1]\n")
+    spec = importlib.util.spec_from_file_location("theirs", theirs)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    with pytest.raises(IndexError) as theirs_raised:
+        module.reset([])
+    assert dhs._raised_by_their_code(theirs_raised.value)
+    # Our agent's bug is not theirs: it propagates.
+    with pytest.raises(ValueError) as ours_raised:
+        PlaceBelief(prior_strength=0.0)
+    assert not dhs._raised_by_their_code(ours_raised.value)
 
 
 def _source() -> Path:
