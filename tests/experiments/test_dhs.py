@@ -130,3 +130,20 @@ def test_its_agents_and_ours_run_in_its_task_by_its_rules() -> None:
     rows = summary["experiments"]["small_scenes"]["agents"]
     assert rows[dhs.OURS]["attempts_per_seed"] == [round(runs[dhs.OURS].mean_attempts, 4)]
     assert "small_scenes" in dhs.render(summary)
+
+
+def test_the_targets_read_the_gap_from_the_better_baseline_to_the_better_oracle() -> None:
+    def rows(**attempts: float) -> dict[str, dict[str, float]]:
+        return {agent: {"attempts": value} for agent, value in attempts.items()}
+
+    half = dhs._targets(
+        rows(belief=2.0, frequentist=3.0, memorization=4.0, upper_bound=1.0, oracle_upper_bound=2.5)
+    )
+    assert half is not None
+    assert half["better_baseline"] == "frequentist" and half["oracle"] == "upper_bound"
+    assert half["gap_closed"] == pytest.approx(0.5) and half["half_gap_closed"]
+    # An oracle no better than the better baseline leaves no gap: said so, not a ratio.
+    none = dhs._targets(rows(belief=2.0, frequentist=2.4, memorization=3.0, upper_bound=3.5))
+    assert none is not None and none["gap_closed"] is None and none["beats_oracle"]
+    assert "no gap to close" in dhs._verdict(none)
+    assert dhs._targets(rows(belief=2.0, frequentist=2.4)) is None  # no oracle ran
