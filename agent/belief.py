@@ -196,6 +196,28 @@ class Today:
         )
 
 
+def responsibilities(
+    weights: tuple[float, float, float],
+    predictions: tuple[Mapping[str, float], ...],
+    outcome: Mapping[str, float],
+    episodes: float,
+    step_floor: float = STEP,
+) -> tuple[float, float, float]:
+    """Mixing weights moved toward each prediction's posterior responsibility for ``outcome``
+    (a step 1/(n+2) after n episodes, never below ``step_floor``); unchanged when no prediction
+    gave the outcome any probability."""
+    likelihood = [
+        math.fsum(w * pred.get(p, 0.0) for p, w in outcome.items()) for pred in predictions
+    ]
+    joint = [w * lk for w, lk in zip(weights, likelihood, strict=True)]
+    total = math.fsum(joint)
+    if total <= 0:
+        return weights
+    step = max(1.0 / (episodes + 2.0), step_floor)
+    new = [(1 - step) * w + step * j / total for w, j in zip(weights, joint, strict=True)]
+    return new[0], new[1], new[2]
+
+
 @dataclass
 class PlaceBelief:
     """The belief (see the module doc); a relation model with per-instance values."""
@@ -266,9 +288,16 @@ class PlaceBelief:
                 self.places[s.id] = Place(s.id, s.cls, room.name)
 
     def _close_episode(self) -> None:
-        today = self.today
-        if today.key is None:
+        if self.today.key is None:
             return
+        counted, outcomes = self._outcomes()
+        self._count(counted, outcomes)
+        self.today.key = None
+
+    def _outcomes(self) -> tuple[dict[str, str], dict[str, dict[str, float]]]:
+        """The closing episode's evidence: where each counted class was seen, and each class's
+        outcome (a place, or a censored search's spread)."""
+        today = self.today
         if self.update_mode is UpdateMode.ALL:
             counted = dict(today.seen)
         elif self.update_mode is UpdateMode.TARGETS:
@@ -279,6 +308,12 @@ class PlaceBelief:
         if self.update_mode is not UpdateMode.NONE:
             for d in sorted(today.searched - set(today.seen)):
                 outcomes[d] = self._censored(d)
+        return counted, outcomes
+
+    def _count(
+        self, counted: Mapping[str, str], outcomes: Mapping[str, Mapping[str, float]]
+    ) -> None:
+        """One episode's outcomes into the memories and their mixing weights."""
         factor = 0.5 ** (1.0 / self.half_life_scenes)
         for d, outcome in sorted(outcomes.items()):
             self._weigh_memories(d, outcome)
@@ -292,7 +327,6 @@ class PlaceBelief:
                 short.add(place, w)
             self.last_outcome[d] = self.episodes
         self.episodes += 1
-        today.key = None
 
     def _censored(self, d: str) -> dict[str, float]:
         """A search that never saw d: one episode spread over what today's looks left open."""
@@ -302,19 +336,9 @@ class PlaceBelief:
 
     def _weigh_memories(self, d: str, outcome: Mapping[str, float]) -> None:
         """Each prediction's responsibility for the outcome, averaged into the mixing weights."""
-        predictions = self._predictions(d)
         weights = self.weights.get(d, (1 / 3, 1 / 3, 1 / 3))
-        likelihood = [
-            math.fsum(w * pred.get(p, 0.0) for p, w in outcome.items()) for pred in predictions
-        ]
-        joint = [w * lk for w, lk in zip(weights, likelihood, strict=True)]
-        total = math.fsum(joint)
-        if total <= 0:
-            return
         n = self.long[d].total if d in self.long else 0.0
-        step = max(1.0 / (n + 2.0), STEP)
-        new = [(1 - step) * w + step * j / total for w, j in zip(weights, joint, strict=True)]
-        self.weights[d] = (new[0], new[1], new[2])
+        self.weights[d] = responsibilities(weights, self._predictions(d), outcome, n)
 
     # -- the distribution ---------------------------------------------------------------------
 

@@ -50,7 +50,12 @@ Box: TypeAlias = tuple[float, float, float, float]
 MethodName: TypeAlias = Literal["wpl", "rvp", "sdp", "ecost"]
 PlannerName: TypeAlias = Literal["wpl", "rvp", "sdp", "epl"]
 UpdateModeName: TypeAlias = Literal["none", "targets", "all"]
-RelationModelName: TypeAlias = Literal["eq4", "beta", "memory", "belief", "dist-oracle"]
+RelationModelName: TypeAlias = Literal[
+    "eq4", "beta", "memory", "belief", "routine-belief", "dist-oracle", "slot-oracle"
+]
+RelationModelNameV3: TypeAlias = Literal["eq4", "beta", "memory", "belief", "dist-oracle"]
+Weekday: TypeAlias = Annotated[int, msgspec.Meta(ge=0, le=6)]
+MinuteOfDay: TypeAlias = Annotated[int, msgspec.Meta(ge=0, le=1439)]
 ViewReason: TypeAlias = Literal["look", "inside", "on_the_way"]
 
 
@@ -71,6 +76,14 @@ class PlanarPose(Part, frozen=True):
     x: float
     y: float
     yaw: float
+
+
+class DayClock(Part, frozen=True):
+    """The local time of day a search began: the weekday (0 Monday … 6 Sunday) and the minute
+    after midnight (what a memory that knows the hour folds, agent/routine_belief.py)."""
+
+    weekday: Weekday
+    minute: MinuteOfDay
 
 
 class Support(Part, frozen=True):
@@ -98,6 +111,13 @@ class RelationsSpecV2(Part, frozen=True):
     model: Literal["eq4", "beta"]
     prior_strength: Positive | None
     half_life_tasks: Positive | None
+
+
+class RelationsSpecV3(Part, frozen=True):
+    model: RelationModelNameV3
+    prior_strength: Positive | None
+    half_life_tasks: Positive | None
+    recent_weight: NonNegative | None
 
 
 class RelationsSpec(Part, frozen=True):
@@ -212,9 +232,26 @@ class RunStartedV2(Record, frozen=True):
     params: dict[str, Any]
 
 
-class RunStarted(Record, frozen=True):
+class RunStartedV3(Record, frozen=True):
     TYPE: ClassVar[str] = "run_started"
     VERSION: ClassVar[int] = 3
+    home: str
+    home_digest: str
+    strategy: str
+    method: MethodName
+    planner: PlannerName
+    relations: RelationsSpecV3
+    alpha: NonNegative
+    update_mode: UpdateModeName
+    seed: int
+    support_radius: NonNegative
+    schedule: str | None
+    params: dict[str, Any]
+
+
+class RunStarted(Record, frozen=True):
+    TYPE: ClassVar[str] = "run_started"
+    VERSION: ClassVar[int] = 4
     home: str
     home_digest: str
     strategy: str
@@ -287,13 +324,23 @@ class TaskEnded(Record, frozen=True):
     path_length: NonNegative
 
 
-class TaskStarted(Record, frozen=True):
+class TaskStartedV1(Record, frozen=True):
     TYPE: ClassVar[str] = "task_started"
     VERSION: ClassVar[int] = 1
     target: str
     start: str
     pose: PlanarPose
     scene: int | None
+
+
+class TaskStarted(Record, frozen=True):
+    TYPE: ClassVar[str] = "task_started"
+    VERSION: ClassVar[int] = 2
+    target: str
+    start: str
+    pose: PlanarPose
+    scene: int | None
+    clock: DayClock | None  # v2
 
 
 class ViewTakenV1(Record, frozen=True):
@@ -326,6 +373,7 @@ RECORDS: Final[Mapping[tuple[str, int], type[Record]]] = {
         PoseObserved,
         RunStartedV1,
         RunStartedV2,
+        RunStartedV3,
         RunStarted,
         RecordQuarantined,
         SceneGraphSeeded,
@@ -334,6 +382,7 @@ RECORDS: Final[Mapping[tuple[str, int], type[Record]]] = {
         TargetDetected,
         TaskAborted,
         TaskEnded,
+        TaskStartedV1,
         TaskStarted,
         ViewTakenV1,
         ViewTaken,

@@ -22,6 +22,7 @@ from objsearch.agent.catalogue import (
     XYZ,
     Candidate,
     ContainerOpened,
+    DayClock,
     Detected,
     Moved,
     PlanarPose,
@@ -345,7 +346,13 @@ class SearchAgent:
     # -- acting -------------------------------------------------------------------------------
 
     def search(
-        self, world: World, target: str, start: str, *, scene: int | None = None
+        self,
+        world: World,
+        target: str,
+        start: str,
+        *,
+        scene: int | None = None,
+        clock: DayClock | None = None,
     ) -> SearchResult:
         if self._next_task_id is None:
             raise ObjsearchError("this agent only plans (replay); it was given no task numbering")
@@ -356,7 +363,9 @@ class SearchAgent:
         )
         pose = world.pose()
         result.route.append(pose.point)
-        run.emit(TaskStarted(target=target, start=start, pose=_planar(pose), scene=scene))
+        run.emit(
+            TaskStarted(target=target, start=start, pose=_planar(pose), scene=scene, clock=clock)
+        )
         start_room = self.navmap.room_at(pose.x, pose.y)
         rooms = self.room_order(start_room, target, task_id, here=pose.point)
         found: _Found | None = None

@@ -13,7 +13,7 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
-from objsearch.agent.catalogue import STORE
+from objsearch.agent.catalogue import STORE, DayClock
 from objsearch.agent.categories import Vocabulary, read_json
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
@@ -281,11 +281,18 @@ class Session:
         )
 
     def search(
-        self, world: World, target: str, start: str, *, scene: int | None = None
+        self,
+        world: World,
+        target: str,
+        start: str,
+        *,
+        scene: int | None = None,
+        clock: DayClock | None = None,
     ) -> SearchResult:
-        """One task; its events become durable together when it ends (one fsync per task)."""
+        """One task; its events become durable together when it ends (one fsync per task).
+        ``clock``: the local time of day it begins (recorded in ``task_started``)."""
         with self.log.batch():
-            return self.agent.search(world, target, start, scene=scene)
+            return self.agent.search(world, target, start, scene=scene, clock=clock)
 
     def close(self) -> None:
         try:

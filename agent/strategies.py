@@ -74,7 +74,17 @@ AGENT_MODELS: Final[RelationModels] = MappingProxyType({})
 BELIEF_PRIOR_STRENGTH = 1.0
 BELIEF_HALF_LIFE_SCENES = 3.0
 
-RELATION_MODELS = ("eq4", "beta", "memory", "belief", "dist-oracle")
+RELATION_MODELS = (
+    "eq4",
+    "beta",
+    "memory",
+    "belief",
+    "routine-belief",
+    "dist-oracle",
+    "slot-oracle",
+)
+#: The simulator's references (never a default): they read the schedule's generator.
+REFERENCE_MODELS = ("dist-oracle", "slot-oracle")
 PLANNERS = ("wpl", "rvp", "sdp", "epl")
 
 
@@ -92,7 +102,7 @@ class RelationSpec:
             raise ObjsearchError(
                 f"unknown relation model {self.model!r}; known: {', '.join(RELATION_MODELS)}"
             )
-        if self.model in ("beta", "memory", "belief") and not (
+        if self.model in ("beta", "memory", "belief", "routine-belief") and not (
             self.prior_strength and self.prior_strength > 0
         ):
             raise ObjsearchError(f"the {self.model} relation model needs a prior strength > 0")
@@ -100,7 +110,7 @@ class RelationSpec:
             self.half_life_tasks is None or self.recent_weight is None or self.recent_weight < 0
         ):
             raise ObjsearchError("the memory model needs a half-life and a recent weight >= 0")
-        if self.model == "belief" and self.half_life_tasks is None:
+        if self.model in ("belief", "routine-belief") and self.half_life_tasks is None:
             raise ObjsearchError("the belief model needs a half-life (episodes)")
         if self.half_life_tasks is not None and self.half_life_tasks <= 0:
             raise ObjsearchError(f"half-life must be positive, got {self.half_life_tasks}")
@@ -123,11 +133,18 @@ class RelationSpec:
             return PlaceBelief(
                 prior_strength=self.prior_strength, half_life_scenes=self.half_life_tasks
             )
+        if self.model == "routine-belief":
+            from objsearch.agent.routine_belief import RoutineBelief
+
+            assert self.prior_strength is not None and self.half_life_tasks is not None
+            return RoutineBelief(
+                prior_strength=self.prior_strength, half_life_scenes=self.half_life_tasks
+            )
         if self.model in models:
             return models[self.model]()
-        if self.model == "dist-oracle":
+        if self.model in REFERENCE_MODELS:
             raise ObjsearchError(
-                "the dist-oracle relation model is a simulation reference that reads the "
+                f"the {self.model} relation model is a simulation reference that reads the "
                 "schedule's generator; fold such a run with the simulator's models "
                 "(models=objsearch.sim.distribution_oracle.SIM_MODELS)"
             )
@@ -158,6 +175,8 @@ EQ4 = RelationSpec()
 MEMORY = RelationSpec("memory", PRIOR_STRENGTH, MEMORY_HALF_LIFE_TASKS, MEMORY_RECENT_WEIGHT)
 #: For the belief, ``half_life_tasks`` holds the short memory's half-life in *episodes*.
 BELIEF = RelationSpec("belief", BELIEF_PRIOR_STRENGTH, BELIEF_HALF_LIFE_SCENES)
+#: The belief that knows the hour (agent/routine_belief.py): the same k and h, per slot too.
+ROUTINE_BELIEF = RelationSpec("routine-belief", BELIEF_PRIOR_STRENGTH, BELIEF_HALF_LIFE_SCENES)
 
 
 @dataclass(frozen=True, slots=True)
@@ -178,7 +197,7 @@ class Strategy:
     @property
     def reference(self) -> bool:
         """A reference searcher that knows what a robot cannot (never a default)."""
-        return self.relations.model == "dist-oracle"
+        return self.relations.model in REFERENCE_MODELS
 
     @property
     def randomised(self) -> bool:
@@ -246,11 +265,27 @@ STRATEGIES: dict[str, Strategy] = {
             "epl",
         ),
         Strategy(
+            "ecost-routine",
+            Method.ECOST,
+            "ecost-belief's planner on a belief that knows the hour (agent/routine_belief.py)",
+            False,
+            ROUTINE_BELIEF,
+            "epl",
+        ),
+        Strategy(
             "dist-oracle",
             Method.ECOST,
             "REFERENCE: knows the schedule's placement distribution (not today's draw)",
             False,
             RelationSpec("dist-oracle"),
+            "epl",
+        ),
+        Strategy(
+            "slot-oracle",
+            Method.ECOST,
+            "REFERENCE: knows the schedule's distribution at each time of day (routine-<seed>)",
+            False,
+            RelationSpec("slot-oracle"),
             "epl",
         ),
     )

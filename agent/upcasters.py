@@ -63,6 +63,17 @@ def run_started_v2_to_v3(payload: dict[str, Any]) -> dict[str, Any]:
     return payload
 
 
+def run_started_v3_to_v4(payload: dict[str, Any]) -> dict[str, Any]:
+    # v4 added a relation model (routine-belief); a v3 run used none of it.
+    return payload
+
+
+def task_started_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
+    # v2 records the time of day a search began; a v1 search's is unknown.
+    payload["clock"] = None
+    return payload
+
+
 def view_taken_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
     # v2 records the camera's tilt; before it the camera was always level.
     return {"pose": payload["pose"], "pitch": 0.0, **payload}
@@ -73,6 +84,8 @@ STEPS: Final[Mapping[tuple[str, int], UpcastStep]] = MappingProxyType(
         ("detection", 1): detection_v1_to_v2,
         ("run_started", 1): run_started_v1_to_v2,
         ("run_started", 2): run_started_v2_to_v3,
+        ("run_started", 3): run_started_v3_to_v4,
+        ("task_started", 1): task_started_v1_to_v2,
         ("view_taken", 1): view_taken_v1_to_v2,
     }
 )

@@ -6,8 +6,13 @@ One fold answers every way of asking: a log folder and a lake run (``objsearch w
 by :func:`where`, and the running agent keeps the same projection live (:class:`LiveMemory`,
 ``objsearch agent where``), so the three cannot disagree about the same events.
 
-A log whose run used another relation model is folded with the belief as a counterfactual
-(``AgentState(counterfactual=BELIEF)``): the facts it answers from (sightings, looks) are in every
+The belief is the one that knows the hour (:class:`~objsearch.agent.routine_belief.RoutineBelief`):
+``at`` asks for another time of day (``objsearch where --at "sat 09:00"``; the default, ``None``,
+is the time of the log's latest search); a log whose searches record no time of day folds to the
+time-blind belief exactly, and its answer says so (``time_of_day`` null).
+
+A log whose run used another relation model is folded with that belief as a counterfactual
+(``AgentState(counterfactual=ROUTINE_BELIEF)``): the facts it answers from (sightings, looks) are in every
 log; only the robot's own plans used another model, and the answer says so (``model_of_run``).
 """
 
@@ -19,13 +24,14 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.belief import ELSEWHERE, PlaceBelief
-from objsearch.agent.catalogue import STORE
+from objsearch.agent.catalogue import STORE, DayClock
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.navmap import NavigationMap
+from objsearch.agent.routine_belief import COMPONENTS, START_MIX, RoutineBelief, buckets_of
 from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.state import AgentState
-from objsearch.agent.strategies import BELIEF
+from objsearch.agent.strategies import ROUTINE_BELIEF
 from objsearch.events.envelope import Event
 from objsearch.events.log import EventLog
 from objsearch.events.projection import fold
@@ -37,16 +43,22 @@ def memory_state(events: Iterable[Event]) -> AgentState:
     return fold(events, _fresh())
 
 
-def where(events: Iterable[Event], target: str, *, top: int = 3) -> dict[str, Any]:
-    """The answer for ``target`` from a log's or a lake run's events."""
+def where(
+    events: Iterable[Event], target: str, *, top: int = 3, at: DayClock | None = None
+) -> dict[str, Any]:
+    """The answer for ``target`` from a log's or a lake run's events, at the time of day ``at``
+    (None: the time of the latest search)."""
     state = memory_state(events)
     if state.run is None:
         raise ObjsearchError("the events hold no run yet: nothing has been searched")
-    return answer(state, target, load_home(state.run.home), top=top)
+    return answer(state, target, load_home(state.run.home), top=top, at=at)
 
 
-def answer(state: AgentState, target: str, home: Home, *, top: int = 3) -> dict[str, Any]:
-    """What the folded ``state`` says about ``target`` (``home``: the run's, for rooms)."""
+def answer(
+    state: AgentState, target: str, home: Home, *, top: int = 3, at: DayClock | None = None
+) -> dict[str, Any]:
+    """What the folded ``state`` says about ``target`` (``home``: the run's, for rooms) at the
+    time of day ``at`` (None: the time of the latest search)."""
     belief = state.graph()
     assert isinstance(belief, PlaceBelief)
     assert state.run is not None
@@ -56,9 +68,24 @@ def answer(state: AgentState, target: str, home: Home, *, top: int = 3) -> dict[
             f"unknown object class {target!r} in this run's scene graph; known: {', '.join(known)}"
         )
     statics = home.statics
-    dist = belief.distribution(target)
+    time_of_day = None
+    if isinstance(belief, RoutineBelief):
+        dist = belief.distribution_at(target, at)
+        when = at or belief.clock
+        if belief.knows_hours and when is not None:
+            mix = belief.mix.get(target, START_MIX)
+            time_of_day = {
+                "weekday": when.weekday,
+                "minute": when.minute,
+                "slot": buckets_of(when)[1],
+                "weights": {c: round(w, 4) for c, w in zip(COMPONENTS, mix, strict=True)},
+            }
+    else:  # a snapshot from before the belief knew the hour
+        dist = belief.distribution(target)
     places = sorted((p for p in dist if p in statics), key=lambda p: (-dist[p], p))
-    rooms = belief.rooms(target)
+    rooms: dict[str, float] = {}
+    for p in places:
+        rooms[statics[p].room] = rooms.get(statics[p].room, 0.0) + dist[p]
     counts = belief.long.get(target)
     usual = None
     if counts is not None and counts.at:
@@ -80,6 +107,8 @@ def answer(state: AgentState, target: str, home: Home, *, top: int = 3) -> dict[
         "run_id": state.run.params.get("run_id"),
         "model_of_run": state.run.relations.model,
         "tasks": belief.tasks_folded,
+        # The time of day answered for; null when the log records none (the time-blind answer).
+        "time_of_day": time_of_day,
         "last_seen": None
         if last is None
         else {
@@ -188,11 +217,20 @@ class LiveMemory:
 
 
 def _fresh() -> AgentState:
-    return AgentState(counterfactual=BELIEF)
+    return AgentState(counterfactual=ROUTINE_BELIEF)
 
 
 def render(answer: dict[str, Any]) -> str:
     lines = [f"{answer['target']} ({answer['tasks']} searches folded)"]
+    when = answer.get("time_of_day")
+    if when is not None:
+        days = ("Mon", "Tue", "Wed", "Thu", "Fri", "Sat", "Sun")
+        w = when["weights"]
+        lines.append(
+            f"  at:        {days[when['weekday']]} {when['minute'] // 60:02d}:{when['minute'] % 60:02d}"
+            f" ({when['slot']}); trusting the time-blind memory {w['blind']:.0%}, the slot's "
+            f"{w['slot']:.0%}, the slot's on this kind of day {w['slot_day']:.0%}"
+        )
     last = answer["last_seen"]
     if last is None:
         lines.append("  last seen: never")

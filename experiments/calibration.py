@@ -21,7 +21,7 @@ from objsearch.agent.belief import ELSEWHERE, PlaceBelief
 from objsearch.agent.catalogue import Detected, TaskStarted, decode
 from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.state import AgentState
-from objsearch.agent.strategies import BELIEF
+from objsearch.agent.strategies import BELIEF, RelationSpec
 
 BINS = 10
 
@@ -37,9 +37,10 @@ class Forecast:
     brier: float
 
 
-def forecasts(events: Iterable[EventLike]) -> dict[str, Forecast]:
-    """Per task id that found its target, the belief's forecast at its start."""
-    state = AgentState(counterfactual=BELIEF)
+def forecasts(events: Iterable[EventLike], belief: RelationSpec = BELIEF) -> dict[str, Forecast]:
+    """Per task id that found its target, the forecast at its start of ``belief`` (the
+    time-blind belief, or the one that knows the hour)."""
+    state = AgentState(counterfactual=belief)
     out: dict[str, Forecast] = {}
     dist: Mapping[str, float] = {}
     target: str | None = None

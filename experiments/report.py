@@ -209,12 +209,13 @@ def write_report(inputs: ReportInputs, out: Path, img: Path) -> Path:
             )
         )
     sections.append(
-        "## Elsewhere\n\nSchedules taken from real AI2-THOR rearrangement episodes have their own "
+        "## Elsewhere\n\nRoutine schedules (where an object is depends on the time of day) and the "
+        "belief that knows the hour, with success and SPL beside the oracle ratios: "
+        "[results-routine.md](results-routine.md) (`bench belief`). "
+        "Schedules taken from real AI2-THOR rearrangement episodes have their own "
         "generated page with its commands, [results-rearrangement.md](results-rearrangement.md) "
         "(`bench report --rearr`); room choice by expected cost and memory of places: "
-        "[results-memory.md](results-memory.md); our belief inside a published benchmark's own "
-        "task, the Dynamic House Simulator of Kurenkov et al. (ICML 2023), beside its agents: "
-        "[results-dhs.md](results-dhs.md) (`bench dhs`).\n"
+        "[results-memory.md](results-memory.md).\n"
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(sections), encoding="utf-8")

@@ -18,9 +18,15 @@ from typing import Any
 
 from objsearch.experiments.calibration import ece
 from objsearch.experiments.learning import first_of_day, ratio
+from objsearch.experiments.metrics import spl_term
 from objsearch.experiments.runner import Row, read_rows
 
 AFTER = 10
+#: routine-<seed>: the evaluation scenes are those after day 14 (four scenes a day,
+#: sim/routine_schedule.py; docs/results-routine.md).
+ROUTINE_AFTER = 14 * 4
+#: The scenes' slots of a seeded schedule, in order (sim/routine_schedule.py SLOT_NAMES).
+SLOT_NAMES = ("morning", "afternoon", "evening", "night")
 MIN_RUNS = 10
 RESAMPLES = 10_000
 ORACLE = "dist-oracle"
@@ -53,18 +59,28 @@ def _interval(value: float, low: float, high: float, n: int) -> str:
     return f"{value:.3f} [{low:.3f}, {high:.3f}]" if n >= MIN_RUNS else f"{value:.3f} (n={n})"
 
 
+def after_scene(k: str) -> int:
+    """The last scene before a kind's evaluation scenes."""
+    return ROUTINE_AFTER if k == "routine" else AFTER
+
+
+def _spl(rows: Sequence[Row]) -> float:
+    return math.fsum(spl_term(r) for r in rows) / len(rows) if rows else math.nan
+
+
 def ratio_table(rows: Sequence[Row], after: int = AFTER) -> list[str]:
     """Per strategy: first-of-day oracle× after ``after``, and its ratio to the oracle's, with
-    CIs over runs (paired: the same runs resampled for both)."""
+    CIs over runs (paired: the same runs resampled for both); success and SPL (Anderson et al.
+    2018) of the first searches after ``after``."""
     late = [r for r in first_of_day(rows) if r.scene > after]
     by = {
         s: _runs([r for r in late if r.strategy == s])
         for s in dict.fromkeys(r.strategy for r in rows)
     }
     lines = [
-        f"| strategy | first× all | first× after day {after} | ÷ {ORACLE} after day {after} "
-        "| success | searches |",
-        "|---|---|---|---|---|---|",
+        f"| strategy | first× all | first× after scene {after} | ÷ {ORACLE} after scene {after} "
+        f"| success | searches | success after {after} | SPL after {after} |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     oracle = by.get(ORACLE, {})
     firsts = first_of_day(rows)
@@ -95,7 +111,12 @@ def ratio_table(rows: Sequence[Row], after: int = AFTER) -> list[str]:
             lo2, hi2 = _boot(shared, rel)
             vs = _interval(rel(shared), lo2, hi2, len(shared))
         success = sum(r.success for r in mine) / len(mine)
-        lines.append(f"| {s} | {ratio(mine):.3f} | {cell} | {vs} | {success:.2%} | {len(mine)} |")
+        evaluated = [r for k in keys for r in runs[k]]
+        late_success = sum(r.success for r in evaluated) / len(evaluated)
+        lines.append(
+            f"| {s} | {ratio(mine):.3f} | {cell} | {vs} | {success:.2%} | {len(mine)} "
+            f"| {late_success:.2%} | {_spl(evaluated):.3f} |"
+        )
     return lines
 
 
@@ -132,6 +153,30 @@ def paired_lines(
             else f"n={len(diffs)}: range [{min(diffs):.2f}, {max(diffs):.2f}]"
         )
         lines.append(f"| {a} − {b} | {len(diffs)} | {mean:.2f} | {ci} |")
+    return lines
+
+
+def slot_lines(rows: Sequence[Row], after: int = ROUTINE_AFTER) -> list[str]:
+    """Per strategy and slot of the day (scene n is slot (n − 1) mod 4): first-search oracle×
+    after ``after``, and its ratio to the oracle's."""
+    late = [r for r in first_of_day(rows) if r.scene > after]
+    lines = [
+        f"| strategy (first× after scene {after}) | "
+        + " | ".join(SLOT_NAMES)
+        + " | weekend days |",
+        "|---|" + "---|" * (len(SLOT_NAMES) + 1),
+    ]
+    for s in dict.fromkeys(r.strategy for r in late):
+        mine = [r for r in late if r.strategy == s]
+        cells = [
+            ratio([r for r in mine if (r.scene - 1) % len(SLOT_NAMES) == k])
+            for k in range(len(SLOT_NAMES))
+        ]
+        weekend = [r for r in mine if ((r.scene - 1) // len(SLOT_NAMES)) % 7 in (5, 6)]
+        shown = [*cells, ratio(weekend) if weekend else math.nan]
+        lines.append(
+            f"| {s} | " + " | ".join("–" if math.isnan(c) else f"{c:.3f}" for c in shown) + " |"
+        )
     return lines
 
 
@@ -263,11 +308,21 @@ def report(folders: Sequence[Path], out: Path | None = None) -> str:
     ]
     for k in sorted({kind(r) for r in rows}):
         mine = [r for r in rows if kind(r) == k]
-        lines += ["", f"### {k} schedules", "", *ratio_table(mine), ""]
+        after = after_scene(k)
+        lines += ["", f"### {k} schedules", "", *ratio_table(mine, after), ""]
         lines += paired_lines(
             mine,
-            [("ecost-belief", "ecost-memory"), ("ecost-belief", ORACLE), ("ecost-belief", "ecost")],
+            [
+                ("ecost-belief", "ecost-memory"),
+                ("ecost-belief", ORACLE),
+                ("ecost-belief", "ecost"),
+                ("ecost-routine", "ecost-belief"),
+                ("ecost-routine", ORACLE),
+            ],
+            after,
         )
+        if k == "routine":
+            lines += ["", *slot_lines(mine, after)]
         if k == "moved":
             lines += ["", *moved_lines(mine)]
         lines += ["", "Calibration of the belief's forecast at the start of each search:", ""]

@@ -32,6 +32,7 @@ from objsearch.experiments.learning import (
     ratio,
     run_of,
 )
+from objsearch.experiments.metrics import spl_term
 from objsearch.experiments.paper import discovery
 from objsearch.experiments.plots import pyplot, save_figure
 from objsearch.experiments.runner import Row
@@ -60,8 +61,8 @@ def strategy_table(rows: Sequence[Row]) -> list[str]:
     """One line per strategy (``/none``: its no-update twin)."""
     lines = [
         f"| strategy | path to discovery m | full path m | oracle× all | oracle× first of day "
-        f"| all× after scene {AFTER} | first× after scene {AFTER} | success | searches |",
-        "|---|---|---|---|---|---|---|---|---|",
+        f"| all× after scene {AFTER} | first× after scene {AFTER} | success | SPL | searches |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for k, rs in _by_key(rows).items():
         late = [r for r in rs if r.scene > AFTER]
@@ -70,7 +71,8 @@ def strategy_table(rows: Sequence[Row]) -> list[str]:
             f"| {statistics.fmean(r.path_length for r in rs):.2f} | {_m(ratio(rs))} "
             f"| {_m(ratio(first_of_day(rs)))} | {_m(ratio(late)) if late else '–'} "
             f"| {_m(ratio(first_of_day(late))) if late else '–'} "
-            f"| {100 * sum(r.success for r in rs) / len(rs):.2f} % | {len(rs)} |"
+            f"| {100 * sum(r.success for r in rs) / len(rs):.2f} % "
+            f"| {statistics.fmean(spl_term(r) for r in rs):.3f} | {len(rs)} |"
         )
     return lines
 
@@ -311,7 +313,8 @@ def homes_section(
         "",
         "### Per strategy (all homes, all schedules)",
         "oracle× is Σ full path / Σ oracle path; the first search of the day is the first for "
-        "each target in each scene. " + _oracle_note(summary),
+        "each target in each scene; SPL (Anderson et al. 2018) is the mean of "
+        "success × oracle path ÷ max(path, oracle path). " + _oracle_note(summary),
         "",
         *strategy_table(rows),
         "",

@@ -23,8 +23,9 @@ from typing import Any, NoReturn, TypeVar
 MAX_WORKERS = 64
 #: Every schedule (Table II, stats-<seed>, rearr-<seed>) has scenes 1-10.
 MAX_SCENE = 10
-#: Longest seeded schedule ``bench homes --scenes`` asks for (a habit schedule has 30 scenes).
-MAX_HABIT_SCENES = 30
+#: Longest seeded schedule ``bench homes --scenes`` asks for (a routine schedule has 84 scenes:
+#: 21 days of four).
+MAX_SEEDED_SCENES = 84
 
 Converter = Callable[[str], object]
 T = TypeVar("T")
@@ -332,6 +333,33 @@ def date(value: str) -> str:
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a date YYYY-MM-DD, not {value!r}") from None
     return value
+
+
+_WEEKDAYS = ("mon", "tue", "wed", "thu", "fri", "sat", "sun")
+_DAY_TIME = re.compile(r"(?:(?P<day>[A-Za-z]{3})\s+)?(?P<h>\d{1,2}):(?P<m>\d{2})")
+
+
+def day_time(value: str) -> tuple[int, int] | None:
+    """A time of the week: ``now`` (the local clock), ``HH:MM`` (today), ``DAY HH:MM`` (DAY one of
+    mon … sun), or ``last`` (None: the time of the log's latest search). Returns (weekday 0-6,
+    minute after midnight)."""
+    import datetime as dt
+
+    text = value.strip().lower()
+    now = dt.datetime.now()
+    if text == "last":
+        return None
+    if text == "now":
+        return now.weekday(), now.hour * 60 + now.minute
+    m = _DAY_TIME.fullmatch(text)
+    day = m["day"] if m else None
+    if m is None or int(m["h"]) > 23 or int(m["m"]) > 59 or (day and day not in _WEEKDAYS):
+        raise argparse.ArgumentTypeError(
+            f"expected now, last, HH:MM or DAY HH:MM (DAY one of {', '.join(_WEEKDAYS)}), "
+            f"not {value!r}"
+        )
+    weekday = _WEEKDAYS.index(day) if day else now.weekday()
+    return weekday, int(m["h"]) * 60 + int(m["m"])
 
 
 _HOSTNAME = re.compile(r"[A-Za-z0-9](?:[A-Za-z0-9-]{0,62})(?:\.[A-Za-z0-9](?:[A-Za-z0-9-]{0,62}))*")

@@ -27,6 +27,14 @@ def register(sub: Any) -> None:
     where.add_argument(
         "--robot", type=t.text, help="the robot whose run it is, if run names repeat"
     )
+    where.add_argument(
+        "--at",
+        type=t.day_time,
+        default="now",
+        help="the time of the week to answer for: now (default, the local clock), HH:MM (today), "
+        "DAY HH:MM (DAY mon…sun), or last (the time of the log's latest search); a log whose "
+        "searches record no time of day gets the same answer at every time",
+    )
     where.add_argument("--json", action="store_true", help="print the answer as JSON")
     where.set_defaults(func=cmd_where)
 
@@ -41,7 +49,10 @@ def cmd_where(args: argparse.Namespace) -> int:
         raise ObjsearchError(f"{path} is not an event log (no meta.json); if it is a lake: --lake")
     if args.lake is not None and is_log(path):
         raise ObjsearchError(f"{path} is an event log, not a lake: use --log")
+    from objsearch.agent.catalogue import DayClock
+
     events, _ = open_events(path, run=args.run, robot=args.robot)
-    answer = where(events, args.target)
+    at = None if args.at is None else DayClock(weekday=args.at[0], minute=args.at[1])
+    answer = where(events, args.target, at=at)
     print(json.dumps(answer, indent=2) if args.json else render(answer))
     return 0

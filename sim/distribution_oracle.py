@@ -11,6 +11,10 @@ against it. It learns nothing across scenes.
 - ``habit-<seed>``: the exact per-scene distribution (:func:`habit_distribution`);
 - ``moved-<seed>``: the same before ``MOVE_SCENE``, the new habits' from then on (it knows the day
   of the move: a reference, not a robot);
+- ``routine-<seed>``: the time-BLIND distribution — the routine's per-scene distribution
+  averaged over the week's slots and days (:func:`blind_distribution`) for the routines in force
+  that week (it knows the days of the drift, not the hour): the best a memory that ignores the
+  time of day could learn;
 - ``stats-<seed>`` / ``rearr-<seed>``'s stats fallback: the first scene's draw
   (:func:`stats_distribution`); later scenes keep the object with probability 1 − move rate, so
   once the robot has seen the object in scene n₀, scene n's distribution is the chain's
@@ -37,6 +41,14 @@ from objsearch.sim.habit_schedule import (
     moved_habits,
     stats_distribution,
 )
+from objsearch.sim.routine_schedule import (
+    SCENES_PER_DAY,
+    WEEKEND,
+    blind_distribution,
+    routine_distribution,
+    routines_by_week,
+    scene_day,
+)
 from objsearch.sim.schedule_names import parse_seeded
 from objsearch.sim.stats_schedule import PlacementStats
 
@@ -51,6 +63,9 @@ def schedule_distribution(
         return habit_distribution(home, seeded[1], moved_habits(home, seeded[1]))
     if seeded is not None and seeded[0] in ("habit", "moved"):
         return habit_distribution(home, seeded[1])
+    if seeded is not None and seeded[0] == "routine":
+        week = scene_day(scene or 1) // 7
+        return blind_distribution(home, routines_by_week(home, seeded[1], week + 1)[week])
     stats = PlacementStats.load()
     statics = sorted(home.statics.values(), key=lambda s: s.id)
     return {cls: stats_distribution(w, statics) for cls, w in sorted(stats.counts.items())}
@@ -66,6 +81,9 @@ class DistributionOracle:
     by_class: dict[Pair, float] = field(default_factory=dict)
     #: ``moved-<seed>``: the distribution from the move on.
     moved: dict[str, dict[str, float]] | None = None
+    #: ``routine-<seed>``: the time-blind distribution of each week (the routines drift), by
+    #: week, computed when first asked.
+    weekly: dict[int, dict[str, dict[str, float]]] | None = None
     #: ``stats-<seed>``: the move rate of its Markov chain, and where each class was last seen
     #: (place, scene).
     move_rate: float | None = None
@@ -100,6 +118,8 @@ class DistributionOracle:
         seeded = parse_seeded(schedule) if schedule else None
         if seeded is not None and seeded[0] == "moved":
             self.moved = schedule_distribution(home, schedule, scene=MOVE_SCENE)
+        if seeded is not None and seeded[0] == "routine":
+            self.weekly = {}
         if seeded is not None and seeded[0] == "stats":
             self.move_rate = PlacementStats.load().move_rate
         statics = load_home(home).statics
@@ -113,10 +133,7 @@ class DistributionOracle:
         now = self._cache.get(dynamic)
         if now is None:
             key = self.today.key
-            after = self.moved is not None and key is not None and key[0] == "scene"
-            dist = self.moved if after and key is not None and key[1] >= MOVE_SCENE else self.dist
-            assert dist is not None
-            base = dist.get(dynamic, {})
+            base = self._scene_dist(key).get(dynamic, {})
             last = self.last_seen.get(dynamic)
             if self.move_rate is not None and last is not None and key is not None:
                 stay = (1 - self.move_rate) ** max(key[1] - last[1], 0)
@@ -124,6 +141,23 @@ class DistributionOracle:
                 base[last[0]] = base.get(last[0], 0.0) + stay
             now = self._cache[dynamic] = self.today.condition(dynamic, base)
         return now.get(static_id, 0.0)
+
+    def _scene_dist(self, key: tuple[str, int] | None) -> Mapping[str, Mapping[str, float]]:
+        """The per-scene distribution of the episode ``key`` (before today's evidence)."""
+        if key is None or key[0] != "scene":
+            return self.dist
+        if self.moved is not None and key[1] >= MOVE_SCENE:
+            return self.moved
+        if self.weekly is not None:
+            return self._week(scene_day(key[1]) // 7)
+        return self.dist
+
+    def _week(self, week: int) -> dict[str, dict[str, float]]:
+        assert self.weekly is not None and self.home is not None
+        if week not in self.weekly:
+            first = 7 * SCENES_PER_DAY * week + 1
+            self.weekly[week] = schedule_distribution(self.home, self.schedule, scene=first)
+        return self.weekly[week]
 
     def rel(self, dynamic: str, static: str) -> float:
         return self.by_class.get((dynamic, static), 0.0)
@@ -163,6 +197,39 @@ class DistributionOracle:
         return oracle
 
 
+@dataclass
+class SlotOracle(DistributionOracle):
+    """The distribution oracle that also knows the time of day: on ``routine-<seed>`` the
+    routine's exact per-scene distribution for the scene's slot and day type
+    (:func:`routine_distribution`, the week's routines); elsewhere the same as
+    :class:`DistributionOracle`. A REFERENCE (the ceiling of a memory that knows the hour)."""
+
+    slots: dict[tuple[int, bool, int], dict[str, dict[str, float]]] = field(default_factory=dict)
+
+    def _scene_dist(self, key: tuple[str, int] | None) -> Mapping[str, Mapping[str, float]]:
+        if self.weekly is None or key is None or key[0] != "scene" or self.home is None:
+            return super()._scene_dist(key)
+        seeded = parse_seeded(self.schedule) if self.schedule else None
+        assert seeded is not None
+        day = scene_day(key[1])
+        which = (day // 7, day % 7 in WEEKEND, (key[1] - 1) % SCENES_PER_DAY)
+        if which not in self.slots:
+            home = load_home(self.home)
+            table = routines_by_week(home, seeded[1], which[0] + 1)[which[0]]
+            self.slots[which] = routine_distribution(home, table, which[1], which[2])
+        return self.slots[which]
+
+    snapshot_name: ClassVar[str] = "slot_oracle"
+
+    @classmethod
+    def from_snapshot(cls, state: Mapping[str, Any], last_seq: int) -> SlotOracle:
+        oracle = super().from_snapshot(state, last_seq)
+        assert isinstance(oracle, SlotOracle)
+        return oracle
+
+
 #: The simulator's relation models by name, for a fold of a log whose spec may name one
 #: (``AgentState(models=SIM_MODELS)``, ``Session.open(..., models=SIM_MODELS)``).
-SIM_MODELS: Final[RelationModels] = MappingProxyType({"dist-oracle": DistributionOracle})
+SIM_MODELS: Final[RelationModels] = MappingProxyType(
+    {"dist-oracle": DistributionOracle, "slot-oracle": SlotOracle}
+)

@@ -65,6 +65,26 @@ def _statics(home: Home) -> list[StaticObject]:
     return sorted(home.statics.values(), key=lambda s: s.id)
 
 
+def draw_alternates(
+    rng: random.Random,
+    weights: Mapping[str, float],
+    statics: Sequence[StaticObject],
+    taken: set[str],
+    count: int,
+) -> tuple[str, ...]:
+    """Up to ``count`` more places drawn as the usual one was, none of ``taken`` and no repeats
+    (fewer when the home has no more valid statics)."""
+    taken = set(taken)
+    alternates: list[str] = []
+    for _ in range(count):
+        alt = _draw_static(rng, weights, [s for s in statics if s.id not in taken], None)
+        if alt is None:
+            break
+        taken.add(alt.id)
+        alternates.append(alt.id)
+    return tuple(alternates)
+
+
 def habits(home: Home, seed: int) -> dict[str, Habit]:
     """Each placeable class's usual place and alternates for (home, seed)."""
     stats = PlacementStats.load()
@@ -75,16 +95,8 @@ def habits(home: Home, seed: int) -> dict[str, Habit]:
         usual = _draw_static(rng, stats.counts[cls], statics, None)
         if usual is None:
             continue
-        taken = {usual.id}
-        alternates: list[str] = []
-        for _ in range(ALTERNATES):
-            rest = [s for s in statics if s.id not in taken]
-            alt = _draw_static(rng, stats.counts[cls], rest, None)
-            if alt is None:
-                break
-            taken.add(alt.id)
-            alternates.append(alt.id)
-        out[cls] = Habit(usual.id, tuple(alternates))
+        alternates = draw_alternates(rng, stats.counts[cls], statics, {usual.id}, ALTERNATES)
+        out[cls] = Habit(usual.id, alternates)
     return out
 
 
@@ -103,16 +115,8 @@ def moved_habits(home: Home, seed: int) -> dict[str, Habit]:
         if usual is None:
             out[cls] = old
             continue
-        taken = {usual.id}
-        alternates: list[str] = []
-        for _ in range(ALTERNATES):
-            rest = [s for s in statics if s.id not in taken]
-            alt = _draw_static(rng, stats.counts[cls], rest, None)
-            if alt is None:
-                break
-            taken.add(alt.id)
-            alternates.append(alt.id)
-        out[cls] = Habit(usual.id, tuple(alternates))
+        alternates = draw_alternates(rng, stats.counts[cls], statics, {usual.id}, ALTERNATES)
+        out[cls] = Habit(usual.id, alternates)
     return out
 
 

@@ -19,7 +19,7 @@ from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.sim.distribution_oracle import SIM_MODELS
 from objsearch.sim.placements import Placements, base_placements, table1_removals
-from objsearch.sim.schedule_names import load_schedule
+from objsearch.sim.schedule_names import load_schedule, schedule_clock
 from objsearch.sim.seeable import seeable_scenes
 from objsearch.sim.world import (
     DEFAULT_CAMERA,
@@ -156,7 +156,13 @@ def run_schedule(
                     oracle = world.oracle_length(
                         target, min_mask_px=ctx.vocabulary.classes[target].min_mask_area_px
                     )
-                    result = session.search(world, target, start_name, scene=scene)
+                    result = session.search(
+                        world,
+                        target,
+                        start_name,
+                        scene=scene,
+                        clock=schedule_clock(spec.schedule, scene),
+                    )
                     trial = Trial(
                         scene,
                         target,

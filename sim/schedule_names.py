@@ -4,21 +4,28 @@
 - ``stats-<seed>``: drawn from AI2-THOR placement statistics (``sim/stats_schedule.py``);
 - ``rearr-<seed>``: taken from real AI2-THOR rearrangement episodes (``sim/rearr_schedule.py``);
 - ``habit-<seed>``: objects with habits, 30 scenes (``sim/habit_schedule.py``);
-- ``moved-<seed>``: the same habits until scene 11, new ones (another room) from then on.
+- ``moved-<seed>``: the same habits until scene 11, new ones (another room) from then on;
+- ``routine-<seed>``: where an object is depends on the time of day and the weekday, habits
+  drift week by week, 84 scenes (``sim/routine_schedule.py``).
+
+Every seeded schedule's scenes are times of day, four a day (``routine_schedule.scene_clock``),
+and each search records its scene's (``task_started.clock``); a file schedule's scenes have none.
 """
 
 from __future__ import annotations
 
+from objsearch.agent.catalogue import DayClock
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home
 from objsearch.sim.habit_schedule import HABIT_SCENES, habit_schedule
 from objsearch.sim.placements import Schedule
 from objsearch.sim.rearr_schedule import rearr_schedule
+from objsearch.sim.routine_schedule import routine_schedule, scene_clock
 from objsearch.sim.stats_schedule import SCENES, stats_schedule
 
 #: Seeded schedule kinds: ``<kind>-<seed>``.
-SEEDED_KINDS = ("stats", "rearr", "habit", "moved")
+SEEDED_KINDS = ("stats", "rearr", "habit", "moved", "routine")
 
 
 class UnknownScheduleError(ObjsearchError, ValueError):
@@ -51,12 +58,14 @@ def parse_seeded(name: str) -> tuple[str, int] | None:
 
 def load_schedule(home: Home, name: str, *, scenes: int | None = None) -> Schedule:
     """The schedule ``name`` for ``home`` (``scenes`` applies to the seeded kinds only; default:
-    the kind's own length, 10 scenes, 30 for ``habit``)."""
+    the kind's own length, 10 scenes, 30 for ``habit``, 84 for ``routine``)."""
     seeded = parse_seeded(name)
     if seeded is not None:
         kind, seed = seeded
         if kind in ("habit", "moved"):
             return habit_schedule(home, seed, scenes=scenes or HABIT_SCENES, moved=kind == "moved")
+        if kind == "routine":
+            return routine_schedule(home, seed, scenes=scenes)
         scenes = scenes or SCENES
         if kind == "stats":
             return stats_schedule(home, seed, scenes=scenes)
@@ -64,3 +73,11 @@ def load_schedule(home: Home, name: str, *, scenes: int | None = None) -> Schedu
     if name not in file_schedules():
         raise UnknownScheduleError(f"unknown schedule {name!r}; expected one of: {_expected()}")
     return Schedule.load(home, name)
+
+
+def schedule_clock(name: str | None, scene: int | None) -> DayClock | None:
+    """The time of day of ``scene`` of the schedule ``name``: a seeded schedule's (four scenes a
+    day, scene 1 a Monday morning); None for a file schedule or no scene."""
+    if name is None or scene is None or scene < 1 or parse_seeded(name) is None:
+        return None
+    return scene_clock(scene)

@@ -5,108 +5,17 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, field
-from typing import Any
 
 import pytest
 
-from objsearch.agent.belief import ELSEWHERE, MISS, MOVED_TODAY, Place, PlaceBelief
-from objsearch.agent.catalogue import (
-    Detected,
-    PlanarPose,
-    Record,
-    SceneGraphSeeded,
-    SeedValue,
-    Support,
-    TaskEnded,
-    TaskStarted,
-    ViewTaken,
-    encode,
-)
+from objsearch.agent.belief import ELSEWHERE, MISS, MOVED_TODAY, PlaceBelief
+from objsearch.agent.catalogue import TaskEnded
 
-PLACES = {
-    "counter-a": Place("counter-a", "CounterTop", "kitchen"),
-    "counter-b": Place("counter-b", "CounterTop", "kitchen"),
-    "table": Place("table", "DiningTable", "living"),
-    "shelf": Place("shelf", "Shelf", "living"),
-}
-ORIGIN = PlanarPose(x=0.0, y=0.0, yaw=0.0)
-
-
-@dataclass(frozen=True)
-class Ev:
-    seq: int
-    type: str
-    payload: Mapping[str, Any]
-    task_id: str | None = None
-
-
-@dataclass
-class Log:
-    """Builds the events a search writes, numbered."""
-
-    events: list[Ev] = field(default_factory=list)
-    tasks: int = 0
-
-    def add(self, record: Record, task_id: str | None = None) -> None:
-        self.events.append(Ev(len(self.events) + 1, record.TYPE, encode(record), task_id))
-
-    def search(
-        self,
-        target: str,
-        scene: int | None,
-        *,
-        looks: tuple[str, ...] = (),
-        found: str | None = None,
-        also_seen: Mapping[str, str] | None = None,
-    ) -> None:
-        """One search: views of ``looks`` (none of which held it), then ``found`` if given."""
-        self.tasks += 1
-        task = f"t{self.tasks}"
-        self.add(TaskStarted(target=target, start="s", pose=ORIGIN, scene=scene), task)
-        for place in looks:
-            self.add(ViewTaken(pose=ORIGIN, pitch=0.5, static_id=place, reason="look"), task)
-        for cls, place in (also_seen or {}).items():
-            self._detect(cls, place, task)
-        if found is not None:
-            self.add(ViewTaken(pose=ORIGIN, pitch=0.5, static_id=found, reason="look"), task)
-            self._detect(target, found, task)
-        self.add(TaskEnded(target=target, success=found is not None, path_length=1.0), task)
-
-    def _detect(self, cls: str, place: str, task: str) -> None:
-        at = place in PLACES
-        support = Support(static_id=place, static_class=PLACES[place].static_class, at=True)
-        self.add(
-            Detected(
-                object_class=cls,
-                instance_id=f"{cls}|1",
-                mask_area=100.0,
-                position=(0.0, 0.0, 1.0),
-                accepted=True,
-                support=support if at else None,
-            ),
-            task,
-        )
+from .belief_logs import Log, fold_into
 
 
 def _belief(log: Log) -> PlaceBelief:
-    belief = PlaceBelief(prior_strength=1.0, half_life_scenes=3.0)
-    belief.places = dict(PLACES)
-    for event in _with_seed(log):
-        belief.apply(event)
-    return belief
-
-
-def _with_seed(log: Log) -> Iterator[Ev]:
-    values = (
-        SeedValue(dynamic="Cup", static="CounterTop", rel=0.5),
-        SeedValue(dynamic="Cup", static="DiningTable", rel=0.25),
-        SeedValue(dynamic="Apple", static="CounterTop", rel=0.4),
-        SeedValue(dynamic="Apple", static="DiningTable", rel=0.4),
-    )
-    yield Ev(0, "scene_graph_seeded", encode(SceneGraphSeeded(source="test", values=values)))
-    yield from log.events
+    return fold_into(PlaceBelief(prior_strength=1.0, half_life_scenes=3.0), log)
 
 
 def test_the_prior_is_a_distribution_over_places_and_elsewhere() -> None:

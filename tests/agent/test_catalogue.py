@@ -77,11 +77,9 @@ def _agree(node: dict[str, Any], info: inspect.Type, root: dict[str, Any], at: s
         assert (info.min_length, info.max_length, info.pattern) == (None, None, None), at
     elif kind == "boolean":
         assert isinstance(info, inspect.BoolType), f"{at}: {info}"
-    elif kind == "integer":
-        assert isinstance(info, inspect.IntType), f"{at}: {info}"
-        assert (info.ge, info.gt, info.le, info.lt) == (None, None, None, None), at
-    elif kind == "number":
-        assert isinstance(info, inspect.FloatType), f"{at}: {info}"
+    elif kind in ("integer", "number"):
+        integer = kind == "integer"
+        assert isinstance(info, inspect.IntType if integer else inspect.FloatType), f"{at}: {info}"
         bounds = {
             "minimum": info.ge,
             "exclusiveMinimum": info.gt,

@@ -102,7 +102,8 @@ def test_where_answers_from_the_log(
     memory_log: tuple[Path, list[Trial]], capsys: pytest.CaptureFixture[str]
 ) -> None:
     log, trials = memory_log
-    assert main(["where", "Cup", "--log", str(log), "--json"]) == 0
+    # The time of the latest search (the default, now, may be another slot of the routine).
+    assert main(["where", "Cup", "--log", str(log), "--json", "--at", "last"]) == 0
     answer = json.loads(capsys.readouterr().out)
     placements: dict[int, dict[str, Placement]] = {}
     from objsearch.sim.longterm import scenes_of
@@ -121,6 +122,27 @@ def test_where_answers_from_the_log(
     assert main(["where", "Cup", "--log", str(log)]) == 0
     assert "last seen" in capsys.readouterr().out
     assert main(["where", "Unicorn", "--log", str(log)]) != 0
+
+
+def test_where_answers_for_a_time_of_day(
+    memory_log: tuple[Path, list[Trial]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    log, _ = memory_log  # a habit schedule: its scenes are times of day (four a day)
+    answers = {}
+    for at in ("sat 09:00", "mon 23:30"):
+        assert main(["where", "Cup", "--log", str(log), "--json", "--at", at]) == 0
+        answers[at] = json.loads(capsys.readouterr().out)
+    when = answers["sat 09:00"]["time_of_day"]
+    assert (when["weekday"], when["minute"], when["slot"]) == (5, 540, "morning/weekend")
+    assert answers["mon 23:30"]["time_of_day"]["slot"] == "night/weekday"
+    assert sum(when["weights"].values()) == pytest.approx(1.0, abs=1e-3)
+    for answer in answers.values():
+        rooms = sum(r["probability"] for r in answer["rooms"])
+        assert rooms + answer["elsewhere"] == pytest.approx(1.0, abs=1e-3)
+    assert main(["where", "Cup", "--log", str(log)]) == 0
+    assert "  at:" in capsys.readouterr().out
+    assert main(["where", "Cup", "--log", str(log), "--at", "25:00"]) == 2
+    assert "expected now, last, HH:MM or DAY HH:MM" in capsys.readouterr().err
 
 
 def test_excess_decomposition_sums_to_path_minus_oracle(
@@ -152,7 +174,7 @@ def test_a_log_and_the_lake_made_from_it_answer_the_same(
     capsys.readouterr()
     answers = []
     for source in (["--log", str(log)], ["--lake", str(lake)]):
-        assert main(["where", "Cup", *source, "--json"]) == 0
+        assert main(["where", "Cup", *source, "--json", "--at", "sat 09:00"]) == 0
         answers.append(json.loads(capsys.readouterr().out))
     assert answers[0] == answers[1]
     assert answers[0]["last_seen"] is not None and answers[0]["run_id"]

@@ -74,7 +74,7 @@ def task(
         terms=(),
         value=0.0,
     )
-    started = TaskStarted(target=target, start="kitchen-1", pose=POSE, scene=None)
+    started = TaskStarted(target=target, start="kitchen-1", pose=POSE, scene=None, clock=None)
     evs = [Ev(seq, "task_started", encode(started)), Ev(seq + 1, "plan_computed", encode(plan))]
     n = seq + 2
     for sid, _ in viewed:

@@ -93,7 +93,9 @@ def detection(seq: int, cls: str, static: str | None, *, accepted: bool = True) 
 def started(seq: int) -> Ev:
     pose = PlanarPose(x=0.0, y=0.0, yaw=0.0)
     return Ev(
-        seq, "task_started", encode(TaskStarted(target="Apple", start="k", pose=pose, scene=None))
+        seq,
+        "task_started",
+        encode(TaskStarted(target="Apple", start="k", pose=pose, scene=None, clock=None)),
     )
 
 

@@ -34,7 +34,13 @@ EXAMPLES: dict[str, dict[str, Any]] = {
             {"dynamic": "Cup", "static": "Sink", "rel": 0.0},
         ],
     },
-    "task_started": {"target": "Cup", "start": "kitchen", "pose": POSE, "scene": 3},
+    "task_started": {
+        "target": "Cup",
+        "start": "kitchen",
+        "pose": POSE,
+        "scene": 3,
+        "clock": {"weekday": 5, "minute": 450},
+    },
     "plan_computed": {
         "room": "kitchen",
         "room_order": ["kitchen", "living_room"],
@@ -134,11 +140,13 @@ OLD_EXAMPLES: dict[tuple[str, int], dict[str, Any]] = {
         "nearest_static_class": "Table",
         "at_static": True,
     },
+    ("task_started", 1): {"target": "Cup", "start": "kitchen", "pose": POSE, "scene": 3},
     ("view_taken", 1): {"pose": POSE, "static_id": None, "reason": "on_the_way"},
 }
 
 LATEST: dict[str, int] = {t: 1 for t in EXAMPLES} | {
     "detection": 2,
-    "run_started": 3,
+    "run_started": 4,
+    "task_started": 2,
     "view_taken": 2,
 }

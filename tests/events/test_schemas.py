@@ -58,12 +58,12 @@ def test_every_required_field_is_enforced(registry: SchemaRegistry, event_type: 
 def test_message_names_type_version_path_and_reason(registry: SchemaRegistry) -> None:
     payload = dict(EXAMPLES["task_started"], target=3)
     with pytest.raises(InvalidEventError) as info:
-        registry.validate("task_started", 1, payload)
+        registry.validate("task_started", 2, payload)
     assert str(info.value) == (
-        "invalid task_started v1 event: payload.target: 3 is not of type 'string'"
+        "invalid task_started v2 event: payload.target: 3 is not of type 'string'"
     )
     err = info.value
-    assert (err.event_type, err.version, err.path) == ("task_started", 1, "payload.target")
+    assert (err.event_type, err.version, err.path) == ("task_started", 2, "payload.target")
     assert err.reason == "3 is not of type 'string'"
 
 

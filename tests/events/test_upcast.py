@@ -64,6 +64,9 @@ def test_upcast_payloads_validate_against_the_latest_schema(key: tuple[str, int]
         assert payload["params"] == {}
         if version == 1:
             assert OLD_EXAMPLES[key]["params"]["strategy"] == "wpl-neg-decay"  # input unchanged
+    elif event_type == "task_started":  # a search before the clock was recorded: unknown time
+        assert payload == {**EXAMPLES[event_type], "clock": None}
+        assert "clock" not in OLD_EXAMPLES[key]
     else:
         assert payload == EXAMPLES[event_type]
     if event_type == "detection":

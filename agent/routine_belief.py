@@ -1,0 +1,236 @@
+"""A memory that knows the hour: :class:`RoutineBelief`, the relation model
+``RelationSpec("routine-belief", k, half_life_scenes=h)``.
+
+The time-blind belief (:class:`~objsearch.agent.belief.PlaceBelief`) learns where a class is *on
+a day*; a household runs on routines — the mug on the desk in the morning, in the sink after
+lunch. This belief is that same belief (it *is* one: the time-blind fold is its own, unchanged)
+plus, for every time-of-day slot and day type a search began in (``task_started.clock``), a
+belief of the same kind fed only those episodes, and a learned mix of the three predictions
+(docs/paper-readings.md, "The belief that knows the hour"):
+
+- **Slots**: fixed, a human day's — night [22:00, 05:00), morning [05:00, 12:00), afternoon
+  [12:00, 17:00), evening [17:00, 22:00); **day types**: weekday (Monday–Friday), weekend.
+- **Components**: the time-blind belief; the slot's belief (every day's mornings); the slot's
+  belief on this day type (weekday mornings). Each slot belief is a
+  :class:`~objsearch.agent.belief.PlaceBelief` (long memory, short memory, "yesterday" — the same
+  slot's last episode — mixed by responsibilities) whose Dirichlet prior is its parent's prediction
+  with weight ``BUCKET_PRIOR_STRENGTH`` episodes (the slot's parent is the time-blind belief, the
+  slot-and-day-type's the slot's): an empty slot predicts what its parent does, a few episodes
+  move it — a hierarchical Dirichlet, so a weekend morning borrows from every morning.
+- **Mix**: per class, the three predictions are mixed by weights learned online as the
+  posterior responsibility of each for the class's outcomes (a step 1/(n+2), never below
+  ``STEP``), starting equal. A class without a routine is predicted as well or better by the
+  time-blind belief, which has four to eight times the evidence, so its weight goes there; a class
+  with a routine is predicted better by its slot's. Episode outcomes (sightings, censored
+  searches) are the time-blind belief's, counted into each component of the episode's clock.
+- **Today**: the mix is conditioned on the episode's looks and sightings as the time-blind belief
+  is (:class:`~objsearch.agent.belief.Today`).
+
+A log with no clock (v1 ``task_started``, runs without a time of day) folds to exactly the
+time-blind belief: no slot belief is ever fed, and an empty slot predicts its parent.
+:meth:`distribution_at` answers for another time of day (``objsearch where --at``): that slot's
+mix, conditioned on today only when the time is the current episode's slot and day type.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from objsearch.agent.belief import STEP, PlaceBelief, responsibilities
+from objsearch.agent.catalogue import DayClock, TaskStarted, decode
+from objsearch.agent.scene_graph import EventLike
+
+#: (name, first minute after midnight), in order; the first slot also takes the day's last hours.
+SLOTS: tuple[tuple[str, int], ...] = (
+    ("night", 0),
+    ("morning", 5 * 60),
+    ("afternoon", 12 * 60),
+    ("evening", 17 * 60),
+    ("night", 22 * 60),
+)
+WEEKEND = (5, 6)
+#: A slot belief's prior weight on its parent's prediction (episodes). Fixed before any run.
+BUCKET_PRIOR_STRENGTH = 1.0
+#: Smallest step of the mix's update (as the time-blind belief's, ``belief.STEP``).
+MIX_STEP = STEP
+#: The mix's starting weights: time-blind, slot, slot and day type.
+START_MIX = (1 / 3, 1 / 3, 1 / 3)
+COMPONENTS = ("blind", "slot", "slot_day")
+
+
+def slot_of(minute: int) -> str:
+    """The slot a minute after midnight falls in."""
+    name = SLOTS[0][0]
+    for slot, first in SLOTS:
+        if minute >= first:
+            name = slot
+    return name
+
+
+def day_type(weekday: int) -> str:
+    return "weekend" if weekday in WEEKEND else "weekday"
+
+
+def buckets_of(clock: DayClock) -> tuple[str, str]:
+    """The names of a clock's slot belief and slot-and-day-type belief."""
+    slot = slot_of(clock.minute)
+    return slot, f"{slot}/{day_type(clock.weekday)}"
+
+
+@dataclass
+class SlotBelief(PlaceBelief):
+    """A belief of the episodes of one slot (and day type): counts handed to it by
+    :class:`RoutineBelief`, its prior its parent's prediction."""
+
+    parent: Callable[[str], dict[str, float]] | None = field(
+        default=None, repr=False, compare=False
+    )
+
+    def _prior_weights(self, d: str) -> dict[str, float]:
+        if self.parent is None:
+            return super()._prior_weights(d)
+        k = self.prior_strength
+        return {p: k * v for p, v in self.parent(d).items() if v > 0}
+
+    def base(self, d: str) -> dict[str, float]:
+        """P(place) for a new episode of this slot."""
+        return self._base(d)
+
+
+@dataclass
+class RoutineBelief(PlaceBelief):
+    """The belief that knows the hour (see the module doc)."""
+
+    buckets: dict[str, SlotBelief] = field(default_factory=dict)
+    #: Mixing weights of the time-blind, slot and slot-and-day-type predictions, per class.
+    mix: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    #: The clock of the current episode (its first task's), None when the log gave none.
+    clock: DayClock | None = None
+
+    # -- the fold -----------------------------------------------------------------------------
+
+    def apply(self, event: EventLike) -> None:
+        if event.type == "task_started":
+            started = decode(event, TaskStarted)
+            if self.today.starts(event, started):
+                self._close_episode()
+                self.clock = started.clock
+        super().apply(event)
+
+    def _close_episode(self) -> None:
+        if self.today.key is None:
+            return
+        counted, outcomes = self._outcomes()
+        if self.clock is not None:
+            slot, slot_day = (self._bucket(name) for name in buckets_of(self.clock))
+            for d, outcome in sorted(outcomes.items()):
+                self._weigh_mix(d, outcome, self._components(d, self.clock))
+            slot_day._count(counted, outcomes)
+            slot._count(counted, outcomes)
+        self._count(counted, outcomes)
+        self.today.key = None
+
+    def _bucket(self, name: str) -> SlotBelief:
+        bucket = self.buckets.get(name)
+        if bucket is None:
+            bucket = self.buckets[name] = SlotBelief(
+                prior_strength=BUCKET_PRIOR_STRENGTH, half_life_scenes=self.half_life_scenes
+            )
+            self._link(name, bucket)
+        return bucket
+
+    def _link(self, name: str, bucket: SlotBelief) -> None:
+        slot = name.partition("/")[0]
+        bucket.parent = self._blind if slot == name else self._slot_prediction(slot)
+
+    def _slot_prediction(self, slot: str) -> Callable[[str], dict[str, float]]:
+        def predict(d: str) -> dict[str, float]:
+            bucket = self.buckets.get(slot)
+            return bucket.base(d) if bucket is not None else self._blind(d)
+
+        return predict
+
+    def _weigh_mix(
+        self, d: str, outcome: Mapping[str, float], predictions: tuple[dict[str, float], ...]
+    ) -> None:
+        # Episodes with a time of day that counted for d so far (every one is in one slot).
+        n = math.fsum(
+            b.long[d].total for name, b in self.buckets.items() if "/" not in name and d in b.long
+        )
+        weights = self.mix.get(d, START_MIX)
+        self.mix[d] = responsibilities(weights, predictions, outcome, n, MIX_STEP)
+
+    # -- the distribution ---------------------------------------------------------------------
+
+    def _blind(self, d: str) -> dict[str, float]:
+        """The time-blind belief's prediction for a new episode."""
+        return super()._base(d)
+
+    def _components(self, d: str, clock: DayClock) -> tuple[dict[str, float], ...]:
+        """The time-blind, slot and slot-and-day-type predictions at ``clock``."""
+        slot_name, slot_day_name = buckets_of(clock)
+        blind = self._blind(d)
+        slot = self.buckets.get(slot_name)
+        slot_pred = slot.base(d) if slot is not None else blind
+        slot_day = self.buckets.get(slot_day_name)
+        if slot_day is not None:
+            return blind, slot_pred, slot_day.base(d)
+        return blind, slot_pred, slot_pred
+
+    def _base_at(self, d: str, clock: DayClock | None) -> dict[str, float]:
+        if clock is None:
+            return self._blind(d)
+        weights = self.mix.get(d, START_MIX)
+        out: dict[str, float] = {}
+        for w, pred in zip(weights, self._components(d, clock), strict=True):
+            for p in sorted(pred):
+                out[p] = out.get(p, 0.0) + w * pred[p]
+        return out
+
+    def _base(self, d: str) -> dict[str, float]:
+        return self._base_at(d, self.clock)
+
+    def distribution_at(self, d: str, clock: DayClock | None) -> dict[str, float]:
+        """P(place) for class d at ``clock`` (None: now, the current episode's time): today's
+        looks and sightings count only in the current episode's slot and day type. A belief that
+        never folded a time of day answers as the time-blind one, whatever the time."""
+        if not self.knows_hours or clock is None:
+            return self.distribution(d)
+        if self.clock is not None and buckets_of(clock) == buckets_of(self.clock):
+            return self.today.condition(d, self._base_at(d, clock))
+        return self._base_at(d, clock)
+
+    @property
+    def knows_hours(self) -> bool:
+        """Whether any episode with a time of day was folded (else it is the time-blind belief)."""
+        return bool(self.buckets)
+
+    # -- snapshots ------------------------------------------------------------------------------
+
+    snapshot_name: ClassVar[str] = "routine_belief"
+    snapshot_version: ClassVar[int] = 1
+
+    def to_snapshot(self) -> dict[str, Any]:
+        return {
+            **super().to_snapshot(),
+            "buckets": {name: b.to_snapshot() for name, b in sorted(self.buckets.items())},
+            "mix": {d: list(w) for d, w in sorted(self.mix.items())},
+            "clock": None if self.clock is None else [self.clock.weekday, self.clock.minute],
+        }
+
+    @classmethod
+    def from_snapshot(cls, state: Mapping[str, Any], last_seq: int) -> RoutineBelief:
+        belief = super().from_snapshot(state, last_seq)
+        assert isinstance(belief, RoutineBelief)
+        for name, snap in state["buckets"].items():
+            bucket = SlotBelief.from_snapshot(snap, last_seq)
+            assert isinstance(bucket, SlotBelief)
+            belief.buckets[name] = bucket
+            belief._link(name, bucket)
+        belief.mix = {d: (float(w[0]), float(w[1]), float(w[2])) for d, w in state["mix"].items()}
+        clock = state["clock"]
+        belief.clock = None if clock is None else DayClock(weekday=clock[0], minute=clock[1])
+        return belief
