@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SHARED ?= ../shared/data
 
-.PHONY: demo test lint typecheck bench data bless figures check-figures clean
+.PHONY: demo test lint typecheck bench data bless figures check-figures clean dhs
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -47,6 +47,11 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/ingest.py
 	$(BIN)/python benchmarks/bench_paper.py
 	$(BIN)/python benchmarks/bad_inputs.py
+
+# objsearch bench dhs: the Dynamic House Simulator's dependencies (docs/results-dhs.md); its code is
+# a checkout of the pinned commit that the user names with --source or OBJSEARCH_DHS_SOURCE.
+dhs: $(STAMP)
+	$(BIN)/pip install --quiet -e '.[dev,dhs]'
 
 data: $(STAMP)
 	$(BIN)/objsearch data build --source $(SHARED)

@@ -253,6 +253,8 @@ class TableLake:
             return
         if not self.remote:
             _fs.make_dirs(Path(self.uri).parent)
+        from deltalake import CommitProperties, Transaction
+
         empty = table_schema(self.store).empty_table()
         try:
             write_deltalake(
@@ -263,6 +265,9 @@ class TableLake:
                 name="objsearch events",
                 description=TABLE_FORMAT,
                 storage_options=self.options,
+                commit_properties=CommitProperties(
+                    app_transactions=[Transaction(IDENTITY_INDEX_APP, 1)]
+                ),
             )
         except Exception:
             if not self.exists():
@@ -319,6 +324,8 @@ class TableLake:
 
     def find(self, robot: str, run: str, table: Any | None = None) -> TableRun | None:
         table = self.table() if table is None else table
+        if table.transaction_version(_app_id(robot, run)) is None:
+            return None  # never committed (every commit of a run sets it): no row to read
         found = self._runs(table, (pc.field("robot") == robot) & (pc.field("run") == run))
         if len(found) > 1:  # cannot happen through this class: its commits conflict
             raise TableLakeError(f"{self.root}: run {run!r} of robot {robot!r} is there twice")
@@ -330,12 +337,17 @@ class TableLake:
         wanted = {(k, v) for k, v in identity.items() if v}
         if not wanted:
             return []
+        table = self.table() if table is None else table
+        if table.transaction_version(IDENTITY_INDEX_APP) is not None and all(
+            table.transaction_version(_identity_app(k, v)) is None for k, v in wanted
+        ):
+            return []  # no run ever committed any of these values: no row to read
         text = pc.field(RUN_COLUMN, "identity")
         where: pc.Expression | None = None
         for _, value in wanted:
             hit = pc.match_substring(text, json.dumps(value))
             where = hit if where is None else where | hit
-        found = self._runs(self.table() if table is None else table, where)
+        found = self._runs(table, where)
         return [r for r in found if wanted & set(r.identity.items())]
 
     def read_tables(self, run: TableRun) -> dict[str, pa.Table]:
@@ -502,10 +514,9 @@ class TableLake:
         adds: list[Any] | None = None,
         table: Any | None = None,
     ) -> TableRun:
-        from deltalake import CommitProperties, Transaction, write_deltalake
+        from deltalake import CommitProperties, write_deltalake
         from deltalake.exceptions import CommitFailedError
 
-        app = _app_id(info.robot, info.run)
         # ``adds``: files written for an append (given, or written on the first try), kept
         # across retries
         for attempt in range(COMMIT_TRIES):
@@ -514,7 +525,6 @@ class TableLake:
             if existing is not None and adds is not None:
                 self._delete_files(adds)  # another writer committed the run first
                 adds = None
-            version = table.transaction_version(app) or 0
             if existing is not None:
                 if existing.digest == info.digest and existing.date == info.date:
                     return existing  # the same run again: nothing to do
@@ -528,7 +538,7 @@ class TableLake:
                         f"{self.root}: another writer committed run {info.run!r} of robot "
                         f"{info.robot!r} while this one was writing it; run the command again"
                     )
-            commit = CommitProperties(app_transactions=[Transaction(app, version + 1)])
+            commit = CommitProperties(app_transactions=_transactions(table, info))
             try:
                 if existing is None:
                     if adds is None:
@@ -599,12 +609,14 @@ class TableLake:
         source: str = "",
         replace: bool = False,
         identity: Mapping[str, str] | None = None,
+        table: Any | None = None,
     ) -> TableRun:
         """Commit the events ``open_events()`` yields as one run, reading them in chunks of
         :data:`CHUNK_EVENTS` and writing each type's file as they come, so a run of any length
         costs a bounded amount of memory (replacing a run still holds it whole). Calls
         ``open_events`` again when it must read the events twice (the run is there already:
-        its digest is compared first)."""
+        its digest is compared first). ``table``: the table as just loaded, if the caller has
+        it (the lake exists)."""
         _check_name("robot", robot)
         _check_name("run", run)
         first = next(open_events(), None)
@@ -613,8 +625,9 @@ class TableLake:
                 raise TableLakeError("an empty run needs an explicit date")
             date = dt.datetime.fromtimestamp(first.recorded_at_ns / 1e9, dt.UTC).date()
         day = _check_date(date)
-        self.create()
-        table = self.table()
+        if table is None:
+            self.create()
+            table = self.table()
         existing = self.find(robot, run, table)
         if existing is not None:
             digest, _ = stream_digest(open_events(), self.store)
@@ -719,7 +732,7 @@ class TableLake:
     def commit_many(self, runs: Sequence[tuple[TableRun, Mapping[str, pa.Table]]]) -> None:
         """Commit new runs (none in the lake yet) in one transaction: the migration's and the
         benchmarks' bulk path. Raises if one is there already."""
-        from deltalake import CommitProperties, Transaction
+        from deltalake import CommitProperties
 
         if not runs:
             return
@@ -727,12 +740,9 @@ class TableLake:
         table = self.table()
         apps = []
         for info, _ in runs:
-            app = _app_id(info.robot, info.run)
-            if table.transaction_version(app) is not None and self.find(
-                info.robot, info.run, table
-            ):
+            if self.find(info.robot, info.run, table):
                 raise TableLakeError(f"{self.root}: run {info.robot}/{info.run} is already there")
-            apps.append(Transaction(app, (table.transaction_version(app) or 0) + 1))
+            apps += _transactions(table, info)
         by_kind: dict[str, list[pa.Table]] = {}
         for _, parts in runs:
             for kind, part in parts.items():
@@ -1062,6 +1072,27 @@ def _app_id(robot: str, run: str) -> str:
     return f"objsearch/{robot}/{run}"
 
 
+#: Set when the table is made: every commit of this table records its run's identity values as
+#: application transactions (:func:`_identity_app`), so :meth:`TableLake.holding` answers "no
+#: run holds these" from the log alone. A table made before has no such marker: it reads the
+#: ``_run`` rows every time.
+IDENTITY_INDEX_APP: Final = "objsearch/identity-index"
+
+
+def _identity_app(key: str, value: str) -> str:
+    return f"objsearch/identity/{key}={value}"
+
+
+def _transactions(table: Any, info: TableRun) -> list[Any]:
+    """The application transactions a commit of ``info`` carries: its run's (two writers of
+    one run conflict on it) and one per identity value (the same for one recording)."""
+    from deltalake import Transaction
+
+    apps = [_app_id(info.robot, info.run)]
+    apps += [_identity_app(k, v) for k, v in sorted(info.identity.items()) if v]
+    return [Transaction(a, (table.transaction_version(a) or 0) + 1) for a in apps]
+
+
 def _run_predicate(robot: str, run: str) -> str:
     # _check_name allows no quote in either name.
     return f"robot = '{robot}' AND run = '{run}'"
@@ -1208,7 +1239,8 @@ def add_log(
     if meta.run_id is not None:
         identity["run_id"] = meta.run_id
     lake.create()
-    for other in lake.holding(identity, lake.table()):
+    table = lake.table()
+    for other in lake.holding(identity, table):
         if (other.robot, other.run) != (robot, run):
             raise TableLakeError(
                 f"event log {log_dir} (agent run {meta.run_id or first.stream}) is already in "
@@ -1224,6 +1256,7 @@ def add_log(
         source=f"event log {log_dir.resolve()}",
         replace=replace,
         identity=identity,
+        table=table,
     )
 
 

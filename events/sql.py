@@ -15,7 +15,7 @@ also keeps ``COPY … TO`` from writing into the lake folder it may read.
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from pathlib import Path
 from typing import Final
 
@@ -147,19 +147,35 @@ def check_read_only(con: duckdb.DuckDBPyConnection, sql: str) -> None:
 
 
 def create_fleet_views(
-    con: duckdb.DuckDBPyConnection, lake: TableLake, files: Sequence[DataFile]
+    con: duckdb.DuckDBPyConnection,
+    lake: TableLake,
+    files: Sequence[DataFile],
+    only: Collection[str] | None = None,
 ) -> None:
     """The per-type views and ``events`` over the fleet lake's table (:mod:`.lake_table`),
     reading ``files`` (its current data files, damaged ones left out): one ``read_parquet`` of
     a few files per type, however many runs the table holds. Same columns as
-    :func:`create_type_views`. A remote lake's types are read through its Arrow datasets."""
+    :func:`create_type_views`. A remote lake's types are read through its Arrow datasets.
+    ``only``, if given, names the views to make (types and ``events``; a remote ``events``
+    makes every type's): creating a view binds it, which reads its files' footers."""
     by_kind: dict[str, list[str]] = {}
     for f in files:
         by_kind.setdefault(f.kind, []).append(f.path)
     envelope = ", ".join(quote_ident(f.name) for f in ENVELOPE_COLUMNS)
+    types = set(lake.store.registry.types)
+    every = [f"{lake.uri}/{p}" for kind, paths in by_kind.items() if kind in types for p in paths]
+    # ``events`` is the union of the type views where it cannot scan the files at once
+    union = lake.remote or not every
+    wanted = None if only is None else set(only) | (types if union and "events" in only else set())
     parts = []
     for event_type in lake.store.registry.types:
         view = quote_ident(event_type)
+        parts.append(
+            f"SELECT robot, date, run, {envelope}, time, {quote_literal(event_type)} AS type "
+            f"FROM {view}"
+        )
+        if wanted is not None and event_type not in wanted:
+            continue
         source = fleet_source(con, lake, event_type, by_kind.get(event_type, []))
         if source is not None:
             con.execute(
@@ -175,13 +191,9 @@ def create_fleet_views(
                 f"CREATE OR REPLACE VIEW {view} AS SELECT {partitions}, *, {_TIME} "
                 f"FROM {quote_ident(name)}"
             )
-        parts.append(
-            f"SELECT robot, date, run, {envelope}, time, {quote_literal(event_type)} AS type "
-            f"FROM {view}"
-        )
-    types = set(lake.store.registry.types)
-    every = [f"{lake.uri}/{p}" for kind, paths in by_kind.items() if kind in types for p in paths]
-    if lake.remote or not every:
+    if wanted is not None and "events" not in wanted:
+        return
+    if union:
         con.execute("CREATE OR REPLACE VIEW events AS " + "\nUNION ALL ".join(parts))
         return
     # One scan of every event type's files (the type from their partition folder): one file's

@@ -215,7 +215,9 @@ def write_report(inputs: ReportInputs, out: Path, img: Path) -> Path:
         "Schedules taken from real AI2-THOR rearrangement episodes have their own "
         "generated page with its commands, [results-rearrangement.md](results-rearrangement.md) "
         "(`bench report --rearr`); room choice by expected cost and memory of places: "
-        "[results-memory.md](results-memory.md).\n"
+        "[results-memory.md](results-memory.md); our belief inside a published benchmark's own "
+        "task, the Dynamic House Simulator of Kurenkov et al. (ICML 2023), beside its agents: "
+        "[results-dhs.md](results-dhs.md) (`bench dhs`).\n"
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(sections), encoding="utf-8")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -220,6 +221,65 @@ def _prior_option(p: argparse.ArgumentParser) -> None:
     )
 
 
+def cmd_bench_dhs(args: argparse.Namespace) -> int:
+    from objsearch.experiments.dhs import (
+        EXPERIMENTS,
+        OURS,
+        THEIR_AGENTS,
+        render,
+        run_dhs,
+        verify_source,
+    )
+
+    source = verify_source(args.source)
+    seeds = list(range(args.seeds))
+
+    def progress(run: Any) -> None:
+        if not args.no_progress:  # on stderr with --json, so stdout stays JSON
+            crash = f"; its code raised: {run.crash}" if run.crash else ""
+            print(
+                f"  {run.experiment} {run.agent} seed {run.seed}: {run.mean_attempts:.3f} "
+                f"attempts, {run.found:.1%} found, {len(run.queries)} queries "
+                f"({run.elapsed_s} s){crash}",
+                file=sys.stderr if args.json else sys.stdout,
+                flush=True,
+            )
+
+    summary = run_dhs(
+        source,
+        experiments=args.experiments or list(EXPERIMENTS),
+        agents=args.agents or [*THEIR_AGENTS, OURS],
+        seeds=seeds,
+        steps=args.steps,
+        eps_per_scene=args.eps_per_scene,
+        workers=_workers(args),
+        progress=progress,
+    )
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(render(summary))
+        print(f"\n{summary['elapsed_s']} s")
+    return 0
+
+
+def _dhs_options(p: argparse.ArgumentParser) -> None:
+    from objsearch.experiments.dhs import ALL_THEIR_AGENTS, EXPERIMENTS, OURS, RUNNABLE_EXPERIMENTS
+
+    p.add_argument(
+        "--experiments",
+        type=t.subset_of(RUNNABLE_EXPERIMENTS),
+        help="comma-separated experiment configs of the simulator whose scenes to run "
+        f"(default: {','.join(EXPERIMENTS)})",
+    )
+    p.add_argument(
+        "--agents",
+        type=t.subset_of((*ALL_THEIR_AGENTS, OURS)),
+        help=f"comma-separated agents: its {', '.join(ALL_THEIR_AGENTS)} and ours, {OURS} "
+        "(default: all but oracle_upper_bound)",
+    )
+
+
 def register(sub: Any) -> None:
     bench = sub.add_parser("bench", help="experiments: the paper's tables, held-out homes, report")
     bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="SUBCOMMAND")
@@ -357,6 +417,48 @@ def register(sub: Any) -> None:
         help="folder for belief.md and the curves (out/belief-report)",
     )
     belief.set_defaults(func=cmd_bench_belief)
+
+    dhs = bsub.add_parser(
+        "dhs",
+        help="our belief inside the Dynamic House Simulator's find-object task, beside its agents "
+        "(docs/results-dhs.md)",
+        description="Runs the find-object task of the Dynamic House Simulator (Kurenkov et al., "
+        "ICML 2023; a checkout of andreykurenkov/modeling_env_dynamics at the pinned commit, "
+        "checked file by file) with its non-learned agents and our belief, and prints its "
+        "metrics: attempts to find (not found within 10 counts 11), share found, travel cost.",
+    )
+    dhs.add_argument(
+        "--source",
+        type=t.existing_dir,
+        help="the simulator's checkout (default: $OBJSEARCH_DHS_SOURCE)",
+    )
+    dhs.defer(_dhs_options)
+    dhs.add_argument(
+        "--seeds",
+        type=t.int_range(1, 1000),
+        default=1,
+        help="seeds 0..N-1 of random.seed before each agent's run, N 1-1000 (1: its published "
+        "seed 0)",
+    )
+    dhs.add_argument(
+        "--steps",
+        type=t.int_range(1, 1_000_000),
+        help="queries per agent and seed, 1-1000000 (default: its find_object task's 11000)",
+    )
+    dhs.add_argument(
+        "--eps-per-scene",
+        type=t.int_range(1, 1_000_000),
+        help="queries per sampled scene, 1-1000000 (default: its task's 110)",
+    )
+    dhs.add_argument(
+        "--workers",
+        type=t.int_range(0, t.MAX_WORKERS),
+        default=0,
+        help=f"processes, at most {t.MAX_WORKERS} (0, the default: min(2, cores))",
+    )
+    dhs.add_argument("--json", action="store_true", help="print the summary as JSON")
+    dhs.add_argument("--no-progress", action="store_true", help="no line per finished run")
+    dhs.set_defaults(func=cmd_bench_dhs)
 
     report = bsub.add_parser(
         "report",

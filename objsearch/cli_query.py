@@ -62,7 +62,9 @@ def cmd_query(args: argparse.Namespace) -> int:
         return _fail('no SQL given (e.g. "SELECT count(*) FROM events")')
     con = None
     try:
-        con = open_analytics(args.lake if remote else lake, memory_limit=args.memory_limit)
+        con = open_analytics(
+            args.lake if remote else lake, memory_limit=args.memory_limit, for_sql=args.sql
+        )
         names, batches = stream_query(con, args.sql, timeout_s=args.timeout)
         if out is None:
             write_batches(names, batches, args.format, sys.stdout)

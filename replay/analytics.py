@@ -35,7 +35,8 @@ adds the seed's prior.
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator, Sequence
+import re
+from collections.abc import Collection, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Final
 
@@ -116,18 +117,64 @@ def create_views(
     _common_views(con)
 
 
-def _common_views(con: duckdb.DuckDBPyConnection) -> None:
-    """``plans``, ``detections`` and the scene-graph macros: over the views, whatever the lake."""
-    for ddl in (_PLANS, _DETECTIONS):
-        con.execute(ddl)
-    con.execute(
-        "CREATE OR REPLACE MACRO scene_graph_at_seq(upto_seq) AS TABLE "
-        + SCENE_GRAPH_BODY.format(limit=LIMIT_SEQ.format(arg="upto_seq"))
-    )
-    con.execute(
-        "CREATE OR REPLACE MACRO scene_graph_at_time(upto_ns) AS TABLE "
-        + SCENE_GRAPH_BODY.format(limit=LIMIT_TIME.format(arg="upto_ns"))
-    )
+def _common_ddl() -> dict[str, str]:
+    """``plans``, ``detections`` and the scene-graph macros, by name: over the views, whatever
+    the lake."""
+    return {
+        "plans": _PLANS,
+        "detections": _DETECTIONS,
+        "scene_graph_at_seq": "CREATE OR REPLACE MACRO scene_graph_at_seq(upto_seq) AS TABLE "
+        + SCENE_GRAPH_BODY.format(limit=LIMIT_SEQ.format(arg="upto_seq")),
+        "scene_graph_at_time": "CREATE OR REPLACE MACRO scene_graph_at_time(upto_ns) AS TABLE "
+        + SCENE_GRAPH_BODY.format(limit=LIMIT_TIME.format(arg="upto_ns")),
+    }
+
+
+def _common_views(con: duckdb.DuckDBPyConnection, only: Collection[str] | None = None) -> None:
+    """``plans``, ``detections`` and the scene-graph macros (``only``: those named)."""
+    for name, ddl in _common_ddl().items():
+        if only is None or name in only:
+            con.execute(ddl)
+
+
+#: Words in a query that mean it looks at the catalogue itself: it gets every view.
+_CATALOGUE_WORDS: Final = frozenset(
+    {
+        "information_schema",
+        "pg_catalog",
+        "duckdb_views",
+        "duckdb_tables",
+        "duckdb_columns",
+        "duckdb_functions",
+        "duckdb_dependencies",
+        "show",
+        "describe",
+        "summarize",
+        "pragma",
+    }
+)
+_WORD: Final = re.compile(r"[a-z_][a-z0-9_]*")
+
+
+def _words(text: str) -> set[str]:
+    return set(_WORD.findall(text.lower()))
+
+
+def views_for(sql: str, definitions: Mapping[str, str]) -> set[str] | None:
+    """The views and macros (names of ``definitions``: name → its SQL) that ``sql`` reads,
+    directly or through others; None if it looks at the catalogue (it gets all). Any word
+    of the query that is a view's name counts (a column or a string of that name too): one
+    view too many costs a bind, one too few would fail the query."""
+    words = _words(sql)
+    if words & _CATALOGUE_WORDS:
+        return None
+    needed: set[str] = set()
+    todo = words & definitions.keys()
+    while todo:
+        name = todo.pop()
+        needed.add(name)
+        todo |= (_words(definitions[name]) & definitions.keys()) - needed
+    return needed
 
 
 def _create_legacy_views(con: duckdb.DuckDBPyConnection, legacy: list[tuple[str, str]]) -> None:
@@ -172,6 +219,7 @@ def open_analytics(
     *,
     memory_limit: int = DEFAULT_MEMORY_LIMIT,
     threads: int = DEFAULT_THREADS,
+    for_sql: str | None = None,
 ) -> duckdb.DuckDBPyConnection:
     """An in-memory DuckDB with every view over the lake at ``lake_dir``, locked down
     (:func:`~objsearch.events.sql.lock_down`: it reads the lake's folder and nothing else) and
@@ -184,6 +232,10 @@ def open_analytics(
     its damaged files, so the other runs still answer. A run committed before digests existed
     gets only the cheap checks, with one warning. A commit a killed writer left half done is
     finished first if no writer holds the lake.
+
+    ``for_sql``: on a fleet lake, make only the views and macros this query reads (what
+    ``objsearch query`` does: every view made is bound, which reads its files' footers, so a
+    query pays for the views it uses, not for all thirty).
     """
     if is_table_lake(lake_dir):
         return _open_fleet(
@@ -192,6 +244,7 @@ def open_analytics(
             ),
             memory_limit=memory_limit,
             threads=threads,
+            for_sql=for_sql,
         )
     lake = Lake(Path(lake_dir).absolute(), store=STORE)
     if lake.needs_recovery():
@@ -232,7 +285,9 @@ def open_analytics(
     return con
 
 
-def _open_fleet(lake: TableLake, *, memory_limit: int, threads: int) -> duckdb.DuckDBPyConnection:
+def _open_fleet(
+    lake: TableLake, *, memory_limit: int, threads: int, for_sql: str | None
+) -> duckdb.DuckDBPyConnection:
     """:func:`open_analytics` of the fleet lake (:mod:`objsearch.events.lake_table`): views over
     the table's current files, a handful per type once compacted, whatever the number of runs.
     A data file that is missing, of another size than the table's log records, or cut is left
@@ -241,20 +296,32 @@ def _open_fleet(lake: TableLake, *, memory_limit: int, threads: int) -> duckdb.D
     files, damaged = lake.scan(table)
     for _, why in damaged:
         _log.warning("%s: damaged data file left out of every view: %s", lake.root, why)
-    con = duckdb.connect(":memory:")
-    create_fleet_views(con, lake, files)
     by_kind = {f.kind for f in files}
-    current = {spec.name: derived_kind(spec.name, spec.version) for spec in derived_tables(STORE)}
+    # A derived table the runs wrote reads its partition; one none has at this version (older
+    # code wrote them) is the same SQL over the events, live.
+    live = {
+        spec.name: f"SELECT robot, date, run, * EXCLUDE (robot, date, run) FROM ({spec.sql})"
+        for spec in derived_tables(STORE)
+        if derived_kind(spec.name, spec.version) not in by_kind
+    }
+    definitions = dict.fromkeys([*STORE.registry.types, "events"], "")
+    definitions |= {spec.name: live.get(spec.name, "") for spec in derived_tables(STORE)}
+    definitions |= _common_ddl()
+    only = None if for_sql is None else views_for(for_sql, definitions)
+    con = duckdb.connect(":memory:")
+    create_fleet_views(con, lake, files, only)
     for spec in derived_tables(STORE):
-        kind = current[spec.name]
-        if kind in by_kind:
+        if only is not None and spec.name not in only:
+            continue
+        kind = derived_kind(spec.name, spec.version)
+        body = live.get(spec.name)
+        if body is None:
             source = fleet_source(con, lake, kind, [f.path for f in files if f.kind == kind])
-            column = quote_ident(derived_column(spec.name))
-            body = f"SELECT robot, date, run, {column}.* FROM {source}"
-        else:  # no run has it at this version (older code wrote them): the same SQL, live
-            body = f"SELECT robot, date, run, * EXCLUDE (robot, date, run) FROM ({spec.sql})"
+            body = (
+                f"SELECT robot, date, run, {quote_ident(derived_column(spec.name))}.* FROM {source}"
+            )
         con.execute(f"CREATE OR REPLACE VIEW {spec.name} AS {body}")
-    _common_views(con)
+    _common_views(con, only)
     apply_limits(con, memory_limit=memory_limit, threads=threads)
     lock_down(con, [] if lake.remote else [Path(lake.root)])
     return con

@@ -21,6 +21,7 @@ from objsearch.events import EventLog, read_log
 from objsearch.events.arrow import events_to_tables
 from objsearch.events.lake import Lake, LakeError, compact_log
 from objsearch.events.lake_table import (
+    IDENTITY_INDEX_APP,
     TABLE_DIR,
     TableLake,
     TableLakeError,
@@ -28,9 +29,10 @@ from objsearch.events.lake_table import (
     is_table_lake,
     migrate,
     run_parts,
+    table_schema,
 )
 from objsearch.events.sql_limits import close
-from objsearch.replay.analytics import open_analytics, run_query
+from objsearch.replay.analytics import open_analytics, run_query, views_for
 
 from .payloads import EXAMPLES
 
@@ -99,6 +101,22 @@ def test_the_same_log_under_a_second_name_is_refused(tmp_path: Path) -> None:
         add_log(tmp_path / "log", lake, robot="r", run="two")
 
 
+def test_a_table_made_before_the_identity_index_still_refuses_the_same_log(
+    tmp_path: Path,
+) -> None:
+    from deltalake import write_deltalake
+
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    # as the first fleet lakes were made: no identity-index marker in the log
+    write_deltalake(
+        lake.uri, table_schema(STORE).empty_table(), partition_by=["type"], mode="ignore"
+    )
+    assert lake.table().transaction_version(IDENTITY_INDEX_APP) is None
+    add_log(small_log(tmp_path / "log"), lake, robot="r", run="one")
+    with pytest.raises(TableLakeError, match="already in the lake as run 'one'"):
+        add_log(tmp_path / "log", lake, robot="r", run="two")
+
+
 def test_views_answer_as_the_per_run_folder_lake_after_upgrade(tmp_path: Path) -> None:
     old = tmp_path / "old"
     compact_log(GOLDEN / "sim-wpl-updates", Lake(old, store=STORE), robot="sim")
@@ -123,6 +141,34 @@ def test_views_answer_as_the_per_run_folder_lake_after_upgrade(tmp_path: Path) -
         assert [run_query(con, q)[1] for q in queries] == want
     finally:
         close(con)
+    # What `objsearch query` does: only the views (and macros) the query reads, the same answers.
+    for query, rows in zip(queries, want, strict=True):
+        con = open_analytics(tmp_path / "fleet", for_sql=query)
+        try:
+            assert run_query(con, query)[1] == rows, query
+        finally:
+            close(con)
+
+
+def test_a_query_gets_the_views_it_reads_and_those_they_read() -> None:
+    definitions = {
+        "detection": "",
+        "task_started": "",
+        "moved": "",
+        "events": "",
+        "detections": "SELECT * FROM detection d JOIN task_started s USING (task_id)",
+        "scene_graph_at_seq": "WITH x AS (SELECT * FROM detections) SELECT * FROM x",
+    }
+    assert views_for("SELECT * FROM scene_graph_at_seq(3)", definitions) == {
+        "scene_graph_at_seq",
+        "detections",
+        "detection",
+        "task_started",
+    }
+    assert views_for('select count(*) from "Moved"', definitions) == {"moved"}
+    assert views_for("SELECT 1", definitions) == set()
+    # a look at the catalogue gets every view
+    assert views_for("SELECT * FROM information_schema.tables", definitions) is None
 
 
 def test_plain_duckdb_and_polars_read_the_table(tmp_path: Path) -> None:

@@ -4,11 +4,8 @@ endpoint and credentials from the standard AWS_* variables, as a fleet points at
 from __future__ import annotations
 
 import os
-import socket
 import subprocess
 import sys
-import time
-import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -21,42 +18,13 @@ from objsearch.events.lake import Lake, compact_log
 from objsearch.events.lake_table import TableLake, TableLakeError, add_log, is_table_lake
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+from objsearch.testing.s3server import s3_server as local_s3_server
 
 
 @pytest.fixture(scope="module")
 def s3_server() -> Iterator[dict[str, str]]:
-    port = _free_port()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "moto.server", "-H", "127.0.0.1", "-p", str(port)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    url = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 60
-    try:
-        while True:  # until it answers (no fixed sleep: it starts as fast as the machine lets it)
-            try:
-                urllib.request.urlopen(url, timeout=1).close()
-                break
-            except OSError:
-                if proc.poll() is not None or time.monotonic() > deadline:
-                    raise RuntimeError(f"the S3 server on {url} did not start") from None
-                time.sleep(0.05)
-        yield {
-            "AWS_ENDPOINT_URL": url,
-            "AWS_ACCESS_KEY_ID": "testing",
-            "AWS_SECRET_ACCESS_KEY": "testing",
-            "AWS_REGION": "us-east-1",
-        }
-    finally:
-        proc.terminate()
-        proc.wait(timeout=30)
+    with local_s3_server() as settings:
+        yield settings
 
 
 @pytest.fixture

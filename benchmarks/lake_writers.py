@@ -1,0 +1,193 @@
+"""Many writers into one fleet lake: concurrent ``lake add`` processes against one sequential
+writer, on the local folder and on a local S3 server (moto's, started here).
+
+    python benchmarks/lake_writers.py [--writers 8] [--runs 50] [--shared 5] [--events 200]
+                                      [--where local,s3]
+
+Each of ``--writers`` processes commits ``--runs`` runs of its own (a log each, of about
+``--events`` synthetic events: ``benchmarks/events.py: synthetic_run``) with ``add_log``, and
+every process also commits the same ``--shared`` runs, in its own order: those race from all
+sides (one must win, the others find the same content there: a no-op). The baseline is one
+process committing every distinct log once, in order, into a second lake in the same run.
+Checked, for each place: 0 runs lost, 0 duplicated (every ``(robot, run)`` once, every event id
+once), and the concurrent lake equal to the sequential one (the same runs, digests and rows per
+run). Printed: both wall times and their ratio (the concurrent writers share the machine's
+cores, so the ratio says what contention costs, not a speed-up).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+
+from events import synthetic_run
+from objsearch.agent.catalogue import STORE
+from objsearch.events import EventLog
+from objsearch.events.lake_table import TableLake, add_log
+from objsearch.events.sql_limits import close
+from objsearch.replay.analytics import open_analytics, run_query
+from objsearch.testing.s3server import s3_server
+
+WRITER = """
+import json, sys, time
+from pathlib import Path
+from objsearch.agent.catalogue import STORE
+from objsearch.events.lake_table import TableLake, add_log
+lake = TableLake(sys.argv[1], store=STORE)
+started = time.perf_counter()
+done = 0
+for item in sys.argv[2:]:
+    robot, log = item.split("=", 1)
+    add_log(Path(log), lake, robot=robot, run=Path(log).name)
+    done += 1
+print(json.dumps({"commits": done, "seconds": time.perf_counter() - started}))
+"""
+
+
+def write_logs(root: Path, names: list[str], events: int) -> dict[str, Path]:
+    """A closed log per name, of about ``events`` events, each its own run (own ids)."""
+    logs = {}
+    for i, name in enumerate(names):
+        directory = root / name
+        with EventLog.open(directory, name, store=STORE) as log, log.batch():
+            for event in synthetic_run(events, seed=i, stream=name):
+                log.append(event.type, event.payload, time_ns=event.time_ns, task_id=event.task_id)
+        logs[name] = directory
+    return logs
+
+
+def content(lake_root: str) -> tuple[list[tuple[str, str, str, int]], list[tuple[object, ...]]]:
+    """The lake's runs (robot, run, digest, events) and per-run counts from a query (rows,
+    distinct event ids)."""
+    runs = [(r.robot, r.run, r.digest, r.events) for r in TableLake(lake_root, store=STORE).runs()]
+    con = open_analytics(lake_root)
+    try:
+        rows = run_query(
+            con,
+            "SELECT robot, run, count(*), count(DISTINCT event_id) FROM events "
+            "GROUP BY ALL ORDER BY ALL",
+        )[1]
+    finally:
+        close(con)
+    return runs, rows
+
+
+@contextmanager
+def place(where: str, work: Path) -> Iterator[tuple[str, str]]:
+    """Two lake roots (concurrent, sequential) on the local folder or on a fresh S3 server."""
+    if where == "local":
+        yield str(work / "lake-concurrent"), str(work / "lake-sequential")
+        return
+    import boto3
+
+    with s3_server() as settings:
+        saved = {k: os.environ.get(k) for k in settings}
+        os.environ.update(settings)
+        try:
+            boto3.client("s3").create_bucket(Bucket="fleet")
+            yield "s3://fleet/concurrent", "s3://fleet/sequential"
+        finally:
+            for k, v in saved.items():
+                if v is None:
+                    os.environ.pop(k, None)
+                else:
+                    os.environ[k] = v
+
+
+def run_place(
+    where: str, work: Path, own: Mapping[int, list[Path]], shared: list[Path]
+) -> tuple[bool, str]:
+    with place(where, work) as (concurrent_root, sequential_root):
+        TableLake(concurrent_root, store=STORE).create()
+        started = time.perf_counter()
+        procs = []
+        for w, logs in own.items():
+            # the shared runs, in an order of this writer's own, among its own runs
+            turn = shared[w % len(shared) :] + shared[: w % len(shared)] if shared else []
+            items = [f"r{w:02d}={p}" for p in logs]
+            for k, p in enumerate(turn):
+                items.insert((k * len(items)) // max(1, len(turn)), f"shared={p}")
+            procs.append(
+                subprocess.Popen(
+                    [sys.executable, "-c", WRITER, concurrent_root, *items],
+                    stdout=subprocess.PIPE,
+                    text=True,
+                    env={**os.environ},
+                )
+            )
+        outs = [p.communicate(timeout=3600) for p in procs]
+        concurrent_s = time.perf_counter() - started
+        failed = [i for i, p in enumerate(procs) if p.returncode != 0]
+        commits = sum(json.loads(o.strip().splitlines()[-1])["commits"] for o, _ in outs if o)
+
+        sequential = TableLake(sequential_root, store=STORE)
+        started = time.perf_counter()
+        for w, logs in own.items():
+            for p in logs:
+                add_log(p, sequential, robot=f"r{w:02d}", run=p.name)
+        for p in shared:
+            add_log(p, sequential, robot="shared", run=p.name)
+        sequential_s = time.perf_counter() - started
+
+        got_runs, got_rows = content(concurrent_root)
+        want_runs, want_rows = content(sequential_root)
+    expected = {(f"r{w:02d}", p.name) for w, logs in own.items() for p in logs}
+    expected |= {("shared", p.name) for p in shared}
+    present = [(r[0], r[1]) for r in got_runs]
+    lost = len(expected - set(present))
+    duplicated = len(present) - len(set(present))
+    duplicated += sum(1 for r in got_rows if r[2] != r[3])  # an event id twice in one run
+    ids = sum(int(str(r[3])) for r in got_rows)
+    equal = got_runs == want_runs and got_rows == want_rows
+    ok = not failed and lost == 0 and duplicated == 0 and equal
+    print(
+        f"{where:>6}: {len(own)} writers, {commits} add_log calls -> {len(present)} runs, "
+        f"{ids:,} events; lost {lost}, duplicated {duplicated}, equal to sequential: {equal}"
+        + (f", writers failed: {failed}" if failed else "")
+    )
+    print(
+        f"{'':>6}  concurrent {concurrent_s:.1f} s, sequential (one process, "
+        f"{len(expected)} adds) {sequential_s:.1f} s, ratio {concurrent_s / sequential_s:.2f}"
+    )
+    return ok, where
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--writers", type=int, default=8)
+    ap.add_argument("--runs", type=int, default=50)
+    ap.add_argument("--shared", type=int, default=5)
+    ap.add_argument("--events", type=int, default=200)
+    ap.add_argument("--where", default="local,s3")
+    args = ap.parse_args()
+    work = Path(tempfile.mkdtemp(prefix="objsearch-bench-lake-writers-"))
+    print(
+        "concurrent lake writers; command: python benchmarks/lake_writers.py "
+        + " ".join(sys.argv[1:])
+    )
+    try:
+        names = {w: [f"w{w:02d}-run{i:03d}" for i in range(args.runs)] for w in range(args.writers)}
+        every = [n for ns in names.values() for n in ns]
+        shared_names = [f"shared-run{i:03d}" for i in range(args.shared)]
+        logs = write_logs(work / "logs", every + shared_names, args.events)
+        own = {w: [logs[n] for n in ns] for w, ns in names.items()}
+        shared = [logs[n] for n in shared_names]
+        results = [run_place(w, work, own, shared) for w in args.where.split(",") if w]
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    bad = [where for ok, where in results if not ok]
+    print("all places: 0 lost, 0 duplicated, equal to sequential" if not bad else f"FAILED: {bad}")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,149 @@
+"""The Dynamic House Simulator adapter (objsearch.experiments.dhs).
+
+The simulator is not part of objsearch (GPL-3.0, public repository): the tests that run it need
+a checkout of the pinned commit in ``$OBJSEARCH_DHS_SOURCE`` and its dependencies (``make dhs``),
+and are skipped without them. The pinning, the Python 3.8 draw and the CLI's errors are tested
+everywhere.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import random
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from objsearch.agent.belief import PlaceBelief
+from objsearch.agent.errors import ObjsearchError
+from objsearch.experiments import dhs
+
+
+def test_a_checkout_that_differs_from_the_pinned_commit_is_refused(tmp_path: Path) -> None:
+    (tmp_path / "memsearch").mkdir()
+    (tmp_path / "memsearch" / "agents.py").write_text("# not theirs\n")
+    with pytest.raises(ObjsearchError, match=r"not modeling_env_dynamics at commit 74e5f9d72246"):
+        dhs.verify_source(tmp_path)
+    try:
+        dhs.verify_source(tmp_path)
+    except ObjsearchError as error:
+        assert "changed memsearch/agents.py" in str(error)
+        assert "missing configs/agents/all.yaml" in str(error)
+
+
+def test_without_a_checkout_the_error_says_where_to_put_it(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.delenv(dhs.SOURCE_ENV, raising=False)
+    with pytest.raises(ObjsearchError, match=r"--source DIR or set \$OBJSEARCH_DHS_SOURCE"):
+        dhs.verify_source(None)
+    with pytest.raises(ObjsearchError, match="no such folder"):
+        dhs.verify_source(tmp_path / "absent")
+
+
+def test_the_cli_refuses_an_unpinned_checkout_with_a_clear_error(tmp_path: Path) -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "objsearch.cli", "bench", "dhs", "--source", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=120,
+    )
+    assert done.returncode == 2
+    assert "objsearch: error:" in done.stderr and "Traceback" not in done.stderr
+    assert "missing memsearch/" in done.stderr or "missing configs/" in done.stderr
+
+
+def test_the_py38_draw_picks_the_last_option_of_all_zero_weights_and_costs_one_random() -> None:
+    options = ["a", "b", "c"]
+    random.seed(5)
+    picked = dhs._choices_py38(options, weights=[0.0, 0.0, 0.0])
+    after = random.random()
+    random.seed(5)
+    random.random()
+    assert picked == ["c"] and random.random() == after
+
+
+def test_the_py38_draw_is_pythons_own_when_the_weights_sum_above_zero() -> None:
+    options, weights = ["a", "b", "c"], [0.2, 0.0, 0.8]
+    random.seed(11)
+    ours = [dhs._choices_py38(options, weights=weights)[0] for _ in range(50)]
+    random.seed(11)
+    theirs = [random.choices(options, weights=weights)[0] for _ in range(50)]
+    assert ours == theirs
+
+
+def test_only_an_error_raised_in_their_code_ends_a_run_quietly(tmp_path: Path) -> None:
+    # A module outside objsearch stands for the simulator's code.
+    theirs = tmp_path / "theirs.py"
+    theirs.write_text("def reset(weights):\n    return weights[-1]\n")
+    spec = importlib.util.spec_from_file_location("theirs", theirs)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    with pytest.raises(IndexError) as theirs_raised:
+        module.reset([])
+    assert dhs._raised_by_their_code(theirs_raised.value)
+    # Our agent's bug is not theirs: it propagates.
+    with pytest.raises(ValueError) as ours_raised:
+        PlaceBelief(prior_strength=0.0)
+    assert not dhs._raised_by_their_code(ours_raised.value)
+
+
+def _source() -> Path:
+    source = os.environ.get(dhs.SOURCE_ENV)
+    if not source:
+        pytest.skip(f"no checkout of the simulator (${dhs.SOURCE_ENV})")
+    for module in ("hydra", "gym", "torch_geometric", "spacy", "sentence_transformers"):
+        if importlib.util.find_spec(module) is None:
+            pytest.skip(f"the simulator's dependency {module} is not installed (make dhs)")
+    return dhs.verify_source(source)
+
+
+@pytest.mark.slow
+def test_its_agents_and_ours_run_in_its_task_by_its_rules() -> None:
+    source = _source()
+    # One small scene (3 rooms, 6 pieces of furniture each), 60 queries: a few seconds a run
+    # (importing its code, which loads torch_geometric and transformers, takes longer).
+    runs = {
+        agent: dhs.run_agent(dhs.Job(str(source), "small_scenes", agent, 0, 60, 60))
+        for agent in ("random", "upper_bound", dhs.OURS)
+    }
+    for run in runs.values():
+        assert len(run.queries) == 60 and run.max_attempts == 10
+        assert {q.scene for q in run.queries} == {1}
+        for q in run.queries:
+            assert 1 <= q.attempts <= run.max_attempts + 1
+            assert q.found == (q.attempts <= run.max_attempts)
+    # Its task shows our agent each place it tries, then the loop shows the last one again:
+    # a found object costs attempts + 1 looks, one not found within 10 costs 11 (its 11th
+    # prediction, never tried).
+    for q in runs[dhs.OURS].queries:
+        assert q.looks == q.attempts + q.found
+    # Its oracle knows the true move probabilities: fewer attempts than its random agent.
+    assert runs["upper_bound"].mean_attempts < runs["random"].mean_attempts
+    assert runs[dhs.OURS].mean_attempts < runs["random"].mean_attempts
+    summary = dhs.summarise(list(runs.values()))
+    rows = summary["experiments"]["small_scenes"]["agents"]
+    assert rows[dhs.OURS]["attempts_per_seed"] == [round(runs[dhs.OURS].mean_attempts, 4)]
+    assert "small_scenes" in dhs.render(summary)
+
+
+def test_the_targets_read_the_gap_from_the_better_baseline_to_the_better_oracle() -> None:
+    def rows(**attempts: float) -> dict[str, dict[str, float]]:
+        return {agent: {"attempts": value} for agent, value in attempts.items()}
+
+    half = dhs._targets(
+        rows(belief=2.0, frequentist=3.0, memorization=4.0, upper_bound=1.0, oracle_upper_bound=2.5)
+    )
+    assert half is not None
+    assert half["better_baseline"] == "frequentist" and half["oracle"] == "upper_bound"
+    assert half["gap_closed"] == pytest.approx(0.5) and half["half_gap_closed"]
+    # An oracle no better than the better baseline leaves no gap: said so, not a ratio.
+    none = dhs._targets(rows(belief=2.0, frequentist=2.4, memorization=3.0, upper_bound=3.5))
+    assert none is not None and none["gap_closed"] is None and none["beats_oracle"]
+    assert "no gap to close" in dhs._verdict(none)
+    assert dhs._targets(rows(belief=2.0, frequentist=2.4)) is None  # no oracle ran
