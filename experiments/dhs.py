@@ -634,6 +634,7 @@ def _targets(rows: Mapping[str, Mapping[str, Any]]) -> dict[str, Any] | None:
         "gap_closed": closed,
         "half_gap_closed": closed is not None and closed >= 0.5,
         "beats_oracle": ours < oracle,
+        "attempts": {"ours": ours, "baseline": baseline, "oracle": oracle},
     }
 
 
@@ -721,5 +722,12 @@ def _verdict(targets: Mapping[str, Any]) -> str:
         )
     else:
         met = "met" if targets["half_gap_closed"] else "NOT met"
-        gap = f"gap from {base} to {oracle} closed: {closed:.0%} (target ≥ 50 %: {met})"
+        a = targets["attempts"]
+        gap = (
+            f"gap from {base} ({a['baseline']:.3f}) to {oracle} ({a['oracle']:.3f}): "
+            f"{a['baseline'] - a['oracle']:.3f} attempts, closed {closed:.0%} "
+            f"(target ≥ 50 %: {met})"
+        )
+        if targets["beats_oracle"]:
+            gap += "; ours needs fewer attempts than its oracle"
     return f"targets: fewer attempts than frequentist and myopic: {beats}; {gap}"
