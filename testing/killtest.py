@@ -10,7 +10,9 @@ A process start costs more than most commits (imports of pyarrow, DuckDB, …), 
 :class:`KillServer` is one Python process that has imported the command line once and forks a
 fresh child per command: the child sets the variable and calls ``objsearch.cli.main(argv)``,
 the real command line, and the server reports how it ended. SIGKILL leaves the page cache alone,
-so this tests the order of operations and recovery, not power loss.
+so this tests the order of operations and recovery, not power loss. What every command
+builds before its first step (the parser, the store's compiled schemas, the ROS type stores) is
+built once in the server, so a child's time is the command's own work.
 """
 
 from __future__ import annotations
@@ -30,7 +32,15 @@ import json, os, signal, sys, traceback
 import duckdb, pyarrow.parquet
 import objsearch.cli, objsearch.cli_query, objsearch.cli_bags
 import objsearch.events.lake, objsearch.pipeline.bags.ingest, objsearch.pipeline.bags.read
-import objsearch.replay.analytics, rosbags.highlevel
+import objsearch.replay.analytics, rosbags.highlevel, tqdm
+from objsearch.agent.catalogue import STORE
+from objsearch.ros.types import Distro, typestore
+# Built here once rather than in every child (each is most of a short command's CPU): the
+# parser and the command modules it imports, the store's schemas and upcasters, the ROS types.
+objsearch.cli.build_parser()
+STORE.upcaster
+for distro in Distro:
+    typestore(distro)
 for line in sys.stdin:
     job = json.loads(line)
     pid = os.fork()
