@@ -400,7 +400,9 @@ class BeliefAgent:
         self._seed([query])
         self.queries += 1
         self.target, self.seen_target, self.looks = query.description, False, 0
-        self._add(TaskStarted(target=self.target, start="", pose=_ORIGIN, scene=self.queries))
+        self._add(
+            TaskStarted(target=self.target, start="", pose=_ORIGIN, scene=self.queries, clock=None)
+        )
 
     def _seed(self, objects: Sequence[Any]) -> None:
         """Rel₀ of each object not yet seeded, from the priors graph (the whole seed again, as
