@@ -47,7 +47,9 @@ Positive: TypeAlias = Annotated[float, msgspec.Meta(gt=0)]
 XY: TypeAlias = tuple[float, float]
 XYZ: TypeAlias = tuple[float, float, float]
 Box: TypeAlias = tuple[float, float, float, float]
-MethodName: TypeAlias = Literal["wpl", "rvp", "sdp", "ecost"]
+#: v3's methods; v4 added ``global`` (the whole-home planner).
+MethodNameV3: TypeAlias = Literal["wpl", "rvp", "sdp", "ecost"]
+MethodName: TypeAlias = Literal["wpl", "rvp", "sdp", "ecost", "global"]
 PlannerName: TypeAlias = Literal["wpl", "rvp", "sdp", "epl"]
 UpdateModeName: TypeAlias = Literal["none", "targets", "all"]
 RelationModelName: TypeAlias = Literal[
@@ -238,7 +240,7 @@ class RunStartedV3(Record, frozen=True):
     home: str
     home_digest: str
     strategy: str
-    method: MethodName
+    method: MethodNameV3
     planner: PlannerName
     relations: RelationsSpecV3
     alpha: NonNegative

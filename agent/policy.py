@@ -48,6 +48,8 @@ from objsearch.agent.planner import (
     RelationOrderPlanner,
     StopPlanner,
     WplPlanner,
+    epl_plan,
+    epl_probabilities,
 )
 from objsearch.agent.relations import RelationModel, instance_value, per_instance
 from objsearch.agent.room_order import expected_cost_order
@@ -63,6 +65,9 @@ LOOK_OFFSETS = (0.0, math.pi / 4, -math.pi / 4)  # θ_s and ±45° (paper §5.1)
 #: this length along its long side.
 COVER_SPAN_M = 1.5
 INSPECTIONS = ("single", "cover")
+#: The whole-home planner's exact size: its DP holds 2^K · K states, K = 12 keeps a decision within
+#: the 50 ms target on the largest home (benchmarks/decisions.py); beyond, a bounded approximation.
+GLOBAL_EXACT_STOPS = 12
 
 
 class Method(enum.Enum):
@@ -70,6 +75,8 @@ class Method(enum.Enum):
     RVP = "rvp"  # relation value priority: rooms by Σ Rel, objects by Rel
     SDP = "sdp"  # shortest distance priority: random rooms, objects by WPL with α = 0
     ECOST = "ecost"  # ours: rooms by minimum expected cost over all orders (agent/room_order.py)
+    #: ours: one plan over every stop of the home, rooms not searched whole (SearchAgent.plan_global)
+    GLOBAL = "global"
 
 
 @dataclass(frozen=True)
@@ -174,6 +181,23 @@ class SearchResult:
     route: list[Point] = field(default_factory=list)
     found_instance: str | None = None
     plans: list[tuple[str, tuple[str, ...]]] = field(default_factory=list)
+
+
+@dataclass(frozen=True, slots=True)
+class GlobalPlan:
+    """One decision of the whole-home planner: where to search next, and the plan behind it.
+
+    ``room``: the room of the plan's first stop; ``order``: that room's remaining stops in the
+    plan's order; the first ``segment`` of them are searched before the plan leaves the room (and
+    is made anew from there); ``rooms``: the rooms in the order the plan enters them (a room may
+    come back); ``ordering``: the terms of the whole plan over every remaining stop.
+    """
+
+    room: str
+    order: tuple[Stop, ...]
+    segment: int
+    rooms: tuple[str, ...]
+    ordering: Ordering
 
 
 @dataclass
@@ -343,6 +367,38 @@ class SearchAgent:
             rest_mass=math.fsum(s.rel for r in later for s in room_stops[r]),
         )
 
+    def plan_global(
+        self, here: Point, remaining: Mapping[str, Sequence[Stop]]
+    ) -> GlobalPlan | None:
+        """One plan over every remaining stop of the home (``remaining``: per room, the stops not
+        searched yet in this task): minimum expected metres to discovery, P(stop) ∝ its value, rooms
+        entered as often as the plan likes. Exact up to ``GLOBAL_EXACT_STOPS`` stops, else the
+        bounded approximation of :func:`~objsearch.agent.planner.epl_plan`. None when nothing is
+        left. The one statement of this decision: the search and replay's re-planning call it."""
+        flat = [(room, stop) for room in self.rooms for stop in remaining.get(room, ())]
+        if not flat:
+            return None
+        nav = self.navmap
+        start = np.array([nav.distance(here, s.viewpoint) for _, s in flat], dtype=float)
+        dist = np.array(
+            [[nav.distance(a.viewpoint, b.viewpoint) for _, b in flat] for _, a in flat],
+            dtype=float,
+        )
+        prob = epl_probabilities(np.array([s.rel for _, s in flat], dtype=float), 0.0)
+        ordering = epl_plan(start, dist, prob, None, GLOBAL_EXACT_STOPS)
+        rooms: list[str] = []
+        for k in ordering.order:
+            if not rooms or rooms[-1] != flat[k][0]:
+                rooms.append(flat[k][0])
+        first = rooms[0]
+        order = tuple(flat[k][1] for k in ordering.order if flat[k][0] == first)
+        segment = 0
+        for k in ordering.order:
+            if flat[k][0] != first:
+                break
+            segment += 1
+        return GlobalPlan(first, order, segment, tuple(rooms), ordering)
+
     # -- acting -------------------------------------------------------------------------------
 
     def search(
@@ -367,22 +423,14 @@ class SearchAgent:
             TaskStarted(target=target, start=start, pose=_planar(pose), scene=scene, clock=clock)
         )
         start_room = self.navmap.room_at(pose.x, pose.y)
-        rooms = self.room_order(start_room, target, task_id, here=pose.point)
-        found: _Found | None = None
-        room_stops = {room: self.stops(room, target) for room in rooms}
-        for i, room in enumerate(rooms):
-            stops = room_stops[room]
-            here = world.pose().point
-            ordering = self.plan_room(here, room, rooms[i + 1 :], room_stops)
-            ordered = [stops[k] for k in ordering.order]
-            run.emit(self._plan(room, rooms[i:], stops, ordering))
-            result.plans.append((room, tuple(s.key for s in ordered)))
-            for stop in ordered:
-                found = run.go(stop.viewpoint, result) or run.inspect(stop, result)
-                if found:
-                    break
-            if found:
-                break
+        if self.config.method is Method.GLOBAL:
+            rooms = list(self.rooms)
+            room_stops = {room: self.stops(room, target) for room in rooms}
+            found = self._search_global(run, result, room_stops)
+        else:
+            rooms = self.room_order(start_room, target, task_id, here=pose.point)
+            room_stops = {room: self.stops(room, target) for room in rooms}
+            found = self._search_rooms(run, result, rooms, room_stops)
         if found is None and self.config.inspection == "cover":
             # A second pass, only when the first found nothing: the long statics' stretches their
             # N_s may not see, room by room in the same order, likeliest stops first.
@@ -425,10 +473,50 @@ class SearchAgent:
         )
         return result
 
+    def _search_rooms(
+        self,
+        run: _Task,
+        result: SearchResult,
+        rooms: Sequence[str],
+        room_stops: Mapping[str, Sequence[Stop]],
+    ) -> _Found | None:
+        """Room by room in ``rooms``' order, each room's stops in planned order."""
+        for i, room in enumerate(rooms):
+            stops = room_stops[room]
+            ordering = self.plan_room(run.world.pose().point, room, rooms[i + 1 :], room_stops)
+            ordered = [stops[k] for k in ordering.order]
+            run.emit(self._plan(room, rooms[i:], stops, ordering))
+            result.plans.append((room, tuple(s.key for s in ordered)))
+            for stop in ordered:
+                found = run.go(stop.viewpoint, result) or run.inspect(stop, result)
+                if found:
+                    return found
+        return None
+
+    def _search_global(
+        self, run: _Task, result: SearchResult, room_stops: Mapping[str, Sequence[Stop]]
+    ) -> _Found | None:
+        """The whole-home plan's first room segment, then a new plan from there, until found."""
+        remaining = {room: list(stops) for room, stops in room_stops.items()}
+        while (plan := self.plan_global(run.world.pose().point, remaining)) is not None:
+            stops = remaining[plan.room]
+            ordering = Ordering(
+                tuple(stops.index(s) for s in plan.order), plan.ordering.terms, plan.ordering.exact
+            )
+            run.emit(self._plan(plan.room, plan.rooms, stops, ordering))
+            result.plans.append((plan.room, tuple(s.key for s in plan.order)))
+            for stop in plan.order[: plan.segment]:
+                stops.remove(stop)
+                found = run.go(stop.viewpoint, result) or run.inspect(stop, result)
+                if found:
+                    return found
+        return None
+
     def _plan(
         self, room: str, room_order: Sequence[str], stops: Sequence[Stop], ordering: Ordering
     ) -> PlanComputed:
-        objective = self.planner.name + ("" if ordering.exact else "-truncated")
+        scope = "global-" if self.config.method is Method.GLOBAL else ""
+        objective = scope + self.planner.name + ("" if ordering.exact else "-truncated")
         return PlanComputed(
             room=room,
             room_order=tuple(room_order),

@@ -273,6 +273,22 @@ STRATEGIES: dict[str, Strategy] = {
             "epl",
         ),
         Strategy(
+            "global-belief",
+            Method.GLOBAL,
+            "one plan over every stop of the home (rooms not searched whole), on the belief",
+            False,
+            BELIEF,
+            "epl",
+        ),
+        Strategy(
+            "dist-oracle-global",
+            Method.GLOBAL,
+            "REFERENCE: dist-oracle's knowledge, planned as global-belief plans",
+            False,
+            RelationSpec("dist-oracle"),
+            "epl",
+        ),
+        Strategy(
             "dist-oracle",
             Method.ECOST,
             "REFERENCE: knows the schedule's placement distribution (not today's draw)",
@@ -328,6 +344,11 @@ class RunSpec:
     def __post_init__(self) -> None:
         if self.planner not in PLANNERS:
             raise ObjsearchError(f"unknown planner {self.planner!r}; known: {', '.join(PLANNERS)}")
+        if self.method is Method.GLOBAL and self.planner != "epl":
+            raise ObjsearchError(
+                f"the global method plans by expected path length; planner {self.planner!r} "
+                "does not apply"
+            )
 
     @classmethod
     def of(

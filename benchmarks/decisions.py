@@ -1,11 +1,14 @@
-"""Decision time of a search's planning — room order plus every room's stop order — for the
-expected-cost room order on the per-instance memory against the paper's WPL, in the same run.
+"""Decision time of a search's planning, against the paper's WPL in the same run: the
+expected-cost room order on the memory (room order plus every room's stop order), and the
+whole-home planner on the belief (``global-belief``: each of a search's decisions, one per room
+segment, timed on its own).
 
     python benchmarks/decisions.py [--homes ithor-02,procthor-02] [--scenes 2]
 
 Each strategy first runs ``--scenes`` scenes of ``habit-0`` (so its memory holds something), then
 the planning of one search (what ``SearchAgent.search`` computes before and between moves) is timed
-for every target from every start. Medians and the ratio are printed; the target is ≤ 50 ms.
+for every target from every start. ``--homes largest`` takes the bundled iTHOR and ProcTHOR homes
+with the most mapped statics. Medians and ratios are printed; the target is ≤ 50 ms a decision.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import time
 from pathlib import Path
 
 from objsearch.agent.catalogue import STORE
+from objsearch.agent.home import available_homes
 from objsearch.agent.policy import Recorder, SearchAgent
 from objsearch.agent.session import load_context
 from objsearch.agent.state import AgentState
@@ -68,19 +72,80 @@ def plan_times(home: str, strategy: str, scenes: int) -> list[float]:
     return times
 
 
+def global_decision_times(home: str, scenes: int) -> tuple[list[float], list[float]]:
+    """Each decision of ``global-belief``'s searches, walked as the search walks it when the
+    target is nowhere (every segment, to the last stop): the most decisions a search can take.
+    Returns every decision's time and each search's first (the largest problem)."""
+    ctx = load_context(home)
+    spec = RunSpec.for_home(ctx.home, "global-belief", schedule="habit-0")
+    with tempfile.TemporaryDirectory() as tmp:
+        run_schedule(Path(tmp), spec, scenes=range(1, scenes + 1), skip_absent_targets=True)
+        state = fold(read_log(Path(tmp), store=STORE), AgentState())
+    agent = SearchAgent(
+        ctx.navmap,
+        ctx.semmap,
+        ctx.vocabulary,
+        state.graph(),
+        Recorder(_NoSink(), ()),  # type: ignore[arg-type]
+        spec.config(),
+        spec.stop_planner(),
+    )
+    times: list[float] = []
+    firsts: list[float] = []
+    for target in TARGET_ORDER:
+        for pose in ctx.home.starts.values():
+            firsts_before = len(times)
+            here = pose.point
+            remaining = {r: list(agent.stops(r, target)) for r in agent.rooms}
+            while True:
+                t0 = time.perf_counter()
+                plan = agent.plan_global(here, remaining)
+                times.append(time.perf_counter() - t0)
+                if plan is None:
+                    break
+                for stop in plan.order[: plan.segment]:
+                    remaining[plan.room].remove(stop)
+                here = plan.order[plan.segment - 1].viewpoint
+            firsts.append(times[firsts_before])
+    return times, firsts
+
+
+def largest_homes() -> list[str]:
+    """The bundled iTHOR and ProcTHOR homes with the most mapped statics."""
+    best: dict[str, tuple[int, str]] = {}
+    for name in available_homes():
+        family = name.split("-")[0]
+        if family not in ("ithor", "procthor"):
+            continue
+        size = len(load_context(name).semmap.statics)
+        best[family] = max(best.get(family, (0, "")), (size, name))
+    return [name for _, name in best.values()]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--homes", default="ithor-02,procthor-02")
     ap.add_argument("--scenes", type=int, default=2)
     args = ap.parse_args()
-    for home in args.homes.split(","):
+    homes = largest_homes() if args.homes == "largest" else args.homes.split(",")
+    for home in homes:
         base = plan_times(home, "wpl", args.scenes)
         ours = plan_times(home, "ecost-memory", args.scenes)
-        mb, mo = statistics.median(base), statistics.median(ours)
+        whole, firsts = global_decision_times(home, args.scenes)
+        mb, mo, mg, mf = (statistics.median(x) for x in (base, ours, whole, firsts))
         print(
             f"{home}: median planning per search  wpl {mb * 1e3:7.2f} ms   "
             f"ecost-memory {mo * 1e3:7.2f} ms   ratio {mo / mb:5.2f}   "
             f"max {max(ours) * 1e3:7.2f} ms   (n = {len(ours)}; target <= 50 ms)"
+        )
+        print(
+            f"{home}: median global-belief decision {mg * 1e3:7.2f} ms   ratio to wpl's search "
+            f"{mg / mb:5.2f}   p90 {statistics.quantiles(whole, n=10)[-1] * 1e3:7.2f} ms   "
+            f"max {max(whole) * 1e3:7.2f} ms   (n = {len(whole)}; target <= 50 ms)"
+        )
+        print(
+            f"{home}: median global-belief first decision of a search {mf * 1e3:7.2f} ms   "
+            f"max {max(firsts) * 1e3:7.2f} ms   (n = {len(firsts)})"
         )
 
 

@@ -168,6 +168,10 @@ class Replayer:
             config,
             spec.stop_planner(),
         )
+        p = decode(event, PlanComputed)
+        here = st.pose.point
+        if config.method is Method.GLOBAL:
+            return self._replay_global(event.seq, agent, p, here, run, config, task)
         rooms = self._room_orders.get(task.task_id)
         if rooms is None:
             start_room = ctx.navmap.room_at(task.start_pose.x, task.start_pose.y)
@@ -175,8 +179,6 @@ class Replayer:
                 start_room, task.target, task.task_id, here=task.start_pose.point
             )
             self._room_orders = {task.task_id: rooms}
-        p = decode(event, PlanComputed)
-        here = st.pose.point
         # Exactly as the agent plans: the room's stops, plus (for planners that use them) where
         # the next room is entered and how much Rel the rooms still to come hold.
         position = task.plans_so_far
@@ -205,6 +207,49 @@ class Replayer:
         reasons = tuple(_reasons(p, run, config, stops, task)) or (
             "same inputs; today's planner prefers another order "
             f"(recorded order scores {today:.4f} today, the new one {ordering.value:.4f})",
+        )
+        return replace(decision, reasons=reasons)
+
+    def _replay_global(
+        self,
+        seq: int,
+        agent: SearchAgent,
+        p: PlanComputed,
+        here: Point,
+        run: RunSpec,
+        config: SearchConfig,
+        task: TaskState,
+    ) -> DecisionReplay:
+        """Exactly as the agent plans a whole-home decision: over the stops of every room that
+        the task has not looked at or opened yet."""
+        remaining = {
+            room: [
+                s
+                for s in agent.stops(room, task.target)
+                if not any(x.id in task.searched for x in s.statics)
+            ]
+            for room in agent.rooms
+        }
+        plan = agent.plan_global(here, remaining)
+        decision = DecisionReplay(
+            seq=seq,
+            task_id=task.task_id,
+            target=task.target,
+            room=p.room,
+            recorded_rooms=p.room_order,
+            replayed_rooms=() if plan is None else plan.rooms,
+            recorded_order=p.order,
+            replayed_order=() if plan is None else tuple(s.key for s in plan.order),
+            recorded_value=p.value,
+            # The objective is the whole plan's: a recorded room order has no score of its own.
+            recorded_value_today=math.nan,
+            replayed_value=math.nan if plan is None else plan.ordering.value,
+        )
+        if decision.same:
+            return decision
+        reasons = tuple(_reasons(p, run, config, remaining.get(p.room, []), task)) or (
+            "same inputs; today's planner prefers another plan "
+            f"(the new one scores {decision.replayed_value:.4f}, the recorded {p.value:.4f})",
         )
         return replace(decision, reasons=reasons)
 

@@ -7,7 +7,7 @@ start room, and the robot's last known pose.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from objsearch.agent.catalogue import (
     ContainerOpened,
@@ -33,6 +33,9 @@ class TaskState:
     start_pose: Pose
     scene: int | None
     plans_so_far: int = 0
+    #: Static ids looked at or opened so far in the task: the stops the whole-home planner
+    #: (method ``global``) no longer plans over.
+    searched: frozenset[str] = frozenset()
 
 
 def _pose(pose: PlanarPose) -> Pose:
@@ -78,20 +81,19 @@ class ReplayState:
         elif kind == "moved":
             self.pose = _pose(decode(event, Moved).end)
         elif kind == "view_taken":
-            self.pose = _pose(decode(event, ViewTaken).pose)
+            view = decode(event, ViewTaken)
+            self.pose = _pose(view.pose)
+            if self.task is not None and view.static_id is not None:
+                self.task = replace(self.task, searched=self.task.searched | {view.static_id})
         elif kind == "container_opened":
-            self.pose = _pose(decode(event, ContainerOpened).pose)
+            opened = decode(event, ContainerOpened)
+            self.pose = _pose(opened.pose)
+            if self.task is not None:
+                self.task = replace(self.task, searched=self.task.searched | {opened.static_id})
         elif kind == "target_found":
             self.pose = _pose(decode(event, TargetFound).approach)
         elif kind == "plan_computed" and self.task is not None:
-            self.task = TaskState(
-                self.task.task_id,
-                self.task.target,
-                self.task.start,
-                self.task.start_pose,
-                self.task.scene,
-                self.task.plans_so_far + 1,
-            )
+            self.task = replace(self.task, plans_so_far=self.task.plans_so_far + 1)
         elif kind in ("task_ended", "task_aborted"):
             self.task = None
         self.agent.apply(event)

@@ -13,6 +13,7 @@ from objsearch.agent.planner import (
     PlanProblem,
     epl_enumerate,
     epl_exact,
+    epl_plan,
     epl_terms,
 )
 
@@ -73,3 +74,14 @@ def test_zero_mass_falls_back_to_uniform_and_large_rooms_truncate() -> None:
     start, dist, prob, _ = instance(n, 2)
     big = ExpectedPathPlanner().plan(PlanProblem(start, dist, prob))
     assert not big.exact and sorted(big.order) == list(range(n))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_epl_plan_is_exact_up_to_its_size_and_says_when_it_is_not(seed: int) -> None:
+    start, dist, prob, _ = instance(9, seed)
+    exact = epl_plan(start, dist, prob, max_exact=9)
+    assert exact.exact and exact.value == pytest.approx(epl_exact(start, dist, prob).value)
+    bounded = epl_plan(start, dist, prob, max_exact=6)
+    assert not bounded.exact and sorted(bounded.order) == list(range(9))
+    # An approximation, never better than the optimum.
+    assert bounded.value >= exact.value - 1e-9
