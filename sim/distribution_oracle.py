@@ -15,12 +15,19 @@ against it. It learns nothing across scenes.
   averaged over the week's slots and days (:func:`blind_distribution`) for the routines in force
   that week (it knows the days of the drift, not the hour): the best a memory that ignores the
   time of day could learn;
-- ``stats-<seed>`` / ``rearr-<seed>``'s stats fallback: the first scene's draw
-  (:func:`stats_distribution`); later scenes keep the object with probability 1 − move rate, so
-  once the robot has seen the object in scene n₀, scene n's distribution is the chain's
-  (1 − m)^(n−n₀)·δ(where it was seen) + (1 − (1 − m)^(n−n₀))·draw (an approximation: a move
-  excludes the old place, and visibility redraws are left out). Without this the "reference"
-  lost to a memory that simply remembers yesterday.
+- ``stats-<seed>`` / ``rearr-<seed>``'s stats fallback: the first scene's draw; each later scene
+  keeps the object with probability 1 − m (the move rate) and otherwise draws it again among the
+  *other* places, so once the robot has seen the object at place j in scene n₀, scene n's
+  distribution is e_j·Pⁿ⁻ⁿ⁰ with P = (1 − m)·I + m·K, K(j, s) = q(s) / (1 − q(j)) for s ≠ j; an
+  object not seen yet is at q·Pⁿ⁻¹ (:func:`chain`). Without this the "reference" lost to a memory
+  that simply remembers yesterday.
+
+Every distribution but the routine's is the one *after* the generators' visibility redraws
+(``stats_schedule.place_seeable``): a placement on static s is kept with the share v(s) of its rest
+points a viewpoint sees (:func:`seeable_shares`), and a refused one is drawn again from the fresh
+draw, so P(s) = d(s)·v(s) + (Σ_t d(t)·(1 − v(t)))·q_v(s), q_v ∝ q·v (:func:`after_redraws`). Left
+out, both rare: two objects drawn onto one rest point, and an object left where it was after
+``MAX_DRAWS`` refusals.
 """
 
 from __future__ import annotations
@@ -32,7 +39,7 @@ from typing import Any, ClassVar, Final
 
 from objsearch.agent.belief import Today
 from objsearch.agent.catalogue import RunStarted, SceneGraphSeeded, TaskStarted, decode
-from objsearch.agent.home import load_home
+from objsearch.agent.home import Box, Home, load_home
 from objsearch.agent.scene_graph import EventLike, Pair
 from objsearch.agent.strategies import RelationModels
 from objsearch.sim.habit_schedule import (
@@ -50,25 +57,95 @@ from objsearch.sim.routine_schedule import (
     scene_day,
 )
 from objsearch.sim.schedule_names import parse_seeded
-from objsearch.sim.stats_schedule import PlacementStats
+from objsearch.sim.seeable import seeable
+from objsearch.sim.stats_schedule import PlacementStats, _receptacle_type, _rest_points
+from objsearch.sim.world import Placement
+
+
+def seeable_shares(home: Home, cls: str) -> dict[str, float]:
+    """Static id → the share of its rest points at which a ``cls`` object is seeable (1 for a
+    container: the object lies at its centre), for the statics the class can be drawn onto."""
+    stats = PlacementStats.load()
+    size = stats.sizes[cls]
+    shares: dict[str, float] = {}
+    for s in sorted(home.statics.values(), key=lambda s: s.id):
+        if stats.counts[cls].get(_receptacle_type(s), 0) <= 0:
+            continue
+        if s.container:
+            centres = [s.box.center]
+        else:
+            rests = _rest_points(home.name).get(s.id) or (
+                (s.box.center[0], s.box.center[1], s.box.top),
+            )
+            centres = [(x, y, z + size[2] / 2) for x, y, z in rests]
+        kept = sum(
+            seeable(
+                home, Placement(f"{cls}|schedule", cls, Box(c, size), s.room, s.id, s.container)
+            )
+            for c in centres
+        )
+        shares[s.id] = kept / len(centres)
+    return shares
+
+
+def after_redraws(
+    dist: Mapping[str, float], fresh: Mapping[str, float], shares: Mapping[str, float]
+) -> dict[str, float]:
+    """``dist`` after the generator's visibility redraws (see the module doc): a draw at s is kept
+    with ``shares[s]``, a refused one is drawn again from ``fresh`` until kept."""
+    kept = {sid: p * shares.get(sid, 1.0) for sid, p in dist.items()}
+    refused = sum(dist.values()) - sum(kept.values())
+    fresh_kept = {sid: p * shares.get(sid, 1.0) for sid, p in fresh.items()}
+    total = sum(fresh_kept.values())
+    if refused > 0 and total > 0:
+        for sid, p in fresh_kept.items():
+            kept[sid] = kept.get(sid, 0.0) + refused * p / total
+    return {sid: p for sid, p in sorted(kept.items()) if p > 0}
+
+
+def chain(
+    start: Mapping[str, float], fresh: Mapping[str, float], move: float, steps: int
+) -> dict[str, float]:
+    """``start`` after ``steps`` scenes of the stats schedules' chain: stay with 1 − ``move``,
+    else a draw from ``fresh`` among the other places (see the module doc)."""
+    places = sorted(set(start) | set(fresh))
+    x = {p: start.get(p, 0.0) for p in places}
+    q = {p: fresh.get(p, 0.0) for p in places}
+    for _ in range(steps):
+        leave = {p: x[p] / (1.0 - q[p]) if q[p] < 1.0 else 0.0 for p in places}
+        out = sum(leave.values())
+        x = {
+            p: (1.0 - move) * x[p]
+            + move * (q[p] * (out - leave[p]) + (x[p] if q[p] >= 1.0 else 0.0))
+            for p in places
+        }
+    return {p: v for p, v in x.items() if v > 0}
 
 
 def schedule_distribution(
     home_name: str, schedule: str | None, *, scene: int | None = None
 ) -> dict[str, dict[str, float]]:
-    """class → static id → P(there in ``scene``) under the schedule's generator."""
+    """class → static id → P(there in ``scene``) under the schedule's generator, after its
+    visibility redraws (for stats schedules: the first scene's)."""
     home = load_home(home_name)
     seeded = parse_seeded(schedule) if schedule else None
-    if seeded is not None and seeded[0] == "moved" and scene is not None and scene >= MOVE_SCENE:
-        return habit_distribution(home, seeded[1], moved_habits(home, seeded[1]))
-    if seeded is not None and seeded[0] in ("habit", "moved"):
-        return habit_distribution(home, seeded[1])
     if seeded is not None and seeded[0] == "routine":
         week = scene_day(scene or 1) // 7
         return blind_distribution(home, routines_by_week(home, seeded[1], week + 1)[week])
     stats = PlacementStats.load()
     statics = sorted(home.statics.values(), key=lambda s: s.id)
-    return {cls: stats_distribution(w, statics) for cls, w in sorted(stats.counts.items())}
+    if seeded is not None and seeded[0] == "moved" and scene is not None and scene >= MOVE_SCENE:
+        drawn = habit_distribution(home, seeded[1], moved_habits(home, seeded[1]))
+    elif seeded is not None and seeded[0] in ("habit", "moved"):
+        drawn = habit_distribution(home, seeded[1])
+    else:
+        drawn = {cls: stats_distribution(w, statics) for cls, w in sorted(stats.counts.items())}
+    return {
+        cls: after_redraws(
+            d, stats_distribution(stats.counts[cls], statics), seeable_shares(home, cls)
+        )
+        for cls, d in sorted(drawn.items())
+    }
 
 
 @dataclass
@@ -135,10 +212,12 @@ class DistributionOracle:
             key = self.today.key
             base = self._scene_dist(key).get(dynamic, {})
             last = self.last_seen.get(dynamic)
-            if self.move_rate is not None and last is not None and key is not None:
-                stay = (1 - self.move_rate) ** max(key[1] - last[1], 0)
-                base = {p: (1 - stay) * v for p, v in base.items()}
-                base[last[0]] = base.get(last[0], 0.0) + stay
+            if self.move_rate is not None and key is not None and key[0] == "scene":
+                if last is None:
+                    base = chain(base, base, self.move_rate, max(key[1] - 1, 0))
+                else:
+                    steps = max(key[1] - last[1], 0)
+                    base = chain({last[0]: 1.0}, base, self.move_rate, steps)
             now = self._cache[dynamic] = self.today.condition(dynamic, base)
         return now.get(static_id, 0.0)
 
