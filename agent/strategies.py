@@ -273,6 +273,14 @@ STRATEGIES: dict[str, Strategy] = {
             "epl",
         ),
         Strategy(
+            "global",
+            Method.GLOBAL,
+            "one plan over every stop of the home (rooms not searched whole), Eq. 4 updates",
+            False,
+            EQ4,
+            "epl",
+        ),
+        Strategy(
             "global-belief",
             Method.GLOBAL,
             "one plan over every stop of the home (rooms not searched whole), on the belief",

@@ -189,6 +189,46 @@ def slot_lines(rows: Sequence[Row], after: int = ROUTINE_AFTER) -> list[str]:
     return lines
 
 
+def usual_place_lines(rows: Sequence[Row], after: int = AFTER) -> list[str]:
+    """``habit`` schedules: the first search of the day after ``after`` on the days the target
+    was at its usual place (the schedule drawn again from its seed), per strategy: oracle× and its
+    ratio to the reference's on the same searches."""
+    from objsearch.agent.home import load_home
+    from objsearch.sim.habit_schedule import habit_schedule, habits
+
+    late = [r for r in first_of_day(rows) if r.scene > after and kind(r) == "habit"]
+    usual_days: set[tuple[str, str, int, str]] = set()
+    for home, placements in sorted({(r.home, r.placements) for r in late}):
+        seed = int(placements.partition("-")[2])
+        house = load_home(home)
+        table = habits(house, seed)
+        last = max(r.scene for r in late if (r.home, r.placements) == (home, placements))
+        for scene, placed in habit_schedule(house, seed, scenes=last).scenes.items():
+            for p in placed.values():
+                if p.cls in table and p.support == table[p.cls].usual:
+                    usual_days.add((home, placements, scene, p.cls))
+    mine = [r for r in late if (r.home, r.placements, r.scene, r.target) in usual_days]
+    if not mine:
+        return []
+    by = {s: [r for r in mine if r.strategy == s] for s in dict.fromkeys(r.strategy for r in mine)}
+    present = [s for s in REFERENCES if by.get(s)]
+    reference = min(present, key=lambda s: ratio(by[s]), default=None)
+    lines = [
+        f"On days the target was at its usual place (first search after day {after}):",
+        "",
+        f"| strategy | searches | oracle× | ÷ {reference or 'reference'} |",
+        "|---|---|---|---|",
+    ]
+    for s, rs in by.items():
+        vs = (
+            "–"
+            if reference is None or s == reference
+            else f"{ratio(rs) / ratio(by[reference]):.3f}"
+        )
+        lines.append(f"| {s} | {len(rs)} | {ratio(rs):.3f} | {vs} |")
+    return lines
+
+
 def per_day(rows: Sequence[Row]) -> dict[str, dict[int, float]]:
     """Per strategy, per scene: first-of-day oracle×."""
     firsts = first_of_day(rows)
@@ -337,6 +377,8 @@ def report(folders: Sequence[Path], out: Path | None = None) -> str:
             lines += ["", *slot_lines(mine, after)]
         if k == "moved":
             lines += ["", *moved_lines(mine)]
+        if k == "habit":
+            lines += ["", *usual_place_lines(mine)]
         lines += ["", "Calibration of the belief's forecast at the start of each search:", ""]
         lines += calibration_lines(mine)
         lines += ["", "Failures (strategy: home target ×searches):", *failure_lines(mine)]

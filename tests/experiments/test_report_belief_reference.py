@@ -1,0 +1,60 @@
+"""bench belief's tables on rows whose answer is known: the reference is the oracle that walks
+less, and the usual-place table keeps the days the schedule put the target at its usual place."""
+
+from __future__ import annotations
+
+from objsearch.agent.home import load_home
+from objsearch.experiments.report_belief import ratio_table, usual_place_lines
+from objsearch.experiments.runner import Row
+from objsearch.sim.habit_schedule import habit_schedule, habits
+from objsearch.sim.longterm import TARGET_ORDER
+
+HOME = "ithor-01"
+
+
+def _rows(strategy: str, factor: float) -> list[Row]:
+    return [
+        Row(
+            experiment="homes",
+            home=HOME,
+            placements="habit-0",
+            strategy=strategy,
+            update_mode="all",
+            seed=0,
+            scene=scene,
+            target=target,
+            start="s",
+            success=True,
+            path_length=factor * (3.0 + i),
+            oracle_length=3.0 + i,
+            task_id=f"task-{scene:03d}{i:02d}",
+        )
+        for scene in (11, 12, 13)
+        for i, target in enumerate(TARGET_ORDER)
+    ]
+
+
+def test_each_table_reads_against_the_oracle_that_walks_less() -> None:
+    rows = (
+        _rows("global-belief", 2.0) + _rows("dist-oracle", 1.5) + _rows("dist-oracle-global", 1.0)
+    )
+    table = "\n".join(ratio_table(rows))
+    assert "÷ dist-oracle-global after scene 10" in table
+    assert "| global-belief | 2.000 |" in table and "| 2.000 (n=1) |" in table
+
+
+def test_the_usual_place_table_keeps_the_days_the_target_was_at_its_usual_place() -> None:
+    rows = _rows("global-belief", 2.0) + _rows("dist-oracle", 1.0)
+    home = load_home(HOME)
+    usual = habits(home, 0)
+    at_usual = sum(
+        p.support == usual[p.cls].usual
+        for scene, placed in habit_schedule(home, 0, scenes=13).scenes.items()
+        if scene > 10
+        for p in placed.values()
+        if p.cls in TARGET_ORDER
+    )
+    assert 0 < at_usual < 3 * len(TARGET_ORDER)
+    lines = usual_place_lines(rows)
+    assert f"| global-belief | {at_usual} | 2.000 | 2.000 |" in lines
+    assert f"| dist-oracle | {at_usual} | 1.000 | – |" in lines
