@@ -85,6 +85,25 @@ def draw_alternates(
     return tuple(alternates)
 
 
+def place_in_scene(
+    rng: random.Random,
+    home: Home,
+    cls: str,
+    stats: PlacementStats,
+    statics: Sequence[StaticObject],
+    where: StaticObject,
+    placed: dict[str, Placement],
+) -> int:
+    """Put ``cls`` on ``where`` in a scene's ``placed`` objects, drawn anew from the stats
+    distribution while no viewpoint sees it (``place_seeable``); how many draws were refused."""
+    anywhere = partial(_draw_static, rng, stats.counts[cls], statics, None)
+    taken = list(placed.values())
+    p, refused = place_seeable(rng, home, cls, stats.sizes[cls], where, anywhere, taken)
+    if p is not None:
+        placed[p.instance_id] = p
+    return refused
+
+
 def habits(home: Home, seed: int) -> dict[str, Habit]:
     """Each placeable class's usual place and alternates for (home, seed)."""
     stats = PlacementStats.load()
@@ -180,12 +199,7 @@ def habit_schedule(
             else:
                 where = _draw_static(rng, stats.counts[cls], statics, None)
             assert where is not None  # the usual place was drawn from the same statics
-            anywhere = partial(_draw_static, rng, stats.counts[cls], statics, None)
-            taken = list(placed.values())
-            p, refused = place_seeable(rng, home, cls, stats.sizes[cls], where, anywhere, taken)
-            redrawn += refused
-            if p is not None:
-                placed[p.instance_id] = p
+            redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed)
         out[scene] = placed
     name = f"{'moved' if moved else 'habit'}-{seed}"
     return Schedule(name=name, home=home.name, scenes=out, redrawn=redrawn)

@@ -40,9 +40,9 @@ from functools import partial
 
 from objsearch.agent.catalogue import DayClock
 from objsearch.agent.home import Home, StaticObject
-from objsearch.sim.habit_schedule import draw_alternates, stats_distribution
+from objsearch.sim.habit_schedule import draw_alternates, place_in_scene, stats_distribution
 from objsearch.sim.placements import Placements, Schedule
-from objsearch.sim.stats_schedule import PlacementStats, _draw_static, place_seeable
+from objsearch.sim.stats_schedule import PlacementStats, _draw_static
 from objsearch.sim.world import Placement
 
 #: The scenes' times of day (minutes after midnight), one per slot: morning, afternoon,
@@ -206,11 +206,6 @@ def routine_schedule(home: Home, seed: int, *, scenes: int | None = None) -> Sch
             else:
                 where = _draw_static(rng, stats.counts[cls], statics, None)
             assert where is not None  # the usual places were drawn from the same statics
-            anywhere = partial(_draw_static, rng, stats.counts[cls], statics, None)
-            taken = list(placed.values())
-            p, refused = place_seeable(rng, home, cls, stats.sizes[cls], where, anywhere, taken)
-            redrawn += refused
-            if p is not None:
-                placed[p.instance_id] = p
+            redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed)
         out[scene] = placed
     return Schedule(name=f"routine-{seed}", home=home.name, scenes=out, redrawn=redrawn)
