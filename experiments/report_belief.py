@@ -335,8 +335,14 @@ def plot_curves(rows: Sequence[Row], path: Path) -> None:
         ax.set_xlabel("day (scene)")
         ax.set_ylabel("first search: path ÷ oracle path")
         ax.grid(alpha=0.3)
-    handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=len(labels), frameon=False)
+    # Every strategy of every panel once (a routine panel has references the others lack).
+    legend: dict[str, Any] = {}
+    for ax in axes[0]:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            legend.setdefault(label, handle)
+    fig.legend(
+        list(legend.values()), list(legend), loc="lower center", ncol=len(legend), frameon=False
+    )
     fig.tight_layout(rect=(0, 0.1, 1, 1))
     fig.savefig(path.with_suffix(".png"), dpi=130)
     fig.savefig(path.with_suffix(".svg"))
