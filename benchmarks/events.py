@@ -121,7 +121,11 @@ def synthetic_run(n: int, seed: int = 0, stream: str = "bench") -> list[Event]:
         task += 1
         tid = f"task-{task:07d}"
         target = rng.choice(DYNAMIC)
-        add("task_started", {"target": target, "start": "kitchen", "pose": POSE, "scene": 1}, tid)
+        add(
+            "task_started",
+            {"target": target, "start": "kitchen", "pose": POSE, "scene": 1, "clock": None},
+            tid,
+        )
         for _ in range(rng.randint(4, 30)):
             if rng.random() < 0.3:
                 add("moved", {"start": POSE, "end": POSE, "metres": rng.random() * 5,

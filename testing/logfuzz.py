@@ -83,7 +83,13 @@ def _make_log(directory: Path, run_id: str, n: int, *, crash_after: int | None =
             task = f"task-{i // 3:05d}"
             if i % 3 == 0:
                 pose = {"x": 0.25 * i, "y": -1.5, "yaw": 0.5}
-                payload = {"target": "Cup", "start": "kitchen-1", "pose": pose, "scene": i}
+                payload = {
+                    "target": "Cup",
+                    "start": "kitchen-1",
+                    "pose": pose,
+                    "scene": i,
+                    "clock": None,
+                }
                 log.append("task_started", payload, time_ns=10 * i, task_id=task)
             elif i % 3 == 1:
                 log.append(

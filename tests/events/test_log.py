@@ -188,7 +188,7 @@ def test_a_new_log_is_empty(tmp_path: Path) -> None:
             "task_started",
             dict(EXAMPLES["task_started"], target=3),
             {},
-            "invalid task_started v1 event: payload.target: 3 is not of type 'string'",
+            "invalid task_started v2 event: payload.target: 3 is not of type 'string'",
         ),
         ("teleported", {}, {}, "unknown event type 'teleported'; known types: container_opened"),
         ("moved", EXAMPLES["moved"], {"version": 9}, "unknown version 9 of event type 'moved'"),
