@@ -25,7 +25,9 @@ from objsearch.agent.catalogue import STORE
 from objsearch.events.lake_table import TableLake
 
 PROBE = """
-import resource, sys
+import logging, resource, sys
+logging.basicConfig(level=logging.WARNING)
+logging.getLogger("objsearch.events.lake_table").setLevel(logging.INFO)
 from objsearch.cli import main
 rc = main(sys.argv[1:])
 print("MAXRSS_KB", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)
@@ -43,6 +45,9 @@ def lake_add(log: Path, lake: Path) -> tuple[float, float]:
     seconds = time.perf_counter() - started
     if done.returncode != 0:
         raise SystemExit(f"lake add failed: {done.stderr}")
+    for line in done.stderr.splitlines():
+        if "need more" in line:
+            print("   ", line)
     kb = next(int(line.split()[1]) for line in done.stderr.splitlines() if "MAXRSS_KB" in line)
     return seconds, kb / 1024
 
@@ -51,6 +56,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--events", type=int, default=1_000_000)
     ap.add_argument("--reps", type=int, default=1)
+    ap.add_argument("--layouts", default="per-run folders,fleet table")
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="objsearch-bench-lake-add-"))
     try:
@@ -62,7 +68,7 @@ def main() -> int:
         )
         print("  command: python benchmarks/lake_add_memory.py " + " ".join(sys.argv[1:]))
         results = {}
-        for layout in ("per-run folders", "fleet table"):
+        for layout in args.layouts.split(","):
             times, peaks = [], []
             for rep in range(args.reps):
                 lake = work / f"lake-{layout[:3]}-{rep}"
@@ -76,6 +82,8 @@ def main() -> int:
             print(
                 f"  {layout:16} {results[layout][0]:7.1f} s  peak RSS {results[layout][1]:7.0f} MB"
             )
+        if len(results) < 2:
+            return 0
         base, fleet = results["per-run folders"], results["fleet table"]
         print(
             f"  fleet / folders: time {fleet[0] / base[0]:.2f}, peak RSS {fleet[1] / base[1]:.2f}"

@@ -40,6 +40,8 @@ import json
 import logging
 import math
 import os
+import shutil
+import tempfile
 import time
 import uuid
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
@@ -664,9 +666,6 @@ class TableLake:
     def _write_stream(self, events: Iterable[Event], info: TableRun) -> tuple[TableRun, list[Any]]:
         """Write a run's files from its events in chunks; the run's description (rows, digest)
         and the files' add actions. The files are not part of the table until committed."""
-        import duckdb
-
-        from .derived import derive_views
 
         files: dict[str, _StreamFile] = {}
         digests: dict[str, _TypeDigest] = {}
@@ -690,26 +689,14 @@ class TableLake:
         info = dataclasses.replace(
             info, rows=rows, digest=_combine({t: d.hexdigest() for t, d in digests.items()})
         )
-        # The derived tables, from the files just written (read back a batch at a time).
-        con = duckdb.connect(":memory:", config={"threads": 1})
+        # The chunks' buffers back to the system before DuckDB reads the files (Arrow's pool
+        # keeps freed memory for reuse otherwise).
+        pa.default_memory_pool().release_unused()
         try:
-            envelope = ", ".join(f'"{f.name}"' for f in ENVELOPE_COLUMNS)
-            for event_type in self.store.registry.types:
-                if event_type in files:
-                    con.execute(
-                        f'CREATE VIEW "{event_type}" AS SELECT robot, date, run, {envelope}, '
-                        f'"{event_type}".* FROM {self._file_source(con, files[event_type].rel)}'
-                    )
-                else:
-                    empty = event_schema(event_type, self.store).empty_table()
-                    con.register(f"_empty_{event_type}", empty)
-                    con.execute(
-                        f'CREATE VIEW "{event_type}" AS SELECT NULL::VARCHAR AS robot, '
-                        f'NULL::DATE AS date, NULL::VARCHAR AS run, * FROM "_empty_{event_type}"'
-                    )
-            derived = derive_views(con, self.store)
-        finally:
-            con.close()
+            derived = self._derive({t: f.rel for t, f in files.items()})
+        except BaseException:
+            self._delete_files(adds)
+            raise
         small = _small_parts(derived, info, self.store)
         try:
             adds += self._write_files({k: [t] for k, t in small.items()}, info.commit)
@@ -717,6 +704,53 @@ class TableLake:
             self._delete_files(adds)
             raise
         return info, adds
+
+    def _derive(self, files: Mapping[str, str]) -> dict[str, pa.Table]:
+        """The derived tables of one run from its data files just written (``files``: event
+        type → path in the table), read back a batch at a time in bounded memory: DuckDB gets
+        :data:`DERIVE_MEMORY` and spills to a private temp folder beyond it; an operator that
+        cannot spill and needs more gets twice as much, and so on."""
+        import duckdb
+
+        from .derived import derive_views
+
+        memory = DERIVE_MEMORY
+        while True:
+            spill = tempfile.mkdtemp(prefix="objsearch-derive-")
+            con = duckdb.connect(
+                ":memory:",
+                config={
+                    "threads": 1,
+                    "memory_limit": f"{memory}B",
+                    "temp_directory": spill,
+                    "preserve_insertion_order": False,
+                },
+            )
+            try:
+                envelope = ", ".join(f'"{f.name}"' for f in ENVELOPE_COLUMNS)
+                for event_type in self.store.registry.types:
+                    if event_type in files:
+                        con.execute(
+                            f'CREATE VIEW "{event_type}" AS SELECT robot, date, run, {envelope}, '
+                            f'"{event_type}".* FROM {self._file_source(con, files[event_type])}'
+                        )
+                    else:
+                        empty = event_schema(event_type, self.store).empty_table()
+                        con.register(f"_empty_{event_type}", empty)
+                        con.execute(
+                            f'CREATE VIEW "{event_type}" AS SELECT NULL::VARCHAR AS robot, '
+                            "NULL::DATE AS date, NULL::VARCHAR AS run, * "
+                            f'FROM "_empty_{event_type}"'
+                        )
+                return derive_views(con, self.store)
+            except duckdb.OutOfMemoryException as exc:
+                if memory >= DERIVE_MEMORY_MAX:
+                    raise
+                _log.info("derived tables need more than %d MB (%s); again", memory >> 20, exc)
+                memory *= 2
+            finally:
+                con.close()
+                shutil.rmtree(spill, ignore_errors=True)
 
     def _file_source(self, con: Any, rel: str) -> str:
         """What DuckDB reads one of this commit's data files as: ``read_parquet`` (projection
@@ -874,8 +908,32 @@ class TableLake:
 #: Rows of one event type hashed at a time by :func:`table_digest` (and by the streaming commit,
 #: so both give the same digest for the same events however they arrive).
 DIGEST_ROWS: Final = 1 << 16
-#: Events read from a log at a time by the streaming commit (peak RSS of a 1 M-event add: 374 MB at 16 Ki, more at 64 Ki; benchmarks/lake_add_memory.py).
-CHUNK_EVENTS: Final = 1 << 14
+#: DuckDB's memory for the derived tables of a streamed commit (bytes; it spills beyond), and
+#: the most it is given when an operator that cannot spill needs more.
+DERIVE_MEMORY: Final = 48 << 20
+DERIVE_MEMORY_MAX: Final = 4 << 30
+#: Events read from a log at a time by the streaming commit (a chunk of 16 Ki synthetic events
+#: costs ~46 MB while it is turned into tables; benchmarks/lake_add_memory.py).
+CHUNK_EVENTS: Final = 1 << 13
+
+
+class _HashSink:
+    """A writable file whose bytes update a hash."""
+
+    def __init__(self, digest: Any) -> None:
+        self._digest = digest
+        self.closed = False
+
+    def write(self, data: Any) -> int:
+        view = memoryview(data)
+        self._digest.update(view)
+        return view.nbytes
+
+    def flush(self) -> None:
+        pass
+
+    def close(self) -> None:
+        self.closed = True
 
 
 class _TypeDigest:
@@ -900,10 +958,9 @@ class _TypeDigest:
         # ``take`` copies the rows into fresh buffers: IPC writes a slice's whole parent
         # buffers, so the bytes would depend on how the rows were chunked, not only on them.
         compact = table.take(pa.array(range(table.num_rows), pa.int64())).combine_chunks()
-        sink = pa.BufferOutputStream()
-        with pa.ipc.new_stream(sink, table.schema) as writer:
-            writer.write_table(compact)
-        self._hash.update(sink.getvalue())
+        # the stream's bytes go straight into the hash (never a second copy of the slice)
+        with pa.ipc.new_stream(pa.PythonFile(_HashSink(self._hash), mode="w"), table.schema) as w:
+            w.write_table(compact)
 
     def hexdigest(self) -> str:
         if self._rows:
