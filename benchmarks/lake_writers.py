@@ -127,7 +127,12 @@ def run_place(
         outs = [p.communicate(timeout=3600) for p in procs]
         concurrent_s = time.perf_counter() - started
         failed = [i for i, p in enumerate(procs) if p.returncode != 0]
-        commits = sum(json.loads(o.strip().splitlines()[-1])["commits"] for o, _ in outs if o)
+        commits = sum(
+            json.loads(line)["commits"]
+            for o, _ in outs
+            for line in (o or "").splitlines()
+            if line.startswith("{")
+        )
 
         sequential = TableLake(sequential_root, store=STORE)
         started = time.perf_counter()

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import fcntl
 import functools
 import hashlib
 import json
@@ -96,6 +97,8 @@ _RUN_STRUCT: Final = pa.struct(
 )
 #: How often a commit that lost a race with another transaction is tried again.
 COMMIT_TRIES: Final = 50
+#: The lock file (in the lake's folder, beside the table) that keeps compactions apart.
+COMPACTION_LOCK: Final = "_compaction.lock"
 #: ``lake add`` compacts the table once it holds more data files than this.
 COMPACT_AT_FILES: Final = 256
 #: Files compaction aims for (bytes); a table of a fleet's year is a few thousand of them.
@@ -724,6 +727,7 @@ class TableLake:
                     "memory_limit": f"{memory}B",
                     "temp_directory": spill,
                     "preserve_insertion_order": False,
+                    "enable_progress_bar": False,  # lake add prints its own line, no bar
                 },
             )
             try:
@@ -868,15 +872,44 @@ class TableLake:
         )
 
     def _maybe_compact(self, table: Any) -> None:
+        """Compact after a commit once the table holds many files: on a local folder, unless
+        another process is compacting it (then that one does); never on object storage, where
+        no lock of ours can keep two compactions apart (run ``lake compact`` from one place)."""
+        if self.remote:
+            return
         table.update_incremental()
-        if len(table.file_uris()) > COMPACT_AT_FILES:
-            self.compact(vacuum_hours=None)
+        if len(table.file_uris()) <= COMPACT_AT_FILES:
+            return
+        fd = _fs.try_lock(self._compaction_lock_path())
+        if fd is None:
+            return
+        try:
+            self._compact(vacuum_hours=None)
+        finally:
+            os.close(fd)
+
+    def _compaction_lock_path(self) -> Path:
+        return Path(self.uri).parent / COMPACTION_LOCK
 
     def compact(self, *, vacuum_hours: float | None = 1.0) -> dict[str, int]:
-        """Rewrite the small files into few large ones (per ``type``, sorted by robot, run,
-        seq), checkpoint the log, and with ``vacuum_hours`` delete files no version younger
-        than that reads (readers that began earlier may still need them). Concurrent commits
-        are not lost: compaction changes no data, and a race is retried."""
+        """Rewrite the small files into few large ones (per ``type``), checkpoint the log, and
+        with ``vacuum_hours`` delete files no version younger than that reads (readers that
+        began earlier may still need them). Concurrent commits are not lost: compaction changes
+        no data, and a race with a commit is retried. Two compactions must not run at once:
+        delta-rs lets two commits remove the same files, so both would add the same rows again
+        (``benchmarks/lake_writers.py`` found every compacted row twice). On a local folder a
+        lock (``LAKE/_compaction.lock``) keeps them apart; on object storage run one compactor."""
+        if self.remote:
+            return self._compact(vacuum_hours=vacuum_hours)
+        path = self._compaction_lock_path()
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)  # waits for a compaction under way
+            return self._compact(vacuum_hours=vacuum_hours)
+        finally:
+            os.close(fd)
+
+    def _compact(self, *, vacuum_hours: float | None) -> dict[str, int]:
         from deltalake.exceptions import CommitFailedError
 
         before = len(self.table().file_uris())

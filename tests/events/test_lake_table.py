@@ -245,6 +245,41 @@ def test_concurrent_writers_lose_and_duplicate_nothing(tmp_path: Path) -> None:
     assert len(table_counts(concurrent)) == len(logs)
 
 
+COMPACTING_WRITER = """
+import sys
+from pathlib import Path
+import objsearch.events.lake_table as lt
+from objsearch.agent.catalogue import STORE
+lt.COMPACT_AT_FILES = 8  # every few commits: the writers' compactions overlap
+lake = lt.TableLake(sys.argv[1], store=STORE)
+for log in sys.argv[2:]:
+    lt.add_log(Path(log), lake, robot="r", run=Path(log).name)
+"""
+
+
+def test_writers_compacting_at_once_lose_and_duplicate_nothing(tmp_path: Path) -> None:
+    # Each of 3 writers commits 3 runs of its own and compacts when the table holds more than
+    # 8 files; without the compaction lock, two compactions rewrote the same rows twice.
+    logs = [small_log(tmp_path / "logs" / f"log{i}", stream=f"s{i}", n=i) for i in range(9)]
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    lake.create()
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", COMPACTING_WRITER, str(lake.root), *map(str, logs[w::3])]
+        )
+        for w in range(3)
+    ]
+    assert [p.wait(timeout=300) for p in procs] == [0] * 3
+    sequential = TableLake(tmp_path / "seq", store=STORE)
+    for log in logs:
+        add_log(log, sequential, robot="r", run=log.name)
+    assert [(r.run, r.digest) for r in lake.runs()] == [
+        (r.run, r.digest) for r in sequential.runs()
+    ]
+    assert table_counts(lake) == table_counts(sequential)
+    assert len(lake.data_files()) < 9 * len({f.kind for f in lake.data_files()})  # it compacted
+
+
 def test_an_empty_run_name_or_a_bad_date_is_refused(tmp_path: Path) -> None:
     lake = TableLake(tmp_path / "lake", store=STORE)
     with pytest.raises(LakeError, match="must start with a letter"):
