@@ -8,6 +8,7 @@ import logging
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -340,13 +341,13 @@ def test_a_streamed_commit_equals_an_in_memory_one_whatever_the_chunks(
     # DuckDB's memory for the derived tables too small at first: it is given more until enough.
     monkeypatch.setattr(lt, "DERIVE_MEMORY", 1 << 16)
     spills: list[str] = []
-    mkdtemp = lt.tempfile.mkdtemp
+    mkdtemp = tempfile.mkdtemp
 
     def counted(prefix: str) -> str:
         spills.append(prefix)
         return mkdtemp(prefix=prefix)
 
-    monkeypatch.setattr(lt.tempfile, "mkdtemp", counted)
+    monkeypatch.setattr(tempfile, "mkdtemp", counted)
     streamed = TableLake(tmp_path / "streamed", store=STORE)
     by_stream = add_log(log, streamed, robot="sim")
     assert len(spills) > 1  # the derived tables were tried again with more memory
