@@ -716,6 +716,7 @@ class TableLake:
         import duckdb
 
         from .derived import derive_views
+        from .sql_limits import progress_bar_off
 
         memory = DERIVE_MEMORY
         while True:
@@ -727,10 +728,10 @@ class TableLake:
                     "memory_limit": f"{memory}B",
                     "temp_directory": spill,
                     "preserve_insertion_order": False,
-                    "enable_progress_bar": False,  # lake add prints its own line, no bar
                 },
             )
             try:
+                progress_bar_off(con)  # lake add prints its own line
                 envelope = ", ".join(f'"{f.name}"' for f in ENVELOPE_COLUMNS)
                 for event_type in self.store.registry.types:
                     if event_type in files:

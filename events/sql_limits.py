@@ -111,13 +111,18 @@ def apply_limits(con: duckdb.DuckDBPyConnection, *, memory_limit: int, threads: 
         f"max_temp_directory_size = '{SPILL_FACTOR * memory_limit}B'",
         f"threads = {threads}",
     ]
-    # Under Jupyter DuckDB has the bar off already and refuses any change to it without
-    # ipywidgets (open_analytics in a notebook failed): turn it off only where it is on.
-    if con.execute("SELECT current_setting('enable_progress_bar')").fetchone() != (False,):
-        settings.append("enable_progress_bar = false")
     for setting in settings:
         con.execute(f"SET {setting}")
+    progress_bar_off(con)
     return temp
+
+
+def progress_bar_off(con: duckdb.DuckDBPyConnection) -> None:
+    """Turn DuckDB's progress bar off (it writes to the terminal). Under Jupyter DuckDB has it
+    off already and refuses any change to it without ipywidgets (open_analytics in a notebook
+    failed): turned off only where it is on."""
+    if con.execute("SELECT current_setting('enable_progress_bar')").fetchall() != [(False,)]:
+        con.execute("SET enable_progress_bar = false")
 
 
 def close(con: duckdb.DuckDBPyConnection) -> None:
