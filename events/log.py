@@ -16,6 +16,10 @@ log, so records of another log never pass as this one's.
 The writer locks ``events.log`` itself: a lock file can be deleted from under a writer (and a
 second writer then locks a new inode of the same name); the log cannot be, without the writer
 noticing (it checks the file is still linked at every fsync).
+
+Here: the writer (:class:`EventLog`) and the readers. What the directory's other files say and how
+they are read and written is in :mod:`.log_files`; one checked pass over the records, which both
+use, is :mod:`.scan`.
 """
 
 from __future__ import annotations
@@ -28,22 +32,16 @@ import threading
 import time
 import uuid
 import warnings
-import zlib
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Any, Final, NoReturn
-
-import msgspec
+from typing import Any
 
 from . import _fs
-from .diagnose import Witness, diagnose
-from .envelope import Event, check_event, decode_event, deterministic_event_id
+from .envelope import Event, deterministic_event_id
 from .errors import (
     CorruptLogError,
     DuplicateEventError,
-    EventStoreError,
     InvalidEventError,
     LogClosedError,
     LogLockedError,
@@ -52,381 +50,68 @@ from .errors import (
     TornTailWarning,
     WrongExpectedSeqError,
 )
-from .record import RECORD_SEPARATOR, RecordError, decode_record, encode_record
+from .log_files import (
+    DURABLE_FILE,
+    LOCK_FILE,
+    LOG_FILE,
+    LOG_FORMAT,
+    LOG_FORMAT_V1,
+    MAX_ATTESTED,
+    META_FILE,
+    QUARANTINE_PREFIX,
+    Durable,
+    DurableRecord,
+    LogMeta,
+    LogPosition,
+    TornTail,
+    position_from_json,
+    position_to_json,
+    read_durable,
+    read_durable_record,
+    read_meta,
+    write_durable,
+)
+from .record import encode_record
+from .scan import QUARANTINED_TYPE, BadRecord, _Cursor, _Scan, check_record
 from .schemas import SchemaRegistry
-from .seal import Seal, Sealer, check_seals, seals_from_json, seals_to_json
+from .seal import Sealer, check_seals
 from .store import Store, shipped
-
-LOG_FORMAT: Final = "objsearch.events/2"
-#: Read and appended to as they are: plain CRC-32 per record, ids from the stream name.
-LOG_FORMAT_V1: Final = "objsearch.events/1"
-LOG_FILE: Final = "events.log"
-META_FILE: Final = "meta.json"
-DURABLE_FILE: Final = "durable.json"
-LOCK_FILE: Final = "LOCK"
-#: Prefix of the files that keep bytes a writer or ``repair_log`` took out of ``events.log``.
-QUARANTINE_PREFIX: Final = "events.log."
 
 _log = logging.getLogger(__name__)
 
-
-@dataclass(frozen=True, slots=True)
-class LogMeta:
-    """What ``meta.json`` says: the on-disk format, the stream and (format 2) the run id."""
-
-    format: str
-    stream: str
-    run_id: str | None
-
-    @property
-    def chained(self) -> bool:
-        return self.format == LOG_FORMAT
-
-    @property
-    def genesis(self) -> int:
-        """The checksum the first record's chains from (0: plain CRC-32 in format 1)."""
-        if not self.chained:
-            return 0
-        return zlib.crc32(f"{self.format}\n{self.stream}\n{self.run_id}\n".encode())
-
-    def id_key(self) -> str:
-        """What default event ids are derived from: the run id (format 1: the stream)."""
-        return self.run_id if self.run_id is not None else self.stream
-
-
-@dataclass(frozen=True, slots=True)
-class LogPosition:
-    """A point in a log: right after the record of ``seq``, which ends at byte ``offset`` on line
-    ``line`` with chain checksum ``checksum`` and ``time_ns``. The durable high-water mark is one;
-    so is where a snapshot was taken. A reader can resume there after checking that the record
-    ending at ``offset`` is still that record (:func:`read_log_after`)."""
-
-    seq: int
-    offset: int
-    checksum: int
-    line: int
-    time_ns: int
-
-
-#: The durable high-water mark: where the log ended when its writer last closed.
-Durable = LogPosition
-
-#: How many snapshot attestations ``durable.json`` keeps (the newest).
-MAX_ATTESTED: Final = 8
-
-
-@dataclass(frozen=True, slots=True)
-class DurableRecord:
-    """All of ``durable.json``: the high-water mark, the seals of every byte before it (None in a
-    mark written before seals existed) and the snapshots the writer attested: (seq, SHA-256 of
-    the snapshot file) — a snapshot is trusted only if its digest is here."""
-
-    position: LogPosition
-    seals: tuple[Seal, ...] | None
-    attested: tuple[tuple[int, str], ...] = ()
-
-
-@dataclass(frozen=True, slots=True)
-class TornTail:
-    """An unterminated fragment after the last newline: an append that never completed."""
-
-    path: Path
-    offset: int  # where the last good record ends: the file is cut (or read) up to here
-    length: int  # bytes from ``offset`` to the end of the file
-    line: int  # line number (1-based) of the fragment
-    quarantine: Path | None = None  # where a writer kept the bytes it cut
-    lines: int = 1
-    complete: bool = False
-    reason: str = "last line has no newline (interrupted append)"
-
-
-@dataclass(slots=True)
-class _Cursor:
-    """Where a scan stands: after the record ending at ``offset`` (line ``line``, seq ``seq``)."""
-
-    offset: int = 0
-    line: int = 0
-    seq: int = 0
-    checksum: int = 0
-    time_ns: int = 0
-
-
-class _Scan:
-    """One pass over ``events.log`` that checks every record and yields the good events in order.
-
-    Only an unterminated fragment after the last newline is a torn tail (``torn_tail``); any
-    complete line that is not a valid record, a broken checksum chain, a seq gap, a record of
-    another stream, an event type or version this code does not know, time running backwards,
-    or a log that ends before its durable high-water mark is a :class:`CorruptLogError`.
-    """
-
-    def __init__(
-        self,
-        path: Path,
-        meta: LogMeta,
-        *,
-        registry: SchemaRegistry,
-        durable: Durable | None = None,
-        stop_after: int | None = None,
-        start: _Cursor | LogPosition | None = None,
-        ids: dict[str, int] | None = None,
-        sealer: Sealer | None = None,
-        payloads: bool = True,
-    ) -> None:
-        self.path = path
-        #: False: the events yielded keep their payload as JSON text (a scan that only checks)
-        self.payloads = payloads
-        self.meta = meta
-        self.registry = registry
-        self.durable = durable
-        self.stop_after = stop_after
-        self.torn_tail: TornTail | None = None
-        if isinstance(start, LogPosition):
-            start = _Cursor(start.offset, start.line, start.seq, start.checksum, start.time_ns)
-        self.at = start if start is not None else _Cursor(checksum=meta.genesis)
-        #: when given, filled with event id → byte offset of its record (for idempotent appends)
-        self.ids = ids
-        #: when given, fed every verified record's bytes (a writer's seals)
-        self.sealer = sealer
-
-    @property
-    def end_offset(self) -> int:
-        return self.at.offset
-
-    @property
-    def last_seq(self) -> int:
-        return self.at.seq
-
-    def __iter__(self) -> Iterator[Event]:
-        try:
-            f = self.path.open("rb")
-        except FileNotFoundError:
-            f = None  # meta.json written, crash before events.log existed: an empty log
-        if f is not None:
-            with f:
-                if self.at.offset:
-                    f.seek(self.at.offset)
-                yield from self._lines(f)
-        if self.stop_after is None or self.at.seq < self.stop_after:
-            self._check_durable()
-
-    def _lines(self, f: IO[bytes]) -> Iterator[Event]:
-        at = self.at
-        # The cursor lives in locals while the loop runs (its attributes cost a fifth of a scan
-        # that only verifies) and is written back to ``self.at`` before anything reads it: the
-        # slow path, and on every way out (the end, a return, an error, the caller stopping).
-        offset, line_no, seq, checksum, time_ns = (
-            at.offset,
-            at.line,
-            at.seq,
-            at.checksum,
-            at.time_ns,
-        )
-        meta = self.meta
-        registry = self.registry
-        stream = meta.stream
-        chained = meta.chained
-        known = registry.known
-        mark = self.durable
-        mark_seq = mark.seq if mark is not None else -1
-        ids = self.ids
-        sealer = self.sealer
-        stop_after = self.stop_after
-        crc32 = zlib.crc32
-        decode = decode_event if self.payloads else check_event
-        try:
-            for line in f:
-                start = offset
-                if line[-1:] != b"\n":
-                    # The only shape an interrupted append can leave: bytes after the last newline.
-                    self.torn_tail = TornTail(
-                        path=self.path, offset=start, length=len(line), line=line_no + 1
-                    )
-                    return
-                # The fast path: a record whose checksum, envelope, place and type all hold, read
-                # with one decode (check_record is the same checks, spelled out, with the reasons).
-                body, sep, crc = line.rpartition(RECORD_SEPARATOR)
-                value = crc32(body, checksum if chained else 0)
-                event: Event | None = None
-                if sep and crc == b"%08x\n" % value:
-                    try:
-                        event = decode(body)
-                    except msgspec.MsgspecError:
-                        event = None
-                if (
-                    event is None
-                    or event.seq != seq + 1
-                    or event.stream != stream
-                    or (event.type, event.version) not in known
-                    or event.time_ns < time_ns
-                    or event.type == QUARANTINED_TYPE
-                ):
-                    at.offset, at.line, at.seq, at.checksum, at.time_ns = (
-                        offset,
-                        line_no,
-                        seq,
-                        checksum,
-                        time_ns,
-                    )
-                    try:
-                        event, value = check_record(line[:-1], at, meta, registry)
-                    except BadRecord as exc:
-                        reason = exc.reason
-                        if exc.record_error is not None:
-                            reason = self._explain(line[:-1], exc.record_error, f)
-                        self._corrupt(line_no + 1, start, reason)
-                offset = start + len(line)
-                line_no += 1
-                seq = event.seq
-                checksum = value
-                time_ns = event.time_ns
-                if seq == mark_seq:
-                    assert mark is not None
-                    if offset != mark.offset or checksum != mark.checksum:
-                        self._corrupt(
-                            line_no,
-                            start,
-                            f"the record at seq {mark.seq} is not the one its writer closed the "
-                            f"log with ({DURABLE_FILE}: ends at byte {mark.offset}, checksum "
-                            f"{mark.checksum:08x})",
-                        )
-                if ids is not None:
-                    ids[event.event_id] = start
-                if sealer is not None:
-                    sealer.add(line)
-                yield event
-                if stop_after is not None and seq >= stop_after:
-                    return
-        finally:
-            at.offset, at.line, at.seq, at.checksum, at.time_ns = (
-                offset,
-                line_no,
-                seq,
-                checksum,
-                time_ns,
-            )
-
-    def _explain(self, line: bytes, exc: RecordError, f: IO[bytes]) -> str:
-        reason = exc.reason
-        if not exc.intact and not line.endswith(b"\r"):
-            after = f.readline()  # the witness: the next record chains from this one's checksum
-            mark = self.durable
-            at = self.at
-            witness = Witness(
-                after[:-1] if after.endswith(b"\n") else None,
-                mark.checksum
-                if mark is not None
-                and mark.seq == at.seq + 1
-                and mark.offset == at.offset + len(line) + 1
-                else None,
-            )
-            found = diagnose(
-                line,
-                at.checksum,
-                seq=at.seq + 1,
-                stream=self.meta.stream,
-                id_key=self.meta.id_key(),
-                chained=self.meta.chained,
-                witness=witness,
-            )
-            if found.kind == "extra":
-                return f"{found.reason} ({reason})"
-            if found.kind == "lost":
-                return (
-                    f"this log's record of seq {found.found_seq} stands where seq {at.seq + 1} "
-                    f"belongs: the records before it are missing or out of order ({reason})"
-                )
-            if found.kind != "unproven":
-                return f"record at seq {at.seq + 1} is damaged: {found.reason} ({reason})"
-        if line.endswith(b"\r"):
-            return (
-                f"{reason}; the line ends in CR LF: its line endings were converted (git "
-                "core.autocrlf, an editor), `objsearch log repair` can convert them back"
-            )
-        if exc.intact:
-            return reason
-        try:
-            Event._adopt(json.loads(line.rpartition(b"\t")[0]))
-        except (ValueError, InvalidEventError):
-            return reason
-        return (
-            f"{reason}: the record reads as a whole, valid event, so it was most likely not "
-            "damaged but spliced, reordered or copied from another log (its checksum does not "
-            "follow its predecessor)"
-        )
-
-    def _check_durable(self) -> None:
-        mark = self.durable
-        if mark is None:
-            return
-        at = self.at
-        if at.offset < mark.offset or at.seq < mark.seq:
-            lost = "" if self.torn_tail is None else " (the rest is an unterminated fragment)"
-            self._corrupt(
-                at.line + 1,
-                at.offset,
-                f"the log ends at seq {at.seq} (byte {at.offset}){lost}, but its writer closed "
-                f"it at seq {mark.seq} (byte {mark.offset}, {DURABLE_FILE}): acknowledged "
-                "records are missing",
-            )
-
-    def _corrupt(self, line: int, offset: int, reason: str) -> NoReturn:
-        raise CorruptLogError(
-            f"corrupt event log {self.path}: line {line} (byte offset {offset}): {reason}; "
-            "the log was not changed (`objsearch log repair` keeps what it removes)",
-            path=str(self.path),
-            line=line,
-            offset=offset,
-        )
-
-
-#: The type ``objsearch log repair`` writes in the place of a record it moved out; the one type
-#: the store reads a field of (``chain``: where the next record's checksum chain continues from).
-QUARANTINED_TYPE: Final = "record_quarantined"
-
-
-class BadRecord(Exception):
-    """A complete line that is not the next valid record (``record_error``: its own framing,
-    checksum or envelope is wrong, rather than where it stands)."""
-
-    def __init__(self, reason: str, record_error: RecordError | None = None) -> None:
-        super().__init__(reason)
-        self.reason = reason
-        self.record_error = record_error
-
-
-def check_record(
-    line: bytes, at: _Cursor | LogPosition, meta: LogMeta, registry: SchemaRegistry
-) -> tuple[Event, int]:
-    """The event of ``line`` (no newline) if it is the valid record after ``at``, and the chain
-    value the next record continues from; :class:`BadRecord` saying why not."""
-    try:
-        event, checksum = decode_record(line, at.checksum if meta.chained else 0)
-    except RecordError as exc:
-        raise BadRecord(exc.reason, exc) from None
-    if event.stream != meta.stream:
-        raise BadRecord(f"record of stream {event.stream!r} in the log of stream {meta.stream!r}")
-    if event.seq != at.seq + 1:
-        raise BadRecord(f"expected seq {at.seq + 1}, found seq {event.seq}")
-    if not registry.knows(event.type, event.version):
-        raise BadRecord(
-            f"event type {event.type!r} version {event.version} is not one this code "
-            "knows (written by newer code, or damaged)"
-        )
-    if event.time_ns < at.time_ns:
-        raise BadRecord(f"time runs backwards: time_ns {event.time_ns} after {at.time_ns}")
-    if event.type == QUARANTINED_TYPE:
-        chain = event.payload.get("chain")
-        if chain is not None:
-            if not (isinstance(chain, str) and len(chain) == 8 and chain == chain.lower()):
-                raise BadRecord(f"{QUARANTINED_TYPE}: chain {chain!r} is not 8 hex digits")
-            try:
-                checksum = int(chain, 16)
-            except ValueError:
-                raise BadRecord(
-                    f"{QUARANTINED_TYPE}: chain {chain!r} is not 8 hex digits"
-                ) from None
-    return event, checksum
+#: The log's API: its own, and what it names from .log_files (the directory's other files) and
+#: .scan (a checked pass over the records).
+__all__ = [
+    "DURABLE_FILE",
+    "LOCK_FILE",
+    "LOG_FILE",
+    "LOG_FORMAT",
+    "LOG_FORMAT_V1",
+    "MAX_ATTESTED",
+    "META_FILE",
+    "QUARANTINED_TYPE",
+    "QUARANTINE_PREFIX",
+    "BadRecord",
+    "Durable",
+    "DurableRecord",
+    "EventLog",
+    "LogMeta",
+    "LogPosition",
+    "TornTail",
+    "check_position",
+    "check_record",
+    "follow_log",
+    "is_being_written",
+    "position_from_json",
+    "position_to_json",
+    "quarantine",
+    "read_durable",
+    "read_durable_record",
+    "read_log",
+    "read_log_after",
+    "read_meta",
+    "write_durable",
+]
 
 
 class EventLog:
@@ -1184,146 +869,6 @@ def quarantine(directory: Path, label: str, data: bytes) -> Path:
 def _report(message: str, *, stacklevel: int) -> None:
     _log.warning("%s", message)
     warnings.warn(message, TornTailWarning, stacklevel=stacklevel)
-
-
-def read_meta(directory: Path) -> LogMeta:
-    """What ``meta.json`` says, after checking the directory is a log this code can read."""
-    meta_path = directory / META_FILE
-    try:
-        raw = meta_path.read_bytes()
-    except (FileNotFoundError, NotADirectoryError):
-        if not directory.is_dir():
-            raise LogNotFoundError(
-                f"no event log at {directory}: the directory does not exist"
-            ) from None
-        extra = f" (but {LOG_FILE} exists)" if (directory / LOG_FILE).exists() else ""
-        raise LogNotFoundError(
-            f"no event log at {directory}: {META_FILE} is missing{extra}"
-        ) from None
-    try:
-        meta = json.loads(raw)
-    except ValueError as exc:
-        raise EventStoreError(f"{meta_path} is not valid JSON: {exc}") from exc
-    found = meta.get("format") if isinstance(meta, dict) else None
-    if found not in (LOG_FORMAT, LOG_FORMAT_V1):
-        raise EventStoreError(
-            f"{meta_path}: unsupported log format {found!r} (this code reads {LOG_FORMAT!r} "
-            f"and {LOG_FORMAT_V1!r})"
-        )
-    assert isinstance(meta, dict)
-    expected = {"format", "stream"} | ({"run_id"} if found == LOG_FORMAT else set())
-    if set(meta) != expected:
-        raise EventStoreError(f"{meta_path}: expected exactly the keys {sorted(expected)}")
-    stream = meta["stream"]
-    if not (isinstance(stream, str) and stream):
-        raise EventStoreError(f"{meta_path}: 'stream' is missing or not a non-empty string")
-    run_id = meta.get("run_id")
-    if found == LOG_FORMAT:
-        try:
-            valid = isinstance(run_id, str) and str(uuid.UUID(run_id)) == run_id
-        except ValueError:
-            valid = False
-        if not valid:
-            raise EventStoreError(f"{meta_path}: 'run_id' is not a canonical UUID: {run_id!r}")
-    return LogMeta(found, stream, run_id)
-
-
-def _read_meta(directory: Path) -> str:
-    """The stream named in ``meta.json`` (see :func:`read_meta`)."""
-    return read_meta(directory).stream
-
-
-def read_durable(directory: Path) -> Durable | None:
-    """The high-water mark the writer left at its last close, or None if it left none."""
-    record = read_durable_record(directory)
-    return None if record is None else record.position
-
-
-def read_durable_record(directory: Path) -> DurableRecord | None:
-    """All of ``durable.json`` (:class:`DurableRecord`), or None if there is none."""
-    path = directory / DURABLE_FILE
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        return None
-    try:
-        doc = json.loads(raw)
-        if not isinstance(doc, dict):
-            raise ValueError("not a JSON object")
-        extra = {k: doc.pop(k) for k in ("seals", "snapshots") if k in doc}
-        position = position_from_json(doc)
-        seals = seals_from_json(extra["seals"]) if "seals" in extra else None
-        if seals and seals[-1].end != position.offset:
-            raise ValueError(f"seals end at byte {seals[-1].end}, the mark at {position.offset}")
-        attested = _attested_from_json(extra.get("snapshots", []))
-        mark = DurableRecord(position, seals, attested)
-    except (ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise CorruptLogError(
-            f"corrupt event log {directory}: {path} is damaged ({exc}); the log was not changed "
-            "(`objsearch log repair` rewrites it from the records)",
-            path=str(path),
-            line=0,
-            offset=0,
-        ) from exc
-    return mark
-
-
-def _attested_from_json(doc: Any) -> tuple[tuple[int, str], ...]:
-    if not isinstance(doc, list):
-        raise ValueError("snapshots: not a list")
-    out = []
-    for item in doc:
-        if not (
-            isinstance(item, list)
-            and len(item) == 2
-            and type(item[0]) is int
-            and isinstance(item[1], str)
-        ):
-            raise ValueError("snapshots: an item is not [seq, sha256]")
-        out.append((item[0], item[1]))
-    return tuple(out)
-
-
-def write_durable(
-    directory: Path,
-    mark: Durable,
-    seals: tuple[Seal, ...] = (),
-    attested: tuple[tuple[int, str], ...] = (),
-) -> None:
-    """Write ``durable.json`` atomically: the mark, the seals of ``[0, mark.offset)`` and the
-    attested snapshots."""
-    if seals and seals[-1].end != mark.offset:
-        raise ValueError(f"seals end at byte {seals[-1].end}, the mark at {mark.offset}")
-    doc: dict[str, Any] = position_to_json(mark)
-    doc["seals"] = seals_to_json(seals)
-    doc["snapshots"] = [list(a) for a in attested]
-    _fs.write_atomic(directory / DURABLE_FILE, json.dumps(doc, sort_keys=True).encode() + b"\n")
-
-
-def position_to_json(at: LogPosition) -> dict[str, Any]:
-    return {
-        "seq": at.seq,
-        "offset": at.offset,
-        "checksum": f"{at.checksum:08x}",
-        "line": at.line,
-        "time_ns": at.time_ns,
-    }
-
-
-def position_from_json(doc: Any) -> LogPosition:
-    """The inverse of :func:`position_to_json`; ``ValueError`` if ``doc`` is not one."""
-    if not isinstance(doc, dict) or set(doc) != {"seq", "offset", "checksum", "line", "time_ns"}:
-        raise ValueError("unexpected keys")
-    at = LogPosition(
-        seq=doc["seq"],
-        offset=doc["offset"],
-        checksum=int(doc["checksum"], 16),
-        line=doc["line"],
-        time_ns=doc["time_ns"],
-    )
-    if not all(type(v) is int and v >= 0 for v in (at.seq, at.offset, at.line, at.time_ns)):
-        raise ValueError("unexpected values")
-    return at
 
 
 def check_position(directory: Path, meta: LogMeta, at: LogPosition) -> None:

@@ -31,8 +31,6 @@ from .log import (
     LogMeta,
     LogPosition,
     _check_sealed,
-    _Cursor,
-    _Scan,
     check_record,
     quarantine,
     read_durable_record,
@@ -40,6 +38,7 @@ from .log import (
     write_durable,
 )
 from .record import encode_record
+from .scan import _Cursor, _Scan
 from .schemas import SchemaRegistry
 from .seal import Sealer, check_seals
 from .store import Store, shipped

@@ -256,6 +256,6 @@ def _fingerprint(event: Event) -> str:
 
 
 def _stream(log_dir: Path | str) -> str:
-    from .log import _read_meta
+    from .log_files import _read_meta
 
     return _read_meta(Path(log_dir))
