@@ -23,7 +23,7 @@ from pathlib import Path
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.home import available_homes
 from objsearch.agent.policy import Recorder, SearchAgent
-from objsearch.agent.session import load_context
+from objsearch.agent.session import HomeContext, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import RunSpec
 from objsearch.events.log import read_log
@@ -36,7 +36,8 @@ class _NoSink:
         raise AssertionError("planning only")
 
 
-def plan_times(home: str, strategy: str, scenes: int) -> list[float]:
+def planning_agent(home: str, strategy: str, scenes: int) -> tuple[HomeContext, SearchAgent]:
+    """A planning-only agent of ``strategy`` whose memory holds ``scenes`` scenes of habit-0."""
     ctx = load_context(home)
     spec = RunSpec.for_home(ctx.home, strategy, schedule="habit-0")
     with tempfile.TemporaryDirectory() as tmp:
@@ -51,6 +52,11 @@ def plan_times(home: str, strategy: str, scenes: int) -> list[float]:
         spec.config(),
         spec.stop_planner(),
     )
+    return ctx, agent
+
+
+def plan_times(home: str, strategy: str, scenes: int) -> list[float]:
+    ctx, agent = planning_agent(home, strategy, scenes)
     times: list[float] = []
     for target in TARGET_ORDER:
         for pose in ctx.home.starts.values():
@@ -76,20 +82,7 @@ def global_decision_times(home: str, scenes: int) -> tuple[list[float], list[flo
     """Each decision of ``global-belief``'s searches, walked as the search walks it when the
     target is nowhere (every segment, to the last stop): the most decisions a search can take.
     Returns every decision's time and each search's first (the largest problem)."""
-    ctx = load_context(home)
-    spec = RunSpec.for_home(ctx.home, "global-belief", schedule="habit-0")
-    with tempfile.TemporaryDirectory() as tmp:
-        run_schedule(Path(tmp), spec, scenes=range(1, scenes + 1), skip_absent_targets=True)
-        state = fold(read_log(Path(tmp), store=STORE), AgentState())
-    agent = SearchAgent(
-        ctx.navmap,
-        ctx.semmap,
-        ctx.vocabulary,
-        state.graph(),
-        Recorder(_NoSink(), ()),  # type: ignore[arg-type]
-        spec.config(),
-        spec.stop_planner(),
-    )
+    ctx, agent = planning_agent(home, "global-belief", scenes)
     times: list[float] = []
     firsts: list[float] = []
     for target in TARGET_ORDER:
