@@ -10,9 +10,11 @@ that: n and the range of the run values).
 
 from __future__ import annotations
 
+import json
 import math
 import random
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -349,10 +351,23 @@ def plot_curves(rows: Sequence[Row], path: Path) -> None:
     plt.close(fig)
 
 
-def report(folders: Sequence[Path], out: Path | None = None) -> str:
+def read_outputs(folders: Sequence[Path]) -> list[Row]:
+    """The searches of ``bench homes`` outputs. A run with ``--inspection cover`` (its
+    summary.json says so) names its strategies ``NAME+cover``, so it pairs with the same strategy's
+    run without it instead of mixing with it."""
     rows: list[Row] = []
     for folder in folders:
-        rows.extend(read_rows(folder / "homes_trials.parquet"))
+        summary = folder / "summary.json"
+        inspection = "single"
+        if summary.is_file():
+            inspection = str(json.loads(summary.read_text(encoding="utf-8")).get("inspection"))
+        for r in read_rows(folder / "homes_trials.parquet"):
+            rows.append(replace(r, strategy=f"{r.strategy}+cover") if inspection == "cover" else r)
+    return rows
+
+
+def report(folders: Sequence[Path], out: Path | None = None) -> str:
+    rows = read_outputs(folders)
     if not rows:
         return "no searches in these outputs"
     homes = sorted({r.home for r in rows})
@@ -376,6 +391,11 @@ def report(folders: Sequence[Path], out: Path | None = None) -> str:
                 ("global-belief", "ecost-belief"),
                 ("global-belief", "dist-oracle-global"),
                 ("dist-oracle-global", ORACLE),
+                *(
+                    (f"{name}+cover", name)
+                    for name in sorted({r.strategy for r in mine})
+                    if f"{name}+cover" in {r.strategy for r in mine}
+                ),
             ],
             after,
         )
@@ -397,7 +417,5 @@ def report(folders: Sequence[Path], out: Path | None = None) -> str:
 
 def main_summary(folders: Sequence[Path]) -> dict[str, Any]:
     """The per-day curves as JSON (for a notebook or a plot of one's own)."""
-    rows: list[Row] = []
-    for folder in folders:
-        rows.extend(read_rows(folder / "homes_trials.parquet"))
+    rows = read_outputs(folders)
     return {k: per_day([r for r in rows if kind(r) == k]) for k in sorted({kind(r) for r in rows})}

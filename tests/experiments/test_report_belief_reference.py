@@ -3,9 +3,17 @@ less, and the usual-place table keeps the days the schedule put the target at it
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 from objsearch.agent.home import load_home
-from objsearch.experiments.report_belief import ratio_table, usual_place_lines
-from objsearch.experiments.runner import Row
+from objsearch.experiments.report_belief import (
+    ratio_table,
+    read_outputs,
+    report,
+    usual_place_lines,
+)
+from objsearch.experiments.runner import Row, write_rows
 from objsearch.sim.habit_schedule import habit_schedule, habits
 from objsearch.sim.longterm import TARGET_ORDER
 
@@ -58,3 +66,15 @@ def test_the_usual_place_table_keeps_the_days_the_target_was_at_its_usual_place(
     lines = usual_place_lines(rows)
     assert f"| global-belief | {at_usual} | 2.000 | 2.000 |" in lines
     assert f"| dist-oracle | {at_usual} | 1.000 | – |" in lines
+
+
+def test_a_cover_run_pairs_with_the_same_strategy_without_it(tmp_path: Path) -> None:
+    for name, inspection, factor in (("single", "single", 1.0), ("cover", "cover", 1.5)):
+        folder = tmp_path / name
+        folder.mkdir()
+        write_rows(_rows("global-belief", factor), folder, "homes_trials")
+        (folder / "summary.json").write_text(json.dumps({"inspection": inspection}))
+    rows = read_outputs([tmp_path / "single", tmp_path / "cover"])
+    assert {r.strategy for r in rows} == {"global-belief", "global-belief+cover"}
+    text = report([tmp_path / "single", tmp_path / "cover"])
+    assert "| global-belief+cover − global-belief | 1 |" in text
