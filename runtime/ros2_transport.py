@@ -18,7 +18,6 @@ leaves ROS 2's default (the subnet). ``peers`` other than 127.0.0.1 become ``ROS
 
 from __future__ import annotations
 
-import contextlib
 import importlib
 import logging
 import os
@@ -209,8 +208,16 @@ class Ros2Transport:
     def _spin(self) -> None:
         from rclpy.executors import ExternalShutdownException
 
-        with contextlib.suppress(ExternalShutdownException):
+        try:
             self._executor.spin()
+        except ExternalShutdownException:
+            pass
+        except Exception:
+            # Closing on a loaded machine: the executor's shutdown timed out with a spin still in
+            # progress, and the node it was waiting on is gone (rclpy's InvalidHandle). Nothing is
+            # lost at that point; any other time it is a real error.
+            if not self._closed.is_set():
+                raise
 
     def publisher(self, topic: str, msgtype: str, qos: QoS) -> _Ros2Publisher:
         from rclpy.event_handler import PublisherEventCallbacks
@@ -273,6 +280,7 @@ class Ros2Transport:
             return
         self._closed.set()
         self._executor.shutdown(timeout_sec=5.0)
+        # The spin ends before its node goes (destroying a node under a spin breaks the spin).
+        self._spinner.join(5.0)
         self.node.destroy_node()
         self._context.try_shutdown()
-        self._spinner.join(5.0)
