@@ -58,20 +58,20 @@ def semantic_cases(scratch: Path) -> list[tuple[str, list[str]]]:
         ("seq past the log", ["graph", "--log", empty, "--at", "5"]),
         ("demo in an unknown home", ["demo", "--out", str(scratch / "demo"), "--home", "castle"]),
         ("demo into someone's folder", ["demo", "--out", str(scratch), "--force"]),
-        ("record unknown format", ["record", "--out", str(scratch / "r"), "--format", "ros3"]),
+        ("record unknown format", ["record", "--out", str(scratch / "r"), "--bag-format", "ros3"]),
         (
             "record unknown target",
-            ["record", "--out", str(scratch / "r.bag"), "--format", "ros1", "--targets", "Cat"],
+            ["record", "--out", str(scratch / "r.bag"), "--bag-format", "ros1", "--targets", "Cat"],
         ),
         (
             "record bad topic map",
-            ["record", "--out", str(scratch / "r.bag"), "--format", "ros1", "--topics", text],
+            ["record", "--out", str(scratch / "r.bag"), "--bag-format", "ros1", "--topics", text],
         ),
         (
             "record topic map not toml",
             [
                 "record",
-                *("--out", str(scratch / "r.bag"), "--format", "ros1", "--topics", str(topics)),
+                *("--out", str(scratch / "r.bag"), "--bag-format", "ros1", "--topics", str(topics)),
             ],
         ),
         ("ingest a text file", ["ingest", text, "--lake", str(scratch / "lake")]),

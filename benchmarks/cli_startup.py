@@ -48,7 +48,8 @@ def main() -> int:
             "Apple",
             "--start",
             "kitchen-1",
-            "--json",
+            "--format",
+            "json",
             "--log",
             str(Path(tmp) / "log"),
         ]

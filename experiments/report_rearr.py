@@ -88,7 +88,7 @@ def render_rearr(run: dict[str, Any], rows: Sequence[Row], folder: Path) -> str:
     cmd = (
         f"objsearch bench homes --out {folder} --homes {','.join(homes)} "
         f"--schedules {','.join(run.get('schedules', kinds))} --seeds {len(seeds)} "
-        f"--scenes {scenes} --strategies {','.join(strategies)} --workers {run['workers']}"
+        f"--scenes-per-schedule {scenes} --strategies {','.join(strategies)} --workers {run['workers']}"
     )
     moves = {k: schedule_moves(homes, k, seeds, scenes) for k in kinds}
     rearr = moves["rearr"]

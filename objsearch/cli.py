@@ -51,16 +51,16 @@ def cmd_data_build(args: argparse.Namespace) -> int:
             procthor=houses,
             heldout_ithor=args.heldout_ithor or (),
             accept=args.accept or (),
-            progress=None if args.json else lambda line: print(line, file=sys.stderr),
+            progress=None if args.format == "json" else lambda line: print(line, file=sys.stderr),
         )
     except FindingsError as exc:
-        if args.json:
+        if args.format == "json":
             refused = [f.to_json() for f in exc.findings]
             print(json.dumps({"written": [], "refused": refused}, indent=2))
         return _fail(str(exc))
     except BuildError as exc:
         return _fail(str(exc))
-    if args.json:
+    if args.format == "json":
         doc = {
             "written": [str(p) for p in report.files],
             "notes": list(report.notes),
@@ -180,7 +180,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         "task_id": result.task_id,
         "log": args.log,
     }
-    if args.json:
+    if args.format == "json":
         print(json.dumps(summary, indent=2))
         return 0
     print(
@@ -194,7 +194,7 @@ def cmd_search(args: argparse.Namespace) -> int:
     first, last = result.route[0], result.route[-1]
     print(
         f"  route: {len(result.route)} viewpoints from ({first.x:.2f},{first.y:.2f}) "
-        f"to ({last.x:.2f},{last.y:.2f}); --json lists them all"
+        f"to ({last.x:.2f},{last.y:.2f}); --format json lists them all"
     )
     print(f"  path length {result.path_length:.2f} m (oracle {oracle:.2f} m)")
     if args.log:
@@ -217,8 +217,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
             "--scene N --schedule stats-0"
         )
         return _fail(_paper_schedule_only(args.home, "demo", how))
-    # With --json the human report goes to stderr and stdout holds only the JSON summary.
-    with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
+    # With --format json the human report goes to stderr and stdout holds only the JSON summary.
+    with (
+        contextlib.redirect_stdout(sys.stderr)
+        if args.format == "json"
+        else contextlib.nullcontext()
+    ):
         code = run_demo(
             out=Path(args.out),
             home=args.home,
@@ -228,13 +232,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
             strategy=args.strategy,
             camera=args.camera,
         )
-    if args.json and code == 0:
+    if args.format == "json" and code == 0:
         print(json.dumps(demo_summary(Path(args.out)), indent=2))
     return code
 
 
 def demo_summary(out: Path) -> dict[str, Any]:
-    """``demo --json``: the demo's files and, per update mode, its searches from path_lengths.csv."""
+    """``demo --format json``: the demo's files and, per update mode, its searches from path_lengths.csv."""
     import csv
 
     modes: dict[str, dict[str, Any]] = {}
@@ -273,7 +277,7 @@ def cmd_graph(args: argparse.Namespace) -> int:
 
     graph = scene_graph_at(Path(args.log), args.at, models=relation_models(simulator=True))
     table = graph.as_table()
-    if args.json:
+    if args.format == "json":
         print(
             json.dumps(
                 {"seq": graph.last_seq, "tasks": graph.tasks_folded, "relations": table}, indent=2
@@ -348,17 +352,19 @@ def build_parser() -> argparse.ArgumentParser:
     build.add_argument(
         "--heldout-ithor",
         type=t.number_spans(1, HELDOUT_ITHOR_MAX),
+        **t.LIST,
         metavar="N[-M],...",
         help="held-out iTHOR homes ithor-N by the seeded rule of pipeline/more_homes.py, e.g. 11-14",
     )
     build.add_argument(
         "--accept",
         type=t.subset_of(FINDING_KINDS),
+        **t.LIST,
         metavar="KIND,...",
         help="go ahead despite these findings (recorded in PROVENANCE.md): "
         + ", ".join(FINDING_KINDS),
     )
-    build.add_argument("--json", action="store_true", help="the build report as JSON")
+    t.format_option(build, "the build report as JSON")
     build.set_defaults(func=cmd_data_build)
 
     search = sub.add_parser("search", help="run one search in the simulated home")
@@ -389,7 +395,7 @@ def build_parser() -> argparse.ArgumentParser:
         choices=["none", "targets", "all"],
         help="which experience Eq. 4 folds in at the end of the task (all)",
     )
-    search.add_argument("--json", action="store_true", help="print a JSON summary")
+    t.format_option(search, "print a JSON summary")
     search.set_defaults(func=cmd_search)
 
     demo = sub.add_parser(
@@ -414,17 +420,17 @@ def build_parser() -> argparse.ArgumentParser:
         )
     )
     t.camera_option(demo)
-    demo.add_argument(
-        "--json", action="store_true", help="print a JSON summary (the report goes to stderr)"
-    )
+    t.format_option(demo, "print a JSON summary (the report goes to stderr)")
     demo.set_defaults(func=cmd_demo)
 
     graph = sub.add_parser("graph", help="print the scene graph projection of a log")
-    graph.add_argument("--log", required=True, type=t.existing_dir, help="event log folder")
+    t.input_argument(
+        graph, "log", type=t.existing_dir, metavar="LOG", help="event log folder", old=("--log",)
+    )
     graph.add_argument(
         "--at", type=t.int_range(0), help="as it was right after this sequence number"
     )
-    graph.add_argument("--json", action="store_true")
+    t.format_option(graph, "print JSON")
     graph.set_defaults(func=cmd_graph)
 
     for module in COMMAND_MODULES:

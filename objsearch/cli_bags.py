@@ -18,6 +18,32 @@ ODOM_HZ = t.float_range(0.0, 200.0, lo_open=True)
 POINTS_PER_ROOM = t.int_range(1, 32)
 
 
+#: ``record --bag-format`` (pipeline/bags/formats.py's BagFormat values).
+BAG_FORMATS = ("ros1", "ros2-sqlite3", "ros2-mcap")
+
+
+class _FormatOrBagFormat(argparse.Action):
+    """``record --format``: the output format (text or json); a bag format there is the
+    deprecated spelling of ``--bag-format``."""
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: object,
+        option_string: str | None = None,
+    ) -> None:
+        if values in BAG_FORMATS:
+            print(
+                f"objsearch: note: {option_string} {values} is deprecated; use --bag-format "
+                f"{values} (--format is the output format, text or json)",
+                file=sys.stderr,
+            )
+            namespace.bag_format = values
+        else:
+            namespace.format = values
+
+
 def _topic_map(args: argparse.Namespace) -> Any:
     from objsearch.ros.topics import TopicMap
 
@@ -84,7 +110,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         record_mapping_sweep,
     )
 
-    fmt = BagFormat.parse(args.format)
+    fmt = BagFormat.parse(args.bag_format)
     compress = not args.no_compress
     if args.mapping_sweep:
         searches = [f"--{n}" for n in ("scenes", "targets", "starts", "log") if getattr(args, n)]
@@ -105,7 +131,7 @@ def cmd_record(args: argparse.Namespace) -> int:
             compress=compress,
         )
         size = sum(f.stat().st_size for f in storage_files(rec.path))
-        if args.json:
+        if args.format == "json":
             print(_recording_json(rec, size, compress=compress, mapping_sweep=True))
             return 0
         print(f"wrote {rec.path} ({rec.format.value}): mapping sweep, {size / 1e6:.1f} MB")
@@ -148,7 +174,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     finally:
         progress.close()
     size = sum(f.stat().st_size for f in storage_files(rec.path))
-    if args.json:
+    if args.format == "json":
         print(_recording_json(rec, size, compress=compress, log=args.log))
         return 0
     print(
@@ -178,7 +204,7 @@ def cmd_ingest(args: argparse.Namespace) -> int:
 
     def show(result: IngestResult) -> None:
         nonlocal failed
-        if args.json:
+        if args.format == "json":
             failed += result.error is not None
             print(json.dumps(_ingest_json(result, args.lake), default=str), flush=True)
             return
@@ -211,7 +237,7 @@ def cmd_ingest(args: argparse.Namespace) -> int:
 
 
 def _ingest_json(result: Any, lake: str) -> dict[str, Any]:
-    """One bag's outcome, a line of ``ingest --json`` (JSON Lines: one per bag, as they end)."""
+    """One bag's outcome, a line of ``ingest --format json`` (JSON Lines: one per bag, as they end)."""
     import dataclasses
 
     report: Any = result.report
@@ -238,16 +264,31 @@ def register(sub: Any) -> None:
         help="bag to write: NAME.bag (ros1) or a directory (ros2); never overwritten",
     )
     rec.add_argument(
-        "--format",
-        required=True,
+        "--bag-format",
         type=t.text,
-        help="ros1, ros2-sqlite3 or ros2-mcap",
+        choices=BAG_FORMATS,
+        help="ros1, ros2-sqlite3 or ros2-mcap (required)",
         metavar="FORMAT",
     )
     rec.add_argument("--home", default="paper", type=t.text, help="home in data/homes (paper)")
-    rec.add_argument("--scenes", type=t.SCENE, nargs="+", help="scenes of the schedule (all)")
-    rec.add_argument("--targets", nargs="+", type=t.text, help="targets to search for (all eight)")
-    rec.add_argument("--starts", nargs="+", type=t.text, help="start points, e.g. kitchen-1 (all)")
+    rec.add_argument(
+        "--scenes",
+        type=t.SCENES,
+        **t.OLD_SPACED_LIST,
+        help="comma-separated scenes of the schedule (all)",
+    )
+    rec.add_argument(
+        "--targets",
+        type=t.name_list,
+        **t.OLD_SPACED_LIST,
+        help="comma-separated targets to search for (all)",
+    )
+    rec.add_argument(
+        "--starts",
+        type=t.name_list,
+        **t.OLD_SPACED_LIST,
+        help="comma-separated start points, e.g. kitchen-1,livingroom-1 (all)",
+    )
     rec.add_argument("--log", type=t.dir_path, help="also keep the agent's own event log here")
     rec.add_argument("--topics", type=t.existing_file, help="topic map override (.toml or .json)")
     rec.add_argument(
@@ -268,9 +309,20 @@ def register(sub: Any) -> None:
         help="write MCAP chunks uncompressed (ros2-mcap; by default zstd, as ros2 bag record)",
     )
     rec.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
-    rec.add_argument("--json", action="store_true", help="print what was written as JSON")
+    rec.check(
+        lambda a: (
+            None if a.bag_format else "--bag-format is required (ros1, ros2-sqlite3 or ros2-mcap)"
+        )
+    )
+    # --format named the bag format before --bag-format did: those values still work.
+    t.format_option(
+        rec, "print what was written as JSON", action=_FormatOrBagFormat, also=BAG_FORMATS
+    )
     rec.add_argument(
-        "--rooms", nargs="+", type=t.text, help="rooms to sweep (all; with --mapping-sweep)"
+        "--rooms",
+        type=t.name_list,
+        **t.OLD_SPACED_LIST,
+        help="comma-separated rooms to sweep (all; with --mapping-sweep)",
     )
     rec.add_argument(
         "--points-per-room",
@@ -322,9 +374,7 @@ def register(sub: Any) -> None:
         help="read bags the lake already holds again and replace their rows (a changed topic "
         "map or converter version does this by itself)",
     )
-    ing.add_argument(
-        "--json",
-        action="store_true",
-        help="print each bag's outcome and report as a line of JSON (JSON Lines), as it ends",
+    t.format_option(
+        ing, "print each bag's outcome and report as a line of JSON (JSON Lines), as it ends"
     )
     ing.set_defaults(func=cmd_ingest)

@@ -24,15 +24,16 @@ HOMES_OUTPUTS = (
 )
 
 
-def _strategies(text: str | None, default: str) -> list[str]:
+def _strategies(names: list[str] | None, default: str) -> list[str]:
+    """``--strategies``: names, or one of the words ``paper`` (sdp,rvp,wpl) and ``all``."""
     from objsearch.experiments.strategies import PAPER_STRATEGIES, STRATEGIES
 
-    text = text or default
-    if text == "all":
+    names = names or [default]
+    if names == ["all"]:
         return list(STRATEGIES)
-    if text == "paper":
+    if names == ["paper"]:
         return list(PAPER_STRATEGIES)
-    return [s.strip() for s in text.split(",") if s.strip()]
+    return names
 
 
 def _workers(args: argparse.Namespace) -> int:
@@ -64,14 +65,14 @@ def cmd_bench_paper(args: argparse.Namespace) -> int:
             strategies=_strategies(args.strategies, "all"),
             sdp_seeds=args.sdp_seeds,
             workers=_workers(args),
-            progress=not args.no_progress and not args.json,
+            progress=not args.no_progress and args.format != "json",
             targets=targets,
             scenes=args.scenes,
             keep_logs=args.keep_logs,
             prior=args.prior,
             camera=args.camera,
         )
-    if args.json:
+    if args.format == "json":
         print(json.dumps(_headline(summary), indent=2))
     else:
         print(render(summary))
@@ -92,15 +93,15 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
             homes=args.homes,
             strategies=_strategies(args.strategies, "all"),
             seeds=args.seeds,
-            scenes=args.scenes,
+            scenes=args.scenes_per_schedule,
             workers=_workers(args),
-            progress=not args.no_progress and not args.json,
+            progress=not args.no_progress and args.format != "json",
             schedules=args.schedules,
-            starts_per_search=args.starts,
+            starts_per_search=args.starts_per_scene,
             camera=args.camera,
             inspection=args.inspection,
         )
-    if args.json:
+    if args.format == "json":
         print(json.dumps(_headline(summary), indent=2))
     else:
         print(render(summary))
@@ -235,13 +236,13 @@ def cmd_bench_dhs(args: argparse.Namespace) -> int:
     seeds = list(range(args.seeds))
 
     def progress(run: Any) -> None:
-        if not args.no_progress:  # on stderr with --json, so stdout stays JSON
+        if not args.no_progress:  # on stderr with --format json, so stdout stays JSON
             crash = f"; its code raised: {run.crash}" if run.crash else ""
             print(
                 f"  {run.experiment} {run.agent} seed {run.seed}: {run.mean_attempts:.3f} "
                 f"attempts, {run.found:.1%} found, {len(run.queries)} queries "
                 f"({run.elapsed_s} s){crash}",
-                file=sys.stderr if args.json else sys.stdout,
+                file=sys.stderr if args.format == "json" else sys.stdout,
                 flush=True,
             )
 
@@ -255,7 +256,7 @@ def cmd_bench_dhs(args: argparse.Namespace) -> int:
         workers=_workers(args),
         progress=progress,
     )
-    if args.json:
+    if args.format == "json":
         print(json.dumps(summary, indent=2))
     else:
         print(render(summary))
@@ -269,12 +270,14 @@ def _dhs_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--experiments",
         type=t.subset_of(RUNNABLE_EXPERIMENTS),
+        **t.LIST,
         help="comma-separated experiment configs of the simulator whose scenes to run "
         f"(default: {','.join(EXPERIMENTS)})",
     )
     p.add_argument(
         "--agents",
         type=t.subset_of((*ALL_THEIR_AGENTS, OURS)),
+        **t.LIST,
         help=f"comma-separated agents: its {', '.join(ALL_THEIR_AGENTS)} and ours, {OURS} "
         "(default: all but oracle_upper_bound)",
     )
@@ -288,7 +291,8 @@ def register(sub: Any) -> None:
         p.add_argument("--out", default=out, type=t.dir_path, help=f"output folder ({out})")
         p.add_argument(
             "--strategies",
-            type=t.text,
+            type=t.name_list,
+            **t.LIST,
             help="comma-separated names, 'paper' (sdp,rvp,wpl) or 'all' (default: all)",
         )
         p.add_argument(
@@ -298,7 +302,7 @@ def register(sub: Any) -> None:
             help=f"processes, at most {t.MAX_WORKERS} and one per job "
             "(0, the default: min(2, cores))",
         )
-        p.add_argument("--json", action="store_true", help="print a JSON summary per strategy")
+        t.format_option(p, "print a JSON summary per strategy")
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
         t.camera_option(p)
 
@@ -311,11 +315,12 @@ def register(sub: Any) -> None:
         help="seeds for SDP's random rooms, 1-1000 (20)",
     )
     paper.add_argument(
-        "--targets", type=t.name_list, help="comma-separated subset of the eight targets"
+        "--targets", type=t.name_list, **t.LIST, help="comma-separated subset of the eight targets"
     )
     paper.add_argument(
         "--scenes",
-        type=t.int_list(1, t.MAX_SCENE),
+        type=t.SCENES,
+        **t.LIST,
         help=f"comma-separated subset of Table II's scenes (1-{t.MAX_SCENE})",
     )
     paper.add_argument("--keep-logs", action="store_true", help="keep long-term event logs")
@@ -325,7 +330,10 @@ def register(sub: Any) -> None:
     homes = bsub.add_parser("homes", help="every strategy on the held-out homes")
     common(homes, "out/bench-homes")
     homes.add_argument(
-        "--homes", type=t.name_list, help="comma-separated home names (default: all but 'paper')"
+        "--homes",
+        type=t.name_list,
+        **t.LIST,
+        help="comma-separated home names (default: all but 'paper')",
     )
     homes.add_argument(
         "--seeds",
@@ -333,25 +341,36 @@ def register(sub: Any) -> None:
         default=1,
         help="schedules per home, seeds 0..N-1, N 1-1000 (1)",
     )
-    homes.add_argument(
+    # A count, not a list of scenes as record's and bench paper's --scenes (which it once was
+    # spelled as: kept as a deprecated alias).
+    t.renamed(
+        homes,
         "--scenes",
-        type=t.int_range(1, t.MAX_SEEDED_SCENES),
-        help=f"scenes per schedule, 1-{t.MAX_SEEDED_SCENES} (each kind's own: 10, habit 30, routine 84); "
-        "stats and rearr schedules can be drawn longer than 10",
+        homes.add_argument(
+            "--scenes-per-schedule",
+            type=t.int_range(1, t.MAX_SEEDED_SCENES),
+            help=f"scenes per schedule, 1-{t.MAX_SEEDED_SCENES} (each kind's own: 10, habit 30, routine 84); "
+            "stats and rearr schedules can be drawn longer than 10",
+        ),
     )
     homes.add_argument(
         "--schedules",
         default="stats",
         type=t.name_list,
+        **t.LIST,
         help="comma-separated schedule kinds, each run with seeds 0..N-1: stats (drawn from "
         "AI2-THOR placement statistics), rearr (real rearrangement episodes; iTHOR homes only), "
         "habit (objects with a usual place and alternates, 30 scenes) (stats)",
     )
-    homes.add_argument(
+    t.renamed(
+        homes,
         "--starts",
-        type=t.int_range(1, 100),
-        help="search each target from this many start points per scene, drawn per (seed, scene, "
-        "target), 1-100 (default: from every start point, as the paper)",
+        homes.add_argument(
+            "--starts-per-scene",
+            type=t.int_range(1, 100),
+            help="search each target from this many start points per scene, drawn per (seed, scene, "
+            "target), 1-100 (default: from every start point, as the paper)",
+        ),
     )
     homes.add_argument(
         "--inspection",
@@ -387,7 +406,7 @@ def register(sub: Any) -> None:
         "--seed", type=t.int_range(0, 2**31 - 1), default=1, help="seed of the sample order (1)"
     )
     table1.add_argument(
-        "--targets", type=t.name_list, help="comma-separated subset of the eight targets"
+        "--targets", type=t.name_list, **t.LIST, help="comma-separated subset of the eight targets"
     )
     table1.add_argument(
         "--workers",
@@ -456,7 +475,7 @@ def register(sub: Any) -> None:
         default=0,
         help=f"processes, at most {t.MAX_WORKERS} (0, the default: min(2, cores))",
     )
-    dhs.add_argument("--json", action="store_true", help="print the summary as JSON")
+    t.format_option(dhs, "print the summary as JSON")
     dhs.add_argument("--no-progress", action="store_true", help="no line per finished run")
     dhs.set_defaults(func=cmd_bench_dhs)
 

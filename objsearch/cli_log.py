@@ -20,7 +20,7 @@ def register(sub: Any) -> None:
         help="read and check every record (exit 0 clean, 2 damaged; nothing is changed)",
     )
     verify.add_argument("log", metavar="LOG", type=t.existing_dir, help="event log folder")
-    verify.add_argument("--json", action="store_true", help="print the result as JSON")
+    t.format_option(verify, "print the result as JSON")
     verify.set_defaults(func=cmd_log_verify)
 
     repair = log_sub.add_parser(
@@ -36,7 +36,7 @@ def register(sub: Any) -> None:
         "their ids. Prints every change, with its line, byte offset and reason.",
     )
     repair.add_argument("log", metavar="LOG", type=t.existing_dir, help="event log folder")
-    repair.add_argument("--json", action="store_true", help="print the result as JSON")
+    t.format_option(repair, "print the result as JSON")
     repair.set_defaults(func=cmd_log_repair)
 
 
@@ -52,7 +52,7 @@ def cmd_log_verify(args: argparse.Namespace) -> int:
     from objsearch.product import STORE
 
     result = verify_log(Path(args.log), store=STORE)
-    if args.json:
+    if args.format == "json":
         print(_as_json(result))
         return 0
     mark = (
@@ -77,7 +77,7 @@ def cmd_log_repair(args: argparse.Namespace) -> int:
     from objsearch.product import STORE
 
     result = repair_log(Path(args.log), store=STORE)
-    if args.json:
+    if args.format == "json":
         print(_as_json(result))
         return 0
     if not result.changed:

@@ -19,7 +19,7 @@ def register(sub: Any) -> None:
         "show", help="print the ground-truth semantic map and its agreement with ALFRED"
     )
     show.add_argument("--home", default="paper", type=t.text, help="home in data/homes (paper)")
-    show.add_argument("--json", action="store_true", help="print JSON")
+    t.format_option(show, "print JSON")
     show.set_defaults(func=cmd_map_show)
 
     build = msub.add_parser(
@@ -69,6 +69,7 @@ def register(sub: Any) -> None:
     build.add_argument(
         "--class-names",
         type=t.name_list,
+        **t.LIST,
         help="comma-separated class names of the model's labels (default: its class_names)",
     )
     build.add_argument(
@@ -81,7 +82,7 @@ def register(sub: Any) -> None:
         help=f"torch CPU threads, 1-{t.MAX_WORKERS} (1: on a shared 2-core CPU one thread fused 6× faster than two; "
         "benchmarks/mapping.py)",
     )
-    build.add_argument("--json", action="store_true", help="print the report as JSON")
+    t.format_option(build, "print the report as JSON")
     t.progress_option(build)
     build.set_defaults(func=cmd_map_build)
 
@@ -92,7 +93,7 @@ def cmd_map_show(args: argparse.Namespace) -> int:
 
     ctx = load_context(args.home)
     agreement = compare_with_alfred(ctx.home, ctx.semmap)
-    if args.json:
+    if args.format == "json":
         rows = [
             {
                 "id": s.id,
@@ -220,7 +221,7 @@ def cmd_map_build(args: argparse.Namespace) -> int:
         tmp.write_text(json.dumps(built.semmap.to_json(), indent=2, sort_keys=True) + "\n")
         tmp.replace(out)
         report["out"] = str(out)
-    if args.json:
+    if args.format == "json":
         print(json.dumps(report, indent=2))
         return 0
     if bag_report is not None:

@@ -87,6 +87,8 @@ def cmd_query(args: argparse.Namespace) -> int:
     return 0
 
 
+#: ``query`` and ``lake ls`` print tables: ``--format table|csv|json``.
+TABLE_FORMATS = ("table", "csv", "json")
 #: Rows ``--format table`` holds to size its columns; csv and json stream any number.
 TABLE_MAX_ROWS = 100_000
 
@@ -258,7 +260,7 @@ def _lake_add(args: argparse.Namespace) -> int:
         )
     except OSError as exc:
         return _fail(f"lake add: {exc.filename or args.lake}: {exc.strerror or exc}")
-    if args.json:
+    if args.format == "json":
         doc = {
             "path": str(info.path),
             "robot": info.robot,
@@ -287,7 +289,7 @@ def _lake_add_fleet(args: argparse.Namespace) -> int:
         date=args.date,
         replace=args.replace,
     )
-    if args.json:
+    if args.format == "json":
         doc = {
             "lake": str(args.lake),
             "robot": info.robot,
@@ -391,14 +393,14 @@ def cmd_lake_verify(args: argparse.Namespace) -> int:
         return _fail(f"two lakes given ({args.lake_dir} and --lake {args.lake}); give one")
     where = args.lake_dir or args.lake or _default_lake()
     if _remote(where) or _is_fleet(where):
-        return _verify_fleet(where, args.json)
+        return _verify_fleet(where, args.format == "json")
     lake = Path(where)
     if not lake.is_dir():
         return _fail(f"no lake at {lake}")
     started = time.perf_counter()
     check = Lake(lake, store=STORE).verify()
     seconds = time.perf_counter() - started
-    if args.json:
+    if args.format == "json":
         doc = {
             "lake": str(lake),
             "runs": check.runs,
@@ -511,7 +513,7 @@ def register(sub: Any) -> None:
         type=t.dir_path,
         help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})",
     )
-    query.add_argument("--format", choices=["table", "csv", "json"], default="table")
+    t.format_option(query, "the rows as a JSON array", choices=TABLE_FORMATS)
     query.add_argument(
         "--out",
         metavar="PATH",
@@ -548,7 +550,7 @@ def register(sub: Any) -> None:
         "--date", type=t.date, help="YYYY-MM-DD (default: the UTC day of the first event)"
     )
     add.add_argument("--replace", action="store_true", help="replace the run if it differs")
-    add.add_argument("--json", action="store_true", help="print the committed run as JSON")
+    t.format_option(add, "print the committed run as JSON")
     add.add_argument(
         "--wait",
         type=t.float_range(0.0, 3600.0),
@@ -570,7 +572,7 @@ def register(sub: Any) -> None:
         type=t.dir_path,
         help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})",
     )
-    ls.add_argument("--format", choices=["table", "csv", "json"], default="table")
+    t.format_option(ls, "the runs as a JSON array", choices=TABLE_FORMATS)
     ls.set_defaults(func=cmd_lake_ls)
     verify = lake_sub.add_parser(
         "verify",
@@ -587,7 +589,7 @@ def register(sub: Any) -> None:
     verify.add_argument(
         "--lake", type=t.dir_path, help="lake folder, as the other lake commands take it"
     )
-    verify.add_argument("--json", action="store_true", help="print the findings as JSON")
+    t.format_option(verify, "print the findings as JSON")
     verify.set_defaults(func=cmd_lake_verify)
     upgrade = lake_sub.add_parser(
         "upgrade",

@@ -36,7 +36,7 @@ def register(sub: Any) -> None:
     rp.add_argument(
         "--strategy", type=t.text, help="replay with a bench strategy (e.g. epl, wpl-neg-decay)"
     )
-    rp.add_argument("--json", action="store_true", help="print every decision as JSON")
+    t.format_option(rp, "print every decision as JSON")
     rp.add_argument("--all", action="store_true", help="list unchanged decisions too")
     t.progress_option(rp)
     rp.set_defaults(func=cmd_replay)
@@ -82,7 +82,7 @@ def register(sub: Any) -> None:
         default=10.0,
         help="... and the oracle by this many m (10)",
     )
-    au.add_argument("--json", action="store_true", help="print the anomalies as JSON")
+    t.format_option(au, "print the anomalies as JSON")
     au.add_argument(
         "--html",
         action="store_true",
@@ -107,7 +107,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     )
     decisions = replayer.decisions
     summary = summarise(decisions)
-    if args.json:
+    if args.format == "json":
         shown = decisions if args.all else [d for d in decisions if not d.same]
         doc = {**summary, "notes": replayer.notes, "decisions": [d.as_dict() for d in shown]}
         print(json.dumps(doc, indent=2))
@@ -171,7 +171,7 @@ def cmd_audit(args: argparse.Namespace) -> int:
 
     write_report(auditor, out, plots=args.plots, max_plots=args.max_plots, title=title, html=html)
     counts = anomaly_counts(auditor.tasks)
-    if args.json:
+    if args.format == "json":
         anomalies = [
             {"task_id": t.task_id, "kind": a.kind, "seq": a.seq, "message": a.message}
             for t in auditor.tasks

@@ -200,7 +200,7 @@ def cmd_liveview(args: argparse.Namespace) -> int:
     sink.close()
     seconds = time.perf_counter() - started
     total = sum(sink.counts.values())
-    if args.json:
+    if args.format == "json":
         doc = {
             "mcap": args.mcap,
             "source": name,
@@ -282,7 +282,7 @@ def cmd_agent_find(args: argparse.Namespace) -> int:
             args.target, start=args.start, scene=args.scene, timeout_s=args.timeout
         ),
     )
-    if args.json:
+    if args.format == "json":
         print(json.dumps(result, indent=2, sort_keys=True))
     elif not result.get("ok"):
         print(f"search failed: {result.get('error')}")
@@ -304,7 +304,7 @@ def cmd_agent_where(args: argparse.Namespace) -> int:
     result = _ask(
         args, "agent where", lambda client: client.where(args.target, timeout_s=args.timeout)
     )
-    if args.json:
+    if args.format == "json":
         print(json.dumps(result, indent=2, sort_keys=True))
     elif not result.get("ok"):
         print(f"where failed: {result.get('error')}")
@@ -437,7 +437,7 @@ def register(sub: Any) -> None:
         default=600.0,
         help="seconds to wait, up to a day (600)",
     )
-    find.add_argument("--json", action="store_true")
+    t.format_option(find, "print JSON")
     find.set_defaults(func=cmd_agent_find)
 
     where = agent_sub.add_parser(
@@ -454,7 +454,7 @@ def register(sub: Any) -> None:
         default=30.0,
         help="seconds to wait, up to a day (30)",
     )
-    where.add_argument("--json", action="store_true", help="print the result as JSON")
+    t.format_option(where, "print the result as JSON")
     where.set_defaults(func=cmd_agent_where)
 
     robot = sub.add_parser("robot", help="a stand-in robot and a zenoh router for it")
@@ -513,7 +513,7 @@ def register(sub: Any) -> None:
         help="write the MCAP's chunks uncompressed (by default zstd with CRCs, as ros2 bag "
         "record; about 15 times larger)",
     )
-    view.add_argument("--json", action="store_true", help="print what was written as JSON")
+    t.format_option(view, "print what was written as JSON")
     view.add_argument(
         "--robot-clock",
         dest="sim_clock",

@@ -49,11 +49,21 @@ class Parser(argparse.ArgumentParser):
         while deferred:
             deferred.pop(0)(self)
 
+    def check(self, problem: Callable[[argparse.Namespace], str | None]) -> None:
+        """After parsing, ``problem(args)`` names what is wrong with the command line as a whole
+        (an input given neither way), reported as every other parse error."""
+        self.__dict__.setdefault("_checks", []).append(problem)
+
     def parse_known_args(  # type: ignore[override]
         self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
     ) -> tuple[argparse.Namespace, list[str]]:
         self.build_deferred()
-        return super().parse_known_args(args, namespace)
+        parsed, extras = super().parse_known_args(args, namespace)
+        for problem in self.__dict__.get("_checks", []):
+            message = problem(parsed)
+            if message:
+                self.error(message)
+        return parsed, extras
 
     def format_help(self) -> str:
         self.build_deferred()
@@ -458,6 +468,7 @@ SEED = int_range(0, 2**32 - 1)
 #: Eq. 3's weight of the relation term; beyond 1000 it only magnifies rounding.
 ALPHA = float_range(0.0, 1000.0)
 SCENE = int_range(1, MAX_SCENE)
+SCENES = int_list(1, MAX_SCENE)
 
 
 def camera_option(p: argparse.ArgumentParser) -> None:
@@ -480,6 +491,163 @@ def _add_camera_option(p: argparse.ArgumentParser) -> None:
         help="simulated search camera: occluding (what a render shows; furniture hides what is "
         f"behind it) or geometric (field of view and box area, no occlusion) ({DEFAULT_CAMERA})",
     )
+
+
+#: ``--format`` values of a command whose output is a report (``query`` and ``lake ls``, whose
+#: output is a table, take ``table``, ``csv`` or ``json``).
+OUTPUT_FORMATS = ("text", "json")
+
+
+class Deprecated(argparse.Action):
+    """An old spelling that still works (scripts keep running): it stores into the new
+    argument's ``dest`` — ``const`` for a flag such as ``--json``, else its value — and notes
+    the new spelling on stderr. Hidden from ``--help``, which shows one way to say each thing."""
+
+    def __init__(
+        self,
+        option_strings: Sequence[str],
+        dest: str,
+        *,
+        new: str,
+        nargs: int | str | None = None,
+        const: object = None,
+        type: Converter | None = None,
+        choices: Iterable[object] | None = None,
+        metavar: str | None = None,
+    ) -> None:
+        super().__init__(
+            option_strings,
+            dest,
+            nargs=nargs,
+            const=const,
+            default=argparse.SUPPRESS,  # the new argument's default stands
+            type=type,
+            choices=choices,
+            help=argparse.SUPPRESS,
+            metavar=metavar,
+        )
+        self.new = new
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: object,
+        option_string: str | None = None,
+    ) -> None:
+        print(f"objsearch: note: {option_string} is deprecated; use {self.new}", file=sys.stderr)
+        setattr(namespace, self.dest, self.const if self.nargs == 0 else values)
+
+
+def renamed(p: argparse.ArgumentParser, old: str, new: argparse.Action) -> None:
+    """``old`` as a deprecated spelling of the option ``new`` (same value, same checks)."""
+    assert new.type is not None, "a renamed option keeps its validated type"
+    p.add_argument(
+        old,
+        action=Deprecated,
+        dest=new.dest,
+        new=new.option_strings[0],
+        type=new.type,
+        choices=new.choices,
+        nargs=new.nargs,
+        metavar=new.metavar if isinstance(new.metavar, str) else None,
+    )
+
+
+def format_option(
+    p: argparse.ArgumentParser,
+    json_help: str,
+    *,
+    choices: tuple[str, ...] = OUTPUT_FORMATS,
+    action: type[argparse.Action] | None = None,
+    also: tuple[str, ...] = (),
+) -> None:
+    """``--format text|json`` (``choices[0]`` the default, for a person), the one output-format
+    option of every command (DEVELOPERS.md, "CLI conventions"); ``--json`` is its deprecated
+    spelling of ``--format json``. ``action`` and ``also`` serve an option that took other,
+    now deprecated, values (``record --format ros1``)."""
+    p.add_argument(
+        "--format",
+        action=action or "store",
+        type=text,
+        choices=(*choices, *also),
+        default=choices[0],
+        metavar="{" + ",".join(choices) + "}",
+        help=f"{', '.join(choices[:-1])} or {choices[-1]} ({choices[0]}); json: {json_help}",
+    )
+    p.add_argument(
+        "--json", action=Deprecated, dest="format", nargs=0, const="json", new="--format json"
+    )
+
+
+def input_argument(
+    p: argparse.ArgumentParser,
+    dest: str,
+    *,
+    type: Converter,
+    metavar: str,
+    help: str,
+    old: tuple[str, ...],
+) -> None:
+    """The log or lake a command reads, positional as in every command that reads one
+    (DEVELOPERS.md, "CLI conventions"); the options in ``old`` named it once and still do
+    (deprecated). Either way it lands in ``args.<dest>``; giving neither is a usage error."""
+    p.add_argument(dest, nargs="?", type=type, metavar=metavar, help=help)
+    for option in old:
+        # Their own dest: a positional left empty would overwrite a value given before it.
+        p.add_argument(
+            option,
+            action=Deprecated,
+            dest=f"{dest}_option",
+            new=f"the positional argument {metavar}",
+            type=type,
+            metavar=metavar,
+        )
+
+    def merged(args: argparse.Namespace) -> str | None:
+        given = getattr(args, dest), getattr(args, f"{dest}_option", None)
+        if None not in given and given[0] != given[1]:
+            return f"{metavar} given twice ({given[0]} and {given[1]}); give one"
+        setattr(args, dest, given[0] or given[1])
+        if hasattr(args, f"{dest}_option"):
+            delattr(args, f"{dest}_option")
+        return None if getattr(args, dest) else f"the {metavar} to read is missing"
+
+    if isinstance(p, Parser):
+        p.check(merged)
+
+
+class ListAction(argparse.Action):
+    """A list option: comma-separated (``--targets Apple,Cup``), repeatable (``--targets Apple
+    --targets Cup`` is the same), each part checked by ``type`` (which returns a list)."""
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: object,
+        option_string: str | None = None,
+    ) -> None:
+        parts = values if isinstance(values, list) and self.nargs == "+" else [values]
+        if self.nargs == "+" and isinstance(values, list) and len(values) > 1:
+            # The space-separated form some commands took once (record --scenes 1 2).
+            print(
+                f"objsearch: note: {option_string} takes a comma-separated list; the "
+                "space-separated form is deprecated",
+                file=sys.stderr,
+            )
+        earlier = getattr(namespace, self.dest, None)
+        found = list(earlier) if isinstance(earlier, list) and earlier is not self.default else []
+        for part in parts:
+            found += part if isinstance(part, list) else [part]
+        setattr(namespace, self.dest, found)
+
+
+#: ``add_argument(..., type=name_list, **LIST)``: a list option, comma-separated and repeatable.
+LIST: dict[str, Any] = {"action": ListAction}
+#: As LIST, also taking the space-separated form (``record --scenes 1 2``) with a deprecation
+#: note: for the options that once took only that form.
+OLD_SPACED_LIST: dict[str, Any] = {"action": ListAction, "nargs": "+"}
 
 
 def is_validated(convert: object) -> bool:

@@ -14,16 +14,21 @@ def register(sub: Any) -> None:
     where = sub.add_parser(
         "where",
         help="where an object was last seen, where it usually is, how sure (from a log or a lake)",
-        description="Folds the events of an event log (--log) or of one lake run (--lake, "
-        "--run) with the memory model and answers from it; a log and the lake run made from it "
+        description="Folds the events of an event log or of one lake run (with --run) "
+        "with the memory model and answers from it; a log and the lake run made from it "
         "give the same answer. A lake holding several runs needs --run (objsearch lake ls lists "
         "them). The running agent answers the same question: objsearch agent where.",
     )
     where.add_argument("target", metavar="TARGET", type=t.text, help="object class, e.g. Cup")
-    source = where.add_mutually_exclusive_group(required=True)
-    source.add_argument("--log", type=t.existing_dir, help="event log folder")
-    source.add_argument("--lake", type=t.existing_dir, help="a lake (objsearch lake add)")
-    where.add_argument("--run", type=t.text, help="the lake run to answer from (with --lake)")
+    t.input_argument(
+        where,
+        "log",
+        type=t.existing_dir,
+        metavar="LOG|LAKE",
+        help="event log folder, or a lake (with --run)",
+        old=("--log", "--lake"),
+    )
+    where.add_argument("--run", type=t.text, help="the lake run to answer from (with a lake)")
     where.add_argument(
         "--robot", type=t.text, help="the robot whose run it is, if run names repeat"
     )
@@ -35,24 +40,17 @@ def register(sub: Any) -> None:
         "DAY HH:MM (DAY mon…sun), or last (the time of the log's latest search); a log whose "
         "searches record no time of day gets the same answer at every time",
     )
-    where.add_argument("--json", action="store_true", help="print the answer as JSON")
+    t.format_option(where, "print the answer as JSON")
     where.set_defaults(func=cmd_where)
 
 
 def cmd_where(args: argparse.Namespace) -> int:
-    from objsearch.agent.errors import ObjsearchError
-    from objsearch.agent.where import render, where
-    from objsearch.replay.source import is_log, open_events
-
-    path = Path(args.log or args.lake)
-    if args.log is not None and not is_log(path):
-        raise ObjsearchError(f"{path} is not an event log (no meta.json); if it is a lake: --lake")
-    if args.lake is not None and is_log(path):
-        raise ObjsearchError(f"{path} is an event log, not a lake: use --log")
     from objsearch.agent.catalogue import DayClock
+    from objsearch.agent.where import render, where
+    from objsearch.replay.source import open_events
 
-    events, _ = open_events(path, run=args.run, robot=args.robot)
+    events, _ = open_events(Path(args.log), run=args.run, robot=args.robot)
     at = None if args.at is None else DayClock(weekday=args.at[0], minute=args.at[1])
     answer = where(events, args.target, at=at)
-    print(json.dumps(answer, indent=2) if args.json else render(answer))
+    print(json.dumps(answer, indent=2) if args.format == "json" else render(answer))
     return 0

@@ -9,7 +9,7 @@ another's, a table re-encoded as valid Parquet with one value changed, a table a
 flipped, cut or deleted, two run folders swapped. Then:
 
 * ``objsearch query`` of every row of every view (each row hashed), and
-* ``objsearch lake verify --json``.
+* ``objsearch lake verify --format json``.
 
 Each variant gets one verdict, the worst of:
 
@@ -65,7 +65,17 @@ def build_lake(root: Path) -> Path:
     for run, target in RUNS:
         log = root / f"log-{run}"
         for argv in (
-            ["search", "--target", target, "--start", "kitchen-1", "--log", str(log), "--json"],
+            [
+                "search",
+                "--target",
+                target,
+                "--start",
+                "kitchen-1",
+                "--log",
+                str(log),
+                "--format",
+                "json",
+            ],
             ["lake", "add", str(log), "--robot", "r1", "--run", run, "--lake", str(lake)],
         ):
             outcome = run_cli(argv)
@@ -422,7 +432,7 @@ def run_battery(
             damage = KINDS[name](rng, lake)
             before = tree(lake)
             query = run_cli(["query", "--lake", str(lake), "--format", "json", sql])
-            verify = run_cli(["lake", "verify", str(lake), "--json"])
+            verify = run_cli(["lake", "verify", str(lake), "--format", "json"])
             verdict, why = judge(intact, damage, query, verify, tree(lake) != before)
             report.tried += 1
             report.files += damage.files

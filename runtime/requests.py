@@ -16,7 +16,7 @@ find request                ``id``, ``target`` (a class name), ``start`` (label 
 find result                 ``id``, ``ok``, ``error``, ``target``, ``task_id``, ``success``,
                             ``path_length``, ``found``, ``plans``
 where request               ``id``, ``target`` (a class name)
-where result                ``id``, ``ok``, ``error``, ``answer`` (``objsearch where --json``'s
+where result                ``id``, ``ok``, ``error``, ``answer`` (``objsearch where --format json``'s
                             object: ``target``, ``last_seen``, ``usually``, ``most_likely_now``, …)
 open request (agent→robot)  ``id``, ``static_id``
 open result                 ``id``, ``ok``, ``stamp_ns``, ``yaw``, ``error``

@@ -32,7 +32,19 @@ def test_search_prints_the_route_and_writes_the_log(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     log = tmp_path / "log"
-    code = main(["search", "--target", "phone", "--start", "living-1", "--log", str(log), "--json"])
+    code = main(
+        [
+            "search",
+            "--target",
+            "phone",
+            "--start",
+            "living-1",
+            "--log",
+            str(log),
+            "--format",
+            "json",
+        ]
+    )
     out = json.loads(capsys.readouterr().out)
     assert code == 0
     assert out["target"] == "Phone"  # the alias resolved
@@ -50,7 +62,7 @@ def test_search_records_its_camera_and_the_camera_tilt(
 ) -> None:
     log = tmp_path / "log"
     args = ["search", "--target", "Pillow", "--start", "kitchen-1", "--camera", camera]
-    assert main([*args, "--log", str(log), "--json"]) == 0
+    assert main([*args, "--log", str(log), "--format", "json"]) == 0
     assert json.loads(capsys.readouterr().out)["camera"] == camera
     events = list(read_log(log, store=STORE))
     (started,) = (e for e in events if e.type == "run_started")
@@ -137,7 +149,7 @@ def test_a_corrupted_log_is_refused_with_its_position_and_left_as_it_was(
     err = capsys.readouterr().err
     assert "corrupt event log" in err and "line 3" in err and "byte offset" in err
     assert path.read_bytes() == bytes(data)
-    assert main(["graph", "--log", str(log)]) == 2
+    assert main(["graph", str(log)]) == 2
     assert path.read_bytes() == bytes(data)
 
 
@@ -165,20 +177,20 @@ def test_graph_at_seq(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     _logged_search(log)
     last = list(read_log(log, store=STORE))[-1].seq
     capsys.readouterr()
-    assert main(["graph", "--log", str(log), "--at", "2", "--json"]) == 0
+    assert main(["graph", str(log), "--at", "2", "--format", "json"]) == 0
     at2 = json.loads(capsys.readouterr().out)
-    assert main(["graph", "--log", str(log), "--json"]) == 0
+    assert main(["graph", str(log), "--format", "json"]) == 0
     now = json.loads(capsys.readouterr().out)
     assert (at2["seq"], at2["tasks"], now["seq"], now["tasks"]) == (2, 0, last, 1)
     assert at2["relations"]["Apple"] != now["relations"]["Apple"]
-    assert main(["graph", "--log", str(log), "--at", str(last + 1)]) == 2
+    assert main(["graph", str(log), "--at", str(last + 1)]) == 2
     assert f"ends at seq {last}" in capsys.readouterr().err
 
 
 def test_graph_of_a_missing_log_is_a_clear_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert main(["graph", "--log", str(tmp_path / "nowhere")]) == 2
+    assert main(["graph", str(tmp_path / "nowhere")]) == 2
     assert "objsearch: error:" in capsys.readouterr().err
     assert not (tmp_path / "nowhere").exists()
 

@@ -79,7 +79,7 @@ def _run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedP
     ("args", "message"),
     [
         (["ingest", ".", "--lake", "lake", "--workers", "300"], "between 1 and 64, not 300"),
-        (["record", "--out", "x.bag", "--format", "ros1", "--odom-hz", "1e9"], "at most 200"),
+        (["record", "--out", "x.bag", "--bag-format", "ros1", "--odom-hz", "1e9"], "at most 200"),
         (["agent", "run", "--log", "log", "--listen", "garbage"], "zenoh endpoint"),
         (["bench", "paper", "--scenes", "99"], "between 1 and 10, not 99"),
         (["demo", "--out", ""], "the path is empty"),
@@ -110,12 +110,12 @@ def test_an_ascii_only_terminal_gets_escapes_not_a_crash(args: list[str]) -> Non
 
 
 def test_an_ascii_only_terminal_gets_error_messages(tmp_path: Path) -> None:
-    proc = _run("graph", "--log", str(tmp_path / "ŝtrange"), env={"PYTHONIOENCODING": "ascii"})
+    proc = _run("graph", str(tmp_path / "ŝtrange"), env={"PYTHONIOENCODING": "ascii"})
     assert proc.returncode == 2
     assert "objsearch: error: " in proc.stderr and "Traceback" not in proc.stderr
 
 
 def test_map_show_json_still_parses_on_an_ascii_terminal() -> None:
-    proc = _run("map", "show", "--json", env={"PYTHONIOENCODING": "ascii"})
+    proc = _run("map", "show", "--format", "json", env={"PYTHONIOENCODING": "ascii"})
     assert proc.returncode == 0
     assert json.loads(proc.stdout)["statics"]

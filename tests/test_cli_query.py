@@ -27,7 +27,17 @@ def lake(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("query")
     for target, run in (("Apple", "apple"), ("Cup", "cup")):
         log = root / f"log-{run}"
-        args = ["search", "--target", target, "--start", "kitchen-1", "--log", str(log), "--json"]
+        args = [
+            "search",
+            "--target",
+            target,
+            "--start",
+            "kitchen-1",
+            "--log",
+            str(log),
+            "--format",
+            "json",
+        ]
         assert main(args) == 0
         args = [
             "lake",
@@ -374,7 +384,7 @@ def test_lake_verify_names_every_damaged_file(
     assert len(damaged) == 2 and all(str(cup.path) in line for line in damaged)
     assert "moved.parquet fails its digest" in captured.out
     assert captured.err.startswith("objsearch: error: 2 damaged file(s) in 1 run(s)")
-    assert main(["lake", "verify", str(copy), "--json"]) == 2
+    assert main(["lake", "verify", str(copy), "--format", "json"]) == 2
     doc = json.loads(capsys.readouterr().out)
     assert [d["run"] for d in doc["damaged"]] == [str(cup.path)]
     assert len(doc["damaged"][0]["problems"]) == 2 and doc["runs"] == 2

@@ -1,4 +1,4 @@
-"""The command line as a newcomer meets it: --version, --json on the commands that write things,
+"""The command line as a newcomer meets it: --version, --format json on the commands that write things,
 record's progress and size up front, and agent find telling that nobody can hear it."""
 
 from __future__ import annotations
@@ -28,8 +28,8 @@ def test_record_says_what_it_will_write_and_prints_json(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "bag"
-    args = ["record", "--out", str(out), "--format", "ros2-mcap", "--scenes", "1"]
-    args += ["--targets", "Apple", "--starts", "kitchen-1", "--json"]
+    args = ["record", "--out", str(out), "--bag-format", "ros2-mcap", "--scenes", "1"]
+    args += ["--targets", "Apple", "--starts", "kitchen-1", "--format", "json"]
     assert main(args) == 0
     captured = capsys.readouterr()
     assert "1 searches into" in captured.err and "zstd" in captured.err
@@ -40,28 +40,33 @@ def test_record_says_what_it_will_write_and_prints_json(
     assert doc["bytes"] == (out / "bag.mcap").stat().st_size
     assert doc["messages"]["/objsearch/events"] == doc["events"]
 
-    # ingest --json: one JSON line per bag; lake add --json: the committed run.
+    # ingest --format json: one JSON line per bag; lake add --format json: the committed run.
     lake = tmp_path / "lake"
-    assert main(["ingest", str(out), "--lake", str(lake), "--no-progress", "--json"]) == 0
+    assert main(["ingest", str(out), "--lake", str(lake), "--no-progress", "--format", "json"]) == 0
     (line,) = capsys.readouterr().out.strip().splitlines()
     ingested = json.loads(line)
     assert ingested["ok"] and not ingested["already"] and ingested["committed"] > 0
     assert ingested["report"]["format"] == "ros2-mcap"
-    assert main(["lake", "add", str(GOLDEN), "--robot", "sim", "--lake", str(lake), "--json"]) == 0
+    assert (
+        main(
+            ["lake", "add", str(GOLDEN), "--robot", "sim", "--lake", str(lake), "--format", "json"]
+        )
+        == 0
+    )
     added = json.loads(capsys.readouterr().out)
     assert added["robot"] == "sim" and added["events"] == sum(added["rows"].values())
 
 
 def test_liveview_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     mcap = tmp_path / "view.mcap"
-    assert main(["liveview", str(GOLDEN), "--mcap", str(mcap), "--json"]) == 0
+    assert main(["liveview", str(GOLDEN), "--mcap", str(mcap), "--format", "json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["bytes"] == mcap.stat().st_size and doc["compressed"] is True
     assert doc["messages"] == sum(c["messages"] for c in doc["channels"].values())
 
 
 def test_demo_summary_reads_the_demos_table(tmp_path: Path) -> None:
-    """``demo --json`` summarises the table the demo writes (a small real run of it here; the
+    """``demo --format json`` summarises the table the demo writes (a small real run of it here; the
     full demo is 1280 searches)."""
     from objsearch.agent.home import load_home
     from objsearch.agent.scene_graph import UpdateMode

@@ -118,7 +118,7 @@ def test_the_wheel_ships_the_data_and_no_tests(installed: Installed) -> None:
 
 
 def test_a_search_runs_from_the_installed_wheel(installed: Installed) -> None:
-    proc = installed.run("search", "--target", "Apple", "--start", "kitchen-1", "--json")
+    proc = installed.run("search", "--target", "Apple", "--start", "kitchen-1", "--format", "json")
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout)
     assert out["success"] is True

@@ -103,7 +103,7 @@ def test_where_answers_from_the_log(
 ) -> None:
     log, trials = memory_log
     # The time of the latest search (the default, now, may be another slot of the routine).
-    assert main(["where", "Cup", "--log", str(log), "--json", "--at", "last"]) == 0
+    assert main(["where", "Cup", str(log), "--format", "json", "--at", "last"]) == 0
     answer = json.loads(capsys.readouterr().out)
     placements: dict[int, dict[str, Placement]] = {}
     from objsearch.sim.longterm import scenes_of
@@ -119,9 +119,9 @@ def test_where_answers_from_the_log(
     assert sum(rooms.values()) + answer["elsewhere"] == pytest.approx(1.0, abs=1e-3)
     top = answer["most_likely_now"][0]
     assert rooms[top["room"]] >= top["probability"]
-    assert main(["where", "Cup", "--log", str(log)]) == 0
+    assert main(["where", "Cup", str(log)]) == 0
     assert "last seen" in capsys.readouterr().out
-    assert main(["where", "Unicorn", "--log", str(log)]) != 0
+    assert main(["where", "Unicorn", str(log)]) != 0
 
 
 def test_where_answers_for_a_time_of_day(
@@ -130,7 +130,7 @@ def test_where_answers_for_a_time_of_day(
     log, _ = memory_log  # a habit schedule: its scenes are times of day (four a day)
     answers = {}
     for at in ("sat 09:00", "mon 23:30"):
-        assert main(["where", "Cup", "--log", str(log), "--json", "--at", at]) == 0
+        assert main(["where", "Cup", str(log), "--format", "json", "--at", at]) == 0
         answers[at] = json.loads(capsys.readouterr().out)
     when = answers["sat 09:00"]["time_of_day"]
     assert (when["weekday"], when["minute"], when["slot"]) == (5, 540, "morning/weekend")
@@ -139,9 +139,9 @@ def test_where_answers_for_a_time_of_day(
     for answer in answers.values():
         rooms = sum(r["probability"] for r in answer["rooms"])
         assert rooms + answer["elsewhere"] == pytest.approx(1.0, abs=1e-3)
-    assert main(["where", "Cup", "--log", str(log)]) == 0
+    assert main(["where", "Cup", str(log)]) == 0
     assert "  at:" in capsys.readouterr().out
-    assert main(["where", "Cup", "--log", str(log), "--at", "25:00"]) == 2
+    assert main(["where", "Cup", str(log), "--at", "25:00"]) == 2
     assert "expected now, last, HH:MM or DAY HH:MM" in capsys.readouterr().err
 
 
@@ -173,8 +173,8 @@ def test_a_log_and_the_lake_made_from_it_answer_the_same(
     assert main(["lake", "add", str(log), "--robot", "sim", "--lake", str(lake)]) == 0
     capsys.readouterr()
     answers = []
-    for source in (["--log", str(log)], ["--lake", str(lake)]):
-        assert main(["where", "Cup", *source, "--json", "--at", "sat 09:00"]) == 0
+    for source in ([str(log)], [str(lake)]):
+        assert main(["where", "Cup", *source, "--format", "json", "--at", "sat 09:00"]) == 0
         answers.append(json.loads(capsys.readouterr().out))
     assert answers[0] == answers[1]
     assert answers[0]["last_seen"] is not None and answers[0]["run_id"]
@@ -186,7 +186,7 @@ def test_where_refuses_what_it_cannot_answer_from(
     log, _ = memory_log
     lake = tmp_path / "lake"
     lake.mkdir()
-    assert main(["where", "Cup", "--lake", str(lake)]) == 2
+    assert main(["where", "Cup", str(lake)]) == 2
     assert "holds no runs" in capsys.readouterr().err
     other = tmp_path / "other-log"
     _run(other, "wpl", scenes=(1,))
@@ -195,21 +195,20 @@ def test_where_refuses_what_it_cannot_answer_from(
         assert main(argv) == 0
     capsys.readouterr()
     # Several runs: refused, listing them, rather than guessing which one is meant.
-    assert main(["where", "Cup", "--lake", str(lake)]) == 2
+    assert main(["where", "Cup", str(lake)]) == 2
     err = capsys.readouterr().err
     assert "sim/first" in err and "sim/second" in err and "--run" in err
-    assert main(["where", "Cup", "--lake", str(lake), "--run", "second", "--json"]) == 0
+    assert main(["where", "Cup", str(lake), "--run", "second", "--format", "json"]) == 0
     assert json.loads(capsys.readouterr().out)["target"] == "Cup"
-    assert main(["where", "Cup", "--lake", str(lake), "--run", "third"]) == 2
+    assert main(["where", "Cup", str(lake), "--run", "third"]) == 2
     assert "no run 'third'" in capsys.readouterr().err
-    assert main(["where", "Unicorn", "--lake", str(lake), "--run", "first"]) == 2
+    assert main(["where", "Unicorn", str(lake), "--run", "first"]) == 2
     assert "unknown object class 'Unicorn'" in capsys.readouterr().err
-    assert main(["where", "Cup", "--log", str(lake)]) == 2
-    assert "--lake" in capsys.readouterr().err
-    assert main(["where", "Cup", "--lake", str(log)]) == 2
-    assert "use --log" in capsys.readouterr().err
-    assert main(["where", "Cup", "--log", str(log), "--run", "first"]) == 2
-    assert main(["where", "Cup", "--lake", str(tmp_path / "missing")]) == 2
+    # The options it once took still work (with a note): a log or a lake is one positional now.
+    assert main(["where", "Cup", "--lake", str(lake), "--run", "second"]) == 0
+    assert "--lake is deprecated" in capsys.readouterr().err
+    assert main(["where", "Cup", str(log), "--run", "first"]) == 2
+    assert main(["where", "Cup", str(tmp_path / "missing")]) == 2
     assert "no such folder" in capsys.readouterr().err
 
 
@@ -270,7 +269,7 @@ def test_where_remembers_a_sighting_away_from_every_mapped_place(
     assert seen["task_id"] == events[last].task_id and seen["room"] is not None
     assert answer["belief_over_places"] > 0
     assert before["last_seen"]["at"] is True
-    assert main(["where", "Cup", "--log", str(copy)]) == 0
+    assert main(["where", "Cup", str(copy)]) == 0
     out = capsys.readouterr().out
     assert "last seen: away from every mapped place" in out
     assert f"probabilities over the {answer['belief_over_places']} places" in out

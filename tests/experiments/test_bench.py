@@ -25,7 +25,8 @@ def test_tiny_bench_paper_writes_outputs_and_json(
         "sdp,wpl,wpl-neg-decay",
         "--workers",
         "1",
-        "--json",
+        "--format",
+        "json",
     ]
     assert main(argv) == 0
     headline = json.loads(capsys.readouterr().out)
@@ -61,8 +62,17 @@ def test_same_seed_same_results(tmp_path: Path) -> None:
 def test_tiny_bench_homes_on_a_walked_house(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    argv = ["bench", "homes", "--out", str(tmp_path), "--homes", "procthor-00", "--scenes", "1"]
-    argv += ["--strategies", "wpl,epl", "--workers", "1", "--json"]
+    argv = [
+        "bench",
+        "homes",
+        "--out",
+        str(tmp_path),
+        "--homes",
+        "procthor-00",
+        "--scenes-per-schedule",
+        "1",
+    ]
+    argv += ["--strategies", "wpl,epl", "--workers", "1", "--format", "json"]
     assert main(argv) == 0
     headline = json.loads(capsys.readouterr().out)
     assert set(headline["strategies"]) == {"wpl", "epl", "wpl/none"}

@@ -36,11 +36,11 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     )
     _bench(
         *["bench", "homes", "--out", str(out["homes"]), "--homes", "procthor-00,ithor-01"],
-        *["--scenes", "2", "--strategies", "wpl,epl"],
+        *["--scenes-per-schedule", "2", "--strategies", "wpl,epl"],
     )
     _bench(
         *["bench", "homes", "--out", str(out["heldout"]), "--homes", "ithor-02"],
-        *["--scenes", "1", "--strategies", "wpl"],
+        *["--scenes-per-schedule", "1", "--strategies", "wpl"],
     )
     return out
 
@@ -62,7 +62,7 @@ def test_bench_summaries_record_their_commands(runs: dict[str, Path]) -> None:
     )
     assert homes["command"] == (
         f"objsearch bench homes --out {runs['homes']} --homes procthor-00,ithor-01 "
-        "--schedules stats --seeds 1 --scenes 2 --strategies wpl,epl --workers 1"
+        "--schedules stats --seeds 1 --scenes-per-schedule 2 --strategies wpl,epl --workers 1"
     )
     assert homes["prior"] == "vg-cooccurrence"
 

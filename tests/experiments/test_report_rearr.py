@@ -14,8 +14,26 @@ def test_tiny_rearr_run_and_its_generated_page(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     run = tmp_path / "run"
-    argv = ["bench", "homes", "--out", str(run), "--homes", "ithor-09", "--scenes", "1"]
-    argv += ["--schedules", "rearr,stats", "--strategies", "wpl", "--workers", "1", "--json"]
+    argv = [
+        "bench",
+        "homes",
+        "--out",
+        str(run),
+        "--homes",
+        "ithor-09",
+        "--scenes-per-schedule",
+        "1",
+    ]
+    argv += [
+        "--schedules",
+        "rearr,stats",
+        "--strategies",
+        "wpl",
+        "--workers",
+        "1",
+        "--format",
+        "json",
+    ]
     assert main(argv) == 0
     capsys.readouterr()
     summary = json.loads((run / "summary.json").read_text())
@@ -30,7 +48,7 @@ def test_tiny_rearr_run_and_its_generated_page(
     assert f"wrote {page}" in said and "kept" in said  # no paper/homes runs: results.md untouched
     assert not (tmp_path / "docs" / "results.md").exists()
     text = page.read_text()
-    assert "--schedules rearr,stats --seeds 1 --scenes 1 --strategies wpl" in text
+    assert "--schedules rearr,stats --seeds 1 --scenes-per-schedule 1 --strategies wpl" in text
     assert "rearr schedules (rearr-<seed>, seeds [0])" in text
     assert "- ithor-09: Apple, Pillow, Vase" in text  # fallback classes are reported
 

@@ -162,7 +162,8 @@ def test_a_summary_without_its_command_gets_a_full_one(tmp_path: Path) -> None:
     command = homes_command(summary, tmp_path / "run")
     assert command == (
         f"objsearch bench homes --out {tmp_path / 'run'} --homes ithor-02,procthor-00 "
-        "--schedules habit --seeds 2 --scenes 20 --strategies wpl,ecost --starts 2 --workers 1 "
+        "--schedules habit --seeds 2 --scenes-per-schedule 20 --strategies wpl,ecost "
+        "--starts-per-scene 2 --workers 1 "
         "--camera geometric"
     )
     assert homes_command({**summary, "camera": "occluding"}, tmp_path).count("--camera") == 0
@@ -178,7 +179,7 @@ def test_a_bench_on_a_data_folder_records_its_build(
         "objsearch data build --source ../shared/data --heldout-ithor 11 --out mydata"
     ]
     monkeypatch.setenv("OBJSEARCH_DATA", "mydata")
-    argv = ["bench", "homes", "--out", "out/h", "--homes", "ithor-11", "--scenes", "1"]
+    argv = ["bench", "homes", "--out", "out/h", "--homes", "ithor-11", "--scenes-per-schedule", "1"]
     assert main([*argv, "--strategies", "wpl", "--workers", "1", "--no-progress"]) == 0
     capsys.readouterr()
     summary = json.loads(Path("out/h/summary.json").read_text(encoding="utf-8"))

@@ -59,7 +59,7 @@ def test_an_accepted_room_in_pieces_keeps_its_largest_piece_and_searches_there_w
     monkeypatch.setenv("OBJSEARCH_DATA", str(out))
     for start in ("bathroom-1", "bathroom-2"):
         argv = ["search", "--home", "split", "--target", "ToiletPaper", "--start", start]
-        assert main([*argv, "--scene", "1", "--schedule", "stats-0", "--json"]) == 0
+        assert main([*argv, "--scene", "1", "--schedule", "stats-0", "--format", "json"]) == 0
         assert json.loads(capsys.readouterr().out)["success"]
 
 
@@ -96,7 +96,7 @@ def test_dropped_rooms_are_reported_as_json_and_refused(
     shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "out"
-    argv = ["data", "build", "--source", str(shared_data), "--out", str(out), "--json"]
+    argv = ["data", "build", "--source", str(shared_data), "--out", str(out), "--format", "json"]
     argv += ["--procthor", f"closed={CLOSED_OFF_HOUSE.as_posix()}"]
     assert main(argv) == 2
     captured = capsys.readouterr()

@@ -42,15 +42,23 @@ def test_one_home_makes_a_folder_search_and_bench_homes_run_on(
     capsys.readouterr()
     for home, schedule in (("user-flat", "rearr-0"), ("user-house", "stats-0")):
         argv = ["search", "--home", home, "--target", "Cup", "--start", "kitchen-1"]
-        assert main([*argv, "--scene", "2", "--schedule", schedule, "--json"]) == 0
+        assert main([*argv, "--scene", "2", "--schedule", schedule, "--format", "json"]) == 0
         assert json.loads(capsys.readouterr().out)["success"]
     bench = ["bench", "homes", "--out", str(tmp_path / "bench"), "--homes", "user-flat,user-house"]
-    bench += ["--strategies", "wpl", "--scenes", "1", "--workers", "1", "--no-progress"]
+    bench += [
+        "--strategies",
+        "wpl",
+        "--scenes-per-schedule",
+        "1",
+        "--workers",
+        "1",
+        "--no-progress",
+    ]
     assert main([*bench, "--schedules", "stats,rearr"]) == 2
     assert "user-house is a ProcTHOR house (procthor_houses/houses_20/house_3.json)" in (
         capsys.readouterr().err
     )
-    assert main([*bench, "--schedules", "stats", "--json"]) == 0
+    assert main([*bench, "--schedules", "stats", "--format", "json"]) == 0
     summary = json.loads((tmp_path / "bench" / "summary.json").read_text())
     assert set(summary["by_home"]) == {"user-flat", "user-house"}
 

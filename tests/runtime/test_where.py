@@ -55,7 +55,19 @@ def test_the_agent_answers_where_from_its_live_memory(
             assert not malformed["ok"] and "where request: field 'target'" in malformed["error"]
         # The command-line client, after the malformed question: the agent is still answering.
         assert (
-            main(["agent", "where", "Apple", *net.args, "--json", "--timeout", str(STARTUP_S)]) == 0
+            main(
+                [
+                    "agent",
+                    "where",
+                    "Apple",
+                    *net.args,
+                    "--format",
+                    "json",
+                    "--timeout",
+                    str(STARTUP_S),
+                ]
+            )
+            == 0
         )
         again = json.loads(capsys.readouterr().out)
         assert again["answer"] == live["answer"]
@@ -63,14 +75,26 @@ def test_the_agent_answers_where_from_its_live_memory(
     finally:
         assert stop(agent) == 0
         stop(robot)
-    assert main(["where", "Apple", "--log", str(log), "--json"]) == 0
+    assert main(["where", "Apple", str(log), "--format", "json"]) == 0
     assert json.loads(capsys.readouterr().out) == live["answer"]
     # A restart restores the memory from the snapshot written at shutdown, and answers the same.
     assert (log / WHERE_SNAPSHOT_DIR / "agent_state.snapshot.json").is_file()
     agent = objsearch("agent", "run", *net.args, "--log", str(log), log=tmp_path / "agent2.txt")
     try:
         assert (
-            main(["agent", "where", "Apple", *net.args, "--json", "--timeout", str(STARTUP_S)]) == 0
+            main(
+                [
+                    "agent",
+                    "where",
+                    "Apple",
+                    *net.args,
+                    "--format",
+                    "json",
+                    "--timeout",
+                    str(STARTUP_S),
+                ]
+            )
+            == 0
         )
         assert json.loads(capsys.readouterr().out)["answer"] == live["answer"]
     finally:

@@ -65,7 +65,17 @@ def run(*args: str) -> subprocess.CompletedProcess[str]:
 
 def test_map_build_cli(tmp_path: Path) -> None:
     out = tmp_path / "map.json"
-    res = run("map", "build", "--points-per-room", "1", "--no-search", "--json", "--out", str(out))
+    res = run(
+        "map",
+        "build",
+        "--points-per-room",
+        "1",
+        "--no-search",
+        "--format",
+        "json",
+        "--out",
+        str(out),
+    )
     assert res.returncode == 0, res.stderr
     report = json.loads(res.stdout)
     assert report["frames"] == 32 and report["accuracy"]["found"] >= 35
@@ -87,6 +97,6 @@ def test_map_cli_bad_input(args: tuple[str, ...], message: str) -> None:
 
 
 def test_map_show_json() -> None:
-    res = run("map", "show", "--json")
+    res = run("map", "show", "--format", "json")
     assert res.returncode == 0
     assert len(json.loads(res.stdout)["statics"]) == 45

@@ -7,6 +7,8 @@ from pathlib import Path
 import pytest
 
 from objsearch.cli import main
+from objsearch.cli_bags import BAG_FORMATS
+from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import BagLake
 
@@ -74,7 +76,8 @@ def test_cli_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     junk.write_bytes(b"\x00" * 100)
     assert main(["ingest", str(junk), "--lake", str(tmp_path / "l")]) == 2
     assert "not a ROS bag" in capsys.readouterr().err
-    assert main(["record", "--out", str(tmp_path / "x.bag"), "--format", "ros3"]) == 2
-    assert "unknown bag format 'ros3'" in capsys.readouterr().err
-    assert main(["record", "--out", str(tmp_path / "x"), "--format", "ros1"]) == 2
+    assert main(["record", "--out", str(tmp_path / "x.bag"), "--bag-format", "ros3"]) == 2
+    assert "invalid choice: 'ros3'" in capsys.readouterr().err
+    assert tuple(f.value for f in BagFormat) == BAG_FORMATS  # the choices are every format
+    assert main(["record", "--out", str(tmp_path / "x"), "--bag-format", "ros1"]) == 2
     assert "named *.bag" in capsys.readouterr().err

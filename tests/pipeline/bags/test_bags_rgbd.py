@@ -188,11 +188,23 @@ def test_cli_records_a_sweep_and_builds_from_it(
     tmp_path: Path, sim_map: BuiltMap, capsys: pytest.CaptureFixture[str]
 ) -> None:
     bag = tmp_path / "sweep"
-    args = ["--out", str(bag), "--format", "ros2-sqlite3", "--rooms", "bathroom"]
+    args = ["--out", str(bag), "--bag-format", "ros2-sqlite3", "--rooms", "bathroom"]
     assert main(["record", "--mapping-sweep", *args, "--points-per-room", "1"]) == 0
     assert "mapping sweep" in capsys.readouterr().out
     out_map = tmp_path / "map.json"
-    code = main(["map", "build", "--bag", str(bag), "--out", str(out_map), "--no-search", "--json"])
+    code = main(
+        [
+            "map",
+            "build",
+            "--bag",
+            str(bag),
+            "--out",
+            str(out_map),
+            "--no-search",
+            "--format",
+            "json",
+        ]
+    )
     assert code == 0
     report = json.loads(capsys.readouterr().out)
     assert report["bag"]["views"] == 8 and report["frames"] == 8
@@ -211,12 +223,16 @@ def test_cli_refuses_bad_combinations(tmp_path: Path, capsys: pytest.CaptureFixt
     assert "--model" in capsys.readouterr().err
     bag = str(tmp_path / "s.bag")
     assert (
-        main(["record", "--mapping-sweep", "--out", bag, "--format", "ros1", "--targets", "Cup"])
+        main(
+            ["record", "--mapping-sweep", "--out", bag, "--bag-format", "ros1", "--targets", "Cup"]
+        )
         == 2
     )
     assert "--targets" in capsys.readouterr().err
     assert (
-        main(["record", "--mapping-sweep", "--out", bag, "--format", "ros1", "--rooms", "attic"])
+        main(
+            ["record", "--mapping-sweep", "--out", bag, "--bag-format", "ros1", "--rooms", "attic"]
+        )
         == 2
     )
     assert "attic" in capsys.readouterr().err
