@@ -24,6 +24,8 @@ from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.strategies import AGENT_MODELS, RelationModels, RelationSpec, RunSpec
 
 _TASK_NUMBER = re.compile(r"task-(\d+)")
+#: The event types :meth:`TaskLedger.apply` reads.
+_LEDGER_TYPES = frozenset({"task_started", "moved", "task_ended", "task_aborted"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,17 +98,20 @@ class AgentState:
         return self
 
     def apply(self, event: EventLike) -> None:
-        if event.type == "run_started":
+        kind = event.type
+        if kind == "run_started":
             self.run = RunSpec.from_record(decode(event, RunStarted))
             if self.model is None:
                 self.first_run = self.run
                 self.model = (self.counterfactual or self.run.relations).build(self.models)
-        elif event.type == "scene_graph_seeded":
+        elif kind == "scene_graph_seeded":
             self.seeded = True
             self.seeded_source = str(event.payload.get("source", ""))
-        if self.model is not None:
-            self.model.apply(event)
-        self.tasks.apply(event, getattr(event, "task_id", None))
+        model = self.model
+        if model is not None:
+            model.apply(event)
+        if kind in _LEDGER_TYPES:  # the rest pass the ledger by (most of a log: detections)
+            self.tasks.apply(event, getattr(event, "task_id", None))
         self.last_seq = event.seq
         self.last_time_ns = int(getattr(event, "time_ns", self.last_time_ns))
 

@@ -3,8 +3,10 @@ from __future__ import annotations
 import enum
 import json
 import uuid
+import zlib
 from typing import Any
 
+import msgspec
 import numpy as np
 import pytest
 from hypothesis import given
@@ -180,3 +182,64 @@ def test_equal_events_hash_equal() -> None:
 def test_deterministic_ids_are_uuid5_of_stream_and_seq(stream: str, seq: int) -> None:
     expected = str(uuid.uuid5(EVENT_ID_NAMESPACE, f"{stream}/{seq}"))
     assert deterministic_event_id(stream, seq) == expected
+
+
+# --- the canonical-id check --------------------------------------------------------------------
+
+_ID_ALPHABET = "0123456789abcdefABCDEF-g{}_ 0\u0660\uff10\u00e9\n"
+
+
+def _near_uuids() -> st.SearchStrategy[str]:
+    """Canonical ids, ids with a character or two changed, cut or lengthened, and any text."""
+    canonical = st.uuids().map(str)
+
+    def mutate(draw_id: tuple[str, list[tuple[int, str]], int]) -> str:
+        text, changes, cut = draw_id
+        chars = list(text)
+        for index, char in changes:
+            chars[index % len(chars)] = char
+        mutated = "".join(chars)
+        return mutated[: len(mutated) + cut] if cut < 0 else mutated + "a" * cut
+
+    edits = st.lists(st.tuples(st.integers(0, 35), st.sampled_from(_ID_ALPHABET)), max_size=2)
+    return st.one_of(
+        canonical,
+        st.tuples(canonical, edits, st.integers(-2, 2)).map(mutate),
+        st.text(alphabet=_ID_ALPHABET, min_size=34, max_size=38),
+        st.text(),
+    )
+
+
+@given(_near_uuids())
+def test_the_canonical_id_check_accepts_exactly_what_the_regex_does(value: str) -> None:
+    from objsearch.events.envelope import (
+        _CANONICAL_UUID,
+        _is_canonical_uuid,
+        check_event,
+        decode_event,
+    )
+
+    canonical = _CANONICAL_UUID.fullmatch(value) is not None
+    assert _is_canonical_uuid(value) == canonical
+    # The decoders check the id in their own (inlined) copy of the check: the same set.
+    body = json.dumps({**make_event().to_json_dict(), "event_id": value}).encode()
+    for decode in (check_event, decode_event):
+        try:
+            decode(body)
+        except msgspec.ValidationError:
+            accepted = False
+        else:
+            accepted = True
+        assert accepted == canonical, decode
+
+
+@pytest.mark.parametrize("event_id", [str(uuid.uuid4()).upper(), "0" * 36, "{" + "0" * 34 + "}"])
+def test_a_record_with_a_non_canonical_id_is_refused_when_read(event_id: str) -> None:
+    from objsearch.events.record import RecordError, decode_record, encode_record
+
+    good = encode_record(make_event())
+    line = good[:-1].replace(make_event().event_id.encode(), event_id.encode())
+    body = line.rpartition(b"\t")[0]
+    line = body + b"\t%08x" % zlib.crc32(body)
+    with pytest.raises(RecordError, match="event_id"):
+        decode_record(line)
