@@ -679,15 +679,11 @@ class TableLake:
                     digests.setdefault(event_type, _TypeDigest()).add(table)
                     rows[event_type] = rows.get(event_type, 0) + table.num_rows
                     if event_type not in files:
-                        files[event_type] = _StreamFile(self, event_type, info.commit)
+                        files[event_type] = _StreamFile(self, event_type, event_type, info.commit)
                     files[event_type].add(_widen(event_type, table, event_type, info, self.store))
             adds = [files[t].close() for t in sorted(files)]
         except BaseException:
-            for f in files.values():
-                with suppress(Exception):
-                    f.writer.close()
-                    self._close(f.rel, f.out)
-            self._delete_files([_Named(f.rel) for f in files.values()])
+            self._abandon(files.values())
             raise
         info = dataclasses.replace(
             info, rows=rows, digest=_combine({t: d.hexdigest() for t, d in digests.items()})
@@ -700,13 +696,33 @@ class TableLake:
         except BaseException:
             self._delete_files(adds)
             raise
-        small = _small_parts(derived, info, self.store)
+        # Widened a slice at a time, as the events were: a whole derived table widened at once
+        # (eq4_updates: ~280 k rows at 1 M events) was the commit's peak of memory.
+        small = _small_tables(derived, info, self.store)
+        del derived
+        written: list[_StreamFile] = []
         try:
-            adds += self._write_files({k: [t] for k, t in small.items()}, info.commit)
+            for kind, (column, part) in sorted(small.items()):
+                written.append(_StreamFile(self, kind, column, info.commit))
+                for start in range(0, max(part.num_rows, 1), CHUNK_EVENTS):
+                    piece = part.slice(start, CHUNK_EVENTS)
+                    written[-1].add(_widen(kind, piece, column, info, self.store))
+                adds.append(written[-1].close())
+                small[kind] = (column, part.slice(0, 0))  # its rows back to the pool
         except BaseException:
+            self._abandon(written)
             self._delete_files(adds)
             raise
         return info, adds
+
+    def _abandon(self, files: Iterable[_StreamFile]) -> None:
+        """Close and delete files a failed commit was writing."""
+        files = list(files)
+        for f in files:
+            with suppress(Exception):
+                f.writer.close()
+                self._close(f.rel, f.out)
+        self._delete_files([_Named(f.rel) for f in files])
 
     def _derive(self, files: Mapping[str, str]) -> dict[str, pa.Table]:
         """The derived tables of one run from its data files just written (``files``: event
@@ -1049,12 +1065,12 @@ class _StreamFile:
     """One ``type`` partition's Parquet file, written as rows arrive (row groups of
     :data:`ROW_GROUP_ROWS`), with the statistics the Delta log keeps."""
 
-    def __init__(self, lake: TableLake, kind: str, token: str) -> None:
+    def __init__(self, lake: TableLake, kind: str, column: str, token: str) -> None:
         self.kind = kind
         self.rel = f"type={kind}/part-{token}.zstd.parquet"
         self.lake = lake
         self.out = lake._open(self.rel)
-        schema = file_schema(kind, envelope=True, store=lake.store)
+        schema = file_schema(column, envelope=kind in lake.store.registry.types, store=lake.store)
         self.writer = pq.ParquetWriter(
             self.out,
             schema.remove(schema.get_field_index("type")),
@@ -1227,11 +1243,21 @@ def _small_parts(
     derived: Mapping[str, pa.Table], info: TableRun, store: Store
 ) -> dict[str, pa.Table]:
     """A run's derived tables and its ``_run`` row, by ``type`` partition."""
+    return {
+        kind: _widen(kind, table, column, info, store)
+        for kind, (column, table) in _small_tables(derived, info, store).items()
+    }
+
+
+def _small_tables(
+    derived: Mapping[str, pa.Table], info: TableRun, store: Store
+) -> dict[str, tuple[str, pa.Table]]:
+    """A run's derived tables and its ``_run`` row, by ``type`` partition: the struct column
+    each goes in and its rows, before :func:`_widen`."""
     parts = {}
     specs = {d.name: d for d in derived_tables(store)}
     for name, table in derived.items():
-        kind = derived_kind(name, specs[name].version)
-        parts[kind] = _widen(kind, table, derived_column(name), info, store)
+        parts[derived_kind(name, specs[name].version)] = (derived_column(name), table)
     description = {
         "format": TABLE_FORMAT,
         "digest": info.digest,
@@ -1241,9 +1267,7 @@ def _small_parts(
         "attachments": json.dumps(dict(info.attachments), sort_keys=True),
         "committed_at_ns": time.time_ns(),
     }
-    parts[RUN_TYPE] = _widen(
-        RUN_TYPE, pa.table({k: [v] for k, v in description.items()}), RUN_COLUMN, info, store
-    )
+    parts[RUN_TYPE] = (RUN_COLUMN, pa.table({k: [v] for k, v in description.items()}))
     return parts
 
 
