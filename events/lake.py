@@ -57,7 +57,7 @@ import re
 import shutil
 import time
 import uuid
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
@@ -290,17 +290,20 @@ class Lake:
             unverified=[r.path for r in unverified if r.path not in bad],
         )
 
-    def upgrade(self) -> list[RunInfo]:
+    def upgrade(
+        self, progress: Callable[[list[RunInfo]], Iterable[RunInfo]] | None = None
+    ) -> list[RunInfo]:
         """Bring every healthy run written by older code up to date: write the derived tables it
         lacks, and record its files' digests if it has none (after decoding every file in full:
         digests of damaged bytes would only vouch for the damage). Returns the runs upgraded.
-        Idempotent; each file and the manifest appear atomically, so readers never see half."""
+        Idempotent; each file and the manifest appear atomically, so readers never see half.
+        ``progress`` wraps the runs as they are looked at (the CLI's progress line)."""
         upgraded = []
         with self.locked():
             runs, damaged = self.scan()
             for bad in damaged:
                 _log.warning("%s: damaged run not upgraded: %s", bad.path, bad.reason)
-            for info in runs:
+            for info in progress(runs) if progress else runs:
                 stale = info.missing_derived() or not info.files
                 if stale and self._upgrade_run(info, None):
                     upgraded.append(info)
@@ -604,12 +607,14 @@ def compact_log(
     run: str | None = None,
     date: str | dt.date | None = None,
     replace: bool = False,
+    progress: Callable[[Iterable[Event]], Iterable[Event]] | None = None,
 ) -> RunInfo:
     """Seal an event log into the lake as one run (``run`` defaults to the log's stream).
 
     Only a sealed log is compacted: one whose writer has closed it (its lock is free), so the
     run in the lake is the whole stream. Compacting it again after more appends needs
-    ``replace=True``; compacting it unchanged is a no-op.
+    ``replace=True``; compacting it unchanged is a no-op. ``progress`` wraps the events as
+    they are read (the CLI's progress line).
     """
     log_dir = Path(log_dir)
     if _fs.is_locked(log_dir / LOCK_FILE):
@@ -640,7 +645,7 @@ def compact_log(
         yield from events
 
     return lake.commit_events(
-        all_events(),
+        progress(all_events()) if progress else all_events(),
         robot=robot,
         run=run,
         date=date,

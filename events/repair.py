@@ -12,7 +12,7 @@ import json
 import os
 import time
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -88,16 +88,23 @@ class Repair:
     actions: tuple[RepairAction, ...] = ()
 
 
-def verify_log(directory: Path | str, *, store: Store | None = None) -> Verification:
+def verify_log(
+    directory: Path | str,
+    *,
+    store: Store | None = None,
+    progress: Callable[[Iterable[object]], Iterable[object]] | None = None,
+) -> Verification:
     """Read every record and check it, and the seals of ``durable.json``; raise
-    :class:`CorruptLogError` at the first problem."""
+    :class:`CorruptLogError` at the first problem. ``progress`` wraps the records as they are
+    checked (the CLI's progress line)."""
     directory = Path(directory)
     meta = read_meta(directory)
     record = read_durable_record(directory)
     durable = None if record is None else record.position
     registry = (store or shipped()).registry
     scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable, payloads=False)
-    collections.deque(scan, maxlen=0)  # every record checked; none kept
+    # every record checked; none kept
+    collections.deque(progress(scan) if progress else scan, maxlen=0)
     events = scan.at.line  # the records read (a scan from the start counts from 0)
     if record is not None and record.seals:
         _check_sealed(directory, meta, registry, record)

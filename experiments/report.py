@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -140,7 +140,15 @@ def table1_section(runs: Sequence[dict[str, Any]]) -> str:
     return "\n".join(parts)
 
 
-def write_report(inputs: ReportInputs, out: Path, img: Path) -> Path:
+#: What :func:`write_report` does in turn, each named to its ``progress`` as it starts.
+REPORT_STAGES = ("runs", "paper", "cameras", "table1", "homes", "held-out")
+
+
+def write_report(
+    inputs: ReportInputs, out: Path, img: Path, progress: Callable[[str], None] | None = None
+) -> Path:
+    step = progress or (lambda _stage: None)
+    step("runs")
     paper = load_summary(inputs.paper, "bench paper")
     img.mkdir(parents=True, exist_ok=True)
     # The page links its images relative to itself.
@@ -162,8 +170,10 @@ def write_report(inputs: ReportInputs, out: Path, img: Path) -> Path:
         "the target's viewpoint).\n\nThis page, from a clean clone with `../shared` beside "
         "it, in this order (`tests/experiments/test_results_commands.py` checks each parses, "
         "and runs the data builds):\n\n```sh\n" + "\n".join(commands) + "\n```\n",
-        paper_section(paper, inputs.paper, img, link),
     ]
+    step("paper")
+    sections.append(paper_section(paper, inputs.paper, img, link))
+    step("cameras")
     if inputs.paper_geometric is not None:
         other = load_summary(inputs.paper_geometric, "bench paper")
         sections.append(cameras_section(paper, other, inputs.paper_geometric))
@@ -175,6 +185,7 @@ def write_report(inputs: ReportInputs, out: Path, img: Path) -> Path:
                 "pass it as `--paper-geometric DIR`",
             )
         )
+    step("table1")
     if inputs.table1:
         runs = [load_summary(d, "bench table1") for d in inputs.table1]
         sections.append(table1_section(runs))
@@ -186,6 +197,7 @@ def write_report(inputs: ReportInputs, out: Path, img: Path) -> Path:
                 "`--table1 out/bench-table1`",
             )
         )
+    step("homes")
     if homes is not None:
         sections.append(homes_section("Homes (not tuned on)", *homes, img, link, "homes"))
     else:
@@ -196,6 +208,7 @@ def write_report(inputs: ReportInputs, out: Path, img: Path) -> Path:
                 "`--homes out/bench-homes`",
             )
         )
+    step("held-out")
     if held is not None:
         sections.append(
             homes_section("Held-out homes (looked at only at the end)", *held, img, link, "heldout")
@@ -224,4 +237,4 @@ def write_report(inputs: ReportInputs, out: Path, img: Path) -> Path:
     return out
 
 
-__all__ = ["ReportInputs", "write_report"]
+__all__ = ["REPORT_STAGES", "ReportInputs", "write_report"]

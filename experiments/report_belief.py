@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 import math
 import random
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -366,7 +366,13 @@ def read_outputs(folders: Sequence[Path]) -> list[Row]:
     return rows
 
 
-def report(folders: Sequence[Path], out: Path | None = None) -> str:
+def report(
+    folders: Sequence[Path],
+    out: Path | None = None,
+    progress: Callable[[list[str]], Iterable[str]] | None = None,
+) -> str:
+    """The belief's figures for ``folders``, per schedule kind (``progress`` wraps the kinds as
+    they are reported: the CLI's progress line)."""
     rows = read_outputs(folders)
     if not rows:
         return "no searches in these outputs"
@@ -376,7 +382,8 @@ def report(folders: Sequence[Path], out: Path | None = None) -> str:
         f"{len(rows)} searches; homes ({len(homes)}): {', '.join(homes)}; seeds {seeds}; "
         f"intervals: 95 % bootstrap over runs (home × schedule), shown from {MIN_RUNS} runs",
     ]
-    for k in sorted({kind(r) for r in rows}):
+    kinds = sorted({kind(r) for r in rows})
+    for k in progress(kinds) if progress else kinds:
         mine = [r for r in rows if kind(r) == k]
         after = after_scene(k)
         lines += ["", f"### {k} schedules", "", *ratio_table(mine, after), ""]

@@ -51,7 +51,10 @@ def cmd_data_build(args: argparse.Namespace) -> int:
             procthor=houses,
             heldout_ithor=args.heldout_ithor or (),
             accept=args.accept or (),
-            progress=None if args.format == "json" else lambda line: print(line, file=sys.stderr),
+            # A line per home built: a log of the build, in a pipe too (--no-progress: none).
+            progress=None
+            if args.format == "json" or args.no_progress
+            else lambda line: print(line, file=sys.stderr),
         )
     except FindingsError as exc:
         if args.format == "json":
@@ -365,6 +368,7 @@ def build_parser() -> argparse.ArgumentParser:
         + ", ".join(FINDING_KINDS),
     )
     t.format_option(build, "the build report as JSON")
+    t.progress_option(build)
     build.set_defaults(func=cmd_data_build)
 
     search = sub.add_parser("search", help="run one search in the simulated home")

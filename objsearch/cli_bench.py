@@ -144,7 +144,13 @@ def cmd_bench_belief(args: argparse.Namespace) -> int:
         raise ObjsearchError(
             f"not a bench homes output (no homes_trials.parquet): {', '.join(missing)}"
         )
-    text = report(folders, Path(args.out))
+    text = report(
+        folders,
+        Path(args.out),
+        progress=lambda kinds: t.progress(
+            kinds, "bench belief", " schedule kinds", total=len(kinds), enabled=not args.no_progress
+        ),
+    )
     print(text)
     (Path(args.out) / "belief.md").write_text(text + "\n", encoding="utf-8")
     print(f"\nwrote {Path(args.out) / 'belief.md'}")
@@ -152,7 +158,7 @@ def cmd_bench_belief(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_report(args: argparse.Namespace) -> int:
-    from objsearch.experiments.report import ReportInputs, write_report
+    from objsearch.experiments.report import REPORT_STAGES, ReportInputs, write_report
 
     homes = [Path(d) for d in args.homes or ()]
     heldout = None if args.heldout is None else [Path(d) for d in args.heldout]
@@ -180,7 +186,19 @@ def cmd_bench_report(args: argparse.Namespace) -> int:
         paper_geometric=None if args.paper_geometric is None else Path(args.paper_geometric),
     )
     out = Path(args.out)
-    path = write_report(inputs, out, Path(args.img) if args.img else out.parent / "img")
+    img = Path(args.img) if args.img else out.parent / "img"
+    with t.progress_bar(
+        "bench report", " stages", total=len(REPORT_STAGES), enabled=not args.no_progress
+    ) as bar:
+        started: list[str] = []
+
+        def stage(name: str) -> None:  # the bar counts the stages done
+            if started:
+                bar.update()
+            started.append(name)
+            bar.set_postfix_str(name)
+
+        path = write_report(inputs, out, img, progress=stage)
     print(f"wrote {path}")
     if args.html:
         from objsearch.experiments.report_html import write_results_html
@@ -435,6 +453,7 @@ def register(sub: Any) -> None:
         type=t.dir_path,
         help="folder for belief.md and the curves (out/belief-report)",
     )
+    t.progress_option(belief)
     belief.set_defaults(func=cmd_bench_belief)
 
     dhs = bsub.add_parser(
@@ -546,4 +565,5 @@ def register(sub: Any) -> None:
         help="also write index.html beside --out: the same page, self-contained (sortable "
         "tables, inline SVG figures)",
     )
+    t.progress_option(report)
     report.set_defaults(func=cmd_bench_report)

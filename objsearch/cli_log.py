@@ -21,6 +21,7 @@ def register(sub: Any) -> None:
     )
     verify.add_argument("log", metavar="LOG", type=t.existing_dir, help="event log folder")
     t.format_option(verify, "print the result as JSON")
+    t.progress_option(verify)
     verify.set_defaults(func=cmd_log_verify)
 
     repair = log_sub.add_parser(
@@ -51,7 +52,13 @@ def cmd_log_verify(args: argparse.Namespace) -> int:
     from objsearch.events.repair import verify_log
     from objsearch.product import STORE
 
-    result = verify_log(Path(args.log), store=STORE)
+    result = verify_log(
+        Path(args.log),
+        store=STORE,
+        progress=lambda records: t.progress(
+            records, "log verify", " records", enabled=not args.no_progress
+        ),
+    )
     if args.format == "json":
         print(_as_json(result))
         return 0

@@ -257,6 +257,9 @@ def _lake_add(args: argparse.Namespace) -> int:
             run=args.run,
             date=args.date,
             replace=args.replace,
+            progress=lambda events: t.progress(
+                events, "lake add", " events", enabled=not args.no_progress
+            ),
         )
     except OSError as exc:
         return _fail(f"lake add: {exc.filename or args.lake}: {exc.strerror or exc}")
@@ -336,7 +339,11 @@ def cmd_lake_upgrade(args: argparse.Namespace) -> int:
     lake = Path(args.lake)
     if not lake.is_dir():
         return _fail(f"no lake at {lake}")
-    upgraded = Lake(lake, store=STORE).upgrade()
+    upgraded = Lake(lake, store=STORE).upgrade(
+        progress=lambda runs: t.progress(
+            runs, "lake upgrade", " runs", total=len(runs), enabled=not args.no_progress
+        )
+    )
     for info in upgraded:
         print(f"{info.path}: upgraded (derived tables and file digests)")
     print(
@@ -550,6 +557,7 @@ def register(sub: Any) -> None:
         "--date", type=t.date, help="YYYY-MM-DD (default: the UTC day of the first event)"
     )
     add.add_argument("--replace", action="store_true", help="replace the run if it differs")
+    t.progress_option(add)
     t.format_option(add, "print the committed run as JSON")
     add.add_argument(
         "--wait",
@@ -617,6 +625,7 @@ def register(sub: Any) -> None:
         help="with --to fleet: write the fleet table there (a folder or s3://bucket/prefix) and "
         "leave --lake as it is",
     )
+    t.progress_option(upgrade)
     upgrade.set_defaults(func=cmd_lake_upgrade)
     compact = lake_sub.add_parser(
         "compact",

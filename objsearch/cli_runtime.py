@@ -193,7 +193,11 @@ def cmd_liveview(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     sink = McapSink(Path(args.mcap), compress=not args.no_compress)
     try:
-        render(events, [sink], clock_offset_ns=DEFAULT_START_NS if args.sim_clock else 0)
+        render(
+            t.progress(events, "liveview", " events", enabled=not args.no_progress),
+            [sink],
+            clock_offset_ns=DEFAULT_START_NS if args.sim_clock else 0,
+        )
     except BaseException:
         sink.abort()  # no half-drawn file at --mcap
         raise
@@ -514,6 +518,7 @@ def register(sub: Any) -> None:
         "record; about 15 times larger)",
     )
     t.format_option(view, "print what was written as JSON")
+    t.progress_option(view)
     view.add_argument(
         "--robot-clock",
         dest="sim_clock",

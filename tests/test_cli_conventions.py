@@ -7,14 +7,16 @@ parses, with a note on stderr."""
 from __future__ import annotations
 
 import argparse
+import io
 import re
+import sys
 from pathlib import Path
 
 import pytest
 
 from objsearch import cli_battery as battery
 from objsearch import cli_types as t
-from objsearch.cli import build_parser
+from objsearch.cli import build_parser, main
 
 REPO = Path(__file__).resolve().parents[1]
 LEAVES = {" ".join(words): leaf for words, leaf in battery.leaf_parsers(build_parser())}
@@ -27,13 +29,20 @@ LONG_COMMANDS = {
     "demo",
     "record",
     "ingest",
+    "data build",
     "bench paper",
     "bench homes",
     "bench table1",
     "bench dhs",
+    "bench report",
+    "bench belief",
     "map build",
     "replay",
     "audit",
+    "liveview",
+    "lake add",
+    "lake upgrade",
+    "log verify",
 }
 #: Pages whose commands the lead regenerates from recorded runs: old spellings may stay there
 #: (they still parse, tests/experiments/test_results_commands.py).
@@ -167,3 +176,36 @@ def test_the_docs_use_the_new_spellings(page: Path) -> None:
     lines = page.read_text(encoding="utf-8").splitlines()
     stale = [line for line in lines if any(p.search(line) for p in OLD_SPELLINGS)]
     assert not stale
+
+
+class _Terminal(io.StringIO):
+    """stderr as a terminal (tqdm draws only on one)."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+GOLDEN = REPO / "tests" / "replay" / "golden" / "sim-wpl-updates"
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["log", "verify", str(GOLDEN)],
+        ["lake", "add", str(GOLDEN), "--robot", "sim", "--lake", "LAKE"],
+        ["liveview", str(GOLDEN), "--mcap", "MCAP"],
+    ],
+)
+@pytest.mark.parametrize("no_progress", [False, True])
+def test_long_commands_draw_progress_on_a_terminal(
+    command: list[str], no_progress: bool, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    argv = [w.replace("LAKE", str(tmp_path / "lake")) for w in command]
+    argv = [w.replace("MCAP", str(tmp_path / "view.mcap")) for w in argv]
+    terminal = _Terminal()
+    monkeypatch.setenv("COLUMNS", "100")
+    monkeypatch.setattr(sys, "stderr", terminal)
+    monkeypatch.setattr(sys, "stdout", io.StringIO())
+    assert main([*argv, *(["--no-progress"] if no_progress else [])]) == 0
+    label = " ".join(command[:2]) if command[0] != "liveview" else "liveview"
+    assert (f"{label}: " in terminal.getvalue()) is not no_progress
