@@ -205,13 +205,25 @@ def is_table_lake(root: Path | str) -> bool:
     return (Path(root) / TABLE_DIR / "_delta_log").is_dir()
 
 
+#: How long an object-store request may go without an answer before it is tried again, and how
+#: often (Arrow's S3 client; delta-rs gets the same time-out).
+S3_REQUEST_TIMEOUT_S: Final = 120.0
+S3_CONNECT_TIMEOUT_S: Final = 30.0
+S3_ATTEMPTS: Final = 10
+
+
 def storage_options() -> dict[str, str]:
     """Object-store settings from the standard environment: ``AWS_ENDPOINT_URL`` (e.g. a local
     S3 server), ``AWS_ACCESS_KEY_ID``, ``AWS_SECRET_ACCESS_KEY``, ``AWS_REGION`` — read by
     delta-rs itself; only what it cannot infer is added (plain HTTP for an ``http://``
-    endpoint)."""
-    endpoint = os.environ.get("AWS_ENDPOINT_URL", "")
-    return {"AWS_ALLOW_HTTP": "true"} if endpoint.startswith("http://") else {}
+    endpoint), and time-outs as long as Arrow's client gets."""
+    options = {
+        "timeout": f"{S3_REQUEST_TIMEOUT_S:.0f}s",
+        "connect_timeout": f"{S3_CONNECT_TIMEOUT_S:.0f}s",
+    }
+    if os.environ.get("AWS_ENDPOINT_URL", "").startswith("http://"):
+        options["AWS_ALLOW_HTTP"] = "true"
+    return options
 
 
 class TableLake:
@@ -527,6 +539,12 @@ class TableLake:
         for attempt in range(COMMIT_TRIES):
             table = self.table() if attempt or table is None else table
             existing = self.find(info.robot, info.run, table)
+            if existing is not None and existing.commit == info.commit:
+                # Our own commit landed though we heard a conflict (its answer was lost and
+                # the store's retry of the conditional put found the version taken): its files
+                # are the run's now, never to be deleted.
+                self._maybe_compact(table)
+                return existing
             if existing is not None and adds is not None:
                 self._delete_files(adds)  # another writer committed the run first
                 adds = None
@@ -1143,6 +1161,11 @@ def _filesystem_for(uri: str, settings: tuple[str, ...]) -> tuple[Any, str]:
             endpoint_override=endpoint,
             scheme="http" if endpoint and endpoint.startswith("http://") else "https",
             region=os.environ.get("AWS_REGION", os.environ.get("AWS_DEFAULT_REGION", "us-east-1")),
+            # The SDK's defaults (3 s without a byte, 3 attempts) fail a writer whose server
+            # stalls for seconds — a loaded one does (the S3 writers' test failed so once).
+            request_timeout=S3_REQUEST_TIMEOUT_S,
+            connect_timeout=S3_CONNECT_TIMEOUT_S,
+            retry_strategy=pafs.AwsStandardS3RetryStrategy(max_attempts=S3_ATTEMPTS),
         )
         return fs, uri.removeprefix("s3://")
     fs, path = pafs.FileSystem.from_uri(uri)

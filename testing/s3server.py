@@ -7,6 +7,8 @@ client at it, and stops it. Nothing leaves the machine: the server listens on 12
 
 from __future__ import annotations
 
+import os
+import signal
 import socket
 import subprocess
 import sys
@@ -14,6 +16,9 @@ import time
 import urllib.request
 from collections.abc import Iterator
 from contextlib import contextmanager
+
+#: The servers running, by endpoint URL (for :func:`stalled`).
+_SERVERS: dict[str, subprocess.Popen[bytes]] = {}
 
 
 def free_port() -> int:
@@ -42,6 +47,7 @@ def s3_server(start_timeout_s: float = 60.0) -> Iterator[dict[str, str]]:
                 if proc.poll() is not None or time.monotonic() > deadline:
                     raise RuntimeError(f"the S3 server on {url} did not start") from None
                 time.sleep(0.05)
+        _SERVERS[url] = proc
         yield {
             "AWS_ENDPOINT_URL": url,
             "AWS_ACCESS_KEY_ID": "testing",
@@ -49,5 +55,20 @@ def s3_server(start_timeout_s: float = 60.0) -> Iterator[dict[str, str]]:
             "AWS_REGION": "us-east-1",
         }
     finally:
+        _SERVERS.pop(url, None)
         proc.terminate()
         proc.wait(timeout=30)
+
+
+@contextmanager
+def stalled(endpoint_url: str) -> Iterator[None]:
+    """The server at ``endpoint_url`` (one :func:`s3_server` started) answers nothing inside the
+    block: its process is stopped, and continued on leaving. Connections are still accepted
+    (the kernel completes them), so a client sees a server that has gone quiet, as a loaded
+    one does."""
+    proc = _SERVERS[endpoint_url]
+    os.kill(proc.pid, signal.SIGSTOP)
+    try:
+        yield
+    finally:
+        os.kill(proc.pid, signal.SIGCONT)

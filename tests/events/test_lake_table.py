@@ -52,6 +52,16 @@ def small_log(directory: Path, *, stream: str = "run-a", n: int = 3) -> Path:
     return directory
 
 
+def one_type_log(directory: Path, *, stream: str, n: int) -> Path:
+    """A log of ``n + 1`` events of one type (a commit of it is few files)."""
+    with EventLog.open(
+        directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000, store=STORE
+    ) as log:
+        for i in range(n + 1):
+            log.append("search_failed", {"reason": f"r{i}"}, time_ns=i)
+    return directory
+
+
 def table_counts(lake: TableLake) -> list[tuple[str, str, int]]:
     con = open_analytics(lake.root)
     try:
@@ -260,8 +270,10 @@ for log in sys.argv[2:]:
 
 def test_writers_compacting_at_once_lose_and_duplicate_nothing(tmp_path: Path) -> None:
     # Each of 3 writers commits 3 runs of its own and compacts when the table holds more than
-    # 8 files; without the compaction lock, two compactions rewrote the same rows twice.
-    logs = [small_log(tmp_path / "logs" / f"log{i}", stream=f"s{i}", n=i) for i in range(9)]
+    # 8 files; without the compaction lock, two compactions rewrote the same rows twice. Logs
+    # of one event type: a commit is 5 files, so the compactions start after two commits and
+    # each rewrites a few partitions (every type's made this test take 30-60 s under load).
+    logs = [one_type_log(tmp_path / "logs" / f"log{i}", stream=f"s{i}", n=i) for i in range(9)]
     lake = TableLake(tmp_path / "lake", store=STORE)
     lake.create()
     procs = [
@@ -279,6 +291,31 @@ def test_writers_compacting_at_once_lose_and_duplicate_nothing(tmp_path: Path) -
     ]
     assert table_counts(lake) == table_counts(sequential)
     assert len(lake.data_files()) < 9 * len({f.kind for f in lake.data_files()})  # it compacted
+
+
+def test_a_commit_whose_answer_was_lost_keeps_its_files(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The commit lands, but the writer hears a conflict (on S3: the answer to the conditional
+    # put was lost and its retry found the version taken). It must find its own run there and
+    # keep the files, not delete them as if another writer had won.
+    from deltalake.exceptions import CommitFailedError
+
+    real = DeltaTable.create_write_transaction
+    heard: list[str] = []
+
+    def lands_then_conflicts(self: DeltaTable, *args: object, **kwargs: object) -> None:
+        real(self, *args, **kwargs)  # type: ignore[arg-type]
+        if not heard:
+            heard.append("conflict")
+            raise CommitFailedError("Failed to commit transaction: Concurrent transaction failed.")
+
+    monkeypatch.setattr(DeltaTable, "create_write_transaction", lands_then_conflicts)
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    info = add_log(small_log(tmp_path / "log"), lake, robot="r")
+    assert heard and lake.runs() == [info]
+    assert lake.verify().damaged == []
+    assert table_counts(lake) == [("r", "run-a", len(EXAMPLES) + 3)]
 
 
 def test_an_empty_run_name_or_a_bad_date_is_refused(tmp_path: Path) -> None:
