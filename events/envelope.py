@@ -41,15 +41,17 @@ def deterministic_event_id(run: str, seq: int) -> str:
     inputs still writes identical logs (up to the wall clock). Format-1 logs passed the stream.
     """
     # uuid.uuid5 spelled out (SHA-1 of namespace + name, version and variant bits): the same
-    # string, without building two UUID objects per id — bag ingest numbers ~10^5 events a bag.
-    digest = bytearray(hashlib.sha1(_NAMESPACE_BYTES + f"{run}/{seq}".encode()).digest()[:16])
-    digest[6] = (digest[6] & 0x0F) | 0x50
-    digest[8] = (digest[8] & 0x3F) | 0x80
-    h = digest.hex()
-    return f"{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:]}"
+    # string, without building two UUID objects per id — bag ingest numbers ~10^5 events a bag,
+    # a batched append one an event. The version nibble (hex digit 12) is 5; the variant's two
+    # top bits (of hex digit 16) are 10.
+    sha1 = _NAMESPACE_SHA1.copy()
+    sha1.update(f"{run}/{seq}".encode())
+    h = sha1.hexdigest()
+    return f"{h[:8]}-{h[8:12]}-5{h[13:16]}-{_VARIANT_DIGIT[h[16]]}{h[17:20]}-{h[20:32]}"
 
 
-_NAMESPACE_BYTES: Final = EVENT_ID_NAMESPACE.bytes
+_NAMESPACE_SHA1: Final = hashlib.sha1(EVENT_ID_NAMESPACE.bytes)
+_VARIANT_DIGIT: Final = {f"{n:x}": f"{(n & 0x3) | 0x8:x}" for n in range(16)}
 
 
 # The envelope's rules as msgspec constraints: a record's envelope is checked in C as it is
@@ -95,15 +97,7 @@ class Event(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tru
             version=self.version,
             task_id=self.task_id,
         )
-        if not isinstance(self.payload, Mapping):
-            raise InvalidEventError(
-                f"invalid {self.type} v{self.version} event: payload: "
-                f"{type(self.payload).__name__} is not a JSON object (mapping)",
-                event_type=self.type,
-                version=self.version,
-                path="payload",
-                reason="not a mapping",
-            )
+        _require_mapping(self.payload, self.type, self.version)
         copied = _json_copy(self.payload, "payload", self.type, self.version)
         msgspec.structs.force_setattr(self, "payload", MappingProxyType(copied))
 
@@ -184,6 +178,19 @@ class Event(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tru
             )
         d = dict(d, payload=MappingProxyType(payload))
         return _Adopted(**d)
+
+    @classmethod
+    def _for_append(
+        cls, payload: Mapping[str, Any], **envelope: Any
+    ) -> tuple[Event, dict[str, Any], str]:
+        """The event an append stores, its payload (the dict behind ``event.payload``, for the
+        schema check) and that payload's JSON text (:func:`json_payload`): the checks and errors
+        of ``Event(...)``, in its order, the payload copied once."""
+        check_envelope(**envelope)
+        event_type, version = envelope["type"], envelope["version"]
+        _require_mapping(payload, event_type, version)
+        copied, text = json_payload(payload, event_type, version)
+        return _Adopted(**envelope, payload=MappingProxyType(copied)), copied, text
 
 
 class _Adopted(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
@@ -332,23 +339,46 @@ _SCALAR_FIELDS: Final = tuple(name for name in ENVELOPE_FIELDS if name != "paylo
 
 
 def _plausible_envelope(d: dict[str, Any]) -> bool:
-    """check_envelope's rules minus the UUID parse, for values straight from ``json.loads``."""
-    task_id = d["task_id"]
+    """:func:`_plausible` of a dict's envelope fields (values straight from ``json.loads``)."""
+    return _plausible(
+        d["event_id"],
+        d["stream"],
+        d["seq"],
+        d["time_ns"],
+        d["recorded_at_ns"],
+        d["type"],
+        d["version"],
+        d["task_id"],
+    )
+
+
+def _plausible(
+    event_id: Any,
+    stream: Any,
+    seq: Any,
+    time_ns: Any,
+    recorded_at_ns: Any,
+    event_type: Any,
+    version: Any,
+    task_id: Any,
+) -> bool:
+    """check_envelope's rules with exact types (plain str and int): True means valid; False lets
+    :func:`check_envelope` look closer (an int subclass passes there) and word the error."""
     return (
-        type(d["event_id"]) is str
-        and _is_canonical_uuid(d["event_id"])
-        and type(d["stream"]) is str
-        and d["stream"] != ""
-        and type(d["seq"]) is int
-        and d["seq"] >= 1
-        and type(d["time_ns"]) is int
-        and d["time_ns"] >= 0
-        and type(d["recorded_at_ns"]) is int
-        and d["recorded_at_ns"] >= 0
-        and type(d["type"]) is str
-        and d["type"] != ""
-        and type(d["version"]) is int
-        and d["version"] >= 1
+        type(event_id) is str
+        and _is_canonical_uuid(event_id)
+        and type(stream) is str
+        and stream != ""
+        and type(seq) is int
+        and seq >= 1
+        and type(time_ns) is int
+        and time_ns >= 0
+        and type(recorded_at_ns) is int
+        and recorded_at_ns >= 0
+        and type(event_type) is str
+        and event_type != ""
+        and type(version) is int
+        and version >= 1
         and (task_id is None or (type(task_id) is str and task_id != ""))
     )
 
@@ -365,6 +395,8 @@ def check_envelope(
     task_id: object,
 ) -> None:
     """Raise :class:`InvalidEventError` naming the first envelope field that is wrong."""
+    if _plausible(event_id, stream, seq, time_ns, recorded_at_ns, type, version, task_id):
+        return  # every event built in Python, every append: one pass, no isinstance
     problem: tuple[str, object, str] | None = None
     if not (isinstance(event_id, str) and _is_canonical_uuid(event_id)):
         problem = ("event_id", event_id, "is not a canonical UUID string")
@@ -374,7 +406,11 @@ def check_envelope(
         problem = ("seq", seq, "is not an integer >= 1")
     elif not (_is_int(time_ns) and time_ns >= 0):
         problem = ("time_ns", time_ns, "is not an integer >= 0")
-    elif not (_is_int(recorded_at_ns) and recorded_at_ns >= 0):
+    elif not (
+        isinstance(recorded_at_ns, int)
+        and not isinstance(recorded_at_ns, bool)
+        and recorded_at_ns >= 0
+    ):
         problem = ("recorded_at_ns", recorded_at_ns, "is not an integer >= 0")
     elif not (isinstance(type, str) and type):
         problem = ("type", type, "is not a non-empty string")
@@ -430,6 +466,58 @@ def _is_canonical_uuid(value: str) -> bool:
         and value.isascii()
         and value.encode().translate(None, _HEX_DIGITS) == b"----"
     )
+
+
+def _require_mapping(payload: object, event_type: str, version: int) -> None:
+    if not isinstance(payload, Mapping):
+        raise InvalidEventError(
+            f"invalid {event_type} v{version} event: payload: "
+            f"{type(payload).__name__} is not a JSON object (mapping)",
+            event_type=event_type,
+            version=version,
+            path="payload",
+            reason="not a mapping",
+        )
+
+
+#: A payload's JSON as a record holds it (compact, sorted keys, UTF-8 left as is).
+_dumps_payload: Final = json.JSONEncoder(
+    sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False
+).encode
+
+
+def json_payload(
+    payload: Mapping[str, Any], event_type: str, version: int
+) -> tuple[dict[str, Any], str]:
+    """A payload as :class:`Event` keeps it (a deep copy in JSON types, :func:`_json_copy`) and
+    its JSON text as a record holds it: what an append needs, in C when it can be.
+
+    The fast path dumps the caller's dict with ``json`` and decodes the text back (msgspec): a
+    fresh deep copy in JSON types. It is taken only if that copy equals the payload, which a
+    payload ``_json_copy`` would refuse or change never does (a non-string key comes back a
+    string, a tuple a list; NaN, a numpy integer, another mapping or object make ``json``
+    raise). Everything else takes ``_json_copy``, its normalisation and its errors. The text
+    is the same either way (``tests/events/test_envelope.py`` holds the two paths equal).
+    """
+    if type(payload) is dict:
+        try:
+            text = _dumps_payload(payload)
+            copied = _decode_payload(text)
+        except (TypeError, ValueError, msgspec.MsgspecError):
+            pass
+        else:
+            if copied == payload:
+                return copied, text
+    copied = _json_copy(payload, "payload", event_type, version)
+    try:
+        return copied, _dumps_payload(copied)
+    except ValueError as exc:  # a mapping that says it is a dict and is not: word it as json does
+        raise InvalidEventError(
+            f"invalid {event_type} v{version} event: payload: cannot be stored as JSON: {exc}",
+            event_type=event_type,
+            version=version,
+            reason=str(exc),
+        ) from exc
 
 
 def _json_copy(value: Any, path: str, event_type: str, version: int) -> Any:

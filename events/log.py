@@ -71,7 +71,7 @@ from .log_files import (
     read_meta,
     write_durable,
 )
-from .record import encode_record
+from .record import encode_new_record
 from .scan import QUARANTINED_TYPE, BadRecord, _Cursor, _Scan, check_record
 from .schemas import SchemaRegistry
 from .seal import Sealer, check_seals
@@ -409,7 +409,10 @@ class EventLog:
                     f"the default id {event_id} of seq {seq} is already used by an earlier "
                     f"event in {self._directory} (an explicit id copied from this stream?)"
                 )
-        event = Event(
+        # The payload copied and its JSON made once, in C where it can be (not copied, then
+        # dumped with the envelope again): most of what a batched append costs.
+        event, copied, payload_json = Event._for_append(
+            payload,
             event_id=event_id,
             stream=self._meta.stream,
             seq=seq,
@@ -418,7 +421,6 @@ class EventLog:
             type=type,
             version=version,
             task_id=task_id,
-            payload=payload,
         )
         if time_ns < at.time_ns:
             raise InvalidEventError(
@@ -429,7 +431,7 @@ class EventLog:
                 path="time_ns",
                 reason="earlier than the previous event",
             )
-        self._registry.validate_event(event)
+        self._registry.validate(type, version, copied)
         if type == QUARANTINED_TYPE and payload.get("chain") is not None:
             raise InvalidEventError(
                 f"invalid {type} v{version} event: payload.chain: only `objsearch log repair` "
@@ -439,7 +441,7 @@ class EventLog:
                 path="payload.chain",
                 reason="not null",
             )
-        record = encode_record(event, at.checksum if self._meta.chained else 0)
+        record = encode_new_record(event, payload_json, at.checksum if self._meta.chained else 0)
         offset = at.offset
         self._write(record)
         self._sealer.add(record)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import zlib
+from collections.abc import Callable
 from typing import Final
 
 import msgspec
@@ -52,12 +53,48 @@ def encode_body(event: Event) -> bytes:
         )
         return text.encode("utf-8")
     except ValueError as exc:  # NaN/inf, or a lone surrogate that UTF-8 cannot encode
-        raise InvalidEventError(
-            f"invalid {event.type} v{event.version} event: cannot be stored as UTF-8 JSON: {exc}",
-            event_type=event.type,
-            version=event.version,
-            reason=str(exc),
-        ) from exc
+        raise _unstorable(event, exc) from exc
+
+
+def _unstorable(event: Event, exc: ValueError) -> InvalidEventError:
+    return InvalidEventError(
+        f"invalid {event.type} v{event.version} event: cannot be stored as UTF-8 JSON: {exc}",
+        event_type=event.type,
+        version=event.version,
+        reason=str(exc),
+    )
+
+
+#: The record's JSON with the payload's text put in: the keys in sorted order, the strings as
+#: ``json.dumps(..., ensure_ascii=False)`` writes them (:func:`encode_body`'s bytes exactly).
+_BODY: Final = (
+    '{"event_id":"%s","payload":%s,"recorded_at_ns":%d,"seq":%d,"stream":%s,"task_id":%s,'
+    '"time_ns":%d,"type":%s,"version":%d}'
+)
+_string: Final[Callable[[str], str]] = json.encoder.encode_basestring
+
+
+def encode_new_record(event: Event, payload_json: str, prev: int = 0) -> bytes:
+    """:func:`encode_record` of an event being appended whose payload's JSON text
+    (:func:`~objsearch.events.envelope.json_payload`) is already made: the envelope is written
+    around it, not dumped again. ``InvalidEventError`` if it cannot be stored as UTF-8."""
+    task_id = event.task_id
+    text = _BODY % (
+        event.event_id,  # canonical (checked): hex digits and dashes, nothing to escape
+        payload_json,
+        event.recorded_at_ns,
+        event.seq,
+        _string(event.stream),
+        "null" if task_id is None else _string(task_id),
+        event.time_ns,
+        _string(event.type),
+        event.version,
+    )
+    try:
+        body = text.encode("utf-8")
+    except ValueError as exc:  # a lone surrogate
+        raise _unstorable(event, exc) from exc
+    return body + b"\t%08x\n" % zlib.crc32(body, prev)
 
 
 def encode_record(event: Event, prev: int = 0) -> bytes:

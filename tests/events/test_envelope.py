@@ -243,3 +243,78 @@ def test_a_record_with_a_non_canonical_id_is_refused_when_read(event_id: str) ->
     line = body + b"\t%08x" % zlib.crc32(body)
     with pytest.raises(RecordError, match="event_id"):
         decode_record(line)
+
+
+# --- an append's payload: copied and dumped once ----------------------------------------------
+
+_scalars = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(min_value=-(2**70), max_value=2**70),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(),
+    st.sampled_from([np.float64(0.25), np.int64(3), Colour.RED, b"bytes"]),
+)
+_values = st.recursive(
+    _scalars,
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=3),
+        st.lists(inner, max_size=3).map(tuple),
+        st.dictionaries(st.text(max_size=4), inner, max_size=3),
+        st.dictionaries(st.one_of(st.integers(0, 3), st.booleans()), inner, max_size=2),
+    ),
+    max_leaves=12,
+)
+
+
+@given(
+    st.dictionaries(st.text(max_size=6), _values, max_size=5),
+    st.text(min_size=1, max_size=8),
+    st.one_of(st.none(), st.text(min_size=1, max_size=8)),
+    st.integers(min_value=0, max_value=2**32 - 1),
+)
+def test_an_appended_event_is_built_and_encoded_as_event_and_encode_record_do(
+    payload: dict[str, Any], stream: str, task_id: str | None, prev: int
+) -> None:
+    """``Event._for_append`` + ``encode_new_record`` (the append's one copy and one dump) give
+    the event, the error and the record bytes that ``Event(...)`` + ``encode_record`` give."""
+    from objsearch.events.record import encode_new_record, encode_record
+
+    envelope: dict[str, Any] = {
+        "event_id": deterministic_event_id(stream, 1),
+        "stream": stream,
+        "seq": 1,
+        "time_ns": 5,
+        "recorded_at_ns": 7,
+        "type": "a_type",
+        "version": 1,
+        "task_id": task_id,
+    }
+    try:
+        expected = Event(**envelope, payload=payload)
+    except InvalidEventError as exc:
+        with pytest.raises(InvalidEventError) as info:
+            Event._for_append(payload, **envelope)
+        assert str(info.value) == str(exc)
+        assert info.value.path == exc.path
+        return
+    event, copied, text = Event._for_append(payload, **envelope)
+    assert event == expected
+    assert copied == dict(expected.payload)
+    assert json.dumps(copied, sort_keys=True) == json.dumps(dict(expected.payload), sort_keys=True)
+    assert encode_new_record(event, text, prev) == encode_record(expected, prev)
+
+
+def test_an_appended_payload_with_a_lone_surrogate_is_refused_as_before() -> None:
+    from objsearch.events.record import encode_new_record, encode_record
+
+    expected = make_event(payload={"x": "\ud800"})
+    event, _, text = Event._for_append({"x": "\ud800"}, **{
+        name: getattr(expected, name) for name in ("event_id", "stream", "seq", "time_ns",
+        "recorded_at_ns", "type", "version", "task_id")
+    })  # fmt: skip
+    with pytest.raises(InvalidEventError) as old:
+        encode_record(expected)
+    with pytest.raises(InvalidEventError) as new:
+        encode_new_record(event, text)
+    assert str(new.value) == str(old.value)
