@@ -268,6 +268,7 @@ for log in sys.argv[2:]:
 """
 
 
+@pytest.mark.slow  # three processes committing and compacting: 30-60 s on a shared machine
 def test_writers_compacting_at_once_lose_and_duplicate_nothing(tmp_path: Path) -> None:
     # Each of 3 writers commits 3 runs of its own and compacts when the table holds more than
     # 8 files; without the compaction lock, two compactions rewrote the same rows twice. Logs
