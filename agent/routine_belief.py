@@ -17,12 +17,17 @@ belief of the same kind fed only those episodes, and a learned mix of the three 
   with weight ``BUCKET_PRIOR_STRENGTH`` episodes (the slot's parent is the time-blind belief, the
   slot-and-day-type's the slot's): an empty slot predicts what its parent does, a few episodes
   move it — a hierarchical Dirichlet, so a weekend morning borrows from every morning.
-- **Mix**: per class, the three predictions are mixed by weights learned online as the
-  posterior responsibility of each for the class's outcomes (a step 1/(n+2), never below
-  ``STEP``), starting equal. A class without a routine is predicted as well or better by the
-  time-blind belief, which has four to eight times the evidence, so its weight goes there; a class
-  with a routine is predicted better by its slot's. Episode outcomes (sightings, censored
-  searches) are the time-blind belief's, counted into each component of the episode's clock.
+- **Mix**: per class, the three predictions are mixed by the posterior probability of each as a
+  model of the class's outcomes (a Bayesian model average), starting equal, with forgetting: each
+  episode the log-evidence gathered so far is multiplied by ``MIX_MEMORY`` (the time-blind
+  belief's step: about the last ten episodes count) before the episode's likelihood is added, so
+  the weights can follow a routine that starts or stops. A class without a routine is predicted
+  as well or better by the time-blind belief, which has four to eight times the evidence, so its
+  weight goes there; a class with a routine is predicted better by its slot's. Episode outcomes
+  (sightings, censored searches) are the time-blind belief's, counted into each component of the
+  episode's clock. (The first version moved the weights toward each episode's responsibilities,
+  as the time-blind belief mixes its memories: on schedules with no routine it kept about half
+  the weight on the slots, docs/results-routine.md, "The stats regression".)
 - **Today**: the mix is conditioned on the episode's looks and sightings as the time-blind belief
   is (:class:`~objsearch.agent.belief.Today`).
 
@@ -39,7 +44,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from objsearch.agent.belief import STEP, PlaceBelief, responsibilities
+from objsearch.agent.belief import STEP, PlaceBelief
 from objsearch.agent.catalogue import DayClock, TaskStarted, decode
 from objsearch.agent.scene_graph import EventLike
 
@@ -54,8 +59,9 @@ SLOTS: tuple[tuple[str, int], ...] = (
 WEEKEND = (5, 6)
 #: A slot belief's prior weight on its parent's prediction (episodes). Fixed before any run.
 BUCKET_PRIOR_STRENGTH = 1.0
-#: Smallest step of the mix's update (as the time-blind belief's, ``belief.STEP``).
-MIX_STEP = STEP
+#: Share of the mix's log-evidence kept from one of a class's episodes to the next (1 − the
+#: time-blind belief's smallest step ``belief.STEP``: about the last ten episodes count).
+MIX_MEMORY = 1.0 - STEP
 #: The mix's starting weights: time-blind, slot, slot and day type.
 START_MIX = (1 / 3, 1 / 3, 1 / 3)
 COMPONENTS = ("blind", "slot", "slot_day")
@@ -78,6 +84,29 @@ def buckets_of(clock: DayClock) -> tuple[str, str]:
     """The names of a clock's slot belief and slot-and-day-type belief."""
     slot = slot_of(clock.minute)
     return slot, f"{slot}/{day_type(clock.weekday)}"
+
+
+def model_average(
+    weights: tuple[float, float, float],
+    predictions: tuple[Mapping[str, float], ...],
+    outcome: Mapping[str, float],
+    memory: float = MIX_MEMORY,
+) -> tuple[float, float, float]:
+    """The posterior of each prediction as the model of a class's outcomes after one more
+    episode: w_i ∝ START_i^(1 − memory) · w_i^memory · P_i(outcome) — a Bayesian model average
+    whose log-evidence is multiplied by ``memory`` each episode (so it decays toward the start
+    weights); unchanged when no prediction gave the outcome any probability."""
+    likelihood = [
+        math.fsum(w * pred.get(p, 0.0) for p, w in outcome.items()) for pred in predictions
+    ]
+    joint = [
+        start ** (1.0 - memory) * w**memory * lk
+        for start, w, lk in zip(START_MIX, weights, likelihood, strict=True)
+    ]
+    total = math.fsum(joint)
+    if total <= 0:
+        return weights
+    return joint[0] / total, joint[1] / total, joint[2] / total
 
 
 @dataclass
@@ -156,12 +185,7 @@ class RoutineBelief(PlaceBelief):
     def _weigh_mix(
         self, d: str, outcome: Mapping[str, float], predictions: tuple[dict[str, float], ...]
     ) -> None:
-        # Episodes with a time of day that counted for d so far (every one is in one slot).
-        n = math.fsum(
-            b.long[d].total for name, b in self.buckets.items() if "/" not in name and d in b.long
-        )
-        weights = self.mix.get(d, START_MIX)
-        self.mix[d] = responsibilities(weights, predictions, outcome, n, MIX_STEP)
+        self.mix[d] = model_average(self.mix.get(d, START_MIX), predictions, outcome)
 
     # -- the distribution ---------------------------------------------------------------------
 
@@ -211,7 +235,7 @@ class RoutineBelief(PlaceBelief):
     # -- snapshots ------------------------------------------------------------------------------
 
     snapshot_name: ClassVar[str] = "routine_belief"
-    snapshot_version: ClassVar[int] = 1
+    snapshot_version: ClassVar[int] = 2  # 2: the mix is a model average with forgetting
 
     def to_snapshot(self) -> dict[str, Any]:
         return {
