@@ -62,7 +62,7 @@ _log = logging.getLogger(__name__)
 LOOK_OFFSETS = (0.0, math.pi / 4, -math.pi / 4)  # θ_s and ±45° (paper §5.1)
 #: Inspection ``cover`` (a reading of §4 beside the paper's single N_s): when a search found nothing,
 #: a second pass looks at each static longer than this from the viewpoint nearest each stretch of
-#: this length along its long side.
+#: at most this length along (and, if it is this deep, across) its top.
 COVER_SPAN_M = 1.5
 INSPECTIONS = ("single", "cover")
 #: The whole-home planner's exact size: its DP holds 2^K · K states, K = 12 keeps a decision within
@@ -229,16 +229,22 @@ def static_pitch(here: Point, static: MappedStatic) -> float:
 
 
 def cover_points(static: MappedStatic) -> list[Point]:
-    """Points along a long static's long side, one per ``COVER_SPAN_M`` stretch (the centre of
-    each); none for a static shorter than that."""
+    """The centres of a grid of stretches at most ``COVER_SPAN_M`` long over a long static's top,
+    along its long side and, when it is that long too, across it (an L-shaped worktop's box is
+    deep as well as long); none for a static shorter than that both ways."""
     sx, sy = static.box.size[0], static.box.size[1]
-    length = max(sx, sy)
-    if length <= COVER_SPAN_M:
+    if max(sx, sy) <= COVER_SPAN_M:
         return []
-    n = math.ceil(length / COVER_SPAN_M)
     cx, cy = static.box.center[0], static.box.center[1]
-    along = [-length / 2 + (k + 0.5) * length / n for k in range(n)]
-    return [Point(cx + a, cy) if sx >= sy else Point(cx, cy + a) for a in along]
+
+    def centres(length: float) -> list[float]:
+        n = max(1, math.ceil(length / COVER_SPAN_M))
+        return [-length / 2 + (k + 0.5) * length / n for k in range(n)]
+
+    # Along the long side first, so a one-row static keeps its order.
+    if sx >= sy:
+        return [Point(cx + a, cy + b) for b in centres(sy) for a in centres(sx)]
+    return [Point(cx + a, cy + b) for a in centres(sx) for b in centres(sy)]
 
 
 def stop_value(graph: RelationModel, target: str, statics: Sequence[MappedStatic]) -> float:

@@ -1,10 +1,12 @@
 """Placements a camera can see: whether any viewpoint of its room detects a placed object.
 
-A placement is *seeable* when, from some viewpoint of its room, facing it with the camera pitched
-at it (and its container opened, if it lies in one), the occluding camera shows at least its
-class's ``min_mask_area_px`` of it with only the room's statics around (other placements move from
-scene to scene). The occluding camera decides whatever camera a run searches with, so both cameras
-search the same scenes. Schedules drawn from statistics (stats, habit) redraw an unseeable
+A placement is *seeable* when, for every search camera (``sim.world.CAMERAS``), some viewpoint of
+its room, facing it with the camera pitched at it (and its container opened, if it lies in one),
+shows at least its class's ``min_mask_area_px`` of it with only the room's statics around (other
+placements move from scene to scene). Every camera must see it so that both cameras search the same
+scenes and neither is given an object it cannot detect from anywhere: the geometric camera's
+projected area is not the render's, and a phone flat on a counter can show the occluding camera
+100 px and the geometric one 98 px (procthor-04, habit-0 scene 3: a failure no searcher could avoid). Schedules drawn from statistics (stats, habit) redraw an unseeable
 placement; schedules of fixed data (Table I, Table II, rearr) keep their data, and a run leaves an
 unseeable placement out of its scene (:func:`seeable_scenes`), which the bench reports.
 
@@ -23,16 +25,26 @@ from objsearch.agent.home import Box, Home
 from objsearch.agent.navmap import NavigationMap
 from objsearch.sim.placements import Placements
 from objsearch.sim.visibility import OccludingCamera, VisibilityCache
-from objsearch.sim.world import Placement, first_sighting
+from objsearch.sim.world import CAMERAS, Placement, SearchCamera, first_sighting, search_camera
 
-#: Its own cache: one view per (placement, viewpoint), never seen again by a search.
-_CAMERA = OccludingCamera(cache=VisibilityCache(max_views=1))
+
+def _checking_camera(name: str) -> SearchCamera:
+    if name == "occluding":
+        # Its own cache: one view per (placement, viewpoint), never seen again by a search.
+        return OccludingCamera(cache=VisibilityCache(max_views=1))
+    return search_camera(name)
+
+
+#: Every search camera, the occluding one (the costly one, and the one that refuses most) first.
+_CAMERAS = tuple(_checking_camera(name) for name in CAMERAS)
 
 
 @dataclass(frozen=True, slots=True)
 class Visibility:
     seeable: bool
-    best_mask_px: float  # the detecting view's mask; when not seeable, the largest of any view
+    #: the detecting view's mask (the last camera's); when not seeable, the largest of any view of
+    #: the first camera that detects it from nowhere
+    best_mask_px: float
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,7 +74,8 @@ def _vocabulary() -> Vocabulary:
 
 
 def visibility(home: Home, placement: Placement) -> Visibility:
-    """Whether some viewpoint of the placement's room detects it (see the module doc)."""
+    """Whether, for every search camera, some viewpoint of the placement's room detects it (see the
+    module doc)."""
     threshold = _vocabulary().classes[placement.cls].min_mask_area_px
     p = placement
     key = (home.digest, p.room, p.box, p.support, p.inside, threshold)
@@ -79,8 +92,13 @@ def _visibility(
         _navmap(home).viewpoints(room),
         key=lambda v: ((v.x - box.center[0]) ** 2 + (v.y - box.center[1]) ** 2, v),
     )
-    seen = first_sighting(_CAMERA, home, probe, (probe,), nearest_first, threshold)
-    return Visibility(seen.viewpoint is not None, seen.mask_px)
+    mask = 0.0
+    for camera in _CAMERAS:
+        seen = first_sighting(camera, home, probe, (probe,), nearest_first, threshold)
+        if seen.viewpoint is None:
+            return Visibility(False, seen.mask_px)
+        mask = seen.mask_px
+    return Visibility(True, mask)
 
 
 def seeable(home: Home, placement: Placement) -> bool:

@@ -14,7 +14,7 @@ from objsearch.sim.habit_schedule import habit_schedule
 from objsearch.sim.longterm import run_schedule, scenes_of
 from objsearch.sim.seeable import seeable, seeable_scenes, visibility
 from objsearch.sim.stats_schedule import PlacementStats, stats_schedule
-from objsearch.sim.world import Placement
+from objsearch.sim.world import Placement, first_sighting, search_camera
 
 #: Issue 14's phones, as the schedules drew them before they were checked (stats-1 scene 2 of
 #: procthor-01, habit-0 scene 23 of procthor-08): flat on a bed 0.27 m below the camera, and
@@ -53,6 +53,40 @@ def test_the_issues_phones_are_seen_from_nowhere_and_a_laptop_there_is(
     centre = (phone.box.center[0], phone.box.center[1], phone.box.center[2] + size[2] / 2)
     laptop = Placement("Laptop|x", "Laptop", Box(centre, size), *_where(phone))
     assert seeable(ctx.home, laptop)
+
+
+#: Seen by the occluding camera (100 px from one viewpoint), never by the geometric one (98 px at
+#: best): before every camera had to see a placement, habit-0 put it in scene 3 and every strategy
+#: searching with the geometric camera failed there.
+GEOMETRIC_BLIND_PHONE = Placement(
+    "Phone|schedule",
+    "Phone",
+    Box((9.7766, 7.5149, 0.9471), (0.1486, 0.0765, 0.0096)),
+    "kitchen",
+    "kitchen/CountertopCx|6|1",
+    False,
+)
+
+
+def test_a_placement_one_camera_cannot_detect_from_anywhere_is_not_seeable() -> None:
+    ctx = load_context("procthor-04")
+    phone = GEOMETRIC_BLIND_PHONE
+    threshold = ctx.vocabulary.classes["Phone"].min_mask_area_px
+    room = ctx.navmap.viewpoints(phone.room)
+    occluding = first_sighting(
+        search_camera("occluding"), ctx.home, phone, (phone,), room, threshold
+    )
+    geometric = first_sighting(
+        search_camera("geometric"), ctx.home, phone, (phone,), room, threshold
+    )
+    assert occluding.viewpoint is not None and geometric.viewpoint is None
+    assert not seeable(ctx.home, phone)
+    geometric_camera = search_camera("geometric")
+    for placements in habit_schedule(ctx.home, 0).scenes.values():
+        for p in placements.values():
+            views = ctx.navmap.viewpoints(p.room)
+            at = ctx.vocabulary.classes[p.cls].min_mask_area_px
+            assert first_sighting(geometric_camera, ctx.home, p, (p,), views, at).viewpoint
 
 
 def _where(p: Placement) -> tuple[str, str | None, bool]:
