@@ -247,6 +247,32 @@ def cover_points(static: MappedStatic) -> list[Point]:
     return [Point(cx + a, cy + b) for a in centres(sx) for b in centres(sy)]
 
 
+@dataclass(frozen=True, slots=True)
+class CoverView:
+    """One look of the second pass: from ``viewpoint``, towards ``stretch`` of ``static``."""
+
+    viewpoint: Point
+    stretch: Point
+    static: MappedStatic
+
+
+def cover_views(
+    navmap: NavigationMap, stop_viewpoint: Point, statics: Sequence[MappedStatic]
+) -> list[CoverView]:
+    """The second pass's looks at a stop's statics: each stretch (:func:`cover_points`) of a static
+    that is not a container, from the viewpoint nearest it, one look per viewpoint, none from the
+    stop's own — the one rule the search and the bench's failure causes share."""
+    views: list[CoverView] = []
+    for s in statics:
+        if s.container:
+            continue
+        for point in cover_points(s):
+            vp = navmap.nearest_viewpoint(point.x, point.y, s.room)
+            if vp != stop_viewpoint and all(vp != v.viewpoint for v in views):
+                views.append(CoverView(vp, point, s))
+    return views
+
+
 def stop_value(graph: RelationModel, target: str, statics: Sequence[MappedStatic]) -> float:
     """A stop's value: Rel(target, class), or, for a per-instance model, the summed values of its
     instances (capped at 1). The one rule; the agent and the audit both use it."""
@@ -645,27 +671,23 @@ class _Task:
         return None
 
     def cover(self, stop: Stop, result: SearchResult) -> _Found | None:
-        """The stretches of the stop's long statics that its viewpoint may not see, each from
-        the viewpoint nearest it, nearest-first from here."""
-        navmap = self.agent.navmap
-        todo: list[tuple[Point, Point, MappedStatic]] = []
-        for s in stop.statics:
-            if s.container:
-                continue
-            for point in cover_points(s):
-                vp = navmap.nearest_viewpoint(point.x, point.y, s.room)
-                if vp != stop.viewpoint and all(vp != v for v, _, _ in todo):
-                    todo.append((vp, point, s))
+        """The stretches of the stop's long statics that its viewpoint may not see
+        (:func:`cover_views`), nearest-first from here."""
+        todo = cover_views(self.agent.navmap, stop.viewpoint, stop.statics)
         while todo:
             here = self.world.pose().point
-            vp, point, s = min(todo, key=lambda t: (navmap.distance(here, t[0]), t[0]))
-            todo.remove((vp, point, s))
-            found = self.go(vp, result)
+            view = min(
+                todo, key=lambda v: (self.agent.navmap.distance(here, v.viewpoint), v.viewpoint)
+            )
+            todo.remove(view)
+            found = self.go(view.viewpoint, result)
             if found:
                 return found
-            pitch = static_pitch(vp, s)
-            dets = self.world.look(heading(vp, point), pitch)
-            hit = self._view(self.world.pose(), pitch, s.id, "look", dets, s.room)
+            pitch = static_pitch(view.viewpoint, view.static)
+            dets = self.world.look(heading(view.viewpoint, view.stretch), pitch)
+            hit = self._view(
+                self.world.pose(), pitch, view.static.id, "look", dets, view.static.room
+            )
             if hit:
                 return hit
         return None

@@ -19,7 +19,7 @@ from objsearch.agent.session import DEFAULT_PRIOR
 from objsearch.experiments.homes import data_build_commands, homes_command, homes_summary
 from objsearch.experiments.report_homes import homes_section
 from objsearch.experiments.report_paper import cameras_section, paper_section
-from objsearch.experiments.runner import Row, read_rows
+from objsearch.experiments.runner import Row, read_output
 from objsearch.experiments.table1_sets import render as render_table1
 
 
@@ -46,11 +46,7 @@ def load_homes(folders: Sequence[Path]) -> tuple[dict[str, Any], list[Row]]:
     """The rows of one or more ``bench homes`` outputs as one run: a summary recomputed over all
     rows, with every folder's command (one per schedule kind when each has its own scene count)."""
     summaries = [load_summary(f, "bench homes") for f in folders]
-    rows = [
-        r
-        for f, s in zip(folders, summaries, strict=True)
-        for r in read_rows(f / s["files"]["parquet"])
-    ]
+    rows = [r for f in folders for r in read_output(f)]
     commands = [homes_command(s, f) for f, s in zip(folders, summaries, strict=True)]
     builds = list(dict.fromkeys(c for s in summaries for c in s.get("data_build", ())))
     if len(summaries) == 1:

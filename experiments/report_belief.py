@@ -10,18 +10,16 @@ that: n and the range of the run values).
 
 from __future__ import annotations
 
-import json
 import math
 import random
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from objsearch.experiments.calibration import ece
 from objsearch.experiments.learning import first_of_day, ratio
 from objsearch.experiments.metrics import spl_term
-from objsearch.experiments.runner import Row, read_rows
+from objsearch.experiments.runner import Row, read_output
 
 AFTER = 10
 #: routine-<seed>: the evaluation scenes are those after day 14 (four scenes a day,
@@ -35,6 +33,29 @@ ORACLE = "dist-oracle"
 #: The references: the distribution oracle planned room by room and over the whole home. A table's
 #: reference is whichever walks less on its rows (the oracle plans with the best planner).
 REFERENCES = (ORACLE, "dist-oracle-global")
+#: The comparisons every report makes, each within one inspection (``a+cover`` with ``b+cover``).
+PAIRS = (
+    ("ecost-belief", "ecost-memory"),
+    ("ecost-belief", ORACLE),
+    ("ecost-belief", "ecost"),
+    ("ecost-routine", "ecost-belief"),
+    ("ecost-routine", ORACLE),
+    ("global-belief", "ecost-belief"),
+    ("global-belief", "dist-oracle-global"),
+    ("dist-oracle-global", ORACLE),
+)
+
+
+def inspection_suffix(strategy: str) -> str:
+    """``"+cover"`` for a strategy searched with ``--inspection cover`` (runner.read_output names
+    it so), else ``""``."""
+    return strategy[len(strategy.partition("+")[0]) :]
+
+
+def _references(strategies: Sequence[str]) -> list[str]:
+    return [s for s in strategies if s.partition("+")[0] in REFERENCES]
+
+
 #: moved-<seed>: the first scene with new habits (sim/habit_schedule.py MOVE_SCENE).
 MOVE_SCENE = 11
 
@@ -82,7 +103,7 @@ def ratio_table(rows: Sequence[Row], after: int = AFTER) -> list[str]:
         s: _runs([r for r in late if r.strategy == s])
         for s in dict.fromkeys(r.strategy for r in rows)
     }
-    present = [s for s in REFERENCES if by.get(s)]
+    present = _references([s for s in by if by[s]])
     reference = min(
         present,
         key=lambda s: ratio([r for rs in by[s].values() for r in rs]),
@@ -213,7 +234,7 @@ def usual_place_lines(rows: Sequence[Row], after: int = AFTER) -> list[str]:
     if not mine:
         return []
     by = {s: [r for r in mine if r.strategy == s] for s in dict.fromkeys(r.strategy for r in mine)}
-    present = [s for s in REFERENCES if by.get(s)]
+    present = _references([s for s in by if by[s]])
     reference = min(present, key=lambda s: ratio(by[s]), default=None)
     lines = [
         f"On days the target was at its usual place (first search after day {after}):",
@@ -253,15 +274,16 @@ def moved_lines(rows: Sequence[Row]) -> list[str]:
         + " | back within 10 % after | days worse than ecost (from the move) |",
         "|---|---|" + "---|" * 5 + "---|---|",
     ]
-    ecost = days.get("ecost", {})
     for s, curve in days.items():
+        twin = "ecost" + inspection_suffix(s)
+        ecost = days.get(twin, {})
         before = [curve[n] for n in range(6, MOVE_SCENE) if n in curve]
         if not before:
             continue
         level = math.fsum(before) / len(before)
         after = [n for n in sorted(curve) if n >= MOVE_SCENE]
         back = next((n - MOVE_SCENE for n in after if curve[n] <= 1.1 * level), None)
-        worse = sum(1 for n in after if n in ecost and curve[n] > ecost[n]) if s != "ecost" else 0
+        worse = sum(1 for n in after if n in ecost and curve[n] > ecost[n]) if s != twin else 0
         cells = " | ".join(
             f"{curve[n]:.2f}" if n in curve else "–" for n in range(MOVE_SCENE, MOVE_SCENE + 5)
         )
@@ -352,18 +374,9 @@ def plot_curves(rows: Sequence[Row], path: Path) -> None:
 
 
 def read_outputs(folders: Sequence[Path]) -> list[Row]:
-    """The searches of ``bench homes`` outputs. A run with ``--inspection cover`` (its
-    summary.json says so) names its strategies ``NAME+cover``, so it pairs with the same strategy's
-    run without it instead of mixing with it."""
-    rows: list[Row] = []
-    for folder in folders:
-        summary = folder / "summary.json"
-        inspection = "single"
-        if summary.is_file():
-            inspection = str(json.loads(summary.read_text(encoding="utf-8")).get("inspection"))
-        for r in read_rows(folder / "homes_trials.parquet"):
-            rows.append(replace(r, strategy=f"{r.strategy}+cover") if inspection == "cover" else r)
-    return rows
+    """The searches of ``bench homes`` outputs (:func:`read_output`: a ``cover`` run's strategies
+    are ``NAME+cover``)."""
+    return [r for folder in folders for r in read_output(folder)]
 
 
 def report(
@@ -387,22 +400,13 @@ def report(
         mine = [r for r in rows if kind(r) == k]
         after = after_scene(k)
         lines += ["", f"### {k} schedules", "", *ratio_table(mine, after), ""]
+        names = {r.strategy for r in mine}
+        suffixes = sorted({inspection_suffix(n) for n in names})
         lines += paired_lines(
             mine,
             [
-                ("ecost-belief", "ecost-memory"),
-                ("ecost-belief", ORACLE),
-                ("ecost-belief", "ecost"),
-                ("ecost-routine", "ecost-belief"),
-                ("ecost-routine", ORACLE),
-                ("global-belief", "ecost-belief"),
-                ("global-belief", "dist-oracle-global"),
-                ("dist-oracle-global", ORACLE),
-                *(
-                    (f"{name}+cover", name)
-                    for name in sorted({r.strategy for r in mine})
-                    if f"{name}+cover" in {r.strategy for r in mine}
-                ),
+                *((a + suffix, b + suffix) for suffix in suffixes for a, b in PAIRS),
+                *((f"{n}+cover", n) for n in sorted(names) if f"{n}+cover" in names),
             ],
             after,
         )

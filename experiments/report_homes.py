@@ -21,6 +21,8 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.geometry import Pose, heading
+from objsearch.agent.policy import cover_views, static_pitch, stop_statics
 from objsearch.agent.session import load_context
 from objsearch.experiments.homes import family, schedule_kind
 from objsearch.experiments.learning import (
@@ -157,11 +159,14 @@ def failure_cause(row: Row, camera: str = DEFAULT_CAMERA) -> str:
     where the target was that scene and what the run's ``camera`` shows of it, with everything
     placed in its room in the way — from any viewpoint of the room and from the one viewpoint
     the agent inspects its static from (N_s, paper §4)."""
-    return _cause(row.home, row.placements, row.scene, row.target, camera)
+    cover = row.strategy.endswith("+cover")  # runner.read_output's name for a cover run
+    return _cause(row.home, row.placements, row.scene, row.target, camera, cover)
 
 
 @cache
-def _cause(home: str, placements: str, scene: int, target: str, camera_name: str) -> str:
+def _cause(
+    home: str, placements: str, scene: int, target: str, camera_name: str, cover: bool
+) -> str:
     everything = _scene_placements(home, placements, scene)[scene]
     placed = [p for p in everything.values() if p.cls == target]
     if not placed:
@@ -182,10 +187,26 @@ def _cause(home: str, placements: str, scene: int, target: str, camera_name: str
     at_stop = first_sighting(camera, ctx.home, p, room, stops, threshold)
     if at_stop.viewpoint is None:
         v = anywhere.viewpoint
-        return (
+        elsewhere = (
             f"detectable from elsewhere in {p.room} ({anywhere.mask_px:.0f} px from "
             f"({v.x:g}, {v.y:g})) but not from the viewpoint its static is inspected from "
             f"({at_stop.mask_px:.0f} px < {threshold:g} px; one viewpoint per static, paper §4)"
+        )
+        if not cover:
+            return elsewhere
+        key = next(s for s in ctx.semmap.in_room(p.room) if s.id == p.support)
+        views = cover_views(ctx.navmap, key.viewpoint, stop_statics(ctx.semmap, p.room, key))
+        best = 0.0
+        for view in views:
+            pose = Pose(view.viewpoint.x, view.viewpoint.y, heading(view.viewpoint, view.stretch))
+            pitch = static_pitch(view.viewpoint, view.static)
+            seen = camera.detections(ctx.home, p.room, pose, pitch, room, (p,), None)
+            best = max([best, *(d.mask_area for d in seen)])
+        if best >= threshold:
+            return f"{elsewhere}; a stretch inspection cover looks at shows {best:.0f} px"
+        return (
+            f"{elsewhere}, nor from the {len(views)} stretches inspection cover looks at "
+            f"({best:.0f} px at best)"
         )
     if p.inside:
         return f"inside {p.support} in {p.room}: seen only if opened"

@@ -3,11 +3,12 @@ placement source, searched on one event log; jobs run in parallel processes."""
 
 from __future__ import annotations
 
+import json
 import multiprocessing
 import sys
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 from tqdm import tqdm
@@ -237,6 +238,18 @@ def read_rows(parquet: Path) -> list[Row]:
     import polars as pl
 
     return [Row(**rec) for rec in pl.read_parquet(parquet).to_dicts()]
+
+
+def read_output(folder: Path) -> list[Row]:
+    """The searches of one ``bench homes`` output folder. A run with ``--inspection cover`` (its
+    summary.json says so) names its strategies ``NAME+cover``: every report pairs it with the same
+    strategy's run without it instead of mixing the two."""
+    summary_path = folder / "summary.json"
+    summary = json.loads(summary_path.read_text(encoding="utf-8")) if summary_path.is_file() else {}
+    rows = read_rows(folder / str(summary.get("files", {}).get("parquet", "homes_trials.parquet")))
+    if summary.get("inspection") == "cover":
+        return [replace(r, strategy=f"{r.strategy}+cover") for r in rows]
+    return rows
 
 
 def command_line(words: str, options: Mapping[str, object]) -> str:

@@ -78,3 +78,20 @@ def test_a_cover_run_pairs_with_the_same_strategy_without_it(tmp_path: Path) -> 
     assert {r.strategy for r in rows} == {"global-belief", "global-belief+cover"}
     text = report([tmp_path / "single", tmp_path / "cover"])
     assert "| global-belief+cover − global-belief | 1 |" in text
+
+
+def test_a_report_of_cover_runs_alone_reads_them_against_each_other(tmp_path: Path) -> None:
+    """Every strategy searched with ``cover``: the reference and the pairs are the cover twins."""
+    folder = tmp_path / "cover"
+    folder.mkdir()
+    rows = [
+        *_rows("dist-oracle-global", 1.0),
+        *_rows("global-belief", 1.2),
+        *_rows("ecost-belief", 1.5),
+    ]
+    write_rows(rows, folder, "homes_trials")
+    (folder / "summary.json").write_text(json.dumps({"inspection": "cover"}))
+    text = report([folder])
+    assert "÷ dist-oracle-global+cover after scene 10" in text
+    assert "| global-belief+cover − ecost-belief+cover | 1 |" in text
+    assert "| global-belief+cover − dist-oracle-global+cover | 1 |" in text
