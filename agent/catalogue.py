@@ -493,6 +493,7 @@ def _catalogue() -> Catalogue:
         upcasters=STEPS,
         accepts=accepts,
         derived=DERIVED_TABLES,
+        schemas_checked=True,  # tests/events/test_schemas.py checks the shipped files
     )
 
 

@@ -48,7 +48,7 @@ def walk_path(
             rooms.append(navmap.room_of[b])
         else:
             yaw = heading(a, b)
-            driven = navmap.graph.edges[a, b]["weight"]
+            driven = navmap.edge_weight(a, b)
             metres += driven
         pose = Pose(b.x, b.y, yaw)
         detections = step(pose, driven, view=on_detection is not None)

@@ -54,3 +54,6 @@ class Catalogue:
     upcasters: Mapping[tuple[str, int], UpcastStep] = field(default_factory=dict)
     accepts: PayloadCheck | None = None
     derived: tuple[DerivedTable, ...] = ()
+    #: The schema files ship with the package and the test suite checks them against the JSON
+    #: Schema meta-schema: a process does not check them again (nor import jsonschema to).
+    schemas_checked: bool = False

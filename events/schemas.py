@@ -31,6 +31,19 @@ def schema_id(event_type: str, version: int) -> str:
     return f"urn:objsearch:events:{event_type}:v{version}"
 
 
+def check_schema(schema: Mapping[str, Any], where: str) -> None:
+    """``EventStoreError`` unless ``schema`` is a valid JSON Schema (draft 2020-12)."""
+    # Here, not at the top: importing the store must not cost jsonschema's import (a tenth of a
+    # CPU-second) to a process that never checks a schema (``objsearch --help``, a search).
+    from jsonschema import Draft202012Validator
+    from jsonschema.exceptions import SchemaError
+
+    try:
+        Draft202012Validator.check_schema(schema)
+    except SchemaError as exc:
+        raise EventStoreError(f"{where} is not a valid JSON Schema: {exc.message}") from exc
+
+
 class SchemaRegistry:
     """All known (type, version) schemas, with compiled validators."""
 
@@ -39,12 +52,11 @@ class SchemaRegistry:
         schemas: Mapping[tuple[str, int], Mapping[str, Any]],
         *,
         accepts: PayloadCheck | None = None,
+        checked: bool = False,
     ) -> None:
-        # Here, not at the top: importing the store must not cost jsonschema's import (a tenth
-        # of a CPU-second) to a process that never builds a registry (``objsearch --help``).
-        from jsonschema import Draft202012Validator
-        from jsonschema.exceptions import SchemaError
-
+        """``checked``: the schemas were already checked against the JSON Schema meta-schema
+        (the package's own files, which the test suite checks): not again here, so a process
+        pays for jsonschema only if a payload needs it (the fast check did not vouch for it)."""
         self._accepts = accepts
         self._schemas: dict[tuple[str, int], dict[str, Any]] = {}
         self._validators: dict[tuple[str, int], Draft202012Validator] = {}
@@ -56,21 +68,21 @@ class SchemaRegistry:
                     f"{where}: $id is {schema.get('$id')!r}, expected "
                     f"{schema_id(event_type, version)!r}"
                 )
-            try:
-                Draft202012Validator.check_schema(schema)
-            except SchemaError as exc:
-                raise EventStoreError(f"{where} is not a valid JSON Schema: {exc.message}") from exc
+            if not checked:
+                check_schema(schema, where)
             if schema.get("type") != "object":
                 raise EventStoreError(f"{where}: a payload schema must have type 'object'")
-            owned = copy.deepcopy(dict(schema))
-            self._schemas[event_type, version] = owned
-            self._validators[event_type, version] = Draft202012Validator(owned)
+            self._schemas[event_type, version] = copy.deepcopy(dict(schema))
             self._latest[event_type] = max(version, self._latest.get(event_type, 0))
         self._known = frozenset(self._schemas)
 
     @classmethod
     def from_directory(
-        cls, directory: Path | Traversable, *, accepts: PayloadCheck | None = None
+        cls,
+        directory: Path | Traversable,
+        *,
+        accepts: PayloadCheck | None = None,
+        checked: bool = False,
     ) -> SchemaRegistry:
         """Load each ``<type>.v<version>.json`` file; other ``*.json`` names are errors."""
         schemas: dict[tuple[str, int], dict[str, Any]] = {}
@@ -92,7 +104,7 @@ class SchemaRegistry:
             if not isinstance(schema, dict):
                 raise EventStoreError(f"schema file {entry.name!r} is not a JSON object")
             schemas[match["type"], int(match["version"])] = schema
-        return cls(schemas, accepts=accepts)
+        return cls(schemas, accepts=accepts, checked=checked)
 
     @property
     def known(self) -> frozenset[tuple[str, int]]:
@@ -131,9 +143,12 @@ class SchemaRegistry:
         # the last word on the rest and words the error.
         if self._accepts is not None and self._accepts(event_type, version, instance):
             return
+        from jsonschema import Draft202012Validator
         from jsonschema.exceptions import best_match
 
-        validator = self._validators[key]
+        validator = self._validators.get(key)
+        if validator is None:  # compiled on first need (here, not at start: see __init__)
+            validator = self._validators[key] = Draft202012Validator(self._schemas[key])
         errors = list(validator.iter_errors(instance))
         if not errors:
             return

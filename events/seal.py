@@ -21,7 +21,6 @@ import mmap
 import os
 import zlib
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
@@ -134,6 +133,9 @@ def check_seals(path: Path, seals: Sequence[Seal], genesis: int) -> Seal | None:
         if len(seals) == 1:
             results = [ok(seals[0])]
         else:
+            # Imported here: a process that never checks two seals (a search) never needs it.
+            from concurrent.futures import ThreadPoolExecutor
+
             with ThreadPoolExecutor(max_workers=min(len(seals), os.cpu_count() or 1)) as ex:
                 results = list(ex.map(ok, seals))
     return next((s for s, good in zip(seals, results, strict=True) if not good), None)

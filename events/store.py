@@ -51,7 +51,9 @@ class Store:
             with self._lock:
                 if self._registry is None:
                     self._registry = SchemaRegistry.from_directory(
-                        self.catalogue.schemas, accepts=self.catalogue.accepts
+                        self.catalogue.schemas,
+                        accepts=self.catalogue.accepts,
+                        checked=self.catalogue.schemas_checked,
                     )
                 registry = self._registry
         return registry
@@ -78,4 +80,6 @@ class Store:
 @functools.cache
 def shipped() -> Store:
     """The store of the schema files shipped in ``objsearch.events/schema/`` and nothing else."""
-    return Store(Catalogue(schemas=resources.files(_PACKAGE).joinpath("schema")))
+    return Store(
+        Catalogue(schemas=resources.files(_PACKAGE).joinpath("schema"), schemas_checked=True)
+    )

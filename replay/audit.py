@@ -532,7 +532,7 @@ def _plot_route(task: TaskAudit, path: Path) -> bool:
 
 
 def _is_teleport(navmap: Any, a: Point, b: Point) -> bool:
-    return bool(navmap.graph.has_edge(a, b) and navmap.is_teleport(a, b))
+    return bool(navmap.has_edge(a, b) and navmap.is_teleport(a, b))
 
 
 def anomaly_counts(tasks: Sequence[TaskAudit]) -> dict[str, int]:

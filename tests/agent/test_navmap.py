@@ -74,3 +74,19 @@ def test_unknown_viewpoint_is_a_clear_error(navmap: NavigationMap) -> None:
     inside = next(iter(navmap.room_of))
     with pytest.raises(ValueError, match="not reachable"):
         navmap.distance(inside, Point(-100.0, -100.0))
+
+
+@pytest.mark.parametrize("home", ["paper", "ithor-02", "procthor-02"])
+def test_the_maps_own_dijkstra_is_networkxs_to_the_last_tie(home: str) -> None:
+    """Lengths and paths, and the order of their dicts (which ties in later min() calls
+    follow), equal networkx's single_source_dijkstra over the same graph: decisions do not
+    change with the implementation (a teleporting home and whole houses with links)."""
+    navmap = load_context(home).navmap
+    for src in sorted(navmap.room_of)[::37]:
+        lengths, paths = nx.single_source_dijkstra(navmap.graph, src, weight="weight")
+        navmap.distance(src, src)
+        assert list(navmap._lengths[src].items()) == list(lengths.items())
+        assert list(navmap._paths[src].items()) == list(paths.items())
+    for a, b in itertools.islice(navmap.graph.edges, 0, None, 11):
+        assert navmap.edge_weight(a, b) == navmap.graph.edges[a, b]["weight"]
+        assert navmap.has_edge(a, b) and navmap.has_edge(b, a)

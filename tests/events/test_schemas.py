@@ -3,6 +3,8 @@ from __future__ import annotations
 import copy
 import json
 import re
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -229,3 +231,17 @@ def test_invalid_json_schema_file_is_refused(tmp_path: Path) -> None:
     (tmp_path / "ping.v1.json").write_text("{not json")
     with pytest.raises(EventStoreError, match=r"'ping\.v1\.json' is not valid JSON"):
         SchemaRegistry.from_directory(tmp_path)
+
+
+def test_the_shipped_schemas_are_not_checked_again_in_every_process() -> None:
+    """The package's own schema files are checked here (above), so building the product's
+    registry imports no jsonschema: a search pays for it only if a payload needs it."""
+    code = (
+        "import sys\n"
+        "from objsearch.agent.catalogue import STORE\n"
+        "from objsearch.events.store import shipped\n"
+        "STORE.registry.validate('search_failed', 1, {'reason': 'r'})\n"
+        "shipped().registry\n"
+        "assert 'jsonschema' not in sys.modules, 'jsonschema imported'\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
