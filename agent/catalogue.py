@@ -18,6 +18,7 @@ which lets the store trust it instead of the schema validator (see ``docs/events
 
 from __future__ import annotations
 
+import datetime as dt
 from collections.abc import Callable, Mapping
 from importlib import resources
 from typing import (
@@ -86,6 +87,13 @@ class DayClock(Part, frozen=True):
 
     weekday: Weekday
     minute: MinuteOfDay
+
+    @classmethod
+    def local(cls, when: dt.datetime | None = None) -> DayClock:
+        """The local time of day at ``when`` (default: now, the host's clock), as a robot's
+        search records it; seconds are dropped."""
+        when = when or dt.datetime.now()
+        return cls(weekday=when.weekday(), minute=when.hour * 60 + when.minute)
 
 
 class Support(Part, frozen=True):

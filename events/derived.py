@@ -50,7 +50,7 @@ RUN_MODES: Final = """
 
 SEARCHES: Final = DerivedTable(
     "searches",
-    3,
+    4,
     f"""
 WITH plans_per_task AS (
     SELECT robot, run, task_id, count(*) AS rooms_planned FROM plan_computed GROUP BY ALL
@@ -65,7 +65,11 @@ WITH plans_per_task AS (
 )
 SELECT s.robot, s.date, s.run, s.task_id,
        row_number() OVER (PARTITION BY s.robot, s.run ORDER BY s.seq) AS task_index,
-       s.target, s.start, s.scene, r.method, r.update_mode, r.alpha,
+       s.target, s.start, s.scene,
+       -- the local time of day the search began (v4; NULL in a log that records none:
+       -- task_started v1, runs without a time of day): 0 Monday … 6 Sunday, minute after midnight
+       s.clock.weekday AS clock_weekday, s.clock.minute AS clock_minute,
+       r.method, r.update_mode, r.alpha,
        s.seq AS start_seq, e.seq AS end_seq, s.time_ns AS start_ns, e.time_ns AS end_ns,
        (e.time_ns - s.time_ns) / 1e9 AS duration_s,
        e.success, e.path_length,

@@ -15,11 +15,11 @@ from __future__ import annotations
 import logging
 import threading
 import uuid
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from objsearch.agent.catalogue import STORE, SearchFailed, TaskEnded
+from objsearch.agent.catalogue import STORE, DayClock, SearchFailed, TaskEnded
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.scene_graph import EventLike, UpdateMode
 from objsearch.agent.session import Session, load_context
@@ -96,11 +96,16 @@ class AgentNode:
         update_mode: UpdateMode = UpdateMode.ALL,
         live: Sequence[LiveSink] = (),
         live_topics: bool = False,
+        clock: Callable[[], DayClock | None] = DayClock.local,
     ) -> None:
         """``live``: sinks of the live view (:mod:`objsearch.runtime.livesinks`); the node owns
         them from here on and closes them with itself. ``live_topics``: the live channels are
-        also published as topics by the agent's own node (:class:`TopicSink`)."""
+        also published as topics by the agent's own node (:class:`TopicSink`). ``clock``: the
+        local time of day a search begins, recorded in its ``task_started`` (the host's wall
+        clock: a household's hour, whatever time base the robot's stamps use — the stand-in
+        robot's is simulated)."""
         self.config = config
+        self.clock = clock
         self.live_sinks = tuple(live)
         transport = None
         try:
@@ -192,7 +197,9 @@ class AgentNode:
         task_id = self.session.state.tasks.next_task_id()
         try:
             self.world.fresh_pose(self.config.timeouts.robot_s, request.not_before_ns)
-            result = self.session.search(self.world, target, start, scene=request.scene)
+            result = self.session.search(
+                self.world, target, start, scene=request.scene, clock=self.clock()
+            )
         except RobotError as exc:
             log.error("%s: search for %s failed: %s", task_id, target, exc)
             open_task = self.session.state.tasks.open

@@ -374,7 +374,7 @@ def test_lake_verify_names_every_damaged_file(
     copy = tmp_path / "lake"
     shutil.copytree(lake, copy)
     [cup] = [r for r in Lake(copy, store=STORE).runs() if r.run == "cup"]
-    for name in ("moved.parquet", "_derived/searches.v3.parquet"):
+    for name in ("moved.parquet", "_derived/searches.v4.parquet"):
         data = bytearray((cup.path / name).read_bytes())
         data[len(data) // 3] ^= 0x01
         (cup.path / name).write_bytes(bytes(data))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 from pathlib import Path
 from typing import Any
@@ -15,6 +16,7 @@ from objsearch.agent.catalogue import (
     LATEST,
     RECORDS,
     STORE,
+    DayClock,
     Detected,
     Moved,
     PlanarPose,
@@ -229,3 +231,11 @@ def _event(event_type: str, payload: dict[str, Any]) -> Event:
         task_id=None,
         payload=payload,
     )
+
+
+def test_a_local_clock_is_the_weekday_and_the_minute_after_midnight() -> None:
+    # 2026-12-03 was a Thursday.
+    assert DayClock.local(dt.datetime(2026, 12, 3, 7, 30, 59)) == DayClock(weekday=3, minute=450)
+    assert DayClock.local(dt.datetime(2026, 12, 6, 23, 59)) == DayClock(weekday=6, minute=1439)
+    now = DayClock.local()
+    assert 0 <= now.weekday <= 6 and 0 <= now.minute <= 1439

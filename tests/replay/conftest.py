@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from objsearch.agent.catalogue import STORE
+from objsearch.agent.catalogue import STORE, DayClock
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
@@ -35,7 +35,9 @@ def write_targets_run(log_dir: Path) -> None:
                     world = SimWorld(
                         ctx.home, ctx.navmap, schedule.scenes[scene], pose, clock=clock
                     )
-                    session.search(world, target, start_name, scene=scene)
+                    # A time of day per scene: the lake's searches carry it (the v1 log has none).
+                    at = DayClock(weekday=scene, minute=8 * 60 + 15 * scene)
+                    session.search(world, target, start_name, scene=scene, clock=at)
     finally:
         session.close()
 

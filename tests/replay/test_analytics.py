@@ -134,6 +134,19 @@ def test_searches_agree_with_the_log(con: duckdb.DuckDBPyConnection, logs: dict[
         for e in ended
     ]
     assert {(r[4], r[5]) for r in rows} == {("rvp", "targets")}
+    started = [e for e in read_log(logs["targets"], store=STORE) if e.type == "task_started"]
+    clocks = con.execute(
+        "SELECT clock_weekday, clock_minute FROM searches WHERE run = 'targets' ORDER BY task_index"
+    ).fetchall()
+    assert clocks == [
+        (e.payload["clock"]["weekday"], e.payload["clock"]["minute"]) for e in started
+    ]
+    # The v1 log's task_started records no time of day: NULL, not a guess.
+    nulls = con.execute(
+        "SELECT count(*), count(clock_weekday), count(clock_minute) FROM searches "
+        "WHERE run = 'robot'"
+    ).fetchone()
+    assert nulls is not None and nulls[0] > 0 and nulls[1:] == (0, 0)
     walked = con.execute(
         "SELECT max(abs(s.path_length - m.walked)) FROM searches s JOIN (SELECT run, task_id, "
         "sum(metres) AS walked FROM moved GROUP BY ALL) m USING (run, task_id)"

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from objsearch.agent.catalogue import STORE
+from objsearch.agent.catalogue import STORE, DayClock, TaskStarted, decode
 from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 
@@ -42,9 +42,24 @@ def run_over(net: Net, tmp_path: Path, trials: list[tuple[int, str, str]]) -> li
 
 def test_same_decisions_as_in_process(net: Net, tmp_path: Path) -> None:
     expected = in_process(tmp_path / "inproc")
+    before = DayClock.local()
     got = run_over(net, tmp_path, TRIALS)
+    after = DayClock.local()
     assert got == expected
     # Every event is in the agent's log, whole tasks only.
     events = list(read_log(tmp_path / "log", store=STORE))
     assert sum(e.type == "task_ended" for e in events) == len(TRIALS)
+    # Each search records the local time of day it began (the host's clock, not the stand-in
+    # robot's simulated one, which starts in 1970).
+    clocks = [decode(e, TaskStarted).clock for e in events if e.type == "task_started"]
+    assert len(clocks) == len(TRIALS)
+    for clock in clocks:
+        assert clock is not None
+        assert _week_minute(before) <= _week_minute(clock) <= _week_minute(after) or (
+            _week_minute(after) < _week_minute(before)  # the week turned over during the test
+        )
     assert {e.type for e in events} >= {"plan_computed", "moved", "detection", "target_found"}
+
+
+def _week_minute(clock: DayClock) -> int:
+    return clock.weekday * 24 * 60 + clock.minute
