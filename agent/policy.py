@@ -12,7 +12,7 @@ import math
 import random
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Protocol, TypedDict, Unpack
 
 import numpy as np
 
@@ -286,6 +286,14 @@ def stop_statics(semmap: SemanticMap, room: str, key: MappedStatic) -> list[Mapp
     return [s for s in semmap.in_room(room) if s.viewpoint == key.viewpoint and s.cls == key.cls]
 
 
+class SearchOptions(TypedDict, total=False):
+    """A search's optional keywords, recorded in its ``task_started`` (one definition for the
+    agent's ``search`` and the session's, which passes them on)."""
+
+    scene: int | None  # the schedule's scene the world was built from
+    clock: DayClock | None  # the local time of day the search begins
+
+
 class SearchAgent:
     """Runs one search task after another in a world, recording every step."""
 
@@ -434,14 +442,9 @@ class SearchAgent:
     # -- acting -------------------------------------------------------------------------------
 
     def search(
-        self,
-        world: World,
-        target: str,
-        start: str,
-        *,
-        scene: int | None = None,
-        clock: DayClock | None = None,
+        self, world: World, target: str, start: str, **options: Unpack[SearchOptions]
     ) -> SearchResult:
+        scene, clock = options.get("scene"), options.get("clock")
         if self._next_task_id is None:
             raise ObjsearchError("this agent only plans (replay); it was given no task numbering")
         task_id = self._next_task_id()

@@ -11,15 +11,15 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, Unpack
 
-from objsearch.agent.catalogue import STORE, DayClock
+from objsearch.agent.catalogue import STORE
 from objsearch.agent.categories import Vocabulary, read_json
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.navmap import NavigationMap
-from objsearch.agent.policy import Projection, Recorder, SearchAgent, SearchResult
+from objsearch.agent.policy import Projection, Recorder, SearchAgent, SearchOptions, SearchResult
 from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import seed_relations
 from objsearch.agent.semmap import SemanticMap
@@ -281,18 +281,12 @@ class Session:
         )
 
     def search(
-        self,
-        world: World,
-        target: str,
-        start: str,
-        *,
-        scene: int | None = None,
-        clock: DayClock | None = None,
+        self, world: World, target: str, start: str, **options: Unpack[SearchOptions]
     ) -> SearchResult:
         """One task; its events become durable together when it ends (one fsync per task).
-        ``clock``: the local time of day it begins (recorded in ``task_started``)."""
+        ``options``: what its ``task_started`` records (:class:`SearchOptions`)."""
         with self.log.batch():
-            return self.agent.search(world, target, start, scene=scene, clock=clock)
+            return self.agent.search(world, target, start, **options)
 
     def close(self) -> None:
         try:
