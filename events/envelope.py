@@ -276,22 +276,8 @@ class _Read(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=Fal
     payload: msgspec.Raw  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
-        raw = self.payload
-        if type(raw) is not msgspec.Raw:  # built in Python (msgspec.structs.replace): check it
-            Event.__post_init__(self)
-            return
-        # The one envelope rule not checked in C: _is_canonical_uuid, inlined (once per record).
-        event_id = self.event_id
-        if not (
-            len(event_id) == 36
-            and event_id[8] == event_id[13] == event_id[18] == event_id[23] == "-"
-            and event_id.isascii()
-            and event_id.encode().translate(None, _HEX_DIGITS) == b"----"
-        ):
-            raise ValueError("event_id is not a canonical UUID string")
-        if memoryview(raw)[0] != 0x7B:  # "{": a payload is a JSON object
-            raise ValueError("payload is not a JSON object")
-        msgspec.structs.force_setattr(self, "payload", ReadPayload(raw))
+        if _decoded_record(self):
+            msgspec.structs.force_setattr(self, "payload", ReadPayload(self.payload))
 
 
 class _Checked(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
@@ -301,19 +287,30 @@ class _Checked(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=
     payload: msgspec.Raw  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
-        if type(self.payload) is not msgspec.Raw:  # built in Python (msgspec.structs.replace)
-            Event.__post_init__(self)
-            return
-        event_id = self.event_id  # as in _Read: _is_canonical_uuid, inlined
-        if not (
-            len(event_id) == 36
-            and event_id[8] == event_id[13] == event_id[18] == event_id[23] == "-"
-            and event_id.isascii()
-            and event_id.encode().translate(None, _HEX_DIGITS) == b"----"
-        ):
-            raise ValueError("event_id is not a canonical UUID string")
-        if memoryview(self.payload)[0] != 0x7B:  # "{": a payload is a JSON object
-            raise ValueError("payload is not a JSON object")
+        _decoded_record(self)
+
+
+def _decoded_record(event: Event) -> bool:
+    """For the decoders' events (:class:`_Read`, :class:`_Checked`): True if ``event`` was
+    decoded from a record (its payload still ``msgspec.Raw``), after the rules msgspec does not
+    check — the id's spelling (:func:`_is_canonical_uuid`, inlined: once per record) and a
+    payload that is an object — ``ValueError`` if one fails; False if it was built in Python
+    (``msgspec.structs.replace``), after checking it as any event."""
+    raw: object = event.payload  # typed as a Mapping on Event; Raw on the decoders' events
+    if type(raw) is not msgspec.Raw:
+        Event.__post_init__(event)
+        return False
+    event_id = event.event_id
+    if not (
+        len(event_id) == 36
+        and event_id[8] == event_id[13] == event_id[18] == event_id[23] == "-"
+        and event_id.isascii()
+        and event_id.encode().translate(None, _HEX_DIGITS) == b"----"
+    ):
+        raise ValueError("event_id is not a canonical UUID string")
+    if memoryview(raw)[0] != 0x7B:  # "{": a payload is a JSON object
+        raise ValueError("payload is not a JSON object")
+    return True
 
 
 _decode_payload: Final = msgspec.json.Decoder(dict[str, Any]).decode
