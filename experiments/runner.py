@@ -195,7 +195,9 @@ def run_jobs(
     """Run jobs (in ``workers`` processes); rows come back in job order whatever finishes first."""
     total = sum(_count(j) for j in jobs)
     done: dict[int, list[Row]] = {}
-    with tqdm(total=total, disable=not progress, file=sys.stderr, unit="search", desc=label) as bar:
+    # disable=None: drawn on a terminal only, never into a pipe or log (DEVELOPERS.md).
+    off = None if progress else True
+    with tqdm(total=total, disable=off, file=sys.stderr, unit="search", desc=label) as bar:
         if workers <= 1 or len(jobs) <= 1:
             for i, job in enumerate(jobs):
                 done[i] = run_job(job)

@@ -16,6 +16,7 @@ import math
 import os
 import random
 import statistics
+import sys
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
@@ -330,8 +331,8 @@ def run_table1_sets(
     camera: str = DEFAULT_CAMERA,
 ) -> dict[str, Any]:
     def say(msg: str) -> None:
-        if progress:
-            print(msg, flush=True)
+        if progress:  # a stage line, on stderr: stdout holds the tables
+            print(msg, file=sys.stderr, flush=True)
 
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()

@@ -413,7 +413,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="replace an earlier demo in --out (only the files that demo wrote; a folder holding "
         "anything else is refused)",
     )
-    demo.add_argument("--no-progress", action="store_true", help="no progress bar")
+    t.progress_option(demo)
     demo.add_argument("--no-baseline", action="store_true", help="skip the no-update baseline run")
     demo.defer(
         lambda p: p.add_argument(

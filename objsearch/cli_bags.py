@@ -89,9 +89,8 @@ class _RecordProgress:
             self.close()
             self.stage = stage
             unit = "search" if stage == "searches" else "msg"
-            interval = 0.1 if sys.stderr.isatty() else 5.0
-            self.bar = tqdm(
-                total=total, desc=stage, unit=unit, file=sys.stderr, mininterval=interval
+            self.bar = tqdm(  # disable=None: on a terminal only, never into a pipe or log
+                total=total, desc=stage, unit=unit, file=sys.stderr, disable=None
             )
         self.bar.update(done - self.bar.n)
 
@@ -308,7 +307,7 @@ def register(sub: Any) -> None:
         action="store_true",
         help="write MCAP chunks uncompressed (ros2-mcap; by default zstd, as ros2 bag record)",
     )
-    rec.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    t.progress_option(rec)
     rec.check(
         lambda a: (
             None if a.bag_format else "--bag-format is required (ros1, ros2-sqlite3 or ros2-mcap)"
@@ -367,7 +366,7 @@ def register(sub: Any) -> None:
         "--robot", default="robot", type=t.text, help="robot name, the lake's first partition"
     )
     ing.add_argument("--topics", type=t.existing_file, help="topic map override (.toml or .json)")
-    ing.add_argument("--no-progress", action="store_true", help="no progress bar")
+    t.progress_option(ing)
     ing.add_argument(
         "--reingest",
         action="store_true",

@@ -321,7 +321,7 @@ def register(sub: Any) -> None:
             "(0, the default: min(2, cores))",
         )
         t.format_option(p, "print a JSON summary per strategy")
-        p.add_argument("--no-progress", action="store_true", help="no progress bar")
+        t.progress_option(p)
         t.camera_option(p)
 
     paper = bsub.add_parser("paper", help="Table I and the long-term experiment on the paper home")
@@ -433,7 +433,7 @@ def register(sub: Any) -> None:
         help=f"processes, at most {t.MAX_WORKERS} (0, the default: min(2, cores))",
     )
     table1.defer(_prior_option)
-    table1.add_argument("--no-progress", action="store_true", help="no progress output")
+    t.progress_option(table1)
     t.camera_option(table1)
     table1.set_defaults(func=cmd_bench_table1)
 

@@ -209,3 +209,15 @@ def test_long_commands_draw_progress_on_a_terminal(
     assert main([*argv, *(["--no-progress"] if no_progress else [])]) == 0
     label = " ".join(command[:2]) if command[0] != "liveview" else "liveview"
     assert (f"{label}: " in terminal.getvalue()) is not no_progress
+
+
+def test_progress_stays_out_of_a_pipe(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # record and ingest drew their bars into pipes and logs once (a redraw every few seconds).
+    piped = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", piped)
+    monkeypatch.setattr(sys, "stdout", io.StringIO())
+    bag = tmp_path / "one.bag"
+    record = ["record", "--out", str(bag), "--bag-format", "ros1", "--scenes", "1"]
+    assert main([*record, "--targets", "Apple", "--starts", "kitchen-1"]) == 0
+    assert main(["ingest", str(bag), "--lake", str(tmp_path / "lake")]) == 0
+    assert "\r" not in piped.getvalue() and "it/s" not in piped.getvalue()

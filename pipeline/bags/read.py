@@ -739,7 +739,9 @@ def _progress(total: int | None, enabled: bool, label: str) -> Any:
     from tqdm import tqdm
 
     show = enabled and (total is None or total >= PROGRESS_MIN_MESSAGES)
-    return tqdm(total=total, disable=not show, file=sys.stderr, unit="msg", desc=label, leave=False)
+    # disable=None: drawn on a terminal only, never into a pipe or log (DEVELOPERS.md).
+    off = None if show else True
+    return tqdm(total=total, disable=off, file=sys.stderr, unit="msg", desc=label, leave=False)
 
 
 _DEF_FORMATS = {"MSG": "msg", "IDL": "idl"}
