@@ -11,8 +11,10 @@ sides (one must win, the others find the same content there: a no-op). The basel
 process committing every distinct log once, in order, into a second lake in the same run.
 Checked, for each place: 0 runs lost, 0 duplicated (every ``(robot, run)`` once, every event id
 once), and the concurrent lake equal to the sequential one (the same runs, digests and rows per
-run). Printed: both wall times and their ratio (the concurrent writers share the machine's
-cores, so the ratio says what contention costs, not a speed-up).
+run, also after compacting it). Printed: both wall times and their ratio (the concurrent writers
+share the machine's cores, so the ratio says what contention costs, not a speed-up), and the
+time to read the concurrent lake's runs and counts as written (one file a type a commit) and
+after ``compact``.
 """
 
 from __future__ import annotations
@@ -143,8 +145,17 @@ def run_place(
             add_log(p, sequential, robot="shared", run=p.name)
         sequential_s = time.perf_counter() - started
 
+        files = len(TableLake(concurrent_root, store=STORE).data_files())
+        started = time.perf_counter()
         got_runs, got_rows = content(concurrent_root)
+        uncompacted_s = time.perf_counter() - started
         want_runs, want_rows = content(sequential_root)
+        started = time.perf_counter()
+        TableLake(concurrent_root, store=STORE).compact(vacuum_hours=None)
+        compact_s = time.perf_counter() - started
+        started = time.perf_counter()
+        compacted = content(concurrent_root)
+        compacted_s = time.perf_counter() - started
     expected = {(f"r{w:02d}", p.name) for w, logs in own.items() for p in logs}
     expected |= {("shared", p.name) for p in shared}
     present = [(r[0], r[1]) for r in got_runs]
@@ -152,7 +163,7 @@ def run_place(
     duplicated = len(present) - len(set(present))
     duplicated += sum(1 for r in got_rows if r[2] != r[3])  # an event id twice in one run
     ids = sum(int(str(r[3])) for r in got_rows)
-    equal = got_runs == want_runs and got_rows == want_rows
+    equal = got_runs == want_runs and got_rows == want_rows and compacted == (got_runs, got_rows)
     ok = not failed and lost == 0 and duplicated == 0 and equal
     print(
         f"{where:>6}: {len(own)} writers, {commits} add_log calls -> {len(present)} runs, "
@@ -162,6 +173,11 @@ def run_place(
     print(
         f"{'':>6}  concurrent {concurrent_s:.1f} s, sequential (one process, "
         f"{len(expected)} adds) {sequential_s:.1f} s, ratio {concurrent_s / sequential_s:.2f}"
+    )
+    print(
+        f"{'':>6}  runs and a count of every run's events and ids (open_analytics + query): "
+        f"{uncompacted_s:.1f} s over the concurrent lake as written ({files} data files); "
+        f"lake compact {compact_s:.1f} s; then {compacted_s:.1f} s"
     )
     return ok, where
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import re
 from collections.abc import Collection, Sequence
 from pathlib import Path
-from typing import Final
+from typing import Any, Final
 
 import duckdb
 import pyarrow as pa
@@ -151,13 +151,18 @@ def create_fleet_views(
     lake: TableLake,
     files: Sequence[DataFile],
     only: Collection[str] | None = None,
+    table: Any | None = None,
 ) -> None:
     """The per-type views and ``events`` over the fleet lake's table (:mod:`.lake_table`),
     reading ``files`` (its current data files, damaged ones left out): one ``read_parquet`` of
     a few files per type, however many runs the table holds. Same columns as
     :func:`create_type_views`. A remote lake's types are read through its Arrow datasets.
     ``only``, if given, names the views to make (types and ``events``; a remote ``events``
-    makes every type's): creating a view binds it, which reads its files' footers."""
+    makes every type's): creating a view binds it, which reads its files' footers. ``table``:
+    the Delta table ``files`` were listed from (a remote lake's views read its datasets; loading
+    it again for each type read the table's log as many times)."""
+    if lake.remote and table is None:
+        table = lake.table()
     by_kind: dict[str, list[str]] = {}
     for f in files:
         by_kind.setdefault(f.kind, []).append(f.path)
@@ -176,7 +181,7 @@ def create_fleet_views(
         )
         if wanted is not None and event_type not in wanted:
             continue
-        source = fleet_source(con, lake, event_type, by_kind.get(event_type, []))
+        source = fleet_source(con, lake, event_type, by_kind.get(event_type, []), table)
         if source is not None:
             con.execute(
                 f"CREATE OR REPLACE VIEW {view} AS SELECT robot, date, run, {envelope}, "
@@ -207,16 +212,20 @@ def create_fleet_views(
 
 
 def fleet_source(
-    con: duckdb.DuckDBPyConnection, lake: TableLake, kind: str, paths: Sequence[str]
+    con: duckdb.DuckDBPyConnection,
+    lake: TableLake,
+    kind: str,
+    paths: Sequence[str],
+    table: Any | None = None,
 ) -> str | None:
-    """What a view reads for the rows of ``kind`` (a ``type`` partition), or None if none."""
+    """What a view reads for the rows of ``kind`` (a ``type`` partition), or None if none
+    (``table``: the lake's Delta table as loaded, for a remote lake)."""
     if not paths:
         return None
     if lake.remote:
         name = f"_fleet_{kind}"
-        con.register(
-            name, lake.table().to_pyarrow_dataset(file_pruning_predicate=[("type", "=", kind)])
-        )
+        table = lake.table() if table is None else table
+        con.register(name, table.to_pyarrow_dataset(file_pruning_predicate=[("type", "=", kind)]))
         return quote_ident(name)
     listed = ", ".join(quote_literal(f"{lake.uri}/{p}") for p in paths)
     # union_by_name: a file holds its own type's columns only (a compacted one may hold all)

@@ -309,14 +309,14 @@ def _open_fleet(
     definitions |= _common_ddl()
     only = None if for_sql is None else views_for(for_sql, definitions)
     con = duckdb.connect(":memory:")
-    create_fleet_views(con, lake, files, only)
+    create_fleet_views(con, lake, files, only, table)
     for spec in derived_tables(STORE):
         if only is not None and spec.name not in only:
             continue
         kind = derived_kind(spec.name, spec.version)
         body = live.get(spec.name)
         if body is None:
-            source = fleet_source(con, lake, kind, [f.path for f in files if f.kind == kind])
+            source = fleet_source(con, lake, kind, [f.path for f in files if f.kind == kind], table)
             body = (
                 f"SELECT robot, date, run, {quote_ident(derived_column(spec.name))}.* FROM {source}"
             )

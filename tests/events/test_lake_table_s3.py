@@ -150,3 +150,27 @@ def test_a_server_quiet_for_seconds_fails_no_write(bucket: str, tmp_path: Path) 
     assert fs.get_file_info(f"{base}/probe").size == 4
     info = add_log(small_log(tmp_path / "a", stream="a"), lake, robot="r")
     assert lake.runs() == [info]
+
+
+def test_a_query_reads_the_tables_log_once(
+    bucket: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Each load of a bucket's table reads its log (every commit since the last checkpoint: an
+    # uncompacted bucket has hundreds); the views of a query share the one load.
+    lake = TableLake(bucket, store=STORE)
+    add_log(small_log(tmp_path / "a", stream="a"), lake, robot="r")
+    loads: list[str] = []
+    real = TableLake.table
+
+    def counted(self: TableLake) -> object:
+        loads.append(str(self.root))
+        return real(self)
+
+    monkeypatch.setattr(TableLake, "table", counted)
+    con = open_analytics(bucket)  # every view: each type's and each derived table's
+    try:
+        assert run_query(con, "SELECT count(*) FROM events")[1] == [(3,)]
+        assert run_query(con, "SELECT count(*) FROM searches")[1] == [(0,)]
+    finally:
+        close(con)
+    assert loads == [bucket]
