@@ -43,8 +43,9 @@ import pyarrow.parquet as pq
 from objsearch.agent.catalogue import STORE
 from objsearch.events import Event, EventStoreError, _fs
 from objsearch.events.lake import Lake, RunInfo
+from objsearch.events.lake_table import is_table_lake
 from objsearch.pipeline.bags.clock import fit_clock, pairs_from_doc
-from objsearch.pipeline.bags.errors import BagCommitError
+from objsearch.pipeline.bags.errors import BagCommitError, BagConfigError
 from objsearch.pipeline.bags.session import (
     DERIVED_PREFIX,
     FirstEvent,
@@ -194,6 +195,14 @@ class BagLake:
 
     def __init__(self, root: Path) -> None:
         self.root = Path(root)
+        if is_table_lake(self.root):
+            # Its runs would land beside the table as folders no fleet query reads.
+            raise BagConfigError(
+                f"{self.root} is a fleet lake (a Delta table); objsearch ingest writes the "
+                "per-run-folder lake: ingest into a folder, then `objsearch lake upgrade --to "
+                f"fleet --lake FOLDER --into {self.root}` copies its runs into the fleet lake "
+                "(with their ingest reports; runs already there are skipped)"
+            )
         self.lake = Lake(self.root, store=STORE)
 
     def _sessions(self, runs: Sequence[RunInfo] | None = None) -> list[_SessionRun]:
