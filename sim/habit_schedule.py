@@ -29,7 +29,7 @@ stats schedules do (``stats_schedule.place_seeable``) and counted in ``Schedule.
 from __future__ import annotations
 
 import random
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import partial
 
@@ -61,8 +61,33 @@ class Habit:
     alternates: tuple[str, ...]
 
 
-def _statics(home: Home) -> list[StaticObject]:
+def sorted_statics(home: Home) -> list[StaticObject]:
+    """The home's static instances in id order (the order every seeded draw walks)."""
     return sorted(home.statics.values(), key=lambda s: s.id)
+
+
+def draw_place(
+    rng: random.Random,
+    usual: Sequence[tuple[float, str]],
+    p_alternate: float,
+    alternates: Sequence[str],
+    anywhere: Callable[[], StaticObject | None],
+    by_id: Mapping[str, StaticObject],
+) -> StaticObject | None:
+    """One scene's place of one object: each of ``usual`` (probability, static id) in turn, then
+    one of ``ALTERNATES`` alternates with ``p_alternate`` in all (uniformly; a missing alternate
+    is the first usual place), else a fresh draw, ``anywhere()``. One ``rng.random()`` decides,
+    and one ``rng.randrange`` picks the alternate."""
+    u = rng.random()
+    bound = 0.0
+    for p, place in usual:
+        bound += p
+        if u < bound:
+            return by_id[place]
+    if u < bound + p_alternate:
+        k = rng.randrange(ALTERNATES)
+        return by_id[alternates[k] if k < len(alternates) else usual[0][1]]
+    return anywhere()
 
 
 def draw_alternates(
@@ -108,7 +133,7 @@ def habits(home: Home, seed: int) -> dict[str, Habit]:
     """Each placeable class's usual place and alternates for (home, seed)."""
     stats = PlacementStats.load()
     rng = random.Random(f"habit-schedule:habits:{home.name}:{seed}")
-    statics = _statics(home)
+    statics = sorted_statics(home)
     out: dict[str, Habit] = {}
     for cls in sorted(stats.counts):
         usual = _draw_static(rng, stats.counts[cls], statics, None)
@@ -125,7 +150,7 @@ def moved_habits(home: Home, seed: int) -> dict[str, Habit]:
     alternates drawn as before among the rest."""
     stats = PlacementStats.load()
     rng = random.Random(f"moved-schedule:habits:{home.name}:{seed}")
-    statics = _statics(home)
+    statics = sorted_statics(home)
     out: dict[str, Habit] = {}
     for cls, old in habits(home, seed).items():
         old_room = home.statics[old.usual].room
@@ -157,7 +182,7 @@ def habit_distribution(
     """class → static id → P(the object is there in any one scene) under ``table`` (default: the
     habits of ``habit-<seed>``)."""
     stats = PlacementStats.load()
-    statics = _statics(home)
+    statics = sorted_statics(home)
     out: dict[str, dict[str, float]] = {}
     for cls, habit in (table if table is not None else habits(home, seed)).items():
         dist = {
@@ -179,7 +204,7 @@ def habit_schedule(
     ``MOVE_SCENE`` on (see the module doc)."""
     stats = PlacementStats.load()
     rng = random.Random(f"habit-schedule:scenes:{home.name}:{seed}")
-    statics = _statics(home)
+    statics = sorted_statics(home)
     by_id = home.statics
     before = habits(home, seed)
     after = moved_habits(home, seed) if moved else before
@@ -190,14 +215,9 @@ def habit_schedule(
         placed: dict[str, Placement] = {}
         for cls in sorted(table):
             habit = table[cls]
-            u = rng.random()
-            if u < P_USUAL:
-                where: StaticObject | None = by_id[habit.usual]
-            elif u < P_USUAL + P_ALTERNATE:
-                k = rng.randrange(ALTERNATES)
-                where = by_id[habit.alternates[k] if k < len(habit.alternates) else habit.usual]
-            else:
-                where = _draw_static(rng, stats.counts[cls], statics, None)
+            anywhere = partial(_draw_static, rng, stats.counts[cls], statics, None)
+            usual = ((P_USUAL, habit.usual),)
+            where = draw_place(rng, usual, P_ALTERNATE, habit.alternates, anywhere, by_id)
             assert where is not None  # the usual place was drawn from the same statics
             redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed)
         out[scene] = placed

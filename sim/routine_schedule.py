@@ -39,8 +39,14 @@ from dataclasses import dataclass, replace
 from functools import partial
 
 from objsearch.agent.catalogue import DayClock
-from objsearch.agent.home import Home, StaticObject
-from objsearch.sim.habit_schedule import draw_alternates, place_in_scene, stats_distribution
+from objsearch.agent.home import Home
+from objsearch.sim.habit_schedule import (
+    draw_alternates,
+    draw_place,
+    place_in_scene,
+    sorted_statics,
+    stats_distribution,
+)
 from objsearch.sim.placements import Placements, Schedule
 from objsearch.sim.stats_schedule import PlacementStats, _draw_static
 from objsearch.sim.world import Placement
@@ -88,15 +94,11 @@ class Routine:
         return (self.weekend if weekend else self.weekday)[slot]
 
 
-def _statics(home: Home) -> list[StaticObject]:
-    return sorted(home.statics.values(), key=lambda s: s.id)
-
-
 def routines(home: Home, seed: int) -> dict[str, Routine]:
     """Each placeable class's routine on day 0, for (home, seed)."""
     stats = PlacementStats.load()
     rng = random.Random(f"routine-schedule:routines:{home.name}:{seed}")
-    statics = _statics(home)
+    statics = sorted_statics(home)
     out: dict[str, Routine] = {}
     for cls in sorted(stats.counts):
         draw = partial(_draw_static, rng, stats.counts[cls], statics, None)
@@ -123,7 +125,7 @@ def routines_by_week(home: Home, seed: int, weeks: int) -> list[dict[str, Routin
     """The routines in force in each week (``weeks`` of them): week 0's, then each drifted."""
     stats = PlacementStats.load()
     rng = random.Random(f"routine-schedule:drift:{home.name}:{seed}")
-    statics = _statics(home)
+    statics = sorted_statics(home)
     table = routines(home, seed)
     out = [table]
     for _ in range(1, weeks):
@@ -145,7 +147,7 @@ def routine_distribution(
 ) -> dict[str, dict[str, float]]:
     """class → static id → P(there) in one scene of ``slot`` on a weekday or weekend day."""
     stats = PlacementStats.load()
-    statics = _statics(home)
+    statics = sorted_statics(home)
     out: dict[str, dict[str, float]] = {}
     for cls, routine in table.items():
         dist = {
@@ -181,7 +183,7 @@ def routine_schedule(home: Home, seed: int, *, scenes: int | None = None) -> Sch
     scenes = scenes or ROUTINE_DAYS * SCENES_PER_DAY
     stats = PlacementStats.load()
     rng = random.Random(f"routine-schedule:scenes:{home.name}:{seed}")
-    statics = _statics(home)
+    statics = sorted_statics(home)
     by_id = home.statics
     weekly = routines_by_week(home, seed, scene_day(scenes) // 7 + 1)
     out: dict[int, Placements] = {}
@@ -194,17 +196,12 @@ def routine_schedule(home: Home, seed: int, *, scenes: int | None = None) -> Sch
         placed: dict[str, Placement] = {}
         for cls in sorted(table):
             routine = table[cls]
-            u = rng.random()
-            if u < P_USUAL:
-                where: StaticObject | None = by_id[routine.usual(weekend, slot)]
-            elif u < P_USUAL + P_LATE:
-                where = by_id[routine.usual(weekend, max(slot - 1, 0))]
-            elif u < P_USUAL + P_LATE + P_ALTERNATE:
-                k = rng.randrange(ALTERNATES)
-                alts = routine.alternates
-                where = by_id[alts[k] if k < len(alts) else routine.usual(weekend, slot)]
-            else:
-                where = _draw_static(rng, stats.counts[cls], statics, None)
+            anywhere = partial(_draw_static, rng, stats.counts[cls], statics, None)
+            usual = (
+                (P_USUAL, routine.usual(weekend, slot)),
+                (P_LATE, routine.usual(weekend, max(slot - 1, 0))),
+            )
+            where = draw_place(rng, usual, P_ALTERNATE, routine.alternates, anywhere, by_id)
             assert where is not None  # the usual places were drawn from the same statics
             redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed)
         out[scene] = placed
