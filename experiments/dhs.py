@@ -173,10 +173,30 @@ NOT_RUNNABLE = ("sgm_mlp", "sgm_gcn", "sgm_heat", "sgm_hgt", "sgm_han")
 
 
 @dataclass(frozen=True, slots=True)
-class _Event:
+class RecordEvent:
+    """A record as the belief folds it, numbered: the events of searches no simulator of ours
+    ran (this adapter's; the belief tests' hand-written logs)."""
+
     seq: int
     type: str
     payload: Mapping[str, Any]
+    task_id: str | None = None
+
+    @classmethod
+    def of(cls, seq: int, record: Record, task_id: str | None = None) -> RecordEvent:
+        return cls(seq, record.TYPE, encode(record), task_id)
+
+
+def sighting(object_class: str, instance_id: str, static_id: str, static_class: str) -> Detected:
+    """An accepted detection of ``object_class`` at a place (support ``at``), no geometry."""
+    return Detected(
+        object_class=object_class,
+        instance_id=instance_id,
+        mask_area=1.0,
+        position=(0.0, 0.0, 0.0),
+        accepted=True,
+        support=Support(static_id=static_id, static_class=static_class, at=True),
+    )
 
 
 def verify_source(source: Path | str | None) -> Path:
@@ -376,16 +396,7 @@ class BeliefAgent:
                 kept.append(child)
         self._seed(kept)
         for child in kept:
-            self._add(
-                Detected(
-                    object_class=child.description,
-                    instance_id=child.unique_id,
-                    mask_area=1.0,
-                    position=(0.0, 0.0, 0.0),
-                    accepted=True,
-                    support=Support(static_id=node.unique_id, static_class=node.label, at=True),
-                )
-            )
+            self._add(sighting(child.description, child.unique_id, node.unique_id, node.label))
             if child.description == self.target:
                 self.seen_target = True
 
@@ -426,7 +437,7 @@ class BeliefAgent:
 
     def _add(self, record: Record) -> None:
         self.seq += 1
-        self.belief.apply(_Event(self.seq, record.TYPE, encode(record)))
+        self.belief.apply(RecordEvent.of(self.seq, record))
 
 
 _ORIGIN = PlanarPose(x=0.0, y=0.0, yaw=0.0)

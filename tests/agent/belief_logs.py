@@ -5,22 +5,19 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Any
 
 from objsearch.agent.belief import Place, PlaceBelief
 from objsearch.agent.catalogue import (
     DayClock,
-    Detected,
     PlanarPose,
     Record,
     SceneGraphSeeded,
     SeedValue,
-    Support,
     TaskEnded,
     TaskStarted,
     ViewTaken,
-    encode,
 )
+from objsearch.experiments.dhs import RecordEvent, sighting
 
 PLACES = {
     "counter-a": Place("counter-a", "CounterTop", "kitchen"),
@@ -31,23 +28,15 @@ PLACES = {
 ORIGIN = PlanarPose(x=0.0, y=0.0, yaw=0.0)
 
 
-@dataclass(frozen=True)
-class Ev:
-    seq: int
-    type: str
-    payload: Mapping[str, Any]
-    task_id: str | None = None
-
-
 @dataclass
 class Log:
     """Builds the events a search writes, numbered."""
 
-    events: list[Ev] = field(default_factory=list)
+    events: list[RecordEvent] = field(default_factory=list)
     tasks: int = 0
 
     def add(self, record: Record, task_id: str | None = None) -> None:
-        self.events.append(Ev(len(self.events) + 1, record.TYPE, encode(record), task_id))
+        self.events.append(RecordEvent.of(len(self.events) + 1, record, task_id))
 
     def search(
         self,
@@ -73,19 +62,7 @@ class Log:
         self.add(TaskEnded(target=target, success=found is not None, path_length=1.0), task)
 
     def _detect(self, cls: str, place: str, task: str) -> None:
-        at = place in PLACES
-        support = Support(static_id=place, static_class=PLACES[place].static_class, at=True)
-        self.add(
-            Detected(
-                object_class=cls,
-                instance_id=f"{cls}|1",
-                mask_area=100.0,
-                position=(0.0, 0.0, 1.0),
-                accepted=True,
-                support=support if at else None,
-            ),
-            task,
-        )
+        self.add(sighting(cls, f"{cls}|1", place, PLACES[place].static_class), task)
 
 
 def fold_into(belief: PlaceBelief, log: Log) -> PlaceBelief:
@@ -96,12 +73,12 @@ def fold_into(belief: PlaceBelief, log: Log) -> PlaceBelief:
     return belief
 
 
-def with_seed(log: Log) -> Iterator[Ev]:
+def with_seed(log: Log) -> Iterator[RecordEvent]:
     values = (
         SeedValue(dynamic="Cup", static="CounterTop", rel=0.5),
         SeedValue(dynamic="Cup", static="DiningTable", rel=0.25),
         SeedValue(dynamic="Apple", static="CounterTop", rel=0.4),
         SeedValue(dynamic="Apple", static="DiningTable", rel=0.4),
     )
-    yield Ev(0, "scene_graph_seeded", encode(SceneGraphSeeded(source="test", values=values)))
+    yield RecordEvent.of(0, SceneGraphSeeded(source="test", values=values))
     yield from log.events
