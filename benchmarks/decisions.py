@@ -7,7 +7,8 @@ segment, timed on its own).
 
 Each strategy first runs ``--scenes`` scenes of ``habit-0`` (so its memory holds something), then
 the planning of one search (what ``SearchAgent.search`` computes before and between moves) is timed
-for every target from every start. ``--homes largest`` takes the bundled iTHOR and ProcTHOR homes
+for every target from every start (``ecost-routine``: after two weeks of ``routine-0``, one start
+per target). ``--homes largest`` takes the bundled iTHOR and ProcTHOR homes
 with the most mapped statics. Medians and ratios are printed; the target is ≤ 50 ms a decision.
 """
 
@@ -30,18 +31,34 @@ from objsearch.events.log import read_log
 from objsearch.events.projection import fold
 from objsearch.sim.longterm import TARGET_ORDER, run_schedule
 
+#: Scenes of routine-0 in the time-aware belief's memory when its planning is timed (two weeks).
+ROUTINE_SCENES = 56
+
 
 class _NoSink:
     def append(self, *args: object, **kwargs: object) -> object:
         raise AssertionError("planning only")
 
 
-def planning_agent(home: str, strategy: str, scenes: int) -> tuple[HomeContext, SearchAgent]:
-    """A planning-only agent of ``strategy`` whose memory holds ``scenes`` scenes of habit-0."""
+def planning_agent(
+    home: str,
+    strategy: str,
+    scenes: int,
+    schedule: str = "habit-0",
+    starts_per_search: int | None = None,
+) -> tuple[HomeContext, SearchAgent]:
+    """A planning-only agent of ``strategy`` whose memory holds ``scenes`` scenes of
+    ``schedule`` (each target from every start, or from ``starts_per_search`` of them)."""
     ctx = load_context(home)
-    spec = RunSpec.for_home(ctx.home, strategy, schedule="habit-0")
+    spec = RunSpec.for_home(ctx.home, strategy, schedule=schedule)
     with tempfile.TemporaryDirectory() as tmp:
-        run_schedule(Path(tmp), spec, scenes=range(1, scenes + 1), skip_absent_targets=True)
+        run_schedule(
+            Path(tmp),
+            spec,
+            scenes=range(1, scenes + 1),
+            starts_per_search=starts_per_search,
+            skip_absent_targets=True,
+        )
         state = fold(read_log(Path(tmp), store=STORE), AgentState())
     agent = SearchAgent(
         ctx.navmap,
@@ -55,8 +72,10 @@ def planning_agent(home: str, strategy: str, scenes: int) -> tuple[HomeContext, 
     return ctx, agent
 
 
-def plan_times(home: str, strategy: str, scenes: int) -> list[float]:
-    ctx, agent = planning_agent(home, strategy, scenes)
+def plan_times(
+    home: str, strategy: str, scenes: int, schedule: str = "habit-0", starts: int | None = None
+) -> list[float]:
+    ctx, agent = planning_agent(home, strategy, scenes, schedule, starts)
     times: list[float] = []
     for target in TARGET_ORDER:
         for pose in ctx.home.starts.values():
@@ -125,11 +144,20 @@ def main() -> None:
         base = plan_times(home, "wpl", args.scenes)
         ours = plan_times(home, "ecost-memory", args.scenes)
         whole, firsts = global_decision_times(home, args.scenes)
+        # The belief that knows the hour, after two weeks of a routine schedule (56 scenes, one
+        # start per target: every slot and day type holds a belief of its own).
+        timed = plan_times(home, "ecost-routine", ROUTINE_SCENES, "routine-0", 1)
         mb, mo, mg, mf = (statistics.median(x) for x in (base, ours, whole, firsts))
         print(
             f"{home}: median planning per search  wpl {mb * 1e3:7.2f} ms   "
             f"ecost-memory {mo * 1e3:7.2f} ms   ratio {mo / mb:5.2f}   "
             f"max {max(ours) * 1e3:7.2f} ms   (n = {len(ours)}; target <= 50 ms)"
+        )
+        mt = statistics.median(timed)
+        print(
+            f"{home}: median planning per search  ecost-routine {mt * 1e3:7.2f} ms   ratio to "
+            f"wpl {mt / mb:5.2f}   max {max(timed) * 1e3:7.2f} ms   (n = {len(timed)}; "
+            f"{ROUTINE_SCENES} scenes of routine-0; target <= 50 ms)"
         )
         print(
             f"{home}: median global-belief decision {mg * 1e3:7.2f} ms   ratio to wpl's search "
