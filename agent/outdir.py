@@ -3,9 +3,14 @@
 A command that writes into ``--out DIR`` claims it with :func:`claim`. The claim writes a manifest
 (:data:`MANIFEST`) into the folder naming the command; when the command ends (finished, failed or
 interrupted) the manifest lists every file it wrote under the entries it owns. A later run of the
-same command deletes exactly those files before writing again. A folder that is not empty and has
-no manifest — someone's notes, another program's output — is refused, as is one whose owned
-entries hold files the manifest does not list; nothing is deleted then.
+same command replaces exactly those files. A folder that is not empty and has no manifest —
+someone's notes, another program's output — is refused, as is one whose owned entries hold files
+the manifest does not list; nothing is deleted then.
+
+The earlier run's files are set aside (:data:`HELD`) when the folder is claimed and deleted only
+when the new run ends having written something: a run that fails before its first file — an
+unknown home, a bad option found late — gives the earlier output back untouched, and a run killed
+while they are set aside gets them back at the next claim.
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ import contextlib
 import fnmatch
 import json
 import os
+import shutil
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from types import TracebackType
@@ -21,6 +27,8 @@ from types import TracebackType
 from objsearch.agent.errors import ObjsearchError
 
 MANIFEST = ".objsearch-output.json"
+#: Where a claim sets the earlier run's files aside until the new run has written something.
+HELD = ".objsearch-previous"
 FORMAT = "objsearch.output/1"
 
 
@@ -33,7 +41,9 @@ def _files_under(root: Path, patterns: Sequence[str]) -> Iterator[str]:
     if not root.is_dir():
         return
     for entry in sorted(root.iterdir()):
-        if entry.name == MANIFEST or not any(fnmatch.fnmatchcase(entry.name, p) for p in patterns):
+        if entry.name in (MANIFEST, HELD) or not any(
+            fnmatch.fnmatchcase(entry.name, p) for p in patterns
+        ):
             continue
         if entry.is_dir() and not entry.is_symlink():
             for dirpath, dirnames, filenames in os.walk(entry):
@@ -90,9 +100,13 @@ class OutputDir:
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
+        if not self.path.is_dir():
+            return
+        if not any(True for _ in _files_under(self.path, self.owns)) and _restore(self.path):
+            return  # wrote nothing (it failed first): the earlier output comes back as it was
         # Also after a failure or Ctrl-C: what the run wrote is the command's to replace later.
-        if self.path.is_dir():
-            self.finish()
+        self.finish()
+        shutil.rmtree(self.path / HELD, ignore_errors=True)
 
 
 def read_manifest(path: Path) -> dict[str, object] | None:
@@ -130,6 +144,7 @@ def claim(
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise OutputDirError(f"cannot create {option} {path}: {exc.strerror or exc}") from exc
+    _restore(path)  # a run killed while the earlier output was set aside
     entries = [e for e in path.iterdir() if e.name not in (MANIFEST, f"{MANIFEST}.tmp")]
     manifest = read_manifest(path)
     if manifest is None:
@@ -160,18 +175,45 @@ def claim(
             f"({_shown(unknown, path)}); move them away or choose another {option} "
             "(nothing was deleted)"
         )
-    _remove(path, present)
+    _set_aside(path, present)
     out._write_manifest([], complete=False)
     return out
 
 
-def _remove(root: Path, files: Sequence[str]) -> None:
-    """Delete ``files`` (relative to ``root``) and then the folders they leave empty."""
+def _set_aside(root: Path, files: Sequence[str]) -> None:
+    """Move ``files`` (relative to ``root``) under :data:`HELD` with the manifest that lists them,
+    then remove the folders they leave empty."""
+    if not files:
+        return
+    held = root / HELD
+    held.mkdir(exist_ok=True)
+    shutil.copyfile(root / MANIFEST, held / MANIFEST)
     folders: set[Path] = set()
     for rel in files:
         target = root / rel
-        target.unlink(missing_ok=True)
+        (held / rel).parent.mkdir(parents=True, exist_ok=True)
+        if target.is_symlink() or target.exists():
+            target.replace(held / rel)
         folders.update(p for p in target.parents if p != root and root in p.parents)
     for folder in sorted(folders, key=lambda p: len(p.parts), reverse=True):
         with contextlib.suppress(OSError):  # still holds something: left as it is
             folder.rmdir()
+
+
+def _restore(root: Path) -> bool:
+    """Put the files set aside under :data:`HELD` back where they were, with their manifest (a
+    file the new run wrote in the meantime is kept and the earlier one dropped); False when
+    nothing was set aside."""
+    held = root / HELD
+    if not held.is_dir():
+        return False
+    manifest = read_manifest(held)
+    for rel in _files_under(held, ("*",)):
+        target = root / rel
+        if not (target.is_symlink() or target.exists()):
+            target.parent.mkdir(parents=True, exist_ok=True)
+            (held / rel).replace(target)
+    if manifest is not None:
+        (held / MANIFEST).replace(root / MANIFEST)
+    shutil.rmtree(held, ignore_errors=True)
+    return True

@@ -128,3 +128,44 @@ def test_a_run_that_wrote_nothing_gives_the_folder_back(tmp_path: Path) -> None:
     assert list(out.iterdir()) == []
     with claim(out, command="audit", owns=("index.md",)):
         (out / "index.md").write_text("# audit")
+
+
+def test_a_run_that_fails_before_writing_gives_the_earlier_output_back(tmp_path: Path) -> None:
+    """A bench run with an unknown home once emptied the folder of the run before it."""
+    out = tmp_path / "demo"
+    _earlier_run(out)
+    before = _tree(out)
+    with pytest.raises(ValueError), claim(out, command="demo", owns=OWNS, force=True):
+        assert not (out / "table.csv").exists()  # set aside while the new run runs
+        raise ValueError("unknown home")
+    assert _tree(out) == before
+
+
+def test_a_run_killed_while_the_earlier_output_is_set_aside_gets_it_back(tmp_path: Path) -> None:
+    out = tmp_path / "demo"
+    _earlier_run(out)
+    before = _tree(out)
+    claim(out, command="demo", owns=OWNS, force=True)  # never exited: the process died
+    assert not (out / "table.csv").exists()
+    with claim(out, command="demo", owns=OWNS, force=True):
+        pass  # restores, sets aside again, writes nothing, fails nothing
+    assert _tree(out) == before
+    with claim(out, command="demo", owns=OWNS, force=True):
+        (out / "table.csv").write_text("new\n")
+    assert _tree(out) == {MANIFEST: (out / MANIFEST).read_text(), "table.csv": "new\n"}
+
+
+def test_bench_homes_with_an_unknown_home_keeps_the_earlier_results(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """It once emptied the folder first, then found the home unknown."""
+    out = tmp_path / "bench"
+    with claim(
+        out, command="bench homes", owns=("homes_trials.parquet",), replace_needs_force=False
+    ):
+        (out / "homes_trials.parquet").write_bytes(b"PAR1 earlier results")
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    argv = ["bench", "homes", "--out", str(out), "--no-progress", "--workers", "1"]
+    assert main([*argv, "--homes", "ithor-99", "--strategies", "wpl"]) == 2
+    assert "unknown home(s) ithor-99" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
