@@ -17,7 +17,7 @@ from __future__ import annotations
 import re
 from collections.abc import Collection, Sequence
 from pathlib import Path
-from typing import Any, Final
+from typing import Final
 
 import duckdb
 import pyarrow as pa
@@ -151,24 +151,20 @@ def create_fleet_views(
     lake: TableLake,
     files: Sequence[DataFile],
     only: Collection[str] | None = None,
-    table: Any | None = None,
 ) -> None:
     """The per-type views and ``events`` over the fleet lake's table (:mod:`.lake_table`),
     reading ``files`` (its current data files, damaged ones left out): one ``read_parquet`` of
     a few files per type, however many runs the table holds. Same columns as
     :func:`create_type_views`. A remote lake's types are read through its Arrow datasets.
     ``only``, if given, names the views to make (types and ``events``; a remote ``events``
-    makes every type's): creating a view binds it, which reads its files' footers. ``table``:
-    the Delta table ``files`` were listed from (a remote lake's views read its datasets; loading
-    it again for each type read the table's log as many times)."""
-    if lake.remote and table is None:
-        table = lake.table()
-    by_kind: dict[str, list[str]] = {}
+    makes every type's): creating a view binds it, which reads its files' footers. A remote
+    lake's files are the ones given: the table is not loaded again (each load reads its log)."""
+    by_kind: dict[str, list[DataFile]] = {}
     for f in files:
-        by_kind.setdefault(f.kind, []).append(f.path)
+        by_kind.setdefault(f.kind, []).append(f)
     envelope = ", ".join(quote_ident(f.name) for f in ENVELOPE_COLUMNS)
     types = set(lake.store.registry.types)
-    every = [f"{lake.uri}/{p}" for kind, paths in by_kind.items() if kind in types for p in paths]
+    every = [f"{lake.uri}/{f.path}" for kind, fs in by_kind.items() if kind in types for f in fs]
     # ``events`` is the union of the type views where it cannot scan the files at once
     union = lake.remote or not every
     wanted = None if only is None else set(only) | (types if union and "events" in only else set())
@@ -181,7 +177,7 @@ def create_fleet_views(
         )
         if wanted is not None and event_type not in wanted:
             continue
-        source = fleet_source(con, lake, event_type, by_kind.get(event_type, []), table)
+        source = fleet_source(con, lake, event_type, by_kind.get(event_type, []))
         if source is not None:
             con.execute(
                 f"CREATE OR REPLACE VIEW {view} AS SELECT robot, date, run, {envelope}, "
@@ -215,18 +211,16 @@ def fleet_source(
     con: duckdb.DuckDBPyConnection,
     lake: TableLake,
     kind: str,
-    paths: Sequence[str],
-    table: Any | None = None,
+    files: Sequence[DataFile],
 ) -> str | None:
-    """What a view reads for the rows of ``kind`` (a ``type`` partition), or None if none
-    (``table``: the lake's Delta table as loaded, for a remote lake)."""
-    if not paths:
+    """What a view reads for the rows of ``kind`` (a ``type`` partition: ``files``), or None
+    if none."""
+    if not files:
         return None
     if lake.remote:
         name = f"_fleet_{kind}"
-        table = lake.table() if table is None else table
-        con.register(name, table.to_pyarrow_dataset(file_pruning_predicate=[("type", "=", kind)]))
+        con.register(name, lake.files_dataset(files))
         return quote_ident(name)
-    listed = ", ".join(quote_literal(f"{lake.uri}/{p}") for p in paths)
+    listed = ", ".join(quote_literal(f"{lake.uri}/{f.path}") for f in files)
     # union_by_name: a file holds its own type's columns only (a compacted one may hold all)
     return f"read_parquet([{listed}], hive_partitioning = false, union_by_name = true)"

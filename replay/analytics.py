@@ -44,7 +44,7 @@ import duckdb
 
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.scene_graph_sql import LIMIT_SEQ, LIMIT_TIME, SCENE_GRAPH_BODY
-from objsearch.events import EventStoreError
+from objsearch.events import EventStoreError, lake_table
 from objsearch.events.derived import DERIVED_DIR, DerivedTable, derived_tables
 from objsearch.events.lake import DamagedRun, Lake, RunInfo, deep_check
 from objsearch.events.lake_table import TableLake, derived_column, derived_kind, is_table_lake
@@ -296,6 +296,15 @@ def _open_fleet(
     files, damaged = lake.scan(table)
     for _, why in damaged:
         _log.warning("%s: damaged data file left out of every view: %s", lake.root, why)
+    if lake.remote and len(files) > lake_table.COMPACT_AT_FILES:
+        # each file costs requests of its own: 850 small ones took 16.5 s to read, 1.5 s compacted
+        _log.warning(
+            "%s: %d data files (a commit adds one a type, and nothing compacts a bucket by "
+            "itself): queries read each; `objsearch lake compact --lake %s` makes few of them",
+            lake.root,
+            len(files),
+            lake.root,
+        )
     by_kind = {f.kind for f in files}
     # A derived table the runs wrote reads its partition; one none has at this version (older
     # code wrote them) is the same SQL over the events, live.
@@ -309,14 +318,14 @@ def _open_fleet(
     definitions |= _common_ddl()
     only = None if for_sql is None else views_for(for_sql, definitions)
     con = duckdb.connect(":memory:")
-    create_fleet_views(con, lake, files, only, table)
+    create_fleet_views(con, lake, files, only)
     for spec in derived_tables(STORE):
         if only is not None and spec.name not in only:
             continue
         kind = derived_kind(spec.name, spec.version)
         body = live.get(spec.name)
         if body is None:
-            source = fleet_source(con, lake, kind, [f.path for f in files if f.kind == kind], table)
+            source = fleet_source(con, lake, kind, [f for f in files if f.kind == kind])
             body = (
                 f"SELECT robot, date, run, {quote_ident(derived_column(spec.name))}.* FROM {source}"
             )

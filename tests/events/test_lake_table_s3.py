@@ -174,3 +174,21 @@ def test_a_query_reads_the_tables_log_once(
     finally:
         close(con)
     assert loads == [bucket]
+
+
+def test_a_query_over_an_uncompacted_bucket_says_to_compact_it(
+    bucket: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    import objsearch.events.lake_table as lt
+
+    lake = TableLake(bucket, store=STORE)
+    for name in ("a", "b"):
+        add_log(small_log(tmp_path / name, stream=name), lake, robot="r")
+    monkeypatch.setattr(lt, "COMPACT_AT_FILES", len(lake.data_files()) - 1)
+    con = open_analytics(bucket)
+    close(con)
+    assert "objsearch lake compact" in caplog.text
+    lake.compact(vacuum_hours=None)
+    caplog.clear()
+    close(open_analytics(bucket))
+    assert "objsearch lake compact" not in caplog.text
