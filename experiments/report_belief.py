@@ -19,7 +19,7 @@ from typing import Any
 from objsearch.experiments.calibration import ece
 from objsearch.experiments.learning import first_of_day, ratio
 from objsearch.experiments.metrics import spl_term
-from objsearch.experiments.runner import Row, read_output
+from objsearch.experiments.runner import COVER_SUFFIX, Row, inspection_suffix, read_output
 
 AFTER = 10
 #: routine-<seed>: the evaluation scenes are those after day 14 (four scenes a day,
@@ -44,12 +44,6 @@ PAIRS = (
     ("global-belief", "dist-oracle-global"),
     ("dist-oracle-global", ORACLE),
 )
-
-
-def inspection_suffix(strategy: str) -> str:
-    """``"+cover"`` for a strategy searched with ``--inspection cover`` (runner.read_output names
-    it so), else ``""``."""
-    return strategy[len(strategy.partition("+")[0]) :]
 
 
 def _references(strategies: Sequence[str]) -> list[str]:
@@ -406,7 +400,7 @@ def report(
             mine,
             [
                 *((a + suffix, b + suffix) for suffix in suffixes for a, b in PAIRS),
-                *((f"{n}+cover", n) for n in sorted(names) if f"{n}+cover" in names),
+                *((n + COVER_SUFFIX, n) for n in sorted(names) if n + COVER_SUFFIX in names),
             ],
             after,
         )

@@ -37,7 +37,7 @@ from objsearch.experiments.learning import (
 from objsearch.experiments.metrics import spl_term
 from objsearch.experiments.paper import discovery
 from objsearch.experiments.plots import pyplot, save_figure
-from objsearch.experiments.runner import Row
+from objsearch.experiments.runner import COVER_SUFFIX, Row, inspection_suffix
 from objsearch.experiments.stats import CI, MIN_RUNS, method_note, spread
 from objsearch.sim.longterm import scenes_of
 from objsearch.sim.world import DEFAULT_CAMERA, Placement, first_sighting, search_camera
@@ -159,7 +159,7 @@ def failure_cause(row: Row, camera: str = DEFAULT_CAMERA) -> str:
     where the target was that scene and what the run's ``camera`` shows of it, with everything
     placed in its room in the way — from any viewpoint of the room and from the one viewpoint
     the agent inspects its static from (N_s, paper §4)."""
-    cover = row.strategy.endswith("+cover")  # runner.read_output's name for a cover run
+    cover = inspection_suffix(row.strategy) == COVER_SUFFIX
     return _cause(row.home, row.placements, row.scene, row.target, camera, cover)
 
 

@@ -242,6 +242,15 @@ def read_rows(parquet: Path) -> list[Row]:
     return [Row(**rec) for rec in pl.read_parquet(parquet).to_dicts()]
 
 
+#: What :func:`read_output` appends to the strategies of a run searched with ``--inspection cover``.
+COVER_SUFFIX = "+cover"
+
+
+def inspection_suffix(strategy: str) -> str:
+    """:data:`COVER_SUFFIX` for a strategy :func:`read_output` read from a cover run, else ``""``."""
+    return strategy[len(strategy.partition("+")[0]) :]
+
+
 def read_output(folder: Path) -> list[Row]:
     """The searches of one ``bench homes`` output folder. A run with ``--inspection cover`` (its
     summary.json says so) names its strategies ``NAME+cover``: every report pairs it with the same
@@ -250,7 +259,7 @@ def read_output(folder: Path) -> list[Row]:
     summary = json.loads(summary_path.read_text(encoding="utf-8")) if summary_path.is_file() else {}
     rows = read_rows(folder / str(summary.get("files", {}).get("parquet", "homes_trials.parquet")))
     if summary.get("inspection") == "cover":
-        return [replace(r, strategy=f"{r.strategy}+cover") for r in rows]
+        return [replace(r, strategy=r.strategy + COVER_SUFFIX) for r in rows]
     return rows
 
 
