@@ -226,7 +226,12 @@ class Lake:
             for event_type in sorted(run.rows)
         }
 
-    def scan(self, *, check_digests: bool = False) -> tuple[list[RunInfo], list[DamagedRun]]:
+    def scan(
+        self,
+        *,
+        check_digests: bool = False,
+        progress: Callable[[list[Path]], Iterable[Path]] | None = None,
+    ) -> tuple[list[RunInfo], list[DamagedRun]]:
         """The runs readers can use, and the run folders they must leave out.
 
         A run is left out if its manifest is unreadable, fails its own digest or names another
@@ -236,7 +241,8 @@ class Lake:
         file. ``check_digests`` also hashes every file a manifest lists (what queries do: DuckDB
         does not check page checksums, so a flipped bit inside a file would change an answer);
         a run without digests (older code) gets only the cheap check, and a full footer parse
-        (:func:`deep_check`) when a view over it fails.
+        (:func:`deep_check`) when a view over it fails. ``progress`` wraps the files as they are
+        hashed.
         """
         infos: list[RunInfo] = []
         damaged: list[DamagedRun] = []
@@ -248,7 +254,7 @@ class Lake:
             except LakeError as exc:
                 damaged.append(DamagedRun(folder, str(exc), (str(exc),)))
         hashed = (
-            file_digests(r.path / name for r in infos for name in r.files)
+            file_digests((r.path / name for r in infos for name in r.files), progress)
             if check_digests
             else None
         )
@@ -263,11 +269,12 @@ class Lake:
         damaged.sort(key=lambda d: d.path)
         return runs, damaged
 
-    def verify(self) -> LakeCheck:
+    def verify(self, progress: Callable[[list[Path]], Iterable[Path]] | None = None) -> LakeCheck:
         """Read every byte of every run: hash each file its manifest lists, and decode in full
         (checking page checksums where a file has them) the files of runs without digests.
-        Changes nothing."""
-        runs, damaged = self.scan(check_digests=True)
+        Changes nothing. ``progress`` wraps the files as they are hashed (the CLI's progress
+        line)."""
+        runs, damaged = self.scan(check_digests=True, progress=progress)
         folders = len(runs) + len(damaged)
         unverified = [r for r in runs if not r.files]
         files = sum(len(r.files) for r in runs)

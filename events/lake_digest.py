@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import suppress
 from dataclasses import dataclass
@@ -57,8 +57,11 @@ def file_digest(path: Path) -> FileDigest:
     return FileDigest(size, f"{ALGORITHM}:{h.hexdigest()}")
 
 
-def file_digests(paths: Iterable[Path]) -> dict[Path, FileDigest | OSError]:
-    """:func:`file_digest` of many files on a few threads; an unreadable file maps to its error."""
+def file_digests(
+    paths: Iterable[Path], progress: Callable[[list[Path]], Iterable[Path]] | None = None
+) -> dict[Path, FileDigest | OSError]:
+    """:func:`file_digest` of many files on a few threads; an unreadable file maps to its error.
+    ``progress`` wraps the paths as their digests come in (the CLI's progress line)."""
 
     def one(path: Path) -> FileDigest | OSError:
         try:
@@ -67,10 +70,12 @@ def file_digests(paths: Iterable[Path]) -> dict[Path, FileDigest | OSError]:
             return exc
 
     paths = list(paths)
+    watched = progress or list
     if len(paths) < 2 or _total_size(paths) < _THREADED_BYTES:
-        return {p: one(p) for p in paths}
+        return {p: one(p) for p in watched(paths)}
     with ThreadPoolExecutor(max_workers=_THREADS) as pool:
-        return dict(zip(paths, pool.map(one, paths), strict=True))
+        hashing = {p: pool.submit(one, p) for p in paths}
+        return {p: hashing[p].result() for p in watched(paths)}
 
 
 def _total_size(paths: list[Path]) -> int:

@@ -64,6 +64,7 @@ from .errors import EventStoreError
 from .lake import (
     ROW_GROUP_ROWS,
     LakeError,
+    RunInfo,
     _check_date,
     _check_name,
     _conform,
@@ -438,15 +439,18 @@ class TableLake:
             good.append(f)
         return good, bad
 
-    def verify(self) -> TableCheck:
+    def verify(
+        self, progress: Callable[[list[DataFile]], Iterable[DataFile]] | None = None
+    ) -> TableCheck:
         """Read every byte: decode each data file in full and compare its rows with the log's
-        statistics (plus the checks of :meth:`scan`). Changes nothing."""
+        statistics (plus the checks of :meth:`scan`). Changes nothing. ``progress`` wraps the
+        files as they are decoded (the CLI's progress line)."""
 
         table = self.table()
         good, bad = self.scan(table)
         size = 0
         checked = 0
-        for f in good:
+        for f in progress(good) if progress else good:
             where = f"{self.uri}/{f.path}"
             try:
                 if self.remote:
@@ -1417,10 +1421,17 @@ def add_log(
     )
 
 
-def migrate(old_root: Path, lake: TableLake, *, batch: int = 64) -> tuple[int, list[str]]:
+def migrate(
+    old_root: Path,
+    lake: TableLake,
+    *,
+    batch: int = 64,
+    progress: Callable[[list[RunInfo]], Iterable[RunInfo]] | None = None,
+) -> tuple[int, list[str]]:
     """Copy every healthy run of a per-run-folder lake (``objsearch.lake/1``) into the fleet
     table, ``batch`` runs a transaction; runs already there are skipped. Returns the runs
-    copied and the damaged ones left behind (each named)."""
+    copied and the damaged ones left behind (each named). ``progress`` wraps the runs as they
+    are copied (the CLI's progress line)."""
     from .lake import Lake
 
     old = Lake(old_root, store=lake.store)
@@ -1429,7 +1440,7 @@ def migrate(old_root: Path, lake: TableLake, *, batch: int = 64) -> tuple[int, l
     known = {(r.robot, r.run) for r in lake.runs()}
     pending: list[tuple[TableRun, dict[str, pa.Table]]] = []
     copied = 0
-    for info in healthy:
+    for info in progress(healthy) if progress else healthy:
         if (info.robot, info.run) in known:
             continue
         tables = old.read_tables(info)

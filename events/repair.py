@@ -15,6 +15,7 @@ import uuid
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol, TypeVar
 
 from . import _fs
 from .diagnose import Witness, diagnose
@@ -88,11 +89,24 @@ class Repair:
     actions: tuple[RepairAction, ...] = ()
 
 
+T = TypeVar("T")
+
+
+class Progress(Protocol):
+    """Wraps what a pass reads (records, lines) as it is consumed: the CLI's progress line."""
+
+    def __call__(self, items: Iterable[T], /) -> Iterable[T]: ...
+
+
+def _unwatched(items: Iterable[T], /) -> Iterable[T]:
+    return items
+
+
 def verify_log(
     directory: Path | str,
     *,
     store: Store | None = None,
-    progress: Callable[[Iterable[object]], Iterable[object]] | None = None,
+    progress: Progress = _unwatched,
 ) -> Verification:
     """Read every record and check it, and the seals of ``durable.json``; raise
     :class:`CorruptLogError` at the first problem. ``progress`` wraps the records as they are
@@ -104,7 +118,7 @@ def verify_log(
     registry = (store or shipped()).registry
     scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable, payloads=False)
     # every record checked; none kept
-    collections.deque(progress(scan) if progress else scan, maxlen=0)
+    collections.deque(progress(scan), maxlen=0)
     events = scan.at.line  # the records read (a scan from the start counts from 0)
     if record is not None and record.seals:
         _check_sealed(directory, meta, registry, record)
@@ -125,6 +139,7 @@ def repair_log(
     *,
     wall_clock: Callable[[], int] = time.time_ns,
     store: Store | None = None,
+    progress: Progress = _unwatched,
 ) -> Repair:
     """Make ``directory`` a clean log again, removing only what is damaged and keeping every
     byte it takes out.
@@ -140,7 +155,7 @@ def repair_log(
     lost, so no later event reuses a removed record's seq or id. The bytes taken out are kept in
     ``events.log.repair-<offset>``; seals and the high-water mark are rewritten (snapshot
     attestations dropped: the log changed). Raises :class:`LogLockedError` if a writer has the
-    log open.
+    log open. ``progress`` wraps the records checked, then (a damaged log) the lines judged.
     """
     directory = Path(directory)
     meta = read_meta(directory)
@@ -153,7 +168,8 @@ def repair_log(
                 f"event log {directory} is open for writing; stop its writer first"
             )
         try:
-            return _repair_locked(directory, meta, wall_clock, (store or shipped()).registry)
+            registry = (store or shipped()).registry
+            return _repair_locked(directory, meta, wall_clock, registry, progress)
         finally:
             os.close(lock_fd)
     finally:
@@ -161,7 +177,11 @@ def repair_log(
 
 
 def _repair_locked(
-    directory: Path, meta: LogMeta, wall_clock: Callable[[], int], registry: SchemaRegistry
+    directory: Path,
+    meta: LogMeta,
+    wall_clock: Callable[[], int],
+    registry: SchemaRegistry,
+    progress: Progress,
 ) -> Repair:
     path = directory / LOG_FILE
     data = path.read_bytes()
@@ -171,7 +191,7 @@ def _repair_locked(
     except CorruptLogError as exc:
         damaged_mark, record = str(exc), None
     durable = None if record is None else record.position
-    problem, events, last_seq = _first_problem(directory, meta, record, registry)
+    problem, events, last_seq = _first_problem(directory, meta, record, registry, progress)
     problem = problem or damaged_mark
     if problem is None:
         return Repair(directory, False, events, last_seq, 0, 0, None, None, None)
@@ -179,13 +199,13 @@ def _repair_locked(
         quarantine(directory, "durable-damaged", (directory / DURABLE_FILE).read_bytes())
     if _is_crlf(data):
         converted = data.replace(b"\r\n", b"\n")
-        plan = _plan(converted, meta, durable, wall_clock, directory, registry)
+        plan = _plan(converted, meta, durable, wall_clock, directory, registry, progress)
         if not plan.actions and plan.end == len(converted):
             original = quarantine(directory, "crlf", data)
             _fs.write_atomic(path, converted)
             _write_mark(directory, meta, plan)
             return Repair(directory, True, plan.events, plan.at.seq, 0, 0, problem, original, None)
-    plan = _plan(data, meta, durable, wall_clock, directory, registry)
+    plan = _plan(data, meta, durable, wall_clock, directory, registry, progress)
     _refuse_what_repair_cannot_judge(directory, meta, data, plan, record)
     kept: Path | None = None
     if plan.removed:
@@ -250,7 +270,11 @@ def _refuse_what_repair_cannot_judge(
 
 
 def _first_problem(
-    directory: Path, meta: LogMeta, record: DurableRecord | None, registry: SchemaRegistry
+    directory: Path,
+    meta: LogMeta,
+    record: DurableRecord | None,
+    registry: SchemaRegistry,
+    progress: Progress,
 ) -> tuple[str | None, int, int]:
     """(the first problem, or None; the events before it, markers not counted; their last
     seq)."""
@@ -258,7 +282,7 @@ def _first_problem(
     scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable, payloads=False)
     events = 0
     try:
-        for event in scan:
+        for event in progress(scan):
             events += event.type != QUARANTINED_TYPE
         if record is not None and record.seals:
             _check_sealed(directory, meta, registry, record)
@@ -352,6 +376,7 @@ def _plan(
     wall_clock: Callable[[], int],
     directory: Path,
     registry: SchemaRegistry,
+    progress: Progress,
 ) -> _Plan:
     plan = _Plan(meta, wall_clock, mark_seq=0 if durable is None else durable.seq)
     plan.at.checksum = meta.genesis
@@ -361,9 +386,8 @@ def _plan(
     for line in lines:
         offsets.append(offsets[-1] + len(line) + 1)
     first_change: int | None = None
-    i = 0
-    while i < len(lines):
-        line = lines[i]
+    stop = len(lines)  # the first line from which nothing is proven (the tail), or past the last
+    for i, line in enumerate(progress(lines)):
         at = plan.at
         try:
             event, chain = check_record(line, at, meta, registry)
@@ -387,12 +411,14 @@ def _plan(
                     witness=Witness(lines[i + 1] if i + 1 < len(lines) else None, mark),
                 )
             if found is None or found.kind == "unproven":
+                stop = i
                 break
             restored = None
             if found.original is not None:
                 try:
                     restored = check_record(found.original, at, meta, registry)
                 except BadRecord:
+                    stop = i
                     break  # recovered bytes that are still not the next record: prove nothing
             if first_change is None:
                 first_change = offsets[i]
@@ -422,13 +448,11 @@ def _plan(
                 plan.actions.append(
                     RepairAction("lost", seq, last, i + 1, offsets[i], found.reason)
                 )
-                i += 1
                 continue
             elif found.kind == "extra":
                 plan.actions.append(
                     RepairAction("extra", seq, seq, i + 1, offsets[i], found.reason)
                 )
-                i += 1
                 continue
             else:
                 plan.marker(
@@ -440,10 +464,9 @@ def _plan(
                 )
                 kind = "quarantined"
             plan.actions.append(RepairAction(kind, seq, seq, i + 1, offsets[i], found.reason))
-            i += 1
             continue
         plan.keep(line, event, chain)
-        i += 1
+    i = stop
     plan.end = offsets[i]
     tail = data[offsets[i] :]
     first_seq = plan.at.seq + 1

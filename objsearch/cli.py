@@ -278,7 +278,14 @@ def cmd_graph(args: argparse.Namespace) -> int:
     from objsearch.product import relation_models
     from objsearch.replay.asof import scene_graph_at
 
-    graph = scene_graph_at(Path(args.log), args.at, models=relation_models(simulator=True))
+    graph = scene_graph_at(
+        Path(args.log),
+        args.at,
+        models=relation_models(simulator=True),
+        progress=lambda events: t.progress(
+            events, "graph", " events", enabled=not args.no_progress
+        ),
+    )
     table = graph.as_table()
     if args.format == "json":
         print(
@@ -435,6 +442,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--at", type=t.int_range(0), help="as it was right after this sequence number"
     )
     t.format_option(graph, "print JSON")
+    t.progress_option(graph)
     graph.set_defaults(func=cmd_graph)
 
     for module in COMMAND_MODULES:

@@ -38,6 +38,7 @@ def register(sub: Any) -> None:
     )
     repair.add_argument("log", metavar="LOG", type=t.existing_dir, help="event log folder")
     t.format_option(repair, "print the result as JSON")
+    t.progress_option(repair)
     repair.set_defaults(func=cmd_log_repair)
 
 
@@ -83,7 +84,13 @@ def cmd_log_repair(args: argparse.Namespace) -> int:
     from objsearch.events.repair import repair_log
     from objsearch.product import STORE
 
-    result = repair_log(Path(args.log), store=STORE)
+    result = repair_log(
+        Path(args.log),
+        store=STORE,
+        progress=lambda items: t.progress(
+            items, "log repair", " records", enabled=not args.no_progress
+        ),
+    )
     if args.format == "json":
         print(_as_json(result))
         return 0

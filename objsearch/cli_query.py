@@ -373,7 +373,13 @@ def _upgrade_to_fleet(args: argparse.Namespace) -> int:
         print(f"{target}: created an empty fleet lake")
         return 0
     fleet = TableLake(target, store=STORE)
-    copied, damaged = migrate(source, fleet)
+    copied, damaged = migrate(
+        source,
+        fleet,
+        progress=lambda runs: t.progress(
+            runs, "lake upgrade", " runs", enabled=not args.no_progress
+        ),
+    )
     for line in damaged:
         print(f"objsearch: warning: damaged run not copied: {line}", file=sys.stderr)
     removed = 0
@@ -400,12 +406,16 @@ def cmd_lake_verify(args: argparse.Namespace) -> int:
         return _fail(f"two lakes given ({args.lake_dir} and --lake {args.lake}); give one")
     where = args.lake_dir or args.lake or _default_lake()
     if _remote(where) or _is_fleet(where):
-        return _verify_fleet(where, args.format == "json")
+        return _verify_fleet(where, args.format == "json", not args.no_progress)
     lake = Path(where)
     if not lake.is_dir():
         return _fail(f"no lake at {lake}")
     started = time.perf_counter()
-    check = Lake(lake, store=STORE).verify()
+    check = Lake(lake, store=STORE).verify(
+        progress=lambda files: t.progress(
+            files, "lake verify", " files", enabled=not args.no_progress
+        )
+    )
     seconds = time.perf_counter() - started
     if args.format == "json":
         doc = {
@@ -444,14 +454,16 @@ def cmd_lake_verify(args: argparse.Namespace) -> int:
     return 0
 
 
-def _verify_fleet(where: str, as_json: bool) -> int:
+def _verify_fleet(where: str, as_json: bool, progress: bool) -> int:
     import time
 
     from objsearch.events.lake_table import TableLake
     from objsearch.product import STORE
 
     started = time.perf_counter()
-    check = TableLake(where, store=STORE).verify()
+    check = TableLake(where, store=STORE).verify(
+        progress=lambda files: t.progress(files, "lake verify", " files", enabled=progress)
+    )
     seconds = time.perf_counter() - started
     if as_json:
         doc = {
@@ -598,6 +610,7 @@ def register(sub: Any) -> None:
         "--lake", type=t.dir_path, help="lake folder, as the other lake commands take it"
     )
     t.format_option(verify, "print the findings as JSON")
+    t.progress_option(verify)
     verify.set_defaults(func=cmd_lake_verify)
     upgrade = lake_sub.add_parser(
         "upgrade",

@@ -41,6 +41,7 @@ def register(sub: Any) -> None:
         "searches record no time of day gets the same answer at every time",
     )
     t.format_option(where, "print the answer as JSON")
+    t.progress_option(where)
     where.set_defaults(func=cmd_where)
 
 
@@ -51,6 +52,7 @@ def cmd_where(args: argparse.Namespace) -> int:
 
     events, _ = open_events(Path(args.log), run=args.run, robot=args.robot)
     at = None if args.at is None else DayClock(weekday=args.at[0], minute=args.at[1])
-    answer = where(events, args.target, at=at)
+    folding = t.progress(events, "where", " events", enabled=not args.no_progress)
+    answer = where(folding, args.target, at=at)
     print(json.dumps(answer, indent=2) if args.format == "json" else render(answer))
     return 0

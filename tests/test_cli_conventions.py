@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import io
 import re
+import shutil
 import sys
 from pathlib import Path
 
@@ -42,7 +43,11 @@ LONG_COMMANDS = {
     "liveview",
     "lake add",
     "lake upgrade",
+    "lake verify",
     "log verify",
+    "log repair",
+    "graph",
+    "where",
 }
 #: Pages whose commands the lead regenerates from recorded runs: old spellings may stay there
 #: (they still parse, tests/experiments/test_results_commands.py).
@@ -189,26 +194,38 @@ GOLDEN = REPO / "tests" / "replay" / "golden" / "sim-wpl-updates"
 
 
 @pytest.mark.parametrize(
-    "command",
+    ("command", "label"),
     [
-        ["log", "verify", str(GOLDEN)],
-        ["lake", "add", str(GOLDEN), "--robot", "sim", "--lake", "LAKE"],
-        ["liveview", str(GOLDEN), "--mcap", "MCAP"],
+        (["log", "verify", str(GOLDEN)], "log verify"),
+        (["log", "repair", "COPY"], "log repair"),
+        (["lake", "add", str(GOLDEN), "--robot", "sim", "--lake", "LAKE"], "lake add"),
+        (["lake", "verify", "FILLED"], "lake verify"),
+        (["lake", "upgrade", "--lake", "FILLED", "--to", "fleet"], "lake upgrade"),
+        (["liveview", str(GOLDEN), "--mcap", "MCAP"], "liveview"),
+        (["graph", str(GOLDEN)], "graph"),
+        (["where", "Cup", str(GOLDEN), "--at", "last"], "where"),
     ],
 )
-@pytest.mark.parametrize("no_progress", [False, True])
-def test_long_commands_draw_progress_on_a_terminal(
-    command: list[str], no_progress: bool, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+@pytest.mark.parametrize("stderr", ["terminal", "terminal --no-progress", "pipe"])
+def test_long_commands_draw_progress_on_a_terminal_only(
+    command: list[str], label: str, stderr: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    argv = [w.replace("LAKE", str(tmp_path / "lake")) for w in command]
-    argv = [w.replace("MCAP", str(tmp_path / "view.mcap")) for w in argv]
-    terminal = _Terminal()
+    places = {"LAKE": tmp_path / "lake", "MCAP": tmp_path / "view.mcap", "COPY": tmp_path / "log"}
+    if "COPY" in command:
+        shutil.copytree(GOLDEN, places["COPY"])
+    if "FILLED" in command:
+        places["FILLED"] = tmp_path / "filled"
+        add = ["lake", "add", str(GOLDEN), "--robot", "sim", "--lake", str(places["FILLED"])]
+        monkeypatch.setattr(sys, "stdout", io.StringIO())
+        assert main([*add, "--no-progress"]) == 0
+    argv = [str(places[w]) if w in places else w for w in command]
+    err = _Terminal() if stderr.startswith("terminal") else io.StringIO()
     monkeypatch.setenv("COLUMNS", "100")
-    monkeypatch.setattr(sys, "stderr", terminal)
+    monkeypatch.setattr(sys, "stderr", err)
     monkeypatch.setattr(sys, "stdout", io.StringIO())
-    assert main([*argv, *(["--no-progress"] if no_progress else [])]) == 0
-    label = " ".join(command[:2]) if command[0] != "liveview" else "liveview"
-    assert (f"{label}: " in terminal.getvalue()) is not no_progress
+    assert main([*argv, *(["--no-progress"] if stderr.endswith("--no-progress") else [])]) == 0
+    assert (f"{label}: " in err.getvalue()) is (stderr == "terminal")
+    assert "\r" not in err.getvalue() or stderr == "terminal"
 
 
 def test_progress_stays_out_of_a_pipe(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
