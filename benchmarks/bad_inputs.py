@@ -93,7 +93,7 @@ def semantic_cases(scratch: Path) -> list[tuple[str, list[str]]]:
         ("bench unknown target", ["bench", "paper", "--targets", "Cat", "--strategies", "wpl"]),
         ("bench unknown home", ["bench", "homes", "--homes", "castle"]),
         ("bench unknown schedule kind", ["bench", "homes", "--schedules", "weekly"]),
-        ("bench report of nothing", ["bench", "report", "--paper", empty, "--homes", empty]),
+        ("bench report of nothing", ["bench", "report", "--paper", empty, "--evaluation", empty]),
         ("data build from nothing", ["data", "build", "--source", empty, "--out", str(scratch)]),
         ("data build bad home", ["data", "build", "--source", empty, "--home", "x=1,2"]),
         ("agent run bad config", ["agent", "run", "--log", str(scratch / "l"), "--config", text]),

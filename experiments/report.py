@@ -78,7 +78,7 @@ def _left_out(title: str, how: str) -> str:
 
 def _report_command(inputs: ReportInputs, out: Path, img: Path) -> str:
     words = ["objsearch bench report", f"--paper {inputs.paper}"]
-    words += [f"--homes {d}" for d in inputs.homes]
+    words += [f"--evaluation {d}" for d in inputs.homes]
     words += [f"--heldout {d}" for d in inputs.heldout or ()]
     words += [f"--table1 {d}" for d in inputs.table1 or ()]
     if inputs.paper_geometric is not None:
@@ -201,7 +201,7 @@ def write_report(
             _left_out(
                 "Homes (not tuned on)",
                 "run `objsearch bench homes --out out/bench-homes` and pass "
-                "`--homes out/bench-homes`",
+                "`--evaluation out/bench-homes`",
             )
         )
     step("held-out")
@@ -214,7 +214,7 @@ def write_report(
             _left_out(
                 "Held-out homes (looked at only at the end)",
                 "run `objsearch bench homes --homes <held-out homes> --out out/bench-heldout` "
-                "and pass `--heldout out/bench-heldout` (never mixed with --homes)",
+                "and pass `--heldout out/bench-heldout` (never mixed with --evaluation)",
             )
         )
     sections.append(

@@ -1,4 +1,4 @@
-"""The held-out homes sections of docs/results.md (``bench report --homes``, ``--heldout``): issue
+"""The held-out homes sections of docs/results.md (``bench report --evaluation``, ``--heldout``): issue
 16's figures recomputed from a ``bench homes`` output's rows, so every number is traceable to
 the searches it summarises.
 

@@ -280,7 +280,7 @@ def cmd_graph(args: argparse.Namespace) -> int:
 
     graph = scene_graph_at(
         Path(args.log),
-        args.at,
+        args.until,
         models=relation_models(simulator=True),
         progress=lambda events: t.progress(
             events, "graph", " events", enabled=not args.no_progress
@@ -438,8 +438,17 @@ def build_parser() -> argparse.ArgumentParser:
     t.input_argument(
         graph, "log", type=t.existing_dir, metavar="LOG", help="event log folder", old=("--log",)
     )
-    graph.add_argument(
-        "--at", type=t.int_range(0), help="as it was right after this sequence number"
+    # A sequence number, as replay's --until; where's --at is a time of the week (graph's old
+    # spelling, still working with a note).
+    t.renamed(
+        graph,
+        "--at",
+        graph.add_argument(
+            "--until",
+            type=t.int_range(0),
+            metavar="SEQ",
+            help="as it was right after this event (its sequence number)",
+        ),
     )
     t.format_option(graph, "print JSON")
     t.progress_option(graph)

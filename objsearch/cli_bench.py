@@ -160,7 +160,7 @@ def cmd_bench_belief(args: argparse.Namespace) -> int:
 def cmd_bench_report(args: argparse.Namespace) -> int:
     from objsearch.experiments.report import REPORT_STAGES, ReportInputs, write_report
 
-    homes = [Path(d) for d in args.homes or ()]
+    homes = [Path(d) for d in args.evaluation or ()]
     heldout = None if args.heldout is None else [Path(d) for d in args.heldout]
     missing = [str(d) for d in (Path(args.paper), *homes) if not (d / "summary.json").is_file()]
     if args.rearr:
@@ -175,8 +175,8 @@ def cmd_bench_report(args: argparse.Namespace) -> int:
     shared = {d.resolve() for d in homes} & {d.resolve() for d in heldout or ()}
     if shared:
         raise ObjsearchError(
-            f"--heldout {', '.join(sorted(map(str, shared)))} is also a --homes folder: held-out "
-            "homes are reported apart, from a bench homes run of their own"
+            f"--heldout {', '.join(sorted(map(str, shared)))} is also an --evaluation folder: "
+            "held-out homes are reported apart, from a bench homes run of their own"
         )
     inputs = ReportInputs(
         paper=Path(args.paper),
@@ -512,12 +512,20 @@ def register(sub: Any) -> None:
         type=t.dir_path,
         help="bench paper output folder (out/bench-paper)",
     )
-    report.add_argument(
+    # --homes names homes (bench homes --homes ithor-02,…); a folder of bench homes output here
+    # is --evaluation (--homes, its old spelling, still works with a note).
+    t.renamed(
+        report,
         "--homes",
-        action="append",
-        type=t.dir_path,
-        help="bench homes output folder; repeat to report several runs (e.g. one per schedule "
-        "kind) as one (default: none, the homes section says how to make one)",
+        report.add_argument(
+            "--evaluation",
+            action="append",
+            type=t.dir_path,
+            metavar="DIR",
+            help="a bench homes output on the homes to evaluate on (the Homes section); repeat "
+            "to report several runs (e.g. one per schedule kind) as one (default: none, the "
+            "section says how to make one)",
+        ),
     )
     report.add_argument(
         "--out",
@@ -540,7 +548,7 @@ def register(sub: Any) -> None:
         action="append",
         type=t.existing_dir,
         help="a bench homes output on held-out homes, reported in a section of its own "
-        "(repeatable like --homes)",
+        "(repeatable like --evaluation)",
     )
     report.add_argument(
         "--paper-geometric",

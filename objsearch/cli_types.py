@@ -501,7 +501,8 @@ OUTPUT_FORMATS = ("text", "json")
 class Deprecated(argparse.Action):
     """An old spelling that still works (scripts keep running): it stores into the new
     argument's ``dest`` — ``const`` for a flag such as ``--json``, else its value — and notes
-    the new spelling on stderr. Hidden from ``--help``, which shows one way to say each thing."""
+    the new spelling on stderr. Hidden from ``--help``, which shows one way to say each thing.
+    ``then``: the new argument's action, to store through (one that appends or extends)."""
 
     def __init__(
         self,
@@ -514,6 +515,7 @@ class Deprecated(argparse.Action):
         type: Converter | None = None,
         choices: Iterable[object] | None = None,
         metavar: str | None = None,
+        then: argparse.Action | None = None,
     ) -> None:
         super().__init__(
             option_strings,
@@ -527,16 +529,20 @@ class Deprecated(argparse.Action):
             metavar=metavar,
         )
         self.new = new
+        self.then = then
 
     def __call__(
         self,
         parser: argparse.ArgumentParser,
         namespace: argparse.Namespace,
-        values: object,
+        values: str | Sequence[Any] | None,
         option_string: str | None = None,
     ) -> None:
         print(f"objsearch: note: {option_string} is deprecated; use {self.new}", file=sys.stderr)
-        setattr(namespace, self.dest, self.const if self.nargs == 0 else values)
+        if self.then is not None:
+            self.then(parser, namespace, values, option_string)
+        else:
+            setattr(namespace, self.dest, self.const if self.nargs == 0 else values)
 
 
 def renamed(p: argparse.ArgumentParser, old: str, new: argparse.Action) -> None:
@@ -551,6 +557,7 @@ def renamed(p: argparse.ArgumentParser, old: str, new: argparse.Action) -> None:
         choices=new.choices,
         nargs=new.nargs,
         metavar=new.metavar if isinstance(new.metavar, str) else None,
+        then=new if isinstance(new, (argparse._AppendAction, ListAction)) else None,
     )
 
 

@@ -24,7 +24,7 @@ def agent_state_at(
     relation models outside the agent a spec may name; ``progress`` wraps the events as they
     are folded (the CLI's progress line)."""
     if seq is not None and seq < 1:
-        raise ObjsearchError(f"--at must be a sequence number ≥ 1, got {seq}")
+        raise ObjsearchError(f"--until must be a sequence number ≥ 1, got {seq}")
     events = read_log(log_dir, to_seq=seq, store=STORE)
     state = fold(progress(events) if progress else events, AgentState(models=models), until_seq=seq)
     if seq is not None and state.last_seq < seq:

@@ -172,18 +172,18 @@ def test_a_torn_tail_is_cut_with_a_warning_and_acknowledged_events_survive(
     assert [e.seq for e in events] == list(range(1, len(events) + 1))
 
 
-def test_graph_at_seq(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_graph_until_seq(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     log = tmp_path / "log"
     _logged_search(log)
     last = list(read_log(log, store=STORE))[-1].seq
     capsys.readouterr()
-    assert main(["graph", str(log), "--at", "2", "--format", "json"]) == 0
+    assert main(["graph", str(log), "--until", "2", "--format", "json"]) == 0
     at2 = json.loads(capsys.readouterr().out)
     assert main(["graph", str(log), "--format", "json"]) == 0
     now = json.loads(capsys.readouterr().out)
     assert (at2["seq"], at2["tasks"], now["seq"], now["tasks"]) == (2, 0, last, 1)
     assert at2["relations"]["Apple"] != now["relations"]["Apple"]
-    assert main(["graph", str(log), "--at", str(last + 1)]) == 2
+    assert main(["graph", str(log), "--until", str(last + 1)]) == 2
     assert f"ends at seq {last}" in capsys.readouterr().err
 
 

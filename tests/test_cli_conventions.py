@@ -98,6 +98,40 @@ def test_scenes_and_starts_name_which_ones(option: str) -> None:
         assert isinstance(action, t.ListAction), f"{command} {option} is not a list"
 
 
+#: Value types that name a place (a file or a folder): an option's kind of value, whichever.
+PLACE_TYPES = {
+    "existing_dir",
+    "existing_file",
+    "existing_path",
+    "dir_path",
+    "file_path",
+    "new_path",
+}
+#: Value types that name a thing (a home, a strategy): free text, or one of a command's choices.
+NAME_TYPES = {"text", "None"}
+#: Options whose place may also be an s3:// URI, so their type is text where a bucket is allowed.
+URI_OPTIONS = {"--lake"}
+
+
+def _kind(option: str, action: argparse.Action) -> str:
+    name = _type_name(action)
+    if name in PLACE_TYPES or (option in URI_OPTIONS and name == "text"):
+        return "a place"
+    return "a name" if name in NAME_TYPES else name
+
+
+def test_an_option_means_one_thing_in_every_command() -> None:
+    # --homes was home names in bench homes and folders in bench report; --at a sequence number
+    # in graph and a time of the week in where.
+    kinds: dict[str, dict[str, str]] = {}
+    for command, leaf in LEAVES.items():
+        for option, action in _options(leaf).items():
+            if not isinstance(action, t.Deprecated):
+                kinds.setdefault(option, {})[command] = _kind(option, action)
+    mixed = {o: k for o, k in kinds.items() if len(set(k.values())) > 1}
+    assert not mixed
+
+
 def test_the_log_or_lake_a_command_reads_is_positional() -> None:
     for command, leaf in LEAVES.items():
         for option, action in _options(leaf).items():
@@ -133,6 +167,15 @@ def test_long_commands_take_no_progress() -> None:
         (["where", "Cup", "--lake", str(REPO)], "log", str(REPO), "--lake is deprecated"),
         (["where", "--log", str(REPO), "Cup"], "log", str(REPO), "--log is deprecated"),
         (["where", "Cup", str(REPO)], "log", str(REPO), ""),
+        (["bench", "report", "--homes", "a", "--homes", "b"], "evaluation", ["a", "b"],
+         "--homes is deprecated; use --evaluation"),
+        (["bench", "report", "--evaluation", "a", "--homes", "b"], "evaluation", ["a", "b"],
+         "--homes is deprecated"),
+        (["bench", "report", "--evaluation", "a", "--evaluation", "b"], "evaluation", ["a", "b"],
+         ""),
+        (["bench", "homes", "--homes", "ithor-02,paper"], "homes", ["ithor-02", "paper"], ""),
+        (["graph", str(REPO), "--at", "3"], "until", 3, "--at is deprecated; use --until"),
+        (["graph", str(REPO), "--until", "3"], "until", 3, ""),
     ],
 )  # fmt: skip
 def test_every_spelling_parses(
@@ -173,6 +216,8 @@ OLD_SPELLINGS = (
     re.compile(r"record\b.*--format ros"),
     re.compile(r"bench homes\b.*--(scenes|starts) \d"),
     re.compile(r"objsearch (graph|where \S+) --(log|lake)\b"),
+    re.compile(r"bench report[^`]*--homes\b"),
+    re.compile(r"objsearch graph[^`]*--at\b"),
 )
 
 

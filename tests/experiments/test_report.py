@@ -47,7 +47,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 def _report(runs: dict[str, Path], tmp_path: Path, *extra: str) -> str:
     page = tmp_path / "docs" / "results.md"
-    argv = ["bench", "report", "--paper", str(runs["paper"]), "--homes", str(runs["homes"])]
+    argv = ["bench", "report", "--paper", str(runs["paper"]), "--evaluation", str(runs["homes"])]
     argv += ["--out", str(page), "--img", str(tmp_path / "docs" / "img"), *extra]
     assert main(argv) == 0
     return page.read_text(encoding="utf-8")
@@ -140,7 +140,7 @@ def test_every_optional_section_from_its_own_run(
 def test_heldout_must_not_be_the_homes_run(
     runs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    argv = ["bench", "report", "--paper", str(runs["paper"]), "--homes", str(runs["homes"])]
+    argv = ["bench", "report", "--paper", str(runs["paper"]), "--evaluation", str(runs["homes"])]
     argv += ["--heldout", str(runs["homes"]), "--out", str(tmp_path / "r.md")]
     assert main(argv) == 2
     assert "held-out homes are reported apart" in capsys.readouterr().err
@@ -187,7 +187,7 @@ def test_update_regressions_count_runs_against_the_no_update_twin(
 
 
 def test_report_dirs_are_checked(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    argv = ["bench", "report", "--paper", str(tmp_path), "--homes", str(tmp_path)]
+    argv = ["bench", "report", "--paper", str(tmp_path), "--evaluation", str(tmp_path)]
     assert main([*argv, "--table1", str(tmp_path / "nowhere")]) == 2
     assert "no such folder" in capsys.readouterr().err
     assert main([*argv, "--out", str(tmp_path / "r.md")]) == 2
@@ -215,7 +215,7 @@ def test_the_paired_difference_is_in_the_paper_metric(runs: dict[str, Path]) -> 
 
 def test_several_homes_runs_are_reported_as_one(runs: dict[str, Path], tmp_path: Path) -> None:
     # e.g. one bench homes run per schedule kind, each with its own scene count
-    text = _report(runs, tmp_path, "--homes", str(runs["heldout"]))
+    text = _report(runs, tmp_path, "--evaluation", str(runs["heldout"]))
     section = text.split("## Homes (not tuned on)")[1].split("\n## ")[0]
     assert f"--out {runs['homes']} " in section and f"--out {runs['heldout']} " in section
     assert "Homes (3): ithor-01, ithor-02, procthor-00." in section
@@ -234,8 +234,8 @@ def test_runs_with_different_cameras_are_not_merged(
     shutil.copytree(runs["heldout"], other)
     summary = json.loads((other / "summary.json").read_text())
     (other / "summary.json").write_text(json.dumps({**summary, "camera": "geometric"}))
-    argv = ["bench", "report", "--paper", str(runs["paper"]), "--homes", str(runs["homes"])]
-    argv += ["--homes", str(other), "--out", str(tmp_path / "r.md")]
+    argv = ["bench", "report", "--paper", str(runs["paper"]), "--evaluation", str(runs["homes"])]
+    argv += ["--evaluation", str(other), "--out", str(tmp_path / "r.md")]
     assert main(argv) == 2
     assert "different cameras (geometric, occluding): report them apart" in capsys.readouterr().err
     assert not (tmp_path / "r.md").exists()

@@ -42,7 +42,7 @@ def test_tiny_rearr_run_and_its_generated_page(
     page = tmp_path / "docs" / "results-rearrangement.md"
     page.parent.mkdir()
     argv = ["bench", "report", "--rearr", str(run), "--out", str(tmp_path / "docs" / "results.md")]
-    argv += ["--paper", str(tmp_path / "none"), "--homes", str(tmp_path / "none")]
+    argv += ["--paper", str(tmp_path / "none"), "--evaluation", str(tmp_path / "none")]
     assert main(argv) == 0
     said = capsys.readouterr().out
     assert f"wrote {page}" in said and "kept" in said  # no paper/homes runs: results.md untouched

@@ -114,7 +114,8 @@ def test_results_commands_run_as_written_from_a_clean_clone(
             wanted = set(args.homes or ())
             assert wanted <= homes, f"unknown home(s) {sorted(wanted - homes)}: {cmd.text}"
         if area == ["bench", "report"]:
-            inputs = [args.paper, *(args.homes or ()), *(args.heldout or ()), *(args.table1 or ())]
+            inputs = [args.paper, *(args.evaluation or ()), *(args.heldout or ())]
+            inputs += [*(args.table1 or ())]
             inputs += [args.paper_geometric] if args.paper_geometric else []
             missing = [str(d) for d in inputs if str(d) not in clone.outs]
             assert not missing, f"made by no earlier command: {missing}"
