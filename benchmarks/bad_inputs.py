@@ -46,11 +46,11 @@ def semantic_cases(scratch: Path) -> list[tuple[str, list[str]]]:
     config.write_text("[zenoh]\nlisten = 'tcp/1.2.3.4:1'\nmode = 7\n", encoding="utf-8")
     bag = scratch / "fake.bag"
     bag.write_bytes(b"#ROSBAG V2.0\n" + b"\0" * 64)
-    search = ["search", "--target", "Apple", "--start", "kitchen-1"]
+    search = ["search", "Apple", "--start", "kitchen-1"]
     return [
-        ("unknown target", ["search", "--target", "Spaceship", "--start", "kitchen-1"]),
-        ("static target", ["search", "--target", "Fridge", "--start", "kitchen-1"]),
-        ("unknown start", ["search", "--target", "Apple", "--start", "garage-3"]),
+        ("unknown target", ["search", "Spaceship", "--start", "kitchen-1"]),
+        ("static target", ["search", "Fridge", "--start", "kitchen-1"]),
+        ("unknown start", ["search", "Apple", "--start", "garage-3"]),
         ("unknown home", [*search, "--home", "castle"]),
         ("unknown schedule", [*search, "--scene", "2", "--schedule", "weekly"]),
         ("bad seeded schedule", [*search, "--scene", "2", "--schedule", "stats-x"]),

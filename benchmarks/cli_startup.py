@@ -44,7 +44,6 @@ def main() -> int:
         search = [
             *CLI,
             "search",
-            "--target",
             "Apple",
             "--start",
             "kitchen-1",

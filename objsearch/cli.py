@@ -379,8 +379,16 @@ def build_parser() -> argparse.ArgumentParser:
     build.set_defaults(func=cmd_data_build)
 
     search = sub.add_parser("search", help="run one search in the simulated home")
-    search.add_argument(
-        "--target", required=True, type=t.text, help="object to find, e.g. Apple, phone, cup"
+    # Positional as in agent find TARGET and where TARGET (--target, its old spelling, still
+    # works with a note).
+    t.input_argument(
+        search,
+        "target",
+        type=t.text,
+        metavar="TARGET",
+        help="object to find, e.g. Apple, phone, cup",
+        old=("--target",),
+        purpose="to find",
     )
     search.add_argument("--start", required=True, type=t.text, help="start point, e.g. kitchen-1")
     search.add_argument("--home", default="paper", type=t.text, help="home in data/homes (paper)")

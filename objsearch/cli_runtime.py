@@ -431,7 +431,7 @@ def register(sub: Any) -> None:
     run.set_defaults(func=cmd_agent_run)
 
     find = agent_sub.add_parser("find", help="ask the running agent to find an object")
-    find.add_argument("target", type=t.text, help="object class, e.g. Apple")
+    find.add_argument("target", metavar="TARGET", type=t.text, help="object class, e.g. Apple")
     _transport_options(find)
     find.add_argument("--start", type=t.text, help="a label for where the robot starts (recorded)")
     find.add_argument("--scene", type=t.SCENE, help="the schedule scene (recorded; the stand-in's)")
@@ -450,7 +450,7 @@ def register(sub: Any) -> None:
         description="Answered from the agent's live memory (the projection `objsearch where "
         "--log` folds), even while it searches.",
     )
-    where.add_argument("target", type=t.text, help="object class, e.g. Cup")
+    where.add_argument("target", metavar="TARGET", type=t.text, help="object class, e.g. Cup")
     _transport_options(where)
     where.add_argument(
         "--timeout",

@@ -595,10 +595,12 @@ def input_argument(
     metavar: str,
     help: str,
     old: tuple[str, ...],
+    purpose: str = "to read",
 ) -> None:
-    """The log or lake a command reads, positional as in every command that reads one
-    (DEVELOPERS.md, "CLI conventions"); the options in ``old`` named it once and still do
-    (deprecated). Either way it lands in ``args.<dest>``; giving neither is a usage error."""
+    """A command's main input — the log or lake it reads, the object it finds — positional as
+    in every command (DEVELOPERS.md, "CLI conventions"); the options in ``old`` named it once and
+    still do (deprecated). Either way it lands in ``args.<dest>``; giving neither is a usage
+    error ("the METAVAR ``purpose`` is missing")."""
     p.add_argument(dest, nargs="?", type=type, metavar=metavar, help=help)
     for option in old:
         # Their own dest: a positional left empty would overwrite a value given before it.
@@ -618,7 +620,7 @@ def input_argument(
         setattr(args, dest, given[0] or given[1])
         if hasattr(args, f"{dest}_option"):
             delattr(args, f"{dest}_option")
-        return None if getattr(args, dest) else f"the {metavar} to read is missing"
+        return None if getattr(args, dest) else f"the {metavar} {purpose} is missing"
 
     if isinstance(p, Parser):
         p.check(merged)

@@ -67,7 +67,6 @@ def build_lake(root: Path) -> Path:
         for argv in (
             [
                 "search",
-                "--target",
                 target,
                 "--start",
                 "kitchen-1",

@@ -35,7 +35,6 @@ def test_search_prints_the_route_and_writes_the_log(
     code = main(
         [
             "search",
-            "--target",
             "phone",
             "--start",
             "living-1",
@@ -61,7 +60,7 @@ def test_search_records_its_camera_and_the_camera_tilt(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], camera: str
 ) -> None:
     log = tmp_path / "log"
-    args = ["search", "--target", "Pillow", "--start", "kitchen-1", "--camera", camera]
+    args = ["search", "Pillow", "--start", "kitchen-1", "--camera", camera]
     assert main([*args, "--log", str(log), "--format", "json"]) == 0
     assert json.loads(capsys.readouterr().out)["camera"] == camera
     events = list(read_log(log, store=STORE))
@@ -74,15 +73,15 @@ def test_search_records_its_camera_and_the_camera_tilt(
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--target", "Apple", "--start", "kitchen-1", "--camera", "x-ray"], "--camera"),
-        (["--target", "Spaceship", "--start", "kitchen-1"], "unknown object class 'Spaceship'"),
-        (["--target", "Fridge", "--start", "kitchen-1"], "static object and cannot be a search"),
-        (["--target", "Apple", "--start", "garage-3"], "unknown start point 'garage-3'"),
-        (["--target", "Apple", "--start", "kitchen-1", "--home", "castle"], "no home 'castle'"),
-        (["--target", "Apple", "--start", "kitchen-1", "--scene", "99"], "not 99"),
+        (["Apple", "--start", "kitchen-1", "--camera", "x-ray"], "--camera"),
+        (["Spaceship", "--start", "kitchen-1"], "unknown object class 'Spaceship'"),
+        (["Fridge", "--start", "kitchen-1"], "static object and cannot be a search"),
+        (["Apple", "--start", "garage-3"], "unknown start point 'garage-3'"),
+        (["Apple", "--start", "kitchen-1", "--home", "castle"], "no home 'castle'"),
+        (["Apple", "--start", "kitchen-1", "--scene", "99"], "not 99"),
         # Another home with the paper's schedule: the error names the option that fixes it.
         (
-            ["--target", "Apple", "--start", "kitchen-1", "--home", "ithor-01", "--scene", "2"],
+            ["Apple", "--start", "kitchen-1", "--home", "ithor-01", "--scene", "2"],
             "is the paper home's only; pass --schedule stats-<seed>",
         ),
     ],
@@ -121,7 +120,7 @@ def _data_copy(tmp_path: Path, *, drop: str) -> dict[str, str]:
 def test_a_missing_data_file_is_named_and_nothing_is_written(tmp_path: Path, missing: str) -> None:
     env = _data_copy(tmp_path, drop=missing)
     log = tmp_path / "log"
-    proc = _run("search", "--target", "Apple", "--start", "kitchen-1", "--log", str(log), env=env)
+    proc = _run("search", "Apple", "--start", "kitchen-1", "--log", str(log), env=env)
     assert proc.returncode == 2
     assert proc.stderr.startswith("objsearch: error: ")
     assert Path(missing).stem in proc.stderr
@@ -130,7 +129,7 @@ def test_a_missing_data_file_is_named_and_nothing_is_written(tmp_path: Path, mis
 
 
 def _logged_search(log: Path, target: str = "Apple") -> None:
-    assert main(["search", "--target", target, "--start", "kitchen-1", "--log", str(log)]) == 0
+    assert main(["search", target, "--start", "kitchen-1", "--log", str(log)]) == 0
 
 
 def test_a_corrupted_log_is_refused_with_its_position_and_left_as_it_was(
@@ -145,7 +144,7 @@ def test_a_corrupted_log_is_refused_with_its_position_and_left_as_it_was(
     path.write_bytes(bytes(data))
     capsys.readouterr()
 
-    assert main(["search", "--target", "Cup", "--start", "kitchen-1", "--log", str(log)]) == 2
+    assert main(["search", "Cup", "--start", "kitchen-1", "--log", str(log)]) == 2
     err = capsys.readouterr().err
     assert "corrupt event log" in err and "line 3" in err and "byte offset" in err
     assert path.read_bytes() == bytes(data)

@@ -140,6 +140,17 @@ def test_the_log_or_lake_a_command_reads_is_positional() -> None:
                 assert _type_name(action) != "existing_dir", f"{command} {option}: positional"
 
 
+def test_the_object_a_command_finds_is_positional() -> None:
+    # search TARGET, as agent find TARGET and where TARGET (search --target is the old spelling).
+    finders = {"search", "agent find", "agent where", "where"}
+    for command in finders:
+        positional = [a.metavar for a in LEAVES[command]._actions if not a.option_strings]
+        assert positional[:1] == ["TARGET"], command
+    for command, leaf in LEAVES.items():
+        action = _options(leaf).get("--target")
+        assert action is None or isinstance(action, t.Deprecated), f"{command} --target"
+
+
 def test_long_commands_take_no_progress() -> None:
     assert set(LEAVES) >= LONG_COMMANDS
     missing = [c for c in sorted(LONG_COMMANDS) if "--no-progress" not in _options(LEAVES[c])]
@@ -176,6 +187,9 @@ def test_long_commands_take_no_progress() -> None:
         (["bench", "homes", "--homes", "ithor-02,paper"], "homes", ["ithor-02", "paper"], ""),
         (["graph", str(REPO), "--at", "3"], "until", 3, "--at is deprecated; use --until"),
         (["graph", str(REPO), "--until", "3"], "until", 3, ""),
+        (["search", "Apple", "--start", "kitchen-1"], "target", "Apple", ""),
+        (["search", "--target", "Apple", "--start", "kitchen-1"], "target", "Apple",
+         "--target is deprecated; use the positional argument TARGET"),
     ],
 )  # fmt: skip
 def test_every_spelling_parses(
@@ -192,6 +206,8 @@ def test_every_spelling_parses(
     [
         (["record", "--out", "x.bag"], "--bag-format is required"),
         (["graph"], "the LOG to read is missing"),
+        (["search", "--start", "kitchen-1"], "the TARGET to find is missing"),
+        (["search", "Apple", "--target", "Cup", "--start", "kitchen-1"], "given twice"),
         (["where", "Cup", str(REPO), "--log", str(REPO / "docs")], "given twice"),
         (["bench", "homes", "--format", "ros1"], "invalid choice"),
     ],
@@ -218,6 +234,7 @@ OLD_SPELLINGS = (
     re.compile(r"objsearch (graph|where \S+) --(log|lake)\b"),
     re.compile(r"bench report[^`]*--homes\b"),
     re.compile(r"objsearch graph[^`]*--at\b"),
+    re.compile(r"objsearch search[^`]*--target\b"),
 )
 
 

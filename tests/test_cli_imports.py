@@ -76,4 +76,4 @@ def test_version_is_looked_up_only_when_asked(capsys: pytest.CaptureFixture[str]
 
 def test_build_parser_still_builds_every_option_for_a_walk() -> None:
     parser = build_parser()
-    assert parser.parse_args(["search", "--target", "Apple", "--start", "kitchen-1"]).strategy
+    assert parser.parse_args(["search", "Apple", "--start", "kitchen-1"]).strategy

@@ -29,7 +29,6 @@ def lake(tmp_path_factory: pytest.TempPathFactory) -> Path:
         log = root / f"log-{run}"
         args = [
             "search",
-            "--target",
             target,
             "--start",
             "kitchen-1",
@@ -230,7 +229,7 @@ def test_every_event_has_its_time_as_a_timestamp(
     from objsearch.cli import main as cli
 
     log, lake = tmp_path / "log", tmp_path / "lake"
-    assert cli(["search", "--target", "Apple", "--start", "kitchen-1", "--log", str(log)]) == 0
+    assert cli(["search", "Apple", "--start", "kitchen-1", "--log", str(log)]) == 0
     assert cli(["lake", "add", str(log), "--robot", "r", "--lake", str(lake)]) == 0
     capsys.readouterr()
     sql = (
@@ -400,7 +399,6 @@ def test_lake_add_over_another_run_names_the_flags(
     other = tmp_path / "log"  # another log's content under the run name "apple"
     search = [
         "search",
-        "--target",
         "Cup",
         "--start",
         "kitchen-1",

@@ -118,7 +118,7 @@ def test_the_wheel_ships_the_data_and_no_tests(installed: Installed) -> None:
 
 
 def test_a_search_runs_from_the_installed_wheel(installed: Installed) -> None:
-    proc = installed.run("search", "--target", "Apple", "--start", "kitchen-1", "--format", "json")
+    proc = installed.run("search", "Apple", "--start", "kitchen-1", "--format", "json")
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout)
     assert out["success"] is True
@@ -146,7 +146,7 @@ def test_help_runs_from_the_installed_wheel(installed: Installed) -> None:
 
 def test_objsearch_data_overrides_the_shipped_data(installed: Installed, tmp_path: Path) -> None:
     env = {**installed.env, "OBJSEARCH_DATA": str(tmp_path)}
-    proc = installed.run("search", "--target", "Apple", "--start", "kitchen-1", env=env)
+    proc = installed.run("search", "Apple", "--start", "kitchen-1", env=env)
     assert proc.returncode == 2
     assert f"no home 'paper' in {tmp_path / 'homes'}" in proc.stderr
 

@@ -227,7 +227,7 @@ def test_a_search_on_a_damaged_log_is_refused_and_changes_nothing(
     tmp_path: Path, damage: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
     log = tmp_path / "log"
-    assert main(["search", "--target", "Apple", "--start", "kitchen-1", "--log", str(log)]) == 0
+    assert main(["search", "Apple", "--start", "kitchen-1", "--log", str(log)]) == 0
     data = (log / "events.log").read_bytes()
     lines = data.splitlines(keepends=True)
     if damage == "crlf":
@@ -241,7 +241,7 @@ def test_a_search_on_a_damaged_log_is_refused_and_changes_nothing(
     (log / "events.log").write_bytes(damaged)
     before = {p.name: p.read_bytes() for p in log.iterdir()}
     capsys.readouterr()
-    assert main(["search", "--target", "Cup", "--start", "kitchen-1", "--log", str(log)]) == 2
+    assert main(["search", "Cup", "--start", "kitchen-1", "--log", str(log)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("objsearch: error: corrupt event log") and "byte offset" in err
     assert {p.name: p.read_bytes() for p in log.iterdir()} == before

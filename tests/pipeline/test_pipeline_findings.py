@@ -58,7 +58,7 @@ def test_an_accepted_room_in_pieces_keeps_its_largest_piece_and_searches_there_w
     assert len(bathroom["viewpoints"]) == 34 and bathroom["walkable_components"] == 1
     monkeypatch.setenv("OBJSEARCH_DATA", str(out))
     for start in ("bathroom-1", "bathroom-2"):
-        argv = ["search", "--home", "split", "--target", "ToiletPaper", "--start", start]
+        argv = ["search", "--home", "split", "ToiletPaper", "--start", start]
         assert main([*argv, "--scene", "1", "--schedule", "stats-0", "--format", "json"]) == 0
         assert json.loads(capsys.readouterr().out)["success"]
 

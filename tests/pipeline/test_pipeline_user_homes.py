@@ -41,7 +41,7 @@ def test_one_home_makes_a_folder_search_and_bench_homes_run_on(
     monkeypatch.setenv("OBJSEARCH_DATA", str(user_data))
     capsys.readouterr()
     for home, schedule in (("user-flat", "rearr-0"), ("user-house", "stats-0")):
-        argv = ["search", "--home", home, "--target", "Cup", "--start", "kitchen-1"]
+        argv = ["search", "--home", home, "Cup", "--start", "kitchen-1"]
         assert main([*argv, "--scene", "2", "--schedule", schedule, "--format", "json"]) == 0
         assert json.loads(capsys.readouterr().out)["success"]
     bench = ["bench", "homes", "--out", str(tmp_path / "bench"), "--homes", "user-flat,user-house"]
