@@ -2,7 +2,7 @@
 writer, on the local folder and on a local S3 server (moto's, started here).
 
     python benchmarks/lake_writers.py [--writers 8] [--runs 50] [--shared 5] [--events 200]
-                                      [--where local,s3]
+                                      [--where local,s3] [--compact-every N]
 
 Each of ``--writers`` processes commits ``--runs`` runs of its own (a log each, of about
 ``--events`` synthetic events: ``benchmarks/events.py: synthetic_run``) with ``add_log``, and
@@ -42,12 +42,16 @@ from objsearch.testing.s3server import s3_server
 WRITER = """
 import json, sys, time
 from pathlib import Path
+import objsearch.events.lake_table as lt
 from objsearch.agent.catalogue import STORE
 from objsearch.events.lake_table import TableLake, add_log
+if int(sys.argv[2]):  # --compact-every: every writer compacts that often, none waits for another
+    lt.COMPACT_AT_FILES = int(sys.argv[2])
+    lt.COMPACTION_CLAIM_FRESH_S = 0.0
 lake = TableLake(sys.argv[1], store=STORE)
 started = time.perf_counter()
 done = 0
-for item in sys.argv[2:]:
+for item in sys.argv[3:]:
     robot, log = item.split("=", 1)
     add_log(Path(log), lake, robot=robot, run=Path(log).name)
     done += 1
@@ -106,7 +110,11 @@ def place(where: str, work: Path) -> Iterator[tuple[str, str]]:
 
 
 def run_place(
-    where: str, work: Path, own: Mapping[int, list[Path]], shared: list[Path]
+    where: str,
+    work: Path,
+    own: Mapping[int, list[Path]],
+    shared: list[Path],
+    compact_every: int = 0,
 ) -> tuple[bool, str]:
     with place(where, work) as (concurrent_root, sequential_root):
         TableLake(concurrent_root, store=STORE).create()
@@ -120,7 +128,7 @@ def run_place(
                 items.insert((k * len(items)) // max(1, len(turn)), f"shared={p}")
             procs.append(
                 subprocess.Popen(
-                    [sys.executable, "-c", WRITER, concurrent_root, *items],
+                    [sys.executable, "-c", WRITER, concurrent_root, str(compact_every), *items],
                     stdout=subprocess.PIPE,
                     text=True,
                     env={**os.environ},
@@ -168,6 +176,7 @@ def run_place(
     print(
         f"{where:>6}: {len(own)} writers, {commits} add_log calls -> {len(present)} runs, "
         f"{ids:,} events; lost {lost}, duplicated {duplicated}, equal to sequential: {equal}"
+        + (f"; every writer compacting past {compact_every} files" if compact_every else "")
         + (f", writers failed: {failed}" if failed else "")
     )
     print(
@@ -189,6 +198,13 @@ def main() -> int:
     ap.add_argument("--shared", type=int, default=5)
     ap.add_argument("--events", type=int, default=200)
     ap.add_argument("--where", default="local,s3")
+    ap.add_argument(
+        "--compact-every",
+        type=int,
+        default=0,
+        help="each writer's lake add compacts once the table holds more files than this, "
+        "whatever another writer claimed (0: the default, COMPACT_AT_FILES)",
+    )
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="objsearch-bench-lake-writers-"))
     print(
@@ -202,7 +218,9 @@ def main() -> int:
         logs = write_logs(work / "logs", every + shared_names, args.events)
         own = {w: [logs[n] for n in ns] for w, ns in names.items()}
         shared = [logs[n] for n in shared_names]
-        results = [run_place(w, work, own, shared) for w in args.where.split(",") if w]
+        results = [
+            run_place(w, work, own, shared, args.compact_every) for w in args.where.split(",") if w
+        ]
     finally:
         shutil.rmtree(work, ignore_errors=True)
     bad = [where for ok, where in results if not ok]

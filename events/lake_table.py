@@ -34,13 +34,13 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
-import fcntl
 import functools
 import hashlib
 import json
 import logging
 import math
 import os
+import random
 import shutil
 import tempfile
 import time
@@ -54,6 +54,7 @@ from typing import Any, Final, NamedTuple
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.dataset as pds
+import pyarrow.fs as pafs
 import pyarrow.parquet as pq
 
 from . import _fs
@@ -98,8 +99,13 @@ _RUN_STRUCT: Final = pa.struct(
 )
 #: How often a commit that lost a race with another transaction is tried again.
 COMMIT_TRIES: Final = 50
-#: The lock file (in the lake's folder, beside the table) that keeps compactions apart.
-COMPACTION_LOCK: Final = "_compaction.lock"
+#: The table property a compaction sets before it plans (its claim: ``<ns>-<token>``). A
+#: change of the table's metadata fails every transaction that read the table before it, and
+#: a compaction plans from exactly its claim's version, so of two compactions that overlap
+#: only one commits (see :meth:`TableLake.compact`).
+COMPACTION_CLAIM: Final = "objsearch.compaction"
+#: ``lake add`` leaves compaction to another writer whose claim is younger than this (s).
+COMPACTION_CLAIM_FRESH_S: Final = 120.0
 #: ``lake add`` compacts the table once it holds more data files than this.
 COMPACT_AT_FILES: Final = 256
 #: Files compaction aims for (bytes); a table of a fleet's year is a few thousand of them.
@@ -320,7 +326,7 @@ class TableLake:
         the read). Not ``to_pyarrow_dataset``: delta-rs's Python file-system handler can abort
         the interpreter at exit ("terminate called without an active exception": a writer of
         the S3 writers' test died so, once it had read a run's ``_run`` row)."""
-        fs, base = _filesystem(self.uri) if self.remote else (None, self.uri)
+        fs, base = _filesystem(self.uri) if self.remote else (pafs.LocalFileSystem(), self.uri)
         parquet = pds.ParquetFileFormat()
         fragments = [
             parquet.make_fragment(
@@ -829,6 +835,7 @@ class TableLake:
         """Commit new runs (none in the lake yet) in one transaction: the migration's and the
         benchmarks' bulk path. Raises if one is there already."""
         from deltalake import CommitProperties
+        from deltalake.exceptions import CommitFailedError
 
         if not runs:
             return
@@ -845,12 +852,34 @@ class TableLake:
                 by_kind.setdefault(kind, []).append(part)
         adds = self._write_files(by_kind, _token())
         try:
-            table.create_write_transaction(
-                adds,
-                mode="append",
-                schema=table_schema(self.store),
-                partition_by=["type"],
-                commit_properties=CommitProperties(app_transactions=apps),
+            for attempt in range(COMMIT_TRIES):
+                try:
+                    table.create_write_transaction(
+                        adds,
+                        mode="append",
+                        schema=table_schema(self.store),
+                        partition_by=["type"],
+                        commit_properties=CommitProperties(app_transactions=apps),
+                    )
+                    return
+                except CommitFailedError:
+                    # e.g. a compaction's claim (a metadata change) came first: read again
+                    time.sleep(min(0.5, 0.01 * (attempt + 1)))
+                    table = self.table()
+                    found = [self.find(i.robot, i.run, table) for i, _ in runs]
+                    if all(
+                        f is not None and f.commit == i.commit
+                        for f, (i, _) in zip(found, runs, strict=True)
+                    ):
+                        return  # it landed; its answer was lost
+                    there = [i for f, (i, _) in zip(found, runs, strict=True) if f is not None]
+                    if there:
+                        raise TableLakeError(
+                            f"{self.root}: run {there[0].robot}/{there[0].run} is already there"
+                        ) from None
+                    apps = [a for info, _ in runs for a in _transactions(table, info)]
+            raise TableLakeError(
+                f"{self.root}: the commit of {len(runs)} runs lost {COMMIT_TRIES} races; try again"
             )
         except BaseException:
             self._delete_files(adds)
@@ -930,54 +959,80 @@ class TableLake:
         )
 
     def _maybe_compact(self, table: Any) -> None:
-        """Compact after a commit once the table holds many files: on a local folder, unless
-        another process is compacting it (then that one does); never on object storage, where
-        no lock of ours can keep two compactions apart (run ``lake compact`` from one place)."""
-        if self.remote:
-            return
+        """Compact after a commit once the table holds many files, unless another writer
+        claimed a compaction less than :data:`COMPACTION_CLAIM_FRESH_S` ago (it is compacting;
+        were it not, two compactions would still not both commit). The run is committed
+        whatever happens here: a compaction that fails is logged, not raised."""
         table.update_incremental()
         if len(table.file_uris()) <= COMPACT_AT_FILES:
             return
-        fd = _fs.try_lock(self._compaction_lock_path())
-        if fd is None:
+        claimed = _claim_ns(table)
+        if claimed is not None and time.time_ns() - claimed < COMPACTION_CLAIM_FRESH_S * 1e9:
             return
         try:
             self._compact(vacuum_hours=None)
-        finally:
-            os.close(fd)
-
-    def _compaction_lock_path(self) -> Path:
-        return Path(self.uri).parent / COMPACTION_LOCK
+        except (TableLakeError, OSError) as exc:
+            _log.warning(
+                "%s: compaction after the commit failed (%s); the run is committed", self, exc
+            )
 
     def compact(self, *, vacuum_hours: float | None = 1.0) -> dict[str, int]:
         """Rewrite the small files into few large ones (per ``type``), checkpoint the log, and
         with ``vacuum_hours`` delete files no version younger than that reads (readers that
-        began earlier may still need them). Concurrent commits are not lost: compaction changes
-        no data, and a race with a commit is retried. Two compactions must not run at once:
-        delta-rs lets two commits remove the same files, so both would add the same rows again
-        (``benchmarks/lake_writers.py`` found every compacted row twice). On a local folder a
-        lock (``LAKE/_compaction.lock``) keeps them apart; on object storage run one compactor."""
-        if self.remote:
-            return self._compact(vacuum_hours=vacuum_hours)
-        path = self._compaction_lock_path()
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        began earlier may still need them). Safe to run from many places at once, on a folder
+        or a bucket: concurrent commits are not lost (compaction changes no data; a commit
+        that loses a race with it is retried), and of two compactions that overlap only one
+        commits — see :meth:`_claim`."""
+        return self._compact(vacuum_hours=vacuum_hours)
+
+    def _claim(self) -> Any | None:
+        """Claim a compaction: set :data:`COMPACTION_CLAIM` (a metadata change, one
+        transaction) and return the table at exactly that version, or None if another
+        transaction changed the metadata first.
+
+        Why: delta-rs (1.6.6) lets two ``optimize.compact`` commits remove the same files (their
+        removes carry ``dataChange = false``, and neither conflict check fires), so two
+        compactions that planned from the same files both commit and every row they rewrote is
+        there twice; and ``optimize`` drops the application transactions of its
+        ``CommitProperties``, so a ``Transaction`` cannot keep them apart. A metadata change
+        does: every transaction that read the table before it fails (``MetadataChanged``). A
+        compaction that plans from its own claim's version therefore fails if another claim
+        came after it, and a claim before it was made by a compaction that either failed or
+        committed first (then this one plans from the compacted files)."""
+        from deltalake import DeltaTable
+        from deltalake.exceptions import CommitFailedError
+
+        table = self.table()
+        claim = f"{time.time_ns()}-{uuid.uuid4().hex}"
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX)  # waits for a compaction under way
-            return self._compact(vacuum_hours=vacuum_hours)
-        finally:
-            os.close(fd)
+            table.alter.set_table_properties({COMPACTION_CLAIM: claim}, raise_if_not_exists=False)
+        except CommitFailedError:
+            return None
+        pinned = DeltaTable(self.uri, version=table.version(), storage_options=self.options)
+        if pinned.metadata().configuration.get(COMPACTION_CLAIM) != claim:
+            return None  # cannot happen: the version the claim committed is the table's now
+        return pinned
+
+    def _optimize(self, table: Any) -> None:
+        table.optimize.compact(target_size=TARGET_FILE_BYTES)
 
     def _compact(self, *, vacuum_hours: float | None) -> dict[str, int]:
         from deltalake.exceptions import CommitFailedError
 
         before = len(self.table().file_uris())
         for attempt in range(COMMIT_TRIES):
-            table = self.table()
-            try:
-                table.optimize.compact(target_size=TARGET_FILE_BYTES)
-                break
-            except CommitFailedError:
-                time.sleep(min(0.5, 0.01 * (attempt + 1)))
+            table = self._claim()
+            if table is not None:
+                try:
+                    self._optimize(table)
+                    break
+                except CommitFailedError as exc:
+                    _log.debug("%s: compaction lost a race (%s); again", self, exc)
+            time.sleep(min(0.5, 0.01 * (attempt + 1)) * (1 + random.random()))
+        else:
+            raise TableLakeError(
+                f"{self.root}: compaction lost {COMMIT_TRIES} races with other writers; try again"
+            )
         table = self.table()
         table.create_checkpoint()
         removed = 0
@@ -1219,6 +1274,13 @@ def _stats(part: pa.Table) -> str:
 
 def _token() -> str:
     return f"{time.time_ns():x}-{uuid.uuid4().hex}"
+
+
+def _claim_ns(table: Any) -> int | None:
+    """When the table's latest compaction claim was made (ns since the epoch), if any."""
+    claim = str(table.metadata().configuration.get(COMPACTION_CLAIM) or "")
+    head = claim.partition("-")[0]
+    return int(head) if head.isdigit() else None
 
 
 def _app_id(robot: str, run: str) -> str:

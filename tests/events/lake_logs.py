@@ -35,3 +35,43 @@ def two_type_log(directory: Path) -> Path:
         for i in range(3):
             log.append("search_failed", {"reason": f"r{i}"}, time_ns=100 + i)
     return directory
+
+
+def check_two_compactions_at_once(root: str | Path, logs: Path) -> None:
+    """Two compactions of the fleet lake at ``root`` overlap: while one has planned from the
+    table (claimed, pinned at its version), another compacts it whole and commits. The first
+    must not commit its plan (delta-rs would let it: both remove the same files and every row
+    would be there twice); it plans again and the lake holds what a sequential run holds."""
+    import pyarrow.compute as pc
+
+    from objsearch.events.lake_table import TableLake, add_log
+
+    lake = TableLake(root, store=STORE)
+    for i in range(3):
+        add_log(two_type_log(logs / f"log{i}"), lake, robot="r", run=f"run{i}")
+    before = sorted((r.run, r.digest, r.events) for r in lake.runs())
+    rows = lake.files_dataset(lake.data_files()).to_table().num_rows
+    overlapped: list[int] = []
+    real = TableLake._optimize
+
+    def planned_then_overtaken(self: TableLake, table: object) -> None:
+        if not overlapped:
+            overlapped.append(table.version())  # type: ignore[attr-defined]
+            TableLake(self.root, store=STORE).compact(vacuum_hours=None)  # commits first
+        real(self, table)
+
+    TableLake._optimize = planned_then_overtaken  # type: ignore[method-assign]
+    try:
+        lake.compact(vacuum_hours=None)
+    finally:
+        TableLake._optimize = real  # type: ignore[method-assign]
+    assert overlapped
+    assert sorted((r.run, r.digest, r.events) for r in lake.runs()) == before
+    files = lake.data_files()
+    table = lake.files_dataset(files).to_table()
+    assert table.num_rows == rows  # nothing lost, nothing twice
+    kind = pc.field("type")
+    events = table.filter((kind != "_run") & ~pc.starts_with(kind, "derived."))
+    keys = events.group_by(["run", "event_id"]).aggregate([]).num_rows
+    assert keys == events.num_rows == 3 * 4  # every event of the three runs, once
+    assert len(files) == len({f.kind for f in files})  # compacted: one file a type

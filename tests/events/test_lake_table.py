@@ -35,6 +35,7 @@ from objsearch.events.lake_table import (
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query, views_for
 
+from .lake_logs import check_two_compactions_at_once
 from .payloads import EXAMPLES
 
 V1_LOG = Path(__file__).parent / "fixtures" / "v1-log"
@@ -262,6 +263,7 @@ from pathlib import Path
 import objsearch.events.lake_table as lt
 from objsearch.agent.catalogue import STORE
 lt.COMPACT_AT_FILES = 8  # every few commits: the writers' compactions overlap
+lt.COMPACTION_CLAIM_FRESH_S = 0.0  # and none leaves it to another
 lake = lt.TableLake(sys.argv[1], store=STORE)
 for log in sys.argv[2:]:
     lt.add_log(Path(log), lake, robot="r", run=Path(log).name)
@@ -271,7 +273,8 @@ for log in sys.argv[2:]:
 @pytest.mark.slow  # three processes committing and compacting: 30-60 s on a shared machine
 def test_writers_compacting_at_once_lose_and_duplicate_nothing(tmp_path: Path) -> None:
     # Each of 3 writers commits 3 runs of its own and compacts when the table holds more than
-    # 8 files; without the compaction lock, two compactions rewrote the same rows twice. Logs
+    # 8 files; before compactions claimed the table (TableLake._claim), two compactions
+    # rewrote the same rows twice. Logs
     # of one event type: a commit is 5 files, so the compactions start after two commits and
     # each rewrites a few partitions (every type's made this test take 30-60 s under load).
     logs = [one_type_log(tmp_path / "logs" / f"log{i}", stream=f"s{i}", n=i) for i in range(9)]
@@ -429,3 +432,7 @@ def test_a_writer_killed_mid_commit_leaves_whole_runs_and_the_next_one_finishes(
     assert rerun.returncode == 0
     assert [r.run for r in lake.runs()] == sorted(log.name for log in logs)
     assert len(table_counts(lake)) == len(logs)
+
+
+def test_two_compactions_at_once_rewrite_every_row_once(tmp_path: Path) -> None:
+    check_two_compactions_at_once(tmp_path / "lake", tmp_path / "logs")

@@ -23,6 +23,8 @@ from objsearch.replay.analytics import open_analytics, run_query
 from objsearch.testing.s3server import s3_server as local_s3_server
 from objsearch.testing.s3server import stalled
 
+from .lake_logs import check_two_compactions_at_once
+
 
 @pytest.fixture(scope="module")
 def s3_server() -> Iterator[dict[str, str]]:
@@ -192,3 +194,54 @@ def test_a_query_over_an_uncompacted_bucket_says_to_compact_it(
     caplog.clear()
     close(open_analytics(bucket))
     assert "objsearch lake compact" not in caplog.text
+
+
+def test_two_compactions_at_once_on_the_bucket_rewrite_every_row_once(
+    bucket: str, tmp_path: Path
+) -> None:
+    check_two_compactions_at_once(bucket, tmp_path / "logs")
+
+
+COMPACTING_WRITER = """
+import sys
+from pathlib import Path
+import objsearch.events.lake_table as lt
+from objsearch.agent.catalogue import STORE
+lt.COMPACT_AT_FILES = 8  # every few commits: the writers' compactions overlap
+lt.COMPACTION_CLAIM_FRESH_S = 0.0  # and none leaves it to another
+lake = lt.TableLake(sys.argv[1], store=STORE)
+for log in sys.argv[2:]:
+    lt.add_log(Path(log), lake, robot="r", run=Path(log).name)
+"""
+
+
+@pytest.mark.slow  # two processes committing and compacting on the bucket: ~30 s
+def test_writers_compacting_at_once_on_the_bucket_lose_and_duplicate_nothing(
+    bucket: str, tmp_path: Path
+) -> None:
+    # On a bucket too, every writer's lake add compacts once the table holds many files; two
+    # compactions that overlap must not both commit (each would add the rows it rewrote).
+    logs = [small_log(tmp_path / f"log{i}", stream=f"s{i}", n=i + 1) for i in range(6)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", COMPACTING_WRITER, bucket, *map(str, logs[w::2])],
+            env={**os.environ},
+        )
+        for w in range(2)
+    ]
+    assert [p.wait(timeout=900) for p in procs] == [0, 0]
+    lake = TableLake(bucket, store=STORE)
+    sequential = TableLake(tmp_path / "seq", store=STORE)
+    for log in logs:
+        add_log(log, sequential, robot="r", run=log.name)
+    assert [(r.run, r.digest) for r in lake.runs()] == [
+        (r.run, r.digest) for r in sequential.runs()
+    ]
+    con = open_analytics(bucket)
+    try:
+        sql = "SELECT count(*), count(DISTINCT (run, event_id)) FROM events"
+        assert run_query(con, sql)[1] == [(21, 21)]
+    finally:
+        close(con)
+    files = lake.data_files()
+    assert len(files) < 6 * len({f.kind for f in files})  # it compacted
