@@ -27,7 +27,7 @@ from objsearch.experiments.table1_sets import render as render_table1
 class ReportInputs:
     """The bench output folders a report is made from (None: that section is left out)."""
 
-    paper: Path
+    paper: Path | None = None
     homes: tuple[Path, ...] = ()  # none: that section is left out
     table1: tuple[Path, ...] | None = None  # one bench table1 run per reading of Eq. 2
     heldout: tuple[Path, ...] | None = None
@@ -77,7 +77,8 @@ def _left_out(title: str, how: str) -> str:
 
 
 def _report_command(inputs: ReportInputs, out: Path, img: Path) -> str:
-    words = ["objsearch bench report", f"--paper {inputs.paper}"]
+    words = ["objsearch bench report"]
+    words += [f"--paper {inputs.paper}"] if inputs.paper is not None else []
     words += [f"--evaluation {d}" for d in inputs.homes]
     words += [f"--heldout {d}" for d in inputs.heldout or ()]
     words += [f"--table1 {d}" for d in inputs.table1 or ()]
@@ -91,7 +92,7 @@ def _report_command(inputs: ReportInputs, out: Path, img: Path) -> str:
 
 def reproduce(
     inputs: ReportInputs,
-    paper: dict[str, Any],
+    paper: dict[str, Any] | None,
     sections: Sequence[dict[str, Any]],
     report_command: str,
 ) -> list[str]:
@@ -100,13 +101,17 @@ def reproduce(
     data = os.environ.get("OBJSEARCH_DATA")
     builds = [c for s in sections for c in s.get("data_build", ())]
     builds += data_build_commands(Path(data)) if data else []
-    runs = [str(paper.get("command", f"objsearch bench paper --out {inputs.paper}"))]
+    runs = (
+        []
+        if paper is None
+        else [paper.get("command", f"objsearch bench paper --out {inputs.paper}")]
+    )
     if inputs.paper_geometric is not None:
         other = load_summary(inputs.paper_geometric, "bench paper")
         runs.append(str(other.get("command", "")))
     runs += [str(load_summary(d, "bench table1")["command"]) for d in inputs.table1 or ()]
     runs += [c for s in sections for c in s.get("commands", ())]
-    return list(dict.fromkeys([*builds, *(r for r in runs if r), report_command]))
+    return list(dict.fromkeys([*builds, *(str(r) for r in runs if r), report_command]))
 
 
 def table1_section(runs: Sequence[dict[str, Any]]) -> str:
@@ -145,7 +150,7 @@ def write_report(
 ) -> Path:
     step = progress or (lambda _stage: None)
     step("runs")
-    paper = load_summary(inputs.paper, "bench paper")
+    paper = None if inputs.paper is None else load_summary(inputs.paper, "bench paper")
     img.mkdir(parents=True, exist_ok=True)
     # The page links its images relative to itself.
     link = Path(os.path.relpath(img.resolve(), out.resolve().parent)).as_posix()
@@ -168,17 +173,26 @@ def write_report(
         "and runs the data builds):\n\n```sh\n" + "\n".join(commands) + "\n```\n",
     ]
     step("paper")
-    sections.append(paper_section(paper, inputs.paper, img, link))
+    if paper is not None and inputs.paper is not None:
+        sections.append(paper_section(paper, inputs.paper, img, link))
+    else:
+        sections.append(
+            _left_out(
+                "The paper home: Table I and the long-term experiment (Table II)",
+                "run `objsearch bench paper --out out/bench-paper` and pass "
+                "`--paper out/bench-paper`",
+            )
+        )
     step("cameras")
-    if inputs.paper_geometric is not None:
+    if inputs.paper_geometric is not None and paper is not None:
         other = load_summary(inputs.paper_geometric, "bench paper")
         sections.append(cameras_section(paper, other, inputs.paper_geometric))
     else:
         sections.append(
             _left_out(
                 "The camera",
-                "run `objsearch bench paper` with the other camera into a folder of its own and "
-                "pass it as `--paper-geometric DIR`",
+                "run `objsearch bench paper` with each camera into a folder of its own and "
+                "pass them as `--paper DIR --paper-geometric DIR`",
             )
         )
     step("table1")

@@ -117,7 +117,7 @@ def cmd_search(args: argparse.Namespace) -> int:
     from objsearch.agent.session import Session, load_context
     from objsearch.product import relation_models
     from objsearch.sim.longterm import with_camera
-    from objsearch.sim.placements import base_placements, table1_removals
+    from objsearch.sim.placements import base_placements, has_table1_scenario, table1_removals
     from objsearch.sim.schedule_names import load_schedule
     from objsearch.sim.world import SimClock, SimWorld
 
@@ -126,7 +126,10 @@ def cmd_search(args: argparse.Namespace) -> int:
     pose = ctx.home.start(args.start)
     placements: Mapping[str, Placement]
     if args.scene is None:
-        placements = base_placements(ctx.home, table1_removals(ctx.home))
+        # The Table I removals are the paper home's (and a home whose build derived its own);
+        # any other home is searched with its objects as its source scene places them.
+        removed = table1_removals(ctx.home) if has_table1_scenario(ctx.home.name) else frozenset()
+        placements = base_placements(ctx.home, removed)
     else:
         if args.schedule == PAPER_SCHEDULE and ctx.home.name != PAPER_HOME:
             how = (
@@ -396,8 +399,8 @@ def build_parser() -> argparse.ArgumentParser:
     search.add_argument(
         "--scene",
         type=t.SCENE,
-        help="place objects as in this scene of the schedule "
-        "(default: the home's own placements, with the paper's Table I removals)",
+        help="place objects as in this scene of the schedule (default: the home's own "
+        "placements, with the paper's Table I removals on the paper home)",
     )
     search.add_argument(
         "--schedule",

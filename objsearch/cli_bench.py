@@ -157,20 +157,34 @@ def cmd_bench_belief(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Where bench report looks for a bench paper output when --paper is not given.
+DEFAULT_PAPER_RUN = "out/bench-paper"
+
+
 def cmd_bench_report(args: argparse.Namespace) -> int:
     from objsearch.experiments.report import REPORT_STAGES, ReportInputs, write_report
 
     homes = [Path(d) for d in args.evaluation or ()]
     heldout = None if args.heldout is None else [Path(d) for d in args.heldout]
-    missing = [str(d) for d in (Path(args.paper), *homes) if not (d / "summary.json").is_file()]
+    paper: Path | None = Path(args.paper or DEFAULT_PAPER_RUN)
+    if args.paper is None and not (Path(DEFAULT_PAPER_RUN) / "summary.json").is_file():
+        paper = None  # the paper home's sections say how to make one
+        if not (homes or heldout or args.table1 or args.rearr):
+            raise ObjsearchError(
+                f"nothing to report: no bench paper output in {DEFAULT_PAPER_RUN}, and no "
+                "--paper, --evaluation, --heldout, --table1 or --rearr given"
+            )
+    given = [paper] if paper is not None else []
+    missing = [str(d) for d in (*given, *homes) if not (d / "summary.json").is_file()]
     if args.rearr:
         from objsearch.experiments.report_rearr import RESULTS_FILE, write_rearr_report
 
         target = Path(args.rearr_out) if args.rearr_out else Path(args.out).parent / RESULTS_FILE
         print(f"wrote {write_rearr_report(Path(args.rearr), target)}")
-        # results.md needs a bench paper run; without one only the rearrangement page is written.
-        if missing:
-            print(f"kept {args.out}: no bench summary in {', '.join(missing)}")
+        # Without another bench output only the rearrangement page is written.
+        if missing or (paper is None and not (homes or heldout or args.table1)):
+            why = f"no bench summary in {', '.join(missing)}" if missing else "no other output"
+            print(f"kept {args.out}: {why}")
             return 0
     shared = {d.resolve() for d in homes} & {d.resolve() for d in heldout or ()}
     if shared:
@@ -179,7 +193,7 @@ def cmd_bench_report(args: argparse.Namespace) -> int:
             "held-out homes are reported apart, from a bench homes run of their own"
         )
     inputs = ReportInputs(
-        paper=Path(args.paper),
+        paper=paper,
         homes=tuple(homes),
         table1=None if args.table1 is None else tuple(Path(d) for d in args.table1),
         heldout=None if heldout is None else tuple(heldout),
@@ -508,9 +522,10 @@ def register(sub: Any) -> None:
     )
     report.add_argument(
         "--paper",
-        default="out/bench-paper",
         type=t.dir_path,
-        help="bench paper output folder (out/bench-paper)",
+        metavar="DIR",
+        help=f"bench paper output folder (default: {DEFAULT_PAPER_RUN} if it holds one; without "
+        "one the paper home's sections say how to make it)",
     )
     # --homes names homes (bench homes --homes ithor-02,…); a folder of bench homes output here
     # is --evaluation (--homes, its old spelling, still works with a note).

@@ -32,6 +32,13 @@ def table1_scenario_path(home_name: str) -> Path:
     return own if own.is_file() else data_dir() / "scenarios" / "table1.json"
 
 
+def has_table1_scenario(home_name: str) -> bool:
+    """Whether the paper's Table I removals are defined for the home: the paper home's own
+    ``scenarios/table1.json``, or a ``table1-<home>.json`` the data build derived."""
+    own = table1_scenario_path(home_name)
+    return own.name != "table1.json" or home_name == "paper"
+
+
 def table1_removals(home: Home, path: Path | None = None) -> frozenset[str]:
     """The paper's Table I removals (one instance per target), checked against the home."""
     path = path or table1_scenario_path(home.name)

@@ -97,6 +97,16 @@ def test_bad_search_input_is_a_clear_error_and_writes_nothing(
     assert not log.exists()
 
 
+def test_a_search_on_another_home_places_its_objects_as_its_source_scene(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # It once applied the paper home's Table I removals and failed on objects ithor-01 lacks.
+    argv = ["search", "Apple", "--start", "kitchen-1", "--home", "ithor-01", "--format", "json"]
+    assert main(argv) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["success"] and summary["path_length_m"] >= summary["oracle_length_m"] > 0
+
+
 def test_demo_on_another_home_says_what_runs_there(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -195,6 +195,25 @@ def test_report_dirs_are_checked(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert not os.path.exists(tmp_path / "r.md")
 
 
+def test_a_report_of_homes_alone_needs_no_paper_run(
+    runs: dict[str, Path],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # A data folder of one's own homes is reported on its own (out/bench-paper is not here).
+    monkeypatch.chdir(tmp_path)
+    assert main(["bench", "report", "--evaluation", str(runs["homes"]), "--no-progress"]) == 0
+    text = Path("out/report/results.md").read_text(encoding="utf-8")
+    reproduce = text.split("```sh\n", 1)[1].split("```", 1)[0]
+    assert "objsearch bench paper" not in reproduce and "--paper" not in reproduce
+    assert "Not in this report: run `objsearch bench paper --out out/bench-paper`" in text
+    assert "## Homes (not tuned on)" in text and "Homes (2): ithor-01, procthor-00." in text
+    capsys.readouterr()
+    assert main(["bench", "report", "--no-progress"]) == 2
+    assert "nothing to report" in capsys.readouterr().err
+
+
 def test_the_paired_difference_is_in_the_paper_metric(runs: dict[str, Path]) -> None:
     rows = read_rows(runs["homes"] / "homes_trials.parquet")
     paired = paired_differences(rows, metric=discovery)["epl"]
@@ -270,7 +289,7 @@ def test_report_help_shows_its_defaults(
     assert main(["bench", "report", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
     for default in (
-        "(out/bench-paper)",
+        "(default: out/bench-paper if it holds one;",
         "(out/report/results.md)",
         "(default: img/ beside --out)",
         "(default: results-rearrangement.md beside --out)",

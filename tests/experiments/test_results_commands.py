@@ -114,6 +114,7 @@ def test_results_commands_run_as_written_from_a_clean_clone(
             wanted = set(args.homes or ())
             assert wanted <= homes, f"unknown home(s) {sorted(wanted - homes)}: {cmd.text}"
         if area == ["bench", "report"]:
+            assert args.paper is not None, f"the page's report names its --paper: {cmd.text}"
             inputs = [args.paper, *(args.evaluation or ()), *(args.heldout or ())]
             inputs += [*(args.table1 or ())]
             inputs += [args.paper_geometric] if args.paper_geometric else []
