@@ -459,7 +459,11 @@ def register(sub: Any) -> None:
         "the belief's forecasts, failures, and learning curves with CI bands (PNG and SVG).",
     )
     belief.add_argument(
-        "homes", nargs="+", type=t.existing_dir, help="bench homes output folder(s), read as one"
+        "homes",
+        nargs="+",
+        type=t.existing_dir,
+        metavar="DIR",
+        help="bench homes output folder(s), read as one",
     )
     belief.add_argument(
         "--out",
@@ -544,15 +548,20 @@ def register(sub: Any) -> None:
     )
     report.add_argument(
         "--out",
+        metavar="FILE",
         default="out/report/results.md",
         type=t.file_path,
         help="the results page to write (out/report/results.md)",
     )
     report.add_argument(
-        "--img", type=t.dir_path, help="folder for the PNG plots (default: img/ beside --out)"
+        "--img",
+        metavar="DIR",
+        type=t.dir_path,
+        help="folder for the PNG plots (default: img/ beside --out)",
     )
     report.add_argument(
         "--table1",
+        metavar="DIR",
         action="append",
         type=t.existing_dir,
         help="a bench table1 output: the Table I distribution section (left out without it); "
@@ -560,6 +569,7 @@ def register(sub: Any) -> None:
     )
     report.add_argument(
         "--heldout",
+        metavar="DIR",
         action="append",
         type=t.existing_dir,
         help="a bench homes output on held-out homes, reported in a section of its own "
@@ -567,18 +577,21 @@ def register(sub: Any) -> None:
     )
     report.add_argument(
         "--paper-geometric",
+        metavar="DIR",
         type=t.existing_dir,
         help="a bench paper output with the other camera: both cameras' Table I/II and their "
         "difference",
     )
     report.add_argument(
         "--rearr",
+        metavar="DIR",
         type=t.existing_dir,
         help="a bench homes output with --schedules rearr[,stats]: also write the "
         "rearrangement page (the results page only if the --paper output exists)",
     )
     report.add_argument(
         "--rearr-out",
+        metavar="FILE",
         type=t.file_path,
         help="where the rearrangement page goes (default: results-rearrangement.md beside --out)",
     )

@@ -561,7 +561,10 @@ def register(sub: Any) -> None:
     lake_sub = lake.add_subparsers(dest="lake_command", required=True, metavar="SUBCOMMAND")
     add = lake_sub.add_parser("add", help="compact a sealed event log into the lake as one run")
     add.add_argument(
-        "log", type=t.existing_dir, help="event log folder (its writer must have closed it)"
+        "log",
+        type=t.existing_dir,
+        metavar="LOG",
+        help="event log folder (its writer must have closed it)",
     )
     add.add_argument("--robot", required=True, type=t.text, help="robot name (partition)")
     add.add_argument("--run", type=t.text, help="run name (default: the log's stream)")
