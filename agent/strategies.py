@@ -316,16 +316,43 @@ STRATEGIES: dict[str, Strategy] = {
 }
 
 PAPER_STRATEGIES = ("sdp", "rvp", "wpl")
-DEFAULT_STRATEGY = "wpl"
+#: A strategy's name with this suffix inspects statics longer than 1.5 m from a viewpoint per
+#: stretch as well when a search found nothing (``cover``, agent/policy.py); without it, from
+#: the single N_s as the paper does. Recorded as the run's ``params.inspection``.
+COVER_SUFFIX = "+cover"
+#: Chosen by protocol v5's rule, written before its runs (docs/results-belief.md): the belief
+#: planned over the whole home, with cover. The paper's method stays ``wpl`` (make demo runs it).
+DEFAULT_STRATEGY = "global-belief" + COVER_SUFFIX
 
 
 def strategy(name: str) -> Strategy:
+    """The registered strategy ``name`` (without an inspection suffix)."""
     try:
         return STRATEGIES[name]
     except KeyError:
         raise ObjsearchError(
-            f"unknown strategy {name!r}; choose from {', '.join(STRATEGIES)}"
+            f"unknown strategy {name!r}; choose from {', '.join(STRATEGIES)} (each may end in "
+            f"{COVER_SUFFIX})"
         ) from None
+
+
+def split_strategy(name: str) -> tuple[Strategy, str]:
+    """The registered strategy a name means and how it inspects statics: ``NAME`` single (the
+    paper's N_s), ``NAME+cover`` cover."""
+    if name.endswith(COVER_SUFFIX):
+        return strategy(name[: -len(COVER_SUFFIX)]), "cover"
+    return strategy(name), "single"
+
+
+def full_strategy_name(registered: str, inspection: str) -> str:
+    """The name a user gives for ``registered`` inspecting by ``inspection``: the inverse of
+    :func:`split_strategy`."""
+    return registered + (COVER_SUFFIX if inspection == "cover" else "")
+
+
+def strategy_names() -> list[str]:
+    """Every name a strategy option accepts: each registered strategy, then each with cover."""
+    return [*STRATEGIES, *(name + COVER_SUFFIX for name in STRATEGIES)]
 
 
 @dataclass(frozen=True, slots=True)
@@ -363,7 +390,7 @@ class RunSpec:
         cls,
         home: str,
         home_digest: str,
-        strategy_name: str = DEFAULT_STRATEGY,
+        strategy_name: str,
         *,
         seed: int = 0,
         update_mode: UpdateMode = UpdateMode.ALL,
@@ -372,8 +399,16 @@ class RunSpec:
         params: Mapping[str, Any] | None = None,
         prior: str = "vg-cooccurrence",
     ) -> RunSpec:
-        """The spec of running the registered strategy ``strategy_name`` on a home."""
-        chosen = strategy(strategy_name)
+        """The spec of running the strategy ``strategy_name`` (``NAME`` or ``NAME+cover``) on a
+        home."""
+        chosen, inspection = split_strategy(strategy_name)
+        params = dict(params or {})
+        if inspection != "single":
+            asked = params.setdefault("inspection", inspection)
+            if asked != inspection:
+                raise ObjsearchError(
+                    f"strategy {strategy_name!r} inspects by {inspection}, its params by {asked!r}"
+                )
         return cls(
             home=home,
             home_digest=home_digest,
@@ -385,14 +420,24 @@ class RunSpec:
             update_mode=update_mode,
             seed=seed,
             schedule=schedule,
-            params=dict(params or {}),
+            params=params,
             prior=prior,
         )
 
     @classmethod
-    def for_home(cls, home: Home, strategy_name: str = DEFAULT_STRATEGY, **options: Any) -> RunSpec:
+    def for_home(cls, home: Home, strategy_name: str, **options: Any) -> RunSpec:
         """:meth:`of` for a loaded home (its name and digest)."""
         return cls.of(home.name, home.digest, strategy_name, **options)
+
+    @property
+    def inspection(self) -> str:
+        """How statics are inspected, recorded in the run's params (absent: the paper's N_s)."""
+        return str(self.params.get("inspection", "single"))
+
+    @property
+    def name(self) -> str:
+        """The strategy as a user names it: ``NAME``, or ``NAME+cover`` for a cover run."""
+        return full_strategy_name(self.strategy, self.inspection)
 
     def with_changes(self, **changes: Any) -> RunSpec:
         return replace(self, **changes)
@@ -403,8 +448,7 @@ class RunSpec:
             alpha=self.alpha,
             support_radius=self.support_radius,
             seed=self.seed,
-            # Recorded in the run's params (absent: the paper's single N_s).
-            inspection=str(self.params.get("inspection", "single")),
+            inspection=self.inspection,
         )
 
     def relation_model(self, models: RelationModels = AGENT_MODELS) -> RelationModel:

@@ -113,7 +113,7 @@ def synthetic_run(n: int, seed: int = 0, stream: str = "bench") -> list[Event]:
             )
         )
 
-    add("run_started", RunSpec.of("paper", "x", seed=seed).payload(), None)
+    add("run_started", RunSpec.of("paper", "x", "wpl", seed=seed).payload(), None)
     values = [{"dynamic": d, "static": s, "rel": rng.random()} for d in DYNAMIC for s in STATIC]
     add("scene_graph_seeded", {"source": "synthetic", "values": values}, None)
     task = 0

@@ -34,7 +34,7 @@ from objsearch.experiments.runner import (
     unseeable,
     write_rows,
 )
-from objsearch.experiments.strategies import STRATEGIES, strategy
+from objsearch.experiments.strategies import STRATEGIES, full_strategy_name, split_strategy
 from objsearch.sim.rearr_schedule import homes_with_rearrangement, why_no_rearrangement
 from objsearch.sim.schedule_names import SEEDED_KINDS, UnknownScheduleError
 from objsearch.sim.world import DEFAULT_CAMERA
@@ -67,8 +67,11 @@ def homes_jobs(
         raise ObjsearchError(
             f"unknown home(s) {', '.join(unknown)}; available: {', '.join(sorted(known))}"
         )
-    for name in strategies:
-        strategy(name)
+    # ``--inspection cover`` is every strategy named NAME+cover; a name may also say so itself.
+    strategies = [
+        full_strategy_name(registered.name, "cover" if inspection == "cover" else own)
+        for registered, own in map(split_strategy, strategies)
+    ]
     bad = [k for k in schedules if k not in SEEDED_KINDS]
     if bad or not schedules:
         raise UnknownScheduleError(
@@ -103,23 +106,21 @@ def homes_jobs(
                             scene_ids,
                             starts_per_search=starts_per_search,
                             camera=camera,
-                            inspection=inspection,
                         )
                     )
-                if "wpl" in strategies:
+                for wpl in (n for n in strategies if split_strategy(n)[0].name == "wpl"):
                     jobs.append(
                         Job(
                             "homes",
                             home,
                             spec,
-                            "wpl",
+                            wpl,
                             "none",
                             seed,
                             tuple(targets),
                             scene_ids,
                             starts_per_search=starts_per_search,
                             camera=camera,
-                            inspection=inspection,
                         )
                     )
     return jobs

@@ -22,7 +22,7 @@ from objsearch.experiments.runner import (
     unseeable,
     write_rows,
 )
-from objsearch.experiments.strategies import PAPER_STRATEGIES, strategy
+from objsearch.experiments.strategies import PAPER_STRATEGIES, split_strategy, strategy
 from objsearch.sim.world import DEFAULT_CAMERA
 
 HOME = "paper"
@@ -79,7 +79,7 @@ def paper_jobs(
     camera: str = DEFAULT_CAMERA,
 ) -> list[Job]:
     for name in strategies:
-        strategy(name)  # unknown names fail here, before any work
+        split_strategy(name)  # unknown names fail here, before any work
     jobs: list[Job] = []
     for name in TABLE1_STRATEGIES:
         if name not in strategies:
@@ -87,7 +87,7 @@ def paper_jobs(
         seeds = range(sdp_seeds) if strategy(name).randomised else range(1)
         jobs += [table1_job(home, name, s, targets, prior, camera) for s in seeds]
     for name in strategies:
-        if strategy(name).randomised or name == "rvp":
+        if split_strategy(name)[0].name in ("sdp", "rvp"):
             continue  # the paper runs its long-term experiment with its own method
         modes = LONGTERM_PAPER_MODES if name == "wpl" else ("all",)
         for mode in modes:

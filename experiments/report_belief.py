@@ -19,7 +19,8 @@ from typing import Any
 from objsearch.experiments.calibration import ece
 from objsearch.experiments.learning import first_of_day, ratio
 from objsearch.experiments.metrics import spl_term
-from objsearch.experiments.runner import COVER_SUFFIX, Row, inspection_suffix, read_output
+from objsearch.experiments.runner import Row, inspection_suffix, read_output
+from objsearch.experiments.strategies import COVER_SUFFIX
 
 AFTER = 10
 #: routine-<seed>: the evaluation scenes are those after day 14 (four scenes a day,

@@ -37,8 +37,9 @@ from objsearch.experiments.learning import (
 from objsearch.experiments.metrics import spl_term
 from objsearch.experiments.paper import discovery
 from objsearch.experiments.plots import pyplot, save_figure
-from objsearch.experiments.runner import COVER_SUFFIX, Row, inspection_suffix
+from objsearch.experiments.runner import Row, inspection_suffix
 from objsearch.experiments.stats import CI, MIN_RUNS, method_note, spread
+from objsearch.experiments.strategies import COVER_SUFFIX
 from objsearch.sim.longterm import scenes_of
 from objsearch.sim.world import DEFAULT_CAMERA, Placement, first_sighting, search_camera
 

@@ -17,7 +17,7 @@ from objsearch.agent.catalogue import STORE
 from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
-from objsearch.agent.strategies import BELIEF, ROUTINE_BELIEF, RunSpec
+from objsearch.agent.strategies import BELIEF, COVER_SUFFIX, ROUTINE_BELIEF, RunSpec
 from objsearch.events.log import read_log
 from objsearch.experiments.calibration import Forecast, forecasts
 from objsearch.experiments.decompose import Excess, decompose
@@ -48,8 +48,6 @@ class Job:
     #: Search each target from this many seeded start points per scene (None: from every start).
     starts_per_search: int | None = None
     camera: str = DEFAULT_CAMERA
-    #: How statics are inspected (agent/policy.py INSPECTIONS), recorded in the run's params.
-    inspection: str = "single"
 
 
 @dataclass(frozen=True)
@@ -100,9 +98,7 @@ def run_job(job: Job) -> list[Row]:
         update_mode=UpdateMode(job.update_mode),
         schedule=job.placements,
         prior=job.prior,
-        params={"camera": job.camera}
-        if job.inspection == "single"
-        else {"camera": job.camera, "inspection": job.inspection},
+        params={"camera": job.camera},
     )
     scenes = scenes_of(job.home, job.placements, upto=_last_scene(job))
     with tempfile.TemporaryDirectory(prefix="objsearch-bench-") as tmp:
@@ -242,24 +238,24 @@ def read_rows(parquet: Path) -> list[Row]:
     return [Row(**rec) for rec in pl.read_parquet(parquet).to_dicts()]
 
 
-#: What :func:`read_output` appends to the strategies of a run searched with ``--inspection cover``.
-COVER_SUFFIX = "+cover"
-
-
 def inspection_suffix(strategy: str) -> str:
-    """:data:`COVER_SUFFIX` for a strategy :func:`read_output` read from a cover run, else ``""``."""
-    return strategy[len(strategy.partition("+")[0]) :]
+    """:data:`COVER_SUFFIX` for a strategy named ``NAME+cover``, else ``""``."""
+    return COVER_SUFFIX if strategy.endswith(COVER_SUFFIX) else ""
 
 
 def read_output(folder: Path) -> list[Row]:
-    """The searches of one ``bench homes`` output folder. A run with ``--inspection cover`` (its
-    summary.json says so) names its strategies ``NAME+cover``: every report pairs it with the same
-    strategy's run without it instead of mixing the two."""
+    """The searches of one ``bench homes`` output folder, each under its strategy's full name: a
+    cover run's is ``NAME+cover``, so every report pairs it with the same strategy's run without
+    it instead of mixing the two. Outputs written before the rows carried the suffix said
+    ``--inspection cover`` in their summary.json only; their rows get it here."""
     summary_path = folder / "summary.json"
     summary = json.loads(summary_path.read_text(encoding="utf-8")) if summary_path.is_file() else {}
     rows = read_rows(folder / str(summary.get("files", {}).get("parquet", "homes_trials.parquet")))
     if summary.get("inspection") == "cover":
-        return [replace(r, strategy=r.strategy + COVER_SUFFIX) for r in rows]
+        return [
+            r if inspection_suffix(r.strategy) else replace(r, strategy=r.strategy + COVER_SUFFIX)
+            for r in rows
+        ]
     return rows
 
 

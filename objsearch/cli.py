@@ -437,8 +437,8 @@ def build_parser() -> argparse.ArgumentParser:
         lambda p: p.add_argument(
             "--strategy",
             default="wpl",
-            choices=_strategy_names(),
-            help="search strategy (wpl, the paper's method)",
+            type=t.strategy,
+            help="search strategy, NAME or NAME+cover (wpl, the paper's method)",
         )
     )
     t.camera_option(demo)
@@ -468,12 +468,6 @@ def build_parser() -> argparse.ArgumentParser:
     for module in COMMAND_MODULES:
         importlib.import_module(module).register(sub)
     return parser
-
-
-def _strategy_names() -> list[str]:
-    from objsearch.agent.strategies import STRATEGIES
-
-    return list(STRATEGIES)
 
 
 class _VersionAction(argparse.Action):
@@ -515,9 +509,11 @@ def _search_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--strategy",
         default=DEFAULT_STRATEGY,
-        choices=list(STRATEGIES),
-        help=f"search strategy: the paper's wpl/rvp/sdp or ours ({DEFAULT_STRATEGY}); "
-        "objsearch bench compares them",
+        type=t.strategy,
+        help=f"search strategy: one of {', '.join(STRATEGIES)}, each also as NAME+cover (long "
+        "statics looked at from a viewpoint per 1.5 m stretch when nothing was found); the "
+        f"paper's method is wpl (default: {DEFAULT_STRATEGY}, chosen by protocol v5, "
+        "docs/results-belief.md); objsearch bench compares them",
     )
     p.add_argument("--alpha", type=t.ALPHA, default=10.0, help="alpha of Eq. 3, 0-1000 (10)")
     p.add_argument("--seed", type=t.SEED, default=0, help="seed (SDP's random room order)")

@@ -34,7 +34,9 @@ def register(sub: Any) -> None:
     rp.add_argument("--alpha", type=t.ALPHA, help="replay with another alpha (Eq. 3), 0-1000")
     rp.add_argument("--method", choices=["wpl", "rvp", "sdp"], help="replay with another method")
     rp.add_argument(
-        "--strategy", type=t.text, help="replay with a bench strategy (e.g. epl, wpl-neg-decay)"
+        "--strategy",
+        type=t.strategy,
+        help="replay with another strategy, NAME or NAME+cover (e.g. epl, wpl-neg-decay)",
     )
     t.format_option(rp, "print every decision as JSON")
     rp.add_argument("--all", action="store_true", help="list unchanged decisions too")

@@ -385,12 +385,13 @@ def _live_client_options(p: argparse.ArgumentParser) -> None:
 
 def _strategy_option(p: argparse.ArgumentParser) -> None:
     """Added when ``agent run`` is first used: the strategies import the agent."""
-    from objsearch.agent.strategies import STRATEGIES
+    from objsearch.agent.strategies import DEFAULT_STRATEGY
 
     p.add_argument(
         "--strategy",
-        choices=list(STRATEGIES),
-        help="search strategy (default: robot.toml's strategy, else wpl)",
+        type=t.strategy,
+        help="search strategy, NAME or NAME+cover (objsearch bench compares them; default: "
+        f"robot.toml's strategy, else {DEFAULT_STRATEGY})",
     )
 
 

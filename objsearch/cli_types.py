@@ -248,6 +248,18 @@ def subset_of(choices: tuple[str, ...]) -> Callable[[str], list[str]]:
     return _typed("subset_of", convert)  # type: ignore[return-value]
 
 
+def strategy(value: str) -> str:
+    """A search strategy's name: a registered one, or one ending in ``+cover``."""
+    from objsearch.agent.errors import ObjsearchError
+    from objsearch.agent.strategies import split_strategy
+
+    try:
+        split_strategy(value)
+    except ObjsearchError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return value
+
+
 def _kind(value: str) -> str:
     """``missing``, ``dir`` or ``file`` for a path given on the command line."""
     if not value.strip():

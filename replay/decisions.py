@@ -23,7 +23,13 @@ from objsearch.agent.planner import wpl_terms
 from objsearch.agent.policy import Method, Recorder, SearchAgent, SearchConfig, Stop
 from objsearch.agent.session import HomeContext, load_context
 from objsearch.agent.state import AgentState
-from objsearch.agent.strategies import AGENT_MODELS, RelationModels, RelationSpec, RunSpec, strategy
+from objsearch.agent.strategies import (
+    AGENT_MODELS,
+    RelationModels,
+    RelationSpec,
+    RunSpec,
+    split_strategy,
+)
 from objsearch.replay.state import ReplayState, TaskState
 
 REL_TOLERANCE = 1e-9
@@ -36,22 +42,23 @@ class Overrides:
 
     method: str | None = None
     alpha: float | None = None
-    strategy: str | None = None  # a registered strategy's room order and planner
+    strategy: str | None = None  # a strategy's room order and planner (NAME or NAME+cover)
 
     def relations(self) -> RelationSpec | None:
         """The relation model to fold with instead of the run's: only a ``strategy`` override
         changes it (a counterfactual: the log folded as that strategy would have)."""
-        return None if self.strategy is None else strategy(self.strategy).relations
+        return None if self.strategy is None else split_strategy(self.strategy)[0].relations
 
     def spec(self, run: RunSpec) -> RunSpec:
         """The spec to re-plan with: the run's own, with the overrides applied."""
         if self.strategy is not None:
-            chosen = strategy(self.strategy)
+            chosen, inspection = split_strategy(self.strategy)
             run = run.with_changes(
                 strategy=chosen.name,
                 method=chosen.method,
                 planner=chosen.planner_name,
                 relations=chosen.relations,
+                params={**run.params, "inspection": inspection},
             )
         if self.method is not None:
             run = run.with_changes(method=Method(self.method), planner=self.method)

@@ -90,7 +90,7 @@ class AgentNode:
         config: RuntimeConfig,
         log_dir: Path,
         *,
-        strategy: str = DEFAULT_STRATEGY,
+        strategy: str | None = None,
         alpha: float = DEFAULT_ALPHA,
         seed: int = 0,
         update_mode: UpdateMode = UpdateMode.ALL,
@@ -103,7 +103,8 @@ class AgentNode:
         also published as topics by the agent's own node (:class:`TopicSink`). ``clock``: the
         local time of day a search begins, recorded in its ``task_started`` (the host's wall
         clock: a household's hour, whatever time base the robot's stamps use — the stand-in
-        robot's is simulated)."""
+        robot's is simulated). ``strategy``: ``NAME`` or ``NAME+cover``; None, the product's
+        default (DEFAULT_STRATEGY)."""
         self.config = config
         self.clock = clock
         self.live_sinks = tuple(live)
@@ -135,7 +136,7 @@ class AgentNode:
             spec = RunSpec.of(
                 self.ctx.home.name,
                 self.ctx.home.digest,
-                strategy,
+                strategy or DEFAULT_STRATEGY,
                 alpha=alpha,
                 seed=seed,
                 update_mode=update_mode,

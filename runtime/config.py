@@ -3,7 +3,7 @@
 transport = "zenoh"            # or "dds" (both without ROS 2), or "ros2": a real rclpy node
 domain_id = 0                  # ROS_DOMAIN_ID
 home = "paper"
-strategy = "wpl"               # any of objsearch.agent.strategies (objsearch bench compares them)
+strategy = "global-belief+cover"  # the default; any of objsearch.agent.strategies, NAME or NAME+cover
 
 [zenoh]
 mode = "peer"                  # rmw_zenoh's sessions are peers of a router
@@ -124,7 +124,9 @@ class PoseSource:
 class RuntimeConfig:
     transport: TransportConfig = field(default_factory=TransportConfig)
     home: str = "paper"
-    strategy: str = "wpl"
+    #: None: the product's default (agent/strategies.py DEFAULT_STRATEGY), resolved by the agent
+    #: node so that reading a config does not import the agent.
+    strategy: str | None = None
     topics: Topics = Topics()
     qos: QosSettings = QosSettings()
     timeouts: Timeouts = Timeouts()
@@ -178,17 +180,17 @@ class RuntimeConfig:
             peers=tuple(d.get("peers", base.peers)),
             interface=str(d.get("interface", base.interface)),
         )
-        from objsearch.agent.strategies import STRATEGIES
+        from objsearch.agent.strategies import strategy_names
 
-        strategy = doc.get("strategy", "wpl")
-        if strategy not in STRATEGIES:
+        strategy = doc.get("strategy")
+        if strategy is not None and strategy not in strategy_names():
             raise RuntimeConfigError(
-                f"{source}: strategy must be one of {', '.join(STRATEGIES)}, not {strategy!r}"
+                f"{source}: strategy must be one of {', '.join(strategy_names())}, not {strategy!r}"
             )
         return cls(
             transport=transport,
             home=str(doc.get("home", "paper")),
-            strategy=str(strategy),
+            strategy=None if strategy is None else str(strategy),
             topics=_section(Topics(), doc.get("topics", {}), source, "topics", str),
             qos=_section(QosSettings(), doc.get("qos", {}), source, "qos", _qos),
             timeouts=_section(Timeouts(), doc.get("timeouts", {}), source, "timeouts", None),

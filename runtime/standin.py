@@ -37,7 +37,7 @@ from typing import Any
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point, Pose
 from objsearch.agent.session import Session, load_context
-from objsearch.agent.strategies import RunSpec
+from objsearch.agent.strategies import DEFAULT_STRATEGY, RunSpec
 from objsearch.runtime import messages as m
 from objsearch.runtime.action import STATUS_ABORTED, STATUS_CANCELED, STATUS_SUCCEEDED, ActionServer
 from objsearch.runtime.config import RuntimeConfig
@@ -307,7 +307,9 @@ def in_process_search(log_dir: Path, scene: int, target: str, start: str) -> dic
     agent behind a stand-in must answer for it (``runtime.requestfuzz`` checks this)."""
     ctx = load_context("paper")
     placements = Schedule.load(ctx.home, "table2").scenes[scene]
-    session = Session.start(ctx, log_dir, RunSpec.of(ctx.home.name, ctx.home.digest))
+    session = Session.start(
+        ctx, log_dir, RunSpec.of(ctx.home.name, ctx.home.digest, DEFAULT_STRATEGY)
+    )
     try:
         world = SimWorld(ctx.home, ctx.navmap, placements, ctx.home.start(start), clock=SimClock())
         r = session.search(world, target, start, scene=scene)

@@ -14,7 +14,7 @@ from tqdm import tqdm
 from objsearch.agent.outdir import claim
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
-from objsearch.agent.strategies import DEFAULT_STRATEGY, RunSpec
+from objsearch.agent.strategies import RunSpec
 from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule
 from objsearch.sim.world import DEFAULT_CAMERA
 
@@ -31,7 +31,7 @@ def run_demo(
     force: bool = False,
     progress: bool = True,
     baseline: bool = True,
-    strategy: str = DEFAULT_STRATEGY,
+    strategy: str = "wpl",  # the paper's method: the demo reproduces its experiment
     camera: str = DEFAULT_CAMERA,
 ) -> int:
     modes = [UpdateMode.ALL, UpdateMode.NONE] if baseline else [UpdateMode.ALL]

@@ -75,7 +75,7 @@ def test_demo_summary_reads_the_demos_table(tmp_path: Path) -> None:
     from objsearch.sim.demo import discovery, write_csv
     from objsearch.sim.longterm import run_schedule
 
-    spec = RunSpec.for_home(load_home("paper"), schedule="table2")
+    spec = RunSpec.for_home(load_home("paper"), "wpl", schedule="table2")
     trials = run_schedule(
         tmp_path / "log-all", spec, targets=["Apple", "Cup"], scenes=[1], starts=["kitchen-1"]
     )

@@ -102,7 +102,11 @@ def fold(model: Any, events: list[Ev]) -> Any:
 
 def start(mode: str = "all") -> list[Ev]:
     return [
-        Ev(1, "run_started", RunSpec.of("paper", "x", update_mode=UpdateMode(mode)).payload()),
+        Ev(
+            1,
+            "run_started",
+            RunSpec.of("paper", "x", "wpl", update_mode=UpdateMode(mode)).payload(),
+        ),
         Ev(2, "scene_graph_seeded", {"source": "test", "values": PRIOR}),
     ]
 

@@ -66,7 +66,11 @@ def seeded_events(mode: str) -> list[Ev]:
         {"dynamic": "Cup", "static": "Table", "rel": 0.1},
     ]
     return [
-        Ev(1, "run_started", RunSpec.of("paper", "x", update_mode=UpdateMode(mode)).payload()),
+        Ev(
+            1,
+            "run_started",
+            RunSpec.of("paper", "x", "wpl", update_mode=UpdateMode(mode)).payload(),
+        ),
         Ev(2, "scene_graph_seeded", {"source": "test", "values": values}),
     ]
 

@@ -95,7 +95,7 @@ def test_every_target_is_found_from_every_start(tmp_path: Path, method: Method) 
 
 
 def _schedule(log: Path, mode: UpdateMode, scenes: tuple[int, ...] = (1, 2)) -> None:
-    spec = RunSpec.for_home(load_context(HOME).home, update_mode=mode, schedule="table2")
+    spec = RunSpec.for_home(load_context(HOME).home, "wpl", update_mode=mode, schedule="table2")
     run_schedule(log, spec, scenes=list(scenes), targets=("Apple", "Cup", "Laptop"))
 
 
@@ -110,7 +110,7 @@ def test_rebuilding_from_scratch_equals_the_live_fold(schedule_log: Path) -> Non
     ctx = load_context(HOME)
     rebuilt = fold(read_log(schedule_log, store=STORE), SceneGraphProjection())
     # A session continuing the log folds it on open; its live graph then advances event by event.
-    session = Session.start(ctx, schedule_log, RunSpec.for_home(ctx.home))
+    session = Session.start(ctx, schedule_log, RunSpec.for_home(ctx.home, "wpl"))
     graph = session.graph
     assert isinstance(graph, SceneGraphProjection)
     try:

@@ -83,7 +83,7 @@ def test_a_task_left_open_by_a_crash_is_aborted_on_restart_and_its_id_never_reus
     tmp_path: Path, moves: int
 ) -> None:
     ctx = load_context(HOME)
-    spec = RunSpec.for_home(ctx.home, schedule="table2")
+    spec = RunSpec.for_home(ctx.home, "wpl", schedule="table2")
     scene = Schedule.load(ctx.home, "table2").scenes[1]
     log = tmp_path / "log"
 
@@ -194,7 +194,7 @@ from objsearch.agent.session import load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.sim.longterm import run_schedule
 
-spec = RunSpec.for_home(load_context("paper").home, schedule="table2")
+spec = RunSpec.for_home(load_context("paper").home, "wpl", schedule="table2")
 print("ready", flush=True)
 run_schedule(Path(sys.argv[1]), spec, scenes=(1, 2, 3))
 """
@@ -219,7 +219,7 @@ def test_sigkill_mid_schedule_then_restart_never_repeats_a_task(
     proc.wait()
 
     ctx = load_context(HOME)
-    spec = RunSpec.for_home(ctx.home, schedule="table2")
+    spec = RunSpec.for_home(ctx.home, "wpl", schedule="table2")
     run_schedule(log, spec, scenes=(4,), targets=("Cup",), starts=("kitchen-1", "bedroom-1"))
     events = list(read_log(log, store=STORE))
     started = [str(e.task_id) for e in events if e.type == "task_started"]

@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.session import Session, load_context
-from objsearch.agent.strategies import RunSpec
+from objsearch.agent.strategies import DEFAULT_STRATEGY, RunSpec
 from objsearch.cli import build_parser
 from objsearch.cli_runtime import runtime_config
 from objsearch.runtime.client import AgentClient
@@ -24,11 +24,16 @@ def client_config(net: Net) -> RuntimeConfig:
     return runtime_config(build_parser().parse_args(["agent", "find", "x", *net.args]))
 
 
-def in_process(log_dir: Path, trials: list[tuple[int, str, str]] = TRIALS) -> list[dict[str, Any]]:
-    """The same searches by the in-process simulator: what the processes must decide."""
+def in_process(
+    log_dir: Path,
+    trials: list[tuple[int, str, str]] = TRIALS,
+    strategy: str = DEFAULT_STRATEGY,
+) -> list[dict[str, Any]]:
+    """The same searches by the in-process simulator: what the processes must decide (with
+    ``agent run``'s default strategy unless told)."""
     ctx = load_context("paper")
     schedule = Schedule.load(ctx.home, "table2")
-    session = Session.start(ctx, log_dir, RunSpec.for_home(ctx.home))
+    session = Session.start(ctx, log_dir, RunSpec.for_home(ctx.home, strategy))
     out = []
     try:
         for scene, target, start in trials:

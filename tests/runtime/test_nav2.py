@@ -57,12 +57,20 @@ def test_same_decisions_as_in_process(net: Net, config: str, tmp_path: Path) -> 
 def test_rejected_aborted_and_stuck_goals(net: Net, tmp_path: Path) -> None:
     """Goal 1 rejected and goal 2 aborted: two searches fail saying so. Goal 3 is never finished:
     the agent cancels it (cancel_goal) and sends the waypoint again; that search succeeds with
-    the simulator's decisions."""
+    the simulator's decisions. The paper's method: its Eq. 4 learns nothing from the two failed
+    searches, so a fresh in-process log decides the third alike (a belief counts their looks)."""
     args = [*net.args, *robot_config(tmp_path, ACTION + FAST)]
     faults = ["--reject-after", "1", "--abort-after", "2", "--stall-after", "3"]
     robot = objsearch("robot", "sim", *args, *faults, log=tmp_path / "robot.txt")
     agent = objsearch(
-        "agent", "run", *args, "--log", str(tmp_path / "log"), log=tmp_path / "agent.txt"
+        "agent",
+        "run",
+        *args,
+        "--strategy",
+        "wpl",
+        "--log",
+        str(tmp_path / "log"),
+        log=tmp_path / "agent.txt",
     )
     try:
         with AgentClient(client_config(net)) as client:
@@ -74,7 +82,7 @@ def test_rejected_aborted_and_stuck_goals(net: Net, tmp_path: Path) -> None:
         stop(robot)
     assert not rejected["ok"] and "rejected the /navigate_to_pose goal" in rejected["error"]
     assert not aborted["ok"] and "ended aborted" in aborted["error"], aborted
-    (expected,) = in_process(tmp_path / "inproc", [(1, "Apple", "bedroom-1")])
+    (expected,) = in_process(tmp_path / "inproc", [(1, "Apple", "bedroom-1")], strategy="wpl")
     assert stuck["ok"], stuck
     assert decisions(stuck) == expected
     assert "cancel_goal answered 0" in (tmp_path / "agent.txt").read_text()

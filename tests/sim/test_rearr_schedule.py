@@ -105,7 +105,7 @@ def test_a_malformed_file_is_a_clear_error(tmp_path: Path) -> None:
 def test_the_long_term_runner_accepts_rearr_schedules(tmp_path: Path) -> None:
     trials = run_schedule(
         tmp_path,
-        RunSpec.for_home(load_home("ithor-01"), schedule="rearr-0"),
+        RunSpec.for_home(load_home("ithor-01"), "wpl", schedule="rearr-0"),
         targets=["Cup", "Apple"],
         scenes=[1, 2],
         starts=["kitchen-1"],
