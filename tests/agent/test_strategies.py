@@ -62,7 +62,7 @@ def test_search_runs_the_default_and_records_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     log = tmp_path / "log"
-    args = ["search", "--target", "Cup", "--start", "kitchen-1", "--log", str(log)]
+    args = ["search", "Cup", "--start", "kitchen-1", "--log", str(log)]
     assert main([*args, "--format", "json"]) == 0
     assert json.loads(capsys.readouterr().out)["strategy"] == DEFAULT_STRATEGY
     (started,) = (e for e in read_log(log, store=STORE) if e.type == "run_started")
@@ -73,7 +73,7 @@ def test_search_runs_the_default_and_records_it(
 def test_a_name_the_registry_does_not_know_is_a_usage_error(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    args = ["search", "--target", "Cup", "--start", "kitchen-1", "--strategy", "wpl+twice"]
+    args = ["search", "Cup", "--start", "kitchen-1", "--strategy", "wpl+twice"]
     assert main(args) == 2
     err = capsys.readouterr().err
     assert err.startswith("objsearch: error: ") and "each may end in +cover" in err
