@@ -77,6 +77,8 @@ from .store import Store, shipped
 TABLE_FORMAT: Final = "objsearch.lake/2"
 TABLE_DIR: Final = "events"
 RUN_TYPE: Final = "_run"
+#: Rows of bags' ingest records kept outside any run (:meth:`TableLake.record_bag`).
+BAG_TYPE: Final = "_bag"
 #: The struct column holding a ``_run`` row's description of its run.
 RUN_COLUMN: Final = "run_info"
 BASE_COLUMNS: Final = (
@@ -115,6 +117,10 @@ _log = logging.getLogger(__name__)
 
 class TableLakeError(LakeError):
     """The fleet lake cannot do what was asked."""
+
+
+class TableRaceLost(TableLakeError):
+    """Another commit changed what :meth:`TableLake.commit_as_read` decided from: read again."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -393,9 +399,9 @@ class TableLake:
         found = self._runs(table, where)
         return [r for r in found if wanted & set(r.identity.items())]
 
-    def read_tables(self, run: TableRun) -> dict[str, pa.Table]:
+    def read_tables(self, run: TableRun, table: Any | None = None) -> dict[str, pa.Table]:
         """The event tables of one run, one per type, as :func:`event_schema` types them."""
-        table = self.table()
+        table = self.table() if table is None else table
         dataset = self._dataset(table, sorted(run.rows))
         rows = dataset.to_table(
             filter=(pc.field("robot") == run.robot)
@@ -532,6 +538,21 @@ class TableLake:
         identity: Mapping[str, str] | None = None,
     ) -> TableRun:
         """Commit one table per event type as one run, in one transaction (see the module)."""
+        run_info, parts = self._prepare(tables, robot, run, date, source, attachments, identity)
+        self.create()
+        return self._commit(run_info, parts, replace=replace)
+
+    def _prepare(
+        self,
+        tables: Mapping[str, pa.Table],
+        robot: str,
+        run: str,
+        date: str | dt.date,
+        source: str,
+        attachments: Mapping[str, str] | None,
+        identity: Mapping[str, str] | None,
+    ) -> tuple[TableRun, dict[str, pa.Table]]:
+        """A run's description and its rows by ``type`` partition, checked."""
         _check_name("robot", robot)
         _check_name("run", run)
         day = _check_date(date)
@@ -547,9 +568,126 @@ class TableLake:
             identity=dict(sorted((identity or {}).items())),
             attachments=dict(sorted((attachments or {}).items())),
         )
-        parts = run_parts(checked, run_info, self.store)
+        return run_info, run_parts(checked, run_info, self.store)
+
+    def commit_as_read(
+        self,
+        table: Any,
+        tables: Mapping[str, pa.Table],
+        *,
+        robot: str,
+        run: str,
+        date: str | dt.date,
+        source: str = "",
+        attachments: Mapping[str, str] | None = None,
+        identity: Mapping[str, str] | None = None,
+        replacing: Sequence[str] = (),
+        apps: Sequence[str] = (),
+    ) -> TableRun:
+        """Commit one run as decided from ``table`` (the version the caller read), in one
+        transaction that also takes out the runs ``replacing`` names (of ``robot``: the run
+        itself if it is there, runs merged into it). It carries the application transactions
+        of the run, of each run it replaces, of its identity values and ``apps``, each one
+        past its version in ``table``: if any commit since carried one of them, this one fails
+        with :class:`TableRaceLost` and the caller reads again and decides anew (no retry
+        here: what to commit depends on what is there). The bag ingest's commit."""
+        from deltalake import CommitProperties, Transaction, write_deltalake
+        from deltalake.exceptions import CommitFailedError
+
+        info, parts = self._prepare(tables, robot, run, date, source, attachments, identity)
+        for other in replacing:
+            _check_name("run", other)
+        names = sorted({*replacing} - {run})
+        txns = _transactions(table, info) + [
+            Transaction(a, (table.transaction_version(a) or 0) + 1)
+            for a in [*(_app_id(robot, r) for r in names), *apps]
+        ]
+        commit = CommitProperties(app_transactions=txns)
+        if not replacing:
+            adds = self._write_files({k: [t] for k, t in parts.items()}, info.commit)
+            try:
+                table.create_write_transaction(
+                    adds,
+                    mode="append",
+                    schema=table_schema(self.store),
+                    partition_by=["type"],
+                    commit_properties=commit,
+                )
+            except CommitFailedError as exc:
+                landed = self.find(robot, run)
+                if landed is not None and landed.commit == info.commit:
+                    return landed  # it landed; its answer was lost
+                self._delete_files(adds)
+                raise TableRaceLost(f"{self.root}: run {robot}/{run} changed: {exc}") from exc
+            return info
+        runs = ", ".join(f"'{r}'" for r in sorted({*replacing, run}))
+        try:
+            write_deltalake(
+                table,
+                _whole_rows(parts, self.store),
+                mode="overwrite",
+                predicate=f"robot = '{robot}' AND run IN ({runs})",
+                partition_by=["type"],
+                commit_properties=commit,
+                storage_options=self.options,
+            )
+        except CommitFailedError as exc:
+            landed = self.find(robot, run)
+            if landed is not None and landed.commit == info.commit:
+                return landed
+            raise TableRaceLost(f"{self.root}: run {robot}/{run} changed: {exc}") from exc
+        return info
+
+    def record_bag(self, bag_id: str, robot: str | None, doc: str) -> None:
+        """Keep a bag's ingest record that belongs to no run's commit (a bag that made no run,
+        one whose events the lake held already): one row of type :data:`BAG_TYPE`, appended
+        in a transaction of its own. The latest row of a bag id is its record."""
+        from deltalake import CommitProperties
+        from deltalake.exceptions import CommitFailedError
+
         self.create()
-        return self._commit(run_info, parts, replace=replace)
+        info = TableRun(
+            robot=robot or "",
+            date="1970-01-01",
+            run=f"_bag:{bag_id}",  # no run is named so (a run name starts with a letter)
+            commit=_token(),
+            rows={},
+            digest="",
+            source=f"bag:{bag_id}",
+            identity={"bag_id": bag_id},
+            attachments={"record": doc},
+        )
+        column, row = _small_tables({}, info, self.store)[RUN_TYPE]
+        part = _widen(BAG_TYPE, row, column, info, self.store)
+        adds = self._write_files({BAG_TYPE: [part]}, info.commit)
+        for attempt in range(COMMIT_TRIES):
+            table = self.table()
+            try:
+                table.create_write_transaction(
+                    adds,
+                    mode="append",
+                    schema=table_schema(self.store),
+                    partition_by=["type"],
+                    commit_properties=CommitProperties(),
+                )
+                return
+            except CommitFailedError:
+                time.sleep(min(0.5, 0.01 * (attempt + 1)))
+        self._delete_files(adds)
+        raise TableLakeError(f"{self.root}: recording bag {bag_id[:16]} lost {COMMIT_TRIES} races")
+
+    def bag_records(self, table: Any | None = None) -> dict[str, str]:
+        """Bag id → its latest :meth:`record_bag` record."""
+        table = self.table() if table is None else table
+        rows = self._dataset(table, [BAG_TYPE]).to_table(columns=["commit", RUN_COLUMN]).to_pylist()
+        found: dict[str, tuple[str, str]] = {}
+        for row in rows:
+            info = row[RUN_COLUMN]
+            bag_id = json.loads(info["identity"])["bag_id"]
+            doc = json.loads(info["attachments"])["record"]
+            if bag_id not in found or found[bag_id][0] < row["commit"]:
+                found[bag_id] = (row["commit"], doc)
+        return {k: v for k, (_, v) in sorted(found.items())}
 
     def _commit(
         self,
@@ -605,10 +743,7 @@ class TableLake:
                 else:
                     write_deltalake(
                         table,
-                        pa.concat_tables(
-                            [p.cast(_widest(p, self.store)) for p in parts.values()],
-                            promote_options="default",
-                        ),
+                        _whole_rows(parts, self.store),
                         mode="overwrite",
                         predicate=_run_predicate(info.robot, info.run),
                         partition_by=["type"],
@@ -1330,6 +1465,26 @@ def _run_of(row: Mapping[str, Any]) -> TableRun:
 
 def _widest(part: pa.Table, store: Store) -> pa.Schema:
     return pa.schema([table_schema(store).field(n) for n in part.column_names])
+
+
+def _whole_rows(parts: Mapping[str, pa.Table], store: Store) -> pa.Table:
+    """A run's parts as one table of every column of the table (delta-rs's overwrite refuses
+    a table lacking some: a run without some event type's rows lacks its struct)."""
+    rows = pa.concat_tables(
+        [p.cast(_widest(p, store)) for p in parts.values() if p.num_rows],
+        promote_options="default",
+    )
+    schema = table_schema(store)
+    # One chunk a column: delta-rs's writer panicked on the concatenated parts' chunks
+    # ("assertion failed: end <= self.len()", the interpreter aborted).
+    rows = rows.combine_chunks()
+    return pa.Table.from_arrays(
+        [
+            rows.column(f.name) if f.name in rows.column_names else pa.nulls(rows.num_rows, f.type)
+            for f in schema
+        ],
+        schema=schema,
+    )
 
 
 def run_rows(tables: Mapping[str, pa.Table], info: TableRun, store: Store) -> pa.Table:

@@ -193,15 +193,7 @@ def _print_counts(messages: dict[str, int]) -> None:
 
 def cmd_ingest(args: argparse.Namespace) -> int:
     from objsearch.pipeline.bags.engines import make_engine
-    from objsearch.pipeline.bags.errors import BagConfigError
     from objsearch.pipeline.bags.ingest import IngestResult, ingest
-
-    if "://" in str(args.lake):
-        raise BagConfigError(
-            f"{args.lake}: objsearch ingest writes the per-run-folder lake, a local folder; "
-            "ingest into one, then `objsearch lake upgrade --to fleet --lake FOLDER --into "
-            f"{args.lake}` copies its runs into the fleet lake"
-        )
 
     # More workers than bags would only start idle processes.
     workers = min(args.workers, len(args.bags))
@@ -232,7 +224,7 @@ def cmd_ingest(args: argparse.Namespace) -> int:
 
     ingest(
         [Path(b) for b in args.bags],
-        Path(args.lake),
+        str(args.lake),  # a folder or a fleet lake's URI (s3://…)
         topic_map=topic_map,
         robot=args.robot,
         engine=engine,

@@ -19,7 +19,7 @@ import pyarrow as pa
 
 from objsearch.pipeline.bags.engines import Engine, InlineEngine, ProcessEngine, TaskFailed
 from objsearch.pipeline.bags.errors import BagError
-from objsearch.pipeline.bags.lake import BagLake, LakeWriter, Piece
+from objsearch.pipeline.bags.lake import LakeWriter, Piece, open_bag_lake
 from objsearch.pipeline.bags.read import BagReport, bag_identity, read_bag
 from objsearch.pipeline.bags.session import FirstEvent, converter_key, first_event, run_id_of
 from objsearch.ros.topics import TopicMap
@@ -137,7 +137,7 @@ def commit_converted(lake: LakeWriter, converted: Converted, robot: str) -> Inge
 
 def ingest(
     bags: Sequence[Path],
-    lake_dir: Path,
+    lake_dir: Path | str,
     *,
     topic_map: TopicMap | None = None,
     robot: str = "robot",
@@ -157,7 +157,7 @@ def ingest(
     unique = list(dict.fromkeys(Path(b) for b in bags))
     if engine is None:
         engine = InlineEngine() if workers <= 1 or len(unique) <= 1 else ProcessEngine(workers)
-    lake = BagLake(lake_dir)
+    lake = open_bag_lake(lake_dir)  # a folder, or the fleet lake (a bucket, a Delta table)
     lake.complete_merges()  # a commit killed between its steps in an earlier ingest
     known = lake.known_pieces()
     tasks = [

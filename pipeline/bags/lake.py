@@ -30,6 +30,8 @@ import dataclasses
 import datetime as dt
 import json
 import logging
+import random
+import time
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,7 +45,13 @@ import pyarrow.parquet as pq
 from objsearch.agent.catalogue import STORE
 from objsearch.events import Event, EventStoreError, _fs
 from objsearch.events.lake import Lake, RunInfo
-from objsearch.events.lake_table import is_table_lake
+from objsearch.events.lake_table import (
+    COMMIT_TRIES,
+    TableLake,
+    TableRaceLost,
+    TableRun,
+    is_table_lake,
+)
 from objsearch.pipeline.bags.clock import fit_clock, pairs_from_doc
 from objsearch.pipeline.bags.errors import BagCommitError, BagConfigError
 from objsearch.pipeline.bags.session import (
@@ -148,7 +156,7 @@ def run_name(bag_id: str) -> str:
 
 @dataclass(frozen=True, slots=True)
 class _SessionRun:
-    info: RunInfo
+    info: RunInfo | TableRun
     doc: Mapping[str, Any]  # its _ingest.json: {"session": {...}, "pieces": {bag id: manifest}}
 
     @property
@@ -190,117 +198,73 @@ class _SessionRun:
         return {str(self.doc["bag_id"]): self.doc} if "bag_id" in self.doc else {}
 
 
-class BagLake:
-    """:class:`LakeWriter` over the event store's :class:`~objsearch.events.lake.Lake`."""
+def open_bag_lake(root: Path | str) -> BagLake | FleetBagLake:
+    """The lake ingest writes to at ``root``: the fleet lake (:class:`FleetBagLake`) for an
+    object-store URI or a folder holding one, else the per-run-folder lake (:class:`BagLake`)."""
+    if "://" in str(root) or is_table_lake(root):
+        return FleetBagLake(root)
+    return BagLake(Path(root))
 
-    def __init__(self, root: Path) -> None:
-        self.root = Path(root)
-        if is_table_lake(self.root):
-            # Its runs would land beside the table as folders no fleet query reads.
-            raise BagConfigError(
-                f"{self.root} is a fleet lake (a Delta table); objsearch ingest writes the "
-                "per-run-folder lake: ingest into a folder, then `objsearch lake upgrade --to "
-                f"fleet --lake FOLDER --into {self.root}` copies its runs into the fleet lake "
-                "(with their ingest reports; runs already there are skipped)"
-            )
-        self.lake = Lake(self.root, store=STORE)
 
-    def _sessions(self, runs: Sequence[RunInfo] | None = None) -> list[_SessionRun]:
-        """Every bag run with its ingest record (one small file a run)."""
+class _SessionLake:
+    """What ingest does with recording sessions, whichever lake keeps the runs: the hooks
+    below are each lake's reads and its commit."""
+
+    def _all_runs(self) -> Sequence[RunInfo | TableRun]:
+        raise NotImplementedError
+
+    def _run_doc(self, info: RunInfo | TableRun) -> bytes | str | None:
+        """A bag run's ``_ingest.json`` (None if it has none)."""
+        raise NotImplementedError
+
+    def _read(self, info: RunInfo | TableRun) -> Mapping[str, pa.Table]:
+        raise NotImplementedError
+
+    def _held_ids(self, info: RunInfo | TableRun) -> set[str]:
+        raise NotImplementedError
+
+    def _where(self, info: RunInfo | TableRun) -> Path | None:
+        """A run's folder (None in the fleet lake: its rows are in the table)."""
+        raise NotImplementedError
+
+    def _store(
+        self,
+        tables: Mapping[str, pa.Table],
+        *,
+        robot: str,
+        run: str,
+        source: str,
+        existing: _SessionRun | None,
+        absorbed: Sequence[_SessionRun],
+        doc: Mapping[str, Any],
+        identity: Mapping[str, str],
+    ) -> Path | None:
+        """Commit a session's run (replacing ``existing``, taking out ``absorbed``) and the
+        pieces' records; the run's folder, if it has one."""
+        raise NotImplementedError
+
+    def _write_report(self, bag_id: str, data: bytes) -> None:
+        raise NotImplementedError
+
+    def restore_report(self, bag_id: str) -> bool:
+        raise NotImplementedError
+
+    def _sessions(self, runs: Sequence[RunInfo | TableRun] | None = None) -> list[_SessionRun]:
+        """Every bag run with its ingest record."""
         found = []
-        for info in self.lake.runs() if runs is None else runs:
+        for info in self._all_runs() if runs is None else runs:
             if not info.run.startswith(RUN_PREFIX):
                 continue
             try:
-                doc = json.loads((info.path / RUN_REPORT).read_bytes())
+                text = self._run_doc(info)
+                doc = json.loads(text) if text is not None else {}
             except (OSError, ValueError):
                 doc = {}
             found.append(_SessionRun(info, doc if isinstance(doc, dict) else {}))
         return found
 
-    def known_pieces(self) -> dict[str, str]:
-        """Bag id → the converter key it was read with, for every bag the lake has taken (from
-        ``_bags/``: one small file a bag)."""
-        known = {}
-        for path in sorted((self.root / MANIFESTS).glob("*.json")):
-            try:
-                doc = json.loads(path.read_bytes())
-            except (OSError, ValueError):
-                continue
-            if isinstance(doc, dict):
-                known[path.stem] = str(doc.get("converter", ""))
-        return known
-
-    def complete_merges(self) -> list[str]:
-        """Finish what a commit killed between its steps left, and return the runs removed: a
-        run absorbed into its session's run but not yet removed (all its pieces are in a larger
-        run of the same robot, which holds their events), and pieces' copies in ``_bags/``
-        still naming the run they were in before."""
-        if not any(self._unfinished(self._sessions())):  # nothing to finish: take no lock
-            return []
-        try:
-            with self.lake.locked():
-                sessions = self._sessions()
-                stale, moved = self._unfinished(sessions)
-                for s in stale:
-                    self.lake.remove_run(s.info)
-                for bag_id, doc in moved.items():
-                    self._write_report(bag_id, _json(doc))
-        except (OSError, EventStoreError) as exc:
-            raise BagCommitError(
-                f"finishing an interrupted merge in {self.root} failed: {exc}"
-            ) from exc
-        for s in stale:
-            _log.warning(
-                "%s: removed run %s, merged into its session's run by a commit that was "
-                "interrupted before it removed it",
-                self.root,
-                s.info.run,
-            )
-        return [s.info.run for s in stale]
-
-    def _unfinished(
-        self, sessions: Sequence[_SessionRun]
-    ) -> tuple[list[_SessionRun], dict[str, Mapping[str, Any]]]:
-        """Runs whose pieces a larger run of their robot holds, and the ``_bags/`` copies (bag
-        id → the doc to write) whose run is not the one that holds them now."""
-        pieces = {s.info.path: set(s.pieces) for s in sessions}
-        stale = [
-            s
-            for s in sessions
-            if pieces[s.info.path]
-            and any(
-                o.info.robot == s.info.robot and pieces[s.info.path] < pieces[o.info.path]
-                for o in sessions
-            )
-        ]
-        moved: dict[str, Mapping[str, Any]] = {}
-        for s in sessions:
-            if s in stale or "pieces" not in s.doc:
-                continue
-            for bag_id, doc in s.pieces.items():
-                try:
-                    copy = json.loads((self.root / MANIFESTS / f"{bag_id}.json").read_bytes())
-                except (OSError, ValueError):
-                    continue  # a missing copy is restore_report's to write
-                if isinstance(copy, dict) and copy.get("run") != s.info.run:
-                    moved[bag_id] = doc
-        return stale, moved
-
-    def commit_piece(self, piece: Piece, *, robot: str) -> Commit:
-        """Commit a bag into its session's run, under the lake's lock: a new run, or the
-        session's run replaced by the merge of what it held and this piece (absorbing
-        provisional runs of the session's later pieces). See :mod:`..session`."""
-        try:
-            with self.lake.locked():
-                return self._commit_locked(piece, robot)
-        except (OSError, EventStoreError) as exc:
-            raise BagCommitError(
-                f"committing bag {piece.bag_id[:16]} to {self.root} failed: {exc}"
-            ) from exc
-
     def _commit_locked(self, piece: Piece, robot: str) -> Commit:
-        runs = self.lake.runs()
+        runs = self._all_runs()
         sessions = [s for s in self._sessions(runs) if s.info.robot == robot]
         rows = agent_rows(piece.tables)
         run_id = piece.run_id or self._proven_run_id(piece.first, runs)
@@ -331,9 +295,9 @@ class BagLake:
             same = holder.pieces[piece.bag_id].get("converter") == piece.converter
             if same and not piece.reingest and holder is existing and not absorbed:
                 self.restore_report(piece.bag_id)
-                return Commit(piece.bag_id, holder.info.path, 0, new=False, run=run)
+                return Commit(piece.bag_id, self._where(holder.info), 0, new=False, run=run)
             redo = True  # read again with another topic map or converter: replace its rows
-        old_tables = [self.lake.read_tables(s.info) for s in previous]
+        old_tables = [self._read(s.info) for s in previous]
         pieces: dict[str, Mapping[str, Any]] = {}
         for s in previous:
             pieces.update(s.pieces)
@@ -364,7 +328,7 @@ class BagLake:
             self._write_report(piece.bag_id, _json(doc))
             return Commit(
                 piece.bag_id,
-                existing.info.path,
+                self._where(existing.info),
                 0,
                 new=False,
                 run=run,
@@ -379,20 +343,16 @@ class BagLake:
             "clock": dataclasses.asdict(clock) if clock else None,
         }
         doc = {"session": session, "pieces": pieces}
-        info = self.lake.commit_tables(
+        where = self._store(
             tables,
             robot=robot,
             run=run,
-            date=_date(tables),
             source=f"bag session {run_id or run}" if first else f"bag:{piece.bag_id}",
-            replace=existing is not None,
-            attachments={RUN_REPORT: _json(doc)},
+            existing=existing,
+            absorbed=absorbed,
+            doc=doc,
             identity={"run_id": run_id} if run_id else {},
         )
-        for s in absorbed:
-            self.lake.remove_run(s.info)
-        for bag_id, piece_doc in pieces.items():
-            self._write_report(bag_id, _json(piece_doc))
         note = ""
         if joined:
             note = (
@@ -401,10 +361,10 @@ class BagLake:
             )
         elif len(pieces) > 1:
             note = f"merged into run {run} ({len(pieces)} bags of one recording session)"
-        return Commit(piece.bag_id, info.path, events - before, new=True, run=run, note=note)
+        return Commit(piece.bag_id, where, events - before, new=True, run=run, note=note)
 
     @staticmethod
-    def _proven_run_id(first: FirstEvent | None, runs: Sequence[RunInfo]) -> str | None:
+    def _proven_run_id(first: FirstEvent | None, runs: Sequence[RunInfo | TableRun]) -> str | None:
         """The run id, among those the lake's runs record (bag sessions and compacted logs),
         that the piece's lowest event id proves it belongs to."""
         if first is None:
@@ -414,7 +374,7 @@ class BagLake:
 
     @staticmethod
     def _refuse_other_holder(
-        piece: Piece, run_id: str, robot: str, runs: Sequence[RunInfo]
+        piece: Piece, run_id: str, robot: str, runs: Sequence[RunInfo | TableRun]
     ) -> None:
         """A run id the lake holds other than as this robot's bag session: refused."""
         for other in runs:
@@ -428,14 +388,16 @@ class BagLake:
                 f"({other.source}); ingesting it would count its events twice"
             )
 
-    def _refuse_held_ids(self, piece: Piece, rows: pl.DataFrame, runs: Sequence[RunInfo]) -> None:
+    def _refuse_held_ids(
+        self, piece: Piece, rows: pl.DataFrame, runs: Sequence[RunInfo | TableRun]
+    ) -> None:
         """A piece whose run nothing proves, whose event ids a run that is no bag session
         holds (a compacted log that records no run id): refused naming that run."""
         ids = set(rows["event_id"].to_list())
         for other in runs:
             if other.run.startswith(RUN_PREFIX) or other.identity.get("run_id"):
                 continue  # bag sessions are matched by their ids; run ids were checked
-            held = other.identity.get("first_event_id") in ids or bool(ids & _event_ids(other))
+            held = other.identity.get("first_event_id") in ids or bool(ids & self._held_ids(other))
             if held:
                 raise BagCommitError(
                     f"bag {piece.bag_id[:16]}'s agent events are already in the lake in run "
@@ -473,7 +435,7 @@ class BagLake:
                 continue
             theirs = s.spans
             if any(overlaps(a, b) for a in spans.values() for b in theirs.values()):
-                if same_ids(rows, agent_rows(self.lake.read_tables(s.info))):
+                if same_ids(rows, agent_rows(self._read(s.info))):
                     related.append(s)
             elif any(continues(a, b) for a in spans.values() for b in theirs.values()):
                 related.append(s)
@@ -508,6 +470,153 @@ class BagLake:
         if duplicate:
             doc["duplicate_of"] = run
         return doc
+
+
+class BagLake(_SessionLake):
+    """:class:`LakeWriter` over the event store's per-run-folder :class:`~objsearch.events.lake.Lake`."""
+
+    def __init__(self, root: Path) -> None:
+        self.root = Path(root)
+        if is_table_lake(self.root):
+            # Its runs would land beside the table as folders no fleet query reads.
+            raise BagConfigError(
+                f"{self.root} is a fleet lake (a Delta table): ingest into it through "
+                "FleetBagLake (open_bag_lake chooses)"
+            )
+        self.lake = Lake(self.root, store=STORE)
+
+    def _all_runs(self) -> Sequence[RunInfo]:
+        return self.lake.runs()
+
+    def _run_doc(self, info: RunInfo | TableRun) -> bytes | str | None:
+        assert isinstance(info, RunInfo)
+        return (info.path / RUN_REPORT).read_bytes()
+
+    def _read(self, info: RunInfo | TableRun) -> Mapping[str, pa.Table]:
+        assert isinstance(info, RunInfo)
+        return self.lake.read_tables(info)
+
+    def _held_ids(self, info: RunInfo | TableRun) -> set[str]:
+        assert isinstance(info, RunInfo)
+        return _event_ids(info)
+
+    def _where(self, info: RunInfo | TableRun) -> Path | None:
+        assert isinstance(info, RunInfo)
+        return info.path
+
+    def _store(
+        self,
+        tables: Mapping[str, pa.Table],
+        *,
+        robot: str,
+        run: str,
+        source: str,
+        existing: _SessionRun | None,
+        absorbed: Sequence[_SessionRun],
+        doc: Mapping[str, Any],
+        identity: Mapping[str, str],
+    ) -> Path | None:
+        info = self.lake.commit_tables(
+            tables,
+            robot=robot,
+            run=run,
+            date=_date(tables),
+            source=source,
+            replace=existing is not None,
+            attachments={RUN_REPORT: _json(doc)},
+            identity=identity,
+        )
+        for s in absorbed:
+            assert isinstance(s.info, RunInfo)
+            self.lake.remove_run(s.info)
+        for bag_id, piece_doc in doc["pieces"].items():
+            self._write_report(bag_id, _json(piece_doc))
+        return info.path
+
+    def known_pieces(self) -> dict[str, str]:
+        """Bag id → the converter key it was read with, for every bag the lake has taken (from
+        ``_bags/``: one small file a bag)."""
+        known = {}
+        for path in sorted((self.root / MANIFESTS).glob("*.json")):
+            try:
+                doc = json.loads(path.read_bytes())
+            except (OSError, ValueError):
+                continue
+            if isinstance(doc, dict):
+                known[path.stem] = str(doc.get("converter", ""))
+        return known
+
+    def complete_merges(self) -> list[str]:
+        """Finish what a commit killed between its steps left, and return the runs removed: a
+        run absorbed into its session's run but not yet removed (all its pieces are in a larger
+        run of the same robot, which holds their events), and pieces' copies in ``_bags/``
+        still naming the run they were in before."""
+        if not any(self._unfinished(self._sessions())):  # nothing to finish: take no lock
+            return []
+        try:
+            with self.lake.locked():
+                sessions = self._sessions()
+                stale, moved = self._unfinished(sessions)
+                for s in stale:
+                    assert isinstance(s.info, RunInfo)
+                    self.lake.remove_run(s.info)
+                for bag_id, doc in moved.items():
+                    self._write_report(bag_id, _json(doc))
+        except (OSError, EventStoreError) as exc:
+            raise BagCommitError(
+                f"finishing an interrupted merge in {self.root} failed: {exc}"
+            ) from exc
+        for s in stale:
+            _log.warning(
+                "%s: removed run %s, merged into its session's run by a commit that was "
+                "interrupted before it removed it",
+                self.root,
+                s.info.run,
+            )
+        return [s.info.run for s in stale]
+
+    def _unfinished(
+        self, sessions: Sequence[_SessionRun]
+    ) -> tuple[list[_SessionRun], dict[str, Mapping[str, Any]]]:
+        """Runs whose pieces a larger run of their robot holds, and the ``_bags/`` copies (bag
+        id → the doc to write) whose run is not the one that holds them now."""
+
+        def key(s: _SessionRun) -> tuple[str, str, str]:
+            return s.info.robot, s.info.date, s.info.run
+
+        pieces = {key(s): set(s.pieces) for s in sessions}
+        stale = [
+            s
+            for s in sessions
+            if pieces[key(s)]
+            and any(
+                o.info.robot == s.info.robot and pieces[key(s)] < pieces[key(o)] for o in sessions
+            )
+        ]
+        moved: dict[str, Mapping[str, Any]] = {}
+        for s in sessions:
+            if s in stale or "pieces" not in s.doc:
+                continue
+            for bag_id, doc in s.pieces.items():
+                try:
+                    copy = json.loads((self.root / MANIFESTS / f"{bag_id}.json").read_bytes())
+                except (OSError, ValueError):
+                    continue  # a missing copy is restore_report's to write
+                if isinstance(copy, dict) and copy.get("run") != s.info.run:
+                    moved[bag_id] = doc
+        return stale, moved
+
+    def commit_piece(self, piece: Piece, *, robot: str) -> Commit:
+        """Commit a bag into its session's run, under the lake's lock: a new run, or the
+        session's run replaced by the merge of what it held and this piece (absorbing
+        provisional runs of the session's later pieces). See :mod:`..session`."""
+        try:
+            with self.lake.locked():
+                return self._commit_locked(piece, robot)
+        except (OSError, EventStoreError) as exc:
+            raise BagCommitError(
+                f"committing bag {piece.bag_id[:16]} to {self.root} failed: {exc}"
+            ) from exc
 
     def record_without_run(self, bag_id: str, report: dict[str, Any]) -> None:
         """Keep the report of a bag that made no run (nothing in it to keep): what it claimed and
@@ -545,6 +654,141 @@ class BagLake:
     def _write_report(self, bag_id: str, data: bytes) -> None:
         _fs.make_dirs(self.root / MANIFESTS)
         _fs.write_atomic(self.root / MANIFESTS / f"{bag_id}.json", data)
+
+    def events(self) -> Iterator[Event]:
+        """Every event of every ingested bag (tests and small lakes; analysts use DuckDB)."""
+        for info in self.lake.runs():
+            if info.run.startswith(RUN_PREFIX):
+                yield from self.lake.read_events(info)
+
+
+#: The application transaction every bag commit of a robot carries (``objsearch/bags/<robot>``):
+#: two ingests of one robot's bags decide their commits from the table one at a time, as the
+#: folder lake's lock makes them.
+def bags_app(robot: str) -> str:
+    return f"objsearch/bags/{robot}"
+
+
+class FleetBagLake(_SessionLake):
+    """:class:`LakeWriter` over the fleet lake (:class:`~objsearch.events.lake_table.TableLake`,
+    a folder or a bucket). A bag's run — its events, derived tables and the session's ingest
+    record (``_ingest.json``: every piece's report) — and the runs merged into it are **one**
+    Delta transaction, decided from one version of the table and carrying the application
+    transactions of those runs and :func:`bags_app` of the robot: if another commit of them
+    came since, it fails and is decided again from the table as it is then (no lock, no
+    staging folder; nothing to finish after a crash). A bag that makes no run, or whose events
+    the lake holds already, is recorded in a row of its own (``type = '_bag'``): the lake
+    accounts for every bag it was given."""
+
+    def __init__(self, root: Path | str) -> None:
+        self.root = root
+        self.lake = TableLake(root, store=STORE)
+        self._table: Any = None
+
+    def _current(self) -> Any:
+        """The table as this commit decides from it (loaded once per try)."""
+        if self._table is None:
+            self.lake.create()
+            self._table = self.lake.table()
+        return self._table
+
+    def _all_runs(self) -> Sequence[TableRun]:
+        return self.lake.runs(self._current())
+
+    def _run_doc(self, info: RunInfo | TableRun) -> bytes | str | None:
+        assert isinstance(info, TableRun)
+        return info.attachments.get(RUN_REPORT)
+
+    def _read(self, info: RunInfo | TableRun) -> Mapping[str, pa.Table]:
+        assert isinstance(info, TableRun)
+        return self.lake.read_tables(info, self._current())
+
+    def _held_ids(self, info: RunInfo | TableRun) -> set[str]:
+        return {str(i) for t in self._read(info).values() for i in t["event_id"].to_pylist()}
+
+    def _where(self, info: RunInfo | TableRun) -> Path | None:
+        return None
+
+    def _store(
+        self,
+        tables: Mapping[str, pa.Table],
+        *,
+        robot: str,
+        run: str,
+        source: str,
+        existing: _SessionRun | None,
+        absorbed: Sequence[_SessionRun],
+        doc: Mapping[str, Any],
+        identity: Mapping[str, str],
+    ) -> Path | None:
+        replacing = [s.info.run for s in ([existing] if existing is not None else [])]
+        self.lake.commit_as_read(
+            self._current(),
+            tables,
+            robot=robot,
+            run=run,
+            date=_date(tables),
+            source=source,
+            attachments={RUN_REPORT: _json(doc).decode()},
+            identity=identity,
+            replacing=replacing + [s.info.run for s in absorbed],
+            apps=[bags_app(robot)],
+        )
+        return None
+
+    def _write_report(self, bag_id: str, data: bytes) -> None:
+        robot = json.loads(data).get("robot")
+        self.lake.record_bag(bag_id, str(robot) if robot else None, data.decode())
+
+    def known_pieces(self) -> dict[str, str]:
+        """Bag id → the converter key it was read with, for every bag the lake has taken: the
+        pieces its bag runs record, and the bags recorded outside any run."""
+        self._table = None
+        table = self._current()
+        known = {}
+        for bag_id, text in self.lake.bag_records(table).items():
+            doc = json.loads(text)
+            known[bag_id] = str(doc.get("converter", "")) if isinstance(doc, dict) else ""
+        for s in self._sessions(self.lake.runs(table)):
+            for bag_id, piece in s.pieces.items():
+                known[bag_id] = str(piece.get("converter", ""))
+        return dict(sorted(known.items()))
+
+    def complete_merges(self) -> list[str]:
+        """Nothing to finish: a merge is one transaction."""
+        return []
+
+    def restore_report(self, bag_id: str) -> bool:
+        """Nothing to restore: a run's pieces are recorded in its own commit."""
+        return False
+
+    def record_without_run(self, bag_id: str, report: dict[str, Any]) -> None:
+        doc = {"bag_id": bag_id, "robot": None, "run": None, "events": 0, "report": report}
+        try:
+            self.lake.record_bag(bag_id, None, _json(doc).decode())
+        except (OSError, EventStoreError) as exc:
+            raise BagCommitError(f"writing the report of bag {bag_id[:16]} failed: {exc}") from exc
+
+    def commit_piece(self, piece: Piece, *, robot: str) -> Commit:
+        """Commit a bag into its session's run (see the class); decided again while other
+        commits of this robot's bags come between the read and the commit."""
+        for attempt in range(COMMIT_TRIES):
+            self._table = None
+            try:
+                return self._commit_locked(piece, robot)
+            except TableRaceLost as exc:
+                _log.debug("%s: %s; deciding again", self.root, exc)
+                time.sleep(min(0.5, 0.02 * (attempt + 1)) * (1 + random.random()))
+            except (OSError, EventStoreError) as exc:
+                raise BagCommitError(
+                    f"committing bag {piece.bag_id[:16]} to {self.root} failed: {exc}"
+                ) from exc
+            finally:
+                self._table = None
+        raise BagCommitError(
+            f"committing bag {piece.bag_id[:16]} to {self.root} lost {COMMIT_TRIES} races with "
+            "other writers of this robot's bags; run the command again"
+        )
 
     def events(self) -> Iterator[Event]:
         """Every event of every ingested bag (tests and small lakes; analysts use DuckDB)."""

@@ -436,3 +436,13 @@ def test_a_writer_killed_mid_commit_leaves_whole_runs_and_the_next_one_finishes(
 
 def test_two_compactions_at_once_rewrite_every_row_once(tmp_path: Path) -> None:
     check_two_compactions_at_once(tmp_path / "lake", tmp_path / "logs")
+
+
+def test_a_run_of_one_event_type_is_replaced(tmp_path: Path) -> None:
+    # The replacement's rows lack every other type's column; delta-rs's overwrite wanted them
+    # all ("Cannot cast schema, number of fields does not match").
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    add_log(one_type_log(tmp_path / "a", stream="s", n=2), lake, robot="r", run="x")
+    add_log(one_type_log(tmp_path / "b", stream="s", n=4), lake, robot="r", run="x", replace=True)
+    assert [(r.run, r.events) for r in lake.runs()] == [("x", 5)]
+    assert table_counts(lake) == [("r", "x", 5)]

@@ -1,0 +1,191 @@
+"""``objsearch ingest`` straight into the fleet lake (a Delta table, in a folder or a bucket):
+the same runs as the per-run-folder lake, a session's merge in one transaction, ``--reingest``,
+idempotent re-ingest, every bag accounted for, and concurrent ingests of one robot's bags."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import boto3
+import pytest
+
+from objsearch.agent.catalogue import STORE
+from objsearch.events.lake import Lake
+from objsearch.events.lake_table import BAG_TYPE, TableLake
+from objsearch.pipeline.bags.formats import BagFormat
+from objsearch.pipeline.bags.ingest import ingest
+from objsearch.pipeline.bags.lake import BagLake, FleetBagLake, open_bag_lake
+from objsearch.ros.topics import TopicMap
+from objsearch.testing.s3server import s3_server
+
+from .bag_fixtures import Recorded, record_run
+from .splitter import split_ros1
+
+Content = tuple[list[tuple[str, str, dict[str, int], list[tuple[str, int, str]]]], dict[str, str]]
+
+
+@pytest.fixture(scope="module")
+def ros1(tmp_path_factory: pytest.TempPathFactory) -> Recorded:
+    return record_run(tmp_path_factory.mktemp("fleet-bags"), BagFormat.ROS1)
+
+
+@pytest.fixture(scope="module")
+def pieces(ros1: Recorded, tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    cut = split_ros1(ros1.bag, tmp_path_factory.mktemp("split"), duration_s=60.0)
+    assert len(cut) >= 3
+    return cut
+
+
+def fleet(root: Path | str) -> str:
+    TableLake(root, store=STORE).create()
+    return str(root)
+
+
+def content(root: Path | str) -> Content:
+    """Each bag run (robot, date, rows per type, its agent events) and the bags the lake knows
+    (bag id → converter), whichever lake it is."""
+    lake = open_bag_lake(root)
+    runs: list[tuple[str, str, dict[str, int], list[tuple[str, int, str]]]] = []
+    if isinstance(lake, FleetBagLake):
+        for t in lake.lake.runs():
+            events = sorted(
+                (e.event_id, e.time_ns, e.type)
+                for e in lake.lake.read_events(t)
+                if not e.stream.startswith("bag:")
+            )
+            runs.append((t.robot, t.date, dict(t.rows), events))
+    else:
+        folder = Lake(Path(root), store=STORE)
+        for r in folder.runs():
+            events = sorted(
+                (e.event_id, e.time_ns, e.type)
+                for e in folder.read_events(r)
+                if not e.stream.startswith("bag:")
+            )
+            runs.append((r.robot, r.date, dict(r.rows), events))
+    return sorted(runs), lake.known_pieces()
+
+
+def test_split_pieces_in_any_order_make_the_folder_lakes_run(
+    pieces: list[Path], tmp_path: Path
+) -> None:
+    shuffled = pieces[:]
+    random.Random(5).shuffle(shuffled)
+    folder = tmp_path / "folder"
+    ingest(shuffled, folder)
+    lake = fleet(tmp_path / "fleet")
+    results = ingest(shuffled, lake)
+    assert [r.error for r in results] == [None] * len(pieces)
+    assert content(lake) == content(folder)
+    assert len(content(lake)[0]) == 1  # one session, one run: the merges were one each
+    # Again: known, not read, nothing committed; the table gains no version.
+    version = TableLake(lake, store=STORE).table().version()
+    again = ingest(shuffled, lake)
+    assert all(r.already and r.report is None for r in again)
+    assert TableLake(lake, store=STORE).table().version() == version
+
+
+def test_reingest_replaces_the_bags_rows(ros1: Recorded, tmp_path: Path) -> None:
+    lake = fleet(tmp_path / "fleet")
+    [first] = ingest([ros1.bag], lake)
+    no_odom = TopicMap({t: r for t, r in TopicMap().topics.items() if t != "/odom"})
+    [again] = ingest([ros1.bag], lake, topic_map=no_odom)
+    assert not again.already and again.report is not None
+    [run] = TableLake(lake, store=STORE).runs()
+    assert first.report is not None
+    assert run.rows["pose_observed"] == again.report.event_types["pose_observed"]
+    [same] = ingest([ros1.bag], lake, topic_map=no_odom)
+    assert same.already
+    [forced] = ingest([ros1.bag], lake, topic_map=no_odom, reingest=True)
+    assert not forced.already and forced.error is None
+    ingest([ros1.bag], tmp_path / "folder", topic_map=no_odom)
+    assert content(lake) == content(tmp_path / "folder")
+
+
+def test_a_bag_with_nothing_in_it_is_accounted_for(tmp_path: Path) -> None:
+    from rosbags.rosbag1 import Writer
+
+    empty = tmp_path / "empty.bag"
+    with Writer(empty) as writer:
+        writer.add_connection("/chatter", "std_msgs/msg/String", typestore=None)
+    lake = fleet(tmp_path / "fleet")
+    [result] = ingest([empty], lake)
+    assert result.error is None and result.committed == 0 and "nothing committed" in result.note
+    table = TableLake(lake, store=STORE)
+    assert table.runs() == []
+    [(bag_id, record)] = table.bag_records().items()
+    doc = json.loads(record)
+    assert doc["run"] is None and doc["report"]["bag_id"] == bag_id
+    assert {f.kind for f in table.data_files()} == {BAG_TYPE}
+    [again] = ingest([empty], lake)  # read again (as the folder lake does), nothing to keep
+    assert again.error is None and again.committed == 0
+    assert list(table.bag_records()) == [bag_id] and table.runs() == []
+    # The folder lake keeps the same record in _bags/.
+    ingest([empty], tmp_path / "folder")
+    assert BagLake(tmp_path / "folder").known_pieces() == FleetBagLake(lake).known_pieces()
+
+
+INGEST = """
+import sys
+from pathlib import Path
+from objsearch.pipeline.bags.ingest import ingest
+results = ingest([Path(p) for p in sys.argv[2:]], sys.argv[1])
+assert all(r.error is None for r in results), [r.error for r in results]
+"""
+
+
+@pytest.mark.slow  # two processes ingesting: ~30 s on a shared machine
+def test_two_ingests_of_one_robots_pieces_at_once_make_one_run(
+    pieces: list[Path], tmp_path: Path
+) -> None:
+    # Each process commits its half of the pieces; merges race with merges. Each commit is
+    # decided from one version of the table and carries the robot's bag transaction, so a
+    # commit decided from a table another changed since fails and is decided again.
+    lake = fleet(tmp_path / "fleet")
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", INGEST, lake, *map(str, pieces[w::2])], env={**os.environ}
+        )
+        for w in range(2)
+    ]
+    assert [p.wait(timeout=900) for p in procs] == [0, 0]
+    ingest(pieces, tmp_path / "folder")
+    assert content(lake) == content(tmp_path / "folder")
+
+
+@pytest.fixture(scope="module")
+def bucket_env() -> Iterator[dict[str, str]]:
+    with s3_server() as settings:
+        yield settings
+
+
+def test_the_cli_ingests_into_a_bucket(
+    ros1: Recorded,
+    bucket_env: dict[str, str],
+    monkeypatch: pytest.MonkeyPatch,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from objsearch.cli import main
+
+    for name, value in bucket_env.items():
+        monkeypatch.setenv(name, value)
+    boto3.client("s3").create_bucket(Bucket="bags")
+    lake = "s3://bags/lake"
+    argv = ["ingest", str(ros1.bag), "--robot", "r1", "--no-progress", "--lake", lake]
+    assert main(argv) == 0
+    assert "committed" in capsys.readouterr().out
+    assert main(argv) == 0
+    assert "already in the lake" in capsys.readouterr().out
+    ingest([ros1.bag], tmp_path / "folder", robot="r1")
+    assert content(lake) == content(tmp_path / "folder")
+    sql = "SELECT count(*) FROM pose_observed"
+    assert main(["query", "--lake", lake, "--format", "csv", sql]) == 0
+    [run] = TableLake(lake, store=STORE).runs()
+    assert capsys.readouterr().out.splitlines() == ["count_star()", str(run.rows["pose_observed"])]
