@@ -21,9 +21,10 @@ from objsearch.experiments.learning import first_of_day, ratio
 from objsearch.experiments.metrics import spl_term
 from objsearch.experiments.runner import Row, inspection_suffix, read_output
 from objsearch.experiments.strategies import COVER_SUFFIX
+from objsearch.sim.schedule_names import ROUTINE_KINDS
 
 AFTER = 10
-#: routine-<seed>: the evaluation scenes are those after day 14 (four scenes a day,
+#: routine-<seed> and homer-<seed>: the evaluation scenes are those after day 14 (four scenes a day,
 #: sim/routine_schedule.py; docs/results-routine.md).
 ROUTINE_AFTER = 14 * 4
 #: The scenes' slots of a seeded schedule, in order (sim/routine_schedule.py SLOT_NAMES).
@@ -82,7 +83,7 @@ def _interval(value: float, low: float, high: float, n: int) -> str:
 
 def after_scene(k: str) -> int:
     """The last scene before a kind's evaluation scenes."""
-    return ROUTINE_AFTER if k == "routine" else AFTER
+    return ROUTINE_AFTER if k in ROUTINE_KINDS else AFTER
 
 
 def _spl(rows: Sequence[Row]) -> float:
@@ -405,7 +406,7 @@ def report(
             ],
             after,
         )
-        if k == "routine":
+        if k in ROUTINE_KINDS:
             lines += ["", *slot_lines(mine, after)]
         if k == "moved":
             lines += ["", *moved_lines(mine)]

@@ -10,8 +10,8 @@ decomposition (docs/results-routine.md, "Why even the time-aware oracle reaches 
   walked a wrong room first, and the first search of each scene (nothing seen yet that day)
   against the later ones (the robot has passed most objects while looking for earlier targets).
 
-``python -m objsearch.experiments.routine_ceiling RUN_DIR`` prints both for the run's homes and
-seeds.
+``python -m objsearch.experiments.routine_ceiling RUN_DIR... [--kind homer]`` prints both for the
+run's homes and seeds (``homer``: the HOMER-derived schedules, ``sim/homer_schedule.py``).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from pathlib import Path
 
 from objsearch.agent.home import load_home
 from objsearch.experiments.runner import Row, read_output
+from objsearch.sim.homer_schedule import homer_blind_distribution, homer_slot_distribution
 from objsearch.sim.longterm import TARGET_ORDER
 from objsearch.sim.routine_schedule import (
     SCENES_PER_DAY,
@@ -32,6 +33,7 @@ from objsearch.sim.routine_schedule import (
     routine_distribution,
     routines_by_week,
 )
+from objsearch.sim.schedule_names import ROUTINE_KINDS
 
 #: The evaluation week of the routine protocol (days 15-21).
 EVALUATED_WEEK = 2
@@ -50,21 +52,30 @@ def _rooms(dist: Mapping[str, float], room_of: Mapping[str, str]) -> dict[str, f
     return out
 
 
-def slot_effect(homes: Sequence[str], seeds: int, week: int = EVALUATED_WEEK) -> dict[str, float]:
+def slot_effect(
+    homes: Sequence[str], seeds: int, week: int = EVALUATED_WEEK, kind: str = "routine"
+) -> dict[str, float]:
     """Means over (home, seed, target, slot, day type), weighted by days: P(object at the
     time-blind mode) and P(at the slot's mode), the same for rooms, and how often the slot's
-    mode room differs from the time-blind one."""
+    mode room differs from the time-blind one. ``kind``: ``routine`` or ``homer`` (whose days
+    are all alike)."""
     sums: dict[str, float] = {}
     weight = 0.0
     for name in homes:
         home = load_home(name)
         room_of = {s.id: s.room for s in home.statics.values()}
         for seed in range(seeds):
-            table = routines_by_week(home, seed, week + 1)[week]
-            blind = blind_distribution(home, table)
+            if kind == "homer":
+                blind = homer_blind_distribution(home, seed)
+            else:
+                table = routines_by_week(home, seed, week + 1)[week]
+                blind = blind_distribution(home, table)
             for weekend, days in ((False, 7 - len(WEEKEND)), (True, len(WEEKEND))):
                 for slot in range(SCENES_PER_DAY):
-                    exact = routine_distribution(home, table, weekend, slot)
+                    if kind == "homer":
+                        exact = homer_slot_distribution(home, seed, slot)
+                    else:
+                        exact = routine_distribution(home, table, weekend, slot)
                     for cls in sorted(set(exact) & set(TARGET_ORDER)):
                         now, week_avg = exact[cls], blind[cls]
                         rooms_now = _rooms(now, room_of)
@@ -133,13 +144,25 @@ def path_split(rows: Sequence[Row], after: int = AFTER_SCENE) -> dict[str, dict[
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m objsearch.experiments.routine_ceiling")
-    parser.add_argument("run", type=Path, help="a bench homes output folder (routine schedules)")
+    parser.add_argument(
+        "runs",
+        type=Path,
+        nargs="+",
+        help="bench homes output folders (routine or homer schedules)",
+    )
+    parser.add_argument(
+        "--kind", choices=ROUTINE_KINDS, default="routine", help="the schedule kind (routine)"
+    )
     args = parser.parse_args(argv)
-    rows = [r for r in read_output(args.run) if r.placements.startswith("routine")]
+    rows = [
+        r for run in args.runs for r in read_output(run) if r.placements.startswith(f"{args.kind}-")
+    ]
+    if not rows:
+        parser.error(f"{' '.join(map(str, args.runs))}: no {args.kind}-<seed> searches")
     homes = sorted({r.home for r in rows})
     seeds = 1 + max(r.seed for r in rows)
     print(f"slot effect, week {EVALUATED_WEEK} ({len(homes)} homes, seeds 0-{seeds - 1}):")
-    for key, v in slot_effect(homes, seeds).items():
+    for key, v in slot_effect(homes, seeds, kind=args.kind).items():
         print(f"  {key:20s} {v:.3f}")
     print(f"paths after scene {AFTER_SCENE}:")
     for name, parts in path_split(rows).items():

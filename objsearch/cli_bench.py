@@ -381,7 +381,7 @@ def register(sub: Any) -> None:
         homes.add_argument(
             "--scenes-per-schedule",
             type=t.int_range(1, t.MAX_SEEDED_SCENES),
-            help=f"scenes per schedule, 1-{t.MAX_SEEDED_SCENES} (each kind's own: 10, habit 30, routine 84); "
+            help=f"scenes per schedule, 1-{t.MAX_SEEDED_SCENES} (each kind's own: 10, habit 30, routine and homer 84); "
             "stats and rearr schedules can be drawn longer than 10",
         ),
     )
@@ -392,7 +392,9 @@ def register(sub: Any) -> None:
         **t.LIST,
         help="comma-separated schedule kinds, each run with seeds 0..N-1: stats (drawn from "
         "AI2-THOR placement statistics), rearr (real rearrangement episodes; iTHOR homes only), "
-        "habit (objects with a usual place and alternates, 30 scenes) (stats)",
+        "habit (objects with a usual place and alternates, 30 scenes), moved, routine (routines "
+        "of our design, 84 scenes), homer (routines measured in the HOMER households, 84 scenes) "
+        "(stats)",
     )
     t.renamed(
         homes,

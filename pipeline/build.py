@@ -28,6 +28,8 @@ from .findings import (
     unaccepted,
 )
 from .home import SourceHome, build_home, check_home_name, check_home_spec, normalise_floorplan
+from .homer import HOMER, homer_routines_json
+from .homer import source_files as homer_files
 from .more_homes import HELDOUT_HOMES, HELDOUT_SEED, PROCTHOR_FILES, heldout_ithor_homes
 from .placement_stats import placement_stats_json
 from .procthor import build_procthor_home
@@ -365,7 +367,16 @@ def _more_homes(
         f"targets on our static types, median sizes from `{ASSETS.as_posix()}`, move rate from "
         "Table II (`pipeline/placement_stats.py`)."
     )
+    say("HOMER routines")
+    outputs["priors/homer_routines.json"] = jsonio.dumps(homer_routines_json(source))
+    lines.append(
+        "- `priors/homer_routines.json`: per HOMER household, search object and time of day "
+        "(07:30, 13:00, 18:30, 22:30), the days the object's place was each HOMER place, from "
+        f"`{HOMER.as_posix()}/` (`pipeline/homer.py`; its PLACE_TYPES and TARGET_OBJECTS map "
+        "HOMER places and objects onto ours)."
+    )
     files = {
+        "homer": homer_files(),
         "ithor": sorted(
             {Path(f"ai2thor/ithor_scenes/{r.source_scene}.json") for h in heldout for r in h.rooms}
         ),

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from .room_objects import OPENABLE_NOT_CONTAINER, PREFERRED_PART, SUPPORT_RADIUS_M
 from .rooms import FLOOR_CONTACT_M, NOT_OBSTACLES
-from .sourceinfo import ALL_SOURCES, EXTRA_SOURCES, REARRANGEMENT, SourceInfo
+from .sourceinfo import ALL_SOURCES, EXTRA_SOURCES, HOMER, REARRANGEMENT, SourceInfo
 from .sources import HOZ_ADJACENCY, VG_MATRIX, layout_path, openable_path, scene_path
 
 
@@ -159,6 +159,15 @@ def provenance_md(
                 f"`shared/data/{REARRANGEMENT.licence_file.as_posix()}`.",
             ]
             if files.get(REARRANGEMENT.key)
+            else []
+        ),
+        *(
+            [
+                f"- MIT: the HOMER household routines ({HOMER.copyright}), {HOMER.revision}. "
+                "`priors/homer_routines.json` holds counts derived from them. Full text: "
+                f"`shared/data/{HOMER.licence_file.as_posix()}`.",
+            ]
+            if files.get(HOMER.key)
             else []
         ),
         "- The paper's Table I and Table II are facts transcribed from Zhou et al., \"Long-term "

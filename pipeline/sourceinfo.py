@@ -113,4 +113,19 @@ REARRANGEMENT = SourceInfo(
     copyright="Copyright 2021 Allen Institute for AI",
 )
 
-EXTRA_SOURCES: tuple[SourceInfo, ...] = (PROCTHOR_HOUSES, PROCTHOR_DB, REARRANGEMENT)
+HOMER = SourceInfo(
+    key="homer",
+    local=Path("homer"),
+    repo="Maithili/SpatioTemporalObjectTracking (HOMER, Patel & Chernova, CoRL 2022)",
+    revision="commit f4ce4141d3210ba2c18879c64450db6906e534ff",
+    commit="f4ce4141d3210ba2c18879c64450db6906e534ff",
+    upstream_path=(
+        "data/householdsDifferent/household*/processed/ (common_data.json as upstream; the day "
+        "files compacted to days.json, see the shared PROVENANCE.md)"
+    ),
+    licence="MIT",
+    licence_file=Path("homer/LICENSE.SpatioTemporalObjectTracking"),
+    copyright="Copyright (c) 2022 Maithili Patel",
+)
+
+EXTRA_SOURCES: tuple[SourceInfo, ...] = (PROCTHOR_HOUSES, PROCTHOR_DB, REARRANGEMENT, HOMER)

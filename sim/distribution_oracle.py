@@ -15,6 +15,8 @@ against it. It learns nothing across scenes.
   averaged over the week's slots and days (:func:`blind_distribution`) for the routines in force
   that week (it knows the days of the drift, not the hour): the best a memory that ignores the
   time of day could learn;
+- ``homer-<seed>``: likewise the average of the HOMER routines' four slots
+  (:func:`homer_blind_distribution`; every day is the same, nothing drifts);
 - ``stats-<seed>`` / ``rearr-<seed>``'s stats fallback: the first scene's draw; each later scene
   keeps the object with probability 1 − m (the move rate) and otherwise draws it again among the
   *other* places, so once the robot has seen the object at place j in scene n₀, scene n's
@@ -22,7 +24,7 @@ against it. It learns nothing across scenes.
   object not seen yet is at q·Pⁿ⁻¹ (:func:`chain`). Without this the "reference" lost to a memory
   that simply remembers yesterday.
 
-Every distribution but the routine's is the one *after* the generators' visibility redraws
+Every distribution but the routine kinds' is the one *after* the generators' visibility redraws
 (``stats_schedule.place_seeable``): a placement on static s is kept with the share v(s) of its rest
 points a viewpoint sees (:func:`seeable_shares`), and a refused one is drawn again from the fresh
 draw, so P(s) = d(s)·v(s) + (Σ_t d(t)·(1 − v(t)))·q_v(s), q_v ∝ q·v (:func:`after_redraws`). Left
@@ -48,6 +50,7 @@ from objsearch.sim.habit_schedule import (
     moved_habits,
     stats_distribution,
 )
+from objsearch.sim.homer_schedule import homer_blind_distribution, homer_slot_distribution
 from objsearch.sim.routine_schedule import (
     SCENES_PER_DAY,
     WEEKEND,
@@ -56,7 +59,7 @@ from objsearch.sim.routine_schedule import (
     routines_by_week,
     scene_day,
 )
-from objsearch.sim.schedule_names import parse_seeded
+from objsearch.sim.schedule_names import ROUTINE_KINDS, parse_seeded
 from objsearch.sim.seeable import seeable
 from objsearch.sim.stats_schedule import PlacementStats, _receptacle_type, _rest_points
 from objsearch.sim.world import Placement
@@ -132,6 +135,8 @@ def schedule_distribution(
     if seeded is not None and seeded[0] == "routine":
         week = scene_day(scene or 1) // 7
         return blind_distribution(home, routines_by_week(home, seeded[1], week + 1)[week])
+    if seeded is not None and seeded[0] == "homer":
+        return homer_blind_distribution(home, seeded[1])
     stats = PlacementStats.load()
     statics = sorted(home.statics.values(), key=lambda s: s.id)
     if seeded is not None and seeded[0] == "moved" and scene is not None and scene >= MOVE_SCENE:
@@ -195,7 +200,7 @@ class DistributionOracle:
         seeded = parse_seeded(schedule) if schedule else None
         if seeded is not None and seeded[0] == "moved":
             self.moved = schedule_distribution(home, schedule, scene=MOVE_SCENE)
-        if seeded is not None and seeded[0] == "routine":
+        if seeded is not None and seeded[0] in ROUTINE_KINDS:
             self.weekly = {}
         if seeded is not None and seeded[0] == "stats":
             self.move_rate = PlacementStats.load().move_rate
@@ -280,7 +285,8 @@ class DistributionOracle:
 class SlotOracle(DistributionOracle):
     """The distribution oracle that also knows the time of day: on ``routine-<seed>`` the
     routine's exact per-scene distribution for the scene's slot and day type
-    (:func:`routine_distribution`, the week's routines); elsewhere the same as
+    (:func:`routine_distribution`, the week's routines), on ``homer-<seed>`` the slot's
+    (:func:`homer_slot_distribution`); elsewhere the same as
     :class:`DistributionOracle`. A REFERENCE (the ceiling of a memory that knows the hour)."""
 
     slots: dict[tuple[int, bool, int], dict[str, dict[str, float]]] = field(default_factory=dict)
@@ -294,8 +300,11 @@ class SlotOracle(DistributionOracle):
         which = (day // 7, day % 7 in WEEKEND, (key[1] - 1) % SCENES_PER_DAY)
         if which not in self.slots:
             home = load_home(self.home)
-            table = routines_by_week(home, seeded[1], which[0] + 1)[which[0]]
-            self.slots[which] = routine_distribution(home, table, which[1], which[2])
+            if seeded[0] == "homer":
+                self.slots[which] = homer_slot_distribution(home, seeded[1], which[2])
+            else:
+                table = routines_by_week(home, seeded[1], which[0] + 1)[which[0]]
+                self.slots[which] = routine_distribution(home, table, which[1], which[2])
         return self.slots[which]
 
     snapshot_name: ClassVar[str] = "slot_oracle"

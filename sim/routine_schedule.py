@@ -24,8 +24,8 @@ Then every scene (one slot of one day) independently:
 - with ``P_ANYWHERE`` at a fresh draw from the stats distribution over *all* valid statics.
 
 The parameters were fixed before any run (docs/results-routine.md, "Protocol") and are not tuned.
-They are not derived from a routine dataset: the HOMER routines (Patel & Chernova) were looked at
-and could not be used here (docs/results-routine.md, "Why not HOMER"). :func:`routine_distribution`
+They are not derived from a routine dataset; ``homer-<seed>`` (``sim/homer_schedule.py``) draws
+from routines measured in the HOMER households (Patel & Chernova) instead. :func:`routine_distribution`
 is the exact per-scene distribution of one slot and day type; :func:`blind_distribution` is its
 average over the week's 28 scenes (the time-blind distribution oracle's knowledge), both for the
 routines in force on a given day.

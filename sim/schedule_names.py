@@ -6,7 +6,9 @@
 - ``habit-<seed>``: objects with habits, 30 scenes (``sim/habit_schedule.py``);
 - ``moved-<seed>``: the same habits until scene 11, new ones (another room) from then on;
 - ``routine-<seed>``: where an object is depends on the time of day and the weekday, habits
-  drift week by week, 84 scenes (``sim/routine_schedule.py``).
+  drift week by week, 84 scenes (``sim/routine_schedule.py``);
+- ``homer-<seed>``: routines measured in the HOMER households (Patel & Chernova), laid onto the
+  home, 84 scenes (``sim/homer_schedule.py``).
 
 Every seeded schedule's scenes are times of day, four a day (``routine_schedule.scene_clock``),
 and each search records its scene's (``task_started.clock``); a file schedule's scenes have none.
@@ -19,13 +21,16 @@ from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home
 from objsearch.sim.habit_schedule import HABIT_SCENES, habit_schedule
+from objsearch.sim.homer_schedule import homer_schedule
 from objsearch.sim.placements import Schedule
 from objsearch.sim.rearr_schedule import rearr_schedule
 from objsearch.sim.routine_schedule import routine_schedule, scene_clock
 from objsearch.sim.stats_schedule import SCENES, stats_schedule
 
 #: Seeded schedule kinds: ``<kind>-<seed>``.
-SEEDED_KINDS = ("stats", "rearr", "habit", "moved", "routine")
+SEEDED_KINDS = ("stats", "rearr", "habit", "moved", "routine", "homer")
+#: The kinds whose scenes' places depend on the time of day.
+ROUTINE_KINDS = ("routine", "homer")
 
 
 class UnknownScheduleError(ObjsearchError, ValueError):
@@ -58,7 +63,7 @@ def parse_seeded(name: str) -> tuple[str, int] | None:
 
 def load_schedule(home: Home, name: str, *, scenes: int | None = None) -> Schedule:
     """The schedule ``name`` for ``home`` (``scenes`` applies to the seeded kinds only; default:
-    the kind's own length, 10 scenes, 30 for ``habit``, 84 for ``routine``)."""
+    the kind's own length, 10 scenes, 30 for ``habit``, 84 for ``routine`` and ``homer``)."""
     seeded = parse_seeded(name)
     if seeded is not None:
         kind, seed = seeded
@@ -66,6 +71,8 @@ def load_schedule(home: Home, name: str, *, scenes: int | None = None) -> Schedu
             return habit_schedule(home, seed, scenes=scenes or HABIT_SCENES, moved=kind == "moved")
         if kind == "routine":
             return routine_schedule(home, seed, scenes=scenes)
+        if kind == "homer":
+            return homer_schedule(home, seed, scenes=scenes)
         scenes = scenes or SCENES
         if kind == "stats":
             return stats_schedule(home, seed, scenes=scenes)

@@ -45,3 +45,10 @@ def test_the_first_search_of_a_scene_is_split_from_the_later_ones() -> None:
     assert split["straight_share"] == 0.5
     assert split["excess_straight_m"] == pytest.approx(0.5)
     assert split["excess_detour_m"] == pytest.approx(3.0)
+
+
+def test_the_homer_slot_effect_is_read_from_the_homer_routines() -> None:
+    effect = slot_effect(["ithor-01"], 1, kind="homer")
+    assert 0 < effect["place_blind_mode"] <= effect["place_slot_mode"] <= 1
+    assert effect["room_blind_mode"] <= effect["room_slot_mode"] <= 1
+    assert effect != slot_effect(["ithor-01"], 1)
