@@ -168,13 +168,29 @@ def data_build_commands(data: Path) -> list[str]:
     return [c if " --out " in c else f"{c} --out {data}" for c in commands]
 
 
+#: bench homes options renamed after runs recorded their command line (the old spellings still
+#: parse, with a note): a recorded command is shown with today's names, so a reader who copies it
+#: gets no notes. tests/test_cli_conventions.py keeps it equal to the CLI's deprecated aliases.
+RENAMED_OPTIONS: dict[str, str] = {
+    "--scenes": "--scenes-per-schedule",
+    "--starts": "--starts-per-scene",
+}
+
+
+def todays_spelling(command: str) -> str:
+    """A recorded bench homes command line with its renamed options spelled as today."""
+    return re.sub(r"(?<=\s)(--[a-z-]+)(?=\s)", lambda m: RENAMED_OPTIONS.get(m[1], m[1]), command)
+
+
 def homes_command(summary: dict[str, Any], folder: Path) -> str:
-    """The full command that produced a bench homes output: as recorded, or rebuilt from the
-    summary's fields for runs from before summaries recorded it. A run with no camera recorded
-    predates the occluding camera, so it used the geometric one."""
+    """The full command that produced a bench homes output: as recorded (today's option names),
+    or rebuilt from the summary's fields for runs from before summaries recorded it. A run with no
+    camera recorded predates the occluding camera, so it used the geometric one."""
     camera = str(summary.get("camera", "geometric"))
     command = summary.get("command")
-    if command is None:
+    if command is not None:
+        command = todays_spelling(str(command))
+    else:
         strategies = [k for k in summary.get("strategies", {}) if "/" not in k]
         scenes, starts = summary.get("scenes"), summary.get("starts_per_search")
         command = command_line(

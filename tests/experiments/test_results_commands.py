@@ -13,9 +13,11 @@ from pathlib import Path
 
 import pytest
 
+from objsearch import cli_battery as battery
+from objsearch import cli_types as t
 from objsearch.agent.datapaths import data_dir
 from objsearch.cli import build_parser, main
-from objsearch.experiments.homes import data_build_commands, homes_command
+from objsearch.experiments.homes import RENAMED_OPTIONS, data_build_commands, homes_command
 
 REPO = Path(__file__).resolve().parents[2]
 RESULTS = REPO / "docs" / "results.md"
@@ -170,6 +172,27 @@ def test_a_summary_without_its_command_gets_a_full_one(tmp_path: Path) -> None:
     )
     assert homes_command({**summary, "camera": "occluding"}, tmp_path).count("--camera") == 0
     build_parser().parse_args(shlex.split(command)[1:])
+
+
+def test_a_recorded_command_is_shown_with_todays_option_names(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Runs recorded before --scenes/--starts became counts per schedule and scene: the page shows
+    their command as today's CLI spells it, so a reader who copies it gets no deprecation note."""
+    leaves = dict(battery.leaf_parsers(build_parser()))
+    aliases = {
+        option: action.new
+        for action in leaves[("bench", "homes")]._actions
+        if isinstance(action, t.Deprecated) and action.dest != "format"
+        for option in action.option_strings
+    }
+    assert aliases == RENAMED_OPTIONS
+    recorded = "objsearch bench homes --out out/h --homes ithor-02 --seeds 2 --scenes 15 --starts 1"
+    command = homes_command({"command": recorded, "camera": "occluding"}, tmp_path)
+    assert command.endswith("--seeds 2 --scenes-per-schedule 15 --starts-per-scene 1")
+    capsys.readouterr()
+    build_parser().parse_args(shlex.split(command)[1:])
+    assert capsys.readouterr().err == ""
 
 
 def test_a_bench_on_a_data_folder_records_its_build(
