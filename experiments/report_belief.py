@@ -260,6 +260,102 @@ def per_day(rows: Sequence[Row]) -> dict[str, dict[int, float]]:
     return out
 
 
+#: The learning curve is read in this many consecutive blocks of days (docs/results-belief.md, v5).
+CURVE_BLOCKS = 4
+
+
+def _blocks(days: Sequence[int], count: int = CURVE_BLOCKS) -> list[tuple[int, ...]]:
+    """``days`` in ``count`` consecutive blocks, the earlier ones a day longer when it does not
+    divide (15 days: 4, 4, 4, 3)."""
+    size, extra = divmod(len(days), count)
+    out, at = [], 0
+    for i in range(count):
+        n = size + (1 if i < extra else 0)
+        out.append(tuple(days[at : at + n]))
+        at += n
+    return [b for b in out if b]
+
+
+def trend_lines(rows: Sequence[Row]) -> list[str]:
+    """Whether the learning curve keeps falling: per strategy, the first search of the day ÷ the
+    reference's (the table's distribution oracle, same runs and days: the days' own difficulty
+    cancels) in consecutive blocks of days, and each block's paired change from the one before
+    (per run, then the mean over runs, 95 % bootstrap CI over runs). A change whose CI lies above
+    0 is a rise beyond noise; one whose CI holds 0 is flat within noise."""
+    firsts = first_of_day(rows)
+    days = sorted({r.scene for r in firsts})
+    blocks = _blocks(days)
+    present = _references(list(dict.fromkeys(r.strategy for r in firsts)))
+    if len(blocks) < 2 or not present:
+        return []
+    span = [f"{b[0]}–{b[-1]}" if len(b) > 1 else str(b[0]) for b in blocks]
+    lines = []
+    for reference in present:
+        suffix = inspection_suffix(reference)
+        theirs = _runs([r for r in firsts if r.strategy == reference])
+
+        def level(
+            rs: Sequence[Row],
+            key: tuple[str, str],
+            block: tuple[int, ...],
+            theirs: dict[tuple[str, str], list[Row]] = theirs,
+        ) -> float:
+            ref = [r for r in theirs.get(key, []) if r.scene in block]
+            mine = [r for r in rs if r.scene in block]
+            return ratio(mine) / ratio(ref) if mine and ref else math.nan
+
+        lines += [
+            f"Learning curve by blocks of days: first search ÷ {reference}'s on the same runs "
+            "and days (change: paired over runs, 95 % CI):",
+            "",
+            "| strategy | "
+            + " | ".join(f"days {d}" for d in span)
+            + " | "
+            + " | ".join(f"Δ {span[i]} → {span[i + 1]}" for i in range(len(span) - 1))
+            + " |",
+            "|---|" + "---|" * (2 * len(span) - 1),
+        ]
+        for s in dict.fromkeys(r.strategy for r in firsts):
+            if s == reference or inspection_suffix(s) != suffix:
+                continue
+            runs = {
+                k: v
+                for k, v in _runs([r for r in firsts if r.strategy == s]).items()
+                if k in theirs
+            }
+            if not runs:
+                continue
+            per_run = {k: [level(v, k, b) for b in blocks] for k, v in runs.items()}
+            cells = []
+            for i in range(len(blocks)):
+                values = [v[i] for v in per_run.values() if not math.isnan(v[i])]
+                cells.append(f"{math.fsum(values) / len(values):.3f}" if values else "–")
+            for i in range(len(blocks) - 1):
+                diffs = [
+                    v[i + 1] - v[i]
+                    for v in per_run.values()
+                    if not (math.isnan(v[i]) or math.isnan(v[i + 1]))
+                ]
+                cells.append(_change(diffs))
+            lines.append(f"| {s} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return lines[:-1]
+
+
+def _change(diffs: Sequence[float]) -> str:
+    if not diffs:
+        return "–"
+    mean = math.fsum(diffs) / len(diffs)
+    if len(diffs) < MIN_RUNS:
+        return f"{mean:+.3f} (n={len(diffs)})"
+    rng = random.Random(0)
+    boot = sorted(
+        math.fsum(rng.choice(diffs) for _ in diffs) / len(diffs) for _ in range(RESAMPLES)
+    )
+    low, high = boot[int(0.025 * RESAMPLES)], boot[int(0.975 * RESAMPLES) - 1]
+    return f"{mean:+.3f} [{low:+.3f}, {high:+.3f}]"
+
+
 def moved_lines(rows: Sequence[Row]) -> list[str]:
     """What a move costs: per strategy the pre-move level (days 6–10), the days after the move
     until the first-search ratio is back within 10 % of it, and days worse than ``ecost``."""
@@ -412,6 +508,8 @@ def report(
             lines += ["", *moved_lines(mine)]
         if k == "habit":
             lines += ["", *usual_place_lines(mine)]
+        if k in ("habit", "stats"):
+            lines += ["", *trend_lines(mine)]
         lines += ["", "Calibration of the belief's forecast at the start of each search:", ""]
         lines += calibration_lines(mine)
         lines += ["", "Failures (strategy: home target ×searches):", *failure_lines(mine)]

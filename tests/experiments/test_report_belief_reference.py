@@ -11,6 +11,7 @@ from objsearch.experiments.report_belief import (
     ratio_table,
     read_outputs,
     report,
+    trend_lines,
     usual_place_lines,
 )
 from objsearch.experiments.runner import Row, write_rows
@@ -95,3 +96,41 @@ def test_a_report_of_cover_runs_alone_reads_them_against_each_other(tmp_path: Pa
     assert "÷ dist-oracle-global+cover after scene 10" in text
     assert "| global-belief+cover − ecost-belief+cover | 1 |" in text
     assert "| global-belief+cover − dist-oracle-global+cover | 1 |" in text
+
+
+def test_the_learning_curve_is_read_against_the_reference_block_by_block() -> None:
+    """Days 1-8 in four blocks of two; the belief walks 2.0x the oracle's path on days 1-2, then
+    1.5x; the reference's own day-to-day difficulty (x1, then x3) cancels."""
+    rows = []
+    for home in ("ithor-01", "ithor-02"):
+        for scene in range(1, 9):
+            hard = 1.0 if scene <= 4 else 3.0
+            for name, factor in (
+                ("dist-oracle-global", hard),
+                ("global-belief", hard * (2.0 if scene <= 2 else 1.5)),
+            ):
+                rows.append(
+                    Row(
+                        experiment="homes",
+                        home=home,
+                        placements="habit-0",
+                        strategy=name,
+                        update_mode="all",
+                        seed=0,
+                        scene=scene,
+                        target="Cup",
+                        start="s",
+                        success=True,
+                        path_length=factor * 4.0,
+                        oracle_length=4.0,
+                        task_id=f"{home}-{name}-{scene}",
+                    )
+                )
+    lines = trend_lines(rows)
+    assert "first search ÷ dist-oracle-global's on the same runs and days" in lines[0]
+    assert "| days 1–2 | days 3–4 | days 5–6 | days 7–8 | Δ 1–2 → 3–4 |" in lines[2]
+    row = next(line for line in lines if line.startswith("| global-belief |"))
+    assert row == (
+        "| global-belief | 2.000 | 1.500 | 1.500 | 1.500 | -0.500 (n=2) | +0.000 (n=2) "
+        "| +0.000 (n=2) |"
+    )
