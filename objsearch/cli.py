@@ -541,7 +541,11 @@ def _tolerate_narrow_terminals() -> None:
             stream.reconfigure(errors="backslashreplace")
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(
+    argv: Sequence[str] | None = None, *, parser: argparse.ArgumentParser | None = None
+) -> int:
+    """Run ``objsearch ARGV``; ``parser`` is one :func:`build_parser` made before (the kill-test
+    server builds it once for all its commands)."""
     from objsearch.events import TornTailWarning
 
     _tolerate_narrow_terminals()
@@ -549,7 +553,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     # warning (for library users); on the command line the log line alone is enough.
     logging.basicConfig(format="objsearch: %(levelname)s: %(message)s", level=logging.WARNING)
     warnings.filterwarnings("ignore", category=TornTailWarning)
-    parser = build_parser()
+    parser = parser or build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, or a bad option (already reported as objsearch: error:)
