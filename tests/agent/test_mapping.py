@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -33,15 +32,8 @@ from objsearch.sim.render import SimulatedCamera, SurveyFrames
 CPU = torch.device("cpu")
 
 
-@pytest.fixture(autouse=True, scope="module")
-def one_torch_thread() -> Iterator[None]:
-    """Fuse on one thread, as ``objsearch map build`` does by default (``--threads 1``): with two
-    OpenMP threads on a 2-core machine that other processes share, torch waits on its thread
-    barrier; the paper home's map took 47 s with two threads there (load 7), 8 s with one."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+#: Fused on one thread, as the CLI does (tests/conftest.py).
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def test_the_single_sampling_point_is_the_rooms_door() -> None:

@@ -37,6 +37,8 @@ from objsearch.sim.render import SimulatedCamera, SurveyFrames
 
 ROOMS = ["bathroom"]
 CPU = torch.device("cpu")
+#: Fused on one thread, as the CLI does (tests/conftest.py).
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 CONFIG = MappingConfig(points_per_room=1)
 
 
