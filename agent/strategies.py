@@ -62,7 +62,7 @@ _RUN_STARTED_V2_TO_V3: Final = STEPS["run_started", 2]
 #: Relation models built outside the agent, by name, handed to whatever folds a log
 #: (``AgentState(models=...)``, ``Session.open(..., models=...)``): the agent cannot import them
 #: (dist-oracle reads the simulator's schedule generator). The composition root passes the
-#: simulator's (:data:`objsearch.sim.distribution_oracle.SIM_MODELS`) when asked to; nothing is
+#: simulator's (:data:`objsearch.sim.models.SIM_MODELS`) when asked to; nothing is
 #: registered by importing anything.
 RelationModels = Mapping[str, Callable[[], RelationModel]]
 #: The agent's own models only (eq4, beta, memory).
@@ -146,7 +146,7 @@ class RelationSpec:
             raise ObjsearchError(
                 f"the {self.model} relation model is a simulation reference that reads the "
                 "schedule's generator; fold such a run with the simulator's models "
-                "(models=objsearch.sim.distribution_oracle.SIM_MODELS)"
+                "(models=objsearch.sim.models.SIM_MODELS)"
             )
         if self.model == "beta":
             assert self.prior_strength is not None

@@ -116,10 +116,8 @@ def _paper_schedule_only(home: str, what: str, how: str) -> str:
 def cmd_search(args: argparse.Namespace) -> int:
     from objsearch.agent.session import Session, load_context
     from objsearch.product import relation_models
-    from objsearch.sim.longterm import with_camera
     from objsearch.sim.placements import base_placements, has_table1_scenario, table1_removals
-    from objsearch.sim.schedule_names import load_schedule
-    from objsearch.sim.world import SimClock, SimWorld
+    from objsearch.sim.world import SimClock, SimWorld, with_camera
 
     ctx = load_context(args.home)
     target = ctx.vocabulary.resolve_target(args.target).name
@@ -138,6 +136,9 @@ def cmd_search(args: argparse.Namespace) -> int:
                 "only), e.g. --schedule stats-0"
             )
             return _fail(_paper_schedule_only(ctx.home.name, "search --scene", how))
+        # Here, not above: the schedule kinds' generators are for a search in a scheduled scene.
+        from objsearch.sim.schedule_names import load_schedule
+
         schedule = load_schedule(ctx.home, args.schedule)
         if args.scene not in schedule.scenes:
             return _fail(

@@ -20,6 +20,6 @@ def relation_models(*, simulator: bool = False) -> RelationModels:
     """The relation models a fold may build: the agent's, and the simulator's if asked."""
     if not simulator:
         return AGENT_MODELS
-    from objsearch.sim.distribution_oracle import SIM_MODELS
+    from objsearch.sim.models import SIM_MODELS
 
     return {**AGENT_MODELS, **SIM_MODELS}

@@ -2,5 +2,5 @@
 
 Importing it does nothing else: the distribution oracle (a reference relation model that reads
 the schedule's generator, which the agent cannot import) is handed to a fold as
-:data:`objsearch.sim.distribution_oracle.SIM_MODELS`.
+:data:`objsearch.sim.models.SIM_MODELS`.
 """

@@ -37,13 +37,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, ClassVar, Final
+from typing import Any, ClassVar
 
 from objsearch.agent.belief import Today
 from objsearch.agent.catalogue import RunStarted, SceneGraphSeeded, TaskStarted, decode
 from objsearch.agent.home import Box, Home, load_home
 from objsearch.agent.scene_graph import EventLike, Pair
-from objsearch.agent.strategies import RelationModels
 from objsearch.sim.habit_schedule import (
     MOVE_SCENE,
     habit_distribution,
@@ -314,10 +313,3 @@ class SlotOracle(DistributionOracle):
         oracle = super().from_snapshot(state, last_seq)
         assert isinstance(oracle, SlotOracle)
         return oracle
-
-
-#: The simulator's relation models by name, for a fold of a log whose spec may name one
-#: (``AgentState(models=SIM_MODELS)``, ``Session.open(..., models=SIM_MODELS)``).
-SIM_MODELS: Final[RelationModels] = MappingProxyType(
-    {"dist-oracle": DistributionOracle, "slot-oracle": SlotOracle}
-)

@@ -17,17 +17,15 @@ from objsearch.agent.errors import DataFileError
 from objsearch.agent.geometry import Point, Pose
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
-from objsearch.sim.distribution_oracle import SIM_MODELS
+from objsearch.sim.models import SIM_MODELS
 from objsearch.sim.placements import Placements, base_placements, table1_removals
 from objsearch.sim.schedule_names import load_schedule, schedule_clock
 from objsearch.sim.seeable import seeable_scenes
 from objsearch.sim.world import (
-    DEFAULT_CAMERA,
-    SearchCamera,
     SimClock,
     SimWorld,
     WorldObserver,
-    search_camera,
+    with_camera,
 )
 
 TARGET_ORDER = ("Apple", "Cup", "Bowl", "Phone", "Laptop", "Pillow", "Vase", "ToiletPaper")
@@ -60,14 +58,6 @@ def scenes_of(home_name: str, source: str, *, upto: int | None = None) -> dict[i
     if source == "table1":
         return {0: base_placements(ctx.home, table1_removals(ctx.home))}
     return dict(load_schedule(ctx.home, source, scenes=upto).scenes)
-
-
-def with_camera(spec: RunSpec) -> tuple[RunSpec, SearchCamera]:
-    """The spec's search camera (``params["camera"]``), and the spec with it recorded: a spec that
-    names none gets the default, so every simulated log says which camera produced it."""
-    name = spec.params.get("camera", DEFAULT_CAMERA)
-    camera = search_camera(str(name))
-    return spec.with_changes(params={**spec.params, "camera": camera.name}), camera
 
 
 def run_schedule(

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from objsearch.agent.camera_frames import pitch_towards
 from objsearch.agent.errors import ObjsearchError
@@ -16,6 +16,9 @@ from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
 from objsearch.sim.perception import Camera
 from objsearch.sim.visibility import OccludingCamera
+
+if TYPE_CHECKING:
+    from objsearch.agent.strategies import RunSpec
 
 SPEED_M_PER_S = 0.5
 LOOK_S = 1.0
@@ -69,6 +72,14 @@ def search_camera(name: str = DEFAULT_CAMERA) -> SearchCamera:
     if name == "geometric":
         return Camera()
     raise ObjsearchError(f"unknown search camera {name!r}; choose from {', '.join(CAMERAS)}")
+
+
+def with_camera(spec: RunSpec) -> tuple[RunSpec, SearchCamera]:
+    """The spec's search camera (``params["camera"]``), and the spec with it recorded: a spec that
+    names none gets the default, so every simulated log says which camera produced it."""
+    name = spec.params.get("camera", DEFAULT_CAMERA)
+    camera = search_camera(str(name))
+    return spec.with_changes(params={**spec.params, "camera": camera.name}), camera
 
 
 #: The two directions of one shortest path may sum their steps in another order: ways this close

@@ -21,8 +21,8 @@ from objsearch.events.log import EventLog, read_log
 from objsearch.events.projection import fold
 from objsearch.events.snapshot import restore
 from objsearch.experiments.decompose import decompose
-from objsearch.sim.distribution_oracle import SIM_MODELS
 from objsearch.sim.longterm import Trial, run_schedule
+from objsearch.sim.models import SIM_MODELS
 from objsearch.sim.world import Placement
 
 HOME = "ithor-01"

@@ -17,8 +17,8 @@ from objsearch.replay.analytics import open_analytics
 from objsearch.replay.audit import audit
 from objsearch.replay.decisions import replay
 from objsearch.runtime.liveview import LiveView
-from objsearch.sim.distribution_oracle import SIM_MODELS
 from objsearch.sim.longterm import run_schedule
+from objsearch.sim.models import SIM_MODELS
 from objsearch.sim.placements import Schedule
 from objsearch.sim.world import SimClock, SimWorld
 
