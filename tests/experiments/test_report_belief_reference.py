@@ -21,23 +21,29 @@ from objsearch.sim.longterm import TARGET_ORDER
 HOME = "ithor-01"
 
 
+def _row(
+    strategy: str, scene: int, target: str, path: float, oracle: float, home: str = HOME
+) -> Row:
+    return Row(
+        experiment="homes",
+        home=home,
+        placements="habit-0",
+        strategy=strategy,
+        update_mode="all",
+        seed=0,
+        scene=scene,
+        target=target,
+        start="s",
+        success=True,
+        path_length=path,
+        oracle_length=oracle,
+        task_id=f"{home}-{strategy}-{scene:03d}-{target}",
+    )
+
+
 def _rows(strategy: str, factor: float) -> list[Row]:
     return [
-        Row(
-            experiment="homes",
-            home=HOME,
-            placements="habit-0",
-            strategy=strategy,
-            update_mode="all",
-            seed=0,
-            scene=scene,
-            target=target,
-            start="s",
-            success=True,
-            path_length=factor * (3.0 + i),
-            oracle_length=3.0 + i,
-            task_id=f"task-{scene:03d}{i:02d}",
-        )
+        _row(strategy, scene, target, factor * (3.0 + i), 3.0 + i)
         for scene in (11, 12, 13)
         for i, target in enumerate(TARGET_ORDER)
     ]
@@ -101,31 +107,15 @@ def test_a_report_of_cover_runs_alone_reads_them_against_each_other(tmp_path: Pa
 def test_the_learning_curve_is_read_against_the_reference_block_by_block() -> None:
     """Days 1-8 in four blocks of two; the belief walks 2.0x the oracle's path on days 1-2, then
     1.5x; the reference's own day-to-day difficulty (x1, then x3) cancels."""
-    rows = []
-    for home in ("ithor-01", "ithor-02"):
-        for scene in range(1, 9):
-            hard = 1.0 if scene <= 4 else 3.0
-            for name, factor in (
-                ("dist-oracle-global", hard),
-                ("global-belief", hard * (2.0 if scene <= 2 else 1.5)),
-            ):
-                rows.append(
-                    Row(
-                        experiment="homes",
-                        home=home,
-                        placements="habit-0",
-                        strategy=name,
-                        update_mode="all",
-                        seed=0,
-                        scene=scene,
-                        target="Cup",
-                        start="s",
-                        success=True,
-                        path_length=factor * 4.0,
-                        oracle_length=4.0,
-                        task_id=f"{home}-{name}-{scene}",
-                    )
-                )
+    rows = [
+        _row(name, scene, "Cup", factor * 4.0, 4.0, home)
+        for home in ("ithor-01", "ithor-02")
+        for scene in range(1, 9)
+        for name, factor in (
+            ("dist-oracle-global", 1.0 if scene <= 4 else 3.0),
+            ("global-belief", (1.0 if scene <= 4 else 3.0) * (2.0 if scene <= 2 else 1.5)),
+        )
+    ]
     lines = trend_lines(rows)
     assert "first search ÷ dist-oracle-global's on the same runs and days" in lines[0]
     assert "| days 1–2 | days 3–4 | days 5–6 | days 7–8 | Δ 1–2 → 3–4 |" in lines[2]
