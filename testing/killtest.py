@@ -35,6 +35,7 @@ import objsearch.cli, objsearch.cli_query, objsearch.cli_bags
 import objsearch.events.lake, objsearch.pipeline.bags.ingest, objsearch.pipeline.bags.read
 import objsearch.replay.analytics, rosbags.highlevel, tqdm
 import numpy.ma  # imported on first use by np.unique (a bag's pose tracks)
+import objsearch.product  # the relation models lake add folds with (the agent's strategies)
 from objsearch.agent.catalogue import STORE
 from objsearch.ros.types import Distro, typestore
 # Built here once rather than in every child (each is most of a short command's CPU): the
