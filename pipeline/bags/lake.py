@@ -17,8 +17,10 @@ events and no session's receive times around it). A piece whose agent run the la
 than as this robot's bag session (a compacted log, another robot's) is refused naming that run:
 an event id is in the lake at most once.
 
-The lake commits a run atomically (staging folder, fsync, rename), so a reader sees all of a bag or
-none of it; committing a bag twice is a no-op. The ingest report (what was read, skipped,
+The folder lake commits a run atomically (staging folder, fsync, rename), so a reader sees all of
+a bag or none of it; committing a bag twice is a no-op. :class:`FleetBagLake` does the same in the
+fleet lake (a Delta table, in a folder or a bucket) with one transaction a bag, merges included
+(see the class); :func:`open_bag_lake` picks the lake by its address. The ingest report (what was read, skipped,
 salvaged) is committed inside the run, so a run never lacks it; its copy in ``_bags/`` is written
 after the run, under the same lake lock, and restored from the run by any later ingest of that
 bag if a crash came between the two.
