@@ -38,6 +38,25 @@ from objsearch.pipeline.bags.record import DEFAULT_START_NS, record
 from objsearch.ros.topics import TopicMap
 
 
+def record_bags(work: Path, fmt: BagFormat, n: int, *, own_seeds: bool = False) -> list[Path]:
+    """``n`` bags of one simulated run each (scene 1, Apple and Cup, all 8 starts), on clocks
+    10 days apart; with ``own_seeds`` each is a recording of its own (seed ``i``), else all
+    are one recording on ``n`` clocks (which ingest keeps once)."""
+    bags = []
+    for i in range(n):
+        name = f"run{i}.bag" if fmt is BagFormat.ROS1 else f"run{i}"
+        rec = record(
+            work / name,
+            fmt,
+            scenes=[1],
+            targets=["Apple", "Cup"],
+            start_ns=DEFAULT_START_NS + i * 86_400 * 10**9,
+            seed=i if own_seeds else 0,
+        )
+        bags.append(rec.path)
+    return bags
+
+
 def size_of(bag: Path) -> int:
     return sum(f.stat().st_size for f in storage_files(bag))
 
@@ -51,17 +70,7 @@ def main() -> None:
     fmt = BagFormat(args.format)
     work = Path(tempfile.mkdtemp(prefix="objsearch-bench-ingest-"))
     try:
-        bags = []
-        for i in range(args.bags):
-            name = f"run{i}.bag" if fmt is BagFormat.ROS1 else f"run{i}"
-            rec = record(
-                work / name,
-                fmt,
-                scenes=[1],
-                targets=["Apple", "Cup"],
-                start_ns=DEFAULT_START_NS + i * 86_400 * 10**9,
-            )
-            bags.append(rec.path)
+        bags = record_bags(work, fmt, args.bags)
         bag = bags[0]
         messages = sum(1 for _ in iter_raw(bag))
         mb = size_of(bag) / 1e6

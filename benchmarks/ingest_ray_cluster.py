@@ -48,12 +48,13 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
+from ingest import record_bags
+
 from objsearch.agent.catalogue import STORE
 from objsearch.events.lake import Lake
 from objsearch.pipeline.bags.engines import RayEngine
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.ingest import ingest
-from objsearch.pipeline.bags.record import DEFAULT_START_NS, record
 
 RAY = str(Path(sys.executable).with_name("ray"))
 #: Ray 2.60 starts a cluster with token authentication unless told otherwise.
@@ -210,18 +211,8 @@ def main() -> int:
     print("command: python benchmarks/ingest_ray_cluster.py " + " ".join(sys.argv[1:]))
     print(f"load average at start: {os.getloadavg()[0]:.1f} ({os.cpu_count()} cores)")
     try:
-        bags = []
-        for i in range(args.bags):
-            name = f"run{i}.bag" if fmt is BagFormat.ROS1 else f"run{i}"
-            rec = record(
-                work / name,
-                fmt,
-                scenes=[1],
-                targets=["Apple", "Cup"],
-                start_ns=DEFAULT_START_NS + i * 86_400 * 10**9,
-                seed=i,  # a recording of its own (the same run on 8 clocks would be one run)
-            )
-            bags.append(rec.path)
+        # a recording each: the same run on 8 clocks would be one run
+        bags = record_bags(work, fmt, args.bags, own_seeds=True)
         print(f"{len(bags)} bags ({fmt.value}) recorded")
         with cluster(args.nodes, work) as address:
             ray: Any = importlib.import_module("ray")

@@ -75,3 +75,18 @@ def check_two_compactions_at_once(root: str | Path, logs: Path) -> None:
     keys = events.group_by(["run", "event_id"]).aggregate([]).num_rows
     assert keys == events.num_rows == 3 * 4  # every event of the three runs, once
     assert len(files) == len({f.kind for f in files})  # compacted: one file a type
+
+
+#: A writer process (``python -c``): commits the logs named after the lake, compacting every
+#: few commits, whatever another writer claimed.
+COMPACTING_WRITER = """
+import sys
+from pathlib import Path
+import objsearch.events.lake_table as lt
+from objsearch.agent.catalogue import STORE
+lt.COMPACT_AT_FILES = 8  # every few commits: the writers' compactions overlap
+lt.COMPACTION_CLAIM_FRESH_S = 0.0  # and none leaves it to another
+lake = lt.TableLake(sys.argv[1], store=STORE)
+for log in sys.argv[2:]:
+    lt.add_log(Path(log), lake, robot="r", run=Path(log).name)
+"""

@@ -35,7 +35,7 @@ from objsearch.events.lake_table import (
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query, views_for
 
-from .lake_logs import check_two_compactions_at_once
+from .lake_logs import COMPACTING_WRITER, check_two_compactions_at_once
 from .payloads import EXAMPLES
 
 V1_LOG = Path(__file__).parent / "fixtures" / "v1-log"
@@ -255,19 +255,6 @@ def test_concurrent_writers_lose_and_duplicate_nothing(tmp_path: Path) -> None:
     ]
     assert table_counts(concurrent) == table_counts(sequential)
     assert len(table_counts(concurrent)) == len(logs)
-
-
-COMPACTING_WRITER = """
-import sys
-from pathlib import Path
-import objsearch.events.lake_table as lt
-from objsearch.agent.catalogue import STORE
-lt.COMPACT_AT_FILES = 8  # every few commits: the writers' compactions overlap
-lt.COMPACTION_CLAIM_FRESH_S = 0.0  # and none leaves it to another
-lake = lt.TableLake(sys.argv[1], store=STORE)
-for log in sys.argv[2:]:
-    lt.add_log(Path(log), lake, robot="r", run=Path(log).name)
-"""
 
 
 @pytest.mark.slow  # three processes committing and compacting: 30-60 s on a shared machine

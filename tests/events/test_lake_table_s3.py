@@ -23,7 +23,7 @@ from objsearch.replay.analytics import open_analytics, run_query
 from objsearch.testing.s3server import s3_server as local_s3_server
 from objsearch.testing.s3server import stalled
 
-from .lake_logs import check_two_compactions_at_once
+from .lake_logs import COMPACTING_WRITER, check_two_compactions_at_once
 
 
 @pytest.fixture(scope="module")
@@ -200,19 +200,6 @@ def test_two_compactions_at_once_on_the_bucket_rewrite_every_row_once(
     bucket: str, tmp_path: Path
 ) -> None:
     check_two_compactions_at_once(bucket, tmp_path / "logs")
-
-
-COMPACTING_WRITER = """
-import sys
-from pathlib import Path
-import objsearch.events.lake_table as lt
-from objsearch.agent.catalogue import STORE
-lt.COMPACT_AT_FILES = 8  # every few commits: the writers' compactions overlap
-lt.COMPACTION_CLAIM_FRESH_S = 0.0  # and none leaves it to another
-lake = lt.TableLake(sys.argv[1], store=STORE)
-for log in sys.argv[2:]:
-    lt.add_log(Path(log), lake, robot="r", run=Path(log).name)
-"""
 
 
 @pytest.mark.slow  # two processes committing and compacting on the bucket: ~30 s
