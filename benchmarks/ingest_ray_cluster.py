@@ -152,13 +152,17 @@ def cluster(nodes: int, work: Path) -> Iterator[str]:
 
 
 def our_processes(temps: list[Path]) -> list[int]:
-    import psutil
-
+    """Processes whose command line names one of the cluster's temp folders (``/proc``)."""
     found = []
-    for proc in psutil.process_iter(["pid", "cmdline"]):
-        cmdline = " ".join(proc.info["cmdline"] or [])
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
         if any(str(t) in cmdline for t in temps):
-            found.append(int(proc.info["pid"]))
+            found.append(int(entry.name))
     return found
 
 
