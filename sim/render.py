@@ -197,11 +197,18 @@ def inverse_directions(rays: FloatArray, rot: FloatArray) -> FloatArray:
     """Planar (3, H, W) inverses of the map-frame ray directions of ``rays`` ((H, W, 3), optical
     frame, z = 1, so t along a direction is depth). Element-wise, never a matrix product, so a
     pixel's value does not depend on which window of the image it is computed in (the visibility
-    model ray-casts windows and must agree with a full render to the bit)."""
-    d = rays[..., 0] * rot[:, 0, None, None] + rays[..., 1] * rot[:, 1, None, None]
-    d += rays[..., 2] * rot[:, 2, None, None]
+    model ray-casts windows and must agree with a full render to the bit).
+
+    ``rays`` is :meth:`CameraIntrinsics.rays` or a window of it: x varies along a row only, y
+    down a column only, z is 1. So the products are taken from one row and one column and
+    broadcast, and z · rot is rot: per pixel the same float32 operations in the same order as
+    from the full (H, W) planes, about 5× less time (4.8 → 0.9 ms for 640 × 480)."""
+    x = rays[0, :, 0]
+    y = rays[:, 0, 1]
+    d = x[None, None, :] * rot[:, 0, None, None] + y[None, :, None] * rot[:, 1, None, None]
+    d += rot[:, 2, None, None]
     with np.errstate(divide="ignore"):
-        inv: FloatArray = (np.float32(1.0) / d).astype(np.float32, copy=False)
+        inv: FloatArray = np.divide(np.float32(1.0), d, out=d).astype(np.float32, copy=False)
     return inv
 
 
