@@ -37,6 +37,7 @@ from .provenance import build_command, merge_provenance, provenance_md, sha256
 from .rearrangement import REARRANGEMENT, SUPPORT_TOLERANCE_M, load_episodes, rearrangement_json
 from .room_objects import SUPPORT_RADIUS_M
 from .scenario import table1
+from .sourceinfo import HOMER as HOMER_SOURCE
 from .sources import HOZ_ADJACENCY, VG_MATRIX, load_cooccurrence, load_scene
 from .table2 import table2
 from .vg_prior import (
@@ -368,11 +369,13 @@ def _more_homes(
         "Table II (`pipeline/placement_stats.py`)."
     )
     say("HOMER routines")
-    outputs["priors/homer_routines.json"] = jsonio.dumps(homer_routines_json(source))
+    outputs["priors/homer_routines.json"] = jsonio.dumps(
+        homer_routines_json(HOMER_SOURCE.root(source))
+    )
     lines.append(
         "- `priors/homer_routines.json`: per HOMER household, search object and time of day "
         "(07:30, 13:00, 18:30, 22:30), the days the object's place was each HOMER place, from "
-        f"`{HOMER.as_posix()}/` (`pipeline/homer.py`; its PLACE_TYPES and TARGET_OBJECTS map "
+        f"`sources/{HOMER.as_posix()}/` (`pipeline/homer.py`; its PLACE_TYPES and TARGET_OBJECTS map "
         "HOMER places and objects onto ours)."
     )
     files = {

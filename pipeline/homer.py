@@ -2,9 +2,10 @@
 
 HOMER (Patel & Chernova, CoRL 2022) simulates five households' days, 06:00–24:00 in 10-minute
 steps, as scene graphs: every movable object has a parent (a piece of furniture, an appliance, a
-room, or another object). The shared data folder keeps those days compacted
-(``homer/householdsDifferent/householdN/days.json``: each node's parent at the day's start and
-every later change; ``common_data.json`` as upstream; see the shared PROVENANCE.md).
+room, or another object). The shared data folder has none of it, so the repository keeps those
+days compacted in ``sources/`` (``homer/householdsDifferent/householdN/days.json``: each node's
+parent at the day's start and every later change; ``common_data.json`` as upstream;
+``sources/homer/README.md`` says how they were made, ``extract_days.py`` made them).
 
 For each household, each of its search objects and each of the seeded schedules' four times of
 day (``SLOT_MINUTES``, the same as ``sim/routine_schedule.SLOT_MINUTES``) this counts, over the
@@ -229,7 +230,7 @@ def homer_routines_json(source: Path) -> dict[str, Any]:
         "source": (
             "HOMER (Patel & Chernova, CoRL 2022), processed days of "
             "Maithili/SpatioTemporalObjectTracking data/householdsDifferent, compacted in "
-            f"the shared data folder's {HOMER.as_posix()}"
+            f"the repository's sources/{HOMER.as_posix()}"
         ),
         "notes": (
             "households[].routines: HOMER search object -> per slot (slot_minutes) -> place "

@@ -52,11 +52,11 @@ def _source_section(info: SourceInfo, files: list[Path], source: Path) -> list[s
         f"### `{info.local.as_posix()}`",
         "",
         f"- Repository: {info.repo}, {info.revision}; upstream: `{info.upstream_path}`",
-        f"- Licence: {info.licence} ({info.copyright}); full text: `shared/data/"
+        f"- Licence: {info.licence} ({info.copyright}); full text: `{info.shown_root}/"
         f"{info.licence_file.as_posix()}` and the upstream repository's LICENSE",
         "- Files read (sha256):",
     ]
-    lines += [f"  - `{f.as_posix()}` `{sha256(source / f)}`" for f in files]
+    lines += [f"  - `{f.as_posix()}` `{sha256(info.root(source) / f)}`" for f in files]
     return [*lines, ""]
 
 
@@ -165,7 +165,7 @@ def provenance_md(
             [
                 f"- MIT: the HOMER household routines ({HOMER.copyright}), {HOMER.revision}. "
                 "`priors/homer_routines.json` holds counts derived from them. Full text: "
-                f"`shared/data/{HOMER.licence_file.as_posix()}`.",
+                f"`{HOMER.shown_root}/{HOMER.licence_file.as_posix()}`.",
             ]
             if files.get(HOMER.key)
             else []

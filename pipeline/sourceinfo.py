@@ -19,7 +19,23 @@ class SourceInfo:
     licence: str
     licence_file: Path  # relative to the source root; the full licence text
     copyright: str
+    #: The source travels with this repository (``sources/``, with its licence and how it was
+    #: extracted) instead of coming from the shared data folder, which does not have it.
+    vendored: bool = False
 
+    @property
+    def shown_root(self) -> str:
+        """Where a reader finds the source's files, as PROVENANCE.md names it."""
+        return "sources" if self.vendored else "shared/data"
+
+    def root(self, source: Path) -> Path:
+        """The folder this source's files are read from (``source``: the shared data folder)."""
+        return VENDORED_SOURCES if self.vendored else source
+
+
+#: The repository's own copy of sources the shared data folder lacks (not in the wheel: building
+#: data/ is a repository task).
+VENDORED_SOURCES = Path(__file__).resolve().parents[1] / "sources"
 
 ALFRED = SourceInfo(
     key="alfred",
@@ -121,11 +137,12 @@ HOMER = SourceInfo(
     commit="f4ce4141d3210ba2c18879c64450db6906e534ff",
     upstream_path=(
         "data/householdsDifferent/household*/processed/ (common_data.json as upstream; the day "
-        "files compacted to days.json, see the shared PROVENANCE.md)"
+        "files compacted to days.json, see sources/homer/README.md)"
     ),
     licence="MIT",
     licence_file=Path("homer/LICENSE.SpatioTemporalObjectTracking"),
     copyright="Copyright (c) 2022 Maithili Patel",
+    vendored=True,
 )
 
 EXTRA_SOURCES: tuple[SourceInfo, ...] = (PROCTHOR_HOUSES, PROCTHOR_DB, REARRANGEMENT, HOMER)
