@@ -27,6 +27,24 @@ def first_of_day(rows: Iterable[Row]) -> list[Row]:
     return list(first.values())
 
 
+def first_of_scene(rows: Iterable[Row]) -> list[Row]:
+    """The first search of each scene of each run: the search of the scene's first target in
+    ``TARGET_ORDER`` among those searched (the robot has seen nothing of the scene yet). On a
+    routine home, whose four scenes a day are four times of day, the first search of each slot."""
+    from objsearch.sim.longterm import TARGET_ORDER
+
+    order = {t: i for i, t in enumerate(TARGET_ORDER)}
+    first: dict[tuple[Any, ...], Row] = {}
+    for r in rows:
+        k = (r.home, r.placements, r.strategy, r.update_mode, r.seed, r.scene)
+        if k not in first or (order[r.target], r.task_id) < (
+            order[first[k].target],
+            first[k].task_id,
+        ):
+            first[k] = r
+    return list(first.values())
+
+
 def ratio(rows: Sequence[Row]) -> float:
     oracle = math.fsum(r.oracle_length for r in rows)
     return math.fsum(r.path_length for r in rows) / oracle if oracle > 0 else math.nan

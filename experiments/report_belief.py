@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.experiments.calibration import ece
-from objsearch.experiments.learning import first_of_day, ratio
+from objsearch.experiments.learning import first_of_day, first_of_scene, ratio
 from objsearch.experiments.metrics import spl_term
 from objsearch.experiments.runner import Row, inspection_suffix, read_output
 from objsearch.experiments.strategies import COVER_SUFFIX
@@ -206,6 +206,27 @@ def slot_lines(rows: Sequence[Row], after: int = ROUTINE_AFTER) -> list[str]:
             f"| {s} | " + " | ".join("–" if math.isnan(c) else f"{c:.3f}" for c in shown) + " |"
         )
     return lines
+
+
+def first_of_scene_lines(rows: Sequence[Row], after: int = ROUTINE_AFTER) -> list[str]:
+    """Routine kinds: the same table and pairs on the first search of each scene (each slot of
+    the day: nothing of it seen yet; docs/results-routine.md says why a routine home is judged
+    by it), and on the first search of each day (the morning scene's first search)."""
+    firsts = first_of_scene(rows)
+    mornings = [r for r in firsts if (r.scene - 1) % len(SLOT_NAMES) == 0]
+    pairs = [(a, b) for a, b in PAIRS if a == "ecost-routine"]
+    pairs.append(("slot-oracle", ORACLE))
+    return [
+        "First search of each scene (one a time of day, four a day):",
+        "",
+        *ratio_table(firsts, after),
+        "",
+        *paired_lines(firsts, pairs, after),
+        "",
+        "First search of each day (the morning scene's first search):",
+        "",
+        *ratio_table(mornings, after),
+    ]
 
 
 def usual_place_lines(rows: Sequence[Row], after: int = AFTER) -> list[str]:
@@ -503,7 +524,7 @@ def report(
             after,
         )
         if k in ROUTINE_KINDS:
-            lines += ["", *slot_lines(mine, after)]
+            lines += ["", *slot_lines(mine, after), "", *first_of_scene_lines(mine, after)]
         if k == "moved":
             lines += ["", *moved_lines(mine)]
         if k == "habit":

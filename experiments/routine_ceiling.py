@@ -2,8 +2,9 @@
 decomposition (docs/results-routine.md, "Why even the time-aware oracle reaches only 0.94×").
 
 - :func:`slot_effect`: how much knowing the hour tells, exactly, from the schedule's generator
-  (``sim/routine_schedule.py``): for each target class, slot and day type of the evaluation week,
-  the chance that the most likely place (room) of the time-blind distribution holds the object,
+  (``sim/routine_schedule.py``, ``sim/homer_schedule.py``; where its scenes land, redraws
+  included, as the references read it, ``sim/distribution_oracle.py``): for each target class,
+  slot and day type of the evaluation week, the chance that the most likely place (room) of the time-blind distribution holds the object,
   against that of the slot's own distribution, weighted by the days of the week.
 - :func:`path_split`: where the references' paths go, from a ``bench homes`` run: the oracle path
   no memory can shorten, searches that went straight to the target's room against those that
@@ -23,16 +24,11 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from objsearch.agent.home import load_home
+from objsearch.experiments.learning import first_of_scene
 from objsearch.experiments.runner import Row, read_output
-from objsearch.sim.homer_schedule import homer_blind_distribution, homer_slot_distribution
+from objsearch.sim.distribution_oracle import time_blind_distribution, time_of_day_distribution
 from objsearch.sim.longterm import TARGET_ORDER
-from objsearch.sim.routine_schedule import (
-    SCENES_PER_DAY,
-    WEEKEND,
-    blind_distribution,
-    routine_distribution,
-    routines_by_week,
-)
+from objsearch.sim.routine_schedule import SCENES_PER_DAY, WEEKEND
 from objsearch.sim.schedule_names import ROUTINE_KINDS
 
 #: The evaluation week of the routine protocol (days 15-21).
@@ -65,17 +61,10 @@ def slot_effect(
         home = load_home(name)
         room_of = {s.id: s.room for s in home.statics.values()}
         for seed in range(seeds):
-            if kind == "homer":
-                blind = homer_blind_distribution(home, seed)
-            else:
-                table = routines_by_week(home, seed, week + 1)[week]
-                blind = blind_distribution(home, table)
+            blind = time_blind_distribution(home, kind, seed, week)
             for weekend, days in ((False, 7 - len(WEEKEND)), (True, len(WEEKEND))):
                 for slot in range(SCENES_PER_DAY):
-                    if kind == "homer":
-                        exact = homer_slot_distribution(home, seed, slot)
-                    else:
-                        exact = routine_distribution(home, table, weekend, slot)
+                    exact = time_of_day_distribution(home, kind, seed, week, weekend, slot)
                     for cls in sorted(set(exact) & set(TARGET_ORDER)):
                         now, week_avg = exact[cls], blind[cls]
                         rooms_now = _rooms(now, room_of)
@@ -93,23 +82,13 @@ def slot_effect(
     return {key: v / weight for key, v in sums.items()}
 
 
-def _first_of_scene(rows: Sequence[Row]) -> set[tuple[str, str, str, int, str]]:
-    order = {t: i for i, t in enumerate(TARGET_ORDER)}
-    first: dict[tuple[str, str, str, int], Row] = {}
-    for r in rows:
-        key = (r.strategy, r.home, r.placements, r.scene)
-        if key not in first or order[r.target] < order[first[key].target]:
-            first[key] = r
-    return {(*key, r.target) for key, r in first.items()}
-
-
 def path_split(rows: Sequence[Row], after: int = AFTER_SCENE) -> dict[str, dict[str, float]]:
     """Per strategy, over its searches after ``after`` (one start per target and scene): the
     path and the oracle path (m per search), the share that walked no wrong room and the excess
     of those and of the rest, and Σ path ÷ Σ oracle path of the first search of each scene and
     of the later ones."""
     late = [r for r in rows if r.scene > after]
-    firsts = _first_of_scene(late)
+    firsts = {(r.strategy, r.home, r.placements, r.scene, r.target) for r in first_of_scene(late)}
     out: dict[str, dict[str, float]] = {}
     for name in sorted({r.strategy for r in late}):
         mine = [r for r in late if r.strategy == name and r.success]

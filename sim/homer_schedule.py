@@ -27,9 +27,9 @@ routine), so every day is the same and there is no drift; ``pipeline/homer.py`` 
 measured. Scenes are times of day as on every seeded schedule (``routine_schedule.scene_clock``),
 84 of them (21 days) as ``routine-<seed>``.
 
-:func:`homer_slot_distribution` is the exact per-scene distribution of a slot;
-:func:`homer_blind_distribution` its average over the day's four slots (the time-blind
-distribution oracle's knowledge).
+:func:`homer_slot_distribution` is the per-scene distribution of a slot as drawn, before the
+generator's redraws. The references read where the scenes (:func:`homer_scene`) land, redraws included
+(``sim/distribution_oracle.py``).
 """
 
 from __future__ import annotations
@@ -172,34 +172,32 @@ def homer_slot_distribution(home: Home, seed: int, slot: int) -> dict[str, dict[
     return {cls: dict(per_slot[slot]) for cls, per_slot in homer_table(home, seed).items()}
 
 
-def homer_blind_distribution(home: Home, seed: int) -> dict[str, dict[str, float]]:
-    """The average of :func:`homer_slot_distribution` over the day's slots (every day is the
-    same): where a class is at a moment drawn at random among the scenes."""
-    out: dict[str, dict[str, float]] = {}
-    for cls, per_slot in homer_table(home, seed).items():
-        per = out.setdefault(cls, {})
-        for dist in per_slot:
-            for sid, p in dist.items():
-                per[sid] = per.get(sid, 0.0) + p / len(per_slot)
-    return {cls: dict(sorted(d.items())) for cls, d in out.items()}
-
-
 def homer_schedule(home: Home, seed: int, *, scenes: int | None = None) -> Schedule:
     """A schedule for ``home`` whose objects keep HOMER households' routines (module doc)."""
     scenes = scenes or HOMER_SCENES
-    stats = PlacementStats.load()
     table = homer_table(home, seed)
     rng = random.Random(f"homer-schedule:scenes:{home.name}:{seed}")
-    statics = sorted_statics(home)
     out: dict[int, Placements] = {}
     redrawn = 0
     for scene in range(1, scenes + 1):
-        slot = (scene - 1) % SCENES_PER_DAY
-        placed: dict[str, Placement] = {}
-        for cls in sorted(table):
-            dist = table[cls][slot]
-            places = sorted(dist)
-            where = home.statics[rng.choices(places, weights=[dist[p] for p in places])[0]]
-            redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed)
-        out[scene] = placed
+        out[scene], refused = homer_scene(rng, home, table, (scene - 1) % SCENES_PER_DAY)
+        redrawn += refused
     return Schedule(name=f"homer-{seed}", home=home.name, scenes=out, redrawn=redrawn)
+
+
+def homer_scene(
+    rng: random.Random, home: Home, table: SlotTable, slot: int
+) -> tuple[Placements, int]:
+    """One scene of ``slot``: each class, in class order, drawn from the slot's counts and put
+    there, or drawn again while it cannot be seen or its rest points are taken
+    (``place_in_scene``); and how many draws were refused."""
+    stats = PlacementStats.load()
+    statics = sorted_statics(home)
+    placed: dict[str, Placement] = {}
+    redrawn = 0
+    for cls in sorted(table):
+        dist = table[cls][slot]
+        places = sorted(dist)
+        where = home.statics[rng.choices(places, weights=[dist[p] for p in places])[0]]
+        redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed)
+    return placed, redrawn

@@ -26,9 +26,10 @@ Then every scene (one slot of one day) independently:
 The parameters were fixed before any run (docs/results-routine.md, "Protocol") and are not tuned.
 They are not derived from a routine dataset; ``homer-<seed>`` (``sim/homer_schedule.py``) draws
 from routines measured in the HOMER households (Patel & Chernova) instead. :func:`routine_distribution`
-is the exact per-scene distribution of one slot and day type; :func:`blind_distribution` is its
-average over the week's 28 scenes (the time-blind distribution oracle's knowledge), both for the
-routines in force on a given day.
+is the per-scene distribution of one slot and day type for the routines in force on a given day,
+as drawn, before the generator's redraws of places that cannot be seen or whose rest points are
+taken; the references read where the scenes (:func:`routine_scene`) land, redraws included
+(``sim/distribution_oracle.py``).
 """
 
 from __future__ import annotations
@@ -164,45 +165,39 @@ def routine_distribution(
     return out
 
 
-def blind_distribution(home: Home, table: Mapping[str, Routine]) -> dict[str, dict[str, float]]:
-    """The average of :func:`routine_distribution` over a week's scenes (5 weekdays and 2
-    weekend days, four slots each): where a class is at a moment of the week drawn at random."""
-    out: dict[str, dict[str, float]] = {}
-    for weekend, days in ((False, 7 - len(WEEKEND)), (True, len(WEEKEND))):
-        for slot in range(SCENES_PER_DAY):
-            share = days / 7 / SCENES_PER_DAY
-            for cls, dist in routine_distribution(home, table, weekend, slot).items():
-                per = out.setdefault(cls, {})
-                for sid, p in dist.items():
-                    per[sid] = per.get(sid, 0.0) + share * p
-    return out
-
-
 def routine_schedule(home: Home, seed: int, *, scenes: int | None = None) -> Schedule:
     """A schedule for ``home`` where objects keep routines (see the module doc)."""
     scenes = scenes or ROUTINE_DAYS * SCENES_PER_DAY
-    stats = PlacementStats.load()
     rng = random.Random(f"routine-schedule:scenes:{home.name}:{seed}")
-    statics = sorted_statics(home)
-    by_id = home.statics
     weekly = routines_by_week(home, seed, scene_day(scenes) // 7 + 1)
     out: dict[int, Placements] = {}
     redrawn = 0
     for scene in range(1, scenes + 1):
         day = scene_day(scene)
         slot = (scene - 1) % SCENES_PER_DAY
-        weekend = day % 7 in WEEKEND
-        table = weekly[day // 7]
-        placed: dict[str, Placement] = {}
-        for cls in sorted(table):
-            routine = table[cls]
-            anywhere = partial(_draw_static, rng, stats.counts[cls], statics, None)
-            usual = (
-                (P_USUAL, routine.usual(weekend, slot)),
-                (P_LATE, routine.usual(weekend, max(slot - 1, 0))),
-            )
-            where = draw_place(rng, usual, P_ALTERNATE, routine.alternates, anywhere, by_id)
-            assert where is not None  # the usual places were drawn from the same statics
-            redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed)
-        out[scene] = placed
+        out[scene], refused = routine_scene(rng, home, weekly[day // 7], day % 7 in WEEKEND, slot)
+        redrawn += refused
     return Schedule(name=f"routine-{seed}", home=home.name, scenes=out, redrawn=redrawn)
+
+
+def routine_scene(
+    rng: random.Random, home: Home, table: Mapping[str, Routine], weekend: bool, slot: int
+) -> tuple[Placements, int]:
+    """One scene of ``slot`` on a weekday or weekend day under ``table``'s routines: each class,
+    in class order, drawn as the module doc says and put there (``place_in_scene``: drawn again
+    while it cannot be seen or its rest points are taken); and how many draws were refused."""
+    stats = PlacementStats.load()
+    statics = sorted_statics(home)
+    placed: dict[str, Placement] = {}
+    redrawn = 0
+    for cls in sorted(table):
+        routine = table[cls]
+        anywhere = partial(_draw_static, rng, stats.counts[cls], statics, None)
+        usual = (
+            (P_USUAL, routine.usual(weekend, slot)),
+            (P_LATE, routine.usual(weekend, max(slot - 1, 0))),
+        )
+        where = draw_place(rng, usual, P_ALTERNATE, routine.alternates, anywhere, home.statics)
+        assert where is not None  # the usual places were drawn from the same statics
+        redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed)
+    return placed, redrawn

@@ -7,11 +7,25 @@ from pathlib import Path
 
 import pytest
 
-from objsearch.experiments.report_belief import ROUTINE_AFTER, ratio_table, report, slot_lines
+from objsearch.experiments.report_belief import (
+    ROUTINE_AFTER,
+    first_of_scene_lines,
+    ratio_table,
+    report,
+    slot_lines,
+)
 from objsearch.experiments.runner import Row, write_rows
 
 
-def _row(strategy: str, schedule: str, scene: int, path: float, *, success: bool = True) -> Row:
+def _row(
+    strategy: str,
+    schedule: str,
+    scene: int,
+    path: float,
+    *,
+    success: bool = True,
+    target: str = "Cup",
+) -> Row:
     return Row(
         "homes",
         "ithor-01",
@@ -20,12 +34,12 @@ def _row(strategy: str, schedule: str, scene: int, path: float, *, success: bool
         "all",
         0,
         scene,
-        "Cup",
+        target,
         "kitchen",
         success,
         path,
         2.0,
-        f"{strategy}-{schedule}-{scene}",
+        f"{strategy}-{schedule}-{scene}-{target}",
     )
 
 
@@ -56,3 +70,28 @@ def test_routine_slots_and_the_written_report(tmp_path: Path) -> None:
     write_rows(rows, tmp_path, "homes_trials")
     text = report([tmp_path])
     assert "### routine schedules" in text and "ecost-routine − dist-oracle" in text
+
+
+def test_a_routine_home_is_also_read_on_the_first_search_of_each_scene_and_day() -> None:
+    rows = []
+    for scene in range(ROUTINE_AFTER + 1, ROUTINE_AFTER + 9):  # days 15 and 16, four slots each
+        for strategy, first, later, dawn in (
+            ("dist-oracle", 4.0, 2.0, 1.0),
+            ("ecost-routine", 3.0, 3.0, 0.5),
+        ):
+            # Apple comes before Cup in the targets' order: the scene's first search.
+            rows.append(_row(strategy, "routine-0", scene, later, target="Cup"))
+            morning = (scene - 1) % 4 == 0
+            rows.append(
+                _row(strategy, "routine-0", scene, dawn if morning else first, target="Apple")
+            )
+    lines = first_of_scene_lines(rows)
+    scenes = lines.index("First search of each scene (one a time of day, four a day):")
+    days = lines.index("First search of each day (the morning scene's first search):")
+    per_scene = next(x for x in lines[scenes:days] if x.startswith("| ecost-routine |"))
+    per_day = next(x for x in lines[days:] if x.startswith("| ecost-routine |"))
+    # Cup, the scenes' later search, is left out; the mornings alone make the days.
+    ratio_scene = (0.5 * 2 + 3.0 * 6) / (1.0 * 2 + 4.0 * 6)
+    assert per_scene.split("|")[4].strip().startswith(f"{ratio_scene:.3f}")
+    assert per_day.split("|")[4].strip().startswith(f"{0.5 / 1.0:.3f}")
+    assert any("ecost-routine − dist-oracle" in x for x in lines[scenes:days])

@@ -9,11 +9,16 @@ import pytest
 from objsearch.agent.home import load_home
 from objsearch.pipeline import homer as converter
 from objsearch.sim import routine_schedule
-from objsearch.sim.distribution_oracle import DistributionOracle, SlotOracle, schedule_distribution
+from objsearch.sim.distribution_oracle import (
+    DistributionOracle,
+    SlotOracle,
+    schedule_distribution,
+    time_blind_distribution,
+    time_of_day_distribution,
+)
 from objsearch.sim.homer_schedule import (
     HOMER_SCENES,
     HomerRoutines,
-    homer_blind_distribution,
     homer_schedule,
     homer_slot_distribution,
     laid_routines,
@@ -75,9 +80,10 @@ def test_scenes_follow_the_slots_counts() -> None:
 
 def test_the_oracles_know_the_slot_and_the_day() -> None:
     home = load_home("ithor-01")
-    blind = homer_blind_distribution(home, 0)
+    blind = time_blind_distribution(home, "homer", 0, 2)
     assert schedule_distribution("ithor-01", "homer-0") == blind
-    evening = [homer_slot_distribution(home, 0, k) for k in range(4)][2]
+    evening = time_of_day_distribution(home, "homer", 0, 2, False, 2)
+    assert evening != blind
     for per in blind.values():
         assert math.isclose(sum(per.values()), 1.0)
     week, slot = DistributionOracle(), SlotOracle()

@@ -8,15 +8,19 @@ import math
 import pytest
 
 from objsearch.agent.home import load_home
-from objsearch.sim.distribution_oracle import DistributionOracle, SlotOracle, schedule_distribution
+from objsearch.sim.distribution_oracle import (
+    DistributionOracle,
+    SlotOracle,
+    schedule_distribution,
+    time_blind_distribution,
+    time_of_day_distribution,
+)
 from objsearch.sim.routine_schedule import (
     P_USUAL,
     ROUTINE_DAYS,
     SCENES_PER_DAY,
     SLOT_MINUTES,
     WEEKEND,
-    blind_distribution,
-    routine_distribution,
     routine_schedule,
     routines_by_week,
     scene_clock,
@@ -65,11 +69,10 @@ def test_objects_follow_the_slots_routine_most_of_the_time() -> None:
 
 def test_the_blind_distribution_is_the_weeks_average_of_the_slots() -> None:
     home = load_home("ithor-01")
-    table = routines_by_week(home, 2, 1)[0]
-    blind = blind_distribution(home, table)
+    blind = time_blind_distribution(home, "routine", 2, 0)
     for cls, per in blind.items():
         assert math.isclose(sum(per.values()), 1.0)
-        monday_morning = routine_distribution(home, table, False, 0)[cls]
+        monday_morning = time_of_day_distribution(home, "routine", 2, 0, False, 0)[cls]
         assert math.isclose(sum(monday_morning.values()), 1.0)
         # A slot knows its usual place better than the week does (unless every slot agrees).
         top = max(monday_morning, key=monday_morning.__getitem__)
@@ -81,13 +84,12 @@ def test_the_blind_distribution_is_the_weeks_average_of_the_slots() -> None:
 def test_the_slot_oracle_knows_the_hour_and_the_distribution_oracle_does_not() -> None:
     home = load_home("ithor-01")
     saturday_evening = 5 * SCENES_PER_DAY + 3  # day 5 (a Saturday), slot 2
-    table = routines_by_week(home, 0, 1)[0]
     blind, slot = DistributionOracle(), SlotOracle()
     for oracle in (blind, slot):
         oracle._load("ithor-01", "routine-0")
         oracle.today.key = ("scene", saturday_evening)
-    exact = routine_distribution(home, table, True, 2)
-    week = blind_distribution(home, table)
+    exact = time_of_day_distribution(home, "routine", 0, 0, True, 2)
+    week = time_blind_distribution(home, "routine", 0, 0)
     for cls in ("Cup", "Laptop"):
         for sid in home.statics:
             cls_of = home.statics[sid].cls
