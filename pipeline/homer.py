@@ -96,7 +96,7 @@ def _load(path: Path) -> Any:
 
 
 def source_files() -> list[Path]:
-    """The shared-data files this step reads, relative to the source folder."""
+    """The files this step reads, relative to the source's folder (vendored: sources/homer/)."""
     return [HOMER / h / name for h in HOUSEHOLDS for name in ("common_data.json", "days.json")]
 
 

@@ -33,8 +33,8 @@ class SourceInfo:
         return VENDORED_SOURCES if self.vendored else source
 
 
-#: The repository's own copy of sources the shared data folder lacks (not in the wheel: building
-#: data/ is a repository task).
+#: The repository's own copy of sources the shared data folder lacks. The wheel ships it as
+#: ``objsearch/sources`` (pyproject's package-data), which is the same path from this module.
 VENDORED_SOURCES = Path(__file__).resolve().parents[1] / "sources"
 
 ALFRED = SourceInfo(

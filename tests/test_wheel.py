@@ -22,6 +22,9 @@ from pathlib import Path
 
 import pytest
 
+from objsearch.pipeline.homer import source_files as homer_files
+from objsearch.pipeline.sourceinfo import HOMER
+
 REPO = Path(__file__).resolve().parents[1]
 
 pytestmark = pytest.mark.wheel
@@ -115,6 +118,13 @@ def test_the_wheel_ships_the_data_and_no_tests(installed: Installed) -> None:
     assert shipped == {p for p in committed if "__pycache__" not in p}
     assert "PROVENANCE.md" in shipped  # the licence notices travel with the copies
     assert not [n for n in names if n.startswith("tests/") or "/golden/" in n]
+
+
+def test_the_wheel_ships_the_vendored_sources_a_data_build_reads(installed: Installed) -> None:
+    # sources/ is not in the shared data folder: without it, data build from a wheel would fail.
+    names = set(zipfile.ZipFile(installed.wheel).namelist())
+    wanted = {f"objsearch/sources/{p.as_posix()}" for p in [*homer_files(), HOMER.licence_file]}
+    assert not wanted - names
 
 
 def test_a_search_runs_from_the_installed_wheel(installed: Installed) -> None:
