@@ -95,7 +95,7 @@ def semantic_cases(scratch: Path) -> list[tuple[str, list[str]]]:
         ("bench unknown schedule kind", ["bench", "homes", "--schedules", "weekly"]),
         ("bench report of nothing", ["bench", "report", "--paper", empty, "--evaluation", empty]),
         ("data build from nothing", ["data", "build", "--source", empty, "--out", str(scratch)]),
-        ("data build bad home", ["data", "build", "--source", empty, "--home", "x=1,2"]),
+        ("data build bad home", ["data", "build", "--source", empty, "--ithor", "x=1,2"]),
         ("agent run bad config", ["agent", "run", "--log", str(scratch / "l"), "--config", text]),
         (
             "agent run config with bad values",

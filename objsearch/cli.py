@@ -42,7 +42,7 @@ def cmd_data_build(args: argparse.Namespace) -> int:
     from objsearch.pipeline.findings import FindingsError
 
     try:
-        homes = dict(parse_home_arg(spec) for spec in args.home) if args.home else None
+        homes = dict(parse_home_arg(spec) for spec in args.ithor) if args.ithor else None
         houses = dict(parse_procthor_arg(spec) for spec in args.procthor) if args.procthor else None
         report = build_data(
             Path(args.source),
@@ -347,14 +347,21 @@ def build_parser() -> argparse.ArgumentParser:
         type=t.dir_path,
         help="output folder (default: $OBJSEARCH_DATA, else data/ of the checkout objsearch runs from)",
     )
-    build.add_argument(
+    # --home names a home in every other command; a home *made* from iTHOR FloorPlans is --ithor,
+    # beside --procthor (the old spelling still works with a note).
+    t.renamed(
+        build,
         "--home",
-        action="append",
-        type=t.text,
-        metavar="NAME=K,L,B,W",
-        help="a home from four iTHOR FloorPlans: kitchen, living room, bedroom, bathroom "
-        "(repeatable). Without --home, --procthor and --heldout-ithor: the committed set (paper="
-        "FloorPlan2,FloorPlan201,FloorPlan303,FloorPlan401, ithor-01..10, the ProcTHOR houses)",
+        build.add_argument(
+            "--ithor",
+            action="append",
+            type=t.text,
+            metavar="NAME=K,L,B,W",
+            help="a home from four iTHOR FloorPlans: kitchen, living room, bedroom, bathroom "
+            "(repeatable). Without --ithor, --procthor and --heldout-ithor: the committed set "
+            "(paper=FloorPlan2,FloorPlan201,FloorPlan303,FloorPlan401, ithor-01..10, the ProcTHOR "
+            "houses)",
+        ),
     )
     build.add_argument(
         "--procthor",

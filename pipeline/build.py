@@ -73,7 +73,7 @@ def parse_home_arg(text: str) -> tuple[str, tuple[str, ...]]:
     """``"name=FloorPlan2,FloorPlan201,FloorPlan303,FloorPlan401"`` (or bare numbers) -> parts."""
     name, sep, scenes = text.partition("=")
     if not sep or not name.strip():
-        raise HomeSpecError(f"--home expects NAME=KITCHEN,LIVING,BEDROOM,BATHROOM, got {text!r}")
+        raise HomeSpecError(f"--ithor expects NAME=KITCHEN,LIVING,BEDROOM,BATHROOM, got {text!r}")
     return name.strip(), tuple(normalise_floorplan(s) for s in scenes.split(","))
 
 

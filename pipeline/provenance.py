@@ -38,7 +38,7 @@ def build_command(
 ) -> str:
     """The command line of a build; the default build's takes no home option."""
     cmd = "objsearch data build --source ../shared/data"
-    cmd += "".join(f" --home {name}={','.join(scenes)}" for name, scenes in homes.items())
+    cmd += "".join(f" --ithor {name}={','.join(scenes)}" for name, scenes in homes.items())
     cmd += "".join(f" --procthor {name}={path.as_posix()}" for name, path in procthor.items())
     if heldout_ithor:
         cmd += f" --heldout-ithor {','.join(str(i) for i in heldout_ithor)}"

@@ -140,7 +140,7 @@ def test_other_homes_build_without_paper_tables(shared_data: Path, tmp_path: Pat
     assert any("FloorPlan316" in n and "23 inside furniture" in n for n in report.notes)
     provenance = (tmp_path / "PROVENANCE.md").read_text()
     assert (
-        "--home second=FloorPlan1,FloorPlan201,FloorPlan316,FloorPlan402 --accept lost-grid-points"
+        "--ithor second=FloorPlan1,FloorPlan201,FloorPlan316,FloorPlan402 --accept lost-grid-points"
         in provenance
     )
     assert "schedules/table2.json" not in provenance  # it describes only what it wrote

@@ -68,7 +68,7 @@ def test_the_cli_refuses_a_room_in_pieces_with_exit_2(
 ) -> None:
     out = tmp_path / "out"
     spec = "split=" + ",".join(SPLIT_BATHROOM)
-    code = main(["data", "build", "--source", str(shared_data), "--out", str(out), "--home", spec])
+    code = main(["data", "build", "--source", str(shared_data), "--out", str(out), "--ithor", spec])
     assert code == 2
     err = capsys.readouterr().err
     assert "objsearch: error: home 'split'" in err and "FloorPlan408" in err

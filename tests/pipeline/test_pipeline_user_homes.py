@@ -1,4 +1,4 @@
-"""A home a user brings: ``data build --home/--procthor/--heldout-ithor`` writes a data folder that
+"""A home a user brings: ``data build --ithor/--procthor/--heldout-ithor`` writes a data folder that
 ``search`` and ``bench homes`` run on, and keeps the provenance of a folder it adds to."""
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ HOUSE_3 = "procthor_houses/houses_20/house_3.json"
 def user_data(shared_data: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("user-data")
     argv = ["data", "build", "--source", str(shared_data), "--out", str(out)]
-    argv += ["--home", f"user-flat={ITHOR_02}", "--procthor", f"user-house={HOUSE_3}"]
+    argv += ["--ithor", f"user-flat={ITHOR_02}", "--procthor", f"user-house={HOUSE_3}"]
     assert main(argv) == 0
     return out
 
@@ -70,7 +70,7 @@ def test_a_fresh_folder_lists_exactly_what_it_holds(user_data: Path) -> None:
         p.relative_to(user_data).as_posix() for p in user_data.rglob("*.json") if p.is_file()
     )
     assert listed == [f"- `{f}`" for f in held]
-    assert f"--home user-flat={ITHOR_02} --procthor user-house={HOUSE_3}" in text
+    assert f"--ithor user-flat={ITHOR_02} --procthor user-house={HOUSE_3}" in text
 
 
 def test_an_ithor_home_without_episodes_names_its_floorplans(
