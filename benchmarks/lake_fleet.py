@@ -19,7 +19,14 @@ copies of the template's folder with a rewritten manifest. What is timed, median
   files listed, one ``read_parquet``) in the same run (target ≤ 2×);
 * **add**: committing one more run (``add_log`` of a log of ``--add-events`` synthetic events,
   a new log and run name each time) into the smallest and the largest fleet lake, alternating
-  between them (target: the same time).
+  between them (target: the same time);
+* **ingest's "already there?"**: one recorded bag ingested into the smallest and the largest
+  fleet lake, then asked about as ``objsearch ingest`` asks (``FleetBagLake.pieces_known``: the
+  bag's stamps in the table's log) against the baseline, what ingest did before
+  (``known_pieces``: every ``_run`` row and bag record read), and the whole ``ingest`` of
+  the bag again (hash, ask, nothing to read or commit), alternating between the two lakes
+  (target: the same time); and what part of it is opening the table (``DeltaTable``: its
+  log, application transactions included), which every command pays.
 """
 
 from __future__ import annotations
@@ -45,7 +52,14 @@ from objsearch.events.lake import RUN_FILE, Lake, compact_log
 from objsearch.events.lake_digest import FILES_KEY, SELF_KEY, manifest_digest
 from objsearch.events.lake_table import TableLake, TableRun, add_log, run_parts
 from objsearch.events.sql_limits import close
+from objsearch.pipeline.bags.formats import BagFormat
+from objsearch.pipeline.bags.ingest import ingest
+from objsearch.pipeline.bags.lake import FleetBagLake
+from objsearch.pipeline.bags.read import bag_identity
+from objsearch.pipeline.bags.record import record
+from objsearch.pipeline.bags.session import converter_key
 from objsearch.replay.analytics import open_analytics, run_query
+from objsearch.ros.topics import TopicMap
 
 QUERY = (
     "SELECT object_class, count(*) AS n, avg(mask_area) AS area FROM detection "
@@ -144,6 +158,52 @@ def timed_pair(a: Callable[[], object], b: Callable[[], object], reps: int) -> t
 
 def setup_time(lake: Path, reps: int) -> float:
     return timed(lambda: close(open_analytics(lake)), reps)
+
+
+def already_there(work: Path, small: TableLake, large: TableLake, reps: int) -> None:
+    """Ingest's question "is this bag in the lake already?" on a small and a large lake."""
+    bag = work / "one.bag"
+    record(bag, BagFormat.ROS1, scenes=[1], targets=["Apple"], starts=["kitchen-1"], odom_hz=1.0)
+    bag_id, key = bag_identity(bag)[0], converter_key(TopicMap())
+    roots = {}
+    for lake in (small, large):
+        [done] = ingest([bag], str(lake.root), robot="bags")
+        assert done.error is None and not done.already, done
+        roots[len(lake.runs())] = str(lake.root)
+    lo, hi = sorted(roots)
+    for root in roots.values():
+        assert FleetBagLake(root).pieces_known([bag_id], key) == {bag_id: key}
+        assert FleetBagLake(root).known_pieces() == {bag_id: key}
+
+    def asked(root: str) -> Callable[[], object]:
+        return lambda: FleetBagLake(root).pieces_known([bag_id], key)
+
+    def listed(root: str) -> Callable[[], object]:
+        return lambda: FleetBagLake(root).known_pieces()
+
+    def opened(root: str) -> Callable[[], object]:
+        return lambda: TableLake(root, store=STORE).table()
+
+    def again(root: str) -> Callable[[], object]:
+        def one() -> object:
+            [result] = ingest([bag], root, robot="bags")
+            assert result.already and result.error is None
+            return result
+
+        return one
+
+    print(f'ingest\'s "already there?" for one bag, fleet table of {lo} runs against {hi}:')
+    for label, fn in (
+        ("stamps in the log (pieces_known, now)", asked),
+        ("every record read (known_pieces, before)", listed),
+        ("ingest of the bag again (hash + ask)", again),
+        ("of which: the table opened (every command does)", opened),
+    ):
+        t_lo, t_hi = timed_pair(fn(roots[lo]), fn(roots[hi]), reps)
+        print(
+            f"  {label}: {lo} runs {t_lo:.4f} s, {hi} runs {t_hi:.4f} s, ratio "
+            f"{t_hi / t_lo:.2f}" + (" (target: flat)" if "now" in label else "")
+        )
 
 
 def main() -> int:
@@ -263,6 +323,7 @@ def main() -> int:
             f"lake add of one run ({args.add_events} events): {lo} runs {a_lo:.3f} s, {hi} runs "
             f"{a_hi:.3f} s, ratio {a_hi / a_lo:.2f} (target: flat)"
         )
+        already_there(work, lakes[lo], lakes[hi], args.reps)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return 0

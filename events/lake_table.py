@@ -296,9 +296,13 @@ class TableLake:
                 description=TABLE_FORMAT,
                 storage_options=self.options,
                 commit_properties=CommitProperties(
-                    app_transactions=[Transaction(IDENTITY_INDEX_APP, 1)]
+                    app_transactions=[
+                        Transaction(IDENTITY_INDEX_APP, 1),
+                        Transaction(STAMP_INDEX_APP, 1),
+                    ]
                 ),
             )
+            _fs.durable_step()
         except Exception:
             if not self.exists():
                 raise
@@ -583,6 +587,7 @@ class TableLake:
         identity: Mapping[str, str] | None = None,
         replacing: Sequence[str] = (),
         apps: Sequence[str] = (),
+        stamps: Sequence[str] = (),
     ) -> TableRun:
         """Commit one run as decided from ``table`` (the version the caller read), in one
         transaction that also takes out the runs ``replacing`` names (of ``robot``: the run
@@ -590,7 +595,9 @@ class TableLake:
         of the run, of each run it replaces, of its identity values and ``apps``, each one
         past its version in ``table``: if any commit since carried one of them, this one fails
         with :class:`TableRaceLost` and the caller reads again and decides anew (no retry
-        here: what to commit depends on what is there). The bag ingest's commit."""
+        here: what to commit depends on what is there). ``stamps``: application transactions
+        set to the version after ``table``'s (:func:`stamp_version`), so of a thing stamped
+        by several commits the latest commit's stamp is the highest. The bag ingest's commit."""
         from deltalake import CommitProperties, Transaction, write_deltalake
         from deltalake.exceptions import CommitFailedError
 
@@ -602,6 +609,7 @@ class TableLake:
             Transaction(a, (table.transaction_version(a) or 0) + 1)
             for a in [*(_app_id(robot, r) for r in names), *apps]
         ]
+        txns += [Transaction(a, stamp_version(table)) for a in stamps]
         commit = CommitProperties(app_transactions=txns)
         if not replacing:
             adds = self._write_files({k: [t] for k, t in parts.items()}, info.commit)
@@ -619,6 +627,7 @@ class TableLake:
                     return landed  # it landed; its answer was lost
                 self._delete_files(adds)
                 raise TableRaceLost(f"{self.root}: run {robot}/{run} changed: {exc}") from exc
+            _fs.durable_step()
             return info
         runs = ", ".join(f"'{r}'" for r in sorted({*replacing, run}))
         try:
@@ -636,13 +645,17 @@ class TableLake:
             if landed is not None and landed.commit == info.commit:
                 return landed
             raise TableRaceLost(f"{self.root}: run {robot}/{run} changed: {exc}") from exc
+        _fs.durable_step()
         return info
 
-    def record_bag(self, bag_id: str, robot: str | None, doc: str) -> None:
+    def record_bag(
+        self, bag_id: str, robot: str | None, doc: str, stamps: Sequence[str] = ()
+    ) -> None:
         """Keep a bag's ingest record that belongs to no run's commit (a bag that made no run,
         one whose events the lake held already): one row of type :data:`BAG_TYPE`, appended
-        in a transaction of its own. The latest row of a bag id is its record."""
-        from deltalake import CommitProperties
+        in a transaction of its own (with ``stamps`` as :meth:`commit_as_read` sets them).
+        The latest row of a bag id is its record."""
+        from deltalake import CommitProperties, Transaction
         from deltalake.exceptions import CommitFailedError
 
         self.create()
@@ -668,8 +681,11 @@ class TableLake:
                     mode="append",
                     schema=table_schema(self.store),
                     partition_by=["type"],
-                    commit_properties=CommitProperties(),
+                    commit_properties=CommitProperties(
+                        app_transactions=[Transaction(a, stamp_version(table)) for a in stamps]
+                    ),
                 )
+                _fs.durable_step()
                 return
             except CommitFailedError:
                 time.sleep(min(0.5, 0.01 * (attempt + 1)))
@@ -760,6 +776,7 @@ class TableLake:
                 )
                 time.sleep(min(0.5, 0.01 * (attempt + 1)))
                 continue
+            _fs.durable_step()
             self._maybe_compact(table)
             return info
         if adds is not None:
@@ -782,7 +799,9 @@ class TableLake:
         """Close a data file's stream (fsync'ed when local); its size."""
         size = int(out.tell())
         out.close()
-        if not self.remote:
+        if self.remote:
+            _fs.durable_step()  # the object is stored once its upload returns
+        else:
             _fs.fsync_file(Path(self.uri) / rel)
         return size
 
@@ -996,6 +1015,7 @@ class TableLake:
                         partition_by=["type"],
                         commit_properties=CommitProperties(app_transactions=apps),
                     )
+                    _fs.durable_step()
                     return
                 except CommitFailedError:
                     # e.g. a compaction's claim (a metadata change) came first: read again
@@ -1051,6 +1071,7 @@ class TableLake:
             fs, base = _filesystem(self.uri)
             with fs.open_output_stream(f"{base}/{rel}") as out:
                 out.write(data)
+            _fs.durable_step()
             return
         path = Path(self.uri) / rel
         _fs.make_dirs(path.parent)
@@ -1088,6 +1109,7 @@ class TableLake:
             except CommitFailedError:
                 time.sleep(min(0.5, 0.01 * (attempt + 1)))
                 continue
+            _fs.durable_step()
             return True
         raise TableLakeError(
             f"{self.root}: removing run {run!r} lost {COMMIT_TRIES} races; try again"
@@ -1143,6 +1165,7 @@ class TableLake:
             table.alter.set_table_properties({COMPACTION_CLAIM: claim}, raise_if_not_exists=False)
         except CommitFailedError:
             return None
+        _fs.durable_step()
         pinned = DeltaTable(self.uri, version=table.version(), storage_options=self.options)
         if pinned.metadata().configuration.get(COMPACTION_CLAIM) != claim:
             return None  # cannot happen: the version the claim committed is the table's now
@@ -1150,6 +1173,7 @@ class TableLake:
 
     def _optimize(self, table: Any) -> None:
         table.optimize.compact(target_size=TARGET_FILE_BYTES)
+        _fs.durable_step()
 
     def _compact(self, *, vacuum_hours: float | None, yielding: bool = False) -> dict[str, int]:
         """``yielding``: give up at the first race lost (another writer's claim came after
@@ -1176,6 +1200,7 @@ class TableLake:
             )
         table = self.table()
         table.create_checkpoint()
+        _fs.durable_step()
         removed = 0
         if vacuum_hours is not None:
             removed = len(
@@ -1188,7 +1213,9 @@ class TableLake:
                     full=True,
                 )
             )
+            _fs.durable_step()
             table.cleanup_metadata()
+            _fs.durable_step()
         return {"files_before": before, "files_after": len(table.file_uris()), "vacuumed": removed}
 
 
@@ -1433,6 +1460,11 @@ def _app_id(robot: str, run: str) -> str:
 #: run holds these" from the log alone. A table made before has no such marker: it reads the
 #: ``_run`` rows every time.
 IDENTITY_INDEX_APP: Final = "objsearch/identity-index"
+#: Set when the table is made: the commits of this table stamp what they record with
+#: application transactions (``stamps`` of :meth:`TableLake.commit_as_read` and
+#: :meth:`TableLake.record_bag`; ingest stamps each bag piece), so "is this bag here?" is
+#: answered from the log alone. A table made before has no such marker: ingest reads its rows.
+STAMP_INDEX_APP: Final = "objsearch/stamp-index"
 
 
 def _identity_app(key: str, value: str) -> str:
@@ -1447,6 +1479,13 @@ def _transactions(table: Any, info: TableRun) -> list[Any]:
     apps = [_app_id(info.robot, info.run)]
     apps += [_identity_app(k, v) for k, v in sorted(info.identity.items()) if v]
     return [Transaction(a, (table.transaction_version(a) or 0) + 1) for a in apps]
+
+
+def stamp_version(table: Any) -> int:
+    """The version a commit decided from ``table`` stamps with: past every version a commit
+    decided from an earlier table stamped with (two commits decided from one table that stamp
+    the same thing carry the same application transaction: one of them fails)."""
+    return int(table.version()) + 1
 
 
 def _run_predicate(robot: str, run: str) -> str:

@@ -48,6 +48,7 @@ for distro in Distro:
 # children's fsyncs return at once (each is still a step; the steps are counted after it). On a
 # disk other jobs write to, an fsync took 4-11 ms, and an ingest makes 33 of them.
 os.fsync = lambda fd: None
+exec(sys.argv[1] if len(sys.argv) > 1 else "")  # the test's prelude (KillServer(prelude=))
 for line in sys.stdin:
     job = json.loads(line)
     pid = os.fork()
@@ -85,10 +86,12 @@ class Outcome:
 class KillServer:
     """Runs ``objsearch`` commands in forked children; a context manager."""
 
-    def __init__(self, scratch: Path) -> None:
+    def __init__(self, scratch: Path, *, prelude: str = "") -> None:
+        """``prelude``: Python the server runs once before it forks any child (e.g. a
+        threshold lowered so a small lake reaches the step a test kills at)."""
         self._output = scratch / "killtest-output.txt"
         self._server = subprocess.Popen(
-            [sys.executable, "-c", _SERVER],
+            [sys.executable, "-c", _SERVER, prelude],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             text=True,
@@ -140,4 +143,47 @@ def tree(root: Path, *, ignore: frozenset[str] = frozenset({".writer"})) -> dict
     return found
 
 
-__all__ = ["KillServer", "Outcome", "tree"]
+#: A fleet lake's content as tables (:func:`table_content`): each run's (date, digest, events),
+#: and the rows per run and type (``_bag`` records included).
+TableContent = tuple[dict[tuple[str, str], tuple[str, str, int]], list[tuple[str, str, str, int]]]
+
+
+def table_content(root: str | Path) -> TableContent:
+    """What readers of the fleet lake at ``root`` see, as tables — to compare an interrupted-
+    then-rerun lake with an uninterrupted one (file names and commit tokens differ) — checked
+    on the way: no data file the table names is damaged or missing, every row of a run belongs
+    to the run's current commit, and no run and no event is there twice."""
+    import pyarrow.compute as pc
+
+    from objsearch.agent.catalogue import STORE
+    from objsearch.events.lake_table import BAG_TYPE, TableLake
+
+    lake = TableLake(root, store=STORE)
+    table = lake.table()
+    good, bad = lake.scan(table)
+    if bad:
+        raise AssertionError(f"damaged files in the table: {bad}")
+    runs = lake.runs(table)
+    commits = {(r.robot, r.run): r.commit for r in runs}
+    if len(commits) != len(runs):
+        raise AssertionError(f"a run is there twice: {sorted((r.robot, r.run) for r in runs)}")
+    rows = lake.files_dataset(good).to_table(columns=["type", "robot", "run", "commit", "event_id"])
+    kind = rows["type"]
+    in_runs = rows.filter(pc.not_equal(kind, BAG_TYPE)).select(["robot", "run", "commit"])
+    for row in in_runs.group_by(["robot", "run", "commit"]).aggregate([]).to_pylist():
+        if commits.get((row["robot"], row["run"])) != row["commit"]:
+            raise AssertionError(f"rows of no current commit: {row}")
+    events = rows.filter(
+        pc.invert(pc.or_(pc.starts_with(kind, "_"), pc.starts_with(kind, "derived.")))
+    )
+    if events.group_by(["robot", "run", "event_id"]).aggregate([]).num_rows != events.num_rows:
+        raise AssertionError("an event is there twice")
+    counts = rows.group_by(["robot", "run", "type"]).aggregate([([], "count_all")])
+    per_type = sorted(
+        (str(r["robot"]), str(r["run"]), str(r["type"]), int(r["count_all"]))
+        for r in counts.to_pylist()
+    )
+    return {(r.robot, r.run): (r.date, r.digest, r.events) for r in runs}, per_type
+
+
+__all__ = ["KillServer", "Outcome", "TableContent", "table_content", "tree"]

@@ -46,6 +46,7 @@ class BagTask:
     known: Mapping[str, str] = field(default_factory=dict)
     progress: bool = False
     reingest: bool = False  # read it again even if the lake has it with this key
+    identity: tuple[str, int] | None = None  # the bag's (bag_identity), when hashed already
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,7 +71,7 @@ def convert_bag(task: BagTask) -> Converted:
     try:
         if not task.path.exists():
             raise BagError(f"no bag at {task.path}: no such file or directory")
-        identity = bag_identity(task.path)
+        identity = task.identity or bag_identity(task.path)
         key = converter_key(task.topic_map)
         if task.known.get(identity[0]) == key and not task.reingest:
             return Converted(path, identity[0], None, already=True)
@@ -87,6 +88,14 @@ def convert_bag(task: BagTask) -> Converted:
         )
     except Exception as exc:
         return Converted(path, "", None, error=str(exc) or repr(exc))
+
+
+def _identity(bag: Path) -> tuple[str, int] | None:
+    """The bag's identity, or None if it cannot be read (its task says why)."""
+    try:
+        return bag_identity(bag)
+    except Exception:
+        return None
 
 
 def commit_converted(lake: LakeWriter, converted: Converted, robot: str) -> IngestResult:
@@ -159,10 +168,17 @@ def ingest(
         engine = InlineEngine() if workers <= 1 or len(unique) <= 1 else ProcessEngine(workers)
     lake = open_bag_lake(lake_dir)  # a folder, or the fleet lake (a bucket, a Delta table)
     lake.complete_merges()  # a commit killed between its steps in an earlier ingest
-    known = lake.known_pieces()
-    tasks = [
-        BagTask(bag, topic_map, known, progress and engine.in_process, reingest) for bag in unique
-    ]
+    identities: dict[Path, tuple[str, int]] = {}
+    known: Mapping[str, str] | None = None
+    if lake.asks_by_bag_id:
+        # The fleet lake answers per bag from its log (no row read): hashed here, once.
+        identities = {b: ident for b in unique if (ident := _identity(b)) is not None}
+        bag_ids = [bag_id for bag_id, _ in identities.values()]
+        known = lake.pieces_known(bag_ids, converter_key(topic_map))
+    if known is None:
+        known = lake.known_pieces()
+    show = progress and engine.in_process
+    tasks = [BagTask(bag, topic_map, known, show, reingest, identities.get(bag)) for bag in unique]
     results: dict[int, IngestResult] = {}
     for i, outcome in engine.run(convert_bag, tasks):
         if isinstance(outcome, TaskFailed):

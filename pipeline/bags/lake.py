@@ -49,6 +49,7 @@ from objsearch.events import Event, EventStoreError, _fs
 from objsearch.events.lake import Lake, RunInfo
 from objsearch.events.lake_table import (
     COMMIT_TRIES,
+    STAMP_INDEX_APP,
     TableLake,
     TableRaceLost,
     TableRun,
@@ -143,7 +144,13 @@ class Commit:
 
 
 class LakeWriter(Protocol):
+    #: Whether :meth:`pieces_known` answers for given bag ids (then ingest hashes the bags
+    #: first, once) rather than :meth:`known_pieces` listing every bag the lake holds.
+    asks_by_bag_id: bool
+
     def known_pieces(self) -> Mapping[str, str]: ...
+
+    def pieces_known(self, bag_ids: Sequence[str], converter: str) -> Mapping[str, str] | None: ...
 
     def record_without_run(self, bag_id: str, report: dict[str, Any]) -> None: ...
 
@@ -477,6 +484,8 @@ class _SessionLake:
 class BagLake(_SessionLake):
     """:class:`LakeWriter` over the event store's per-run-folder :class:`~objsearch.events.lake.Lake`."""
 
+    asks_by_bag_id = False
+
     def __init__(self, root: Path) -> None:
         self.root = Path(root)
         if is_table_lake(self.root):
@@ -547,6 +556,10 @@ class BagLake(_SessionLake):
             if isinstance(doc, dict):
                 known[path.stem] = str(doc.get("converter", ""))
         return known
+
+    def pieces_known(self, bag_ids: Sequence[str], converter: str) -> Mapping[str, str] | None:
+        """None: this lake lists its bags (:meth:`known_pieces`)."""
+        return None
 
     def complete_merges(self) -> list[str]:
         """Finish what a commit killed between its steps left, and return the runs removed: a
@@ -671,6 +684,18 @@ def bags_app(robot: str) -> str:
     return f"objsearch/bags/{robot}"
 
 
+def piece_stamps(bag_id: str, converter: str) -> list[str]:
+    """The application transactions a commit recording bag ``bag_id`` (read with ``converter``)
+    stamps (:func:`~objsearch.events.lake_table.stamp_version`): the bag's, and the bag's with
+    that converter. The bag is in the lake read with ``converter`` when both stamps are equal
+    (the latest commit that recorded it recorded that converter)."""
+    return [f"objsearch/piece/{bag_id}", f"objsearch/piece/{bag_id}@{converter}"]
+
+
+def _doc_stamps(bag_id: str, doc: Mapping[str, Any]) -> list[str]:
+    return piece_stamps(bag_id, str(doc.get("converter", "")))
+
+
 class FleetBagLake(_SessionLake):
     """:class:`LakeWriter` over the fleet lake (:class:`~objsearch.events.lake_table.TableLake`,
     a folder or a bucket). A bag's run — its events, derived tables and the session's ingest
@@ -680,7 +705,11 @@ class FleetBagLake(_SessionLake):
     came since, it fails and is decided again from the table as it is then (no lock, no
     staging folder; nothing to finish after a crash). A bag that makes no run, or whose events
     the lake holds already, is recorded in a row of its own (``type = '_bag'``): the lake
-    accounts for every bag it was given."""
+    accounts for every bag it was given. Each commit also stamps the bags it records
+    (:func:`piece_stamps`), so whether a bag is here is a look-up in the table's log
+    (:meth:`pieces_known`), whatever the number of runs."""
+
+    asks_by_bag_id = True
 
     def __init__(self, root: Path | str) -> None:
         self.root = root
@@ -735,12 +764,16 @@ class FleetBagLake(_SessionLake):
             identity=identity,
             replacing=replacing + [s.info.run for s in absorbed],
             apps=[bags_app(robot)],
+            stamps=[a for k, v in sorted(doc["pieces"].items()) for a in _doc_stamps(k, v)],
         )
         return None
 
     def _write_report(self, bag_id: str, data: bytes) -> None:
-        robot = json.loads(data).get("robot")
-        self.lake.record_bag(bag_id, str(robot) if robot else None, data.decode())
+        doc = json.loads(data)
+        robot = doc.get("robot")
+        self.lake.record_bag(
+            bag_id, str(robot) if robot else None, data.decode(), _doc_stamps(bag_id, doc)
+        )
 
     def known_pieces(self) -> dict[str, str]:
         """Bag id → the converter key it was read with, for every bag the lake has taken: the
@@ -756,6 +789,25 @@ class FleetBagLake(_SessionLake):
                 known[bag_id] = str(piece.get("converter", ""))
         return dict(sorted(known.items()))
 
+    def pieces_known(self, bag_ids: Sequence[str], converter: str) -> Mapping[str, str] | None:
+        """Bag id → ``converter`` for those of ``bag_ids`` the lake holds read with it (the
+        others are read by ingest), from the table's log alone (:func:`piece_stamps`): no row
+        is read. A bag not read with ``converter`` costs one look-up, one that was two (its
+        stamp with the converter, then whether that stamp is the bag's latest). None for a
+        table made before commits stamped bags (then :meth:`known_pieces` reads every record)."""
+        self._table = None
+        table = self._current()
+        self._table = None
+        if table.transaction_version(STAMP_INDEX_APP) is None:
+            return None
+        known = {}
+        for bag_id in bag_ids:
+            latest, with_converter = piece_stamps(bag_id, converter)
+            stamped = table.transaction_version(with_converter)
+            if stamped is not None and table.transaction_version(latest) == stamped:
+                known[bag_id] = converter
+        return known
+
     def complete_merges(self) -> list[str]:
         """Nothing to finish: a merge is one transaction."""
         return []
@@ -767,7 +819,7 @@ class FleetBagLake(_SessionLake):
     def record_without_run(self, bag_id: str, report: dict[str, Any]) -> None:
         doc = {"bag_id": bag_id, "robot": None, "run": None, "events": 0, "report": report}
         try:
-            self.lake.record_bag(bag_id, None, _json(doc).decode())
+            self.lake.record_bag(bag_id, None, _json(doc).decode(), _doc_stamps(bag_id, doc))
         except (OSError, EventStoreError) as exc:
             raise BagCommitError(f"writing the report of bag {bag_id[:16]} failed: {exc}") from exc
 

@@ -26,10 +26,10 @@ def small_log(directory: Path, *, stream: str = "run-a", n: int = 3) -> Path:
     return directory
 
 
-def two_type_log(directory: Path) -> Path:
+def two_type_log(directory: Path, *, stream: str = "run-a") -> Path:
     """Two event types: every kind of step of a commit, few files (each kill costs a commit)."""
     with EventLog.open(
-        directory, "run-a", wall_clock=lambda: 1_700_000_000_000_000_000, store=STORE
+        directory, stream, wall_clock=lambda: 1_700_000_000_000_000_000, store=STORE
     ) as log:
         log.append("task_started", EXAMPLES["task_started"], time_ns=1, task_id="t1")
         for i in range(3):

@@ -21,6 +21,8 @@ from objsearch.events.lake_table import BAG_TYPE, TableLake
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import BagLake, FleetBagLake, open_bag_lake
+from objsearch.pipeline.bags.read import bag_identity
+from objsearch.pipeline.bags.session import converter_key
 from objsearch.ros.topics import TopicMap
 from objsearch.testing.s3server import s3_server
 
@@ -129,6 +131,68 @@ def test_a_bag_with_nothing_in_it_is_accounted_for(tmp_path: Path) -> None:
     # The folder lake keeps the same record in _bags/.
     ingest([empty], tmp_path / "folder")
     assert BagLake(tmp_path / "folder").known_pieces() == FleetBagLake(lake).known_pieces()
+
+
+def _answers(lake: str, bags: list[Path], topic_map: TopicMap | None = None) -> dict[str, str]:
+    """What ingest asks the fleet lake of these bags (its stamps), checked against what the
+    lake's rows record (every bag's latest converter)."""
+    key = converter_key(topic_map or TopicMap())
+    ids = [bag_identity(b)[0] for b in bags]
+    answers = FleetBagLake(lake).pieces_known(ids, key)
+    assert answers is not None
+    recorded = FleetBagLake(lake).known_pieces()
+    assert answers == {i: key for i in ids if recorded.get(i) == key}
+    return dict(answers)
+
+
+def test_whether_a_bag_is_there_is_read_from_the_log_not_the_rows(
+    ros1: Recorded, pieces: list[Path], tmp_path: Path
+) -> None:
+    lake = fleet(tmp_path / "fleet")
+    assert _answers(lake, [ros1.bag, *pieces]) == {}
+    ingest(pieces[1:], lake)  # a provisional run, then merged as each piece arrives
+    key = converter_key(TopicMap())
+    ids = [bag_identity(p)[0] for p in pieces]
+    assert _answers(lake, pieces) == dict.fromkeys(ids[1:], key)
+    ingest(pieces[:1], lake)  # the first piece: every piece is now in the session's run
+    assert _answers(lake, pieces) == dict.fromkeys(ids, key)
+    no_odom = TopicMap({t: r for t, r in TopicMap().topics.items() if t != "/odom"})
+    ingest(pieces[:1], lake, topic_map=no_odom)  # read with another converter: re-stamped
+    assert _answers(lake, pieces[:1], no_odom) == {ids[0]: converter_key(no_odom)}
+    assert _answers(lake, pieces) == dict.fromkeys(ids[1:], key)
+    # No row is read: with every data file gone, the answers stay (listing them cannot).
+    table = TableLake(lake, store=STORE)
+    for f in table.data_files():
+        (Path(table.uri) / f.path).unlink()
+    answers = FleetBagLake(lake).pieces_known(ids, key)
+    assert answers == dict.fromkeys(ids[1:], key)
+    with pytest.raises(OSError):
+        FleetBagLake(lake).known_pieces()
+
+
+def test_a_table_made_before_bags_were_stamped_is_asked_by_its_rows(
+    ros1: Recorded, tmp_path: Path
+) -> None:
+    from deltalake import CommitProperties, Transaction, write_deltalake
+
+    from objsearch.events.lake_table import IDENTITY_INDEX_APP, TABLE_FORMAT, table_schema
+
+    lake = TableLake(tmp_path / "fleet", store=STORE)
+    write_deltalake(  # as TableLake.create made it before (no stamp index)
+        lake.uri,
+        table_schema(STORE).empty_table(),
+        partition_by=["type"],
+        description=TABLE_FORMAT,
+        commit_properties=CommitProperties(app_transactions=[Transaction(IDENTITY_INDEX_APP, 1)]),
+    )
+    key = converter_key(TopicMap())
+    bag_id = bag_identity(ros1.bag)[0]
+    [first] = ingest([ros1.bag], str(lake.root))
+    assert first.error is None and not first.already
+    assert FleetBagLake(str(lake.root)).pieces_known([bag_id], key) is None
+    assert FleetBagLake(str(lake.root)).known_pieces() == {bag_id: key}
+    [again] = ingest([ros1.bag], str(lake.root))
+    assert again.already and again.report is None
 
 
 INGEST = """
