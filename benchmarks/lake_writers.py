@@ -19,7 +19,9 @@ once), and the concurrent lake equal to the sequential one (the same runs, diges
 run, also after compacting it). Printed: both wall times and their ratio (the concurrent writers
 share the machine's cores, so the ratio says what contention costs, not a speed-up), and the
 time to read the concurrent lake's runs and counts as written (one file a type a commit) and
-after ``compact``.
+after ``compact``. A run lost or doubled is named (with the commit token ``add_log``
+acknowledged) and the lake is copied out (from the bucket, before its server stops) into the work
+folder, which is then kept for a look.
 """
 
 from __future__ import annotations
@@ -58,8 +60,10 @@ started = time.perf_counter()
 done = 0
 for item in sys.argv[3:]:
     robot, log = item.split("=", 1)
-    add_log(Path(log), lake, robot=robot, run=Path(log).name)
+    info = add_log(Path(log), lake, robot=robot, run=Path(log).name)
     done += 1
+    # what add_log acknowledged: the run and the commit token its files and rows carry
+    print(json.dumps({"acked": [info.robot, info.run, info.commit]}), flush=True)
 print(json.dumps({"commits": done, "seconds": time.perf_counter() - started}))
 """
 
@@ -149,12 +153,11 @@ def run_place(
         outs = [p.communicate(timeout=3600) for p in procs]
         concurrent_s = time.perf_counter() - started
         failed = [i for i, p in enumerate(procs) if p.returncode != 0]
-        commits = sum(
-            json.loads(line)["commits"]
-            for o, _ in outs
-            for line in (o or "").splitlines()
-            if line.startswith("{")
-        )
+        docs = [
+            json.loads(ln) for o, _ in outs for ln in (o or "").splitlines() if ln.startswith("{")
+        ]
+        commits = sum(d["commits"] for d in docs if "commits" in d)
+        acked = {(d["acked"][0], d["acked"][1]): d["acked"][2] for d in docs if "acked" in d}
 
         sequential = TableLake(sequential_root, store=STORE)
         started = time.perf_counter()
@@ -169,6 +172,9 @@ def run_place(
         started = time.perf_counter()
         got_runs, got_rows = content(concurrent_root)
         uncompacted_s = time.perf_counter() - started
+        there = [(r[0], r[1]) for r in got_runs]
+        if set(acked) - set(there) or len(there) != len(set(there)):
+            keep_for_a_look(concurrent_root, work / f"kept-{where}", acked, there)
         want_runs, want_rows = content(sequential_root)
         started = time.perf_counter()
         TableLake(concurrent_root, store=STORE).compact(vacuum_hours=None)
@@ -204,6 +210,32 @@ def run_place(
     return ok, where
 
 
+def keep_for_a_look(
+    root: str, into: Path, acked: Mapping[tuple[str, str], str], there: list[tuple[str, str]]
+) -> None:
+    """A lake that lost or doubled runs: name them (with the commit token add_log acknowledged:
+    its data files are ``part-<token>.zstd.parquet``, its commit names them) and copy the lake
+    (its Delta log, every file) out of the bucket before the server stops."""
+    import pyarrow.fs as pafs
+
+    for key in sorted(set(acked) - set(there)):
+        print(f"  LOST after add_log returned: {key[0]}/{key[1]}, commit token {acked[key]}")
+    for key in sorted({k for k in there if there.count(k) > 1}):
+        print(f"  TWICE: {key[0]}/{key[1]}")
+    if "://" in root:
+        fs = pafs.S3FileSystem(
+            endpoint_override=os.environ["AWS_ENDPOINT_URL"],
+            scheme="http" if os.environ["AWS_ENDPOINT_URL"].startswith("http://") else "https",
+            access_key=os.environ["AWS_ACCESS_KEY_ID"],
+            secret_key=os.environ["AWS_SECRET_ACCESS_KEY"],
+            region=os.environ.get("AWS_REGION", "us-east-1"),
+        )
+        pafs.copy_files(root.removeprefix("s3://"), str(into), source_filesystem=fs)
+    else:
+        shutil.copytree(root, into)
+    print(f"  the lake is kept in {into}")
+
+
 def _where(root: str) -> str:
     return "the bucket" if "://" in root else "a local folder"
 
@@ -231,6 +263,8 @@ def main() -> int:
     )
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="objsearch-bench-lake-writers-"))
+    places = [w for w in args.where.split(",") if w]
+    results: list[tuple[bool, str]] = []
     print(
         "concurrent lake writers; command: python benchmarks/lake_writers.py "
         + " ".join(sys.argv[1:])
@@ -243,12 +277,13 @@ def main() -> int:
         own = {w: [logs[n] for n in ns] for w, ns in names.items()}
         shared = [logs[n] for n in shared_names]
         results = [
-            run_place(w, work, own, shared, args.compact_every, args.sequential_on)
-            for w in args.where.split(",")
-            if w
+            run_place(w, work, own, shared, args.compact_every, args.sequential_on) for w in places
         ]
     finally:
-        shutil.rmtree(work, ignore_errors=True)
+        if all(ok for ok, _ in results) and len(results) == len(places):
+            shutil.rmtree(work, ignore_errors=True)
+        else:
+            print(f"kept {work} (its logs and any kept lake) for a look")
     bad = [where for ok, where in results if not ok]
     print("all places: 0 lost, 0 duplicated, equal to sequential" if not bad else f"FAILED: {bad}")
     return 1 if bad else 0
