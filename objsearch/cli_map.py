@@ -123,6 +123,17 @@ def _print_statics(semmap: Any) -> None:
 
 
 def cmd_map_build(args: argparse.Namespace) -> int:
+    from objsearch.agent.session import load_context
+    from objsearch.cli import _fail
+
+    if args.bag and args.model:
+        return _fail("--model does not apply to --bag: the bag's recorded instance masks are used")
+    if args.topics and not args.bag:
+        return _fail("--topics applies to --bag only")
+    # The home before torch and the mapping modules (seconds of imports): a name that is not a
+    # home is refused at once.
+    ctx = load_context(args.home)
+
     import time
 
     import torch
@@ -136,19 +147,12 @@ def cmd_map_build(args: argparse.Namespace) -> int:
         detected,
         survey_poses,
     )
-    from objsearch.agent.session import load_context
-    from objsearch.cli import _fail
     from objsearch.sim.longterm import TARGET_ORDER
     from objsearch.sim.mapeval import compare, cost_summary, search_cost
     from objsearch.sim.placements import base_placements, table1_removals
     from objsearch.sim.render import SimulatedCamera, SurveyFrames
 
-    if args.bag and args.model:
-        return _fail("--model does not apply to --bag: the bag's recorded instance masks are used")
-    if args.topics and not args.bag:
-        return _fail("--topics applies to --bag only")
     torch.set_num_threads(args.threads)
-    ctx = load_context(args.home)
     classes = ctx.vocabulary.names(Category.STATIC)
     detector: Detector
     if args.model:
