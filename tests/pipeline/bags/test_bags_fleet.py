@@ -112,10 +112,13 @@ def test_reingest_replaces_the_bags_rows(ros1: Recorded, tmp_path: Path) -> None
 
 def test_a_bag_with_nothing_in_it_is_accounted_for(tmp_path: Path) -> None:
     from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
 
     empty = tmp_path / "empty.bag"
     with Writer(empty) as writer:
-        writer.add_connection("/chatter", "std_msgs/msg/String", typestore=None)
+        writer.add_connection(
+            "/chatter", "std_msgs/msg/String", typestore=get_typestore(Stores.ROS1_NOETIC)
+        )
     lake = fleet(tmp_path / "fleet")
     [result] = ingest([empty], lake)
     assert result.error is None and result.committed == 0 and "nothing committed" in result.note

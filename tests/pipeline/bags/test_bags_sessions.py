@@ -94,10 +94,13 @@ def test_the_same_recording_in_three_formats_counts_once(ros1: Recorded, tmp_pat
 
 def test_a_piece_with_nothing_in_it_makes_no_run(tmp_path: Path) -> None:
     from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
 
     empty = tmp_path / "empty.bag"
     with Writer(empty) as writer:
-        writer.add_connection("/chatter", "std_msgs/msg/String", typestore=None)
+        writer.add_connection(
+            "/chatter", "std_msgs/msg/String", typestore=get_typestore(Stores.ROS1_NOETIC)
+        )
     [result] = ingest([empty], tmp_path / "lake")
     assert result.error is None and result.committed == 0 and "nothing committed" in result.note
     assert Lake(tmp_path / "lake", store=STORE).runs() == []
