@@ -34,6 +34,7 @@ import json
 import logging
 import random
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -215,27 +216,30 @@ def open_bag_lake(root: Path | str) -> BagLake | FleetBagLake:
     return BagLake(Path(root))
 
 
-class _SessionLake:
-    """What ingest does with recording sessions, whichever lake keeps the runs: the hooks
-    below are each lake's reads and its commit."""
+class _SessionLake(ABC):
+    """What ingest does with recording sessions, whichever lake keeps the runs: the abstract
+    hooks below are each lake's reads and its commit."""
 
-    def _all_runs(self) -> Sequence[RunInfo | TableRun]:
-        raise NotImplementedError
+    @abstractmethod
+    def _all_runs(self) -> Sequence[RunInfo | TableRun]: ...
 
+    @abstractmethod
     def _run_doc(self, info: RunInfo | TableRun) -> bytes | str | None:
         """A bag run's ``_ingest.json`` (None if it has none)."""
-        raise NotImplementedError
+        ...
 
-    def _read(self, info: RunInfo | TableRun) -> Mapping[str, pa.Table]:
-        raise NotImplementedError
+    @abstractmethod
+    def _read(self, info: RunInfo | TableRun) -> Mapping[str, pa.Table]: ...
 
-    def _held_ids(self, info: RunInfo | TableRun) -> set[str]:
-        raise NotImplementedError
+    @abstractmethod
+    def _held_ids(self, info: RunInfo | TableRun) -> set[str]: ...
 
+    @abstractmethod
     def _where(self, info: RunInfo | TableRun) -> Path | None:
         """A run's folder (None in the fleet lake: its rows are in the table)."""
-        raise NotImplementedError
+        ...
 
+    @abstractmethod
     def _store(
         self,
         tables: Mapping[str, pa.Table],
@@ -250,13 +254,13 @@ class _SessionLake:
     ) -> Path | None:
         """Commit a session's run (replacing ``existing``, taking out ``absorbed``) and the
         pieces' records; the run's folder, if it has one."""
-        raise NotImplementedError
+        ...
 
-    def _write_report(self, bag_id: str, data: bytes) -> None:
-        raise NotImplementedError
+    @abstractmethod
+    def _write_report(self, bag_id: str, data: bytes) -> None: ...
 
-    def restore_report(self, bag_id: str) -> bool:
-        raise NotImplementedError
+    @abstractmethod
+    def restore_report(self, bag_id: str) -> bool: ...
 
     def _sessions(self, runs: Sequence[RunInfo | TableRun] | None = None) -> list[_SessionRun]:
         """Every bag run with its ingest record."""
