@@ -11,15 +11,13 @@ decomposition (docs/results-routine.md, "Why even the time-aware oracle reaches 
   walked a wrong room first, and the first search of each scene (nothing seen yet that day)
   against the later ones (the robot has passed most objects while looking for earlier targets).
 
-``python -m objsearch.experiments.routine_ceiling RUN_DIR... [--kind homer]`` prints both for the
-run's homes and seeds (``homer``: the HOMER-derived schedules, ``sim/homer_schedule.py``).
+``objsearch bench routine-ceiling RUN_DIR... [--kind homer]`` prints both for the run's homes and
+seeds (``homer``: the HOMER-derived schedules, ``sim/homer_schedule.py``).
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -29,7 +27,6 @@ from objsearch.experiments.runner import Row, read_output
 from objsearch.sim.distribution_oracle import time_blind_distribution, time_of_day_distribution
 from objsearch.sim.longterm import TARGET_ORDER
 from objsearch.sim.routine_schedule import SCENES_PER_DAY, WEEKEND
-from objsearch.sim.schedule_names import ROUTINE_KINDS
 
 #: The evaluation week of the routine protocol (days 15-21).
 EVALUATED_WEEK = 2
@@ -121,33 +118,19 @@ def path_split(rows: Sequence[Row], after: int = AFTER_SCENE) -> dict[str, dict[
     return out
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m objsearch.experiments.routine_ceiling")
-    parser.add_argument(
-        "runs",
-        type=Path,
-        nargs="+",
-        help="bench homes output folders (routine or homer schedules)",
-    )
-    parser.add_argument(
-        "--kind", choices=ROUTINE_KINDS, default="routine", help="the schedule kind (routine)"
-    )
-    args = parser.parse_args(argv)
-    rows = [
-        r for run in args.runs for r in read_output(run) if r.placements.startswith(f"{args.kind}-")
-    ]
+def ceiling_text(runs: Sequence[Path], kind: str) -> str | None:
+    """Both decompositions for the ``kind``-<seed> searches of ``runs`` (bench homes outputs),
+    as ``objsearch bench routine-ceiling`` prints them; None if the runs hold none."""
+    rows = [r for run in runs for r in read_output(run) if r.placements.startswith(f"{kind}-")]
     if not rows:
-        parser.error(f"{' '.join(map(str, args.runs))}: no {args.kind}-<seed> searches")
+        return None
     homes = sorted({r.home for r in rows})
     seeds = 1 + max(r.seed for r in rows)
-    print(f"slot effect, week {EVALUATED_WEEK} ({len(homes)} homes, seeds 0-{seeds - 1}):")
-    for key, v in slot_effect(homes, seeds, kind=args.kind).items():
-        print(f"  {key:20s} {v:.3f}")
-    print(f"paths after scene {AFTER_SCENE}:")
-    for name, parts in path_split(rows).items():
-        print(f"  {name:14s} " + " ".join(f"{k} {v:.3f}" for k, v in parts.items()))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    lines = [f"slot effect, week {EVALUATED_WEEK} ({len(homes)} homes, seeds 0-{seeds - 1}):"]
+    lines += [f"  {key:20s} {v:.3f}" for key, v in slot_effect(homes, seeds, kind=kind).items()]
+    lines.append(f"paths after scene {AFTER_SCENE}:")
+    lines += [
+        f"  {name:14s} " + " ".join(f"{k} {v:.3f}" for k, v in parts.items())
+        for name, parts in path_split(rows).items()
+    ]
+    return "\n".join(lines)

@@ -157,6 +157,22 @@ def cmd_bench_belief(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_routine_ceiling(args: argparse.Namespace) -> int:
+    from objsearch.experiments.routine_ceiling import ceiling_text
+
+    folders = [Path(d) for d in args.runs]
+    missing = [str(d) for d in folders if not (d / "homes_trials.parquet").is_file()]
+    if missing:
+        raise ObjsearchError(
+            f"not a bench homes output (no homes_trials.parquet): {', '.join(missing)}"
+        )
+    text = ceiling_text(folders, args.kind)
+    if text is None:
+        raise ObjsearchError(f"{', '.join(args.runs)}: no {args.kind}-<seed> searches")
+    print(text)
+    return 0
+
+
 #: Where bench report looks for a bench paper output when --paper is not given.
 DEFAULT_PAPER_RUN = "out/bench-paper"
 
@@ -475,6 +491,32 @@ def register(sub: Any) -> None:
     )
     t.progress_option(belief)
     belief.set_defaults(func=cmd_bench_belief)
+
+    ceiling = bsub.add_parser(
+        "routine-ceiling",
+        help="why a memory of the hour gains what it gains on routine schedules "
+        "(docs/results-routine.md)",
+        description="From bench homes outputs of routine or homer schedules: how much knowing "
+        "the hour tells (the chance the likeliest place or room holds the object, time-blind "
+        "against the slot's own distribution) and where the references' paths go (the part no "
+        "memory can shorten; the first search of each scene against later ones).",
+    )
+    ceiling.add_argument(
+        "runs",
+        nargs="+",
+        type=t.existing_dir,
+        metavar="DIR",
+        help="bench homes output folder(s) with routine-<seed> or homer-<seed> searches",
+    )
+    ceiling.add_argument(
+        "--kind",
+        # sim.schedule_names.ROUTINE_KINDS, spelled out: importing it would load the simulator at
+        # every start-up (tests/experiments/test_routine_ceiling.py holds the two equal)
+        choices=("routine", "homer"),
+        default="routine",
+        help="the schedule kind (routine)",
+    )
+    ceiling.set_defaults(func=cmd_bench_routine_ceiling)
 
     dhs = bsub.add_parser(
         "dhs",

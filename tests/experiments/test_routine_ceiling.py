@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from objsearch.experiments.routine_ceiling import path_split, slot_effect
@@ -52,3 +54,19 @@ def test_the_homer_slot_effect_is_read_from_the_homer_routines() -> None:
     assert 0 < effect["place_blind_mode"] <= effect["place_slot_mode"] <= 1
     assert effect["room_blind_mode"] <= effect["room_slot_mode"] <= 1
     assert effect != slot_effect(["ithor-01"], 1)
+
+
+def test_bench_routine_ceiling_takes_the_routine_kinds_and_refuses_other_folders(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from objsearch.cli import build_parser, main
+    from objsearch.sim.schedule_names import ROUTINE_KINDS
+
+    args = build_parser().parse_args(["bench", "routine-ceiling", str(tmp_path), "--kind", "homer"])
+    assert args.kind == "homer"
+    with pytest.raises(SystemExit) as exit_info:
+        build_parser().parse_args(["bench", "routine-ceiling", str(tmp_path), "--kind", "stats"])
+    assert exit_info.value.code == 2
+    assert f"choose from {', '.join(map(repr, ROUTINE_KINDS))}" in capsys.readouterr().err
+    assert main(["bench", "routine-ceiling", str(tmp_path)]) == 2
+    assert "not a bench homes output" in capsys.readouterr().err
