@@ -49,8 +49,9 @@ from objsearch.agent.catalogue import (
     decode,
 )
 from objsearch.agent.home import Home, load_home
-from objsearch.agent.scene_graph import EventLike, Pair, UpdateMode
+from objsearch.agent.scene_graph import Pair, UpdateMode
 from objsearch.agent.sightings import LastSeen
+from objsearch.events.projection import EventView
 
 #: The place that is no mapped static: on the floor, in a hand, in a room never mapped.
 ELSEWHERE = "(elsewhere)"
@@ -117,17 +118,17 @@ class Today:
     missed: dict[str, dict[str, int]] = field(default_factory=dict)
     searched: set[str] = field(default_factory=set)
 
-    def starts(self, event: EventLike, started: TaskStarted) -> bool:
+    def starts(self, event: EventView, started: TaskStarted) -> bool:
         """A task starts; True if it opens a new episode (the caller closes the old one first)."""
         key = ("scene", started.scene) if started.scene is not None else ("task", event.seq)
         return key != self.key or started.scene is None
 
-    def open(self, event: EventLike, started: TaskStarted) -> None:
+    def open(self, event: EventView, started: TaskStarted) -> None:
         self.key = ("scene", started.scene) if started.scene is not None else ("task", event.seq)
         self.seen, self.sighted, self.looked, self.missed = {}, {}, {}, {}
         self.searched = set()
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         kind = event.type
         if kind == "task_started":
             self.target = decode(event, TaskStarted).target
@@ -250,7 +251,7 @@ class PlaceBelief:
 
     # -- the fold -----------------------------------------------------------------------------
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         self._cache = {}
         kind = event.type
         if kind == "run_started":

@@ -34,8 +34,9 @@ from objsearch.agent.catalogue import (
     decode,
 )
 from objsearch.agent.relations import BetaRelations
-from objsearch.agent.scene_graph import EventLike, Pair, UpdateMode
+from objsearch.agent.scene_graph import Pair, UpdateMode
 from objsearch.agent.sightings import LastSeen, Sighting, sighting, sighting_row
+from objsearch.events.projection import EventView
 
 Key = tuple[str, str]  # (object class, static id)
 
@@ -68,7 +69,7 @@ class InstanceMemory:
     def last_seen(self) -> Mapping[str, Sighting]:
         return self.sightings.last
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         self.classes.apply(event)
         self.sightings.apply(event)
         kind = event.type

@@ -53,9 +53,9 @@ from objsearch.agent.planner import (
 )
 from objsearch.agent.relations import RelationModel, instance_value, per_instance
 from objsearch.agent.room_order import expected_cost_order
-from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.semmap import MappedStatic, SemanticMap
 from objsearch.agent.world import Detection, Navigation, World
+from objsearch.events.projection import EventView
 
 _log = logging.getLogger(__name__)
 
@@ -103,16 +103,20 @@ class SearchConfig:
 class EventSink(Protocol):
     def append(
         self, type: str, payload: Mapping[str, Any], *, time_ns: int, task_id: str | None = None
-    ) -> EventLike: ...
+    ) -> EventView: ...
 
 
-class Projection(Protocol):
-    def apply(self, event: EventLike) -> None: ...
+class EventObserver(Protocol):
+    """Told of each event the agent appends, right after it is written: the agent's own fold,
+    the ``where`` memory, the live view, a publisher. Not necessarily a projection (a publisher
+    keeps no state); one that is also satisfies :class:`objsearch.events.Projection`."""
+
+    def apply(self, event: EventView) -> None: ...
 
 
 @dataclass
 class Recorder:
-    """Appends events and folds each one into the live projections.
+    """Appends events and hands each one to its observers (the live projections among them).
 
     A stream's time never runs backwards (the log refuses it), but a robot's clock can step back
     (a restarted simulator, an NTP step): such an event is stamped with the last event's time
@@ -120,13 +124,13 @@ class Recorder:
     """
 
     sink: EventSink
-    projections: Sequence[Projection]
+    observers: Sequence[EventObserver]
     time_floor_ns: int = 0
     _behind: bool = field(default=False, init=False)
 
     def record(
         self, type: str, payload: Mapping[str, Any], *, time_ns: int, task_id: str | None = None
-    ) -> EventLike:
+    ) -> EventView:
         if time_ns < self.time_floor_ns:
             if not self._behind:
                 _log.warning(
@@ -140,11 +144,11 @@ class Recorder:
             self._behind = False
             self.time_floor_ns = time_ns
         event = self.sink.append(type, payload, time_ns=time_ns, task_id=task_id)
-        for projection in self.projections:
-            projection.apply(event)
+        for observer in self.observers:
+            observer.apply(event)
         return event
 
-    def emit(self, record: Record, *, time_ns: int, task_id: str | None = None) -> EventLike:
+    def emit(self, record: Record, *, time_ns: int, task_id: str | None = None) -> EventView:
         """:meth:`record` of a typed record (its type, its payload)."""
         return self.record(record.TYPE, encode(record), time_ns=time_ns, task_id=task_id)
 

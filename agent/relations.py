@@ -35,16 +35,18 @@ from objsearch.agent.catalogue import (
     ViewTaken,
     decode,
 )
-from objsearch.agent.scene_graph import EventLike, Pair, UpdateMode, experience_to_fold
+from objsearch.agent.scene_graph import Pair, UpdateMode, experience_to_fold
+from objsearch.events.projection import EventView, Projection
 
 
-class RelationModel(Protocol):
-    """What the search policy needs from a scene graph: a fold with Rel per class pair."""
+class RelationModel(Projection[Mapping[Pair, float]], Protocol):
+    """What the search policy needs from a scene graph: a projection (a fold of the log) whose
+    state is Rel per class pair."""
 
     tasks_folded: int
     last_seq: int
 
-    def apply(self, event: EventLike) -> None: ...
+    def apply(self, event: EventView) -> None: ...
 
     def rel(self, dynamic: str, static: str) -> float: ...
 
@@ -82,7 +84,7 @@ class BetaRelations:
         """Factor applied to all evidence when a task starts (1 without decay)."""
         return 1.0 if self.half_life_tasks is None else 0.5 ** (1.0 / self.half_life_tasks)
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         kind = event.type
         if kind == "run_started":
             self.update_mode = UpdateMode(decode(event, RunStarted).update_mode)

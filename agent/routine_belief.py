@@ -46,7 +46,7 @@ from typing import Any, ClassVar
 
 from objsearch.agent.belief import STEP, PlaceBelief
 from objsearch.agent.catalogue import DayClock, TaskStarted, decode
-from objsearch.agent.scene_graph import EventLike
+from objsearch.events.projection import EventView
 
 #: (name, first minute after midnight), in order; the first slot also takes the day's last hours.
 SLOTS: tuple[tuple[str, int], ...] = (
@@ -141,7 +141,7 @@ class RoutineBelief(PlaceBelief):
 
     # -- the fold -----------------------------------------------------------------------------
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         if event.type == "task_started":
             started = decode(event, TaskStarted)
             if self.today.starts(event, started):

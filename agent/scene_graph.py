@@ -13,21 +13,13 @@ import enum
 from collections.abc import Container, Iterable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar
 
 from objsearch.agent.catalogue import Detected, RunStarted, SceneGraphSeeded, TaskStarted, decode
 from objsearch.agent.categories import Category, Vocabulary
+from objsearch.events.projection import EventView
 
 Pair = tuple[str, str]  # (semi-dynamic class, static class)
-
-
-class EventLike(Protocol):
-    @property
-    def seq(self) -> int: ...
-    @property
-    def type(self) -> str: ...
-    @property
-    def payload(self) -> Mapping[str, Any]: ...
 
 
 class UpdateMode(enum.Enum):
@@ -120,7 +112,7 @@ class SceneGraphProjection:
     def __post_init__(self) -> None:
         self._pairs_of = _pairs_by_dynamic(self.relations)
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         # Only the types this fold reads are decoded: the rest pass on their ``type`` alone.
         kind = event.type
         if kind == "run_started":

@@ -19,7 +19,7 @@ from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.navmap import NavigationMap
-from objsearch.agent.policy import Projection, Recorder, SearchAgent, SearchOptions, SearchResult
+from objsearch.agent.policy import EventObserver, Recorder, SearchAgent, SearchOptions, SearchResult
 from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import seed_relations
 from objsearch.agent.semmap import SemanticMap
@@ -122,7 +122,7 @@ class Session:
         ctx: HomeContext,
         log: EventLog,
         state: AgentState,
-        observers: Sequence[Projection],
+        observers: Sequence[EventObserver],
         snapshot_dir: Path | None,
     ) -> None:
         # Private: use open() or start().
@@ -142,7 +142,7 @@ class Session:
         stream: str = "robot",
         run_id: str | None = None,
         wall_clock: Callable[[], int] | None = None,
-        observers: Sequence[Projection] = (),
+        observers: Sequence[EventObserver] = (),
         snapshot_dir: Path | None = None,
         models: RelationModels = AGENT_MODELS,
     ) -> Session:

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from objsearch.agent.catalogue import Detected, TaskStarted, decode
-from objsearch.agent.scene_graph import EventLike
+from objsearch.events.projection import EventView
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,7 +40,7 @@ class LastSeen:
     scene: int | None = None
     pending: dict[str, Sighting] = field(default_factory=dict)
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         kind = event.type
         if kind == "task_started":
             self.task_id = getattr(event, "task_id", None)

@@ -20,8 +20,8 @@ from typing import Any, ClassVar
 from objsearch.agent.catalogue import Moved, RunStarted, TaskStarted, decode
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.relations import RelationModel
-from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.strategies import AGENT_MODELS, RelationModels, RelationSpec, RunSpec
+from objsearch.events.projection import EventView
 
 _TASK_NUMBER = re.compile(r"task-(\d+)")
 #: The event types :meth:`TaskLedger.apply` reads.
@@ -47,7 +47,7 @@ class TaskLedger:
     aborted: int = 0
     open: OpenTask | None = None
 
-    def apply(self, event: EventLike, task_id: str | None) -> None:
+    def apply(self, event: EventView, task_id: str | None) -> None:
         kind = event.type
         if kind == "task_started" and task_id is not None:
             match = _TASK_NUMBER.fullmatch(task_id)
@@ -97,7 +97,7 @@ class AgentState:
     def state(self) -> AgentState:
         return self
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         kind = event.type
         if kind == "run_started":
             self.run = RunSpec.from_record(decode(event, RunStarted))

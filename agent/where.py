@@ -29,12 +29,11 @@ from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.routine_belief import COMPONENTS, START_MIX, RoutineBelief, buckets_of
-from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import ROUTINE_BELIEF
 from objsearch.events.envelope import Event
 from objsearch.events.log import EventLog
-from objsearch.events.projection import fold
+from objsearch.events.projection import EventView, fold
 from objsearch.events.snapshot import restore, save_snapshot
 
 
@@ -204,7 +203,7 @@ class LiveMemory:
     def state(self) -> AgentState:
         return self._state
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         assert isinstance(event, Event)
         with self._lock:
             fold([event], self._state)  # the fold's checks: no event skipped or applied twice

@@ -22,7 +22,7 @@ from .errors import (
     WrongExpectedSeqError,
 )
 from .log import EventLog, TornTail, follow_log, read_log
-from .projection import Projection, fold
+from .projection import EventView, Projection, fold
 from .schemas import SchemaRegistry
 from .store import Store, shipped
 from .upcast import Upcaster
@@ -35,6 +35,7 @@ __all__ = [
     "Event",
     "EventLog",
     "EventStoreError",
+    "EventView",
     "InvalidEventError",
     "LogClosedError",
     "LogLockedError",

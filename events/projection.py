@@ -7,13 +7,28 @@ is skipped, none is applied twice, and the projection really records how far it 
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any, Protocol, TypeVar
 
 from .envelope import Event
 from .errors import ProjectionError
 
 S_co = TypeVar("S_co", covariant=True)
+
+
+class EventView(Protocol):
+    """What a fold reads of an event: its place in the stream, its type, its task and its
+    payload (at the type's latest version, as ``read_log`` upcasts it). :class:`Event` is one;
+    the domain's folds take this, so they never depend on how the log builds its events."""
+
+    @property
+    def seq(self) -> int: ...
+    @property
+    def type(self) -> str: ...
+    @property
+    def task_id(self) -> str | None: ...
+    @property
+    def payload(self) -> Mapping[str, Any]: ...
 
 
 class Projection(Protocol[S_co]):

@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 from objsearch.agent.belief import ELSEWHERE, PlaceBelief
 from objsearch.agent.catalogue import Detected, TaskStarted, decode
-from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import BELIEF, RelationSpec
+from objsearch.events.projection import EventView
 
 BINS = 10
 
@@ -37,7 +37,7 @@ class Forecast:
     brier: float
 
 
-def forecasts(events: Iterable[EventLike], belief: RelationSpec = BELIEF) -> dict[str, Forecast]:
+def forecasts(events: Iterable[EventView], belief: RelationSpec = BELIEF) -> dict[str, Forecast]:
     """Per task id that found its target, the forecast at its start of ``belief`` (the
     time-blind belief, or the one that knows the hour)."""
     state = AgentState(counterfactual=belief)

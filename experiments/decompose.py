@@ -17,21 +17,12 @@ Failed searches are not decomposed (their excess has no oracle end).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Protocol
 
 from objsearch.agent.catalogue import Moved, PlanarPose, TargetFound, TaskStarted, decode
 from objsearch.agent.navmap import NavigationMap
-
-
-class EventLike(Protocol):
-    @property
-    def type(self) -> str: ...
-    @property
-    def task_id(self) -> str | None: ...
-    @property
-    def payload(self) -> Mapping[str, Any]: ...
+from objsearch.events.projection import EventView
 
 
 @dataclass(frozen=True, slots=True)
@@ -51,7 +42,7 @@ def _room(navmap: NavigationMap, pose: PlanarPose) -> str:
     return navmap.room_at(pose.x, pose.y)
 
 
-def decompose(events: Iterable[EventLike], navmap: NavigationMap) -> dict[str, Excess]:
+def decompose(events: Iterable[EventView], navmap: NavigationMap) -> dict[str, Excess]:
     """task id → the walk decomposition of each successful task of a log."""
     out: dict[str, Excess] = {}
     legs: list[tuple[str, float]] = []

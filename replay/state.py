@@ -20,9 +20,9 @@ from objsearch.agent.catalogue import (
 )
 from objsearch.agent.geometry import Pose
 from objsearch.agent.relations import RelationModel
-from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import RunSpec
+from objsearch.events.projection import EventView
 
 
 @dataclass(frozen=True, slots=True)
@@ -65,7 +65,7 @@ class ReplayState:
     def graph(self) -> RelationModel:
         return self.agent.graph()
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         """Fold one event; the scene graph last, so a plan sees the graph as it was before it."""
         kind = event.type
         if kind == "task_started":

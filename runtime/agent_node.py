@@ -21,11 +21,12 @@ from typing import Any
 
 from objsearch.agent.catalogue import STORE, DayClock, SearchFailed, TaskEnded
 from objsearch.agent.errors import ObjsearchError
-from objsearch.agent.scene_graph import EventLike, UpdateMode
+from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import DEFAULT_ALPHA, DEFAULT_STRATEGY, RunSpec
 from objsearch.agent.where import LiveMemory
 from objsearch.events import Event, read_log
+from objsearch.events.projection import EventView
 from objsearch.runtime import messages as m
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import RobotError
@@ -56,7 +57,7 @@ class EventPublisher:
         self._pub = node.publisher(config.topics.events, m.EVENT, config.qos.events)
         self.published = 0
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         assert isinstance(event, Event)
         try:
             self._pub.publish(m.event(event, event.time_ns))
@@ -73,7 +74,7 @@ class GuardedLiveView:
         self.view = view
         self.failures = 0
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         try:
             self.view.apply(event)
         except Exception as exc:

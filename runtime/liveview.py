@@ -35,12 +35,12 @@ from objsearch.agent.catalogue import (
     decode,
 )
 from objsearch.agent.geometry import Point, Pose, heading
-from objsearch.agent.scene_graph import EventLike
 from objsearch.agent.session import HomeContext
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import AGENT_MODELS, RelationModels
 from objsearch.agent.world import Detection
 from objsearch.events import Event
+from objsearch.events.projection import EventView
 from objsearch.runtime import messages as m
 
 log = logging.getLogger("objsearch.liveview")
@@ -350,9 +350,9 @@ class LiveView:
         for event in events:
             self.agent.apply(event)
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         """Draw one event (a projection: ``Session(observers=[view])``)."""
-        assert isinstance(event, Event)  # the log's events; EventLike is the fold's protocol
+        assert isinstance(event, Event)  # the log's events; EventView is the fold's protocol
         self.agent.apply(event)
         stamp = self.clock_offset_ns + event.time_ns
         if not 0 <= stamp <= MAX_STAMP_NS:

@@ -53,7 +53,8 @@ from typing import Any, ClassVar
 from objsearch.agent.belief import Today
 from objsearch.agent.catalogue import RunStarted, SceneGraphSeeded, TaskStarted, decode
 from objsearch.agent.home import Box, Home, load_home
-from objsearch.agent.scene_graph import EventLike, Pair
+from objsearch.agent.scene_graph import Pair
+from objsearch.events.projection import EventView
 from objsearch.sim.habit_schedule import (
     MOVE_SCENE,
     habit_distribution,
@@ -260,7 +261,7 @@ class DistributionOracle:
     today: Today = field(default_factory=Today)
     _cache: dict[str, dict[str, float]] = field(default_factory=dict, repr=False, compare=False)
 
-    def apply(self, event: EventLike) -> None:
+    def apply(self, event: EventView) -> None:
         self._cache = {}
         if event.type == "run_started" and self.home is None:
             run = decode(event, RunStarted)

@@ -31,6 +31,7 @@ class Ev:
     seq: int
     type: str
     payload: dict[str, Any] = field(default_factory=dict)
+    task_id: str | None = None
 
 
 def test_eq2_is_pair_count_over_image_count() -> None:
