@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SHARED ?= ../shared/data
 
-.PHONY: demo test lint typecheck bench data bless figures check-figures clean dhs
+.PHONY: demo test lint typecheck bench data bless schemas figures check-figures clean dhs
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -60,6 +60,10 @@ dhs: $(STAMP)
 
 data: $(STAMP)
 	$(BIN)/objsearch data build --source $(SHARED)
+
+# Write events/schema/*.json from the records in agent/catalogue.py (never edit those files).
+schemas: $(STAMP)
+	$(BIN)/python -m objsearch.agent.schema_files
 
 # Re-record the golden logs after a change that is meant to alter decisions (tests/replay).
 GOLDEN ?= tests/replay/golden

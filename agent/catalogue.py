@@ -1,8 +1,9 @@
 """The domain's event catalogue: one typed record per event type and version, and the codec.
 
-Each record is a frozen ``msgspec.Struct`` whose fields are exactly its JSON Schema's
-(``events/schema/<type>.v<version>.json``; ``tests/agent/test_catalogue.py`` checks every field,
-type, nullability, enum and bound against the schema files). Records are built with keywords and
+Each record is a frozen ``msgspec.Struct`` and the one definition of its payload: its types,
+literals and bounds are the constraints, its docstring and its fields' :func:`doc` the
+descriptions, and ``events/schema/<type>.v<version>.json`` is written from it (``make schemas``,
+:mod:`objsearch.agent.schema_files`; never edit those files). Records are built with keywords and
 are immutable. :func:`encode` turns one into the payload dict the log stores; :func:`decode` turns
 an event (latest version, as ``read_log`` upcasts it) back into its record, validating it on the
 way. The upcast steps for old versions live in :mod:`objsearch.agent.upcasters`;
@@ -62,6 +63,11 @@ MinuteOfDay: TypeAlias = Annotated[int, msgspec.Meta(ge=0, le=1439)]
 ViewReason: TypeAlias = Literal["look", "inside", "on_the_way"]
 
 
+def doc(description: str) -> msgspec.Meta:
+    """A field's description, written into its schema file (``events/schema_writer.py``)."""
+    return msgspec.Meta(description=description)
+
+
 class Record(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """A payload of one event type and version (``TYPE``, ``VERSION``)."""
 
@@ -74,7 +80,10 @@ class Part(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True
 
 
 class PlanarPose(Part, frozen=True):
-    """Planar robot pose in the map frame (REP-103): metres, yaw in radians from +x."""
+    """Planar robot pose (REP-103): metres, yaw in radians counter-clockwise from +x; in the map
+    frame, except in pose_observed (the frame its frame_id names)."""
+
+    SCHEMA_NAME: ClassVar[str] = "pose"
 
     x: float
     y: float
@@ -82,8 +91,10 @@ class PlanarPose(Part, frozen=True):
 
 
 class DayClock(Part, frozen=True):
-    """The local time of day a search began: the weekday (0 Monday … 6 Sunday) and the minute
-    after midnight (what a memory that knows the hour folds, agent/routine_belief.py)."""
+    """The local time of day a search began: the weekday (0 Monday ... 6 Sunday) and the minute
+    after local midnight (what a memory that knows the hour folds, agent/routine_belief.py)."""
+
+    SCHEMA_NAME: ClassVar[str] = "clock"
 
     weekday: Weekday
     minute: MinuteOfDay
@@ -97,277 +108,634 @@ class DayClock(Part, frozen=True):
 
 
 class Support(Part, frozen=True):
-    static_id: str
-    static_class: str
-    at: bool
+    """The nearest static object in the room."""
+
+    SCHEMA_NAME: ClassVar[str] = "support"
+
+    static_id: Annotated[str, doc("Nearest static object instance.")]
+    static_class: Annotated[str, doc("Its class.")]
+    at: Annotated[
+        bool,
+        doc("Whether the object is at that static object's viewpoint N_s (Eq. 4)."),
+    ]
 
 
 class Candidate(Part, frozen=True):
-    static_id: str
-    static_class: str
-    viewpoint: XY
-    rel: Probability
+    """A static object a plan considered, with its inputs."""
+
+    SCHEMA_NAME: ClassVar[str] = "candidate"
+
+    static_id: Annotated[str, doc("Static object instance id.")]
+    static_class: Annotated[str, doc("Its class.")]
+    viewpoint: Annotated[
+        XY,
+        doc("Viewpoint N_s [x, y] from which it is looked at, map frame, metres."),
+    ]
+    rel: Annotated[Probability, doc("Rel(target, static) used by the plan.")]
 
 
 class Detection2D(Part, frozen=True):
-    instance_id: str
-    class_id: str
-    score: float
-    bbox: Box
-    position: XYZ | None
+    """One vision_msgs/Detection2D: its best hypothesis, box and position."""
+
+    SCHEMA_NAME: ClassVar[str] = "detection"
+
+    instance_id: Annotated[str, doc("Detection2D.id (tracking or instance id), possibly empty.")]
+    class_id: Annotated[
+        str,
+        doc("Class of the best-scoring hypothesis (empty if there is none)."),
+    ]
+    score: Annotated[float, doc("Its score.")]
+    bbox: Annotated[Box, doc("[centre x, centre y, width, height], pixels.")]
+    position: Annotated[
+        XYZ | None,
+        doc(
+            "The best hypothesis' position [x, y, z] in the header's frame, metres; null "
+            "without a hypothesis."
+        ),
+    ]
 
 
 class RelationsSpecV2(Part, frozen=True):
-    model: Literal["eq4", "beta"]
-    prior_strength: Positive | None
-    half_life_tasks: Positive | None
+    """A relation model and every parameter it uses."""
+
+    SCHEMA_NAME: ClassVar[str] = "relations"
+
+    model: Annotated[
+        Literal["eq4", "beta"],
+        doc(
+            "eq4: the paper's Eq. 4; beta: a Beta posterior per class pair with negative evidence."
+        ),
+    ]
+    prior_strength: Annotated[
+        Positive | None,
+        doc("beta: pseudo-observations of the Visual Genome prior; null for eq4."),
+    ]
+    half_life_tasks: Annotated[
+        Positive | None,
+        doc("beta: half-life of evidence in tasks; null for no decay."),
+    ]
 
 
 class RelationsSpecV3(Part, frozen=True):
-    model: RelationModelNameV3
-    prior_strength: Positive | None
-    half_life_tasks: Positive | None
-    recent_weight: NonNegative | None
+    """A relation model and every parameter it uses."""
+
+    SCHEMA_NAME: ClassVar[str] = "relations"
+
+    model: Annotated[
+        RelationModelNameV3,
+        doc(
+            "eq4: the paper's Eq. 4; beta: a Beta posterior per class pair with negative "
+            "evidence; memory: a belief per (target, static instance) from sightings, "
+            "misses, recency and frequency, the class-level Beta posterior as prior; "
+            "belief: a probability distribution per target over static instances and "
+            "elsewhere (agent/belief.py); dist-oracle: a reference that reads the "
+            "schedule's placement distribution (never a default)."
+        ),
+    ]
+    prior_strength: Annotated[
+        Positive | None,
+        doc(
+            "beta, memory: pseudo-observations of the prior; belief: the Dirichlet prior's "
+            "total weight in episodes; null otherwise."
+        ),
+    ]
+    half_life_tasks: Annotated[
+        Positive | None,
+        doc(
+            "beta: half-life of evidence in tasks, null for no decay; memory: half-life of "
+            "the recent evidence in tasks; belief: half-life of the short memory in "
+            "episodes (scenes, or tasks where the log records no scene)."
+        ),
+    ]
+    recent_weight: Annotated[
+        NonNegative | None,
+        doc(
+            "memory: weight of recent (decaying) evidence against long-run counts; null for"
+            " other models."
+        ),
+    ]
 
 
 class RelationsSpec(Part, frozen=True):
-    model: RelationModelName
-    prior_strength: Positive | None
-    half_life_tasks: Positive | None
-    recent_weight: NonNegative | None
+    """A relation model and every parameter it uses."""
+
+    SCHEMA_NAME: ClassVar[str] = "relations"
+
+    model: Annotated[
+        RelationModelName,
+        doc(
+            "eq4: the paper's Eq. 4; beta: a Beta posterior per class pair with negative "
+            "evidence; memory: a belief per (target, static instance) from sightings, "
+            "misses, recency and frequency, the class-level Beta posterior as prior; "
+            "belief: a probability distribution per target over static instances and "
+            "elsewhere (agent/belief.py); routine-belief: the belief that knows the hour, "
+            "per time-of-day slot and day type mixed with the time-blind belief "
+            "(agent/routine_belief.py); dist-oracle: a reference that reads the schedule's "
+            "placement distribution (never a default); slot-oracle: the same reference, "
+            "knowing the schedule's distribution at each time of day (routine schedules)."
+        ),
+    ]
+    prior_strength: Annotated[
+        Positive | None,
+        doc(
+            "beta, memory: pseudo-observations of the prior; belief, routine-belief: the "
+            "Dirichlet prior's total weight in episodes; null otherwise."
+        ),
+    ]
+    half_life_tasks: Annotated[
+        Positive | None,
+        doc(
+            "beta: half-life of evidence in tasks, null for no decay; memory: half-life of "
+            "the recent evidence in tasks; belief, routine-belief: half-life of the short "
+            "memory in episodes (scenes, or tasks where the log records no scene)."
+        ),
+    ]
+    recent_weight: Annotated[
+        NonNegative | None,
+        doc(
+            "memory: weight of recent (decaying) evidence against long-run counts; null for"
+            " other models."
+        ),
+    ]
 
 
 class SeedValue(Part, frozen=True):
-    dynamic: str
-    static: str
-    rel: Probability
+    """One prior Rel(dynamic, static) value."""
+
+    SCHEMA_NAME: ClassVar[str] = "seed_value"
+
+    dynamic: Annotated[str, doc("Semi-dynamic object class.")]
+    static: Annotated[str, doc("Static object class.")]
+    rel: Annotated[Probability, doc("Relatedness in [0, 1].")]
 
 
 class ContainerOpened(Record, frozen=True):
+    """The robot opened a container (fridge, microwave, ...)."""
+
     TYPE: ClassVar[str] = "container_opened"
     VERSION: ClassVar[int] = 1
-    static_id: str
-    pose: PlanarPose
+    static_id: Annotated[str, doc("Container's static object id.")]
+    pose: Annotated[PlanarPose, doc("Pose it was opened from.")]
 
 
 class DetectionV1(Record, frozen=True):
+    """Perception reported an object in the last view."""
+
     TYPE: ClassVar[str] = "detection"
     VERSION: ClassVar[int] = 1
-    object_class: str
-    instance_id: str
-    mask_area: NonNegative
-    position: XYZ
-    accepted: bool
-    nearest_static_id: str | None
-    nearest_static_class: str | None
-    at_static: bool
+    object_class: Annotated[str, doc("Detected class.")]
+    instance_id: Annotated[str, doc("Instance id (simulator id, or tracker id on a robot).")]
+    mask_area: Annotated[NonNegative, doc("Segmentation mask area, pixels.")]
+    position: Annotated[XYZ, doc("Object position [x, y, z], map frame, metres.")]
+    accepted: Annotated[bool, doc("Whether the detection passed the mask-area threshold.")]
+    nearest_static_id: Annotated[str | None, doc("Nearest static object instance, or null.")]
+    nearest_static_class: Annotated[str | None, doc("Its class, or null.")]
+    at_static: Annotated[
+        bool,
+        doc("Whether the object is at that static object's viewpoint N_s (Eq. 4)."),
+    ]
 
 
 class Detected(Record, frozen=True):
+    """Perception reported an object in the last view. v2: the nearest static object is one
+    nullable object (v1 had three loose fields)."""
+
     TYPE: ClassVar[str] = "detection"
     VERSION: ClassVar[int] = 2
-    object_class: str
-    instance_id: str
-    mask_area: NonNegative
-    position: XYZ
-    accepted: bool
-    support: Support | None
+    object_class: Annotated[str, doc("Detected class.")]
+    instance_id: Annotated[str, doc("Instance id (simulator id, or tracker id on a robot).")]
+    mask_area: Annotated[NonNegative, doc("Segmentation mask area, pixels.")]
+    position: Annotated[XYZ, doc("Object position [x, y, z], map frame, metres.")]
+    accepted: Annotated[bool, doc("Whether the detection passed the mask-area threshold.")]
+    support: Annotated[
+        Support | None,
+        doc("The nearest static object in the room, or null if the room has none."),
+    ]
 
 
 class Moved(Record, frozen=True):
+    """The robot moved (or was teleported between rooms)."""
+
     TYPE: ClassVar[str] = "moved"
     VERSION: ClassVar[int] = 1
-    start: PlanarPose
-    end: PlanarPose
-    metres: NonNegative
-    rooms: tuple[str, ...]
-    interrupted: bool
+    start: Annotated[PlanarPose, doc("Pose before the move.")]
+    end: Annotated[PlanarPose, doc("Pose after the move.")]
+    metres: Annotated[NonNegative, doc("Path length driven, metres.")]
+    rooms: Annotated[
+        tuple[str, ...],
+        doc("Rooms traversed, in order (teleports happen between them)."),
+    ]
+    interrupted: Annotated[
+        bool,
+        doc("Whether the move stopped early (e.g. the target was seen on the way)."),
+    ]
 
 
 class ObjectsDetected(Record, frozen=True):
+    """One camera frame's detections (vision_msgs/Detection2DArray), ingested from a ROS bag."""
+
     TYPE: ClassVar[str] = "objects_detected"
     VERSION: ClassVar[int] = 1
-    frame_id: str
-    topic: str
-    detections: tuple[Detection2D, ...]
+    frame_id: Annotated[str, doc("Frame of the array's header.")]
+    topic: Annotated[str, doc("Bag topic it came from.")]
+    detections: Annotated[tuple[Detection2D, ...], doc("The frame's detections, possibly none.")]
 
 
 class PlanComputed(Record, frozen=True):
+    """The planner chose where to look next (a decision, recorded for audit)."""
+
     TYPE: ClassVar[str] = "plan_computed"
     VERSION: ClassVar[int] = 1
-    room: str
-    room_order: tuple[str, ...]
-    objective: str
-    alpha: float
-    candidates: tuple[Candidate, ...]
-    order: tuple[str, ...]
-    terms: tuple[float, ...]
-    value: float
+    room: Annotated[str, doc("Room being searched.")]
+    room_order: Annotated[tuple[str, ...], doc("Rooms in the order they will be searched.")]
+    objective: Annotated[str, doc("Objective the order optimises (e.g. wpl).")]
+    alpha: Annotated[float, doc("Alpha used by the objective.")]
+    candidates: Annotated[
+        tuple[Candidate, ...],
+        doc("Static objects considered, with their inputs."),
+    ]
+    order: Annotated[tuple[str, ...], doc("Chosen visiting order (static ids).")]
+    terms: Annotated[
+        tuple[float, ...],
+        doc("Objective term of each visited stop, in order."),
+    ]
+    value: Annotated[float, doc("Objective value of the chosen order.")]
 
 
 class PoseObserved(Record, frozen=True):
+    """A robot pose from a recording (odometry, or TF to the base frame), ingested from a ROS
+    bag."""
+
     TYPE: ClassVar[str] = "pose_observed"
     VERSION: ClassVar[int] = 1
-    pose: PlanarPose
-    frame_id: str
-    topic: str
+    pose: Annotated[PlanarPose, doc("Base frame pose.")]
+    frame_id: Annotated[
+        str,
+        doc("Frame the pose is in: the map frame when map → odom was known, else the odom frame."),
+    ]
+    topic: Annotated[str, doc("Bag topic it came from.")]
 
 
 class RunStartedV1(Record, frozen=True):
+    """A run (one experiment or one robot session) began, with everything needed to redo it."""
+
     TYPE: ClassVar[str] = "run_started"
     VERSION: ClassVar[int] = 1
-    home: str
-    home_digest: str
-    method: Literal["wpl", "rvp", "sdp", "epl"]
-    alpha: NonNegative
-    update_mode: Literal["none", "targets", "all"]
-    seed: int
-    params: dict[str, Any]
+    home: Annotated[str, doc("Home (map) id.")]
+    home_digest: Annotated[
+        str,
+        doc("Digest of the home data, so a replay can tell whether the map changed."),
+    ]
+    method: Annotated[Literal["wpl", "rvp", "sdp", "epl"], doc("Search method.")]
+    alpha: Annotated[NonNegative, doc("Weight of relatedness in WPL (Eq. 3).")]
+    update_mode: Annotated[
+        Literal["none", "targets", "all"],
+        doc("Which scene-graph relations Eq. 4 updates after each search."),
+    ]
+    seed: Annotated[int, doc("Seed of every random choice in the run.")]
+    params: Annotated[dict[str, Any], doc("Any further parameters, free-form.")]
 
 
 class RunStartedV2(Record, frozen=True):
+    """A run (one experiment or one robot session) began, with its full spec: everything needed
+    to fold and re-plan it exactly (relation model and its parameters, planner, room order, α,
+    update mode, support radius, schedule)."""
+
     TYPE: ClassVar[str] = "run_started"
     VERSION: ClassVar[int] = 2
-    home: str
-    home_digest: str
-    strategy: str
-    method: Literal["wpl", "rvp", "sdp"]
-    planner: Literal["wpl", "rvp", "sdp", "epl"]
-    relations: RelationsSpecV2
-    alpha: NonNegative
-    update_mode: Literal["none", "targets", "all"]
-    seed: int
-    support_radius: NonNegative
-    schedule: str | None
-    params: dict[str, Any]
+    home: Annotated[str, doc("Home (map) id.")]
+    home_digest: Annotated[
+        str,
+        doc("Digest of the home data, so a replay can tell whether the map changed."),
+    ]
+    strategy: Annotated[
+        str,
+        doc("Name of the strategy (objsearch.agent.strategies), e.g. wpl, wpl-neg-decay, epl."),
+    ]
+    method: Annotated[
+        Literal["wpl", "rvp", "sdp"],
+        doc("Room order: wpl and rvp by summed Rel after the start room, sdp random (seeded)."),
+    ]
+    planner: Annotated[
+        Literal["wpl", "rvp", "sdp", "epl"],
+        doc(
+            "Stop planner inside a room: wpl (Eq. 3), rvp (by Rel), sdp (Eq. 3 with alpha "
+            "0), epl (expected path length)."
+        ),
+    ]
+    relations: Annotated[
+        RelationsSpecV2,
+        doc("The relation model the log is folded into, with every parameter it uses."),
+    ]
+    alpha: Annotated[NonNegative, doc("Weight of relatedness in WPL (Eq. 3).")]
+    update_mode: Annotated[
+        Literal["none", "targets", "all"],
+        doc("Which scene-graph relations Eq. 4 updates after each search."),
+    ]
+    seed: Annotated[int, doc("Seed of every random choice in the run.")]
+    support_radius: Annotated[
+        NonNegative,
+        doc("Metres: an object this close to a static object's box is at it (Eq. 4's experience)."),
+    ]
+    schedule: Annotated[
+        str | None,
+        doc(
+            "The placement schedule of a simulated run (table2, stats-<seed>, "
+            "rearr-<seed>), or null."
+        ),
+    ]
+    params: Annotated[
+        dict[str, Any],
+        doc("Any further parameters, free-form (e.g. the transport of an on-robot run)."),
+    ]
 
 
 class RunStartedV3(Record, frozen=True):
+    """A run (one experiment or one robot session) began, with its full spec: everything needed
+    to fold and re-plan it exactly (relation model and its parameters, planner, room order, α,
+    update mode, support radius, schedule)."""
+
     TYPE: ClassVar[str] = "run_started"
     VERSION: ClassVar[int] = 3
-    home: str
-    home_digest: str
-    strategy: str
-    method: MethodNameV3
-    planner: PlannerName
-    relations: RelationsSpecV3
-    alpha: NonNegative
-    update_mode: UpdateModeName
-    seed: int
-    support_radius: NonNegative
-    schedule: str | None
-    params: dict[str, Any]
+    home: Annotated[str, doc("Home (map) id.")]
+    home_digest: Annotated[
+        str,
+        doc("Digest of the home data, so a replay can tell whether the map changed."),
+    ]
+    strategy: Annotated[
+        str,
+        doc("Name of the strategy (objsearch.agent.strategies), e.g. wpl, wpl-neg-decay, epl."),
+    ]
+    method: Annotated[
+        MethodNameV3,
+        doc(
+            "Room order: wpl and rvp by summed Rel after the start room, sdp random "
+            "(seeded), ecost by minimum expected cost over all room orders (an exact DP "
+            "over room subsets; the start room is not forced first)."
+        ),
+    ]
+    planner: Annotated[
+        PlannerName,
+        doc(
+            "Stop planner inside a room: wpl (Eq. 3), rvp (by Rel), sdp (Eq. 3 with alpha "
+            "0), epl (expected path length)."
+        ),
+    ]
+    relations: Annotated[
+        RelationsSpecV3,
+        doc("The relation model the log is folded into, with every parameter it uses."),
+    ]
+    alpha: Annotated[NonNegative, doc("Weight of relatedness in WPL (Eq. 3).")]
+    update_mode: Annotated[
+        UpdateModeName,
+        doc("Which scene-graph relations Eq. 4 updates after each search."),
+    ]
+    seed: Annotated[int, doc("Seed of every random choice in the run.")]
+    support_radius: Annotated[
+        NonNegative,
+        doc("Metres: an object this close to a static object's box is at it (Eq. 4's experience)."),
+    ]
+    schedule: Annotated[
+        str | None,
+        doc(
+            "The placement schedule of a simulated run (table2, stats-<seed>, rearr-<seed>,"
+            " habit-<seed>), or null."
+        ),
+    ]
+    params: Annotated[
+        dict[str, Any],
+        doc("Any further parameters, free-form (e.g. the transport of an on-robot run)."),
+    ]
 
 
 class RunStarted(Record, frozen=True):
+    """A run (one experiment or one robot session) began, with its full spec: everything needed
+    to fold and re-plan it exactly (relation model and its parameters, planner, room order, α,
+    update mode, support radius, schedule)."""
+
     TYPE: ClassVar[str] = "run_started"
     VERSION: ClassVar[int] = 4
-    home: str
-    home_digest: str
-    strategy: str
-    method: MethodName
-    planner: PlannerName
-    relations: RelationsSpec
-    alpha: NonNegative
-    update_mode: UpdateModeName
-    seed: int
-    support_radius: NonNegative
-    schedule: str | None
-    params: dict[str, Any]
+    home: Annotated[str, doc("Home (map) id.")]
+    home_digest: Annotated[
+        str,
+        doc("Digest of the home data, so a replay can tell whether the map changed."),
+    ]
+    strategy: Annotated[
+        str,
+        doc("Name of the strategy (objsearch.agent.strategies), e.g. wpl, wpl-neg-decay, epl."),
+    ]
+    method: Annotated[
+        MethodName,
+        doc(
+            "Room order: wpl and rvp by summed Rel after the start room, sdp random "
+            "(seeded), ecost by minimum expected cost over all room orders (an exact DP "
+            "over room subsets; the start room is not forced first), global by one plan "
+            "over every stop of the home (rooms are not searched whole; planner epl)."
+        ),
+    ]
+    planner: Annotated[
+        PlannerName,
+        doc(
+            "Stop planner inside a room: wpl (Eq. 3), rvp (by Rel), sdp (Eq. 3 with alpha "
+            "0), epl (expected path length)."
+        ),
+    ]
+    relations: Annotated[
+        RelationsSpec,
+        doc("The relation model the log is folded into, with every parameter it uses."),
+    ]
+    alpha: Annotated[NonNegative, doc("Weight of relatedness in WPL (Eq. 3).")]
+    update_mode: Annotated[
+        UpdateModeName,
+        doc("Which scene-graph relations Eq. 4 updates after each search."),
+    ]
+    seed: Annotated[int, doc("Seed of every random choice in the run.")]
+    support_radius: Annotated[
+        NonNegative,
+        doc("Metres: an object this close to a static object's box is at it (Eq. 4's experience)."),
+    ]
+    schedule: Annotated[
+        str | None,
+        doc(
+            "The placement schedule of a simulated run (table2, stats-<seed>, rearr-<seed>,"
+            " habit-<seed>), or null."
+        ),
+    ]
+    params: Annotated[
+        dict[str, Any],
+        doc("Any further parameters, free-form (e.g. the transport of an on-robot run)."),
+    ]
 
 
 class SceneGraphSeeded(Record, frozen=True):
+    """The scene graph got its prior relatedness values (Eq. 2)."""
+
     TYPE: ClassVar[str] = "scene_graph_seeded"
     VERSION: ClassVar[int] = 1
-    source: str
-    values: tuple[SeedValue, ...]
+    source: Annotated[str, doc("Where the priors come from (file, dataset, commit).")]
+    values: Annotated[tuple[SeedValue, ...], doc("Prior Rel(dynamic, static) values.")]
 
 
 class RecordQuarantined(Record, frozen=True):
-    """Written by ``objsearch log repair`` in the place of a record it moved out (docs/events.md)."""
+    """Written only by `objsearch log repair`, in the place (seq) of a record it moved out of
+    events.log: a record whose bytes were damaged, or one of the records lost or cut from the
+    end. It keeps the seq (so no later event takes the lost record's seq or id) and, for a
+    record damaged in place, the chain value the next record continues from. Folds ignore it."""
 
     TYPE: ClassVar[str] = "record_quarantined"
     VERSION: ClassVar[int] = 1
-    reason: str
-    quarantine: str | None
-    offset: int
-    length: int
-    chain: str | None
+    reason: Annotated[str, doc("What was wrong with the record, as the repair diagnosed it.")]
+    quarantine: Annotated[
+        str | None,
+        doc(
+            "The file beside the log that keeps the removed bytes "
+            "(events.log.repair-<offset>), or null if the file had already lost them (cut "
+            "short before its high-water mark)."
+        ),
+    ]
+    offset: Annotated[int, doc("Where the removed bytes start in the quarantine file.")]
+    length: Annotated[
+        int,
+        doc(
+            "How many bytes were removed (for records cut from the end: all of them, shared"
+            " by their markers)."
+        ),
+    ]
+    chain: Annotated[
+        str | None,
+        doc(
+            "The checksum (8 lower-case hex digits) the next record's chain starts from: "
+            "the damaged record's own stored checksum, which the next record proves. Null: "
+            "continue from this record's checksum."
+        ),
+    ]
 
 
 class SearchFailed(Record, frozen=True):
+    """The search gave up without finding the target."""
+
     TYPE: ClassVar[str] = "search_failed"
     VERSION: ClassVar[int] = 1
-    reason: str
+    reason: Annotated[str, doc("Why (e.g. all candidates visited).")]
 
 
 class TargetFound(Record, frozen=True):
+    """The target was found; the search succeeds."""
+
     TYPE: ClassVar[str] = "target_found"
     VERSION: ClassVar[int] = 1
-    instance_id: str
-    position: XYZ
-    approach: PlanarPose
+    instance_id: Annotated[str, doc("Target instance found.")]
+    position: Annotated[XYZ, doc("Its position [x, y, z], map frame, metres.")]
+    approach: Annotated[PlanarPose, doc("Pose the robot approached it from.")]
 
 
 class TargetDetected(Record, frozen=True):
+    """The target was detected and accepted: the moment the paper's path length (mileage from
+    the start to the discovery of the object) is measured. The approach to a viewpoint of the
+    target follows; target_found closes it."""
+
     TYPE: ClassVar[str] = "target_detected"
     VERSION: ClassVar[int] = 1
-    instance_id: str
-    position: XYZ
-    pose: PlanarPose
-    path_length: NonNegative
+    instance_id: Annotated[
+        str,
+        doc("Target instance detected (the first accepted detection of the target in this task)."),
+    ]
+    position: Annotated[XYZ, doc("Its position as perceived [x, y, z], map frame, metres.")]
+    pose: Annotated[PlanarPose, doc("Where the robot stood when it detected it.")]
+    path_length: Annotated[
+        NonNegative,
+        doc(
+            "Metres driven since task_started up to this detection (the paper's path length"
+            " to discovery); the approach is not included."
+        ),
+    ]
 
 
 class TaskAborted(Record, frozen=True):
+    """A task that never ended: the agent stopped (crash, kill, power) in the middle of it and
+    closed it on restart. It ends the task like task_ended, unsuccessfully, and Eq. 4 folds
+    nothing of it."""
+
     TYPE: ClassVar[str] = "task_aborted"
     VERSION: ClassVar[int] = 1
-    target: str
-    reason: str
-    path_length: NonNegative
+    target: Annotated[str, doc("The task's target.")]
+    reason: Annotated[str, doc("Why it was aborted, e.g. restart.")]
+    path_length: Annotated[
+        NonNegative,
+        doc("Metres walked in the task before it stopped, as its moved events recorded."),
+    ]
 
 
 class TaskEnded(Record, frozen=True):
+    """The task is over (after target_found or search_failed)."""
+
     TYPE: ClassVar[str] = "task_ended"
     VERSION: ClassVar[int] = 1
-    target: str
-    success: bool
-    path_length: NonNegative
+    target: Annotated[str, doc("Target object class.")]
+    success: Annotated[bool, doc("Whether the target was found.")]
+    path_length: Annotated[NonNegative, doc("Total path length of the task, metres.")]
 
 
 class TaskStartedV1(Record, frozen=True):
+    """A search for one target object began."""
+
     TYPE: ClassVar[str] = "task_started"
     VERSION: ClassVar[int] = 1
-    target: str
-    start: str
-    pose: PlanarPose
-    scene: int | None
+    target: Annotated[str, doc("Target object class.")]
+    start: Annotated[str, doc("Room the robot starts in.")]
+    pose: Annotated[PlanarPose, doc("Start pose.")]
+    scene: Annotated[
+        int | None,
+        doc("Scene (placement schedule) index, or null for a live robot."),
+    ]
 
 
 class TaskStarted(Record, frozen=True):
+    """A search for one target object began."""
+
     TYPE: ClassVar[str] = "task_started"
     VERSION: ClassVar[int] = 2
-    target: str
-    start: str
-    pose: PlanarPose
-    scene: int | None
-    clock: DayClock | None  # v2
+    target: Annotated[str, doc("Target object class.")]
+    start: Annotated[str, doc("Room the robot starts in.")]
+    pose: Annotated[PlanarPose, doc("Start pose.")]
+    scene: Annotated[
+        int | None,
+        doc("Scene (placement schedule) index, or null for a live robot."),
+    ]
+    clock: Annotated[
+        DayClock | None,
+        doc(
+            "Local time of day the search began (v2): what a memory that knows the hour "
+            "folds; null when the caller gave none (v1 logs, runs without a time of day)."
+        ),
+    ]
 
 
 class ViewTakenV1(Record, frozen=True):
+    """The robot looked (took an observation)."""
+
     TYPE: ClassVar[str] = "view_taken"
     VERSION: ClassVar[int] = 1
-    pose: PlanarPose
-    static_id: str | None
-    reason: ViewReason
+    pose: Annotated[PlanarPose, doc("Pose the view was taken from.")]
+    static_id: Annotated[str | None, doc("Static object being looked at, or null.")]
+    reason: Annotated[ViewReason, doc("Why the view was taken.")]
 
 
 class ViewTaken(Record, frozen=True):
+    """The robot looked (took an observation)."""
+
     TYPE: ClassVar[str] = "view_taken"
     VERSION: ClassVar[int] = 2
-    pose: PlanarPose
-    pitch: NonNegative  # camera tilt, radians down (v2)
-    static_id: str | None
-    reason: ViewReason
+    pose: Annotated[PlanarPose, doc("Pose the view was taken from.")]
+    pitch: Annotated[
+        NonNegative,
+        doc(
+            "Camera tilt, radians down from level (AI2-THOR's horizon); 0 when the robot "
+            "has no tilt unit."
+        ),
+    ]
+    static_id: Annotated[str | None, doc("Static object being looked at, or null.")]
+    reason: Annotated[ViewReason, doc("Why the view was taken.")]
 
 
 #: Every record, old versions included, by (type, version).
@@ -501,6 +869,7 @@ def _catalogue() -> Catalogue:
         upcasters=STEPS,
         accepts=accepts,
         derived=DERIVED_TABLES,
+        records=RECORDS,
         schemas_checked=True,  # tests/events/test_schemas.py checks the shipped files
     )
 

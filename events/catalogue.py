@@ -19,6 +19,8 @@ from importlib.resources.abc import Traversable
 from pathlib import Path
 from typing import Any, NamedTuple
 
+import msgspec
+
 #: payload of version N (a fresh dict the step may keep) → payload of version N + 1
 UpcastStep = Callable[[dict[str, Any]], dict[str, Any]]
 #: (type, version, payload) → True if the payload is certainly valid; False lets the JSON Schema
@@ -48,12 +50,17 @@ class DerivedTable(NamedTuple):
 @dataclass(frozen=True)
 class Catalogue:
     """A domain's event types: schema files, upcasters, an optional fast payload check, and the
-    per-run tables the lake derives from them besides ``searches`` (in dependency order)."""
+    per-run tables the lake derives from them besides ``searches`` (in dependency order).
+
+    ``records``: the payload type of each (type, version), old versions included, when the domain
+    defines its payloads as ``msgspec.Struct``s: then they are the one definition and the schema
+    files are written from them (:mod:`objsearch.events.schema_writer`)."""
 
     schemas: Path | Traversable
     upcasters: Mapping[tuple[str, int], UpcastStep] = field(default_factory=dict)
     accepts: PayloadCheck | None = None
     derived: tuple[DerivedTable, ...] = ()
+    records: Mapping[tuple[str, int], type[msgspec.Struct]] = field(default_factory=dict)
     #: The schema files ship with the package and the test suite checks them against the JSON
     #: Schema meta-schema: a process does not check them again (nor import jsonschema to).
     schemas_checked: bool = False

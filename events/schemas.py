@@ -1,6 +1,7 @@
 """Payload schemas: one JSON Schema (draft 2020-12) per event type and version.
 
-The files live in ``events/schema/<type>.v<version>.json``. A released version is frozen: a
+The files live in ``events/schema/<type>.v<version>.json``, written from the catalogue's records
+(:mod:`objsearch.events.schema_writer`, ``make schemas``). A released version is frozen: a
 change of meaning gets a new file (``.v2``), so every event on disk keeps the schema it was
 validated against. Each file is self-contained (shared shapes like ``pose`` are copied into its
 own ``$defs``) so that editing one schema can never change the meaning of another.

@@ -59,6 +59,11 @@ def _without_null(node: dict[str, Any]) -> dict[str, Any] | None:
 
 def _agree(node: dict[str, Any], info: inspect.Type, root: dict[str, Any], at: str) -> None:
     """Fail unless the schema ``node`` and the record type ``info`` accept the same values."""
+    if isinstance(info, inspect.Metadata):  # a field's description: documents, constrains nothing
+        extra = info.extra_json_schema or {}
+        assert set(extra) <= {"description"}, f"{at}: {info}"
+        assert node.get("description") == extra.get("description"), at
+        info = info.type
     node = _resolve(node, root)
     non_null = _without_null(node)
     if non_null is not None:

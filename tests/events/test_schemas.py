@@ -7,13 +7,15 @@ import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
+import msgspec
 import pytest
 from jsonschema import Draft202012Validator
 
-from objsearch.agent.catalogue import STORE
-from objsearch.events import EventStoreError, InvalidEventError, SchemaRegistry
+from objsearch.agent.catalogue import CATALOGUE, STORE
+from objsearch.events import EventStoreError, InvalidEventError, SchemaRegistry, schema_writer
+from objsearch.events.catalogue import Catalogue
 from objsearch.events.schemas import schema_id
 
 from .payloads import EXAMPLES, LATEST, OLD_EXAMPLES
@@ -138,6 +140,66 @@ def test_schema_returns_a_copy(registry: SchemaRegistry) -> None:
 
 
 # --- the schema files themselves ---------------------------------------------------------------
+
+
+def test_the_committed_schema_files_are_written_from_the_records() -> None:
+    """The records are the one definition: every file is exactly what the writer makes of its
+    record, and no file is there without one."""
+    stale = schema_writer.differences(CATALOGUE, SCHEMA_DIR)
+    assert not stale, (
+        "events/schema/ is not what the records in agent/catalogue.py say; regenerate it with "
+        "`make schemas` (python -m objsearch.agent.schema_files) and commit the result:\n  "
+        + "\n  ".join(stale)
+    )
+    assert len(list(SCHEMA_DIR.glob("*.json"))) == len(CATALOGUE.records)
+
+
+def test_the_writer_reports_and_mends_a_stale_folder(tmp_path: Path) -> None:
+    schema_writer.write(CATALOGUE, tmp_path)
+    assert schema_writer.differences(CATALOGUE, tmp_path) == []
+    (tmp_path / "moved.v1.json").write_text("{}")
+    (tmp_path / "search_failed.v1.json").unlink()
+    (tmp_path / "teleported.v1.json").write_text("{}")
+    assert schema_writer.differences(CATALOGUE, tmp_path) == [
+        "moved.v1.json: differs from its record",
+        "search_failed.v1.json: missing",
+        "teleported.v1.json: no record defines it",
+    ]
+    assert schema_writer.write(CATALOGUE, tmp_path) == [
+        "moved.v1.json",
+        "search_failed.v1.json",
+        "teleported.v1.json",
+    ]
+    assert schema_writer.differences(CATALOGUE, tmp_path) == []
+
+
+class _Defaulted(msgspec.Struct, frozen=True):
+    a: int = 0
+
+
+class _Either(msgspec.Struct, frozen=True):
+    a: int | str
+
+
+class _Pattern(msgspec.Struct, frozen=True):
+    a: Annotated[str, msgspec.Meta(pattern="^x$")]
+
+
+@pytest.mark.parametrize(
+    ("record", "message"),
+    [
+        (_Defaulted, "ping v1.a: has a default"),
+        (_Either, r"ping v1.a: only 'X \| None' unions"),
+        (_Pattern, r"ping v1.a: msgspec.Meta\(pattern=...\) is not translated"),
+    ],
+)
+def test_the_writer_refuses_what_it_cannot_state(
+    record: type[msgspec.Struct], message: str
+) -> None:
+    """A constraint the schema would not state would make the file and the record disagree."""
+    catalogue = Catalogue(schemas=Path("."), records={("ping", 1): record})
+    with pytest.raises(schema_writer.SchemaWriterError, match=message):
+        schema_writer.render(catalogue)
 
 
 def _object_schemas(node: Any) -> Iterator[dict[str, Any]]:
