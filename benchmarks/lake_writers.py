@@ -21,7 +21,9 @@ share the machine's cores, so the ratio says what contention costs, not a speed-
 time to read the concurrent lake's runs and counts as written (one file a type a commit) and
 after ``compact``. A run lost or doubled is named (with the commit token ``add_log``
 acknowledged) and the lake is copied out (from the bucket, before its server stops) into the work
-folder, which is then kept for a look.
+folder, which is then kept for a look. The bucket keeps every version of an object, so a commit
+file (``_delta_log/<version>.json``) stored twice — two writers each told they had created it,
+the later replacing the earlier (plain moto's conditional put, issue 26) — is counted too.
 """
 
 from __future__ import annotations
@@ -109,7 +111,12 @@ def place(where: str, work: Path, sequential_on: str = "same") -> Iterator[tuple
         saved = {k: os.environ.get(k) for k in settings}
         os.environ.update(settings)
         try:
-            boto3.client("s3").create_bucket(Bucket="fleet")
+            client = boto3.client("s3")
+            client.create_bucket(Bucket="fleet")
+            # every version kept: a commit file stored twice shows (commits_stored_twice)
+            client.put_bucket_versioning(
+                Bucket="fleet", VersioningConfiguration={"Status": "Enabled"}
+            )
             sequential = (
                 str(work / f"lake-sequential-{where}")
                 if sequential_on == "local"
@@ -168,6 +175,7 @@ def run_place(
             add_log(p, sequential, robot="shared", run=p.name)
         sequential_s = time.perf_counter() - started
 
+        twice = commits_stored_twice(concurrent_root)
         files = len(TableLake(concurrent_root, store=STORE).data_files())
         started = time.perf_counter()
         got_runs, got_rows = content(concurrent_root)
@@ -190,12 +198,18 @@ def run_place(
     duplicated += sum(1 for r in got_rows if r[2] != r[3])  # an event id twice in one run
     ids = sum(int(str(r[3])) for r in got_rows)
     equal = got_runs == want_runs and got_rows == want_rows and compacted == (got_runs, got_rows)
-    ok = not failed and lost == 0 and duplicated == 0 and equal
+    ok = not failed and lost == 0 and duplicated == 0 and equal and not twice
     print(
         f"{where:>6}: {len(own)} writers, {commits} add_log calls -> {len(present)} runs, "
         f"{ids:,} events; lost {lost}, duplicated {duplicated}, equal to sequential: {equal}"
         + (f"; every writer compacting past {compact_every} files" if compact_every else "")
         + (f", writers failed: {failed}" if failed else "")
+        + (
+            f"; commit files stored more than once: {len(twice)}"
+            + (f" ({', '.join(twice[:5])})" if twice else "")
+            if "://" in concurrent_root
+            else ""
+        )
     )
     print(
         f"{'':>6}  concurrent {concurrent_s:.1f} s, sequential (one process, "
@@ -208,6 +222,24 @@ def run_place(
         f"lake compact {compact_s:.1f} s; then {compacted_s:.1f} s"
     )
     return ok, where
+
+
+def commits_stored_twice(root: str) -> list[str]:
+    """The commit files of a lake on the (versioned) bucket that were stored more than once:
+    of two writers of one version only one may create its file (``If-None-Match: *``)."""
+    if "://" not in root:
+        return []
+    import boto3
+
+    bucket, _, prefix = root.removeprefix("s3://").partition("/")
+    stored: dict[str, int] = {}
+    pages = boto3.client("s3").get_paginator("list_object_versions")
+    for page in pages.paginate(Bucket=bucket, Prefix=f"{prefix}/events/_delta_log/"):
+        for version in page.get("Versions", []):
+            name = version["Key"].rsplit("/", 1)[-1]
+            if name.endswith(".json") and name.removesuffix(".json").isdigit():
+                stored[name] = stored.get(name, 0) + 1
+    return sorted(k for k, n in stored.items() if n > 1)
 
 
 def keep_for_a_look(
