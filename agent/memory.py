@@ -36,6 +36,7 @@ from objsearch.agent.catalogue import (
 from objsearch.agent.relations import BetaRelations
 from objsearch.agent.scene_graph import Pair, UpdateMode
 from objsearch.agent.sightings import LastSeen, Sighting, sighting, sighting_row
+from objsearch.agent.task_experience import SeenBy, TaskExperience
 from objsearch.events.projection import EventView
 
 Key = tuple[str, str]  # (object class, static id)
@@ -56,9 +57,8 @@ class InstanceMemory:
     static_class: dict[str, str] = field(default_factory=dict)
     sightings: LastSeen = field(default_factory=LastSeen)
     update_mode: UpdateMode = UpdateMode.ALL
-    _target: str | None = None
-    _seen_at: dict[str, set[str]] = field(default_factory=dict)
-    _viewed: set[str] = field(default_factory=set)
+    #: the task in progress, by static *instance* (``viewed``: the static ids looked at)
+    _task: TaskExperience = field(default_factory=lambda: TaskExperience(SeenBy.INSTANCE))
 
     def __post_init__(self) -> None:
         if self.prior_strength <= 0 or self.half_life_tasks <= 0 or self.recent_weight < 0:
@@ -76,9 +76,7 @@ class InstanceMemory:
         if kind == "run_started":
             self.update_mode = UpdateMode(decode(event, RunStarted).update_mode)
         elif kind == "task_started":
-            started = decode(event, TaskStarted)
-            self._target = started.target
-            self._reset_task()
+            self._task.start(decode(event, TaskStarted).target)
             factor = 0.5 ** (1.0 / self.half_life_tasks)
             self.recent_seen = {k: v * factor for k, v in self.recent_seen.items() if v > 1e-6}
             self.recent_missed = {k: v * factor for k, v in self.recent_missed.items() if v > 1e-6}
@@ -88,42 +86,37 @@ class InstanceMemory:
         elif kind == "view_taken":
             static_id = decode(event, ViewTaken).static_id
             if static_id is not None:
-                self._viewed.add(static_id)
+                self._task.viewed.add(static_id)
         elif kind == "detection":
             detected = decode(event, Detected)
             support = detected.support
             if detected.accepted and support is not None and support.at:
                 self.static_class[support.static_id] = support.static_class
-                self._seen_at.setdefault(detected.object_class, set()).add(support.static_id)
+            self._task.detected(detected)
         elif kind == "task_ended":
             self._end_task()
         elif kind == "task_aborted":
-            self._reset_task()
+            self._task.clear()
         self.last_seq = event.seq
 
-    def _reset_task(self) -> None:
-        self._seen_at = {}
-        self._viewed = set()
-
     def _end_task(self) -> None:
+        task = self._task
         if self.update_mode is UpdateMode.ALL:
-            chosen = dict(self._seen_at)
-        elif self.update_mode is UpdateMode.TARGETS and self._target in self._seen_at:
-            chosen = {self._target: self._seen_at[self._target]}
+            chosen = dict(task.seen_at)
+        elif self.update_mode is UpdateMode.TARGETS and task.target in task.seen_at:
+            chosen = {task.target: task.seen_at[task.target]}
         else:
             chosen = {}
         for d, statics in chosen.items():
             for sid in statics:
                 self.seen[(d, sid)] = self.seen.get((d, sid), 0.0) + 1.0
                 self.recent_seen[(d, sid)] = self.recent_seen.get((d, sid), 0.0) + 1.0
-        target = self._target
+        target = task.target
         if self.update_mode is not UpdateMode.NONE and target is not None:
-            found = self._seen_at.get(target, set())
-            for sid in self._viewed - found:
+            for sid in task.missed():
                 self.missed[(target, sid)] = self.missed.get((target, sid), 0.0) + 1.0
                 self.recent_missed[(target, sid)] = self.recent_missed.get((target, sid), 0.0) + 1.0
-        self._target = None
-        self._reset_task()
+        task.clear()
         self.tasks_folded += 1
 
     # -- values -------------------------------------------------------------------------------
@@ -177,9 +170,9 @@ class InstanceMemory:
             "static_class": dict(sorted(self.static_class.items())),
             "last_seen": {d: list(sighting_row(s)) for d, s in sorted(self.last_seen.items())},
             "update_mode": self.update_mode.value,
-            "task": [self._target, self.sightings.task_id, self.sightings.scene],
-            "seen_at": {d: sorted(s) for d, s in sorted(self._seen_at.items())},
-            "viewed": sorted(self._viewed),
+            "task": [self._task.target, self.sightings.task_id, self.sightings.scene],
+            "seen_at": self._task.seen_at_rows(),
+            "viewed": sorted(self._task.viewed),
             "sightings": {
                 d: list(sighting_row(s)) for d, s in sorted(self.sightings.pending.items())
             },
@@ -210,7 +203,10 @@ class InstanceMemory:
                 pending={d: sighting(r) for d, r in state["sightings"].items()},
             ),
             update_mode=UpdateMode(state["update_mode"]),
-            _target=target,
-            _seen_at={d: set(s) for d, s in state["seen_at"].items()},
-            _viewed=set(state["viewed"]),
+            _task=TaskExperience(
+                SeenBy.INSTANCE,
+                target=target,
+                seen_at=TaskExperience.seen_at_from(state["seen_at"]),
+                viewed=set(state["viewed"]),
+            ),
         )

@@ -36,6 +36,7 @@ from objsearch.agent.catalogue import (
     decode,
 )
 from objsearch.agent.scene_graph import Pair, UpdateMode, experience_to_fold
+from objsearch.agent.task_experience import TaskExperience
 from objsearch.events.projection import EventView, Projection
 
 
@@ -69,9 +70,8 @@ class BetaRelations:
     positive: dict[Pair, float] = field(default_factory=dict)
     negative: dict[Pair, float] = field(default_factory=dict)
     _static_class: dict[str, str] = field(default_factory=dict)
-    _target: str | None = None
-    _seen_at: dict[str, set[str]] = field(default_factory=dict)
-    _viewed: set[str] = field(default_factory=set)
+    #: the task in progress; ``viewed`` holds the static *classes* looked at
+    _task: TaskExperience = field(default_factory=TaskExperience)
 
     def __post_init__(self) -> None:
         if self.prior_strength <= 0:
@@ -95,9 +95,7 @@ class BetaRelations:
             self.positive = {}
             self.negative = {}
         elif kind == "task_started":
-            self._target = decode(event, TaskStarted).target
-            self._seen_at = {}
-            self._viewed = set()
+            self._task.start(decode(event, TaskStarted).target)
             self._static_class = {}
             self._fade()
         elif kind == "plan_computed":
@@ -107,20 +105,13 @@ class BetaRelations:
             static_id = decode(event, ViewTaken).static_id
             cls = None if static_id is None else self._static_class.get(static_id)
             if cls is not None:
-                self._viewed.add(cls)
+                self._task.viewed.add(cls)
         elif kind == "detection":
-            detected = decode(event, Detected)
-            if detected.accepted:
-                statics = self._seen_at.setdefault(detected.object_class, set())
-                support = detected.support
-                if support is not None and support.at:
-                    statics.add(support.static_class)
+            self._task.detected(decode(event, Detected))
         elif kind == "task_ended":
             self._end_task()
         elif kind == "task_aborted":  # a search cut short by a crash folds nothing
-            self._target = None
-            self._seen_at = {}
-            self._viewed = set()
+            self._task.clear()
         self.last_seq = event.seq
 
     def _fade(self) -> None:
@@ -131,21 +122,19 @@ class BetaRelations:
         self.negative = {p: v * factor for p, v in self.negative.items()}
 
     def _end_task(self) -> None:
+        task = self._task
         known = {d for d, _ in self.prior}
-        chosen = experience_to_fold(self.update_mode, self._target, self._seen_at, known)
+        chosen = experience_to_fold(self.update_mode, task.target, task.seen_at, known)
         for d, statics in chosen.items():
             for s in statics:
                 if (d, s) in self.prior:
                     self.positive[(d, s)] = self.positive.get((d, s), 0.0) + 1.0
-        target = self._target
+        target = task.target
         if self.update_mode is not UpdateMode.NONE and target in known:
-            found_at = self._seen_at.get(target, set())
-            for s in self._viewed - found_at:
+            for s in task.missed():
                 if (target, s) in self.prior:
                     self.negative[(target, s)] = self.negative.get((target, s), 0.0) + 1.0
-        self._target = None
-        self._seen_at = {}
-        self._viewed = set()
+        task.clear()
         self.tasks_folded += 1
 
     snapshot_name: ClassVar[str] = "beta_relations"
@@ -164,9 +153,9 @@ class BetaRelations:
             "positive": pairs(self.positive),
             "negative": pairs(self.negative),
             "static_class": dict(sorted(self._static_class.items())),
-            "target": self._target,
-            "seen_at": {d: sorted(s) for d, s in sorted(self._seen_at.items())},
-            "viewed": sorted(self._viewed),
+            "target": self._task.target,
+            "seen_at": self._task.seen_at_rows(),
+            "viewed": sorted(self._task.viewed),
         }
 
     @classmethod
@@ -184,9 +173,11 @@ class BetaRelations:
             positive=pairs(state["positive"]),
             negative=pairs(state["negative"]),
             _static_class=dict(state["static_class"]),
-            _target=state["target"],
-            _seen_at={d: set(s) for d, s in state["seen_at"].items()},
-            _viewed=set(state["viewed"]),
+            _task=TaskExperience(
+                target=state["target"],
+                seen_at=TaskExperience.seen_at_from(state["seen_at"]),
+                viewed=set(state["viewed"]),
+            ),
         )
 
     def rel(self, dynamic: str, static: str) -> float:

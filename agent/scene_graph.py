@@ -17,6 +17,7 @@ from typing import Any, ClassVar
 
 from objsearch.agent.catalogue import Detected, RunStarted, SceneGraphSeeded, TaskStarted, decode
 from objsearch.agent.categories import Category, Vocabulary
+from objsearch.agent.task_experience import TaskExperience
 from objsearch.events.projection import EventView
 
 Pair = tuple[str, str]  # (semi-dynamic class, static class)
@@ -105,8 +106,7 @@ class SceneGraphProjection:
     update_mode: UpdateMode = UpdateMode.ALL
     last_seq: int = 0
     tasks_folded: int = 0
-    _target: str | None = None
-    _experience: dict[str, set[str]] = field(default_factory=dict)
+    _task: TaskExperience = field(default_factory=TaskExperience)
     _pairs_of: dict[str, tuple[Pair, ...]] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -123,33 +123,22 @@ class SceneGraphProjection:
             }
             self._pairs_of = _pairs_by_dynamic(self.relations)
         elif kind == "task_started":
-            self._target = decode(event, TaskStarted).target
-            self._experience = {}
+            self._task.start(decode(event, TaskStarted).target)
         elif kind == "detection":
             # detection v2; older versions are upcast by read_log before they get here.
-            detected = decode(event, Detected)
-            if detected.accepted:
-                statics = self._experience.setdefault(detected.object_class, set())
-                support = detected.support
-                if support is not None and support.at:
-                    statics.add(support.static_class)
+            self._task.detected(decode(event, Detected))
         elif kind == "task_ended":
             self._end_task()
         elif kind == "task_aborted":
-            # A search cut short by a crash: Eq. 4 applies "after each search", so nothing of it
-            # is folded.
-            self._target = None
-            self._experience = {}
+            self._task.clear()  # a search cut short by a crash folds nothing
         self.last_seq = event.seq
 
     def _end_task(self) -> None:
-        chosen = experience_to_fold(
-            self.update_mode, self._target, self._experience, self._pairs_of
-        )
+        task = self._task
+        chosen = experience_to_fold(self.update_mode, task.target, task.seen_at, self._pairs_of)
         if chosen:
             self.relations = _apply_eq4(self.relations, chosen, self._pairs_of)
-        self._target = None
-        self._experience = {}
+        task.clear()
         self.tasks_folded += 1
 
     #: Snapshots (objsearch.events.snapshot) of another version are rebuilt, not trusted: bump
@@ -162,8 +151,8 @@ class SceneGraphProjection:
             "relations": [[d, s, v] for (d, s), v in sorted(self.relations.items())],
             "update_mode": self.update_mode.value,
             "tasks_folded": self.tasks_folded,
-            "target": self._target,
-            "experience": {d: sorted(s) for d, s in sorted(self._experience.items())},
+            "target": self._task.target,
+            "experience": self._task.seen_at_rows(),
         }
 
     @classmethod
@@ -173,8 +162,10 @@ class SceneGraphProjection:
             update_mode=UpdateMode(state["update_mode"]),
             last_seq=last_seq,
             tasks_folded=int(state["tasks_folded"]),
-            _target=state["target"],
-            _experience={d: set(s) for d, s in state["experience"].items()},
+            _task=TaskExperience(
+                target=state["target"],
+                seen_at=TaskExperience.seen_at_from(state["experience"]),
+            ),
         )
 
     @property
@@ -185,7 +176,7 @@ class SceneGraphProjection:
     @property
     def experience(self) -> dict[str, frozenset[str]]:
         """The experience pool of the task in progress: class → static classes it was seen at."""
-        return {d: frozenset(s) for d, s in self._experience.items()}
+        return {d: frozenset(s) for d, s in self._task.seen_at.items()}
 
     def rel(self, dynamic: str, static: str) -> float:
         return self.relations.get((dynamic, static), 0.0)
