@@ -55,6 +55,17 @@ MethodName: TypeAlias = Literal["wpl", "rvp", "sdp", "ecost", "global"]
 PlannerName: TypeAlias = Literal["wpl", "rvp", "sdp", "epl"]
 UpdateModeName: TypeAlias = Literal["none", "targets", "all"]
 RelationModelName: TypeAlias = Literal[
+    "eq4",
+    "beta",
+    "memory",
+    "belief",
+    "routine-belief",
+    "routine-pooled",
+    "dist-oracle",
+    "slot-oracle",
+]
+#: v4's relation models; v5 added ``routine-pooled``.
+RelationModelNameV4: TypeAlias = Literal[
     "eq4", "beta", "memory", "belief", "routine-belief", "dist-oracle", "slot-oracle"
 ]
 RelationModelNameV3: TypeAlias = Literal["eq4", "beta", "memory", "belief", "dist-oracle"]
@@ -216,13 +227,13 @@ class RelationsSpecV3(Part, frozen=True):
     ]
 
 
-class RelationsSpec(Part, frozen=True):
+class RelationsSpecV4(Part, frozen=True):
     """A relation model and every parameter it uses."""
 
     SCHEMA_NAME: ClassVar[str] = "relations"
 
     model: Annotated[
-        RelationModelName,
+        RelationModelNameV4,
         doc(
             "eq4: the paper's Eq. 4; beta: a Beta posterior per class pair with negative "
             "evidence; memory: a belief per (target, static instance) from sightings, "
@@ -248,6 +259,53 @@ class RelationsSpec(Part, frozen=True):
             "beta: half-life of evidence in tasks, null for no decay; memory: half-life of "
             "the recent evidence in tasks; belief, routine-belief: half-life of the short "
             "memory in episodes (scenes, or tasks where the log records no scene)."
+        ),
+    ]
+    recent_weight: Annotated[
+        NonNegative | None,
+        doc(
+            "memory: weight of recent (decaying) evidence against long-run counts; null for"
+            " other models."
+        ),
+    ]
+
+
+class RelationsSpec(Part, frozen=True):
+    """A relation model and every parameter it uses."""
+
+    SCHEMA_NAME: ClassVar[str] = "relations"
+
+    model: Annotated[
+        RelationModelName,
+        doc(
+            "eq4: the paper's Eq. 4; beta: a Beta posterior per class pair with negative "
+            "evidence; memory: a belief per (target, static instance) from sightings, "
+            "misses, recency and frequency, the class-level Beta posterior as prior; "
+            "belief: a probability distribution per target over static instances and "
+            "elsewhere (agent/belief.py); routine-belief: the belief that knows the hour, "
+            "per time-of-day slot and day type mixed with the time-blind belief "
+            "(agent/routine_belief.py); routine-pooled: routine-belief with a fourth component, "
+            "the mixture of its three whose weights are learned from every class of the "
+            "home, and each class's model average added to the home's "
+            "(agent/routine_belief.py); dist-oracle: a reference that reads the schedule's "
+            "placement distribution (never a default); slot-oracle: the same reference, "
+            "knowing the schedule's distribution at each time of day (routine schedules)."
+        ),
+    ]
+    prior_strength: Annotated[
+        Positive | None,
+        doc(
+            "beta, memory: pseudo-observations of the prior; belief, routine-belief, "
+            "routine-pooled: the Dirichlet prior's total weight in episodes; null otherwise."
+        ),
+    ]
+    half_life_tasks: Annotated[
+        Positive | None,
+        doc(
+            "beta: half-life of evidence in tasks, null for no decay; memory: half-life of "
+            "the recent evidence in tasks; belief, routine-belief, routine-pooled: half-life "
+            "of the short memory in episodes (scenes, or tasks where the log records no "
+            "scene)."
         ),
     ]
     recent_weight: Annotated[
@@ -508,13 +566,72 @@ class RunStartedV3(Record, frozen=True):
     ]
 
 
-class RunStarted(Record, frozen=True):
+class RunStartedV4(Record, frozen=True):
     """A run (one experiment or one robot session) began, with its full spec: everything needed
     to fold and re-plan it exactly (relation model and its parameters, planner, room order, α,
     update mode, support radius, schedule)."""
 
     TYPE: ClassVar[str] = "run_started"
     VERSION: ClassVar[int] = 4
+    home: Annotated[str, doc("Home (map) id.")]
+    home_digest: Annotated[
+        str,
+        doc("Digest of the home data, so a replay can tell whether the map changed."),
+    ]
+    strategy: Annotated[
+        str,
+        doc("Name of the strategy (objsearch.agent.strategies), e.g. wpl, wpl-neg-decay, epl."),
+    ]
+    method: Annotated[
+        MethodName,
+        doc(
+            "Room order: wpl and rvp by summed Rel after the start room, sdp random "
+            "(seeded), ecost by minimum expected cost over all room orders (an exact DP "
+            "over room subsets; the start room is not forced first), global by one plan "
+            "over every stop of the home (rooms are not searched whole; planner epl)."
+        ),
+    ]
+    planner: Annotated[
+        PlannerName,
+        doc(
+            "Stop planner inside a room: wpl (Eq. 3), rvp (by Rel), sdp (Eq. 3 with alpha "
+            "0), epl (expected path length)."
+        ),
+    ]
+    relations: Annotated[
+        RelationsSpecV4,
+        doc("The relation model the log is folded into, with every parameter it uses."),
+    ]
+    alpha: Annotated[NonNegative, doc("Weight of relatedness in WPL (Eq. 3).")]
+    update_mode: Annotated[
+        UpdateModeName,
+        doc("Which scene-graph relations Eq. 4 updates after each search."),
+    ]
+    seed: Annotated[int, doc("Seed of every random choice in the run.")]
+    support_radius: Annotated[
+        NonNegative,
+        doc("Metres: an object this close to a static object's box is at it (Eq. 4's experience)."),
+    ]
+    schedule: Annotated[
+        str | None,
+        doc(
+            "The placement schedule of a simulated run (table2, stats-<seed>, rearr-<seed>,"
+            " habit-<seed>), or null."
+        ),
+    ]
+    params: Annotated[
+        dict[str, Any],
+        doc("Any further parameters, free-form (e.g. the transport of an on-robot run)."),
+    ]
+
+
+class RunStarted(Record, frozen=True):
+    """A run (one experiment or one robot session) began, with its full spec: everything needed
+    to fold and re-plan it exactly (relation model and its parameters, planner, room order, α,
+    update mode, support radius, schedule)."""
+
+    TYPE: ClassVar[str] = "run_started"
+    VERSION: ClassVar[int] = 5
     home: Annotated[str, doc("Home (map) id.")]
     home_digest: Annotated[
         str,
@@ -752,6 +869,7 @@ RECORDS: Final[Mapping[tuple[str, int], type[Record]]] = {
         RunStartedV1,
         RunStartedV2,
         RunStartedV3,
+        RunStartedV4,
         RunStarted,
         RecordQuarantined,
         SceneGraphSeeded,

@@ -31,6 +31,22 @@ belief of the same kind fed only those episodes, and a learned mix of the three 
 - **Today**: the mix is conditioned on the episode's looks and sightings as the time-blind belief
   is (:class:`~objsearch.agent.belief.Today`).
 
+**Pooled** (:class:`PooledRoutineBelief`, ``RelationSpec("routine-pooled", k, h)``, docs/results-routine.md
+"Protocol v-next"): the model average picks, per class, the one component that has predicted it
+best; on a routine home the best forecast is a *mixture* (the slot's usual place most days, the
+class's alternates and strays, which the time-blind belief carries, on the others), and one
+class's ten or so scenes per slot are too few to learn its weights. This belief learns one
+mixture of the three components for the whole home — each episode every class's posterior
+responsibilities, averaged, move it (a step 1/(n+2), never below ``STEP``) — and offers it to each
+class's model average as a fourth component: a class that keeps a routine like the rest of the
+home gets it from the other classes' scenes, a class (or home) without one keeps the time-blind
+belief, whose evidence the model average still weighs. The model average keeps its forgetting
+(``MIX_MEMORY``) as log-evidence, each episode's floored at ``LIKELIHOOD_FLOOR`` so a component
+that once gave an outcome nothing can come back; and a class's log-evidence is added to the
+home's — each episode the mean over its classes of what they added — so whether the hour matters
+in this home is learned from all of its classes at once (on a home without routines the
+time-blind belief wins within a few scenes, not a few scenes per class).
+
 A log with no clock (v1 ``task_started``, runs without a time of day) folds to exactly the
 time-blind belief: no slot belief is ever fed, and an empty slot predicts its parent.
 :meth:`distribution_at` answers for another time of day (``objsearch where --at``): that slot's
@@ -44,7 +60,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from objsearch.agent.belief import STEP, PlaceBelief
+from objsearch.agent.belief import STEP, PlaceBelief, responsibilities
 from objsearch.agent.catalogue import DayClock, TaskStarted, decode
 from objsearch.events.projection import EventView
 
@@ -65,6 +81,10 @@ MIX_MEMORY = 1.0 - STEP
 #: The mix's starting weights: time-blind, slot, slot and day type.
 START_MIX = (1 / 3, 1 / 3, 1 / 3)
 COMPONENTS = ("blind", "slot", "slot_day")
+#: The pooled belief's components: the three, and the home's mixture of them.
+POOLED_COMPONENTS = (*COMPONENTS, "pooled")
+#: Smallest likelihood an episode adds to a component's log-evidence (pooled belief).
+LIKELIHOOD_FLOOR = 1e-12
 
 
 def slot_of(minute: int) -> str:
@@ -217,6 +237,10 @@ class RoutineBelief(PlaceBelief):
     def _base(self, d: str) -> dict[str, float]:
         return self._base_at(d, self.clock)
 
+    def component_weights(self, d: str) -> dict[str, float]:
+        """Class d's weight on each component of the mix (what ``where`` shows)."""
+        return dict(zip(COMPONENTS, self.mix.get(d, START_MIX), strict=True))
+
     def distribution_at(self, d: str, clock: DayClock | None) -> dict[str, float]:
         """P(place) for class d at ``clock`` (None: now, the current episode's time): today's
         looks and sightings count only in the current episode's slot and day type. A belief that
@@ -257,4 +281,125 @@ class RoutineBelief(PlaceBelief):
         belief.mix = {d: (float(w[0]), float(w[1]), float(w[2])) for d, w in state["mix"].items()}
         clock = state["clock"]
         belief.clock = None if clock is None else DayClock(weekday=clock[0], minute=clock[1])
+        return belief
+
+
+def mixture(
+    weights: tuple[float, ...], predictions: tuple[Mapping[str, float], ...]
+) -> dict[str, float]:
+    """Σ_i w_i · prediction_i."""
+    out: dict[str, float] = {}
+    for w, pred in zip(weights, predictions, strict=True):
+        for p in sorted(pred):
+            out[p] = out.get(p, 0.0) + w * pred[p]
+    return out
+
+
+def log_likelihoods(
+    predictions: tuple[Mapping[str, float], ...], outcome: Mapping[str, float]
+) -> tuple[float, ...]:
+    """log P_i(outcome) of each prediction, floored at ``LIKELIHOOD_FLOOR``."""
+    return tuple(
+        math.log(max(math.fsum(w * pred.get(p, 0.0) for p, w in outcome.items()), LIKELIHOOD_FLOOR))
+        for pred in predictions
+    )
+
+
+def softmax(evidence: tuple[float, ...]) -> tuple[float, ...]:
+    """Weights ∝ exp(log-evidence), equal when no evidence was gathered."""
+    top = max(evidence)
+    raw = [math.exp(v - top) for v in evidence]
+    total = math.fsum(raw)
+    return tuple(v / total for v in raw)
+
+
+@dataclass
+class PooledRoutineBelief(RoutineBelief):
+    """The belief that knows the hour, with the home's mixture of its components as a fourth
+    component of each class's model average (see the module doc, "Pooled")."""
+
+    #: The home's mixture of the time-blind, slot and slot-and-day-type predictions.
+    pooled: tuple[float, float, float] = START_MIX
+    #: Episodes that moved it.
+    pooled_episodes: int = 0
+    #: Per class, each of the four components' log-evidence (forgetting ``MIX_MEMORY``).
+    evidence: dict[str, tuple[float, float, float, float]] = field(default_factory=dict)
+    #: The home's: each episode the mean over its classes of what they added (same forgetting).
+    home_evidence: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+
+    def _close_episode(self) -> None:
+        if self.today.key is None:
+            return
+        counted, outcomes = self._outcomes()
+        if self.clock is not None:
+            slot, slot_day = (self._bucket(name) for name in buckets_of(self.clock))
+            moved: list[tuple[float, float, float]] = []
+            gained: list[tuple[float, ...]] = []
+            for d, outcome in sorted(outcomes.items()):
+                predictions = self._four(d, self.clock)
+                gain = log_likelihoods(predictions, outcome)
+                before = self.evidence.get(d, (0.0, 0.0, 0.0, 0.0))
+                after = [MIX_MEMORY * e + g for e, g in zip(before, gain, strict=True)]
+                self.evidence[d] = (after[0], after[1], after[2], after[3])
+                gained.append(gain)
+                moved.append(responsibilities(self.pooled, predictions[:3], outcome, 0, 1.0))
+            if moved:
+                self._pool(moved)
+                mean = [math.fsum(g[i] for g in gained) / len(gained) for i in range(4)]
+                home = [MIX_MEMORY * e + m for e, m in zip(self.home_evidence, mean, strict=True)]
+                self.home_evidence = (home[0], home[1], home[2], home[3])
+            slot_day._count(counted, outcomes)
+            slot._count(counted, outcomes)
+        self._count(counted, outcomes)
+        self.today.key = None
+
+    def _pool(self, moved: list[tuple[float, float, float]]) -> None:
+        """The home's mixture moved toward this episode's mean responsibilities."""
+        mean = [math.fsum(r[i] for r in moved) / len(moved) for i in range(3)]
+        step = max(1.0 / (self.pooled_episodes + 2.0), STEP)
+        new = [(1 - step) * w + step * m for w, m in zip(self.pooled, mean, strict=True)]
+        self.pooled = (new[0], new[1], new[2])
+        self.pooled_episodes += 1
+
+    def _four(self, d: str, clock: DayClock) -> tuple[dict[str, float], ...]:
+        three = self._components(d, clock)
+        return (*three, mixture(self.pooled, three))
+
+    def _weights(self, d: str) -> tuple[float, ...]:
+        own = self.evidence.get(d, (0.0, 0.0, 0.0, 0.0))
+        return softmax(tuple(e + h for e, h in zip(own, self.home_evidence, strict=True)))
+
+    def _base_at(self, d: str, clock: DayClock | None) -> dict[str, float]:
+        if clock is None:
+            return self._blind(d)
+        return mixture(self._weights(d), self._four(d, clock))
+
+    def component_weights(self, d: str) -> dict[str, float]:
+        return dict(zip(POOLED_COMPONENTS, self._weights(d), strict=True))
+
+    snapshot_name: ClassVar[str] = "pooled_routine_belief"
+    snapshot_version: ClassVar[int] = 1
+
+    def to_snapshot(self) -> dict[str, Any]:
+        return {
+            **super().to_snapshot(),
+            "pooled": list(self.pooled),
+            "pooled_episodes": self.pooled_episodes,
+            "evidence": {d: list(e) for d, e in sorted(self.evidence.items())},
+            "home_evidence": list(self.home_evidence),
+        }
+
+    @classmethod
+    def from_snapshot(cls, state: Mapping[str, Any], last_seq: int) -> PooledRoutineBelief:
+        belief = super().from_snapshot(state, last_seq)
+        assert isinstance(belief, PooledRoutineBelief)
+        w = state["pooled"]
+        belief.pooled = (float(w[0]), float(w[1]), float(w[2]))
+        belief.pooled_episodes = int(state["pooled_episodes"])
+        belief.evidence = {
+            d: (float(e[0]), float(e[1]), float(e[2]), float(e[3]))
+            for d, e in state["evidence"].items()
+        }
+        h = state["home_evidence"]
+        belief.home_evidence = (float(h[0]), float(h[1]), float(h[2]), float(h[3]))
         return belief

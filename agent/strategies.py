@@ -80,9 +80,12 @@ RELATION_MODELS = (
     "memory",
     "belief",
     "routine-belief",
+    "routine-pooled",
     "dist-oracle",
     "slot-oracle",
 )
+#: The beliefs over places (agent/belief.py and the two that know the hour).
+BELIEF_MODELS = ("belief", "routine-belief", "routine-pooled")
 #: The simulator's references (never a default): they read the schedule's generator.
 REFERENCE_MODELS = ("dist-oracle", "slot-oracle")
 PLANNERS = ("wpl", "rvp", "sdp", "epl")
@@ -102,7 +105,7 @@ class RelationSpec:
             raise ObjsearchError(
                 f"unknown relation model {self.model!r}; known: {', '.join(RELATION_MODELS)}"
             )
-        if self.model in ("beta", "memory", "belief", "routine-belief") and not (
+        if self.model in ("beta", "memory", *BELIEF_MODELS) and not (
             self.prior_strength and self.prior_strength > 0
         ):
             raise ObjsearchError(f"the {self.model} relation model needs a prior strength > 0")
@@ -110,7 +113,7 @@ class RelationSpec:
             self.half_life_tasks is None or self.recent_weight is None or self.recent_weight < 0
         ):
             raise ObjsearchError("the memory model needs a half-life and a recent weight >= 0")
-        if self.model in ("belief", "routine-belief") and self.half_life_tasks is None:
+        if self.model in BELIEF_MODELS and self.half_life_tasks is None:
             raise ObjsearchError("the belief model needs a half-life (episodes)")
         if self.half_life_tasks is not None and self.half_life_tasks <= 0:
             raise ObjsearchError(f"half-life must be positive, got {self.half_life_tasks}")
@@ -138,6 +141,13 @@ class RelationSpec:
 
             assert self.prior_strength is not None and self.half_life_tasks is not None
             return RoutineBelief(
+                prior_strength=self.prior_strength, half_life_scenes=self.half_life_tasks
+            )
+        if self.model == "routine-pooled":
+            from objsearch.agent.routine_belief import PooledRoutineBelief
+
+            assert self.prior_strength is not None and self.half_life_tasks is not None
+            return PooledRoutineBelief(
                 prior_strength=self.prior_strength, half_life_scenes=self.half_life_tasks
             )
         if self.model in models:
@@ -177,6 +187,8 @@ MEMORY = RelationSpec("memory", PRIOR_STRENGTH, MEMORY_HALF_LIFE_TASKS, MEMORY_R
 BELIEF = RelationSpec("belief", BELIEF_PRIOR_STRENGTH, BELIEF_HALF_LIFE_SCENES)
 #: The belief that knows the hour (agent/routine_belief.py): the same k and h, per slot too.
 ROUTINE_BELIEF = RelationSpec("routine-belief", BELIEF_PRIOR_STRENGTH, BELIEF_HALF_LIFE_SCENES)
+#: The same with a home-pooled mixture as a fourth component (agent/routine_belief.py).
+ROUTINE_POOLED = RelationSpec("routine-pooled", BELIEF_PRIOR_STRENGTH, BELIEF_HALF_LIFE_SCENES)
 
 
 @dataclass(frozen=True, slots=True)
@@ -270,6 +282,14 @@ STRATEGIES: dict[str, Strategy] = {
             "ecost-belief's planner on a belief that knows the hour (agent/routine_belief.py)",
             False,
             ROUTINE_BELIEF,
+            "epl",
+        ),
+        Strategy(
+            "ecost-routine-pooled",
+            Method.ECOST,
+            "ecost-routine with a mixture of its components learned from every class of the home",
+            False,
+            ROUTINE_POOLED,
             "epl",
         ),
         Strategy(

@@ -68,6 +68,11 @@ def run_started_v3_to_v4(payload: dict[str, Any]) -> dict[str, Any]:
     return payload
 
 
+def run_started_v4_to_v5(payload: dict[str, Any]) -> dict[str, Any]:
+    # v5 added a relation model (routine-pooled); a v4 run used none of it.
+    return payload
+
+
 def task_started_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
     # v2 records the time of day a search began; a v1 search's is unknown.
     payload["clock"] = None
@@ -85,6 +90,7 @@ STEPS: Final[Mapping[tuple[str, int], UpcastStep]] = MappingProxyType(
         ("run_started", 1): run_started_v1_to_v2,
         ("run_started", 2): run_started_v2_to_v3,
         ("run_started", 3): run_started_v3_to_v4,
+        ("run_started", 4): run_started_v4_to_v5,
         ("task_started", 1): task_started_v1_to_v2,
         ("view_taken", 1): view_taken_v1_to_v2,
     }

@@ -28,7 +28,7 @@ from objsearch.agent.catalogue import STORE, DayClock
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.navmap import NavigationMap
-from objsearch.agent.routine_belief import COMPONENTS, START_MIX, RoutineBelief, buckets_of
+from objsearch.agent.routine_belief import RoutineBelief, buckets_of
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import ROUTINE_BELIEF
 from objsearch.events.envelope import Event
@@ -72,12 +72,11 @@ def answer(
         dist = belief.distribution_at(target, at)
         when = at or belief.clock
         if belief.knows_hours and when is not None:
-            mix = belief.mix.get(target, START_MIX)
             time_of_day = {
                 "weekday": when.weekday,
                 "minute": when.minute,
                 "slot": buckets_of(when)[1],
-                "weights": {c: round(w, 4) for c, w in zip(COMPONENTS, mix, strict=True)},
+                "weights": {c: round(w, 4) for c, w in belief.component_weights(target).items()},
             }
     else:  # a snapshot from before the belief knew the hour
         dist = belief.distribution(target)

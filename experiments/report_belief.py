@@ -42,6 +42,9 @@ PAIRS = (
     ("ecost-belief", "ecost"),
     ("ecost-routine", "ecost-belief"),
     ("ecost-routine", ORACLE),
+    ("ecost-routine-pooled", "ecost-routine"),
+    ("ecost-routine-pooled", "ecost-belief"),
+    ("ecost-routine-pooled", ORACLE),
     ("global-belief", "ecost-belief"),
     ("global-belief", "dist-oracle-global"),
     ("dist-oracle-global", ORACLE),
@@ -214,7 +217,7 @@ def first_of_scene_lines(rows: Sequence[Row], after: int = ROUTINE_AFTER) -> lis
     by it), and on the first search of each day (the morning scene's first search)."""
     firsts = first_of_scene(rows)
     mornings = [r for r in firsts if (r.scene - 1) % len(SLOT_NAMES) == 0]
-    pairs = [(a, b) for a, b in PAIRS if a == "ecost-routine"]
+    pairs = [(a, b) for a, b in PAIRS if a.startswith("ecost-routine")]
     pairs.append(("slot-oracle", ORACLE))
     return [
         "First search of each scene (one a time of day, four a day):",

@@ -17,7 +17,7 @@ from objsearch.agent.catalogue import STORE
 from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
-from objsearch.agent.strategies import BELIEF, COVER_SUFFIX, ROUTINE_BELIEF, RunSpec
+from objsearch.agent.strategies import BELIEF, COVER_SUFFIX, RunSpec
 from objsearch.events.log import read_log
 from objsearch.experiments.calibration import Forecast, forecasts
 from objsearch.experiments.decompose import Excess, decompose
@@ -115,8 +115,8 @@ def run_job(job: Job) -> list[Row]:
         log = Path(job.log_dir) if job.log_dir else Path(tmp)
         parts = decompose(read_log(log, store=STORE), ctx.navmap)
         # The run's own belief when it has one that knows the hour, else the time-blind one.
-        timed = spec.relations.model == "routine-belief"
-        forecast = forecasts(read_log(log, store=STORE), ROUTINE_BELIEF if timed else BELIEF)
+        timed = spec.relations.model in ("routine-belief", "routine-pooled")
+        forecast = forecasts(read_log(log, store=STORE), spec.relations if timed else BELIEF)
     return [_row(job, t, parts.get(t.task_id), forecast.get(t.task_id)) for t in trials]
 
 

@@ -146,7 +146,7 @@ OLD_EXAMPLES: dict[tuple[str, int], dict[str, Any]] = {
 
 LATEST: dict[str, int] = {t: 1 for t in EXAMPLES} | {
     "detection": 2,
-    "run_started": 4,
+    "run_started": 5,
     "task_started": 2,
     "view_taken": 2,
 }

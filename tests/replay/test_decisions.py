@@ -125,3 +125,32 @@ def test_runs_of_other_strategies_replay_with_their_own_model_and_planner(
     # Replayed as the paper's method instead, some plan must come out differently.
     paper = replay(read_log(tmp_path, store=STORE), overrides=Overrides(strategy="wpl"))
     assert any(not d.same for d in paper.decisions)
+
+
+def test_a_run_of_the_pooled_belief_that_knows_the_hour_replays_to_the_same_decisions(
+    tmp_path: Path,
+) -> None:
+    from objsearch.agent.routine_belief import PooledRoutineBelief
+    from objsearch.agent.state import AgentState
+    from objsearch.agent.strategies import RunSpec
+    from objsearch.sim.longterm import run_schedule
+
+    spec = RunSpec.for_home(
+        load_context("paper").home, "ecost-routine-pooled", schedule="routine-0"
+    )
+    run_schedule(
+        tmp_path, spec, scenes=tuple(range(1, 9)), targets=("Apple", "Cup"), starts_per_search=1
+    )
+    events = list(read_log(tmp_path, store=STORE))
+    assert all(e.payload["clock"] is not None for e in events if e.type == "task_started")
+    replayer = replay(events)
+    assert len(replayer.decisions) >= 16
+    assert all(d.same for d in replayer.decisions), [
+        d.as_dict() for d in replayer.decisions if not d.same
+    ]
+    # The fold is the pooled belief, and it learned a home mixture from the run's clocks.
+    state = AgentState()
+    for event in events:
+        state.apply(event)
+    belief = state.graph()
+    assert isinstance(belief, PooledRoutineBelief) and belief.pooled_episodes > 0
