@@ -8,7 +8,8 @@ segment, timed on its own).
 Each strategy first runs ``--scenes`` scenes of ``habit-0`` (so its memory holds something), then
 the planning of one search (what ``SearchAgent.search`` computes before and between moves) is timed
 for every target from every start (``ecost-routine``: after two weeks of ``routine-0``, one start
-per target). ``--homes largest`` takes the bundled iTHOR and ProcTHOR homes
+per target; ``ecost-routine-pooled`` the same). ``--routine-only`` times only those two and
+``wpl``. ``--homes largest`` takes the bundled iTHOR and ProcTHOR homes
 with the most mapped statics. Medians and ratios are printed; the target is ≤ 50 ms a decision.
 """
 
@@ -138,26 +139,35 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--homes", default="ithor-02,procthor-02")
     ap.add_argument("--scenes", type=int, default=2)
+    ap.add_argument(
+        "--routine-only",
+        action="store_true",
+        help="time only the beliefs that know the hour (and wpl, the baseline)",
+    )
     args = ap.parse_args()
     homes = largest_homes() if args.homes == "largest" else args.homes.split(",")
     for home in homes:
         base = plan_times(home, "wpl", args.scenes)
+        mb = statistics.median(base)
+        # The beliefs that know the hour, after two weeks of a routine schedule (56 scenes, one
+        # start per target: every slot and day type holds a belief of its own).
+        for routine in ("ecost-routine", "ecost-routine-pooled"):
+            timed = plan_times(home, routine, ROUTINE_SCENES, "routine-0", 1)
+            mt = statistics.median(timed)
+            print(
+                f"{home}: median planning per search  {routine} {mt * 1e3:7.2f} ms   ratio to "
+                f"wpl {mt / mb:5.2f}   max {max(timed) * 1e3:7.2f} ms   (n = {len(timed)}; "
+                f"{ROUTINE_SCENES} scenes of routine-0; target <= 50 ms)"
+            )
+        if args.routine_only:
+            continue
         ours = plan_times(home, "ecost-memory", args.scenes)
         whole, firsts = global_decision_times(home, args.scenes)
-        # The belief that knows the hour, after two weeks of a routine schedule (56 scenes, one
-        # start per target: every slot and day type holds a belief of its own).
-        timed = plan_times(home, "ecost-routine", ROUTINE_SCENES, "routine-0", 1)
-        mb, mo, mg, mf = (statistics.median(x) for x in (base, ours, whole, firsts))
+        mo, mg, mf = (statistics.median(x) for x in (ours, whole, firsts))
         print(
             f"{home}: median planning per search  wpl {mb * 1e3:7.2f} ms   "
             f"ecost-memory {mo * 1e3:7.2f} ms   ratio {mo / mb:5.2f}   "
             f"max {max(ours) * 1e3:7.2f} ms   (n = {len(ours)}; target <= 50 ms)"
-        )
-        mt = statistics.median(timed)
-        print(
-            f"{home}: median planning per search  ecost-routine {mt * 1e3:7.2f} ms   ratio to "
-            f"wpl {mt / mb:5.2f}   max {max(timed) * 1e3:7.2f} ms   (n = {len(timed)}; "
-            f"{ROUTINE_SCENES} scenes of routine-0; target <= 50 ms)"
         )
         print(
             f"{home}: median global-belief decision {mg * 1e3:7.2f} ms   ratio to wpl's search "
