@@ -55,7 +55,7 @@ from objsearch.agent.relations import RelationModel, instance_value, per_instanc
 from objsearch.agent.room_order import expected_cost_order
 from objsearch.agent.semmap import MappedStatic, SemanticMap
 from objsearch.agent.world import Detection, Navigation, World
-from objsearch.events.projection import EventView
+from objsearch.events.projection import EventObserver, EventView
 
 _log = logging.getLogger(__name__)
 
@@ -104,14 +104,6 @@ class EventSink(Protocol):
     def append(
         self, type: str, payload: Mapping[str, Any], *, time_ns: int, task_id: str | None = None
     ) -> EventView: ...
-
-
-class EventObserver(Protocol):
-    """Told of each event the agent appends, right after it is written: the agent's own fold,
-    the ``where`` memory, the live view, a publisher. Not necessarily a projection (a publisher
-    keeps no state); one that is also satisfies :class:`objsearch.events.Projection`."""
-
-    def apply(self, event: EventView) -> None: ...
 
 
 @dataclass

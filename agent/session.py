@@ -19,15 +19,17 @@ from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.navmap import NavigationMap
-from objsearch.agent.policy import EventObserver, Recorder, SearchAgent, SearchOptions, SearchResult
+from objsearch.agent.policy import Recorder, SearchAgent, SearchOptions, SearchResult
 from objsearch.agent.relations import RelationModel
 from objsearch.agent.scene_graph import seed_relations
 from objsearch.agent.semmap import SemanticMap
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import AGENT_MODELS, RelationModels, RunSpec
 from objsearch.agent.world import World
-from objsearch.events import CorruptLogError, EventLog, fold, read_log
-from objsearch.events.snapshot import restore, save_snapshot
+from objsearch.events import CorruptLogError, EventLog
+from objsearch.events.hub import Member, ProjectionHub, restore_hub
+from objsearch.events.projection import EventObserver
+from objsearch.events.snapshot import save_snapshot
 
 _log = logging.getLogger(__name__)
 
@@ -41,6 +43,8 @@ PRIOR_FILES = {
 DEFAULT_PRIOR = "vg-cooccurrence"
 # uuid5(NAMESPACE_URL, "urn:objsearch:runs"); fixed forever, like the event id namespace.
 RUN_ID_NAMESPACE = uuid.uuid5(uuid.NAMESPACE_URL, "urn:objsearch:runs")
+#: The agent's own state in a session's projection hub.
+AGENT = "agent"
 
 
 @dataclass(frozen=True)
@@ -111,8 +115,9 @@ def derived_run_id(stream: str, spec: RunSpec, inputs: Mapping[str, Any] | None 
 class Session:
     """An agent bound to its log: opened (restored from the log, once), then runs started on it.
 
-    :meth:`open` locks the log, restores the :class:`AgentState` (from a snapshot when one is
-    given and trusted, else by folding the log) and closes a task a crash left open with a
+    :meth:`open` locks the log, restores its projection hub — the :class:`AgentState` and any
+    other projection of the process (the ``where`` memory), from one snapshot when one is given
+    and trusted, else by one fold of the log — and closes a task a crash left open with a
     ``task_aborted`` event. :meth:`start_run` records ``run_started`` (and the prior, the first
     time) and builds the agent from the spec; :meth:`start` does both.
     """
@@ -121,16 +126,19 @@ class Session:
         self,
         ctx: HomeContext,
         log: EventLog,
-        state: AgentState,
+        hub: ProjectionHub,
         observers: Sequence[EventObserver],
         snapshot_dir: Path | None,
     ) -> None:
         # Private: use open() or start().
         self.ctx = ctx
         self.log = log
+        self.hub = hub
+        state = hub[AGENT]
+        assert isinstance(state, AgentState)
         self.state = state
         self.snapshot_dir = snapshot_dir
-        self.recorder = Recorder(log, [state, *observers], time_floor_ns=log.last_time_ns)
+        self.recorder = Recorder(log, [hub, *observers], time_floor_ns=log.last_time_ns)
         self._agent: SearchAgent | None = None
 
     @classmethod
@@ -143,15 +151,21 @@ class Session:
         run_id: str | None = None,
         wall_clock: Callable[[], int] | None = None,
         observers: Sequence[EventObserver] = (),
+        projections: Sequence[Member[Any]] = (),
+        views: Callable[[AgentState], Sequence[EventObserver]] | None = None,
         snapshot_dir: Path | None = None,
         models: RelationModels = AGENT_MODELS,
     ) -> Session:
         """Open (or create) the log at ``log_dir`` and restore what the agent knew.
 
         ``run_id`` names a log this call creates (see :func:`derived_run_id`); a fixed
-        ``wall_clock`` gives byte-identical logs (golden logs). With ``snapshot_dir``, the state is
-        restored from its snapshot there (if trusted) plus the events after it, and a new snapshot
-        is written when the session closes.
+        ``wall_clock`` gives byte-identical logs (golden logs). ``projections``: more projections
+        of the log the process keeps, restored and fed with the agent's state (the hub's
+        ``agent``) from the same snapshot and the same read. ``views``: observers that read the
+        restored state instead of folding the log themselves (the live view), told of each
+        event after the hub's projections; ``observers`` are told of each appended event after
+        those. With ``snapshot_dir``, the hub is restored from its snapshot there (if trusted)
+        plus the events after it, and a new snapshot is written when the session closes.
         """
         log = EventLog.open(
             log_dir,
@@ -165,18 +179,17 @@ class Session:
             store=STORE,
         )
         try:
-            if snapshot_dir is not None:
-                state, _ = restore(
-                    log_dir,
-                    lambda: AgentState(models=models),
-                    lambda doc, seq: AgentState.from_snapshot(doc, seq, models),
-                    snapshot_dir=snapshot_dir,
-                    save=False,
-                    store=STORE,
-                )
-            else:
-                state = fold(read_log(log_dir, store=STORE), AgentState(models=models))
-            session = cls(ctx, log, state, observers, snapshot_dir)
+            agent: Member[AgentState] = Member(
+                AGENT,
+                lambda: AgentState(models=models),
+                lambda doc, seq: AgentState.from_snapshot(doc, seq, models),
+            )
+            hub, _ = restore_hub(
+                log_dir, [agent, *projections], snapshot_dir=snapshot_dir, store=STORE
+            )
+            session = cls(ctx, log, hub, observers, snapshot_dir)
+            for view in views(session.state) if views is not None else ():
+                hub.follow(view)
             session._close_open_task()
         except BaseException:
             log.close()
@@ -290,9 +303,9 @@ class Session:
 
     def close(self) -> None:
         try:
-            if self.snapshot_dir is not None and not self.log.closed and self.state.last_seq:
+            if self.snapshot_dir is not None and not self.log.closed and self.hub.last_seq:
                 try:
-                    save_snapshot(self.snapshot_dir, self.state, log=self.log)
+                    save_snapshot(self.snapshot_dir, self.hub, log=self.log)
                 except CorruptLogError:
                     raise  # the log itself is damaged: that is the error, not a missing snapshot
                 except (ObjsearchError, OSError, ValueError) as exc:

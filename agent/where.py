@@ -21,7 +21,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from objsearch.agent.belief import ELSEWHERE, PlaceBelief
 from objsearch.agent.catalogue import STORE, DayClock
@@ -32,6 +32,8 @@ from objsearch.agent.routine_belief import RoutineBelief, buckets_of
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import ROUTINE_BELIEF
 from objsearch.events.envelope import Event
+from objsearch.events.errors import ProjectionError
+from objsearch.events.hub import Member
 from objsearch.events.log import EventLog
 from objsearch.events.projection import EventView, fold
 from objsearch.events.snapshot import restore, save_snapshot
@@ -165,12 +167,31 @@ class LiveMemory:
     its snapshot and the events after it, like the agent's own state), then fed every event the
     agent appends (an observer of its session), and asked from another thread (the request
     server's) under a lock — so a question never re-reads the log and is answered even while a
-    search is running."""
+    search is running.
+
+    In the running agent it is a member of the session's projection hub (:meth:`member`):
+    restored from the hub's one snapshot and fed from the hub, beside the agent's own state."""
+
+    snapshot_name: ClassVar[str] = "where_memory"
+    snapshot_version: ClassVar[int] = AgentState.snapshot_version
 
     def __init__(self, state: AgentState, home: Home) -> None:
         self._state = state
         self._home = home
         self._lock = threading.Lock()
+
+    @classmethod
+    def member(cls, home: Home, name: str = "where") -> Member[LiveMemory]:
+        """The memory as a projection hub's member (``Session.open(projections=...)``)."""
+        return Member(
+            name,
+            lambda: cls(_fresh(), home),
+            lambda doc, seq: cls(AgentState.from_snapshot(doc, seq), home),
+        )
+
+    def to_snapshot(self) -> dict[str, Any]:
+        with self._lock:
+            return self._state.to_snapshot()
 
     @classmethod
     def restore(cls, log_dir: Path, home: Home, snapshot_dir: Path) -> LiveMemory:
@@ -203,9 +224,13 @@ class LiveMemory:
         return self._state
 
     def apply(self, event: EventView) -> None:
-        assert isinstance(event, Event)
         with self._lock:
-            fold([event], self._state)  # the fold's checks: no event skipped or applied twice
+            expected = self._state.last_seq + 1
+            if event.seq != expected:  # no event skipped or applied twice
+                raise ProjectionError(
+                    f"the where memory is at seq {expected - 1} and cannot apply seq {event.seq}"
+                )
+            self._state.apply(event)
 
     def answer(self, target: str) -> dict[str, Any]:
         with self._lock:

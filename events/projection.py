@@ -49,6 +49,13 @@ class Projection(Protocol[S_co]):
         ...
 
 
+class EventObserver(Protocol):
+    """Told of each event of a log as it is appended or folded: a projection (which also
+    satisfies :class:`Projection`), or a view or publisher that keeps no state of its own."""
+
+    def apply(self, event: EventView) -> None: ...
+
+
 P = TypeVar("P", bound=Projection[Any])
 
 

@@ -19,14 +19,15 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from objsearch.agent.catalogue import STORE, DayClock, SearchFailed, TaskEnded
+from objsearch.agent.catalogue import DayClock, SearchFailed, TaskEnded
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
+from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import DEFAULT_ALPHA, DEFAULT_STRATEGY, RunSpec
 from objsearch.agent.where import LiveMemory
-from objsearch.events import Event, read_log
-from objsearch.events.projection import EventView
+from objsearch.events import Event
+from objsearch.events.projection import EventObserver, EventView
 from objsearch.runtime import messages as m
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import RobotError
@@ -44,10 +45,11 @@ from objsearch.runtime.transport import open_transport
 
 log = logging.getLogger("objsearch.agent")
 
-#: Beside the log: the agent's state at its last shutdown (objsearch.events.snapshot).
+#: Beside the log: the projection hub at the last shutdown (objsearch.events.hub): the agent's
+#: state and its ``where`` memory in one snapshot file.
 SNAPSHOT_DIR = "snapshots"
-#: Beside it: the ``where`` memory's (a fold with the memory model, whatever the run's model).
-WHERE_SNAPSHOT_DIR = f"{SNAPSHOT_DIR}/where"
+#: The ``where`` memory in the hub (a fold with the memory model, whatever the run's model).
+WHERE = "where"
 
 
 class EventPublisher:
@@ -112,20 +114,9 @@ class AgentNode:
         transport = None
         try:
             self.ctx = load_context(config.home)
-            # Restored once here, like the session's own state (from its snapshot and the log
-            # after it), then kept current as an observer: no question re-reads the log.
-            self.memory = LiveMemory.restore(log_dir, self.ctx.home, log_dir / WHERE_SNAPSHOT_DIR)
-            observers: list[Any] = [self.memory]
             transport = open_transport(config.transport)
             if live_topics:
                 self.live_sinks += (TopicSink(transport),)
-            if self.live_sinks:
-                view = LiveView(self.ctx, self.live_sinks)
-                if (log_dir / "meta.json").exists():
-                    view.fold(
-                        read_log(log_dir, store=STORE)
-                    )  # a restart: the graph so far, not redrawn
-                observers.append(GuardedLiveView(view))
             self.node = Node(transport)
         except BaseException:
             self._close_live()
@@ -143,17 +134,29 @@ class AgentNode:
                 update_mode=update_mode,
                 params={"transport": config.transport.backend.value},
             )
-            self.session = Session.start(
+            # One projection hub, restored once from one snapshot (and the log after it): the
+            # agent's state and its where memory, each event folded once into each; the live
+            # view reads the agent's state (no fold of its own, nothing re-read on a restart).
+            self.session = Session.open(
                 self.ctx,
                 log_dir,
-                spec,
-                observers=[self.events, *observers],
+                observers=[self.events],
+                projections=[LiveMemory.member(self.ctx.home, WHERE)],
+                views=self._views,
                 # A robot's runs never repeat: a new log gets a random run id, so no two robots'
                 # logs share event ids (a seeded simulation derives its id instead).
                 run_id=str(uuid.uuid4()),
                 # A restart reads only what came after the snapshot taken at the last shutdown.
                 snapshot_dir=log_dir / SNAPSHOT_DIR,
             )
+            try:
+                self.session.start_run(spec)
+            except BaseException:
+                self.session.close()
+                raise
+            memory = self.session.hub[WHERE]
+            assert isinstance(memory, LiveMemory)
+            self.memory = memory
         except BaseException:
             self.node.close()
             self._close_live()
@@ -169,6 +172,12 @@ class AgentNode:
         )
         self._stop = threading.Event()
         self._answering = threading.Thread(target=self._answer_questions, name="where", daemon=True)
+
+    def _views(self, agent: AgentState) -> list[EventObserver]:
+        """The live view, drawing from the hub's agent state (none without live sinks)."""
+        if not self.live_sinks:
+            return []
+        return [GuardedLiveView(LiveView(self.ctx, self.live_sinks, agent=agent))]
 
     def answer_where(self, request: WhereRequest) -> dict[str, Any]:
         """The memory's answer; ``request`` is checked field by field already (:mod:`requests`)."""
@@ -250,24 +259,10 @@ class AgentNode:
 
     def close(self) -> None:
         try:
-            self._save_memory()
-            self.session.close()
+            self.session.close()  # the hub's one snapshot: the agent's state and its memory
             self.node.close()
         finally:
             self._close_live()
-
-    def _save_memory(self) -> None:
-        """The where memory's snapshot, beside the session's; one that cannot be written is
-        logged, never fatal (the next start folds the log instead)."""
-        log_ = self.session.log
-        if log_.closed or not self.memory.last_seq:
-            return
-        try:
-            self.memory.save(log_.directory / WHERE_SNAPSHOT_DIR, log=log_)
-        except (ObjsearchError, OSError, ValueError) as exc:
-            log.warning(
-                "where memory: snapshot not written (%s); the next start folds the log", exc
-            )
 
     def _close_live(self) -> None:
         for sink in self.live_sinks:

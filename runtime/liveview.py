@@ -334,26 +334,34 @@ class LiveView:
         *,
         clock_offset_ns: int = 0,
         models: RelationModels = AGENT_MODELS,
+        agent: AgentState | None = None,
     ) -> None:
+        """``agent``: the running agent's own state, kept by its session's projection hub, which
+        folds each event into it before the view draws the event; the view then reads it and
+        never folds it (None: the view folds a state of its own, with ``models``)."""
         self.ctx = ctx
         self.sinks = tuple(sinks)
         self.clock_offset_ns = clock_offset_ns
         #: What the agent knew: the same fold (run spec, relation model, tasks) as everywhere.
-        self.agent = AgentState(models=models)
+        self.agent = agent if agent is not None else AgentState(models=models)
+        self._folds = agent is None
         self.pose: Pose | None = None
         self.task: _Task | None = None
         self.written: dict[str, int] = {}
         self._map_sent = False
 
     def fold(self, events: Iterable[Event]) -> None:
-        """Catch up with events already in the log without drawing them (an agent's restart)."""
+        """Catch up with events already in the log without drawing them."""
+        if not self._folds:
+            raise ValueError("this view reads the agent's state, which its hub folds")
         for event in events:
             self.agent.apply(event)
 
     def apply(self, event: EventView) -> None:
         """Draw one event (a projection: ``Session(observers=[view])``)."""
         assert isinstance(event, Event)  # the log's events; EventView is the fold's protocol
-        self.agent.apply(event)
+        if self._folds:
+            self.agent.apply(event)
         stamp = self.clock_offset_ns + event.time_ns
         if not 0 <= stamp <= MAX_STAMP_NS:
             from objsearch.agent.errors import ObjsearchError

@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from objsearch.cli import main
-from objsearch.runtime.agent_node import WHERE_SNAPSHOT_DIR
+from objsearch.events.snapshot import snapshot_path
+from objsearch.runtime.agent_node import SNAPSHOT_DIR
 from objsearch.runtime.client import AgentClient
 from objsearch.runtime.node import Requester
 from objsearch.runtime.requests import check_where_result
@@ -77,8 +78,9 @@ def test_the_agent_answers_where_from_its_live_memory(
         stop(robot)
     assert main(["where", "Apple", str(log), "--format", "json"]) == 0
     assert json.loads(capsys.readouterr().out) == live["answer"]
-    # A restart restores the memory from the snapshot written at shutdown, and answers the same.
-    assert (log / WHERE_SNAPSHOT_DIR / "agent_state.snapshot.json").is_file()
+    # A restart restores the memory from the snapshot written at shutdown (the process's one
+    # projection hub's: the agent's state and its memory), and answers the same.
+    assert snapshot_path(log / SNAPSHOT_DIR, "projections").is_file()
     agent = objsearch("agent", "run", *net.args, "--log", str(log), log=tmp_path / "agent2.txt")
     try:
         assert (
