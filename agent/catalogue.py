@@ -925,6 +925,18 @@ def decode(event: _Typed, as_type: type[R] | None = None) -> Record:
     ``event.type`` gets the precise class back. Raises :class:`InvalidEventError` on a payload
     that does not fit the record (the log validated it, so this means a schema/record mismatch).
     """
+    payload = event.payload
+    if as_type is not None and type(payload) is ReadPayload:
+        # A fold's call (read from a log, type matched): the JSON straight into the record, one
+        # call; anything else (decoded already, the wrong type, a refusal to word) takes the
+        # general path below.
+        raw = payload.unread
+        if raw is not None and event.type == as_type.TYPE:
+            try:
+                record: R = _JSON_DECODERS[as_type](raw)
+                return record
+            except msgspec.ValidationError:
+                pass
     record_type = LATEST.get(event.type) if as_type is None else as_type
     if record_type is None or event.type != record_type.TYPE:
         raise InvalidEventError(

@@ -61,6 +61,9 @@ _VARIANT_DIGIT: Final = {f"{n:x}": f"{(n & 0x3) | 0x8:x}" for n in range(16)}
 _Name = Annotated[str, msgspec.Meta(min_length=1)]
 _Count = Annotated[int, msgspec.Meta(ge=0)]
 _Positive = Annotated[int, msgspec.Meta(ge=1)]
+#: The decoders' event id: its length checked in C (a canonical UUID string has 36 characters),
+#: the rest of its spelling in ``__post_init__``.
+_IdLength = Annotated[str, msgspec.Meta(min_length=36, max_length=36)]
 
 
 class Event(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
@@ -209,10 +212,9 @@ class ReadPayload(Mapping[str, Any]):
     Read-only, like every event's payload.
     """
 
-    __slots__ = ("_dict", "_raw", "unread")
+    __slots__ = ("_dict", "unread")
 
     def __init__(self, raw: bytes | msgspec.Raw) -> None:
-        self._raw = raw
         self._dict: dict[str, Any] | None = None
         #: The JSON text while the payload has not been decoded (then None): a reader that wants
         #: a typed record decodes it from here, once.
@@ -221,10 +223,12 @@ class ReadPayload(Mapping[str, Any]):
     def _materialize(self) -> dict[str, Any]:
         d = self._dict
         if d is None:
+            raw = self.unread
+            assert raw is not None  # decoded once, then kept: one of the two is always set
             try:
-                d = _decode_payload(self._raw)
+                d = _decode_payload(raw)
             except msgspec.MsgspecError:  # what json reads and msgspec does not (1e400: inf)
-                d = json.loads(bytes(self._raw))
+                d = json.loads(bytes(raw))
             self._dict = d
             self.unread = None
         return d
@@ -269,48 +273,56 @@ def payload_json(payload: Mapping[str, Any]) -> bytes | msgspec.Raw | None:
     return None
 
 
-class _Read(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
-    """An event decoded from a record: its envelope was checked by the decoder's constraints and
-    its payload is kept as the record's JSON text until someone reads it (:class:`ReadPayload`)."""
-
-    payload: msgspec.Raw  # type: ignore[assignment]
-
-    def __post_init__(self) -> None:
-        if _decoded_record(self):
-            msgspec.structs.force_setattr(self, "payload", ReadPayload(self.payload))
-
-
 class _Checked(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
     """A record checked and not read: its payload stays JSON text (``msgspec.Raw``), never a
     mapping. Only scans that verify a log and look at no payload see these."""
 
+    event_id: _IdLength
     payload: msgspec.Raw  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
-        _decoded_record(self)
+        # The rules msgspec does not check: the id's spelling (:func:`_is_canonical_uuid`
+        # inlined; its length the decoder checked) and a payload that is an object; a
+        # ``ValueError`` makes the decoder refuse the record. Inlined, not called: this runs once
+        # per record, and a call is a measurable part of it (:class:`_Read` repeats it).
+        raw: object = self.payload
+        if type(raw) is not msgspec.Raw:  # built in Python (msgspec.structs.replace)
+            Event.__post_init__(self)
+            return
+        event_id = self.event_id
+        if not (
+            len(event_id) == 36
+            and event_id[8] == event_id[13] == event_id[18] == event_id[23] == "-"
+            and event_id.isascii()
+            and event_id.encode().translate(None, _HEX_DIGITS) == b"----"
+        ):
+            raise ValueError("event_id is not a canonical UUID string")
+        # The first byte through a copy: a memoryview costs more than copying a small payload.
+        if bytes(raw)[:1] != b"{":
+            raise ValueError("payload is not a JSON object")
 
 
-def _decoded_record(event: Event) -> bool:
-    """For the decoders' events (:class:`_Read`, :class:`_Checked`): True if ``event`` was
-    decoded from a record (its payload still ``msgspec.Raw``), after the rules msgspec does not
-    check — the id's spelling (:func:`_is_canonical_uuid`, inlined: once per record) and a
-    payload that is an object — ``ValueError`` if one fails; False if it was built in Python
-    (``msgspec.structs.replace``), after checking it as any event."""
-    raw: object = event.payload  # typed as a Mapping on Event; Raw on the decoders' events
-    if type(raw) is not msgspec.Raw:
-        Event.__post_init__(event)
-        return False
-    event_id = event.event_id
-    if not (
-        len(event_id) == 36
-        and event_id[8] == event_id[13] == event_id[18] == event_id[23] == "-"
-        and event_id.isascii()
-        and event_id.encode().translate(None, _HEX_DIGITS) == b"----"
-    ):
-        raise ValueError("event_id is not a canonical UUID string")
-    if memoryview(raw)[0] != 0x7B:  # "{": a payload is a JSON object
-        raise ValueError("payload is not a JSON object")
-    return True
+class _Read(_Checked, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
+    """An event decoded from a record: its envelope was checked by the decoder's constraints and
+    its payload is kept as the record's JSON text until someone reads it (:class:`ReadPayload`)."""
+
+    def __post_init__(self) -> None:
+        # :class:`_Checked`'s checks, then the payload wrapped (see there why not a call).
+        raw: object = self.payload
+        if type(raw) is not msgspec.Raw:  # built in Python (msgspec.structs.replace)
+            Event.__post_init__(self)
+            return
+        event_id = self.event_id
+        if not (
+            len(event_id) == 36
+            and event_id[8] == event_id[13] == event_id[18] == event_id[23] == "-"
+            and event_id.isascii()
+            and event_id.encode().translate(None, _HEX_DIGITS) == b"----"
+        ):
+            raise ValueError("event_id is not a canonical UUID string")
+        if bytes(raw)[:1] != b"{":
+            raise ValueError("payload is not a JSON object")
+        msgspec.structs.force_setattr(self, "payload", ReadPayload(raw))
 
 
 _decode_payload: Final = msgspec.json.Decoder(dict[str, Any]).decode
