@@ -1,10 +1,13 @@
 """Fixtures every test package may use: the raw shared data (``../shared/data`` beside the clone,
 or ``$OBJSEARCH_SHARED``), which the data converter and the FloorPlan-set benches build homes from,
-and torch on one thread for the modules that fuse maps in the test process."""
+torch on one thread for the modules that fuse maps in the test process, and one local S3 server
+(moto's) for every test of the fleet lake on a bucket."""
 
 from __future__ import annotations
 
 import os
+import re
+import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -47,3 +50,30 @@ def one_torch_thread() -> Iterator[None]:
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(before)
+
+
+@pytest.fixture(scope="session")
+def s3_server() -> Iterator[dict[str, str]]:
+    """moto's S3 server on a free loopback port, started once for the whole run (each start
+    costs seconds on a loaded machine); yields the ``AWS_*`` settings that point a client at it.
+    A test sets them with ``monkeypatch`` (or takes :func:`bucket`)."""
+    from objsearch.testing.s3server import s3_server as local_s3_server
+
+    with local_s3_server() as settings:
+        yield settings
+
+
+@pytest.fixture
+def bucket(
+    s3_server: dict[str, str], monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest
+) -> str:
+    """A bucket of this test's own on the S3 server (its AWS_* settings in the environment),
+    as ``s3://<bucket>/lake``."""
+    import boto3
+
+    for name, value in s3_server.items():
+        monkeypatch.setenv(name, value)
+    readable = re.sub(r"[^a-z0-9-]+", "-", request.node.name.lower()).strip("-")[:40]
+    name = f"{readable}-{uuid.uuid4().hex[:8]}"
+    boto3.client("s3").create_bucket(Bucket=name)
+    return f"s3://{name}/lake"

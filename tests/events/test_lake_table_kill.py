@@ -13,7 +13,6 @@ As :mod:`tests.events.test_lake_kill`: one kill-test server, each command in a f
 from __future__ import annotations
 
 import shutil
-from collections.abc import Iterator
 from pathlib import Path
 
 import boto3
@@ -22,7 +21,6 @@ import pytest
 from objsearch.agent.catalogue import STORE
 from objsearch.events.lake_table import TABLE_DIR, TableLake, add_log
 from objsearch.testing.killtest import KillServer, table_content
-from objsearch.testing.s3server import s3_server
 
 from .lake_logs import two_type_log
 
@@ -30,18 +28,12 @@ from .lake_logs import two_type_log
 pytestmark = pytest.mark.slow
 
 
-@pytest.fixture(scope="module")
-def bucket_settings() -> Iterator[dict[str, str]]:
-    with s3_server() as settings:
-        yield settings
-
-
 @pytest.fixture(params=["folder", "bucket"])
 def place(request: pytest.FixtureRequest, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
     """Where the lakes of one test live: a folder, or a bucket of its own on moto's server."""
     if request.param == "folder":
         return str(tmp_path / "lakes")
-    settings = request.getfixturevalue("bucket_settings")
+    settings = request.getfixturevalue("s3_server")
     for name, value in settings.items():
         monkeypatch.setenv(name, value)
     boto3.client("s3").create_bucket(Bucket="kill")

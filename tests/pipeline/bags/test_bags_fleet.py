@@ -9,69 +9,19 @@ import os
 import random
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
-import boto3
 import pytest
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake import Lake
 from objsearch.events.lake_table import BAG_TYPE, TableLake
-from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.ingest import ingest
-from objsearch.pipeline.bags.lake import BagLake, FleetBagLake, open_bag_lake
+from objsearch.pipeline.bags.lake import BagLake, FleetBagLake
 from objsearch.pipeline.bags.read import bag_identity
 from objsearch.pipeline.bags.session import converter_key
 from objsearch.ros.topics import TopicMap
-from objsearch.testing.s3server import s3_server
 
-from .bag_fixtures import Recorded, record_run
-from .splitter import split_ros1
-
-Content = tuple[list[tuple[str, str, dict[str, int], list[tuple[str, int, str]]]], dict[str, str]]
-
-
-@pytest.fixture(scope="module")
-def ros1(tmp_path_factory: pytest.TempPathFactory) -> Recorded:
-    return record_run(tmp_path_factory.mktemp("fleet-bags"), BagFormat.ROS1)
-
-
-@pytest.fixture(scope="module")
-def pieces(ros1: Recorded, tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
-    cut = split_ros1(ros1.bag, tmp_path_factory.mktemp("split"), duration_s=60.0)
-    assert len(cut) >= 3
-    return cut
-
-
-def fleet(root: Path | str) -> str:
-    TableLake(root, store=STORE).create()
-    return str(root)
-
-
-def content(root: Path | str) -> Content:
-    """Each bag run (robot, date, rows per type, its agent events) and the bags the lake knows
-    (bag id → converter), whichever lake it is."""
-    lake = open_bag_lake(root)
-    runs: list[tuple[str, str, dict[str, int], list[tuple[str, int, str]]]] = []
-    if isinstance(lake, FleetBagLake):
-        for t in lake.lake.runs():
-            events = sorted(
-                (e.event_id, e.time_ns, e.type)
-                for e in lake.lake.read_events(t)
-                if not e.stream.startswith("bag:")
-            )
-            runs.append((t.robot, t.date, dict(t.rows), events))
-    else:
-        folder = Lake(Path(root), store=STORE)
-        for r in folder.runs():
-            events = sorted(
-                (e.event_id, e.time_ns, e.type)
-                for e in folder.read_events(r)
-                if not e.stream.startswith("bag:")
-            )
-            runs.append((r.robot, r.date, dict(r.rows), events))
-    return sorted(runs), lake.known_pieces()
+from .bag_fixtures import Recorded, content, fleet
 
 
 def test_split_pieces_in_any_order_make_the_folder_lakes_run(
@@ -91,23 +41,6 @@ def test_split_pieces_in_any_order_make_the_folder_lakes_run(
     again = ingest(shuffled, lake)
     assert all(r.already and r.report is None for r in again)
     assert TableLake(lake, store=STORE).table().version() == version
-
-
-def test_reingest_replaces_the_bags_rows(ros1: Recorded, tmp_path: Path) -> None:
-    lake = fleet(tmp_path / "fleet")
-    [first] = ingest([ros1.bag], lake)
-    no_odom = TopicMap({t: r for t, r in TopicMap().topics.items() if t != "/odom"})
-    [again] = ingest([ros1.bag], lake, topic_map=no_odom)
-    assert not again.already and again.report is not None
-    [run] = TableLake(lake, store=STORE).runs()
-    assert first.report is not None
-    assert run.rows["pose_observed"] == again.report.event_types["pose_observed"]
-    [same] = ingest([ros1.bag], lake, topic_map=no_odom)
-    assert same.already
-    [forced] = ingest([ros1.bag], lake, topic_map=no_odom, reingest=True)
-    assert not forced.already and forced.error is None
-    ingest([ros1.bag], tmp_path / "folder", topic_map=no_odom)
-    assert content(lake) == content(tmp_path / "folder")
 
 
 def test_a_bag_with_nothing_in_it_is_accounted_for(tmp_path: Path) -> None:
@@ -226,25 +159,12 @@ def test_two_ingests_of_one_robots_pieces_at_once_make_one_run(
     assert content(lake) == content(tmp_path / "folder")
 
 
-@pytest.fixture(scope="module")
-def bucket_env() -> Iterator[dict[str, str]]:
-    with s3_server() as settings:
-        yield settings
-
-
 def test_the_cli_ingests_into_a_bucket(
-    ros1: Recorded,
-    bucket_env: dict[str, str],
-    monkeypatch: pytest.MonkeyPatch,
-    tmp_path: Path,
-    capsys: pytest.CaptureFixture[str],
+    ros1: Recorded, bucket: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from objsearch.cli import main
 
-    for name, value in bucket_env.items():
-        monkeypatch.setenv(name, value)
-    boto3.client("s3").create_bucket(Bucket="bags")
-    lake = "s3://bags/lake"
+    lake = bucket
     argv = ["ingest", str(ros1.bag), "--robot", "r1", "--no-progress", "--lake", lake]
     assert main(argv) == 0
     assert "committed" in capsys.readouterr().out

@@ -73,18 +73,6 @@ def test_pose_track_follows_the_moves(recorded: Recorded) -> None:
     assert {e.payload["instance_id"] for e in recorded.log if e.type == "detection"} <= seen
 
 
-def test_reingest_is_a_no_op(recorded: Recorded, tmp_path: Path) -> None:
-    lake = tmp_path / "lake"
-    first = ingest([recorded.bag, recorded.bag], lake)
-    assert len(first) == 1 and first[0].committed > 0
-    files = sorted(p for p in lake.rglob("*") if p.is_file())
-    stamps = [p.stat().st_mtime_ns for p in files]
-    [again] = ingest([recorded.bag], lake)
-    assert again.already and again.committed == 0
-    assert sorted(p for p in lake.rglob("*") if p.is_file()) == files
-    assert [p.stat().st_mtime_ns for p in files] == stamps
-
-
 def test_read_is_deterministic(recorded: Recorded) -> None:
     a, b = read_bag(recorded.bag), read_bag(recorded.bag)
     assert a.events == b.events and a.report == b.report

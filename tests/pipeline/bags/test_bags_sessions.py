@@ -14,7 +14,6 @@ from objsearch.events.lake import Lake, LakeError, compact_log
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import BagLake
-from objsearch.ros.topics import TopicMap
 
 from .bag_fixtures import Recorded, record_run
 from .splitter import rerecord_ros1, split_ros1
@@ -23,15 +22,11 @@ BAG_CLOCK_2026 = int(dt.datetime(2026, 1, 1, tzinfo=dt.UTC).timestamp() * 1e9)
 
 
 @pytest.fixture(scope="module")
-def ros1(tmp_path_factory: pytest.TempPathFactory) -> Recorded:
-    return record_run(tmp_path_factory.mktemp("sessions"), BagFormat.ROS1)
-
-
-@pytest.fixture(scope="module")
-def pieces(ros1: Recorded, tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
-    cut = split_ros1(ros1.bag, tmp_path_factory.mktemp("split"), duration_s=60.0)
-    assert len(cut) >= 3
-    return cut
+def whole(ros1: Recorded, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A folder lake of the whole recording ingested at once (what the pieces must equal)."""
+    lake = tmp_path_factory.mktemp("whole") / "lake"
+    ingest([ros1.bag], lake)
+    return lake
 
 
 def _content(lake: Path) -> tuple[list[tuple[str, int, str]], dict[str, int], list[int]]:
@@ -50,29 +45,27 @@ def _content(lake: Path) -> tuple[list[tuple[str, int, str]], dict[str, int], li
 
 
 def test_split_pieces_in_any_order_are_one_run(
-    ros1: Recorded, pieces: list[Path], tmp_path: Path
+    pieces: list[Path], tmp_path: Path, whole: Path
 ) -> None:
-    ingest([ros1.bag], tmp_path / "whole")
     shuffled = pieces[:]
     random.Random(3).shuffle(shuffled)
     results = ingest(shuffled, tmp_path / "split")
     assert [r.error for r in results] == [None] * len(pieces)
-    assert _content(tmp_path / "split") == _content(tmp_path / "whole")
+    assert _content(tmp_path / "split") == _content(whole)
     [run] = Lake(tmp_path / "split", store=STORE).runs()
     assert run.date == "2026-01-01" and run.identity.get("run_id")
     assert not list((tmp_path / "split").glob("robot=*/date=1970-*"))
 
 
 def test_pieces_at_different_times_first_one_last(
-    ros1: Recorded, pieces: list[Path], tmp_path: Path
+    pieces: list[Path], tmp_path: Path, whole: Path
 ) -> None:
     lake = tmp_path / "lake"
     later = [ingest([p], lake) for p in pieces[1:]]  # the first piece (run_started) comes last
     assert all(r.error is None and r.committed > 0 for [r] in later)
     [first] = ingest([pieces[0]], lake)
     assert first.error is None and "merged into run" in first.note
-    ingest([ros1.bag], tmp_path / "whole")
-    assert _content(lake) == _content(tmp_path / "whole")
+    assert _content(lake) == _content(whole)
     searches = Lake(lake, store=STORE).runs()[0].path / "_derived"
     assert list(searches.glob("searches.*.parquet"))
     assert len(BagLake(lake).known_pieces()) == len(pieces)
@@ -122,22 +115,6 @@ def test_one_clock_per_run(ros1: Recorded, tmp_path: Path) -> None:
             assert e.time_ns == logged[e.event_id] + BAG_CLOCK_2026
 
 
-def test_a_changed_topic_map_reingests(ros1: Recorded, tmp_path: Path) -> None:
-    lake = tmp_path / "lake"
-    [first] = ingest([ros1.bag], lake)
-    no_odom = TopicMap({t: r for t, r in TopicMap().topics.items() if t != "/odom"})
-    [again] = ingest([ros1.bag], lake, topic_map=no_odom)
-    assert not again.already and again.report is not None
-    [run] = Lake(lake, store=STORE).runs()
-    assert first.report is not None
-    # Poses now come from /tf alone, and the run holds them once, not twice.
-    assert run.rows["pose_observed"] == again.report.event_types["pose_observed"]
-    [same] = ingest([ros1.bag], lake, topic_map=no_odom)
-    assert same.already
-    [forced] = ingest([ros1.bag], lake, topic_map=no_odom, reingest=True)
-    assert not forced.already and forced.error is None
-
-
 def test_lake_add_refuses_a_log_already_in_the_lake(ros1: Recorded, tmp_path: Path) -> None:
     lake = Lake(tmp_path / "lake", store=STORE)
     log_dir = ros1.bag.parent / "log"
@@ -178,7 +155,7 @@ def _all_ids(lake: Path) -> list[str]:
 
 
 def test_pieces_without_run_started_in_any_order_are_one_run(
-    ros1: Recorded, pieces: list[Path], tmp_path: Path
+    ros1: Recorded, pieces: list[Path], tmp_path: Path, whole: Path
 ) -> None:
     late = pieces[1:]  # what a recorder started after the agent holds
     for r in ingest(late, tmp_path / "a"):
@@ -190,8 +167,7 @@ def test_pieces_without_run_started_in_any_order_are_one_run(
     ingest(shuffled, tmp_path / "b")
     assert _content(tmp_path / "b") == _content(tmp_path / "a")
     ingest([pieces[0]], tmp_path / "b")  # the first piece after all: the run id is known now
-    ingest([ros1.bag], tmp_path / "whole")
-    assert _content(tmp_path / "b") == _content(tmp_path / "whole")
+    assert _content(tmp_path / "b") == _content(whole)
     ids = _all_ids(tmp_path / "b")
     assert len(ids) == len(set(ids))
     first_piece = {e.event_id for e in ros1.log} - set(_agent_ids(tmp_path / "a"))
@@ -226,17 +202,16 @@ def test_pieces_of_a_compacted_log_are_refused_naming_it(
 RECORDER_CLOCK = int(dt.datetime(2026, 12, 2, tzinfo=dt.UTC).timestamp() * 1e9)
 
 
-def test_a_rerecorded_bag_is_on_one_clock(ros1: Recorded, tmp_path: Path) -> None:
+def test_a_rerecorded_bag_is_on_one_clock(ros1: Recorded, tmp_path: Path, whole: Path) -> None:
     """``rosbag play -r 20`` → ``rosbag record``: receive times 20× faster, on another day; the
     header stamps kept. The run is on the agent's clock, its poses where the original's are."""
     replayed = rerecord_ros1(ros1.bag, tmp_path / "replayed.bag", rate=20, start_ns=RECORDER_CLOCK)
     [result] = ingest([replayed], tmp_path / "lake")
     assert result.report is not None and result.report.clock is not None
     assert result.report.clock.rate == pytest.approx(20, rel=1e-6)
-    ingest([ros1.bag], tmp_path / "whole")
     agent, rows, poses = _content(tmp_path / "lake")
-    assert (agent, rows) == _content(tmp_path / "whole")[:2]
-    original = _content(tmp_path / "whole")[2]
+    assert (agent, rows) == _content(whole)[:2]
+    original = _content(whole)[2]
     assert max(abs(a - b) for a, b in zip(poses, original, strict=True)) < 1_000  # ns
     [run] = Lake(tmp_path / "lake", store=STORE).runs()
     assert run.date == "2026-01-01"
@@ -247,7 +222,7 @@ def test_a_rerecorded_bag_is_on_one_clock(ros1: Recorded, tmp_path: Path) -> Non
 
 
 def test_a_rerecorded_split_recording_is_one_run_on_one_clock(
-    ros1: Recorded, tmp_path: Path
+    ros1: Recorded, tmp_path: Path, whole: Path
 ) -> None:
     replayed = rerecord_ros1(ros1.bag, tmp_path / "replayed.bag", rate=20, start_ns=RECORDER_CLOCK)
     late = split_ros1(replayed, tmp_path / "split", duration_s=3.0)[1:]
@@ -258,20 +233,21 @@ def test_a_rerecorded_split_recording_is_one_run_on_one_clock(
     assert run.date == "2026-01-01"
     events = Lake(tmp_path / "lake", store=STORE).read_events(run)
     # Every derived event is where the original bag has it (the receive clock mapped back).
-    ingest([ros1.bag], tmp_path / "whole")
-    whole = {
+    derived = {
         (e.type, e.time_ns)
-        for r in Lake(tmp_path / "whole", store=STORE).runs()
-        for e in Lake(tmp_path / "whole", store=STORE).read_events(r)
+        for r in Lake(whole, store=STORE).runs()
+        for e in Lake(whole, store=STORE).read_events(r)
         if e.stream.startswith("bag:")
     }
     for e in events:
         if e.stream.startswith("bag:"):
-            near = [t for typ, t in whole if typ == e.type and abs(t - e.time_ns) < 1_000]
+            near = [t for typ, t in derived if typ == e.type and abs(t - e.time_ns) < 1_000]
             assert near, (e.type, e.time_ns)
 
 
-def test_pieces_of_odometry_alone_join_their_recording(ros1: Recorded, tmp_path: Path) -> None:
+def test_pieces_of_odometry_alone_join_their_recording(
+    ros1: Recorded, tmp_path: Path, whole: Path
+) -> None:
     """Split every 5 s, most pieces hold odometry and TF alone (the robot driving between
     events); in any order, with or without the piece holding run_started, one run."""
     cut = split_ros1(ros1.bag, tmp_path / "split", duration_s=5.0)
@@ -281,14 +257,13 @@ def test_pieces_of_odometry_alone_join_their_recording(ros1: Recorded, tmp_path:
         if r.report and "pose_observed" in r.report.event_types and len(r.report.event_types) == 1
     ]
     assert len(odometry_only) >= 3
-    ingest([ros1.bag], tmp_path / "whole")
-    assert _content(tmp_path / "a") == _content(tmp_path / "whole")
+    assert _content(tmp_path / "a") == _content(whole)
     [run] = Lake(tmp_path / "a", store=STORE).runs()
     assert run.identity.get("run_id")
     shuffled = cut[:]
     random.Random(7).shuffle(shuffled)
     ingest(shuffled, tmp_path / "b")
-    assert _content(tmp_path / "b") == _content(tmp_path / "whole")
+    assert _content(tmp_path / "b") == _content(whole)
     late = cut[1:]
     random.Random(8).shuffle(late)
     ingest(late, tmp_path / "c")
