@@ -41,6 +41,7 @@ from objsearch.agent.upcasters import STEPS
 from objsearch.events.catalogue import Catalogue
 from objsearch.events.envelope import ReadPayload
 from objsearch.events.errors import InvalidEventError
+from objsearch.events.projection import shared_decodes
 from objsearch.events.store import Store
 
 NonNegative: TypeAlias = Annotated[float, msgspec.Meta(ge=0)]
@@ -925,6 +926,20 @@ def decode(event: _Typed, as_type: type[R] | None = None) -> Record:
     ``event.type`` gets the precise class back. Raises :class:`InvalidEventError` on a payload
     that does not fit the record (the log validated it, so this means a schema/record mismatch).
     """
+    shared = shared_decodes(event)
+    if shared is None:
+        return _decode(event, as_type)
+    # A projection hub is handing the event out: every projection and view it tells gets the
+    # one record (records are frozen; folds never change what they read).
+    key = as_type if as_type is not None else LATEST.get(event.type)
+    record: Record | None = shared.get(key)
+    if record is None:
+        record = _decode(event, as_type)
+        shared[key] = record
+    return record
+
+
+def _decode(event: _Typed, as_type: type[R] | None) -> Record:
     payload = event.payload
     if as_type is not None and type(payload) is ReadPayload:
         # A fold's call (read from a log, type matched): the JSON straight into the record, one

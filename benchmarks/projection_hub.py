@@ -6,8 +6,8 @@ it had before (issue 22), over the same events, in the same run.
 The baseline is what ``agent run --live`` kept until the hub: three ``AgentState`` folds of every
 event (the agent's own, its ``where`` memory with the memory model, the live view's own copy of
 the agent's). The hub folds the agent's and the memory's, once each; the live view reads the
-agent's. Printed for each: ``AgentState.apply`` calls and payload decodes (records built from an
-event, ``agent/catalogue.py``) per event, and the CPU time of the fold (median of ``--reps``).
+agent's. Printed for each: ``AgentState.apply`` calls and decodes (records built from an
+event: ``agent/catalogue.py``'s ``_decode``) per event, and the CPU time of the fold (median of ``--reps``).
 The events are read once, before any fold is timed.
 """
 
@@ -46,19 +46,19 @@ def counts(events: Sequence[Event], build: Build) -> tuple[float, float]:
     """``AgentState.apply`` calls and decodes per event."""
     applies = 0
     decodes: Counter[str] = Counter()
-    apply, convert = AgentState.apply, catalogue._convert
+    apply, decode = AgentState.apply, catalogue._decode
 
     def counted_apply(self: AgentState, event: Any) -> None:
         nonlocal applies
         applies += 1
         apply(self, event)
 
-    def counted_convert(record_type: Any, payload: Any) -> Any:
-        decodes[record_type.TYPE] += 1
-        return convert(record_type, payload)
+    def counted_decode(event: Any, as_type: Any) -> Any:
+        decodes[event.type] += 1
+        return decode(event, as_type)
 
     AgentState.apply = counted_apply  # type: ignore[method-assign]
-    catalogue._convert = counted_convert
+    catalogue._decode = counted_decode
     try:
         observers = build()
         for event in events:
@@ -66,7 +66,7 @@ def counts(events: Sequence[Event], build: Build) -> tuple[float, float]:
                 observer.apply(event)
     finally:
         AgentState.apply = apply  # type: ignore[method-assign]
-        catalogue._convert = convert
+        catalogue._decode = decode
     return applies / len(events), sum(decodes.values()) / len(events)
 
 

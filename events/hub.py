@@ -18,7 +18,7 @@ from typing import Any, ClassVar, Generic, TypeVar
 from .envelope import Event
 from .errors import ProjectionError
 from .log import read_log
-from .projection import EventObserver, EventView, fold
+from .projection import EventObserver, EventView, end_sharing, fold, share_decodes
 from .snapshot import Restored, Snapshottable, restore
 from .store import Store
 
@@ -40,7 +40,9 @@ class ProjectionHub:
 
     ``apply`` gives each event to every projection in the order they were registered, checks that
     each advanced to the event's seq, then tells the observers (:meth:`follow`: views that read
-    the projections' state, never snapshotted). ``applied`` counts the events it was given.
+    the projections' state, never snapshotted). While it does, what a domain's decoder builds
+    from the event is shared (:func:`~objsearch.events.projection.shared_decodes`): each record
+    is decoded once, however many projections read it. ``applied`` counts the events given.
     """
 
     snapshot_name: ClassVar[str] = "projections"
@@ -77,17 +79,21 @@ class ProjectionHub:
                 f"({event.type}): the next is {expected}"
             )
         seq = event.seq
-        for projection in self._folds:
-            projection.apply(event)
-            if projection.last_seq != seq:
-                name = next(n for n, p in self.projections.items() if p is projection)
-                raise ProjectionError(
-                    f"{name}: apply(seq {seq}) left last_seq at {projection.last_seq}"
-                )
-        self.last_seq = seq
-        self.applied += 1
-        for observer in self.observers:
-            observer.apply(event)
+        sharing = share_decodes(event)  # each record is built once, whoever asks for it first
+        try:
+            for projection in self._folds:
+                projection.apply(event)
+                if projection.last_seq != seq:
+                    name = next(n for n, p in self.projections.items() if p is projection)
+                    raise ProjectionError(
+                        f"{name}: apply(seq {seq}) left last_seq at {projection.last_seq}"
+                    )
+            self.last_seq = seq
+            self.applied += 1
+            for observer in self.observers:
+                observer.apply(event)
+        finally:
+            end_sharing(sharing)
 
     def to_snapshot(self) -> dict[str, Any]:
         return {

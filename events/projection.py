@@ -8,6 +8,7 @@ is skipped, none is applied twice, and the projection really records how far it 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
+from contextvars import ContextVar, Token
 from typing import Any, Protocol, TypeVar
 
 from .envelope import Event
@@ -54,6 +55,32 @@ class EventObserver(Protocol):
     satisfies :class:`Projection`), or a view or publisher that keeps no state of its own."""
 
     def apply(self, event: EventView) -> None: ...
+
+
+#: While a hub hands out one event (:class:`~objsearch.events.hub.ProjectionHub`): that event and
+#: what a domain's decoder has built from it so far, keyed as the decoder likes (a record type).
+_SHARED: ContextVar[tuple[object, dict[Any, Any]] | None] = ContextVar(
+    "objsearch_shared_decodes", default=None
+)
+
+
+def shared_decodes(event: object) -> dict[Any, Any] | None:
+    """Where to keep what is decoded from ``event`` while a hub hands it to its projections, so
+    they share one decode of each kind; None outside a hub (decode as usual). Scoped to the
+    hub's ``apply`` on this thread: nothing outlives the event's hand-out."""
+    shared = _SHARED.get()
+    if shared is not None and shared[0] is event:
+        return shared[1]
+    return None
+
+
+def share_decodes(event: object) -> Token[tuple[object, dict[Any, Any]] | None]:
+    """Start sharing the decodes of ``event`` (the hub's; end with :func:`end_sharing`)."""
+    return _SHARED.set((event, {}))
+
+
+def end_sharing(token: Token[tuple[object, dict[Any, Any]] | None]) -> None:
+    _SHARED.reset(token)
 
 
 P = TypeVar("P", bound=Projection[Any])

@@ -1,14 +1,17 @@
 """The robot process folds its log once (issue 22): one projection hub, restored from one
-snapshot, gives each event once to each projection (the agent's state, its ``where`` memory);
-the live view reads the agent's state instead of folding the log a third time."""
+snapshot, gives each event once to each projection (the agent's state, its ``where`` memory),
+which share one decode of each record; the live view reads the agent's state instead of
+folding the log a third time."""
 
 from __future__ import annotations
 
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+import objsearch.agent.catalogue as catalogue
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.state import AgentState
 from objsearch.agent.where import LiveMemory
@@ -37,6 +40,18 @@ def test_the_robot_process_folds_each_event_once(
         apply(self, event)
 
     monkeypatch.setattr(AgentState, "apply", counted)
+    # Every record built from an event: (which record type, which event). The events are kept
+    # alive so that no two share an id.
+    decodes: Counter[tuple[str, int]] = Counter()
+    seen: list[object] = []
+    decode = catalogue._decode
+
+    def counted_decode(event: Any, as_type: Any) -> Any:
+        seen.append(event)
+        decodes[(as_type or catalogue.LATEST[event.type]).__name__, id(event)] += 1
+        return decode(event, as_type)
+
+    monkeypatch.setattr(catalogue, "_decode", counted_decode)
 
     def start(name: str) -> AgentNode:
         return AgentNode(config, log, live=[McapSink(tmp_path / f"{name}.mcap")])
@@ -56,11 +71,14 @@ def test_the_robot_process_folds_each_event_once(
         assert {s for s, _ in folds} == states
         assert sorted(folds) == sorted((s, q) for s in states for q in range(1, end + 1))
         assert set(folds.values()) == {1}
+        # Each record decoded once, however many projections (and the view) read it.
+        assert decodes and set(decodes.values()) == {1}
     finally:
         node.close()
     assert snapshot_path(log / SNAPSHOT_DIR, "projections").is_file()
 
     folds.clear()
+    decodes.clear()
     node = start("second")
     try:
         hub = node.session.hub
@@ -73,6 +91,7 @@ def test_the_robot_process_folds_each_event_once(
         assert sorted(folds) == sorted((s, end + 1) for s in states)
         assert set(folds.values()) == {1}
         assert memory.state.last_seq == node.session.state.last_seq == end + 1
+        assert set(decodes.values()) == {1}
     finally:
         node.close()
     assert [e.type for e in read_log(log, store=STORE)][end:] == ["run_started"]
