@@ -5,24 +5,28 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
-import signal
 from pathlib import Path
-from typing import Final
+from typing import TYPE_CHECKING
 
-#: Test hook for the kill tests (:mod:`objsearch.testing.killtest`): with ``OBJSEARCH_KILL_AFTER_STEP=N`` in its
-#: environment, a process SIGKILLs itself right after its N-th durable step (an fsync or a rename
-#: made through this module). Unset, it costs one dictionary lookup per fsync.
-KILL_AFTER_STEP_ENV: Final = "OBJSEARCH_KILL_AFTER_STEP"
-_steps = 0
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+#: Called after every durable step when set; production never sets it. The kill tests
+#: (:mod:`objsearch.testing.killtest`) install a counter that SIGKILLs the process at its N-th
+#: step, so no environment variable is read on the write path.
+_observer: Callable[[], None] | None = None
+
+
+def observe_durable_steps(observer: Callable[[], None] | None) -> None:
+    """Call ``observer`` after each durable step (an fsync or a rename made through this module,
+    or a :func:`durable_step`) from now on; ``None`` removes it. One observer per process."""
+    global _observer
+    _observer = observer
 
 
 def _step() -> None:
-    global _steps
-    limit = os.environ.get(KILL_AFTER_STEP_ENV)
-    if limit:
-        _steps += 1
-        if _steps == int(limit):
-            os.kill(os.getpid(), signal.SIGKILL)
+    if _observer is not None:
+        _observer()
 
 
 def durable_step() -> None:

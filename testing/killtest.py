@@ -1,14 +1,15 @@
 """Kill-point harness: run a command in a process that SIGKILLs itself after its N-th durable step.
 
-Every fsync and rename made through :mod:`._fs` (the lake's commits, the ingest report) is a
-*step*; with ``OBJSEARCH_KILL_AFTER_STEP=N`` in its environment a process kills itself right
-after its N-th. A test runs a command with N = 1, 2, … until it completes without dying, so it
+Every fsync and rename made through :mod:`objsearch.events._fs` (the lake's commits, the ingest
+report) is a *step*; :func:`kill_after_steps` installs an observer there that SIGKILLs the
+process right after its N-th (``python -m objsearch.testing.killtest N ARGV...`` runs the
+command line so, from a fresh interpreter). A test runs a command with N = 1, 2, … until it completes without dying, so it
 is killed once at every step of its commit, not at random moments, and checks each time that a
 re-run completes and leaves what an uninterrupted run leaves.
 
 A process start costs more than most commits (imports of pyarrow, DuckDB, …), so
 :class:`KillServer` is one Python process that has imported the command line once and forks a
-fresh child per command: the child sets the variable and calls ``objsearch.cli.main(argv)``,
+fresh child per command: the child installs the counter and calls ``objsearch.cli.main(argv)``,
 the real command line, and the server reports how it ended. SIGKILL leaves the page cache alone,
 so this tests the order of operations and recovery, not power loss. What every command
 builds before its first step (the parser, the store's compiled schemas, the ROS type stores) is
@@ -19,6 +20,8 @@ built once in the server, so a child's time is the command's own work; its fsync
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -26,7 +29,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Final
 
-from objsearch.events._fs import KILL_AFTER_STEP_ENV
+from objsearch.events import _fs
 
 _SERVER: Final = r"""
 import json, os, signal, sys, traceback
@@ -36,6 +39,7 @@ import objsearch.events.lake, objsearch.pipeline.bags.ingest, objsearch.pipeline
 import objsearch.replay.analytics, rosbags.highlevel, tqdm
 import numpy.ma  # imported on first use by np.unique (a bag's pose tracks)
 import objsearch.product  # the relation models lake add folds with (the agent's strategies)
+from objsearch.testing.killtest import kill_after_steps
 from objsearch.agent.catalogue import STORE
 from objsearch.ros.types import Distro, typestore
 # Built here once rather than in every child (each is most of a short command's CPU): the
@@ -57,7 +61,7 @@ for line in sys.stdin:
         os.dup2(fd, 1)
         os.dup2(fd, 2)
         if job["kill_after"]:
-            os.environ[job["env"]] = str(job["kill_after"])
+            kill_after_steps(job["kill_after"])
         code = 70
         try:
             code = objsearch.cli.main(job["argv"], parser=parser)
@@ -71,6 +75,21 @@ for line in sys.stdin:
     sys.stdout.write(f"{code}\n")
     sys.stdout.flush()
 """
+
+
+def kill_after_steps(n: int) -> None:
+    """SIGKILL this process right after its ``n``-th durable step from now (``n`` >= 1)."""
+    if n < 1:
+        raise ValueError(f"kill_after_steps: n must be >= 1, not {n}")
+    steps = 0
+
+    def count() -> None:
+        nonlocal steps
+        steps += 1
+        if steps == n:
+            os.kill(os.getpid(), signal.SIGKILL)
+
+    _fs.observe_durable_steps(count)
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,7 +123,6 @@ class KillServer:
         job = {
             "argv": argv,
             "kill_after": kill_after,
-            "env": KILL_AFTER_STEP_ENV,
             "output": str(self._output),
         }
         self._server.stdin.write(json.dumps(job) + "\n")
@@ -186,4 +204,29 @@ def table_content(root: str | Path) -> TableContent:
     return {(r.robot, r.run): (r.date, r.digest, r.events) for r in runs}, per_type
 
 
-__all__ = ["KillServer", "Outcome", "TableContent", "table_content", "tree"]
+def main(argv: list[str] | None = None) -> int:
+    """``python -m objsearch.testing.killtest N ARGV...``: ``objsearch ARGV`` in this fresh
+    interpreter, SIGKILLed right after its N-th durable step (the real start-up path, which
+    :class:`KillServer`'s forked children skip)."""
+    args = sys.argv[1:] if argv is None else argv
+    if not args or not args[0].isdigit() or int(args[0]) < 1:
+        print("usage: python -m objsearch.testing.killtest N ARGV...  (N >= 1)", file=sys.stderr)
+        return 2
+    kill_after_steps(int(args[0]))
+    from objsearch import cli
+
+    return cli.main(args[1:])
+
+
+__all__ = [
+    "KillServer",
+    "Outcome",
+    "TableContent",
+    "kill_after_steps",
+    "main",
+    "table_content",
+    "tree",
+]
+
+if __name__ == "__main__":
+    raise SystemExit(main())

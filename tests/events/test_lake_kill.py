@@ -5,7 +5,6 @@ old or new run must be in the lake (after the recovery any reader or writer does
 
 from __future__ import annotations
 
-import os
 import shutil
 import subprocess
 import sys
@@ -15,7 +14,6 @@ import pytest
 
 from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog
-from objsearch.events._fs import KILL_AFTER_STEP_ENV
 from objsearch.events.lake import STAGING, Lake
 from objsearch.testing.killtest import KillServer, tree
 
@@ -117,13 +115,13 @@ def test_replace_killed_at_every_step_leaves_a_whole_run_and_the_rerun_finishes(
     assert seen["old"] and seen["new"] and seen["gap"]
     assert max(seen["old"]) < min(seen["new"])
 
-    # The same window through a real interpreter start: `python -m objsearch.cli` killed with
+    # The same window through a real interpreter start: `objsearch lake add` killed with
     # neither run in place, then any reader (here `lake ls`) finishes the replace.
     shutil.rmtree(lake)
     shutil.copytree(start, lake)
-    env = {**os.environ, KILL_AFTER_STEP_ENV: str(seen["gap"][0])}
     cli = [sys.executable, "-m", "objsearch.cli"]
-    killed = subprocess.run([*cli, *_add(log, lake, "--replace")], env=env, check=False)
+    killer = [sys.executable, "-m", "objsearch.testing.killtest", str(seen["gap"][0])]
+    killed = subprocess.run([*killer, *_add(log, lake, "--replace")], check=False)
     assert killed.returncode == -9
     listing = subprocess.run(
         [
