@@ -46,7 +46,9 @@ def run_started_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
     payload["planner"] = planner
     payload["relations"] = relations
     radius = params.pop("support_radius", 0.5)
-    payload["support_radius"] = float(radius) if isinstance(radius, int | float) else 0.5
+    # v1 took any number; a negative radius held nothing "at" a static, as a radius of 0 does
+    # (no object is at distance 0 or less), and today's schema allows no negative one.
+    payload["support_radius"] = max(0.0, float(radius)) if isinstance(radius, int | float) else 0.5
     schedule = params.pop("schedule", None)
     payload["schedule"] = schedule if isinstance(schedule, str) else None
     payload["params"] = params
