@@ -424,10 +424,26 @@ class TableLake:
             out[event_type] = pa.Table.from_arrays(columns, names=schema.names).cast(schema)
         return out
 
-    def read_events(self, run: TableRun) -> list[Event]:
+    def read_events(self, run: TableRun, table: Any | None = None) -> list[Event]:
+        """The run's events, upcast, after checking that its rows read back as committed: as
+        many of each type and the digest its ``_run`` row records (a data file missing, cut or
+        altered under the log raises :class:`TableLakeError` naming the run, never a shorter
+        run)."""
+        try:
+            tables = self.read_tables(run, table)
+        except (OSError, pa.ArrowException) as exc:  # a file gone, cut, or not Parquet
+            raise TableLakeError(
+                f"{self.root}: run {run.robot}/{run.run} could not be read: {exc}"
+            ) from exc
+        rows = {event_type: part.num_rows for event_type, part in tables.items()}
+        if rows != dict(run.rows) or table_digest(tables) != run.digest:
+            raise TableLakeError(
+                f"{self.root}: run {run.robot}/{run.run} is damaged: its rows do not read back "
+                f"as committed (rows {rows}, committed {dict(run.rows)}); `objsearch lake verify "
+                f"{self.root}` names the files"
+            )
         upcast = self.store.upcaster.upcast
-        tables = self.read_tables(run).values()
-        return [upcast(e) for e in tables_to_events(tables, self.store)]
+        return [upcast(e) for e in tables_to_events(tables.values(), self.store)]
 
     def scan(self, table: Any | None = None) -> tuple[list[DataFile], list[tuple[DataFile, str]]]:
         """The data files readers may read, and those they must leave out (missing, another

@@ -23,8 +23,8 @@ def register(sub: Any) -> None:
     rp.add_argument(
         "log",
         metavar="LOG|LAKE",
-        type=t.existing_dir,
-        help="event log folder, or a lake (with --run)",
+        type=t.log_or_lake,
+        help="event log folder, or a lake (with --run): a folder or s3://bucket/prefix",
     )
     rp.add_argument(
         "--run", type=t.text, help="the lake run to replay (objsearch lake ls lists them)"
@@ -53,8 +53,8 @@ def register(sub: Any) -> None:
     au.add_argument(
         "log",
         metavar="LOG|LAKE",
-        type=t.existing_dir,
-        help="event log folder, or a lake (with --run)",
+        type=t.log_or_lake,
+        help="event log folder, or a lake (with --run): a folder or s3://bucket/prefix",
     )
     au.add_argument("--run", type=t.text, help="the lake run to audit")
     au.add_argument("--robot", type=t.text, help="the robot whose run it is, if run names repeat")
@@ -100,7 +100,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from objsearch.replay.decisions import Overrides, replay, summarise
     from objsearch.replay.source import open_events
 
-    events, _ = open_events(Path(args.log), run=args.run, robot=args.robot)
+    events, _ = open_events(args.log, run=args.run, robot=args.robot)
     replayer = replay(
         t.progress(events, "replay", " events", enabled=not args.no_progress),
         overrides=Overrides(method=args.method, alpha=args.alpha, strategy=args.strategy),
@@ -156,7 +156,7 @@ def cmd_audit(args: argparse.Namespace) -> int:
     from objsearch.replay.audit import anomaly_counts, audit, write_report
     from objsearch.replay.source import open_events
 
-    events, name = open_events(Path(args.log), run=args.run, robot=args.robot)
+    events, name = open_events(args.log, run=args.run, robot=args.robot)
     auditor = audit(
         t.progress(events, "audit", " events", enabled=not args.no_progress),
         oracle_ratio=args.oracle_ratio,

@@ -189,7 +189,7 @@ def cmd_liveview(args: argparse.Namespace) -> int:
     from objsearch.runtime.livesinks import McapSink
     from objsearch.runtime.liveview import CHANNELS, render
 
-    events, name = open_events(Path(args.log), run=args.run, robot=args.robot)
+    events, name = open_events(args.log, run=args.run, robot=args.robot)
     started = time.perf_counter()
     sink = McapSink(Path(args.mcap), compress=not args.no_compress)
     try:
@@ -500,8 +500,8 @@ def register(sub: Any) -> None:
     view.add_argument(
         "log",
         metavar="LOG|LAKE",
-        type=t.existing_dir,
-        help="event log folder, or a lake (with --run)",
+        type=t.log_or_lake,
+        help="event log folder, or a lake (with --run): a folder or s3://bucket/prefix",
     )
     view.add_argument(
         "--mcap",

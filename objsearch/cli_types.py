@@ -296,6 +296,20 @@ def existing_dir(value: str) -> str:
     return value
 
 
+def log_or_lake(value: str) -> str:
+    """An event log or lake folder that exists, or a fleet lake on object storage
+    (``s3://bucket/prefix``, whose existence the command itself finds out)."""
+    if value.startswith("s3://"):
+        if not value.removeprefix("s3://").split("/", 1)[0]:
+            raise argparse.ArgumentTypeError(f"{value}: no bucket (s3://BUCKET/PREFIX)")
+        return value
+    if "://" in value:
+        raise argparse.ArgumentTypeError(
+            f"{value}: only s3:// addresses are supported (or a folder on this machine)"
+        )
+    return existing_dir(value)
+
+
 def existing_file(value: str) -> str:
     """A file that exists (not a folder)."""
     kind = _kind(value)

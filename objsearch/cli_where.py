@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 from typing import Any
 
 from objsearch import cli_types as t
@@ -23,9 +22,9 @@ def register(sub: Any) -> None:
     t.input_argument(
         where,
         "log",
-        type=t.existing_dir,
+        type=t.log_or_lake,
         metavar="LOG|LAKE",
-        help="event log folder, or a lake (with --run)",
+        help="event log folder, or a lake (with --run): a folder or s3://bucket/prefix",
         old=("--log", "--lake"),
     )
     where.add_argument("--run", type=t.text, help="the lake run to answer from (with a lake)")
@@ -50,7 +49,7 @@ def cmd_where(args: argparse.Namespace) -> int:
     from objsearch.agent.where import render, where
     from objsearch.replay.source import open_events
 
-    events, _ = open_events(Path(args.log), run=args.run, robot=args.robot)
+    events, _ = open_events(args.log, run=args.run, robot=args.robot)
     at = None if args.at is None else DayClock(weekday=args.at[0], minute=args.at[1])
     folding = t.progress(events, "where", " events", enabled=not args.no_progress)
     answer = where(folding, args.target, at=at)

@@ -1,17 +1,22 @@
-"""Where replay and audit read events from: an agent's log folder, or one run of a lake."""
+"""Where replay, audit and ``where`` read events from: an agent's log folder, or one run of a
+lake — a folder lake (a folder a run) or a fleet lake (one Delta table, in a folder or at an
+``s3://`` address)."""
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Iterable
 from pathlib import Path
+from typing import TypeVar
 
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.errors import ObjsearchError
 from objsearch.events import Event, read_log
 from objsearch.events.lake import Lake, RunInfo, deep_check
+from objsearch.events.lake_table import TableLake, TableRun, is_table_lake
 
 _log = logging.getLogger(__name__)
+_Run = TypeVar("_Run", RunInfo, TableRun)
 
 
 def is_log(path: Path) -> bool:
@@ -33,25 +38,46 @@ def lake_run(path: Path, *, run: str | None = None, robot: str | None = None) ->
         ):
             raise ObjsearchError(f"run {run!r} in the lake {path} is damaged: {bad.reason}")
         _log.warning("%s: damaged run left out: %s", bad.path, bad.reason)
-    runs = [
-        r for r in healthy if (run is None or r.run == run) and (robot is None or r.robot == robot)
+    info = _one_run(healthy, path, run=run, robot=robot)
+    problem = deep_check(info)
+    if problem is not None:
+        raise ObjsearchError(f"run {info.run!r} in the lake {path} is damaged: {problem}")
+    return info
+
+
+def _one_run(runs: list[_Run], where: Path | str, *, run: str | None, robot: str | None) -> _Run:
+    """The one of a lake's ``runs`` that ``run`` / ``robot`` select, or an error that says what
+    there is to choose from."""
+    chosen = [
+        r for r in runs if (run is None or r.run == run) and (robot is None or r.robot == robot)
     ]
-    if len(runs) == 1:
-        problem = deep_check(runs[0])
-        if problem is not None:
-            raise ObjsearchError(f"run {runs[0].run!r} in the lake {path} is damaged: {problem}")
-        return runs[0]
-    available = ", ".join(f"{r.robot}/{r.run}" for r in healthy) or "none"
-    if not runs and run is None and robot is None:
+    if len(chosen) == 1:
+        return chosen[0]
+    available = ", ".join(f"{r.robot}/{r.run}" for r in runs) or "none"
+    if not chosen and run is None and robot is None:
         raise ObjsearchError(
-            f"the lake {path} holds no runs; add a run with `objsearch lake add LOG --lake {path}`"
+            f"the lake {where} holds no runs; add a run with "
+            f"`objsearch lake add LOG --lake {where}`"
         )
-    if not runs:
+    if not chosen:
         raise ObjsearchError(
-            f"no run {run!r}{f' of robot {robot!r}' if robot else ''} in the lake {path} "
+            f"no run {run!r}{f' of robot {robot!r}' if robot else ''} in the lake {where} "
             f"(runs: {available})"
         )
-    raise ObjsearchError(f"the lake {path} holds several runs ({available}); choose one with --run")
+    raise ObjsearchError(
+        f"the lake {where} holds several runs ({available}); choose one with --run"
+    )
+
+
+def table_lake_events(
+    where: Path | str, *, run: str | None = None, robot: str | None = None
+) -> tuple[list[Event], TableRun]:
+    """The events of the one run of the fleet lake at ``where`` that ``run`` / ``robot`` select,
+    checked against what its commit recorded (:meth:`TableLake.read_events`)."""
+    lake = TableLake(where, store=STORE)
+    table = lake.table()
+    info = _one_run(lake.runs(table), where, run=run, robot=robot)
+    return lake.read_events(info, table), info
 
 
 def agent_events(events: Iterable[Event]) -> list[Event]:
@@ -67,9 +93,14 @@ def agent_events(events: Iterable[Event]) -> list[Event]:
 
 
 def open_events(
-    path: Path, *, run: str | None = None, robot: str | None = None
+    location: Path | str, *, run: str | None = None, robot: str | None = None
 ) -> tuple[list[Event] | Iterable[Event], str]:
-    """Events of a log folder (streamed) or of one lake run, and a name for reports."""
+    """Events of a log folder (streamed) or of one lake run, and a name for reports.
+    ``location``: a folder, or a fleet lake's ``s3://bucket/prefix``."""
+    if "://" in str(location) or is_table_lake(location):
+        events, committed = table_lake_events(location, run=run, robot=robot)
+        return agent_events(events), f"{location} ({committed.robot}/{committed.run})"
+    path = Path(location)
     if not path.exists():
         raise ObjsearchError(f"no log or lake at {path}")
     if is_log(path):
