@@ -28,7 +28,7 @@ from objsearch.agent.policy import Recorder, SearchAgent
 from objsearch.agent.session import HomeContext, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import RunSpec
-from objsearch.events.log import read_log
+from objsearch.events.log_read import read_log
 from objsearch.events.projection import fold
 from objsearch.sim.longterm import TARGET_ORDER, run_schedule
 

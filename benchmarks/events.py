@@ -324,7 +324,7 @@ def bench_projection(n: int, reps: int, root: Path) -> list[Event]:
 
 def _write_log(directory: Path, events: list[Event]) -> None:
     """The events as a closed format-2 log (records chained as EventLog writes them)."""
-    from objsearch.events.log import LOG_FORMAT, LogMeta, LogPosition, write_durable
+    from objsearch.events.log_files import LOG_FORMAT, LogMeta, LogPosition, write_durable
     from objsearch.events.record import encode_record
 
     directory.mkdir(parents=True)

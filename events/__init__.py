@@ -21,7 +21,9 @@ from .errors import (
     TornTailWarning,
     WrongExpectedSeqError,
 )
-from .log import EventLog, TornTail, follow_log, read_log
+from .log import EventLog
+from .log_files import TornTail
+from .log_read import follow_log, read_log
 from .projection import EventView, Projection, fold
 from .schemas import SchemaRegistry
 from .store import Store, shipped

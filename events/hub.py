@@ -17,7 +17,7 @@ from typing import Any, ClassVar, Generic, TypeVar
 
 from .envelope import Event
 from .errors import ProjectionError
-from .log import read_log
+from .log_read import read_log
 from .projection import EventObserver, EventView, end_sharing, fold, share_decodes
 from .snapshot import Restored, Snapshottable, restore
 from .store import Store

@@ -81,7 +81,8 @@ from .lake_digest import (
     mismatch,
     parse_files,
 )
-from .log import LOCK_FILE, read_log, read_meta
+from .log_files import LOCK_FILE, read_meta
+from .log_read import read_log
 from .store import Store, shipped
 
 LAKE_FORMAT: Final = "objsearch.lake/1"

@@ -71,7 +71,8 @@ from .lake import (
     _conform,
     parquet_problem,
 )
-from .log import LOCK_FILE, read_log, read_meta
+from .log_files import LOCK_FILE, read_meta
+from .log_read import read_log
 from .store import Store, shipped
 
 TABLE_FORMAT: Final = "objsearch.lake/2"

@@ -17,21 +17,19 @@ The writer locks ``events.log`` itself: a lock file can be deleted from under a 
 second writer then locks a new inode of the same name); the log cannot be, without the writer
 noticing (it checks the file is still linked at every fsync).
 
-Here: the writer (:class:`EventLog`) and the readers. What the directory's other files say and how
-they are read and written is in :mod:`.log_files`; one checked pass over the records, which both
-use, is :mod:`.scan`.
+Here: the writer (:class:`EventLog`). Reading is :mod:`.log_read`; what the directory's other
+files say and how they are read and written is in :mod:`.log_files`; one checked pass over the
+records, which both use, is :mod:`.scan`. The writer's open checks the prefix with
+:mod:`.log_seal_check` and :mod:`.log_position` and cuts a torn tail with :mod:`.log_torn_tail`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
-import logging
 import os
-import threading
 import time
 import uuid
-import warnings
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from types import TracebackType
@@ -40,78 +38,37 @@ from typing import Any
 from . import _fs
 from .envelope import Event, deterministic_event_id
 from .errors import (
-    CorruptLogError,
     DuplicateEventError,
     InvalidEventError,
     LogClosedError,
     LogLockedError,
     LogNotFoundError,
     StreamMismatchError,
-    TornTailWarning,
     WrongExpectedSeqError,
 )
 from .log_files import (
-    DURABLE_FILE,
     LOCK_FILE,
     LOG_FILE,
     LOG_FORMAT,
-    LOG_FORMAT_V1,
     MAX_ATTESTED,
     META_FILE,
-    QUARANTINE_PREFIX,
     Durable,
-    DurableRecord,
     LogMeta,
     LogPosition,
     TornTail,
-    position_from_json,
-    position_to_json,
-    read_durable,
     read_durable_record,
     read_meta,
     write_durable,
 )
+from .log_position import check_position
+from .log_seal_check import _check_sealed, _SealCheck
+from .log_torn_tail import _cut_torn_tail
 from .record import encode_new_record
-from .scan import QUARANTINED_TYPE, BadRecord, _Cursor, _Scan, check_record
-from .schemas import SchemaRegistry
-from .seal import Sealer, check_seals
+from .scan import QUARANTINED_TYPE, _Cursor, _Scan
+from .seal import Sealer
 from .store import Store, shipped
 
-_log = logging.getLogger(__name__)
-
-#: The log's API: its own, and what it names from .log_files (the directory's other files) and
-#: .scan (a checked pass over the records).
-__all__ = [
-    "DURABLE_FILE",
-    "LOCK_FILE",
-    "LOG_FILE",
-    "LOG_FORMAT",
-    "LOG_FORMAT_V1",
-    "MAX_ATTESTED",
-    "META_FILE",
-    "QUARANTINED_TYPE",
-    "QUARANTINE_PREFIX",
-    "BadRecord",
-    "Durable",
-    "DurableRecord",
-    "EventLog",
-    "LogMeta",
-    "LogPosition",
-    "TornTail",
-    "check_position",
-    "check_record",
-    "follow_log",
-    "is_being_written",
-    "position_from_json",
-    "position_to_json",
-    "quarantine",
-    "read_durable",
-    "read_durable_record",
-    "read_log",
-    "read_log_after",
-    "read_meta",
-    "write_durable",
-]
+__all__ = ["EventLog"]
 
 
 class EventLog:
@@ -623,70 +580,6 @@ class EventLog:
         self._attest_pending = True
 
 
-class _SealCheck:
-    """:func:`_check_sealed` on a thread of its own; :meth:`result` waits and raises what it
-    found (``reported`` once it has)."""
-
-    def __init__(
-        self, directory: Path, meta: LogMeta, registry: SchemaRegistry, record: DurableRecord
-    ) -> None:
-        self._damage: CorruptLogError | None = None
-        self.reported = False
-
-        def run() -> None:
-            try:
-                _check_sealed(directory, meta, registry, record)
-            except CorruptLogError as exc:
-                self._damage = exc
-            except Exception as exc:  # an unreadable file is damage too: never append on it
-                self._damage = CorruptLogError(
-                    f"corrupt event log {directory / LOG_FILE}: its seals could not be checked "
-                    f"({exc!r}); the log was not changed",
-                    path=str(directory / LOG_FILE),
-                    line=0,
-                    offset=0,
-                )
-
-        self._thread = threading.Thread(target=run, name="seal-check", daemon=True)
-        self._thread.start()
-
-    def wait(self) -> CorruptLogError | None:
-        self._thread.join()
-        return self._damage
-
-    def result(self) -> None:
-        damage = self.wait()
-        if damage is not None:
-            self.reported = True
-            raise damage
-
-
-def _check_sealed(
-    directory: Path, meta: LogMeta, registry: SchemaRegistry, record: DurableRecord
-) -> None:
-    """Raise :class:`CorruptLogError` unless every seal of ``record`` matches ``events.log``.
-
-    Where one does not, the records are parsed to name the first damaged one (the error every
-    reader gives); if they all verify, the seals themselves are what is damaged."""
-    assert record.seals is not None
-    path = directory / LOG_FILE
-    bad = check_seals(path, record.seals, meta.genesis)
-    if bad is None:
-        return
-    scan = _Scan(path, meta, registry=registry, durable=record.position, payloads=False)
-    for _ in scan:
-        pass
-    raise CorruptLogError(
-        f"corrupt event log {path}: bytes {bad.start}..{bad.end} do not match their seal "
-        f"(CRC-32 {bad.crc:08x} in {DURABLE_FILE}, the first one seeded from {META_FILE}) "
-        f"though every record there verifies: {DURABLE_FILE} is damaged; the log was not "
-        "changed (`objsearch log repair` rewrites it)",
-        path=str(directory / DURABLE_FILE),
-        line=0,
-        offset=bad.start,
-    )
-
-
 def _non_empty(path: Path) -> bool:
     try:
         return path.stat().st_size > 0
@@ -699,250 +592,3 @@ def _parse_uuid(value: object, what: str) -> uuid.UUID:
         return uuid.UUID(str(value))
     except ValueError:
         raise ValueError(f"{what} must be a UUID, got {value!r}") from None
-
-
-def read_log(
-    directory: Path | str,
-    *,
-    from_seq: int = 1,
-    to_seq: int | None = None,
-    upcast: bool = True,
-    store: Store | None = None,
-) -> Iterator[Event]:
-    """Yield the events of a log with ``from_seq <= seq <= to_seq``, in order. Never writes.
-
-    Checks every record (checksum chain, stream, seq continuity, known type and version, time
-    order) up to ``to_seq`` and, reading to the end, that the log reaches its durable high-water
-    mark, so a call raises :class:`CorruptLogError` rather than skip anything — but not payload
-    schemas: those were checked at append. An unterminated last fragment is skipped with a
-    :class:`TornTailWarning`, silently while a writer holds the lock (an append in progress).
-    Events of an old schema version are upcast to their type's latest (``upcast=False`` gives
-    them exactly as stored). ``store`` knows the types, versions and upcasters
-    (:func:`~objsearch.events.store.shipped` if None). Raises :class:`LogNotFoundError` at call
-    time if there is no log.
-    """
-    directory = Path(directory)
-    store = store or shipped()
-    _check_seq_range(from_seq, to_seq)
-    meta = read_meta(directory)
-    durable = read_durable(directory)
-    return _read(
-        directory, meta, durable, from_seq, to_seq, store.registry, store if upcast else None
-    )
-
-
-def follow_log(
-    directory: Path | str,
-    *,
-    from_seq: int = 1,
-    poll_interval: float = 0.05,
-    idle_timeout: float | None = None,
-    upcast: bool = True,
-    store: Store | None = None,
-) -> Iterator[Event]:
-    """Yield a log's events from ``from_seq`` on, waiting for new ones as a writer appends them.
-
-    A reader that tails a live log: it takes no lock, reads only complete records and checks
-    them like :func:`read_log` (any damaged complete line is a :class:`CorruptLogError`); an
-    unterminated last line is waited on, since the writer may still be writing it. Stops after
-    ``idle_timeout`` seconds without a new event (never, if None).
-    """
-    directory = Path(directory)
-    store = store or shipped()
-    _check_seq_range(from_seq, None)
-    if poll_interval <= 0:
-        raise ValueError(f"poll_interval must be > 0, got {poll_interval!r}")
-    meta = read_meta(directory)
-    events = _follow(
-        directory / LOG_FILE, meta, from_seq, poll_interval, idle_timeout, store.registry
-    )
-    return _upcast_all(events, store) if upcast else events
-
-
-def _follow(
-    path: Path,
-    meta: LogMeta,
-    from_seq: int,
-    poll_interval: float,
-    idle_timeout: float | None,
-    registry: SchemaRegistry,
-) -> Iterator[Event]:
-    position = _Cursor(checksum=meta.genesis)
-    idle_since = time.monotonic()
-    while True:
-        scan = _Scan(path, meta, registry=registry, start=position)
-        for event in scan:
-            idle_since = time.monotonic()
-            if event.seq >= from_seq:
-                yield event
-        position = scan.at
-        if idle_timeout is not None and time.monotonic() - idle_since >= idle_timeout:
-            return
-        time.sleep(poll_interval)
-
-
-def _upcast_all(events: Iterator[Event], store: Store) -> Iterator[Event]:
-    upcast = store.upcaster.upcast
-    for event in events:
-        yield upcast(event)
-
-
-def _check_seq_range(from_seq: object, to_seq: object) -> None:
-    if isinstance(from_seq, bool) or not isinstance(from_seq, int) or from_seq < 1:
-        raise ValueError(f"from_seq must be an integer >= 1, got {from_seq!r}")
-    if to_seq is not None and (isinstance(to_seq, bool) or not isinstance(to_seq, int)):
-        raise ValueError(f"to_seq must be an integer or None, got {to_seq!r}")
-
-
-def _read(
-    directory: Path,
-    meta: LogMeta,
-    durable: Durable | None,
-    from_seq: int,
-    to_seq: int | None,
-    registry: SchemaRegistry,
-    upcast_with: Store | None,
-) -> Iterator[Event]:
-    if to_seq is not None and to_seq < from_seq:
-        return
-    scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable, stop_after=to_seq)
-    if upcast_with is None:
-        for event in scan:
-            if event.seq >= from_seq:
-                yield event
-    else:
-        upcaster = upcast_with.upcaster
-        upcast = upcaster.upcast
-        latest = upcaster.latest_versions
-        for event in scan:
-            if event.seq >= from_seq:
-                # Most events are at their type's latest version: no call for those.
-                yield event if event.version >= latest.get(event.type, 0) else upcast(event)
-    tail = scan.torn_tail
-    if tail is None:
-        return
-    if is_being_written(directory):
-        _log.debug("%s: unterminated last line while a writer is active; not yet written", tail)
-        return
-    _report(
-        f"torn tail in {tail.path}: skipping {tail.length} byte(s) at byte offset {tail.offset} "
-        f"(line {tail.line}; {tail.reason}); the file was not changed",
-        stacklevel=4,
-    )
-
-
-def is_being_written(directory: Path | str) -> bool:
-    """Whether a writer holds the log in ``directory`` open (read-only check)."""
-    directory = Path(directory)
-    return _fs.is_locked(directory / LOG_FILE) or _fs.is_locked(directory / LOCK_FILE)
-
-
-def _cut_torn_tail(fd: int, tail: TornTail) -> TornTail:
-    # The only modification a writer makes to existing bytes, never silent, and never a loss:
-    # the fragment is kept beside the log before the file is cut.
-    with tail.path.open("rb") as f:
-        f.seek(tail.offset)
-        fragment = f.read()
-    keep = quarantine(tail.path.parent, f"torn-{tail.offset}", fragment)
-    _report(
-        f"torn tail in {tail.path}: cut {tail.length} byte(s) at byte offset {tail.offset} "
-        f"(line {tail.line}; {tail.reason}); an interrupted append, never acknowledged; "
-        f"the bytes are kept in {keep}",
-        stacklevel=5,
-    )
-    os.ftruncate(fd, tail.offset)
-    os.fsync(fd)
-    return TornTail(
-        path=tail.path, offset=tail.offset, length=tail.length, line=tail.line, quarantine=keep
-    )
-
-
-def quarantine(directory: Path, label: str, data: bytes) -> Path:
-    """Keep ``data`` durably in a new file ``events.log.<label>[.N]`` of ``directory``."""
-    path = directory / f"{QUARANTINE_PREFIX}{label}"
-    n = 0
-    while path.exists():
-        n += 1
-        path = directory / f"{QUARANTINE_PREFIX}{label}.{n}"
-    _fs.write_new(path, data)
-    return path
-
-
-def _report(message: str, *, stacklevel: int) -> None:
-    _log.warning("%s", message)
-    warnings.warn(message, TornTailWarning, stacklevel=stacklevel)
-
-
-def check_position(directory: Path, meta: LogMeta, at: LogPosition) -> None:
-    """Raise :class:`CorruptLogError` unless the record ending at ``at.offset`` is the one ``at``
-    names (its seq, stored checksum and time): then everything up to it can be resumed from."""
-    path = directory / LOG_FILE
-    if at.seq == 0:
-        return
-    problem = None
-    try:
-        with path.open("rb") as f:
-            size = f.seek(0, os.SEEK_END)
-            start = max(0, at.offset - (1 << 20))
-            f.seek(start)
-            window = f.read(at.offset - start)
-    except FileNotFoundError:
-        size, window = 0, b""
-    if size < at.offset:
-        problem = f"the file ends at byte {size}, before the record of seq {at.seq}"
-    elif not window.endswith(b"\n"):
-        problem = f"no record ends at byte {at.offset}"
-    else:
-        line = window[window.rfind(b"\n", 0, len(window) - 1) + 1 : -1]
-        body, _, crc = line.rpartition(b"\t")
-        try:
-            doc = json.loads(body)
-            chain = crc
-            if isinstance(doc, dict) and doc.get("type") == QUARANTINED_TYPE:
-                payload = doc.get("payload")
-                if isinstance(payload, dict) and isinstance(payload.get("chain"), str):
-                    chain = payload["chain"].encode()
-            same = (
-                isinstance(doc, dict)
-                and chain == b"%08x" % at.checksum
-                and doc.get("seq") == at.seq
-                and doc.get("time_ns") == at.time_ns
-                and doc.get("stream") == meta.stream
-            )
-        except ValueError:
-            same = False
-        if not same:
-            problem = f"the record ending at byte {at.offset} is not seq {at.seq} as recorded"
-    if problem is not None:
-        raise CorruptLogError(
-            f"corrupt event log {path}: line {at.line} (byte offset {at.offset}): {problem}; "
-            "the log was not changed (`objsearch log repair` keeps what it removes)",
-            path=str(path),
-            line=at.line,
-            offset=at.offset,
-        )
-
-
-def read_log_after(
-    directory: Path | str,
-    position: LogPosition,
-    *,
-    upcast: bool = True,
-    store: Store | None = None,
-) -> Iterator[Event]:
-    """The events after ``position`` (checked to be where it says), verified like
-    :func:`read_log` from there on; the prefix is not read (a restart from a snapshot)."""
-    directory = Path(directory)
-    store = store or shipped()
-    meta = read_meta(directory)
-    check_position(directory, meta, position)
-    durable = read_durable(directory)
-    scan = _Scan(
-        directory / LOG_FILE,
-        meta,
-        registry=store.registry,
-        durable=durable if durable is not None and durable.seq > position.seq else None,
-        start=position,
-    )
-    events: Iterator[Event] = iter(scan)
-    return _upcast_all(events, store) if upcast else events

@@ -21,26 +21,23 @@ from . import _fs
 from .diagnose import Witness, diagnose
 from .envelope import EVENT_ID_NAMESPACE, Event, deterministic_event_id
 from .errors import CorruptLogError, LogLockedError
-from .log import (
+from .log_files import (
     DURABLE_FILE,
     LOCK_FILE,
     LOG_FILE,
     META_FILE,
     QUARANTINE_PREFIX,
-    QUARANTINED_TYPE,
-    BadRecord,
     DurableRecord,
     LogMeta,
     LogPosition,
-    _check_sealed,
-    check_record,
-    quarantine,
     read_durable_record,
     read_meta,
     write_durable,
 )
+from .log_seal_check import _check_sealed
+from .log_torn_tail import quarantine
 from .record import encode_record
-from .scan import _Cursor, _Scan
+from .scan import QUARANTINED_TYPE, BadRecord, _Cursor, _Scan, check_record
 from .schemas import SchemaRegistry
 from .seal import Sealer, check_seals
 from .store import Store, shipped

@@ -28,17 +28,16 @@ from typing import Any, ClassVar, Final, Protocol, TypeVar
 from . import _fs
 from .envelope import Event
 from .errors import EventStoreError, LogLockedError
-from .log import (
-    EventLog,
+from .log import EventLog
+from .log_files import (
     LogPosition,
-    check_position,
     position_from_json,
     position_to_json,
     read_durable_record,
-    read_log,
-    read_log_after,
     read_meta,
 )
+from .log_position import check_position
+from .log_read import read_log, read_log_after
 from .projection import fold
 from .record import encode_record
 from .store import Store, shipped

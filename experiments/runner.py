@@ -18,7 +18,7 @@ from objsearch.agent.geometry import Point
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import load_context
 from objsearch.agent.strategies import BELIEF, COVER_SUFFIX, RunSpec
-from objsearch.events.log import read_log
+from objsearch.events.log_read import read_log
 from objsearch.experiments.calibration import Forecast, forecasts
 from objsearch.experiments.decompose import Excess, decompose
 from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule, scenes_of

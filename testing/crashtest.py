@@ -35,7 +35,9 @@ from typing import IO, Final
 
 from objsearch.agent.catalogue import STORE
 from objsearch.events.errors import EventStoreError, TornTailWarning
-from objsearch.events.log import LOG_FILE, EventLog, read_log
+from objsearch.events.log import EventLog
+from objsearch.events.log_files import LOG_FILE
+from objsearch.events.log_read import read_log
 
 STREAM: Final = "crash"
 

@@ -30,14 +30,9 @@ from typing import Any, ClassVar
 from objsearch.agent.catalogue import STORE
 from objsearch.events.envelope import Event
 from objsearch.events.errors import EventStoreError, TornTailWarning
-from objsearch.events.log import (
-    DURABLE_FILE,
-    LOG_FILE,
-    META_FILE,
-    QUARANTINE_PREFIX,
-    EventLog,
-    read_log,
-)
+from objsearch.events.log import EventLog
+from objsearch.events.log_files import DURABLE_FILE, LOG_FILE, META_FILE, QUARANTINE_PREFIX
+from objsearch.events.log_read import read_log
 
 STREAM = "robot"
 Files = dict[str, bytes]

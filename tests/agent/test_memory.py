@@ -17,7 +17,8 @@ from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import MEMORY, RunSpec
 from objsearch.agent.where import LiveMemory, where
 from objsearch.cli import main
-from objsearch.events.log import EventLog, read_log
+from objsearch.events.log import EventLog
+from objsearch.events.log_read import read_log
 from objsearch.events.projection import fold
 from objsearch.events.snapshot import restore
 from objsearch.experiments.decompose import decompose

@@ -19,7 +19,7 @@ from objsearch.agent.strategies import (
     strategy_names,
 )
 from objsearch.cli import main
-from objsearch.events.log import read_log
+from objsearch.events.log_read import read_log
 
 
 def test_a_name_says_the_strategy_and_how_it_inspects() -> None:
