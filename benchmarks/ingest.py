@@ -33,7 +33,7 @@ from objsearch.pipeline.bags.engines import Engine, RayEngine
 from objsearch.pipeline.bags.formats import BagFormat, storage_files
 from objsearch.pipeline.bags.ingest import BagTask, commit_converted, convert_bag, ingest
 from objsearch.pipeline.bags.lake import BagLake
-from objsearch.pipeline.bags.read import iter_raw
+from objsearch.pipeline.bags.readers import iter_raw
 from objsearch.pipeline.bags.record import DEFAULT_START_NS, record
 from objsearch.ros.topics import TopicMap
 

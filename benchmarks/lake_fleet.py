@@ -53,9 +53,9 @@ from objsearch.events.lake_digest import FILES_KEY, SELF_KEY, manifest_digest
 from objsearch.events.lake_table import TableLake, TableRun, add_log, run_parts
 from objsearch.events.sql_limits import close
 from objsearch.pipeline.bags.formats import BagFormat
+from objsearch.pipeline.bags.identity import bag_identity
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import FleetBagLake
-from objsearch.pipeline.bags.read import bag_identity
 from objsearch.pipeline.bags.record import record
 from objsearch.pipeline.bags.session import converter_key
 from objsearch.replay.analytics import open_analytics, run_query

@@ -12,7 +12,8 @@ clock with it; its ``recorded_at_ns`` keeps the receive time.
 A bag keeps at most :data:`MAX_PAIRS` of its (receive time, stamp) pairs in its report, spread
 evenly over it, and is mapped with the fit over those; a session of several pieces (a split
 recording) is mapped with the fit over all its pieces' pairs, so a piece whose few events span no
-time (which gives no rate) is mapped like the rest of its recording.
+time (which gives no rate) is mapped like the rest of its recording. :func:`iso` prints a time
+on either clock.
 """
 
 from __future__ import annotations
@@ -109,3 +110,10 @@ def fit_clock(pairs: Iterable[tuple[int, int]]) -> ClockMap | None:
     stamp_ns = int(stamp[0]) + round(y_mean)
     clock = ClockMap(recv_ns, stamp_ns, rate, len(pairs), 0, fitted)
     return dataclasses.replace(clock, residual_ns=int(np.abs(clock.apply(recv) - stamp).max()))
+
+
+def iso(ns: int) -> str:
+    """A time (ns since the epoch) as reports print it: ISO 8601, UTC, to the millisecond."""
+    import datetime as dt
+
+    return dt.datetime.fromtimestamp(ns / 1e9, dt.UTC).isoformat(timespec="milliseconds")

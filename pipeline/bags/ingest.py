@@ -19,8 +19,10 @@ import pyarrow as pa
 
 from objsearch.pipeline.bags.engines import Engine, InlineEngine, ProcessEngine, TaskFailed
 from objsearch.pipeline.bags.errors import BagError
+from objsearch.pipeline.bags.identity import bag_identity
 from objsearch.pipeline.bags.lake import LakeWriter, Piece, open_bag_lake
-from objsearch.pipeline.bags.read import BagReport, bag_identity, read_bag
+from objsearch.pipeline.bags.read import read_bag
+from objsearch.pipeline.bags.report import BagReport
 from objsearch.pipeline.bags.session import FirstEvent, converter_key, first_event, run_id_of
 from objsearch.ros.topics import TopicMap
 

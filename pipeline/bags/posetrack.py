@@ -10,7 +10,7 @@ has numbered them among the other derived events — written as the lake's table
 columns for callers that want events, and ``tests/pipeline/bags/test_bags_posetrack.py`` checks
 that the table equals ``events_to_tables`` of those events.
 
-The rules are the per-message ones of ``read.py``'s module docstring: a message is rejected if
+The rules are the per-message ones of ``converter.py``'s module docstring: a message is rejected if
 any of its poses has a coordinate that is not finite or farther than :data:`MAX_COORD_M`, or a
 quaternion whose norm is not 1 ± 1e-3; a TF message's transforms before the first bad one still
 count (they were read before the bad one was met). The scalar rules :func:`coord` and

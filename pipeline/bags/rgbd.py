@@ -35,10 +35,13 @@ from objsearch.agent.camera_frames import CameraIntrinsics, FloatArray
 from objsearch.agent.detect import MaskDetection
 from objsearch.agent.mapping import BuiltMap, MappingConfig, MaskedDepth, SemanticMapBuilder
 from objsearch.agent.navmap import NavigationMap
+from objsearch.pipeline.bags.detections import hypothesis_score
 from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.formats import detect
-from objsearch.pipeline.bags.read import Deserialize, hypothesis_score, read_messages, unrecovered
+from objsearch.pipeline.bags.losses import unrecovered
+from objsearch.pipeline.bags.readers import read_messages
 from objsearch.pipeline.bags.salvage import Loss, RawConnection
+from objsearch.pipeline.bags.sink import Deserialize
 from objsearch.ros.errors import TransformError
 from objsearch.ros.tf import TransformBuffer
 from objsearch.ros.topics import ACCEPTED_TYPES, Role, TopicMap
@@ -169,7 +172,7 @@ class ViewReport:
 
 @dataclass
 class ViewCollector:
-    """A :class:`~objsearch.pipeline.bags.read.MessageSink` that assembles views and hands each
+    """A :class:`~objsearch.pipeline.bags.sink.MessageSink` that assembles views and hands each
     complete one to ``on_view``."""
 
     topic_map: TopicMap

@@ -15,9 +15,9 @@ import pytest
 
 from objsearch.agent.catalogue import STORE
 from objsearch.events.lake_table import BAG_TYPE, TableLake
+from objsearch.pipeline.bags.identity import bag_identity
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import BagLake, FleetBagLake
-from objsearch.pipeline.bags.read import bag_identity
 from objsearch.pipeline.bags.session import converter_key
 from objsearch.ros.topics import TopicMap
 

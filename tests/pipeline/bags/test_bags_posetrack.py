@@ -15,7 +15,8 @@ from objsearch.agent.catalogue import STORE
 from objsearch.agent.geometry import Pose
 from objsearch.events.arrow import events_to_tables
 from objsearch.pipeline.bags import posetrack
-from objsearch.pipeline.bags.read import BagContents, Converter, read_bag
+from objsearch.pipeline.bags.converter import Converter
+from objsearch.pipeline.bags.read import BagContents, read_bag
 from objsearch.pipeline.bags.salvage import RawConnection
 from objsearch.ros.builder import MessageBuilder
 from objsearch.ros.topics import TopicMap
