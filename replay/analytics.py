@@ -299,10 +299,11 @@ def _open_fleet(
     if lake.remote and len(files) > lake_table.COMPACT_AT_FILES:
         # each file costs requests of its own: 850 small ones took 16.5 s to read, 1.5 s compacted
         _log.warning(
-            "%s: %d data files (a commit adds one a type, and nothing compacts a bucket by "
-            "itself): queries read each; `objsearch lake compact --lake %s` makes few of them",
+            "%s: %d data files (a commit adds one a type; the next `lake add` compacts past "
+            "%d): queries read each; `objsearch lake compact --lake %s` makes few of them",
             lake.root,
             len(files),
+            lake_table.COMPACT_AT_FILES,
             lake.root,
         )
     by_kind = {f.kind for f in files}
