@@ -577,7 +577,12 @@ class TableLake:
         _check_name("robot", robot)
         _check_name("run", run)
         day = _check_date(date)
-        checked = {t: _conform(t, table, self.store) for t, table in sorted(tables.items())}
+        # By seq (a stable sort: a bag's streams keep their order among equal seqs), as the run's
+        # rows are written and read back (run_parts, read_tables), so the digest recorded is the
+        # digest of what a reader gets and read_events can check it.
+        checked = {
+            t: _conform(t, table, self.store).sort_by("seq") for t, table in sorted(tables.items())
+        }
         run_info = TableRun(
             robot=robot,
             date=day,
