@@ -23,6 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from objsearch.fleet_battery import FLEET_KINDS, build_fleet_lake, run_fleet_battery
 from objsearch.lake_battery import COLUMNS, KINDS, build_lake, run_battery
 
 
@@ -36,27 +37,41 @@ def main() -> int:
         help="the control: the same damage on a lake whose manifests have no digests (as older "
         "code wrote them), to show what the digests catch",
     )
+    ap.add_argument(
+        "--fleet",
+        action="store_true",
+        help="the battery on the fleet lake (objsearch.fleet_battery): the same lake's runs, one "
+        "lake add each, damaged in its data files and its table's log",
+    )
     args = ap.parse_args()
     if args.per_kind < 1:
         ap.error("--per-kind must be at least 1")
     work = Path(tempfile.mkdtemp(prefix="objsearch-bench-lake-damage-"))
     started = time.perf_counter()
     try:
-        lake = build_lake(work / "built")
-        report = run_battery(
-            lake,
-            work / "battery",
-            per_kind=args.per_kind,
-            seed=args.seed,
-            without_digests=args.without_digests,
-        )
+        if args.fleet:
+            fleet = build_fleet_lake(work / "built")
+            report = run_fleet_battery(
+                fleet, work / "battery", per_kind=args.per_kind, seed=args.seed
+            )
+            kinds = list(FLEET_KINDS)
+        else:
+            kinds = list(KINDS)
+            lake = build_lake(work / "built")
+            report = run_battery(
+                lake,
+                work / "battery",
+                per_kind=args.per_kind,
+                seed=args.seed,
+                without_digests=args.without_digests,
+            )
     finally:
         shutil.rmtree(work, ignore_errors=True)
     seconds = time.perf_counter() - started
     control = ", CONTROL: manifests without digests" if args.without_digests else ""
     print(f"lake-damage battery, seed {args.seed}, {args.per_kind} per kind of damage{control}")
     print(f"  command: python benchmarks/lake_damage.py {' '.join(sys.argv[1:])}".rstrip())
-    print(f"  {report.tried} damaged lakes, {report.files} damaged files, {len(KINDS)} kinds")
+    print(f"  {report.tried} damaged lakes, {report.files} damaged files, {len(kinds)} kinds")
     print(f"  {'kind':34} {'tried':>6} " + " ".join(f"{c:>13}" for c in COLUMNS))
     total = {c: report.counts[c] for c in COLUMNS}
     for name, row in [*report.by_kind.items(), ("total", {"tried": report.tried, **total})]:

@@ -267,7 +267,7 @@ class TableLake:
     def table(self) -> Any:
         """The Delta table at its latest version (``deltalake.DeltaTable``)."""
         from deltalake import DeltaTable
-        from deltalake.exceptions import TableNotFoundError
+        from deltalake.exceptions import DeltaError, TableNotFoundError
 
         try:
             return DeltaTable(self.uri, storage_options=self.options)
@@ -275,6 +275,11 @@ class TableLake:
             raise TableLakeError(
                 f"no fleet lake at {self.root} (no Delta table at {self.uri})"
             ) from None
+        except DeltaError as exc:  # a commit file of the table's log cut, garbled or missing
+            raise TableLakeError(
+                f"the table's log of the fleet lake at {self.root} is damaged and cannot be "
+                f"read: {str(exc).splitlines()[0][:300]}"
+            ) from exc
 
     def create(self) -> None:
         """Create the (empty) table if it does not exist; safe to race with other writers."""

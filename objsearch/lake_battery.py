@@ -126,6 +126,9 @@ class Damage:
 
     runs: frozenset[str]
     files: int
+    #: the files changed, relative to the lake's table (the fleet battery's; the folder
+    #: battery judges by runs)
+    touched: frozenset[str] = frozenset()
 
 
 Kind = Callable[[random.Random, Path], Damage]
@@ -160,47 +163,43 @@ def _flip(rng: random.Random, data: bytearray, lo: int, hi: int) -> bytearray:
     return data
 
 
-def page_bit_flip(rng: random.Random, lake: Path) -> Damage:
-    path = rng.choice(_tables(lake))
-    return _edit(path, lambda d: _flip(rng, d, 4, _footer_start(d)))
+#: Damage to one file's bytes (the file given whole, returned changed); what the folder lake's
+#: and the fleet lake's batteries (:mod:`objsearch.fleet_battery`) both do to a Parquet file.
+Edit = Callable[[random.Random, bytearray], bytes | bytearray]
 
 
-def footer_bit_flip(rng: random.Random, lake: Path) -> Damage:
-    path = rng.choice(_tables(lake))
-    return _edit(path, lambda d: _flip(rng, d, _footer_start(d), len(d) - 8))
+def _burst(rng: random.Random, d: bytearray) -> bytearray:
+    at = rng.randrange(4, len(d) - 8)
+    for i in range(at, min(at + rng.randint(2, 16), len(d) - 8)):
+        d[i] = rng.randrange(256)
+    return d
 
 
-def bit_flip_anywhere(rng: random.Random, lake: Path) -> Damage:
-    path = rng.choice(_tables(lake))
-    return _edit(path, lambda d: _flip(rng, d, 0, len(d)))
+def _zero(rng: random.Random, d: bytearray) -> bytearray:
+    size = rng.choice([64, 512, 4096])
+    at = rng.randrange(0, max(1, len(d) - size))
+    d[at : at + size] = bytes(len(d[at : at + size]))
+    return d
 
 
-def byte_burst(rng: random.Random, lake: Path) -> Damage:
-    def burst(d: bytearray) -> bytearray:
-        at = rng.randrange(4, len(d) - 8)
-        for i in range(at, min(at + rng.randint(2, 16), len(d) - 8)):
-            d[i] = rng.randrange(256)
-        return d
-
-    return _edit(rng.choice(_tables(lake)), burst)
-
-
-def truncate(rng: random.Random, lake: Path) -> Damage:
-    return _edit(rng.choice(_tables(lake)), lambda d: d[: rng.randrange(0, len(d))])
+EDITS: dict[str, Edit] = {
+    "bit flip in a data page": lambda rng, d: _flip(rng, d, 4, _footer_start(d)),
+    "bit flip in the footer": lambda rng, d: _flip(rng, d, _footer_start(d), len(d) - 8),
+    "bit flip anywhere": lambda rng, d: _flip(rng, d, 0, len(d)),
+    "random bytes (2-16)": _burst,
+    "truncated": lambda rng, d: d[: rng.randrange(0, len(d))],
+    "zeroed range": _zero,
+    "garbage appended": lambda rng, d: d + rng.randbytes(rng.randint(1, 64)),
+}
 
 
-def zero_range(rng: random.Random, lake: Path) -> Damage:
-    def zero(d: bytearray) -> bytearray:
-        size = rng.choice([64, 512, 4096])
-        at = rng.randrange(0, max(1, len(d) - size))
-        d[at : at + size] = bytes(len(d[at : at + size]))
-        return d
+def _edit_a_table(name: str) -> Kind:
+    edit = EDITS[name]
 
-    return _edit(rng.choice(_tables(lake)), zero)
+    def kind(rng: random.Random, lake: Path) -> Damage:
+        return _edit(rng.choice(_tables(lake)), lambda d: edit(rng, d))
 
-
-def append_garbage(rng: random.Random, lake: Path) -> Damage:
-    return _edit(rng.choice(_tables(lake)), lambda d: d + rng.randbytes(rng.randint(1, 64)))
+    return kind
 
 
 def delete_file(rng: random.Random, lake: Path) -> Damage:
@@ -240,8 +239,15 @@ def copy_from_other_run(rng: random.Random, lake: Path) -> Damage:
 
 def rewrite_one_value(rng: random.Random, lake: Path) -> Damage:
     """Valid Parquet (page checksums and all) whose one numeric value differs by one."""
+    path = one_value_changed(rng, _tables(lake))
+    return Damage(frozenset({_run_of(path)}), 1)
+
+
+def one_value_changed(rng: random.Random, files: Sequence[Path]) -> Path:
+    """Rewrite one of ``files`` that has a top-level numeric column as valid Parquet (page
+    checksums and all) with one value of it one more; returns the file."""
     while True:
-        path = rng.choice(_tables(lake))
+        path = rng.choice(files)
         table = pq.ParquetFile(path).read()
         numeric = [
             i
@@ -260,7 +266,7 @@ def rewrite_one_value(rng: random.Random, lake: Path) -> Damage:
     table = table.set_column(i, table.schema.field(i), pa.array(values, column.type))
     assert not pc.all(pc.equal(table.column(i), column)).as_py()
     pq.write_table(table, path, compression="zstd", write_page_checksum=True)
-    return Damage(frozenset({_run_of(path)}), 1)
+    return path
 
 
 def add_table(rng: random.Random, lake: Path) -> Damage:
@@ -307,13 +313,7 @@ def swap_run_folders(rng: random.Random, lake: Path) -> Damage:
 
 
 KINDS: dict[str, Kind] = {
-    "bit flip in a data page": page_bit_flip,
-    "bit flip in the footer": footer_bit_flip,
-    "bit flip anywhere": bit_flip_anywhere,
-    "random bytes (2-16)": byte_burst,
-    "truncated": truncate,
-    "zeroed range": zero_range,
-    "garbage appended": append_garbage,
+    **{name: _edit_a_table(name) for name in EDITS},
     "file deleted": delete_file,
     "swapped between runs": swap_between_runs,
     "copied from another run": copy_from_other_run,

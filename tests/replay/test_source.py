@@ -92,3 +92,18 @@ def test_an_address_that_is_no_bucket_is_a_usage_error(capsys: pytest.CaptureFix
     assert "no bucket" in capsys.readouterr().err
     assert main(["where", "Cup", "gs://b/lake"]) == 2
     assert "only s3://" in capsys.readouterr().err
+
+
+def test_a_damaged_commit_of_the_tables_log_is_a_clear_error(
+    tmp_path: Path, logs: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Found by objsearch.fleet_battery: delta-rs's error came out as a traceback.
+    lake = _fleet(tmp_path / "fleet", logs[RUN])
+    (commit,) = sorted(Path(lake.uri, "_delta_log").glob("*.json"))[-1:]
+    commit.write_bytes(commit.read_bytes()[: len(commit.read_bytes()) // 2])
+    capsys.readouterr()
+    sql = "SELECT count(*) FROM events"
+    assert main(["query", "--lake", str(tmp_path / "fleet"), sql]) == 2
+    assert "the table's log of the fleet lake" in capsys.readouterr().err
+    assert main(["replay", str(tmp_path / "fleet"), "--run", RUN, "--no-progress"]) == 2
+    assert "is damaged and cannot be read" in capsys.readouterr().err
