@@ -41,11 +41,10 @@ from objsearch.lake_battery import (
     Damage,
     Report,
     build_lake,
-    every_row_sql,
     one_value_changed,
     run_cli,
+    try_variants,
 )
-from objsearch.testing.killtest import tree
 
 TABLE = "events"
 #: what the query's warning says: "…: damaged data file left out of every view: <file> has …" (the
@@ -212,29 +211,12 @@ def run_fleet_battery(
     intact_lake = work / "intact"
     shutil.rmtree(intact_lake, ignore_errors=True)
     shutil.copytree(lake, intact_lake)
-    sql = every_row_sql()
-    baseline = run_cli(["query", "--lake", str(intact_lake), "--format", "json", sql])
-    if baseline.code != 0 or run_cli(["lake", "verify", str(intact_lake)]).code != 0:
-        raise RuntimeError(f"the intact lake does not answer cleanly: {baseline.stderr}")
-    intact = _rows(baseline)
-    report = Report()
-    rng = random.Random(seed)
-    for name in kinds or list(FLEET_KINDS):
-        row = report.by_kind.setdefault(name, Counter())
-        for i in range(per_kind):
-            variant = work / "variant" / "lake"
-            shutil.rmtree(variant.parent, ignore_errors=True)
-            shutil.copytree(intact_lake, variant)
-            damage = FLEET_KINDS[name](rng, variant)
-            before = tree(variant)
-            query = run_cli(["query", "--lake", str(variant), "--format", "json", sql])
-            verify = run_cli(["lake", "verify", str(variant), "--format", "json"])
-            verdict, why = judge(intact, damage, query, verify, tree(variant) != before, variant)
-            report.tried += 1
-            report.files += damage.files
-            report.counts[verdict] += 1
-            row[verdict] += 1
-            row["tried"] += 1
-            if verdict in ("traceback", "silent change", "loss"):
-                report.flagged.append(f"{name} #{i}: {verdict}: {why}")
-    return report
+    return try_variants(
+        intact_lake,
+        work,
+        FLEET_KINDS,
+        kinds or list(FLEET_KINDS),
+        per_kind=per_kind,
+        seed=seed,
+        judge=judge,
+    )

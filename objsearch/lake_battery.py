@@ -38,7 +38,7 @@ import random
 import re
 import shutil
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -415,6 +415,40 @@ def run_battery(
     shutil.copytree(lake, intact_lake)
     if without_digests:
         strip_digests(intact_lake)
+    return try_variants(
+        intact_lake,
+        work,
+        KINDS,
+        kinds or list(KINDS),
+        per_kind=per_kind,
+        seed=seed,
+        judge=lambda intact, damage, query, verify, changed, _variant: judge(
+            intact, damage, query, verify, changed
+        ),
+    )
+
+
+#: A verdict on one damaged lake: (intact rows, the damage, query, verify, whether reading
+#: changed the lake, the damaged lake's folder) → (verdict, why).
+Judge = Callable[
+    [list[tuple[str, str, str]], Damage, Outcome, Outcome, bool, Path], tuple[str, str]
+]
+
+
+def try_variants(
+    intact_lake: Path,
+    work: Path,
+    table: Mapping[str, Kind],
+    names: Sequence[str],
+    *,
+    per_kind: int,
+    seed: int,
+    judge: Judge,
+) -> Report:
+    """The battery's one loop, for the folder lake and the fleet lake alike: ask the intact lake,
+    then for each kind of ``names`` (from ``table``) damage ``per_kind`` copies of it (under
+    ``work``), ask each copy ``objsearch query`` of every row and ``objsearch lake verify``, and
+    count ``judge``'s verdicts."""
     sql = every_row_sql()
     baseline = run_cli(["query", "--lake", str(intact_lake), "--format", "json", sql])
     if baseline.code != 0 or run_cli(["lake", "verify", str(intact_lake)]).code != 0:
@@ -422,17 +456,17 @@ def run_battery(
     intact = _rows(baseline)
     report = Report()
     rng = random.Random(seed)
-    for name in kinds or list(KINDS):
+    for name in names:
         row = report.by_kind.setdefault(name, Counter())
         for i in range(per_kind):
             lake = work / "variant" / "lake"
             shutil.rmtree(lake.parent, ignore_errors=True)
             shutil.copytree(intact_lake, lake)
-            damage = KINDS[name](rng, lake)
+            damage = table[name](rng, lake)
             before = tree(lake)
             query = run_cli(["query", "--lake", str(lake), "--format", "json", sql])
             verify = run_cli(["lake", "verify", str(lake), "--format", "json"])
-            verdict, why = judge(intact, damage, query, verify, tree(lake) != before)
+            verdict, why = judge(intact, damage, query, verify, tree(lake) != before, lake)
             report.tried += 1
             report.files += damage.files
             report.counts[verdict] += 1
