@@ -40,7 +40,9 @@ from objsearch.lake_battery import (
     RUNS,
     Damage,
     Report,
+    answer_rows,
     build_lake,
+    crashed,
     one_value_changed,
     run_cli,
     try_variants,
@@ -148,13 +150,8 @@ FLEET_KINDS: dict[str, FleetKind] = {
 }
 
 
-def _rows(outcome: Outcome) -> list[tuple[str, str, str]]:
-    return [(r["view"], r["run"], r["row"]) for r in json.loads(outcome.stdout)]
-
-
-def _named(stderr: str, lake: Path) -> set[str]:
+def _named(stderr: str) -> set[str]:
     """The data files the query's warnings say it left out, relative to the table."""
-    del lake  # the warnings name files relative to the table already
     return {m.group(1) for m in _LEFT_OUT.finditer(stderr)}
 
 
@@ -166,10 +163,12 @@ def judge(
     changed_by_reading: bool,
     lake: Path,
 ) -> tuple[str, str]:
-    """The verdict of one variant and why (see the module's docstring)."""
+    """The verdict of one variant and why (see the module's docstring). ``lake``: the damaged
+    copy (unused: the warnings name files relative to the table)."""
+    crash = crashed(query, verify)
+    if crash is not None:
+        return crash
     for what, outcome in (("query", query), ("verify", verify)):
-        if "Traceback (most recent call last)" in outcome.stderr or outcome.code not in (0, 2):
-            return "traceback", f"{what}: exit {outcome.code}: {outcome.stderr[-600:]}"
         if outcome.code == 2 and "objsearch: error: " not in outcome.stderr:
             return "traceback", f"{what}: exit 2 without a clear error: {outcome.stderr[-300:]}"
     if changed_by_reading:
@@ -180,8 +179,8 @@ def judge(
         verified = {d["file"] for d in json.loads(verify.stdout or "{}").get("damaged", [])}
     if query.code == 2:
         return "clear error", ""
-    named = _named(query.stderr, lake)
-    answer = _rows(query)
+    named = _named(query.stderr)
+    answer = answer_rows(query)
     if not named:
         if answer != intact:
             return "silent change", "the answer changed without a word"

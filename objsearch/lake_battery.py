@@ -342,7 +342,8 @@ class Report:
         return not any(self.counts[c] for c in ("traceback", "silent change", "loss"))
 
 
-def _rows(outcome: Outcome) -> list[tuple[str, str, str]]:
+def answer_rows(outcome: Outcome) -> list[tuple[str, str, str]]:
+    """The rows of an :func:`every_row_sql` answer printed as JSON: (view, run, row hash)."""
     return [(r["view"], r["run"], r["row"]) for r in json.loads(outcome.stdout)]
 
 
@@ -355,6 +356,14 @@ def _named(stderr: str) -> set[str]:
     }
 
 
+def crashed(query: Outcome, verify: Outcome) -> tuple[str, str] | None:
+    """The ``traceback`` verdict if either command printed one or exited other than 0 or 2."""
+    for what, outcome in (("query", query), ("verify", verify)):
+        if "Traceback (most recent call last)" in outcome.stderr or outcome.code not in (0, 2):
+            return "traceback", f"{what}: exit {outcome.code}: {outcome.stderr[-600:]}"
+    return None
+
+
 def judge(
     intact: list[tuple[str, str, str]],
     damage: Damage,
@@ -363,9 +372,9 @@ def judge(
     changed_by_reading: bool,
 ) -> tuple[str, str]:
     """The verdict of one variant (:data:`COLUMNS`) and why."""
-    for what, outcome in (("query", query), ("verify", verify)):
-        if "Traceback (most recent call last)" in outcome.stderr or outcome.code not in (0, 2):
-            return "traceback", f"{what}: exit {outcome.code}: {outcome.stderr[-600:]}"
+    crash = crashed(query, verify)
+    if crash is not None:
+        return crash
     if changed_by_reading:
         return "loss", "a reader changed a file of the lake"
     if verify.code == 2 and "objsearch: error: " not in verify.stderr:
@@ -378,7 +387,7 @@ def judge(
             return "traceback", f"query: exit 2 without a clear error: {query.stderr[-300:]}"
         return "clear error", ""
     named = _named(query.stderr)
-    answer = _rows(query)
+    answer = answer_rows(query)
     expected = [r for r in intact if r[1] not in named]
     if not named:
         if answer != intact:
@@ -453,7 +462,7 @@ def try_variants(
     baseline = run_cli(["query", "--lake", str(intact_lake), "--format", "json", sql])
     if baseline.code != 0 or run_cli(["lake", "verify", str(intact_lake)]).code != 0:
         raise RuntimeError(f"the intact lake does not answer cleanly: {baseline.stderr}")
-    intact = _rows(baseline)
+    intact = answer_rows(baseline)
     report = Report()
     rng = random.Random(seed)
     for name in names:
