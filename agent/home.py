@@ -19,10 +19,21 @@ from objsearch.agent.geometry import Point, Pose, Vec3
 
 @dataclass(frozen=True, slots=True)
 class Box:
-    """An axis-aligned bounding box."""
+    """An axis-aligned bounding box: ``center`` and full ``size`` per axis, map (ROS) frame.
+    The one box type: the converter builds homes from it and the agent reads them back."""
 
     center: Vec3
     size: Vec3
+
+    @property
+    def lo(self) -> Vec3:
+        c, s = self.center, self.size
+        return (c[0] - s[0] / 2, c[1] - s[1] / 2, c[2] - s[2] / 2)
+
+    @property
+    def hi(self) -> Vec3:
+        c, s = self.center, self.size
+        return (c[0] + s[0] / 2, c[1] + s[1] / 2, c[2] + s[2] / 2)
 
     def distance_to(self, p: Vec3) -> float:
         """Euclidean distance from a point to the box (0 inside)."""
@@ -33,7 +44,13 @@ class Box:
                 acc += excess * excess
         return float(acc**0.5)
 
+    def footprint_contains(self, x: float, y: float) -> bool:
+        """Whether (x, y) lies in the box's footprint, edges included."""
+        lo, hi = self.lo, self.hi
+        return lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1]
+
     def contains_xy(self, pt: Point) -> bool:
+        """Whether ``pt`` lies strictly inside the box's footprint."""
         return (
             abs(pt.x - self.center[0]) < self.size[0] / 2
             and abs(pt.y - self.center[1]) < self.size[1] / 2

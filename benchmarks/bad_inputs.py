@@ -105,7 +105,9 @@ def semantic_cases(scratch: Path) -> list[tuple[str, list[str]]]:
     ]
 
 
-def _tally(name: str, outcomes: Iterable[tuple[str, battery.Outcome]], seconds: float) -> int:
+def _tally(
+    name: str, outcomes: Iterable[tuple[str, battery.BatteryOutcome]], seconds: float
+) -> int:
     counts: collections.Counter[str] = collections.Counter()
     shown = []
     for label, outcome in outcomes:

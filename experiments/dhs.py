@@ -456,7 +456,7 @@ class Query:
 
 
 @dataclass(frozen=True, slots=True)
-class Job:
+class DhsJob:
     source: str
     experiment: str
     agent: str
@@ -512,7 +512,7 @@ def _make_agent(name: str, cfg: Any, sampler: Any, evolver: Any) -> Any:
     )
 
 
-def run_agent(job: Job) -> AgentRun:
+def run_agent(job: DhsJob) -> AgentRun:
     """One agent on one experiment config and seed: its eval loop (``random.seed(seed)``, then
     ``run`` with the find-object task), with our agent made by us and its by ``make_agent``."""
     root = Path(job.source)
@@ -664,7 +664,7 @@ def run_dhs(
 ) -> dict[str, Any]:
     """Every (experiment, agent, seed), ``workers`` at a time, summarised."""
     jobs = [
-        Job(str(source), e, a, s, steps, eps_per_scene)
+        DhsJob(str(source), e, a, s, steps, eps_per_scene)
         for e in experiments
         for s in seeds
         for a in agents

@@ -14,7 +14,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any, Protocol
 
 
-class Trial(Protocol):
+class TrialLike(Protocol):
     @property
     def success(self) -> bool: ...
     @property
@@ -23,15 +23,15 @@ class Trial(Protocol):
     def oracle_length(self) -> float: ...
 
 
-def spl_term(t: Trial) -> float:
+def spl_term(t: TrialLike) -> float:
     if not t.success:
         return 0.0
     denom = max(t.path_length, t.oracle_length)
     return 1.0 if denom <= 0 else t.oracle_length / denom
 
 
-def summarise(trials: Iterable[Trial]) -> dict[str, Any]:
-    ts: Sequence[Trial] = list(trials)
+def summarise(trials: Iterable[TrialLike]) -> dict[str, Any]:
+    ts: Sequence[TrialLike] = list(trials)
     if not ts:
         return {"n": 0}
     path = math.fsum(t.path_length for t in ts)

@@ -36,7 +36,7 @@ from objsearch.pipeline.build import PAPER_HOME, build_data
 from objsearch.pipeline.findings import EMPTY_ROOMS, LOST_GRID_POINTS
 from objsearch.pipeline.home import build_home
 from objsearch.pipeline.more_homes import TYPE_BASES
-from objsearch.pipeline.rooms import Room
+from objsearch.pipeline.rooms import ConvertedRoom
 from objsearch.pipeline.scenario import TABLE1_KEEP_ONE, TABLE1_REMOVE_ALL
 from objsearch.pipeline.vocabulary import SEMI_DYNAMIC_NAMES
 from objsearch.sim.world import DEFAULT_CAMERA
@@ -80,7 +80,7 @@ def set_name(scenes: Sequence[str]) -> str:
     return "fp" + "-".join(s.removeprefix("FloorPlan") for s in scenes)
 
 
-def room_target_counts(room: Room) -> tuple[int, ...]:
+def room_target_counts(room: ConvertedRoom) -> tuple[int, ...]:
     """How many instances of each target the room keeps after the paper's removals."""
     removed = {cls for name, cls in TABLE1_REMOVE_ALL if name == room.name}
     keep_one = {cls for name, cls in TABLE1_KEEP_ONE if name == room.name}

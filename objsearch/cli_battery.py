@@ -1,7 +1,7 @@
 """The bad-input battery: every option of every subcommand with malformed values.
 
 The subcommands come from walking the parser :func:`objsearch.cli.build_parser` builds, so a new
-subcommand or option is covered without editing anything here. Each :class:`Case` is one command
+subcommand or option is covered without editing anything here. Each :class:`BatteryCase` is one command
 line that fills the other required arguments with valid values and gives one option a malformed
 one; a case is *expected to fail* when the option's ``type`` (or its ``choices``) rejects the
 value. ``tests/test_cli_bad_inputs.py`` runs the battery in-process in CI and
@@ -31,7 +31,7 @@ FILE, DIR, MISSING, UNDER_FILE = "a-file.txt", "a-folder", "missing/nowhere", "a
 
 
 @dataclass(frozen=True, slots=True)
-class Case:
+class BatteryCase:
     command: tuple[str, ...]
     option: str
     value: str
@@ -41,7 +41,7 @@ class Case:
 
 
 @dataclass(frozen=True, slots=True)
-class Outcome:
+class BatteryOutcome:
     code: int
     stdout: str
     stderr: str
@@ -141,7 +141,7 @@ def malformed_values(scratch: Path, extra: Sequence[str] = ()) -> list[str]:
 
 def cases(
     parser: argparse.ArgumentParser, scratch: Path, extra: Sequence[str] = ()
-) -> Iterator[Case]:
+) -> Iterator[BatteryCase]:
     """One case per subcommand, argument and malformed value."""
     values = malformed_values(scratch, extra)
     for words, leaf in leaf_parsers(parser):
@@ -170,12 +170,14 @@ def cases(
                     argv = [*words, *others, "--", *ordered]
                 if argv[-1] == "--":
                     argv.pop()
-                yield Case(
+                yield BatteryCase(
                     words, action_name(action), value, tuple(argv), not accepts(action, value)
                 )
 
 
-def run_in_process(argv: Sequence[str], *, guard: argparse.ArgumentParser | None = None) -> Outcome:
+def run_in_process(
+    argv: Sequence[str], *, guard: argparse.ArgumentParser | None = None
+) -> BatteryOutcome:
     """``objsearch.cli.main(argv)`` with its output captured; a traceback is caught and kept.
 
     With ``guard`` (a parser from ``build_parser``) a command line that parses is not run but
@@ -195,18 +197,18 @@ def run_in_process(argv: Sequence[str], *, guard: argparse.ArgumentParser | None
             except SystemExit:
                 pass
             else:
-                return Outcome(0, "", "the command line parsed; not run")
+                return BatteryOutcome(0, "", "the command line parsed; not run")
         try:
             code = main(list(argv), parser=guard)
         except BaseException:
             traceback.print_exc(file=err)
             code = 1
-    return Outcome(code, out.getvalue(), err.getvalue())
+    return BatteryOutcome(code, out.getvalue(), err.getvalue())
 
 
 def run_subprocess(
     argv: Sequence[str], *, cwd: Path, env: dict[str, str] | None = None, timeout: float = 120
-) -> Outcome:
+) -> BatteryOutcome:
     """``python -m objsearch.cli ARGV`` in its own process (a timeout counts as ``other``)."""
     try:
         proc = subprocess.run(
@@ -219,8 +221,8 @@ def run_subprocess(
             check=False,
         )
     except subprocess.TimeoutExpired:
-        return Outcome(-1, "", f"timed out after {timeout} s")
-    return Outcome(proc.returncode, proc.stdout, proc.stderr)
+        return BatteryOutcome(-1, "", f"timed out after {timeout} s")
+    return BatteryOutcome(proc.returncode, proc.stdout, proc.stderr)
 
 
 def unvalidated(parser: argparse.ArgumentParser) -> list[str]:

@@ -34,7 +34,7 @@ from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 
-from objsearch.cli_battery import Outcome
+from objsearch.cli_battery import BatteryOutcome
 from objsearch.lake_battery import (
     EDITS,
     RUNS,
@@ -158,8 +158,8 @@ def _named(stderr: str) -> set[str]:
 def judge(
     intact: list[tuple[str, str, str]],
     damage: Damage,
-    query: Outcome,
-    verify: Outcome,
+    query: BatteryOutcome,
+    verify: BatteryOutcome,
     changed_by_reading: bool,
     lake: Path,
 ) -> tuple[str, str]:

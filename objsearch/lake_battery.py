@@ -46,7 +46,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from objsearch.cli_battery import Outcome, run_in_process
+from objsearch.cli_battery import BatteryOutcome, run_in_process
 from objsearch.events.derived import derived_tables
 from objsearch.events.lake import RUN_FILE
 from objsearch.events.lake_digest import FILES_KEY, SELF_KEY
@@ -92,7 +92,7 @@ def every_row_sql() -> str:
     return " UNION ALL ".join(parts) + " ORDER BY ALL"
 
 
-def run_cli(argv: Sequence[str]) -> Outcome:
+def run_cli(argv: Sequence[str]) -> BatteryOutcome:
     """:func:`objsearch.cli_battery.run_in_process` with the CLI's log lines (the warnings that
     name damaged runs) added to the captured stderr."""
     lines = io.StringIO()
@@ -105,7 +105,7 @@ def run_cli(argv: Sequence[str]) -> Outcome:
         outcome = run_in_process(argv)
     finally:
         root.removeHandler(handler)
-    return Outcome(outcome.code, outcome.stdout, outcome.stderr + lines.getvalue())
+    return BatteryOutcome(outcome.code, outcome.stdout, outcome.stderr + lines.getvalue())
 
 
 def strip_digests(lake: Path) -> None:
@@ -342,7 +342,7 @@ class Report:
         return not any(self.counts[c] for c in ("traceback", "silent change", "loss"))
 
 
-def answer_rows(outcome: Outcome) -> list[tuple[str, str, str]]:
+def answer_rows(outcome: BatteryOutcome) -> list[tuple[str, str, str]]:
     """The rows of an :func:`every_row_sql` answer printed as JSON: (view, run, row hash)."""
     return [(r["view"], r["run"], r["row"]) for r in json.loads(outcome.stdout)]
 
@@ -356,7 +356,7 @@ def _named(stderr: str) -> set[str]:
     }
 
 
-def crashed(query: Outcome, verify: Outcome) -> tuple[str, str] | None:
+def crashed(query: BatteryOutcome, verify: BatteryOutcome) -> tuple[str, str] | None:
     """The ``traceback`` verdict if either command printed one or exited other than 0 or 2."""
     for what, outcome in (("query", query), ("verify", verify)):
         if "Traceback (most recent call last)" in outcome.stderr or outcome.code not in (0, 2):
@@ -367,8 +367,8 @@ def crashed(query: Outcome, verify: Outcome) -> tuple[str, str] | None:
 def judge(
     intact: list[tuple[str, str, str]],
     damage: Damage,
-    query: Outcome,
-    verify: Outcome,
+    query: BatteryOutcome,
+    verify: BatteryOutcome,
     changed_by_reading: bool,
 ) -> tuple[str, str]:
     """The verdict of one variant (:data:`COLUMNS`) and why."""
@@ -440,7 +440,8 @@ def run_battery(
 #: A verdict on one damaged lake: (intact rows, the damage, query, verify, whether reading
 #: changed the lake, the damaged lake's folder) → (verdict, why).
 Judge = Callable[
-    [list[tuple[str, str, str]], Damage, Outcome, Outcome, bool, Path], tuple[str, str]
+    [list[tuple[str, str, str]], Damage, BatteryOutcome, BatteryOutcome, bool, Path],
+    tuple[str, str],
 ]
 
 

@@ -1,4 +1,4 @@
-"""Axis-aligned boxes in the ROS frame, and the per-room Unity -> ROS conversion with offset."""
+"""The per-room Unity -> ROS conversion with offset, giving the agent's boxes (``agent.home.Box``)."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 from objsearch.agent.geometry import Vec3
+from objsearch.agent.home import Box
 
 from .coordinate_frames import (
     unity_floor_to_ros,
@@ -13,36 +14,6 @@ from .coordinate_frames import (
     unity_to_ros,
     unity_yaw_to_ros,
 )
-
-
-@dataclass(frozen=True)
-class Box:
-    """An axis-aligned bounding box: ``center`` and full ``size`` per axis, ROS frame."""
-
-    center: Vec3
-    size: Vec3
-
-    @property
-    def lo(self) -> Vec3:
-        c, s = self.center, self.size
-        return (c[0] - s[0] / 2, c[1] - s[1] / 2, c[2] - s[2] / 2)
-
-    @property
-    def hi(self) -> Vec3:
-        c, s = self.center, self.size
-        return (c[0] + s[0] / 2, c[1] + s[1] / 2, c[2] + s[2] / 2)
-
-    def distance_to(self, point: Vec3) -> float:
-        """Euclidean distance from ``point`` to the box; 0 inside it."""
-        gaps = (
-            max(abs(p - c) - s / 2, 0.0)
-            for p, c, s in zip(point, self.center, self.size, strict=True)
-        )
-        return math.sqrt(sum(g * g for g in gaps))
-
-    def footprint_contains(self, x: float, y: float) -> bool:
-        lo, hi = self.lo, self.hi
-        return lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1]
 
 
 def distance(a: Vec3, b: Vec3) -> float:

@@ -11,7 +11,7 @@ from typing import Any
 from .errors import HomeSpecError
 from .navgrid import GRID_M
 from .room_objects import PlacedObject, Static
-from .rooms import ROOM_SLOTS, Room, RoomSource, build_room
+from .rooms import ROOM_SLOTS, ConvertedRoom, RoomSource, build_room
 from .sources import load_layout, load_openable, load_scene, scene_path
 
 ROOM_GAP_M = 1.0
@@ -37,7 +37,7 @@ class SourceHome:
     ``data/homes/`` (the agent's :class:`objsearch.agent.home.Home` reads it from there)."""
 
     name: str
-    rooms: tuple[Room, ...]
+    rooms: tuple[ConvertedRoom, ...]
 
     @property
     def statics(self) -> tuple[Static, ...]:
@@ -97,7 +97,7 @@ def build_home(
 ) -> SourceHome:
     """``largest_walkable_piece``: see :func:`build_room` (only for split rooms a user accepted)."""
     scenes = check_home_spec(name, floorplans)
-    rooms: list[Room] = []
+    rooms: list[ConvertedRoom] = []
     min_x = 0.0
     for slot, floorplan in zip(ROOM_SLOTS, scenes, strict=True):
         if progress:

@@ -35,7 +35,7 @@ from .errors import SourceDataError
 from .geometry import RoomFrame
 from .home import SourceHome
 from .room_objects import SUPPORT_RADIUS_M, Static
-from .rooms import Room
+from .rooms import ConvertedRoom
 from .sources import ThorObject, ThorScene
 from .vocabulary import SEMI_DYNAMIC_BY_THOR_TYPE
 
@@ -123,7 +123,7 @@ class RoomCounts:
 
 
 def _room_json(
-    room: Room, scene: ThorScene, split: str, episodes: Sequence[Mapping[str, Any]]
+    room: ConvertedRoom, scene: ThorScene, split: str, episodes: Sequence[Mapping[str, Any]]
 ) -> tuple[dict[str, Any], RoomCounts]:
     frame = RoomFrame(*room.offset)
     by_name = {

@@ -7,8 +7,9 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from objsearch.agent.geometry import Vec3
+from objsearch.agent.home import Box
 
-from .geometry import Box, RoomFrame
+from .geometry import RoomFrame
 from .sources import ThorObject, ThorScene
 from .vocabulary import SEMI_DYNAMIC_BY_THOR_TYPE, STATIC_BY_THOR_TYPE
 

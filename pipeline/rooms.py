@@ -73,7 +73,7 @@ class Start:
 
 
 @dataclass(frozen=True)
-class Room:
+class ConvertedRoom:
     name: str
     room_type: str
     source_scene: str
@@ -178,7 +178,7 @@ def _snap_up(value: float) -> float:
 
 def build_room(
     src: RoomSource, slot: RoomSlot, min_x: float, *, largest_walkable_piece: bool = False
-) -> Room:
+) -> ConvertedRoom:
     """Convert one room and place it so that its extent starts at ``min_x`` (rounded up) and y=0.
 
     ``largest_walkable_piece``: keep only the largest piece of the walking graph (diagonal steps
@@ -221,7 +221,7 @@ def build_room(
         Start(f"{slot.name}-{k}", x, y, math.atan2(cy - y, cx - x))
         for k, (x, y) in enumerate((navgrid.cell_xy(first), navgrid.cell_xy(second)), start=1)
     )
-    return Room(
+    return ConvertedRoom(
         name=slot.name,
         room_type=slot.room_type,
         source_scene=scene.name,

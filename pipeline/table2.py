@@ -47,7 +47,7 @@ NOTES = (
 
 
 @dataclass(frozen=True)
-class Placement:
+class Table2Placement:
     object: str
     static_class: str
     support: str
@@ -123,7 +123,7 @@ def table2(home: SourceHome, scenario: Scenario) -> dict[str, Any]:
     where = {cls: objects[oid].box.center for cls, oid in scenario.targets.items()}
     scenes = []
     for k in range(SCENES):
-        placements: dict[str, Placement] = {}
+        placements: dict[str, Table2Placement] = {}
         for cls in SEMI_DYNAMIC_NAMES:
             wanted = TABLE2[cls][k]
             options = [s for s in home.statics if s.cls == wanted]
@@ -140,7 +140,7 @@ def table2(home: SourceHome, scenario: Scenario) -> dict[str, Any]:
                 if q.support == support.id
             ]
             center = place_on(support, obj.box.size, prev, taken)
-            placements[cls] = Placement(obj.id, wanted, support.id, support.container, center)
+            placements[cls] = Table2Placement(obj.id, wanted, support.id, support.container, center)
             where[cls] = center
         scenes.append(
             {"scene": k + 1, "placements": {c: p.to_json() for c, p in placements.items()}}

@@ -90,7 +90,7 @@ class Timeouts:
 
 
 @dataclass(frozen=True, slots=True)
-class Navigation:
+class NavigationSettings:
     """How goals reach the robot: ``goal_pose`` (a PoseStamped topic; arrival judged from the
     pose) or ``navigate_to_pose`` (Nav2's action: arrival is its SUCCEEDED result)."""
 
@@ -130,7 +130,7 @@ class RuntimeConfig:
     topics: Topics = Topics()
     qos: QosSettings = QosSettings()
     timeouts: Timeouts = Timeouts()
-    navigation: Navigation = Navigation()
+    navigation: NavigationSettings = NavigationSettings()
     pose: PoseSource = PoseSource()
 
     @classmethod
@@ -194,7 +194,9 @@ class RuntimeConfig:
             topics=_section(Topics(), doc.get("topics", {}), source, "topics", str),
             qos=_section(QosSettings(), doc.get("qos", {}), source, "qos", _qos),
             timeouts=_section(Timeouts(), doc.get("timeouts", {}), source, "timeouts", None),
-            navigation=_section(Navigation(), doc.get("navigation", {}), source, "navigation", str),
+            navigation=_section(
+                NavigationSettings(), doc.get("navigation", {}), source, "navigation", str
+            ),
             pose=_section(PoseSource(), doc.get("pose", {}), source, "pose", str),
         )
 

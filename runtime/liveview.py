@@ -303,7 +303,7 @@ def _pose_of(pose: PlanarPose) -> Pose:
 
 
 @dataclass
-class _Task:
+class _LiveTask:
     task_id: str
     target: str
     route: list[Point] = field(default_factory=list)
@@ -346,7 +346,7 @@ class LiveView:
         self.agent = agent if agent is not None else AgentState(models=models)
         self._folds = agent is None
         self.pose: Pose | None = None
-        self.task: _Task | None = None
+        self.task: _LiveTask | None = None
         self.written: dict[str, int] = {}
         self._map_sent = False
 
@@ -388,7 +388,7 @@ class LiveView:
     def _on_task_started(self, event: Event, stamp: int) -> None:
         started = decode(event, TaskStarted)
         self.pose = _pose_of(started.pose)
-        self.task = _Task(event.task_id or "", started.target, route=[self._on_grid(self.pose)])
+        self.task = _LiveTask(event.task_id or "", started.target, route=[self._on_grid(self.pose)])
         model = self.agent.model
         self.task.rel_before = model.as_table().get(started.target, {}) if model else {}
         self.task.route_poses = [path_pose(self.task.route, 0, stamp)]

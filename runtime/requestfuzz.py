@@ -80,7 +80,7 @@ BAD_IDS = ["null", "0", "5", '""', '" "', '"a b"', '"' + "i" * 200 + '"', "[]", 
 
 
 @dataclass(frozen=True, slots=True)
-class Case:
+class RequestCase:
     kind: str  # find | where | open | reset | goal
     topic: str
     msgtype: str
@@ -96,7 +96,7 @@ RECEIVER = {"find": "agent", "where": "agent", "open": "robot", "reset": "robot"
 
 
 @dataclass
-class Counts:
+class FuzzCounts:
     tried: int = 0
     error_answered: int = 0
     dropped: int = 0  # sent as cases that must be dropped (checked against the log lines)
@@ -173,7 +173,7 @@ class CaseMaker:
             ),
         }
 
-    def case(self) -> Case:
+    def case(self) -> RequestCase:
         r = self.rng.random()
         if r < 0.08:
             return self._goal()
@@ -212,11 +212,11 @@ class CaseMaker:
         rid: str | None,
         note: str,
         key: str | None = None,
-    ) -> Case:
+    ) -> RequestCase:
         payload = _string_cdr(text.encode("utf-8", "surrogatepass"))
-        return Case(kind, topic, m.STRING, payload, expect, rid, note, key)
+        return RequestCase(kind, topic, m.STRING, payload, expect, rid, note, key)
 
-    def _whole(self, kind: str, topic: str, valid: dict[str, str]) -> Case:
+    def _whole(self, kind: str, topic: str, valid: dict[str, str]) -> RequestCase:
         """The whole message broken: never answerable."""
         rng = self.rng
         choice = rng.randrange(10)
@@ -236,29 +236,29 @@ class CaseMaker:
             return self._json(kind, topic, text, "drop", None, "oversized")
         if choice == 4:  # not UTF-8
             data = good[:-1] + bytes([rng.choice([0x80, 0xC3, 0xFF, 0xED])]) + b"}"
-            return Case(kind, topic, m.STRING, _string_cdr(data), "drop", None, "not utf-8")
+            return RequestCase(kind, topic, m.STRING, _string_cdr(data), "drop", None, "not utf-8")
         if choice == 5:  # a CDR length that lies
             n = rng.choice([0, 2**31, 2**32 - 1, len(good) + 50])
             payload = b"\x00\x01\x00\x00" + struct.pack("<I", n) + good
-            return Case(kind, topic, m.STRING, payload, "drop", None, f"cdr length {n}")
+            return RequestCase(kind, topic, m.STRING, payload, "drop", None, f"cdr length {n}")
         if choice == 6:  # a big-endian or unknown encapsulation header
             header = rng.choice([b"\x00\x00\x00\x00", b"\x00\x07\x00\x00", b"\xff\xff"])
             payload = header + _string_cdr(good)[4:]
-            return Case(kind, topic, m.STRING, payload, "drop", None, "bad encapsulation")
+            return RequestCase(kind, topic, m.STRING, payload, "drop", None, "bad encapsulation")
         if choice == 7:
             payload = b"" if rng.random() < 0.3 else b"\x00\x01\x00\x00"[: rng.randrange(4)]
-            return Case(kind, topic, m.STRING, payload, "drop", None, "empty or short")
+            return RequestCase(kind, topic, m.STRING, payload, "drop", None, "empty or short")
         payload = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 200)))
-        return Case(kind, topic, m.STRING, payload, "drop", None, "random bytes")
+        return RequestCase(kind, topic, m.STRING, payload, "drop", None, "random bytes")
 
-    def _goal(self) -> Case:
+    def _goal(self) -> RequestCase:
         """A goal pose the stand-in must not act on: a non-finite pose, or bytes that are not
         a PoseStamped."""
         rng = self.rng
         topic = self.topics.goal
         if rng.random() < 0.3:
             payload = bytes(rng.randrange(256) for _ in range(rng.randrange(0, 120)))
-            return Case("goal", topic, m.POSE_STAMPED, payload, "drop", None, "random bytes")
+            return RequestCase("goal", topic, m.POSE_STAMPED, payload, "drop", None, "random bytes")
         msg = m.pose_stamped(Pose(1.0, 1.0, 0.0), 10**9)
         bad = rng.choice([float("nan"), float("inf"), float("-inf")])
         where = rng.choice(["x", "y", "qz", "qw"])
@@ -267,11 +267,11 @@ class CaseMaker:
         else:
             setattr(msg.pose.orientation, where[1], bad)
         note = f"{where}={bad}"
-        return Case(
+        return RequestCase(
             "goal", topic, m.POSE_STAMPED, m.encode(msg, m.POSE_STAMPED), "drop", None, note
         )
 
-    def cases(self, n: int) -> Iterator[Case]:
+    def cases(self, n: int) -> Iterator[RequestCase]:
         for _ in range(n):
             yield self.case()
 
@@ -307,7 +307,7 @@ class Fuzzer:
             self._pubs[key] = self.node.transport.publisher(topic, msgtype, qos)
         return self._pubs[key]
 
-    def _publish(self, case: Case) -> None:
+    def _publish(self, case: RequestCase) -> None:
         qos = self.config.qos.goal if case.kind == "goal" else self.config.qos.requests
         self._publisher(case.topic, case.msgtype, qos).publish(case.payload)
 
@@ -322,7 +322,7 @@ class Fuzzer:
             return self._answers.pop(rid)
 
     def run(
-        self, n: int, counts: Counts, *, timeout_s: float = 10.0, pace_s: float = 0.002
+        self, n: int, counts: FuzzCounts, *, timeout_s: float = 10.0, pace_s: float = 0.002
     ) -> None:
         """Send ``n`` cases; ``counts`` gets the tally (``wrong`` names each unexpected outcome).
 
@@ -442,7 +442,7 @@ def simulated(log_dir: Path) -> dict[str, Any]:
 
 def fuzz_rig(
     rig: Rig, n: int, seed: int, expected: dict[str, Any], *, settle_s: float = 20.0
-) -> tuple[Counts, Any]:
+) -> tuple[FuzzCounts, Any]:
     """Run ``n`` cases against ``rig``, then one valid reset and search (:data:`CHECK_SEARCH`);
     returns the tally and the search's result (None if it got none). ``served`` counts the
     search if its result equals ``expected`` (:func:`simulated`); otherwise it is ``wrong``.
@@ -452,7 +452,7 @@ def fuzz_rig(
     from objsearch.runtime.client import AgentClient
     from objsearch.runtime.transport import open_transport
 
-    counts = Counts()
+    counts = FuzzCounts()
     config = rig.config()
     node = Node(open_transport(config.transport))
     result: Any = None

@@ -165,7 +165,7 @@ class Viewer:
 
 
 @dataclass
-class Counts:
+class FloodCounts:
     tried: int = 0
     clear_error: int = 0
     unchanged: int = 0
@@ -382,14 +382,14 @@ def run_battery(
     limits: FrontLimits | None = None,
     per_round: int = 24,
     pace_s: float = 0.002,
-) -> Counts:
+) -> FloodCounts:
     """``cases`` hostile connections in rounds of ``per_round`` against a live view drawing
     ``events`` (a log starting with ``run_started``) over and over; see the module's doc."""
     limits = limits or FrontLimits(
         max_clients=8, client_queue_bytes=64 * 1024, handshake_timeout_s=2.0
     )
     rng = random.Random(seed)
-    counts = Counts()
+    counts = FloodCounts()
     tracebacks = _Tracebacks()
     logger = logging.getLogger("objsearch.liveview")
     logger.addHandler(tracebacks)
@@ -443,7 +443,7 @@ def run_battery(
     return counts
 
 
-def _check_probe(probe: _Probe, written: list[bytes], counts: Counts) -> None:
+def _check_probe(probe: _Probe, written: list[bytes], counts: FloodCounts) -> None:
     """Every message written after the probe subscribed reached it, in order. A channel's last
     message is sent again to every subscriber whenever anyone subscribes (the SDK's ``log`` has
     no single recipient): such a repeat is allowed, anything else is a change."""
@@ -478,7 +478,7 @@ def _round(
     limits: FrontLimits,
     kinds: list[str],
     rng: random.Random,
-    counts: Counts,
+    counts: FloodCounts,
 ) -> None:
     before = sink.stats()
     hostile: list[_Hostile] = []
@@ -511,7 +511,7 @@ def _round(
         counts.problems.append(f"{leaked} places not freed after a round")
 
 
-def report(counts: Counts) -> list[str]:
+def report(counts: FloodCounts) -> list[str]:
     """The counts as the batteries print them: the totals, then one row per kind."""
     lines = [counts.line()]
     header = "  ".join(f"{c:>13}" for c in COLUMNS[1:])

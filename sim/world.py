@@ -112,7 +112,7 @@ def mask_facing(
 
 
 @dataclass(frozen=True, slots=True)
-class Sighting:
+class FirstSighting:
     """The first viewpoint (of those tried, in their order) that detects a placement, and the
     mask it shows there; when none does, ``viewpoint`` is None and ``mask_px`` the largest mask
     any of them showed."""
@@ -128,7 +128,7 @@ def first_sighting(
     placed: Sequence[Placement],
     viewpoints: Iterable[Point],
     min_mask_px: float,
-) -> Sighting:
+) -> FirstSighting:
     """Try ``viewpoints`` in order, facing ``target`` (:func:`mask_facing`), until one shows at
     least ``min_mask_px`` of it: the one walk over a room's viewpoints that the oracle, the
     seeable-placement check and the bench's failure causes share."""
@@ -136,9 +136,9 @@ def first_sighting(
     for v in viewpoints:
         area = mask_facing(camera, home, v, target, placed)
         if area >= min_mask_px:
-            return Sighting(v, area)
+            return FirstSighting(v, area)
         largest = max(largest, area)
-    return Sighting(None, largest)
+    return FirstSighting(None, largest)
 
 
 class WorldObserver(Protocol):

@@ -93,7 +93,7 @@ def kill_after_steps(n: int) -> None:
 
 
 @dataclass(frozen=True, slots=True)
-class Outcome:
+class KillOutcome:
     code: int  # exit status, or minus the signal that ended it
     output: str  # stdout and stderr together
 
@@ -117,7 +117,7 @@ class KillServer:
             bufsize=1,
         )
 
-    def run(self, argv: list[str], *, kill_after: int = 0) -> Outcome:
+    def run(self, argv: list[str], *, kill_after: int = 0) -> KillOutcome:
         """Run ``objsearch ARGV`` in a fresh child, killed after step ``kill_after`` (0: never)."""
         assert self._server.stdin is not None and self._server.stdout is not None
         job = {
@@ -130,7 +130,7 @@ class KillServer:
         line = self._server.stdout.readline()
         if not line:
             raise RuntimeError("the kill-test server died")
-        return Outcome(int(line), self._output.read_text(encoding="utf-8", errors="replace"))
+        return KillOutcome(int(line), self._output.read_text(encoding="utf-8", errors="replace"))
 
     def close(self) -> None:
         if self._server.stdin is not None:
@@ -219,8 +219,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 __all__ = [
+    "KillOutcome",
     "KillServer",
-    "Outcome",
     "TableContent",
     "kill_after_steps",
     "main",

@@ -580,7 +580,7 @@ def _repair_case(
 # -- snapshots: a restore trusts only what the log's writer attested -------------------------
 
 
-class _Counts:
+class _CountsProjection:
     """A small snapshottable projection: events per type (what the fuzzer restores)."""
 
     snapshot_name: ClassVar[str] = "counts"
@@ -602,7 +602,7 @@ class _Counts:
         return {"counts": self.counts}
 
     @classmethod
-    def from_snapshot(cls, state: dict[str, Any], last_seq: int) -> _Counts:
+    def from_snapshot(cls, state: dict[str, Any], last_seq: int) -> _CountsProjection:
         counts = state["counts"]
         if not (isinstance(counts, dict) and all(type(v) is int for v in counts.values())):
             raise ValueError("counts: not a mapping of type to count")
@@ -646,12 +646,12 @@ def run_snapshot_fuzz(cases: int, *, seed: int = 0, events: int = 60) -> Snapsho
             _make_log(root / name, f"00000000-0000-4000-8000-0000000000{run}", events)
             save_snapshot(
                 root / f"{name}-snaps",
-                fold(read_log(root / name, store=STORE), _Counts()),
+                fold(read_log(root / name, store=STORE), _CountsProjection()),
                 log=root / name,
                 store=STORE,
             )
             logs[name] = snapshot_path(root / f"{name}-snaps", "counts").read_bytes()
-        truth = fold(read_log(root / "mine", store=STORE), _Counts()).counts
+        truth = fold(read_log(root / "mine", store=STORE), _CountsProjection()).counts
         path = snapshot_path(root / "mine-snaps", "counts")
         quiet = logging.getLogger("objsearch.events.snapshot")
         for case in range(cases):
@@ -683,8 +683,8 @@ def run_snapshot_fuzz(cases: int, *, seed: int = 0, events: int = 60) -> Snapsho
             try:
                 restored, how = restore(
                     root / "mine",
-                    _Counts,
-                    _Counts.from_snapshot,
+                    _CountsProjection,
+                    _CountsProjection.from_snapshot,
                     snapshot_dir=path.parent,
                     save=False,
                     store=STORE,

@@ -59,9 +59,12 @@ def test_malformed_values_are_clear_errors(command: str, scratch: Path) -> None:
 
 def test_the_battery_reports_a_traceback_as_such() -> None:
     # A case whose command fails with a bug (not an expected error) must not pass as clear.
-    assert battery.Outcome(1, "", "Traceback (most recent call last):\n  …").verdict == "traceback"
-    assert battery.Outcome(2, "", "objsearch: error: x\n").verdict == "clear error"
-    assert battery.Outcome(0, "ok", "").verdict == "other"
+    assert (
+        battery.BatteryOutcome(1, "", "Traceback (most recent call last):\n  …").verdict
+        == "traceback"
+    )
+    assert battery.BatteryOutcome(2, "", "objsearch: error: x\n").verdict == "clear error"
+    assert battery.BatteryOutcome(0, "ok", "").verdict == "other"
 
 
 def _run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:

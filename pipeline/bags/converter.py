@@ -29,7 +29,7 @@ from objsearch.events.record import encode_record
 from objsearch.pipeline.bags import fastdecode
 from objsearch.pipeline.bags.clock import ClockMap, fit_clock, iso, kept_pairs
 from objsearch.pipeline.bags.detections import detection_payload
-from objsearch.pipeline.bags.posetrack import POSE_TYPE, PoseSource, PoseTrack, convert_sources
+from objsearch.pipeline.bags.posetrack import POSE_TYPE, PoseStream, PoseTrack, convert_sources
 from objsearch.pipeline.bags.salvage import Loss, RawConnection
 from objsearch.pipeline.bags.sink import Deserialize
 from objsearch.ros.topics import ACCEPTED_TYPES, CONVERTED, Role, TopicMap
@@ -52,7 +52,7 @@ class TopicState:
 class Converter:
     """Turns a bag's messages into events; one per bag.
 
-    Odometry and TF messages are only collected while the bag is read (:class:`PoseSource`, one
+    Odometry and TF messages are only collected while the bag is read (:class:`PoseStream`, one
     per connection) and converted together by :meth:`finish`
     (:mod:`~objsearch.pipeline.bags.posetrack`); the others are converted as they come.
     """
@@ -65,7 +65,7 @@ class Converter:
         self.topics: dict[int, TopicState] = {}
         self.skipped: dict[int, tuple[RawConnection, str]] = {}
         self.skipped_messages: Counter[int] = Counter()
-        self.pose_sources: dict[int, PoseSource] = {}
+        self.pose_sources: dict[int, PoseStream] = {}
         #: Other derived events, (bag time, topic, arrival, type, payload): numbered by finish()
         #: among the poses in (time, topic, arrival) order.
         self.derived: list[tuple[int, str, int, str, dict[str, Any]]] = []
@@ -111,7 +111,7 @@ class Converter:
                 if role in _POSE_ROLES:
                     tf = role is not Role.ODOMETRY
                     layouts = fastdecode.TF_LAYOUT if tf else fastdecode.ODOMETRY_LAYOUT
-                    self.pose_sources[c.id] = PoseSource(
+                    self.pose_sources[c.id] = PoseStream(
                         c.topic, c.msgtype, tf, layouts[self.distro]
                     )
 

@@ -2,7 +2,7 @@
 
 Nearly all converted messages of a robot's bag are odometry and TF, one pose each. Instead of a
 Python payload and :class:`Event` per message, the converter collects their raw bytes per
-connection while the bag is read (:class:`PoseSource`), and this module turns them into numpy
+connection while the bag is read (:class:`PoseStream`), and this module turns them into numpy
 columns in bulk: decoded by :func:`~objsearch.pipeline.bags.fastdecode.decode_batch` (rosbags'
 deserialiser for any other layout), checked, composed with map → odom, and — once the converter
 has numbered them among the other derived events — written as the lake's table directly
@@ -124,7 +124,7 @@ def transform_fields(msg: Any) -> list[TransformFields]:
 
 
 @dataclass(eq=False)
-class PoseSource:
+class PoseStream:
     """One odometry or TF connection's messages, collected as they are read."""
 
     topic: str
@@ -301,7 +301,7 @@ def _reason(exc: Exception) -> str:
     return f"{type(exc).__name__}: {exc}"[:200]
 
 
-def _undecoded_rows(source: PoseSource, decoded: Decoded, rejected: dict[int, str]) -> Decoded:
+def _undecoded_rows(source: PoseStream, decoded: Decoded, rejected: dict[int, str]) -> Decoded:
     """``decoded`` plus the messages it could not read, deserialised by rosbags."""
     if not decoded.undecoded:
         return decoded
@@ -370,7 +370,7 @@ class _Collected:
 
 
 def _convert_source(
-    source: PoseSource,
+    source: PoseStream,
     topic_code: int,
     frames: Frames,
     names: _Names,
@@ -485,7 +485,7 @@ def _compose(poses: Poses, collected: _Collected, frames: Frames, names: _Names)
 
 
 def convert_sources(
-    sources: Sequence[PoseSource], frames: Frames
+    sources: Sequence[PoseStream], frames: Frames
 ) -> tuple[Poses, list[SourceOutcome]]:
     """All sources' poses (in no particular order; the converter numbers them) and outcomes."""
     topics = _Names()

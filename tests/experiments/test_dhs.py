@@ -109,7 +109,7 @@ def test_its_agents_and_ours_run_in_its_task_by_its_rules() -> None:
     # One small scene (3 rooms, 6 pieces of furniture each), 60 queries: a few seconds a run
     # (importing its code, which loads torch_geometric and transformers, takes longer).
     runs = {
-        agent: dhs.run_agent(dhs.Job(str(source), "small_scenes", agent, 0, 60, 60))
+        agent: dhs.run_agent(dhs.DhsJob(str(source), "small_scenes", agent, 0, 60, 60))
         for agent in ("random", "upper_bound", dhs.OURS)
     }
     for run in runs.values():

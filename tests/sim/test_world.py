@@ -15,8 +15,8 @@ from objsearch.sim.placements import Schedule, base_placements
 from objsearch.sim.world import (
     OPEN_S,
     SPEED_M_PER_S,
+    FirstSighting,
     Placement,
-    Sighting,
     SimClock,
     SimWorld,
     first_sighting,
@@ -175,10 +175,10 @@ def test_first_sighting_stops_at_the_first_viewpoint_that_detects() -> None:
         areas = {v: mask_facing(camera, ctx.home, v, p, placed) for v in order}
         first = next(v for v in order if areas[v] >= threshold)
         found = first_sighting(camera, ctx.home, p, placed, order, threshold)
-        assert found == Sighting(first, areas[first])
+        assert found == FirstSighting(first, areas[first])
         blind = [v for v in order if areas[v] < threshold]
         missed = first_sighting(camera, ctx.home, p, placed, blind, threshold)
-        assert missed == Sighting(None, max(areas[v] for v in blind))
+        assert missed == FirstSighting(None, max(areas[v] for v in blind))
 
 
 def test_a_start_off_the_grid_is_refused() -> None:
