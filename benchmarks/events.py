@@ -66,7 +66,7 @@ from objsearch.agent.strategies import RunSpec
 from objsearch.events import Event, EventLog, fold, read_log
 from objsearch.events.arrow import events_to_tables
 from objsearch.events.catalogue import Catalogue
-from objsearch.events.lake import Lake
+from objsearch.events.lake_table import TableLake
 from objsearch.events.store import Store
 from objsearch.replay.analytics import open_analytics
 from objsearch.testing.crashtest import run_crash_test
@@ -296,7 +296,7 @@ def bench_projection(n: int, reps: int, root: Path) -> list[Event]:
     events = synthetic_run(n)
     print(f"(generated {len(events):,} events in {time.perf_counter() - t0:.1f} s)")
     t_py, graph = median_time(lambda: fold(iter(events), SceneGraphProjection()), reps)
-    lake = Lake(root / "fold-lake", store=STORE)
+    lake = TableLake(root / "fold-lake", store=STORE)
     t0 = time.perf_counter()
     lake.commit_tables(
         events_to_tables(events, STORE), robot="bench", run="r0000", date="2024-01-01"
@@ -430,7 +430,7 @@ def bench_restart(events: list[Event], reps: int, root: Path) -> None:
 
 
 def bench_queries(events: list[Event], copies: int, reps: int, root: Path) -> None:
-    lake = Lake(root / "query-lake", store=STORE)
+    lake = TableLake(root / "query-lake", store=STORE)
     tables = events_to_tables(events, STORE)
     t0 = time.perf_counter()
     for i in range(copies):

@@ -32,7 +32,7 @@ from typing import Any
 from objsearch.pipeline.bags.engines import Engine, RayEngine
 from objsearch.pipeline.bags.formats import BagFormat, storage_files
 from objsearch.pipeline.bags.ingest import BagTask, commit_converted, convert_bag, ingest
-from objsearch.pipeline.bags.lake import BagLake
+from objsearch.pipeline.bags.lake import FleetBagLake
 from objsearch.pipeline.bags.readers import iter_raw
 from objsearch.pipeline.bags.record import DEFAULT_START_NS, record
 from objsearch.ros.topics import TopicMap
@@ -120,7 +120,7 @@ def main() -> None:
             ship_t.append(time.perf_counter() - t0)
             lake = work / f"lake-{rep}-commit"
             t0 = time.perf_counter()
-            assert commit_converted(BagLake(lake), converted, "robot").committed > 0
+            assert commit_converted(FleetBagLake(lake), converted, "robot").committed > 0
             commit_t.append(time.perf_counter() - t0)
             shutil.rmtree(lake)
         raw, ing = statistics.median(raw_t), statistics.median(ing_t)

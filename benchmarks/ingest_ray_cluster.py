@@ -51,7 +51,7 @@ from typing import Any
 from ingest import record_bags
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake import Lake
+from objsearch.events.lake_table import TableLake
 from objsearch.pipeline.bags.engines import RayEngine
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.ingest import ingest
@@ -199,7 +199,7 @@ def wait_for(check: Callable[[], bool], what: str, timeout_s: float = 300.0) -> 
 
 
 def digests(lake: Path) -> list[tuple[str, str]]:
-    return sorted((r.run, r.digest) for r in Lake(lake, store=STORE).runs())
+    return sorted((r.run, r.digest) for r in TableLake(lake, store=STORE).runs())
 
 
 def main() -> int:

@@ -1,16 +1,17 @@
-"""How the lake's costs grow with the number of runs: per-run folders against the fleet table.
+"""How the fleet lake's costs grow with the number of runs.
 
-    python benchmarks/lake_fleet.py [--sizes 10,100,1000,10000] [--folder-sizes 10,100,1000]
-                                    [--reps 5] [--log tests/replay/golden/sim-wpl-updates]
+    python benchmarks/lake_fleet.py [--sizes 10,100,1000,10000] [--reps 5]
+                                    [--log tests/replay/golden/sim-wpl-updates]
 
-One real run (the golden log, 795 events of ten types, committed once) is the template; a lake
-of N runs holds N copies of it under other robot / date / run names, made cheaply: the fleet
-table gets the template's rows with new run columns, 500 runs a transaction, then is compacted
-(:meth:`TableLake.compact`); the per-run-folder lake (``objsearch.lake/1``, the old layout) gets
-copies of the template's folder with a rewritten manifest. What is timed, median of ``--reps``:
+One real run (the golden log, 795 events of ten types, added once) is the template; a lake of N
+runs holds N copies of it under other robot / date / run names, made cheaply: the fleet table
+gets the template's rows with new run columns, 500 runs a transaction, then is compacted
+(:meth:`TableLake.compact`). (The per-run-folder lake this was once compared with is read only by
+``lake upgrade`` now; its figures, measured before, are in docs/analytics.md.) What is timed,
+median of ``--reps``:
 
 * **setup**: ``open_analytics`` (what every ``objsearch query`` does before the SQL runs) and
-  closing it, per size and layout; the ratio of the largest fleet lake to the smallest
+  closing it, per size; the ratio of the largest fleet lake to the smallest
   (target ≤ 2);
 * **query**: a typical analyst query over the largest fleet lake as ``objsearch query`` runs it
   (``open_analytics(lake, for_sql=…)``, which makes only the views the query reads, +
@@ -33,7 +34,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
-import json
 import math
 import shutil
 import statistics
@@ -48,8 +48,6 @@ import pyarrow as pa
 from lake_writers import write_logs
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake import RUN_FILE, Lake, compact_log
-from objsearch.events.lake_digest import FILES_KEY, SELF_KEY, manifest_digest
 from objsearch.events.lake_table import TableLake, TableRun, add_log, run_parts
 from objsearch.events.sql_limits import close
 from objsearch.pipeline.bags.formats import BagFormat
@@ -88,7 +86,7 @@ def names(i: int) -> tuple[str, str, str]:
 
 def build_fleet(root: Path, template: Path, n: int) -> TableLake:
     lake = TableLake(root, store=STORE)
-    source = Lake(template, store=STORE)
+    source = TableLake(template, store=STORE)
     info = source.runs()[0]
     tables = source.read_tables(info)
     base = TableRun(info.robot, info.date, info.run, "c", dict(info.rows), info.digest, "bench")
@@ -118,20 +116,6 @@ def build_fleet(root: Path, template: Path, n: int) -> TableLake:
     lake.commit_many(pending)
     lake.compact(vacuum_hours=0)
     return lake
-
-
-def build_folders(root: Path, template: Path, n: int) -> None:
-    source = Lake(template, store=STORE).runs()[0]
-    for i in range(n):
-        robot, day, run = names(i)
-        target = root / f"robot={robot}" / f"date={day}" / f"run={run}"
-        shutil.copytree(source.path, target)
-        doc = json.loads((target / RUN_FILE).read_bytes())
-        doc.update(robot=robot, date=day, run=run)
-        doc.pop(SELF_KEY)
-        doc[SELF_KEY] = manifest_digest(doc)
-        assert FILES_KEY in doc
-        (target / RUN_FILE).write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
 
 
 def same(a: object, b: object) -> bool:
@@ -209,13 +193,11 @@ def already_there(work: Path, small: TableLake, large: TableLake, reps: int) -> 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--sizes", default="10,100,1000,10000")
-    ap.add_argument("--folder-sizes", default="10,100,1000")
     ap.add_argument("--reps", type=int, default=5)
     ap.add_argument("--log", default="tests/replay/golden/sim-wpl-updates")
     ap.add_argument("--add-events", type=int, default=1000)
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
-    folder_sizes = [int(s) for s in args.folder_sizes.split(",") if s]
     work = Path(tempfile.mkdtemp(prefix="objsearch-bench-lake-fleet-"))
     print(
         f"lake growth, {args.reps} reps, medians; command: python benchmarks/lake_fleet.py "
@@ -223,17 +205,8 @@ def main() -> int:
     )
     try:
         template = work / "template"
-        compact_log(Path(args.log), Lake(template, store=STORE), robot="t")
+        add_log(Path(args.log), TableLake(template, store=STORE), robot="t")
         print(f"{'runs':>7} {'layout':>14} {'build s':>9} {'files':>7} {'setup s':>9}")
-        folder_setup = {}
-        for n in folder_sizes:
-            root = work / f"folders-{n}"
-            started = time.perf_counter()
-            build_folders(root, template, n)
-            built = time.perf_counter() - started
-            files = sum(1 for _ in root.rglob("*.parquet"))
-            folder_setup[n] = setup_time(root, args.reps)
-            print(f"{n:>7} {'per-run folder':>14} {built:>9.1f} {files:>7} {folder_setup[n]:>9.3f}")
         fleet_setup = {}
         lakes = {}
         for n in sizes:
@@ -260,11 +233,6 @@ def main() -> int:
             print(
                 f"setup ({label}), in turn: {lo} runs {s_lo:.3f} s, {hi} runs {s_hi:.3f} s, "
                 f"ratio {s_hi / s_lo:.2f} (target ≤ 2)"
-            )
-        if len(folder_sizes) > 1:
-            a, b = min(folder_sizes), max(folder_sizes)
-            print(
-                f"setup, per-run folders: {b} runs / {a} runs = {folder_setup[b] / folder_setup[a]:.2f}"
             )
 
         big = work / f"fleet-{hi}"

@@ -60,12 +60,11 @@ import pyarrow.parquet as pq
 from . import _fs
 from .arrow import ENVELOPE_COLUMNS, event_schema, events_to_tables, tables_to_events
 from .derived import PARTITION_NAMES, derive_run, derived_tables
-from .envelope import Event
+from .envelope import Event, deterministic_event_id
 from .errors import EventStoreError
 from .lake import (
     ROW_GROUP_ROWS,
     LakeError,
-    RunInfo,
     _check_date,
     _check_name,
     _conform,
@@ -1670,9 +1669,12 @@ def add_log(
     run: str | None = None,
     date: str | dt.date | None = None,
     replace: bool = False,
+    progress: Callable[[Iterable[Event]], Iterable[Event]] | None = None,
 ) -> TableRun:
-    """Seal an event log into the fleet lake as one run (``run`` defaults to the log's stream);
-    as :func:`objsearch.events.lake.compact_log`, without reading any other run."""
+    """Seal an event log into the fleet lake as one run (``run`` defaults to the log's stream),
+    without reading any other run. Only a sealed log is added (its writer closed it); adding
+    it again unchanged is a no-op, after more appends it needs ``replace``. ``progress`` wraps
+    the events of each full read of the log (the CLI's progress line)."""
     log_dir = Path(log_dir)
     if _fs.is_locked(log_dir / LOCK_FILE):
         raise TableLakeError(
@@ -1698,8 +1700,19 @@ def add_log(
                 "adding it again would count its events twice"
             )
 
+    _refuse_runs_holding_events_of(log_dir, meta.id_key(), first.stream, lake, table, (robot, run))
+    reads = 0
+
+    def open_events() -> Iterator[Event]:
+        nonlocal reads
+        reads += 1
+        events = read_log(log_dir, store=lake.store)
+        if progress is None or reads == 1:  # the first read peeks at one event
+            return events
+        return iter(progress(events))
+
     return lake.commit_stream(
-        lambda: read_log(log_dir, store=lake.store),
+        open_events,
         robot=robot,
         run=run,
         date=date,
@@ -1710,53 +1723,34 @@ def add_log(
     )
 
 
-def migrate(
-    old_root: Path,
-    lake: TableLake,
-    *,
-    batch: int = 64,
-    progress: Callable[[list[RunInfo]], Iterable[RunInfo]] | None = None,
-) -> tuple[int, list[str]]:
-    """Copy every healthy run of a per-run-folder lake (``objsearch.lake/1``) into the fleet
-    table, ``batch`` runs a transaction; runs already there are skipped. Returns the runs
-    copied and the damaged ones left behind (each named). ``progress`` wraps the runs as they
-    are copied (the CLI's progress line)."""
-    from .lake import Lake
-
-    old = Lake(old_root, store=lake.store)
-    healthy, damaged = old.scan(check_digests=True)
-    lake.create()
-    known = {(r.robot, r.run) for r in lake.runs()}
-    pending: list[tuple[TableRun, dict[str, pa.Table]]] = []
-    copied = 0
-    for info in progress(healthy) if progress else healthy:
-        if (info.robot, info.run) in known:
+def _refuse_runs_holding_events_of(
+    log_dir: Path, id_key: str, stream: str, lake: TableLake, table: Any, target: tuple[str, str]
+) -> None:
+    """An event id is in the lake at most once: refuse a log some of whose events a run that
+    records no identity already holds (the pieces of a recording that started after
+    ``run_started``, ingested first: a bag session's provisional run). Its events carry the
+    log's own ids, uuid5(run id, seq). Only such runs are read, not every run."""
+    unnamed = lake._runs(table, pc.field(RUN_COLUMN, "identity") == "{}")
+    for other in unnamed:
+        if (other.robot, other.run) == target:
             continue
-        tables = old.read_tables(info)
-        attachments = {
-            p.name: p.read_text(encoding="utf-8")
-            for p in sorted(info.path.glob("_*"))
-            if p.is_file() and p.name != "_run.json"
-        }
-        run = TableRun(
-            robot=info.robot,
-            date=info.date,
-            run=info.run,
-            commit=_token(),
-            rows=dict(info.rows),
-            digest=table_digest(tables),  # the fleet lake's digest (the old one hashed differently)
-            source=info.source,
-            identity=dict(info.identity),
-            attachments=attachments,
-        )
-        pending.append((run, run_parts(tables, run, lake.store)))
-        if len(pending) >= batch:
-            lake.commit_many(pending)
-            copied += len(pending)
-            pending = []
-    lake.commit_many(pending)
-    copied += len(pending)
-    return copied, [f"{d.path}: {d.reason}" for d in damaged]
+        for part in lake.read_tables(other, table).values():
+            if not {"event_id", "seq", "stream"} <= set(part.column_names):
+                continue
+            for event_id, seq, of in zip(
+                part["event_id"].to_pylist(),
+                part["seq"].to_pylist(),
+                part["stream"].to_pylist(),
+                strict=True,
+            ):
+                if of == stream and event_id == deterministic_event_id(id_key, seq):
+                    raise TableLakeError(
+                        f"event log {log_dir} is already partly in the lake: run "
+                        f"{other.run!r} of robot {other.robot!r} (from {other.source}) holds its "
+                        f"event seq {seq} ({event_id}); adding the log would count those events "
+                        "twice. Take that run out of the lake first (the log holds every event "
+                        "the recording has)"
+                    )
 
 
 __all__ = [
@@ -1767,7 +1761,6 @@ __all__ = [
     "TableRun",
     "add_log",
     "is_table_lake",
-    "migrate",
     "run_parts",
     "run_rows",
     "table_schema",

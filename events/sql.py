@@ -1,10 +1,10 @@
 """DuckDB over the lake: one view per event type, and ``events`` with every event's envelope.
 
-Views read the Parquet files in place (nothing is copied into DuckDB) with the partition columns
-``robot`` (VARCHAR), ``date`` (DATE) and ``run`` (VARCHAR) added. A type without any file in the
-lake still gets its view, empty but with its typed columns, so queries never depend on which
-event types happen to have occurred. Views read every run through a glob, or, when some runs
-must be left out (damaged), the listed files of the others.
+Views read the fleet lake's data files in place (nothing is copied into DuckDB) with the run's
+columns ``robot`` (VARCHAR), ``date`` (DATE) and ``run`` (VARCHAR). A type without any file in
+the lake still gets its view, empty but with its typed columns, so queries never depend on which
+event types happen to have occurred. Views read the files the table lists, damaged ones left out
+(:func:`create_fleet_views`).
 
 :func:`lock_down` makes a connection the analysts' sandbox: it reads the lake's folder and
 nothing else, writes no file, loads no extension, and cannot change that (DuckDB's own settings);
@@ -24,11 +24,9 @@ import pyarrow as pa
 
 from .arrow import ENVELOPE_COLUMNS, event_schema
 from .errors import EventStoreError
-from .lake import Lake, RunInfo
 from .lake_table import DataFile, TableLake
 
 PARTITION_COLUMNS: Final = (("robot", "VARCHAR"), ("date", "DATE"), ("run", "VARCHAR"))
-HIVE_TYPES: Final = "{" + ", ".join(f"'{n}': '{t}'" for n, t in PARTITION_COLUMNS) + "}"
 _EXPLAIN: Final = re.compile(r"\s*EXPLAIN\s+(?:ANALY[SZ]E\s+)?", re.IGNORECASE)
 
 
@@ -44,66 +42,9 @@ def quote_literal(text: str) -> str:
     return "'" + text.replace("'", "''") + "'"
 
 
-def connect(
-    lake: Lake, *, database: str = ":memory:", runs: Sequence[RunInfo] | None = None
-) -> duckdb.DuckDBPyConnection:
-    """A DuckDB connection with the lake's views (in an in-memory database by default);
-    ``runs``, if given, are the only runs the views read."""
-    con = duckdb.connect(database)
-    create_type_views(con, lake, runs)
-    return con
-
-
-def parquet_source(
-    lake: Lake, name_in_run: str, runs: Sequence[RunInfo] | None, *, union_by_name: bool = False
-) -> str | None:
-    """``read_parquet(…)`` of the file ``name_in_run`` of every run (a glob), or of ``runs``
-    only (a list); None if none of ``runs`` has that file."""
-    if runs is None:
-        files = quote_literal(str(lake.root / "robot=*" / "date=*" / "run=*" / name_in_run))
-    else:
-        paths = [r.path / name_in_run for r in runs if (r.path / name_in_run).is_file()]
-        if not paths:
-            return None
-        files = "[" + ", ".join(quote_literal(str(p)) for p in paths) + "]"
-    extra = ", union_by_name = true" if union_by_name else ""
-    return f"read_parquet({files}, hive_partitioning = true, hive_types = {HIVE_TYPES}{extra})"
-
-
 # ``time``: the run's one clock (time_ns) as a real TIMESTAMP (UTC, microseconds). A bag run is on
 # the bag's clock (epoch); a simulated log's clock starts at 0, i.e. 1970-01-01.
 _TIME = "make_timestamp(time_ns // 1000) AS time"
-
-
-def create_type_views(
-    con: duckdb.DuckDBPyConnection, lake: Lake, runs: Sequence[RunInfo] | None = None
-) -> None:
-    present = set(lake.event_types()) if runs is None else {t for r in runs for t in r.rows}
-    envelope = ", ".join(quote_ident(f.name) for f in ENVELOPE_COLUMNS)
-    parts = []
-    for event_type in lake.store.registry.types:
-        view = quote_ident(event_type)
-        source = (
-            parquet_source(lake, f"{event_type}.parquet", runs, union_by_name=True)
-            if event_type in present
-            else None
-        )
-        if source is not None:
-            con.execute(f"CREATE OR REPLACE VIEW {view} AS SELECT *, {_TIME} FROM {source}")
-        else:
-            empty = pa.Table.from_pylist([], schema=event_schema(event_type, lake.store))
-            name = f"_empty_{event_type}"
-            con.register(name, empty)
-            partitions = ", ".join(f"NULL::{t} AS {n}" for n, t in PARTITION_COLUMNS)
-            con.execute(
-                f"CREATE OR REPLACE VIEW {view} AS SELECT *, {partitions}, {_TIME} "
-                f"FROM {quote_ident(name)}"
-            )
-        parts.append(
-            f"SELECT robot, date, run, {envelope}, time, {quote_literal(event_type)} AS type "
-            f"FROM {view}"
-        )
-    con.execute("CREATE OR REPLACE VIEW events AS " + "\nUNION ALL ".join(parts))
 
 
 def lock_down(con: duckdb.DuckDBPyConnection, readable: Sequence[Path]) -> None:
@@ -154,8 +95,8 @@ def create_fleet_views(
 ) -> None:
     """The per-type views and ``events`` over the fleet lake's table (:mod:`.lake_table`),
     reading ``files`` (its current data files, damaged ones left out): one ``read_parquet`` of
-    a few files per type, however many runs the table holds. Same columns as
-    :func:`create_type_views`. A remote lake's types are read through its Arrow datasets.
+    a few files per type, however many runs the table holds, with the run's columns ``robot``,
+    ``date``, ``run`` and every type's schema (the empty view of a type no file holds too). A remote lake's types are read through its Arrow datasets.
     ``only``, if given, names the views to make (types and ``events``; a remote ``events``
     makes every type's): creating a view binds it, which reads its files' footers. A remote
     lake's files are the ones given: the table is not loaded again (each load reads its log)."""

@@ -1,7 +1,7 @@
 """A small lake of real simulated runs to try the analytics on (examples/analytics.ipynb, its test).
 
 Each run is one (home, strategy, schedule seed): the bench's own job (experiments/runner.py) with
-its event log kept, then compacted into the lake as robot ``sim``, run ``<home>-<strategy>-s<seed>``.
+its event log kept, then added to a fleet lake as robot ``sim``, run ``<home>-<strategy>-s<seed>``.
 Seconds, not minutes: a few homes, scenes, targets and one start per search.
 
     python -m objsearch.experiments.sample_lake out/sample-lake
@@ -15,7 +15,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake import Lake, compact_log
+from objsearch.events.lake_folder_v1 import check_lake_location
+from objsearch.events.lake_table import TableLake, add_log
 from objsearch.experiments.runner import Job, run_job
 
 HOMES = ("ithor-01", "procthor-00")
@@ -37,10 +38,11 @@ def write_sample_lake(
     seeds: Sequence[int] = SEEDS,
     scenes: Sequence[int] = SCENES,
     targets: Sequence[str] = TARGETS,
-) -> Lake:
-    """Run every (home, strategy, seed) on ``stats-<seed>`` schedules and compact each log into
-    a lake at ``out``; returns the lake."""
-    lake = Lake(out, store=STORE)
+) -> TableLake:
+    """Run every (home, strategy, seed) on ``stats-<seed>`` schedules and add each log to a
+    fleet lake at ``out`` (new or empty); returns the lake."""
+    check_lake_location(out)
+    lake = TableLake(out, store=STORE)
     with tempfile.TemporaryDirectory(prefix="objsearch-sample-") as tmp:
         for home in homes:
             for strategy in strategies:
@@ -60,7 +62,7 @@ def write_sample_lake(
                             starts_per_search=1,
                         )
                     )
-                    compact_log(log, lake, robot="sim", run=name, date="2026-01-01")
+                    add_log(log, lake, robot="sim", run=name, date="2026-01-01")
     return lake
 
 

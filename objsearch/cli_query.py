@@ -219,10 +219,18 @@ def _remote(lake: str) -> bool:
     return "://" in lake
 
 
-def _is_fleet(lake: str) -> bool:
+def _existing_lake(where: str) -> None:
+    """Raise unless a fleet lake is at ``where``; a per-run-folder lake gets the migration's
+    command."""
+    from objsearch.events.lake import LakeError
+    from objsearch.events.lake_folder_v1 import refuse_folder_lake
     from objsearch.events.lake_table import is_table_lake
 
-    return is_table_lake(lake)
+    refuse_folder_lake(where)
+    if not is_table_lake(where):
+        raise LakeError(
+            f"no lake at {where} (add runs with `objsearch lake add LOG --lake {where}`)"
+        )
 
 
 def cmd_lake_add(args: argparse.Namespace) -> int:
@@ -240,50 +248,11 @@ def cmd_lake_add(args: argparse.Namespace) -> int:
 
 
 def _lake_add(args: argparse.Namespace) -> int:
-    from objsearch.events.lake import Lake, compact_log
-    from objsearch.product import STORE
-
-    if not (args.wait >= 0 and math.isfinite(args.wait)):
-        return _fail(f"--wait must be seconds ≥ 0, not {args.wait}")
-    if _remote(args.lake) or _is_fleet(args.lake):
-        return _lake_add_fleet(args)
-    if Path(args.lake).exists() and not Path(args.lake).is_dir():
-        return _fail(f"--lake {args.lake} is a file, not a lake folder")
-    try:
-        info = compact_log(
-            Path(args.log),
-            Lake(args.lake, lock_wait_s=args.wait, store=STORE),
-            robot=args.robot,
-            run=args.run,
-            date=args.date,
-            replace=args.replace,
-            progress=lambda events: t.progress(
-                events, "lake add", " events", enabled=not args.no_progress
-            ),
-        )
-    except OSError as exc:
-        return _fail(f"lake add: {exc.filename or args.lake}: {exc.strerror or exc}")
-    if args.format == "json":
-        doc = {
-            "path": str(info.path),
-            "robot": info.robot,
-            "date": info.date,
-            "run": info.run,
-            "events": info.events,
-            "rows": dict(info.rows),
-            "digest": info.digest,
-            "source": info.source,
-        }
-        print(json.dumps(doc, indent=2))
-        return 0
-    print(f"{info.path}: {info.events} events in {len(info.rows)} tables ({info.digest[:19]}…)")
-    return 0
-
-
-def _lake_add_fleet(args: argparse.Namespace) -> int:
+    from objsearch.events.lake_folder_v1 import check_lake_location
     from objsearch.events.lake_table import TableLake, add_log
     from objsearch.product import STORE
 
+    check_lake_location(args.lake)
     info = add_log(
         Path(args.log),
         TableLake(args.lake, store=STORE),
@@ -291,6 +260,9 @@ def _lake_add_fleet(args: argparse.Namespace) -> int:
         run=args.run,
         date=args.date,
         replace=args.replace,
+        progress=lambda events: t.progress(
+            events, "lake add", " events", enabled=not args.no_progress
+        ),
     )
     if args.format == "json":
         doc = {
@@ -317,11 +289,7 @@ def cmd_lake_compact(args: argparse.Namespace) -> int:
     from objsearch.events.lake_table import TableLake
     from objsearch.product import STORE
 
-    if not _is_fleet(args.lake):
-        return _fail(
-            f"{args.lake} is not a fleet lake (a Delta table); `objsearch lake upgrade --to "
-            "fleet` migrates a per-run-folder lake"
-        )
+    _existing_lake(args.lake)
     done = TableLake(args.lake, store=STORE).compact(vacuum_hours=args.keep_hours)
     print(
         f"{args.lake}: {done['files_before']} data file(s) → {done['files_after']}; "
@@ -331,33 +299,12 @@ def cmd_lake_compact(args: argparse.Namespace) -> int:
 
 
 def cmd_lake_upgrade(args: argparse.Namespace) -> int:
-    from objsearch.events.lake import Lake
-    from objsearch.product import STORE
-
-    if args.to == "fleet":
-        return _upgrade_to_fleet(args)
-    lake = Path(args.lake)
-    if not lake.is_dir():
-        return _fail(f"no lake at {lake}")
-    upgraded = Lake(lake, store=STORE).upgrade(
-        progress=lambda runs: t.progress(
-            runs, "lake upgrade", " runs", total=len(runs), enabled=not args.no_progress
-        )
-    )
-    for info in upgraded:
-        print(f"{info.path}: upgraded (derived tables and file digests)")
-    print(
-        f"{len(upgraded)} run(s) upgraded; every healthy run now has the current derived tables "
-        "and its files' digests"
-    )
-    return 0
-
-
-def _upgrade_to_fleet(args: argparse.Namespace) -> int:
     """Copy a per-run-folder lake's runs into a fleet table in the same folder (or --into)."""
+    import contextlib
     import shutil
 
-    from objsearch.events.lake_table import TableLake, migrate
+    from objsearch.events.lake_folder_v1 import check_lake_location, is_folder_lake, migrate
+    from objsearch.events.lake_table import TABLE_FORMAT, TableLake, is_table_lake
     from objsearch.product import STORE
 
     source = Path(args.lake)
@@ -372,86 +319,59 @@ def _upgrade_to_fleet(args: argparse.Namespace) -> int:
         TableLake(target, store=STORE).create()  # a new, empty fleet lake
         print(f"{target}: created an empty fleet lake")
         return 0
+    if not is_folder_lake(source):
+        if is_table_lake(source) and args.into is None:
+            print(f"{source}: already a fleet lake ({TABLE_FORMAT}); nothing to upgrade")
+            return 0
+        return _fail(f"{source} holds no per-run-folder lake to upgrade")
+    if args.into is not None:
+        check_lake_location(args.into)
     fleet = TableLake(target, store=STORE)
-    copied, damaged = migrate(
+    done = migrate(
         source,
         fleet,
         progress=lambda runs: t.progress(
             runs, "lake upgrade", " runs", enabled=not args.no_progress
         ),
     )
-    for line in damaged:
-        print(f"objsearch: warning: damaged run not copied: {line}", file=sys.stderr)
-    removed = 0
-    if args.into is None and not damaged:
-        # The runs live in the table now; their folders would only be read by older code.
-        for folder in sorted(source.glob("robot=*")):
+    for bad in done.damaged:
+        print(
+            f"objsearch: warning: damaged run not copied, left in place: {bad.path}: {bad.reason}",
+            file=sys.stderr,
+        )
+    for path in done.already:
+        print(
+            f"objsearch: warning: {path}: not copied, the fleet table holds a run of that robot "
+            "and name already; its folder is left in place",
+            file=sys.stderr,
+        )
+    if args.into is None:
+        # The copied runs live in the table now; their folders are what older code read.
+        for folder in done.copied:
             shutil.rmtree(folder)
-            removed += 1
+            for parent in (folder.parent, folder.parent.parent):
+                with contextlib.suppress(OSError):  # not empty: other runs are in it
+                    parent.rmdir()
+        # What the old writer kept beside the runs: its pid hint, its (empty) staging folder.
+        (source / ".writer").unlink(missing_ok=True)
+        with contextlib.suppress(OSError):  # not empty: a commit it never finished, left as is
+            (source / ".staging").rmdir()
     print(
-        f"{target}: {copied} run(s) copied into the fleet table ({len(fleet.runs())} in all)"
-        + (f"; the per-run folders of {removed} robot(s) removed" if removed else "")
-        + (f"; {len(damaged)} damaged run(s) left in place" if damaged else "")
+        f"{target}: {len(done.copied)} run(s) copied into the fleet table "
+        f"({len(fleet.runs())} in all)"
+        + ("" if args.into is not None or not done.copied else "; their folders removed")
+        + (f"; {len(done.damaged)} damaged run(s) left in place" if done.damaged else "")
+        + (f"; {len(done.already)} already there, left in place" if done.already else "")
     )
-    return 2 if damaged else 0
+    return EXIT_USAGE if done.damaged else 0
 
 
 def cmd_lake_verify(args: argparse.Namespace) -> int:
-    import time
-
-    from objsearch.events.lake import Lake
-    from objsearch.product import STORE
-
     if args.lake_dir is not None and args.lake is not None and args.lake_dir != args.lake:
         return _fail(f"two lakes given ({args.lake_dir} and --lake {args.lake}); give one")
     where = args.lake_dir or args.lake or _default_lake()
-    if _remote(where) or _is_fleet(where):
-        return _verify_fleet(where, args.format == "json", not args.no_progress)
-    lake = Path(where)
-    if not lake.is_dir():
-        return _fail(f"no lake at {lake}")
-    started = time.perf_counter()
-    check = Lake(lake, store=STORE).verify(
-        progress=lambda files: t.progress(
-            files, "lake verify", " files", enabled=not args.no_progress
-        )
-    )
-    seconds = time.perf_counter() - started
-    if args.format == "json":
-        doc = {
-            "lake": str(lake),
-            "runs": check.runs,
-            "files_checked": check.files,
-            "bytes_checked": check.bytes,
-            "seconds": round(seconds, 3),
-            "damaged": [
-                {"run": str(d.path), "problems": list(d.problems or (d.reason,))}
-                for d in check.damaged
-            ],
-            "without_digests": [str(p) for p in check.unverified],
-        }
-        print(json.dumps(doc, indent=2))
-    else:
-        for bad in check.damaged:
-            for problem in bad.problems or (bad.reason,):
-                print(f"DAMAGED  {bad.path}: {problem}")
-        for path in check.unverified:
-            print(
-                f"no digests  {path}: committed by older code; decoded in full, no digest to "
-                "compare (`objsearch lake upgrade` records them)"
-            )
-        print(
-            f"{check.runs} run(s), {check.files} file(s), {check.bytes / 1e6:.1f} MB checked in "
-            f"{seconds:.2f} s; {len(check.damaged)} damaged run(s)"
-        )
-    if check.damaged:
-        files = sum(len(d.problems or (d.reason,)) for d in check.damaged)
-        return _fail(
-            f"{files} damaged file(s) in {len(check.damaged)} run(s) of {lake}; queries leave "
-            "those runs out (`objsearch lake add LOG` of the same log restores such a run; see "
-            "docs/analytics.md)"
-        )
-    return 0
+    _existing_lake(where)
+    return _verify_fleet(where, args.format == "json", not args.no_progress)
 
 
 def _verify_fleet(where: str, as_json: bool, progress: bool) -> int:
@@ -491,24 +411,12 @@ def _verify_fleet(where: str, as_json: bool, progress: bool) -> int:
 
 
 def cmd_lake_ls(args: argparse.Namespace) -> int:
-    from objsearch.events.lake import Lake
+    from objsearch.events.lake_table import TableLake
     from objsearch.product import STORE
 
-    if _remote(args.lake) or _is_fleet(args.lake):
-        from objsearch.events.lake_table import TableLake
-
-        fleet = TableLake(args.lake, store=STORE)
-        rows = [(r.robot, r.date, r.run, r.events, r.source) for r in fleet.runs()]
-        write_rows(["robot", "date", "run", "events", "source"], rows, args.format, sys.stdout)
-        return 0
-    if not Path(args.lake).is_dir():  # as query says: listing nothing would hide a wrong path
-        return _fail(
-            f"no lake at {args.lake} (add runs with `objsearch lake add LOG --lake {args.lake}`)"
-        )
-    runs, damaged = Lake(args.lake, store=STORE).scan()
-    for run in damaged:
-        print(f"objsearch: warning: {run.path}: damaged run: {run.reason}", file=sys.stderr)
-    rows = [(r.robot, r.date, r.run, r.events, r.source) for r in runs]
+    _existing_lake(args.lake)  # as query says: listing nothing would hide a wrong path
+    fleet = TableLake(args.lake, store=STORE)
+    rows = [(r.robot, r.date, r.run, r.events, r.source) for r in fleet.runs()]
     write_rows(["robot", "date", "run", "events", "source"], rows, args.format, sys.stdout)
     return 0
 
@@ -575,13 +483,6 @@ def register(sub: Any) -> None:
     t.progress_option(add)
     t.format_option(add, "print the committed run as JSON")
     add.add_argument(
-        "--wait",
-        type=t.float_range(0.0, 3600.0),
-        default=30.0,
-        metavar="SECONDS",
-        help="how long to wait for another commit to the lake to finish (30; 0: fail at once)",
-    )
-    add.add_argument(
         "--lake",
         default=_default_lake(),
         type=t.dir_path,
@@ -617,29 +518,29 @@ def register(sub: Any) -> None:
     verify.set_defaults(func=cmd_lake_verify)
     upgrade = lake_sub.add_parser(
         "upgrade",
-        help="write what runs committed by older code lack: the derived tables (searches, "
-        "eq4_updates, scene_graph) and the files' digests; queries are correct without them, "
-        "only slower and less checked",
+        help="migrate a per-run-folder lake (objsearch.lake/1, written by older versions) into "
+        "the fleet lake: every healthy run is copied into one Delta Lake table (objsearch.lake/2) "
+        "and its folder removed; a damaged run is named and left in place",
     )
     upgrade.add_argument(
         "--lake",
         default=_default_lake(),
         type=t.dir_path,
-        help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})",
+        help=f"the per-run-folder lake ($OBJSEARCH_LAKE or {DEFAULT_LAKE}); on a missing folder, "
+        "an empty fleet lake is created",
     )
     upgrade.add_argument(
         "--to",
         choices=["fleet"],
-        help="fleet: copy every run into one Delta Lake table (objsearch.lake/2; one transaction "
-        "a run, many writers, object storage) and remove the per-run folders; on a missing "
-        "folder, create an empty fleet lake",
+        default="fleet",
+        help="the format to migrate to: fleet (the only one; the default)",
     )
     upgrade.add_argument(
         "--into",
         metavar="LAKE",
         type=t.text,
-        help="with --to fleet: write the fleet table there (a folder or s3://bucket/prefix) and "
-        "leave --lake as it is",
+        help="write the fleet table there (a folder or s3://bucket/prefix) and leave --lake as "
+        "it is",
     )
     t.progress_option(upgrade)
     upgrade.set_defaults(func=cmd_lake_upgrade)

@@ -1,32 +1,32 @@
-"""The lake-damage battery: damage a real lake's files every way a disk or a careless hand can,
-then ask it questions through the command line and hold it to "never answer wrong".
+"""The lake-damage battery: damage a real fleet lake's files every way a disk or a careless hand
+can, then ask it questions through the command line and hold it to "never answer wrong".
 
-A lake of a few runs is built with the real CLI from the bundled data (``objsearch search``, then
-``objsearch lake add``). Each variant is a copy of it with one kind of damage (:data:`KINDS`):
-bit flips inside data pages, in the footer or anywhere, a burst of bytes, a cut, a zeroed
-range, garbage appended, a file deleted, two runs' files swapped, one run's file copied over
-another's, a table re-encoded as valid Parquet with one value changed, a table added, a manifest
-flipped, cut or deleted, two run folders swapped. Then:
+The lake (one Delta table, :mod:`objsearch.events.lake_table`) holds three runs made with the
+real CLI from the bundled data (``objsearch search``, then one ``objsearch lake add`` a run, so a
+data file holds one run's rows of one type, as a fleet's files are between compactions). Each
+variant is a copy of it with one kind of damage (:data:`KINDS`): a data file's bytes (bit flips
+inside data pages, in the footer or anywhere, a burst of bytes, a cut, a zeroed range, garbage
+appended), a data file deleted or rewritten as valid Parquet with one value changed, or the
+table's log (a commit file's bit flipped, cut or deleted). Then:
 
 * ``objsearch query`` of every row of every view (each row hashed), and
 * ``objsearch lake verify --format json``.
 
 Each variant gets one verdict, the worst of:
 
-* **clear error** — the damage was reported (exit 2 with ``objsearch: error:``, or exit 0 with a
-  warning naming the damaged run) and the answer is exactly the intact lake's answer without
-  the runs named;
-* **unchanged** — nothing reported and the answer is the intact one (damage no reader sees: a
-  deleted derived table is recomputed from the events);
-* **traceback** — a Python traceback, or an exit status other than 0 and 2;
-* **silent change** — the answer differs and nothing said so, or ``lake verify`` names fewer
-  runs than the query left out;
-* **loss** — the damage was reported but rows of runs not named are missing or changed, a
-  healthy run was named, ``lake verify`` named more runs than the query left out, or a reader
-  changed a file of the lake.
+* **clear error** — the query failed with ``objsearch: error:``, or it warned that it left out the
+  damaged file, answered with the intact lake's rows less some (none changed, none added), and
+  ``lake verify`` named the file too;
+* **unchanged** — no warning and the intact answer (damage no reader sees);
+* **traceback** — a traceback, or an exit status other than 0 and 2;
+* **silent change** — the answer holds a row the intact lake does not, or lacks rows, and the
+  query said nothing; or the query left a file out that ``lake verify`` did not name;
+* **loss** — a healthy file was named damaged, or a reader changed a file of the lake.
 
-``benchmarks/lake_damage.py`` runs ≥ 200 variants and prints the counts;
-``tests/test_lake_battery.py`` runs one of every kind, and the control without digests.
+The lake leaves out the damaged *file* — one type of one run here, of many runs once compacted —
+so a clear error may answer with a run's other types still in (docs/analytics.md).
+``benchmarks/lake_damage.py`` runs many variants and prints the counts;
+``tests/test_lake_battery.py`` runs one of every kind.
 """
 
 from __future__ import annotations
@@ -48,19 +48,21 @@ import pyarrow.parquet as pq
 
 from objsearch.cli_battery import BatteryOutcome, run_in_process
 from objsearch.events.derived import derived_tables
-from objsearch.events.lake import RUN_FILE
-from objsearch.events.lake_digest import FILES_KEY, SELF_KEY
 from objsearch.product import STORE
 from objsearch.testing.killtest import tree
 
 COLUMNS = ("clear error", "unchanged", "traceback", "silent change", "loss")
 #: The runs of the battery's lake: (run name, target); every search starts in kitchen-1.
 RUNS = (("apple", "Apple"), ("cup", "Cup"), ("bowl", "Bowl"))
-_NAMED = re.compile(r"run=([A-Za-z0-9][A-Za-z0-9._-]*)")
+TABLE = "events"
+#: what the query's warning says: "…: damaged data file left out of every view: <file> has …" (the
+#: file relative to the table, then why).
+_LEFT_OUT = re.compile(r"damaged data file left out of every view: (type=[^\s:]+)")
 
 
 def build_lake(root: Path) -> Path:
-    """A lake of :data:`RUNS` made by the real CLI (one search each, then ``lake add``)."""
+    """A fleet lake of :data:`RUNS` made by the real CLI (one search each, then one ``lake add``
+    a run)."""
     lake = root / "lake"
     for run, target in RUNS:
         log = root / f"log-{run}"
@@ -108,53 +110,23 @@ def run_cli(argv: Sequence[str]) -> BatteryOutcome:
     return BatteryOutcome(outcome.code, outcome.stdout, outcome.stderr + lines.getvalue())
 
 
-def strip_digests(lake: Path) -> None:
-    """Rewrite every manifest as code before file digests wrote it."""
-    for manifest in lake.glob(f"robot=*/date=*/run=*/{RUN_FILE}"):
-        doc = json.loads(manifest.read_bytes())
-        for key in (FILES_KEY, SELF_KEY):
-            doc.pop(key, None)
-        manifest.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n", encoding="utf-8")
-
-
 # -- the kinds of damage ------------------------------------------------------------------------
 
 
 @dataclass(frozen=True, slots=True)
 class Damage:
-    """What a variant did: which runs it touched and how many files."""
+    """What a variant did: how many files it changed, and which."""
 
-    runs: frozenset[str]
     files: int
-    #: the files changed, relative to the lake's table (the fleet battery's; the folder
-    #: battery judges by runs)
+    #: the files changed, relative to the lake's table
     touched: frozenset[str] = frozenset()
 
 
 Kind = Callable[[random.Random, Path], Damage]
 
 
-def _run_dirs(lake: Path) -> list[Path]:
-    return sorted(p for p in lake.glob("robot=*/date=*/run=*") if p.is_dir())
-
-
-def _run_of(path: Path) -> str:
-    return next(p.name.removeprefix("run=") for p in path.parents if p.name.startswith("run="))
-
-
-def _tables(lake: Path) -> list[Path]:
-    return sorted(lake.glob("robot=*/date=*/run=*/*.parquet")) + sorted(
-        lake.glob("robot=*/date=*/run=*/_derived/*.parquet")
-    )
-
-
 def _footer_start(data: bytes | bytearray) -> int:
     return len(data) - 8 - int.from_bytes(data[-8:-4], "little")
-
-
-def _edit(path: Path, change: Callable[[bytearray], bytes | bytearray]) -> Damage:
-    path.write_bytes(bytes(change(bytearray(path.read_bytes()))))
-    return Damage(frozenset({_run_of(path)}), 1)
 
 
 def _flip(rng: random.Random, data: bytearray, lo: int, hi: int) -> bytearray:
@@ -163,8 +135,7 @@ def _flip(rng: random.Random, data: bytearray, lo: int, hi: int) -> bytearray:
     return data
 
 
-#: Damage to one file's bytes (the file given whole, returned changed); what the folder lake's
-#: and the fleet lake's batteries (:mod:`objsearch.fleet_battery`) both do to a Parquet file.
+#: Damage to one file's bytes (the file given whole, returned changed).
 Edit = Callable[[random.Random, bytearray], bytes | bytearray]
 
 
@@ -193,56 +164,6 @@ EDITS: dict[str, Edit] = {
 }
 
 
-def _edit_a_table(name: str) -> Kind:
-    edit = EDITS[name]
-
-    def kind(rng: random.Random, lake: Path) -> Damage:
-        return _edit(rng.choice(_tables(lake)), lambda d: edit(rng, d))
-
-    return kind
-
-
-def delete_file(rng: random.Random, lake: Path) -> Damage:
-    path = rng.choice(_tables(lake))
-    path.unlink()
-    return Damage(frozenset({_run_of(path)}), 1)
-
-
-def _pair(rng: random.Random, lake: Path) -> tuple[Path, Path]:
-    """The same table (by name in its run) in two different runs."""
-    runs = _run_dirs(lake)
-    while True:
-        a, b = rng.sample(runs, 2)
-        shared = sorted(
-            p.relative_to(a)
-            for p in _tables(lake)
-            if p.is_relative_to(a) and (b / p.relative_to(a)).is_file()
-        )
-        if shared:
-            name = rng.choice(shared)
-            return a / name, b / name
-
-
-def swap_between_runs(rng: random.Random, lake: Path) -> Damage:
-    a, b = _pair(rng, lake)
-    data_a, data_b = a.read_bytes(), b.read_bytes()
-    a.write_bytes(data_b)
-    b.write_bytes(data_a)
-    return Damage(frozenset({_run_of(a), _run_of(b)}), 2)
-
-
-def copy_from_other_run(rng: random.Random, lake: Path) -> Damage:
-    a, b = _pair(rng, lake)
-    a.write_bytes(b.read_bytes())
-    return Damage(frozenset({_run_of(a)}), 1)
-
-
-def rewrite_one_value(rng: random.Random, lake: Path) -> Damage:
-    """Valid Parquet (page checksums and all) whose one numeric value differs by one."""
-    path = one_value_changed(rng, _tables(lake))
-    return Damage(frozenset({_run_of(path)}), 1)
-
-
 def one_value_changed(rng: random.Random, files: Sequence[Path]) -> Path:
     """Rewrite one of ``files`` that has a top-level numeric column as valid Parquet (page
     checksums and all) with one value of it one more; returns the file."""
@@ -269,61 +190,73 @@ def one_value_changed(rng: random.Random, files: Sequence[Path]) -> Path:
     return path
 
 
-def add_table(rng: random.Random, lake: Path) -> Damage:
-    """A run gets an event table it did not commit: another run's table of a type it lacks if
-    there is one, else a copy of one of its own under another name."""
-    target = rng.choice(_run_dirs(lake))
-    donors = [
-        p for p in lake.glob("robot=*/date=*/run=*/*.parquet") if not (target / p.name).exists()
-    ]
-    if donors:
-        donor = rng.choice(sorted(donors))
-        shutil.copyfile(donor, target / donor.name)
-    else:
-        donor = rng.choice(sorted(target.glob("*.parquet")))
-        shutil.copyfile(donor, target / f"copy-{donor.name}")
-    return Damage(frozenset({_run_of(target / "x")}), 1)
+def _data_files(lake: Path) -> list[Path]:
+    return sorted((lake / TABLE).glob("type=*/*.parquet"))
 
 
-def _manifest(rng: random.Random, lake: Path) -> Path:
-    return rng.choice(_run_dirs(lake)) / RUN_FILE
+def _commits(lake: Path) -> list[Path]:
+    return sorted((lake / TABLE / "_delta_log").glob("*.json"))
 
 
-def manifest_bit_flip(rng: random.Random, lake: Path) -> Damage:
-    return _edit(_manifest(rng, lake), lambda d: _flip(rng, d, 0, len(d)))
+def _touched(lake: Path, *paths: Path) -> Damage:
+    return Damage(len(paths), frozenset(str(p.relative_to(lake / TABLE)) for p in paths))
 
 
-def manifest_truncate(rng: random.Random, lake: Path) -> Damage:
-    return _edit(_manifest(rng, lake), lambda d: d[: rng.randrange(0, len(d))])
+def _edit_a_data_file(name: str) -> Kind:
+    edit = EDITS[name]
+
+    def kind(rng: random.Random, lake: Path) -> Damage:
+        path = rng.choice(_data_files(lake))
+        path.write_bytes(bytes(edit(rng, bytearray(path.read_bytes()))))
+        return _touched(lake, path)
+
+    return kind
 
 
-def manifest_delete(rng: random.Random, lake: Path) -> Damage:
-    path = _manifest(rng, lake)
+def _delete_data_file(rng: random.Random, lake: Path) -> Damage:
+    path = rng.choice(_data_files(lake))
     path.unlink()
-    return Damage(frozenset({_run_of(path)}), 1)
+    return _touched(lake, path)
 
 
-def swap_run_folders(rng: random.Random, lake: Path) -> Damage:
-    a, b = rng.sample(_run_dirs(lake), 2)
-    tmp = a.with_name(a.name + ".swap")
-    a.rename(tmp)
-    b.rename(a)
-    tmp.rename(b)
-    return Damage(frozenset({_run_of(a / "x"), _run_of(b / "x")}), 2)
+def _one_value_changed(rng: random.Random, lake: Path) -> Damage:
+    return _touched(lake, one_value_changed(rng, _data_files(lake)))
+
+
+def _commit_bit_flip(rng: random.Random, lake: Path) -> Damage:
+    path = rng.choice(_commits(lake))
+    data = bytearray(path.read_bytes())
+    data[rng.randrange(len(data))] ^= 1 << rng.randrange(8)
+    path.write_bytes(bytes(data))
+    return _touched(lake, path)
+
+
+def _commit_truncated(rng: random.Random, lake: Path) -> Damage:
+    path = rng.choice(_commits(lake))
+    data = path.read_bytes()
+    path.write_bytes(data[: rng.randrange(0, len(data))])
+    return _touched(lake, path)
+
+
+def _commit_deleted(rng: random.Random, lake: Path) -> Damage:
+    path = rng.choice(_commits(lake))
+    path.unlink()
+    return _touched(lake, path)
 
 
 KINDS: dict[str, Kind] = {
-    **{name: _edit_a_table(name) for name in EDITS},
-    "file deleted": delete_file,
-    "swapped between runs": swap_between_runs,
-    "copied from another run": copy_from_other_run,
-    "valid Parquet, one value changed": rewrite_one_value,
-    "table added to a run": add_table,
-    "manifest bit flip": manifest_bit_flip,
-    "manifest truncated": manifest_truncate,
-    "manifest deleted": manifest_delete,
-    "run folders swapped": swap_run_folders,
+    **{name: _edit_a_data_file(name) for name in EDITS},
+    "file deleted": _delete_data_file,
+    "valid Parquet, one value changed": _one_value_changed,
+    "commit file bit flip": _commit_bit_flip,
+    "commit file truncated": _commit_truncated,
+    "commit file deleted": _commit_deleted,
 }
+
+
+def _named(stderr: str) -> set[str]:
+    """The data files the query's warnings say it left out, relative to the table."""
+    return {m.group(1) for m in _LEFT_OUT.finditer(stderr)}
 
 
 # -- judging ----------------------------------------------------------------------------------
@@ -347,15 +280,6 @@ def answer_rows(outcome: BatteryOutcome) -> list[tuple[str, str, str]]:
     return [(r["view"], r["run"], r["row"]) for r in json.loads(outcome.stdout)]
 
 
-def _named(stderr: str) -> set[str]:
-    """The runs the warnings name as left out (the first ``run=`` of a line is its folder)."""
-    return {
-        m.group(1)
-        for line in stderr.splitlines()
-        if "damaged run" in line and (m := _NAMED.search(line)) is not None
-    }
-
-
 def crashed(query: BatteryOutcome, verify: BatteryOutcome) -> tuple[str, str] | None:
     """The ``traceback`` verdict if either command printed one or exited other than 0 or 2."""
     for what, outcome in (("query", query), ("verify", verify)):
@@ -371,37 +295,36 @@ def judge(
     verify: BatteryOutcome,
     changed_by_reading: bool,
 ) -> tuple[str, str]:
-    """The verdict of one variant (:data:`COLUMNS`) and why."""
+    """The verdict of one variant (:data:`COLUMNS`) and why (see the module's docstring)."""
     crash = crashed(query, verify)
     if crash is not None:
         return crash
+    for what, outcome in (("query", query), ("verify", verify)):
+        if outcome.code == 2 and "objsearch: error: " not in outcome.stderr:
+            return "traceback", f"{what}: exit 2 without a clear error: {outcome.stderr[-300:]}"
     if changed_by_reading:
         return "loss", "a reader changed a file of the lake"
-    if verify.code == 2 and "objsearch: error: " not in verify.stderr:
-        return "traceback", f"verify: exit 2 without a clear error: {verify.stderr[-300:]}"
-    verified = {
-        _run_of(Path(d["run"]) / "x") for d in json.loads(verify.stdout or "{}").get("damaged", [])
-    }
+    if verify.code == 2 and not verify.stdout.strip():  # verify refused the lake outright
+        verified = set(damage.touched)
+    else:
+        verified = {d["file"] for d in json.loads(verify.stdout or "{}").get("damaged", [])}
     if query.code == 2:
-        if "objsearch: error: " not in query.stderr:
-            return "traceback", f"query: exit 2 without a clear error: {query.stderr[-300:]}"
         return "clear error", ""
     named = _named(query.stderr)
     answer = answer_rows(query)
-    expected = [r for r in intact if r[1] not in named]
     if not named:
         if answer != intact:
             return "silent change", "the answer changed without a word"
-        if verified:
-            return "loss", f"verify named {sorted(verified)}, the query none"
         return "unchanged", ""
-    if answer != expected:
-        return "loss", f"runs {sorted(named)} named, yet the other runs' rows differ"
-    if named - damage.runs:
-        return "loss", f"healthy runs named damaged: {sorted(named - damage.runs)}"
-    if verified != named:
-        verdict = "silent change" if named - verified else "loss"
-        return verdict, f"verify named {sorted(verified)}, the query {sorted(named)}"
+    if named - damage.touched:
+        return "loss", f"healthy files named damaged: {sorted(named - damage.touched)}"
+    if Counter(answer) - Counter(intact):
+        return "silent change", f"left out {sorted(named)}, yet answered rows the lake never held"
+    if not named <= verified:
+        return (
+            "silent change",
+            f"the query left out {sorted(named)}, verify named {sorted(verified)}",
+        )
     return "clear error", ""
 
 
@@ -411,19 +334,13 @@ def run_battery(
     *,
     per_kind: int,
     seed: int,
-    kinds: Sequence[str] | None = None,
-    without_digests: bool = False,
+    kinds: list[str] | None = None,
 ) -> Report:
-    """Try ``per_kind`` variants of every kind of damage on copies (under ``work``) of ``lake``
-    (made by :func:`build_lake`; left as it is).
-
-    ``without_digests`` takes the digests out of the copies' manifests first, as code before
-    them wrote them: the control that shows the battery sees what digests catch."""
+    """Try ``per_kind`` variants of every kind of :data:`KINDS` on copies (under ``work``)
+    of ``lake`` (made by :func:`build_lake`; left as it is)."""
     intact_lake = work / "intact"
     shutil.rmtree(intact_lake, ignore_errors=True)
     shutil.copytree(lake, intact_lake)
-    if without_digests:
-        strip_digests(intact_lake)
     return try_variants(
         intact_lake,
         work,
@@ -431,18 +348,7 @@ def run_battery(
         kinds or list(KINDS),
         per_kind=per_kind,
         seed=seed,
-        judge=lambda intact, damage, query, verify, changed, _variant: judge(
-            intact, damage, query, verify, changed
-        ),
     )
-
-
-#: A verdict on one damaged lake: (intact rows, the damage, query, verify, whether reading
-#: changed the lake, the damaged lake's folder) → (verdict, why).
-Judge = Callable[
-    [list[tuple[str, str, str]], Damage, BatteryOutcome, BatteryOutcome, bool, Path],
-    tuple[str, str],
-]
 
 
 def try_variants(
@@ -453,12 +359,10 @@ def try_variants(
     *,
     per_kind: int,
     seed: int,
-    judge: Judge,
 ) -> Report:
-    """The battery's one loop, for the folder lake and the fleet lake alike: ask the intact lake,
-    then for each kind of ``names`` (from ``table``) damage ``per_kind`` copies of it (under
-    ``work``), ask each copy ``objsearch query`` of every row and ``objsearch lake verify``, and
-    count ``judge``'s verdicts."""
+    """The battery's loop: ask the intact lake, then for each kind of ``names`` (from ``table``)
+    damage ``per_kind`` copies of it (under ``work``), ask each copy ``objsearch query`` of
+    every row and ``objsearch lake verify``, and count :func:`judge`'s verdicts."""
     sql = every_row_sql()
     baseline = run_cli(["query", "--lake", str(intact_lake), "--format", "json", sql])
     if baseline.code != 0 or run_cli(["lake", "verify", str(intact_lake)]).code != 0:
@@ -476,7 +380,7 @@ def try_variants(
             before = tree(lake)
             query = run_cli(["query", "--lake", str(lake), "--format", "json", sql])
             verify = run_cli(["lake", "verify", str(lake), "--format", "json"])
-            verdict, why = judge(intact, damage, query, verify, tree(lake) != before, lake)
+            verdict, why = judge(intact, damage, query, verify, tree(lake) != before)
             report.tried += 1
             report.files += damage.files
             report.counts[verdict] += 1

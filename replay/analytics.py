@@ -14,8 +14,8 @@ Convenience views (one row per …):
 
 ``searches``, ``eq4_updates`` and ``scene_graph`` read the tables each run derived when it was
 committed (:mod:`objsearch.events.derived`; the SQL of the Eq. 4 ones is the agent's,
-:mod:`objsearch.agent.scene_graph_sql`); a run without them gets the same rows from its events
-through the same SQL (see :func:`create_views`).
+:mod:`objsearch.agent.scene_graph_sql`); when no run has a derived table at its current version
+(older code wrote them), the view is the same SQL over the events, live (see :func:`_open_fleet`).
 
 Table macros ``scene_graph_at_seq(s)`` and ``scene_graph_at_time(t_ns)`` give Rel as it was right
 after seq ``s`` (or the last event with ``time_ns <= t_ns``) of every run, computed with the closed
@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import logging
 import re
-from collections.abc import Collection, Iterator, Mapping, Sequence
+from collections.abc import Collection, Iterator, Mapping
 from pathlib import Path
 from typing import Any, Final
 
@@ -44,17 +44,16 @@ import duckdb
 
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.scene_graph_sql import LIMIT_SEQ, LIMIT_TIME, SCENE_GRAPH_BODY
-from objsearch.events import EventStoreError, lake_table
-from objsearch.events.derived import DERIVED_DIR, DerivedTable, derived_tables
-from objsearch.events.lake import DamagedRun, Lake, RunInfo, deep_check
+from objsearch.events import lake_table
+from objsearch.events.derived import derived_tables
+from objsearch.events.lake import LakeError
+from objsearch.events.lake_folder_v1 import refuse_folder_lake
 from objsearch.events.lake_table import TableLake, derived_column, derived_kind, is_table_lake
 from objsearch.events.sql import (
     check_read_only,
-    connect,
     create_fleet_views,
     fleet_source,
     lock_down,
-    parquet_source,
     quote_ident,
 )
 from objsearch.events.sql_limits import (
@@ -88,33 +87,6 @@ SELECT d.robot, d.date, d.run, d.task_id, d.seq, d.time_ns, s.target,
 FROM detection d
 LEFT JOIN task_started s ON s.robot = d.robot AND s.run = d.run AND s.task_id = d.task_id
 """
-
-_LEGACY: Final = "_legacy"  # schema of the type views restricted to runs without derived tables
-
-
-def create_views(
-    con: duckdb.DuckDBPyConnection, lake: Lake, runs: Sequence[RunInfo] | None = None
-) -> None:
-    """Add the convenience views and scene-graph macros to a connection with the type views.
-
-    ``searches`` and ``eq4_updates`` read each run's derived table
-    (:mod:`objsearch.events.derived`); runs that lack it at its current version (written by
-    older code) get the same rows computed from their events by the same SQL, so a mixed lake
-    answers exactly like an upgraded one, only slower. Which runs lack it is decided now: open a
-    new connection after committing runs with older code. ``runs``, if given, are the only runs
-    the views read (the type views must have been made with the same).
-    """
-    only = runs
-    runs = lake.runs() if only is None else list(only)
-    legacy = sorted({(r.robot, r.run) for r in runs if r.missing_derived()})
-    if legacy:
-        _create_legacy_views(con, legacy)
-    for spec in derived_tables(STORE):
-        con.execute(
-            f"CREATE OR REPLACE VIEW {spec.name} AS "
-            + _derived_source(lake, spec, any(not r.missing_derived() for r in runs), legacy, only)
-        )
-    _common_views(con)
 
 
 def _common_ddl() -> dict[str, str]:
@@ -177,43 +149,6 @@ def views_for(sql: str, definitions: Mapping[str, str]) -> set[str] | None:
     return needed
 
 
-def _create_legacy_views(con: duckdb.DuckDBPyConnection, legacy: list[tuple[str, str]]) -> None:
-    con.execute(f"CREATE SCHEMA IF NOT EXISTS {_LEGACY}")
-    con.execute(f"CREATE OR REPLACE TABLE {_LEGACY}._runs (robot VARCHAR, run VARCHAR)")
-    con.executemany(f"INSERT INTO {_LEGACY}._runs VALUES (?, ?)", legacy)
-    for event_type in STORE.registry.types:
-        view = quote_ident(event_type)
-        con.execute(
-            f"CREATE OR REPLACE VIEW {_LEGACY}.{view} AS SELECT t.* FROM main.{view} t "
-            f"SEMI JOIN {_LEGACY}._runs USING (robot, run)"
-        )
-    for spec in derived_tables(STORE):
-        # A view in the legacy schema binds the type names to that schema's (filtered) views.
-        con.execute(f"CREATE OR REPLACE VIEW {_LEGACY}.{spec.name} AS {spec.sql}")
-
-
-def _derived_source(
-    lake: Lake,
-    spec: DerivedTable,
-    any_derived: bool,
-    legacy: list[tuple[str, str]],
-    only: Sequence[RunInfo] | None,
-) -> str:
-    parts = []
-    source = parquet_source(lake, f"{DERIVED_DIR}/{spec.file_name}", only)
-    if any_derived and source is not None:
-        files = f"SELECT * FROM {source}"
-        # A run missing any derived table is computed live for all of them (scene_graph reads
-        # eq4_updates), so its files that do exist are skipped rather than counted twice.
-        parts.append(f"{files} ANTI JOIN {_LEGACY}._runs USING (robot, run)" if legacy else files)
-    if legacy:
-        parts.append(f"SELECT * FROM {_LEGACY}.{spec.name}")
-    if not parts:  # no runs at all: the live query over the (empty) type views
-        parts.append(spec.sql)
-    body = " UNION ALL BY NAME ".join(f"({p})" for p in parts)
-    return f"SELECT robot, date, run, * EXCLUDE (robot, date, run) FROM ({body})"
-
-
 def open_analytics(
     lake_dir: Path | str,
     *,
@@ -226,63 +161,27 @@ def open_analytics(
     bounded (:mod:`~objsearch.events.sql_limits`: ``memory_limit`` bytes of buffers, ``threads``,
     spill space in a private temp directory; :func:`run_query` bounds the time).
 
-    Every file of every run is checked against the digest its commit recorded before a view
-    reads it (DuckDB checks no page checksum). A damaged run (unreadable manifest, a file
-    missing, cut, or failing its digest) is left out of every view with a warning naming it and
-    its damaged files, so the other runs still answer. A run committed before digests existed
-    gets only the cheap checks, with one warning. A commit a killed writer left half done is
-    finished first if no writer holds the lake.
+    ``lake_dir`` is a fleet lake (:mod:`objsearch.events.lake_table`): a folder or an ``s3://``
+    address. A per-run-folder lake is refused (``objsearch lake upgrade`` migrates it), and so
+    is a place that holds no lake. The checks of the table's data files and what a damaged
+    one costs the views are :func:`_open_fleet`'s.
 
-    ``for_sql``: on a fleet lake, make only the views and macros this query reads (what
+    ``for_sql``: make only the views and macros this query reads (what
     ``objsearch query`` does: every view made is bound, which reads its files' footers, so a
     query pays for the views it uses, not for all thirty).
     """
-    if is_table_lake(lake_dir):
-        return _open_fleet(
-            TableLake(
-                lake_dir if "://" in str(lake_dir) else Path(lake_dir).absolute(), store=STORE
-            ),
-            memory_limit=memory_limit,
-            threads=threads,
-            for_sql=for_sql,
+    refuse_folder_lake(lake_dir)
+    remote = "://" in str(lake_dir)
+    if not is_table_lake(lake_dir):
+        raise LakeError(
+            f"no lake at {lake_dir} (add runs with `objsearch lake add LOG --lake {lake_dir}`)"
         )
-    lake = Lake(Path(lake_dir).absolute(), store=STORE)
-    if lake.needs_recovery():
-        try:
-            lake.recover()
-        except (OSError, EventStoreError) as exc:
-            _log.warning("%s: could not finish an interrupted commit: %s", lake.root, exc)
-    runs, damaged = lake.scan(check_digests=True)
-    unchecked = [r for r in runs if not r.files]
-    if unchecked:
-        _log.warning(
-            "%s: %d run(s) committed before file digests are read with only a cheap check (%s); "
-            "`objsearch lake upgrade` records their digests",
-            lake.root,
-            len(unchecked),
-            ", ".join(f"{r.robot}/{r.run}" for r in unchecked[:3])
-            + (", …" if len(unchecked) > 3 else ""),
-        )
-    try:
-        con = _views(lake, runs, restricted=bool(damaged))
-    except duckdb.Error:
-        # Damage the 8-byte check cannot see: parse every footer, leave out what fails, retry.
-        more = [
-            DamagedRun(r.path, why)
-            for r in runs
-            if (why := deep_check(r, digests_checked=True)) is not None
-        ]
-        if not more:
-            raise
-        left_out = {d.path for d in more}
-        runs = [r for r in runs if r.path not in left_out]
-        damaged += more
-        con = _views(lake, runs, restricted=True)
-    for run in damaged:
-        _log.warning("%s: damaged run left out of every view: %s", run.path, run.reason)
-    apply_limits(con, memory_limit=memory_limit, threads=threads)
-    lock_down(con, [lake.root])
-    return con
+    return _open_fleet(
+        TableLake(lake_dir if remote else Path(lake_dir).absolute(), store=STORE),
+        memory_limit=memory_limit,
+        threads=threads,
+        for_sql=for_sql,
+    )
 
 
 def _open_fleet(
@@ -334,13 +233,6 @@ def _open_fleet(
     _common_views(con, only)
     apply_limits(con, memory_limit=memory_limit, threads=threads)
     lock_down(con, [] if lake.remote else [Path(lake.root)])
-    return con
-
-
-def _views(lake: Lake, runs: list[RunInfo], *, restricted: bool) -> duckdb.DuckDBPyConnection:
-    only = runs if restricted else None
-    con = connect(lake, runs=only)
-    create_views(con, lake, only)
     return con
 
 

@@ -1,51 +1,26 @@
-"""Where replay, audit and ``where`` read events from: an agent's log folder, or one run of a
-lake — a folder lake (a folder a run) or a fleet lake (one Delta table, in a folder or at an
-``s3://`` address)."""
+"""Where replay, audit and ``where`` read events from: an agent's log folder, or one run of the
+fleet lake (one Delta table, in a folder or at an ``s3://`` address). A per-run-folder lake is
+refused: ``objsearch lake upgrade`` migrates it."""
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Iterable
 from pathlib import Path
-from typing import TypeVar
 
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.errors import ObjsearchError
 from objsearch.events import Event, read_log
-from objsearch.events.lake import Lake, RunInfo, deep_check
+from objsearch.events.lake_folder_v1 import refuse_folder_lake
 from objsearch.events.lake_table import TableLake, TableRun, is_table_lake
-
-_log = logging.getLogger(__name__)
-_Run = TypeVar("_Run", RunInfo, TableRun)
 
 
 def is_log(path: Path) -> bool:
     return (path / "meta.json").exists()
 
 
-def lake_run(path: Path, *, run: str | None = None, robot: str | None = None) -> RunInfo:
-    """The one run of the lake at ``path`` that ``run`` / ``robot`` select; damaged runs are
-    left out with a warning, and selecting one is an error that names it."""
-    lake = Lake(path, store=STORE)
-    if lake.needs_recovery():
-        lake.recover()
-    healthy, damaged = lake.scan()
-    for bad in damaged:
-        if (
-            run is not None
-            and bad.path.name == f"run={run}"
-            and (robot is None or bad.path.parent.parent.name == f"robot={robot}")
-        ):
-            raise ObjsearchError(f"run {run!r} in the lake {path} is damaged: {bad.reason}")
-        _log.warning("%s: damaged run left out: %s", bad.path, bad.reason)
-    info = _one_run(healthy, path, run=run, robot=robot)
-    problem = deep_check(info)
-    if problem is not None:
-        raise ObjsearchError(f"run {info.run!r} in the lake {path} is damaged: {problem}")
-    return info
-
-
-def _one_run(runs: list[_Run], where: Path | str, *, run: str | None, robot: str | None) -> _Run:
+def _one_run(
+    runs: list[TableRun], where: Path | str, *, run: str | None, robot: str | None
+) -> TableRun:
     """The one of a lake's ``runs`` that ``run`` / ``robot`` select, or an error that says what
     there is to choose from."""
     chosen = [
@@ -107,7 +82,5 @@ def open_events(
         if run is not None or robot is not None:
             raise ObjsearchError(f"{path} is an event log, not a lake: --run/--robot do not apply")
         return read_log(path, store=STORE), str(path)
-    info = lake_run(path, run=run, robot=robot)
-    return agent_events(
-        Lake(path, store=STORE).read_events(info)
-    ), f"{path} ({info.robot}/{info.run})"
+    refuse_folder_lake(path)
+    raise ObjsearchError(f"{path} is neither an event log (no meta.json) nor a lake")

@@ -35,7 +35,7 @@ _SERVER: Final = r"""
 import json, os, signal, sys, traceback
 import duckdb, pyarrow.parquet
 import objsearch.cli, objsearch.cli_query, objsearch.cli_bags
-import objsearch.events.lake, objsearch.pipeline.bags.ingest, objsearch.pipeline.bags.read
+import objsearch.events.lake_table, objsearch.pipeline.bags.ingest, objsearch.pipeline.bags.read
 import objsearch.replay.analytics, rosbags.highlevel, tqdm
 import numpy.ma  # imported on first use by np.unique (a bag's pose tracks)
 import objsearch.product  # the relation models lake add folds with (the agent's strategies)

@@ -256,6 +256,7 @@ class _Terminal(io.StringIO):
 
 
 GOLDEN = REPO / "tests" / "replay" / "golden" / "sim-wpl-updates"
+FOLDER_LAKE = Path(__file__).parent / "events" / "fixtures" / "lake-v1" / "lake"
 
 
 @pytest.mark.parametrize(
@@ -265,7 +266,7 @@ GOLDEN = REPO / "tests" / "replay" / "golden" / "sim-wpl-updates"
         (["log", "repair", "COPY"], "log repair"),
         (["lake", "add", str(GOLDEN), "--robot", "sim", "--lake", "LAKE"], "lake add"),
         (["lake", "verify", "FILLED"], "lake verify"),
-        (["lake", "upgrade", "--lake", "FILLED", "--to", "fleet"], "lake upgrade"),
+        (["lake", "upgrade", "--lake", "OLD"], "lake upgrade"),
         (["liveview", str(GOLDEN), "--mcap", "MCAP"], "liveview"),
         (["graph", str(GOLDEN)], "graph"),
         (["where", "Cup", str(GOLDEN), "--at", "last"], "where"),
@@ -278,6 +279,9 @@ def test_long_commands_draw_progress_on_a_terminal_only(
     places = {"LAKE": tmp_path / "lake", "MCAP": tmp_path / "view.mcap", "COPY": tmp_path / "log"}
     if "COPY" in command:
         shutil.copytree(GOLDEN, places["COPY"])
+    if "OLD" in command:  # a per-run-folder lake, as the last version that wrote one left it
+        places["OLD"] = tmp_path / "old"
+        shutil.copytree(FOLDER_LAKE, places["OLD"])
     if "FILLED" in command:
         places["FILLED"] = tmp_path / "filled"
         add = ["lake", "add", str(GOLDEN), "--robot", "sim", "--lake", str(places["FILLED"])]

@@ -1,5 +1,6 @@
-"""``objsearch lake upgrade --to fleet`` / ``add`` / ``ls`` / ``verify`` / ``compact`` and
-``objsearch query`` over the fleet lake, in process."""
+"""``objsearch lake add`` / ``ls`` / ``verify`` / ``compact`` and ``objsearch query`` over the
+fleet lake (the default: a missing ``--lake`` folder becomes one), in process. The migration of a
+per-run-folder lake and the other commands' refusal of one: tests/events/test_lake_folder_v1.py."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import pytest
 from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
 from objsearch.events import EventLog
-from objsearch.events.lake import Lake, compact_log
+from objsearch.events.lake_table import is_table_lake
 
 EVENTS = 4
 
@@ -24,14 +25,11 @@ def small_log(directory: Path, *, stream: str) -> Path:
     return directory
 
 
-def test_upgrade_add_ls_verify_compact_query(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
+def test_add_ls_verify_compact_query(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     lake = str(tmp_path / "lake")
-    compact_log(small_log(tmp_path / "a", stream="a"), Lake(lake, store=STORE), robot="r")
-    assert main(["lake", "upgrade", "--to", "fleet", "--lake", lake]) == 0
-    assert "1 run(s) copied" in capsys.readouterr().out
-    assert not list(Path(lake).glob("robot=*"))
+    log_a = small_log(tmp_path / "a", stream="a")
+    assert main(["lake", "add", str(log_a), "--robot", "r", "--lake", lake]) == 0
+    assert is_table_lake(lake)
     log_b = small_log(tmp_path / "b", stream="b")
     assert main(["lake", "add", str(log_b), "--robot", "r", "--lake", lake]) == 0
     assert main(["lake", "add", str(log_b), "--robot", "r", "--lake", lake]) == 0  # no-op
@@ -58,7 +56,6 @@ def test_the_sandbox_holds_over_the_fleet_lake(
     tmp_path: Path, sql: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
     lake = str(tmp_path / "lake")
-    assert main(["lake", "upgrade", "--to", "fleet", "--lake", lake]) == 0
     assert (
         main(
             [
@@ -80,11 +77,18 @@ def test_the_sandbox_holds_over_the_fleet_lake(
     assert not out.exists()
 
 
-def test_compact_refuses_a_per_run_folder_lake(
+def test_a_folder_that_is_neither_a_fleet_lake_nor_empty_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    compact_log(
-        small_log(tmp_path / "a", stream="a"), Lake(tmp_path / "lake", store=STORE), robot="r"
+    folder = tmp_path / "lake"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("mine\n")
+    log = str(small_log(tmp_path / "a", stream="a"))
+    assert main(["lake", "add", log, "--robot", "r", "--lake", str(folder)]) == 2
+    assert (
+        f"objsearch: error: {folder} is neither a fleet lake nor empty" in capsys.readouterr().err
     )
-    assert main(["lake", "compact", "--lake", str(tmp_path / "lake")]) == 2
-    assert "upgrade --to fleet" in capsys.readouterr().err
+    assert [p.name for p in folder.iterdir()] == ["notes.txt"]
+    assert main(["lake", "ls", "--lake", str(tmp_path / "missing")]) == 2
+    assert "no lake at" in capsys.readouterr().err
+    assert not (tmp_path / "missing").exists()

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import contextlib
 import io
-import json
 import random
 import shutil
 import struct
@@ -55,7 +54,7 @@ class Ingested:
     code: int | None  # None: it raised (a traceback)
     stdout: str
     stderr: str
-    report: Mapping[str, Any] | None  # the manifest's report (``_bags/<id>.json``)
+    report: Mapping[str, Any] | None  # the report the lake recorded of the bag
     lake_rows: Mapping[str, int]  # events in the lake per source topic
 
 
@@ -187,7 +186,8 @@ def _renames(bag: Path, fmt: BagFormat) -> list[Variant]:
 def ingest_cli(bag: Path, lake: Path, main: Callable[[list[str]], int]) -> Ingested:
     """``objsearch ingest BAG --lake LAKE`` in this process through the CLI's ``main`` (the
     caller's: the pipeline does not import the CLI), its output captured."""
-    from objsearch.pipeline.bags.lake import MANIFESTS, BagLake
+    from objsearch.events.lake_table import is_table_lake
+    from objsearch.pipeline.bags.lake import FleetBagLake
 
     out, err = io.StringIO(), io.StringIO()
     code: int | None
@@ -199,12 +199,13 @@ def ingest_cli(bag: Path, lake: Path, main: Callable[[list[str]], int]) -> Inges
         except BaseException:
             traceback.print_exc()
             code = None
-    manifests = sorted((lake / MANIFESTS).glob("*.json")) if lake.exists() else []
-    report = json.loads(manifests[0].read_text())["report"] if manifests else None
+    fleet = FleetBagLake(lake) if is_table_lake(lake) else None
+    docs = list(fleet.piece_docs().values()) if fleet is not None else []
+    report = docs[0].get("report") if docs else None
     rows: Counter[str] = Counter()
-    if report is not None:
+    if fleet is not None and report is not None:
         events_topic = TopicMap().topic_for(Role.EVENTS)
-        for e in BagLake(lake).events():
+        for e in fleet.events():
             if e.stream.startswith("bag:"):
                 rows[str(e.payload.get("topic", "?"))] += 1
             else:

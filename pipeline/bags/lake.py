@@ -1,14 +1,14 @@
-"""Where ingested bags go: the event lake (:mod:`objsearch.events.lake`), one run per recording.
+"""Where ingested bags go: the fleet lake (:mod:`objsearch.events.lake_table`), one run per
+recording.
 
 Ingest needs three things of the lake, behind the :class:`LakeWriter` seam: which bags are in it
 already (``known_pieces``, handed to workers so they skip those bags without reading them), to
 keep the report of a bag that made no run, and to commit a bag into its run (``commit_piece``).
-:class:`BagLake` does them with the event store's lake, so bags and compacted agent logs share
-one layout, one set of typed Parquet tables and one set of DuckDB views::
-
-    LAKE/robot=<robot>/date=<YYYY-MM-DD>/run=bag-<16 hex>/<event type>.parquet, _run.json
-    LAKE/robot=<robot>/date=<YYYY-MM-DD>/run=bag-<16 hex>/_ingest.json   the session and reports
-    LAKE/_bags/<bag id>.json          a copy of each piece's report, found by bag id
+:class:`FleetBagLake` does them with the fleet lake's Delta table (in a folder or a bucket), so
+bags and added agent logs share one table, one set of columns and one set of DuckDB views: a
+bag's run is ``run = bag-<16 hex>`` in it, and its ingest record (the session and every piece's
+report) the run's ``_ingest.json`` attachment; a bag that makes no run is recorded in a row of
+its own.
 
 A run holds one recording session (:mod:`~objsearch.pipeline.bags.session`): ``bag-`` and the
 agent run id's first 16 hex digits when its events prove it, else its lowest agent event id's
@@ -17,13 +17,11 @@ events and no session's receive times around it). A piece whose agent run the la
 than as this robot's bag session (a compacted log, another robot's) is refused naming that run:
 an event id is in the lake at most once.
 
-The folder lake commits a run atomically (staging folder, fsync, rename), so a reader sees all of
-a bag or none of it; committing a bag twice is a no-op. :class:`FleetBagLake` does the same in the
-fleet lake (a Delta table, in a folder or a bucket) with one transaction a bag, merges included
-(see the class); :func:`open_bag_lake` picks the lake by its address. The ingest report (what was read, skipped,
-salvaged) is committed inside the run, so a run never lacks it; its copy in ``_bags/`` is written
-after the run, under the same lake lock, and restored from the run by any later ingest of that
-bag if a crash came between the two.
+A bag's run, its report and the runs merged into it are one Delta transaction, so a reader sees
+all of a bag or none of it; committing a bag twice is a no-op (see :class:`FleetBagLake`).
+:func:`open_bag_lake` opens the lake at an address, refusing a per-run-folder lake
+(``objsearch lake upgrade`` migrates it). The session logic is :class:`_SessionLake`'s, kept
+apart from the table's reads and commit.
 """
 
 from __future__ import annotations
@@ -43,21 +41,19 @@ from typing import Any, Protocol
 import polars as pl
 import pyarrow as pa
 import pyarrow.compute as pc
-import pyarrow.parquet as pq
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events import Event, EventStoreError, _fs
-from objsearch.events.lake import Lake, RunInfo
+from objsearch.events import Event, EventStoreError
+from objsearch.events.lake_folder_v1 import check_lake_location
 from objsearch.events.lake_table import (
     COMMIT_TRIES,
     STAMP_INDEX_APP,
     TableLake,
     TableRaceLost,
     TableRun,
-    is_table_lake,
 )
 from objsearch.pipeline.bags.clock import fit_clock, pairs_from_doc
-from objsearch.pipeline.bags.errors import BagCommitError, BagConfigError
+from objsearch.pipeline.bags.errors import BagCommitError
 from objsearch.pipeline.bags.session import (
     DERIVED_PREFIX,
     FirstEvent,
@@ -73,7 +69,6 @@ from objsearch.pipeline.bags.session import (
     spans_of,
 )
 
-MANIFESTS = "_bags"
 RUN_PREFIX = "bag-"
 RUN_REPORT = "_ingest.json"  # the report's copy inside the run, committed with it
 
@@ -166,7 +161,7 @@ def run_name(bag_id: str) -> str:
 
 @dataclass(frozen=True, slots=True)
 class _SessionRun:
-    info: RunInfo | TableRun
+    info: TableRun
     doc: Mapping[str, Any]  # its _ingest.json: {"session": {...}, "pieces": {bag id: manifest}}
 
     @property
@@ -208,12 +203,12 @@ class _SessionRun:
         return {str(self.doc["bag_id"]): self.doc} if "bag_id" in self.doc else {}
 
 
-def open_bag_lake(root: Path | str) -> BagLake | FleetBagLake:
-    """The lake ingest writes to at ``root``: the fleet lake (:class:`FleetBagLake`) for an
-    object-store URI or a folder holding one, else the per-run-folder lake (:class:`BagLake`)."""
-    if "://" in str(root) or is_table_lake(root):
-        return FleetBagLake(root)
-    return BagLake(Path(root))
+def open_bag_lake(root: Path | str) -> FleetBagLake:
+    """The fleet lake ingest writes to at ``root`` (an object-store URI or a folder): one that
+    is there, or a new one in a missing or empty folder. A per-run-folder lake is refused
+    (``objsearch lake upgrade`` migrates it), and so is a folder holding anything else."""
+    check_lake_location(root)
+    return FleetBagLake(root)
 
 
 class _SessionLake(ABC):
@@ -221,21 +216,21 @@ class _SessionLake(ABC):
     hooks below are each lake's reads and its commit."""
 
     @abstractmethod
-    def _all_runs(self) -> Sequence[RunInfo | TableRun]: ...
+    def _all_runs(self) -> Sequence[TableRun]: ...
 
     @abstractmethod
-    def _run_doc(self, info: RunInfo | TableRun) -> bytes | str | None:
+    def _run_doc(self, info: TableRun) -> bytes | str | None:
         """A bag run's ``_ingest.json`` (None if it has none)."""
         ...
 
     @abstractmethod
-    def _read(self, info: RunInfo | TableRun) -> Mapping[str, pa.Table]: ...
+    def _read(self, info: TableRun) -> Mapping[str, pa.Table]: ...
 
     @abstractmethod
-    def _held_ids(self, info: RunInfo | TableRun) -> set[str]: ...
+    def _held_ids(self, info: TableRun) -> set[str]: ...
 
     @abstractmethod
-    def _where(self, info: RunInfo | TableRun) -> Path | None:
+    def _where(self, info: TableRun) -> Path | None:
         """A run's folder (None in the fleet lake: its rows are in the table)."""
         ...
 
@@ -262,7 +257,7 @@ class _SessionLake(ABC):
     @abstractmethod
     def restore_report(self, bag_id: str) -> bool: ...
 
-    def _sessions(self, runs: Sequence[RunInfo | TableRun] | None = None) -> list[_SessionRun]:
+    def _sessions(self, runs: Sequence[TableRun] | None = None) -> list[_SessionRun]:
         """Every bag run with its ingest record."""
         found = []
         for info in self._all_runs() if runs is None else runs:
@@ -377,7 +372,7 @@ class _SessionLake(ABC):
         return Commit(piece.bag_id, where, events - before, new=True, run=run, note=note)
 
     @staticmethod
-    def _proven_run_id(first: FirstEvent | None, runs: Sequence[RunInfo | TableRun]) -> str | None:
+    def _proven_run_id(first: FirstEvent | None, runs: Sequence[TableRun]) -> str | None:
         """The run id, among those the lake's runs record (bag sessions and compacted logs),
         that the piece's lowest event id proves it belongs to."""
         if first is None:
@@ -387,7 +382,7 @@ class _SessionLake(ABC):
 
     @staticmethod
     def _refuse_other_holder(
-        piece: Piece, run_id: str, robot: str, runs: Sequence[RunInfo | TableRun]
+        piece: Piece, run_id: str, robot: str, runs: Sequence[TableRun]
     ) -> None:
         """A run id the lake holds other than as this robot's bag session: refused."""
         for other in runs:
@@ -401,9 +396,7 @@ class _SessionLake(ABC):
                 f"({other.source}); ingesting it would count its events twice"
             )
 
-    def _refuse_held_ids(
-        self, piece: Piece, rows: pl.DataFrame, runs: Sequence[RunInfo | TableRun]
-    ) -> None:
+    def _refuse_held_ids(self, piece: Piece, rows: pl.DataFrame, runs: Sequence[TableRun]) -> None:
         """A piece whose run nothing proves, whose event ids a run that is no bag session
         holds (a compacted log that records no run id): refused naming that run."""
         ids = set(rows["event_id"].to_list())
@@ -485,202 +478,6 @@ class _SessionLake(ABC):
         return doc
 
 
-class BagLake(_SessionLake):
-    """:class:`LakeWriter` over the event store's per-run-folder :class:`~objsearch.events.lake.Lake`."""
-
-    asks_by_bag_id = False
-
-    def __init__(self, root: Path) -> None:
-        self.root = Path(root)
-        if is_table_lake(self.root):
-            # Its runs would land beside the table as folders no fleet query reads.
-            raise BagConfigError(
-                f"{self.root} is a fleet lake (a Delta table): ingest into it through "
-                "FleetBagLake (open_bag_lake chooses)"
-            )
-        self.lake = Lake(self.root, store=STORE)
-
-    def _all_runs(self) -> Sequence[RunInfo]:
-        return self.lake.runs()
-
-    def _run_doc(self, info: RunInfo | TableRun) -> bytes | str | None:
-        assert isinstance(info, RunInfo)
-        return (info.path / RUN_REPORT).read_bytes()
-
-    def _read(self, info: RunInfo | TableRun) -> Mapping[str, pa.Table]:
-        assert isinstance(info, RunInfo)
-        return self.lake.read_tables(info)
-
-    def _held_ids(self, info: RunInfo | TableRun) -> set[str]:
-        assert isinstance(info, RunInfo)
-        return _event_ids(info)
-
-    def _where(self, info: RunInfo | TableRun) -> Path | None:
-        assert isinstance(info, RunInfo)
-        return info.path
-
-    def _store(
-        self,
-        tables: Mapping[str, pa.Table],
-        *,
-        robot: str,
-        run: str,
-        source: str,
-        existing: _SessionRun | None,
-        absorbed: Sequence[_SessionRun],
-        doc: Mapping[str, Any],
-        identity: Mapping[str, str],
-    ) -> Path | None:
-        info = self.lake.commit_tables(
-            tables,
-            robot=robot,
-            run=run,
-            date=_date(tables),
-            source=source,
-            replace=existing is not None,
-            attachments={RUN_REPORT: _json(doc)},
-            identity=identity,
-        )
-        for s in absorbed:
-            assert isinstance(s.info, RunInfo)
-            self.lake.remove_run(s.info)
-        for bag_id, piece_doc in doc["pieces"].items():
-            self._write_report(bag_id, _json(piece_doc))
-        return info.path
-
-    def known_pieces(self) -> dict[str, str]:
-        """Bag id → the converter key it was read with, for every bag the lake has taken (from
-        ``_bags/``: one small file a bag)."""
-        known = {}
-        for path in sorted((self.root / MANIFESTS).glob("*.json")):
-            try:
-                doc = json.loads(path.read_bytes())
-            except (OSError, ValueError):
-                continue
-            if isinstance(doc, dict):
-                known[path.stem] = str(doc.get("converter", ""))
-        return known
-
-    def pieces_known(self, bag_ids: Sequence[str], converter: str) -> Mapping[str, str] | None:
-        """None: this lake lists its bags (:meth:`known_pieces`)."""
-        return None
-
-    def complete_merges(self) -> list[str]:
-        """Finish what a commit killed between its steps left, and return the runs removed: a
-        run absorbed into its session's run but not yet removed (all its pieces are in a larger
-        run of the same robot, which holds their events), and pieces' copies in ``_bags/``
-        still naming the run they were in before."""
-        if not any(self._unfinished(self._sessions())):  # nothing to finish: take no lock
-            return []
-        try:
-            with self.lake.locked():
-                sessions = self._sessions()
-                stale, moved = self._unfinished(sessions)
-                for s in stale:
-                    assert isinstance(s.info, RunInfo)
-                    self.lake.remove_run(s.info)
-                for bag_id, doc in moved.items():
-                    self._write_report(bag_id, _json(doc))
-        except (OSError, EventStoreError) as exc:
-            raise BagCommitError(
-                f"finishing an interrupted merge in {self.root} failed: {exc}"
-            ) from exc
-        for s in stale:
-            _log.warning(
-                "%s: removed run %s, merged into its session's run by a commit that was "
-                "interrupted before it removed it",
-                self.root,
-                s.info.run,
-            )
-        return [s.info.run for s in stale]
-
-    def _unfinished(
-        self, sessions: Sequence[_SessionRun]
-    ) -> tuple[list[_SessionRun], dict[str, Mapping[str, Any]]]:
-        """Runs whose pieces a larger run of their robot holds, and the ``_bags/`` copies (bag
-        id → the doc to write) whose run is not the one that holds them now."""
-
-        def key(s: _SessionRun) -> tuple[str, str, str]:
-            return s.info.robot, s.info.date, s.info.run
-
-        pieces = {key(s): set(s.pieces) for s in sessions}
-        stale = [
-            s
-            for s in sessions
-            if pieces[key(s)]
-            and any(
-                o.info.robot == s.info.robot and pieces[key(s)] < pieces[key(o)] for o in sessions
-            )
-        ]
-        moved: dict[str, Mapping[str, Any]] = {}
-        for s in sessions:
-            if s in stale or "pieces" not in s.doc:
-                continue
-            for bag_id, doc in s.pieces.items():
-                try:
-                    copy = json.loads((self.root / MANIFESTS / f"{bag_id}.json").read_bytes())
-                except (OSError, ValueError):
-                    continue  # a missing copy is restore_report's to write
-                if isinstance(copy, dict) and copy.get("run") != s.info.run:
-                    moved[bag_id] = doc
-        return stale, moved
-
-    def commit_piece(self, piece: Piece, *, robot: str) -> Commit:
-        """Commit a bag into its session's run, under the lake's lock: a new run, or the
-        session's run replaced by the merge of what it held and this piece (absorbing
-        provisional runs of the session's later pieces). See :mod:`..session`."""
-        try:
-            with self.lake.locked():
-                return self._commit_locked(piece, robot)
-        except (OSError, EventStoreError) as exc:
-            raise BagCommitError(
-                f"committing bag {piece.bag_id[:16]} to {self.root} failed: {exc}"
-            ) from exc
-
-    def record_without_run(self, bag_id: str, report: dict[str, Any]) -> None:
-        """Keep the report of a bag that made no run (nothing in it to keep): what it claimed and
-        lost is still accounted for in ``_bags/<bag id>.json``, with ``run`` null."""
-        doc = {"bag_id": bag_id, "robot": None, "run": None, "events": 0, "report": report}
-        try:
-            with self.lake.locked():
-                self._write_report(bag_id, _json(doc))
-        except (OSError, EventStoreError) as exc:
-            raise BagCommitError(f"writing the report of bag {bag_id[:16]} failed: {exc}") from exc
-
-    def restore_report(self, bag_id: str) -> bool:
-        """Write ``_bags/<bag id>.json`` from the run's record if a crash left it out; returns
-        whether it did."""
-        report = self.root / MANIFESTS / f"{bag_id}.json"
-        if report.exists():
-            return False
-        docs = [s.pieces[bag_id] for s in self._sessions() if bag_id in s.pieces]
-        if not docs:
-            return False
-        try:
-            with self.lake.locked():
-                if report.exists():
-                    return False
-                self._write_report(bag_id, _json(docs[0]))
-        except (OSError, EventStoreError) as exc:
-            raise BagCommitError(
-                f"restoring the report of bag {bag_id[:16]} failed: {exc}"
-            ) from exc
-        _log.warning(
-            "%s: restored the missing report of bag %s from its run", self.root, bag_id[:16]
-        )
-        return True
-
-    def _write_report(self, bag_id: str, data: bytes) -> None:
-        _fs.make_dirs(self.root / MANIFESTS)
-        _fs.write_atomic(self.root / MANIFESTS / f"{bag_id}.json", data)
-
-    def events(self) -> Iterator[Event]:
-        """Every event of every ingested bag (tests and small lakes; analysts use DuckDB)."""
-        for info in self.lake.runs():
-            if info.run.startswith(RUN_PREFIX):
-                yield from self.lake.read_events(info)
-
-
 #: The application transaction every bag commit of a robot carries (``objsearch/bags/<robot>``):
 #: two ingests of one robot's bags decide their commits from the table one at a time, as the
 #: folder lake's lock makes them.
@@ -730,18 +527,18 @@ class FleetBagLake(_SessionLake):
     def _all_runs(self) -> Sequence[TableRun]:
         return self.lake.runs(self._current())
 
-    def _run_doc(self, info: RunInfo | TableRun) -> bytes | str | None:
+    def _run_doc(self, info: TableRun) -> bytes | str | None:
         assert isinstance(info, TableRun)
         return info.attachments.get(RUN_REPORT)
 
-    def _read(self, info: RunInfo | TableRun) -> Mapping[str, pa.Table]:
+    def _read(self, info: TableRun) -> Mapping[str, pa.Table]:
         assert isinstance(info, TableRun)
         return self.lake.read_tables(info, self._current())
 
-    def _held_ids(self, info: RunInfo | TableRun) -> set[str]:
+    def _held_ids(self, info: TableRun) -> set[str]:
         return {str(i) for t in self._read(info).values() for i in t["event_id"].to_pylist()}
 
-    def _where(self, info: RunInfo | TableRun) -> Path | None:
+    def _where(self, info: TableRun) -> Path | None:
         return None
 
     def _store(
@@ -782,16 +579,20 @@ class FleetBagLake(_SessionLake):
     def known_pieces(self) -> dict[str, str]:
         """Bag id → the converter key it was read with, for every bag the lake has taken: the
         pieces its bag runs record, and the bags recorded outside any run."""
+        return {bag_id: str(doc.get("converter", "")) for bag_id, doc in self.piece_docs().items()}
+
+    def piece_docs(self) -> dict[str, Mapping[str, Any]]:
+        """Bag id → what the lake recorded of it (its ``report``, ``run``, ``converter``, …),
+        for every bag the lake has taken."""
         self._table = None
         table = self._current()
-        known = {}
+        docs: dict[str, Mapping[str, Any]] = {}
         for bag_id, text in self.lake.bag_records(table).items():
             doc = json.loads(text)
-            known[bag_id] = str(doc.get("converter", "")) if isinstance(doc, dict) else ""
+            docs[bag_id] = doc if isinstance(doc, dict) else {}
         for s in self._sessions(self.lake.runs(table)):
-            for bag_id, piece in s.pieces.items():
-                known[bag_id] = str(piece.get("converter", ""))
-        return dict(sorted(known.items()))
+            docs.update(s.pieces)
+        return dict(sorted(docs.items()))
 
     def pieces_known(self, bag_ids: Sequence[str], converter: str) -> Mapping[str, str] | None:
         """Bag id → ``converter`` for those of ``bag_ids`` the lake holds read with it (the
@@ -860,13 +661,6 @@ def _date(tables: Mapping[str, pa.Table]) -> dt.date:
     starts = [pc.min(t["time_ns"]).as_py() for t in tables.values() if t.num_rows]
     first = min((s for s in starts if s is not None), default=0)
     return dt.datetime.fromtimestamp(first / 1e9, dt.UTC).date()
-
-
-def _event_ids(run: RunInfo) -> set[str]:
-    ids: set[str] = set()
-    for path in sorted(run.path.glob("*.parquet")):
-        ids.update(pq.read_table(path, columns=["event_id"])["event_id"].to_pylist())
-    return ids
 
 
 def _json(doc: Mapping[str, Any]) -> bytes:

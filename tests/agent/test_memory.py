@@ -188,6 +188,9 @@ def test_where_refuses_what_it_cannot_answer_from(
     lake = tmp_path / "lake"
     lake.mkdir()
     assert main(["where", "Cup", str(lake)]) == 2
+    assert "neither an event log (no meta.json) nor a lake" in capsys.readouterr().err
+    assert main(["lake", "upgrade", "--lake", str(tmp_path / "empty")]) == 0  # an empty fleet lake
+    assert main(["where", "Cup", str(tmp_path / "empty")]) == 2
     assert "holds no runs" in capsys.readouterr().err
     other = tmp_path / "other-log"
     _run(other, "wpl", scenes=(1,))

@@ -12,7 +12,7 @@ from objsearch.agent.session import Session, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import STRATEGIES, RunSpec
 from objsearch.events import CorruptLogError, EventLog, fold, read_log
-from objsearch.events.lake import Lake, compact_log
+from objsearch.events.lake_table import TableLake, add_log
 from objsearch.replay.analytics import open_analytics
 from objsearch.replay.audit import audit
 from objsearch.replay.decisions import replay
@@ -50,8 +50,8 @@ def test_replay_audit_live_view_and_lake_fold_as_the_agent_did(tmp_path: Path, n
     view.fold(read_log(log, store=STORE))
     assert view.agent.graph().as_table() == rel
 
-    lake = Lake(tmp_path / "lake", store=STORE)
-    compact_log(log, lake, robot="sim", run=name)
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    add_log(log, lake, robot="sim", run=name)
     con = open_analytics(lake.root)
     rows = con.sql("SELECT dynamic, static, rel FROM scene_graph").fetchall()
     if agent.run.relations.model == "eq4":  # the closed form is Eq. 4's, and agrees with the fold
@@ -114,8 +114,8 @@ def test_a_task_left_open_by_a_crash_is_aborted_on_restart_and_its_id_never_reus
     )
     assert aborted[0].payload["path_length"] == pytest.approx(moved, abs=1e-4)
 
-    lake = Lake(tmp_path / "lake", store=STORE)
-    compact_log(log, lake, robot="sim", run="r")
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    add_log(log, lake, robot="sim", run="r")
     con = open_analytics(lake.root)
     rows = con.sql("SELECT task_id, success, aborted FROM searches ORDER BY task_id").fetchall()
     assert rows == [
@@ -226,8 +226,8 @@ def test_sigkill_mid_schedule_then_restart_never_repeats_a_task(
     closed = [str(e.task_id) for e in events if e.type in ("task_ended", "task_aborted")]
     assert len(started) == len(set(started))  # no task id ever repeats
     assert sorted(closed) == sorted(started)  # every task ends exactly once, aborted or not
-    lake = Lake(tmp_path / "lake", store=STORE)
-    compact_log(log, lake, robot="sim", run="r")
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    add_log(log, lake, robot="sim", run="r")
     rows = open_analytics(lake.root).execute(
         "SELECT count(*), count(DISTINCT task_id) FROM searches"
     )

@@ -1,5 +1,6 @@
 """The fleet lake (one Delta table, one transaction a run): commit, idempotency, replace,
-removal, damage, many writers, plain readers, and the same answers as the per-run-folder lake."""
+removal, damage, many writers, plain readers. (Its answers equal the per-run-folder lake's after
+``lake upgrade``: test_lake_folder_v1.py.)"""
 
 from __future__ import annotations
 
@@ -19,7 +20,6 @@ from deltalake import DeltaTable
 from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog, read_log
 from objsearch.events.arrow import events_to_tables
-from objsearch.events.lake import Lake, compact_log
 from objsearch.events.lake_table import (
     IDENTITY_INDEX_APP,
     TABLE_DIR,
@@ -27,7 +27,6 @@ from objsearch.events.lake_table import (
     TableLakeError,
     add_log,
     is_table_lake,
-    migrate,
     run_parts,
     table_schema,
 )
@@ -98,39 +97,6 @@ def test_a_table_made_before_the_identity_index_still_refuses_the_same_log(
     add_log(small_log(tmp_path / "log"), lake, robot="r", run="one")
     with pytest.raises(TableLakeError, match="already in the lake as run 'one'"):
         add_log(tmp_path / "log", lake, robot="r", run="two")
-
-
-def test_views_answer_as_the_per_run_folder_lake_after_upgrade(tmp_path: Path) -> None:
-    old = tmp_path / "old"
-    compact_log(GOLDEN / "sim-wpl-updates", Lake(old, store=STORE), robot="sim")
-    compact_log(small_log(tmp_path / "log"), Lake(old, store=STORE), robot="r2d2")
-    queries = [
-        "SELECT robot, run, type, count(*) FROM events GROUP BY ALL ORDER BY ALL",
-        "SELECT * FROM searches ORDER BY ALL",
-        "SELECT * FROM scene_graph ORDER BY ALL",
-        "SELECT * FROM scene_graph_at_seq(300) ORDER BY ALL",
-        "SELECT * FROM detections ORDER BY ALL",
-        "SELECT * FROM plans ORDER BY ALL",
-    ]
-    con = open_analytics(old)
-    want = [run_query(con, q)[1] for q in queries]
-    close(con)
-    fleet = TableLake(tmp_path / "fleet", store=STORE)
-    copied, damaged = migrate(old, fleet)
-    assert (copied, damaged) == (2, [])
-    assert migrate(old, fleet) == (0, [])  # runs already there are skipped
-    con = open_analytics(tmp_path / "fleet")
-    try:
-        assert [run_query(con, q)[1] for q in queries] == want
-    finally:
-        close(con)
-    # What `objsearch query` does: only the views (and macros) the query reads, the same answers.
-    for query, rows in zip(queries, want, strict=True):
-        con = open_analytics(tmp_path / "fleet", for_sql=query)
-        try:
-            assert run_query(con, query)[1] == rows, query
-        finally:
-            close(con)
 
 
 def test_a_query_gets_the_views_it_reads_and_those_they_read() -> None:

@@ -4,6 +4,7 @@ endpoint and credentials from the standard AWS_* variables, as a fleet points at
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import threading
@@ -19,13 +20,14 @@ import pytest
 
 from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog
-from objsearch.events.lake import Lake, compact_log
 from objsearch.events.lake_table import TableLake, add_log, is_table_lake
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query
 from objsearch.testing.s3server import stalled
 
 from .lake_logs import COMPACTING_WRITER, check_two_compactions_at_once
+
+FOLDER_LAKE = Path(__file__).parent / "fixtures" / "lake-v1" / "lake"
 
 
 def small_log(directory: Path, *, stream: str, n: int = 3) -> Path:
@@ -96,15 +98,21 @@ def test_the_cli_migrates_a_folder_lake_into_the_bucket_and_queries_it(
     from objsearch.cli import main
 
     folder = tmp_path / "lake"
-    compact_log(small_log(tmp_path / "a", stream="a"), Lake(folder, store=STORE), robot="r")
-    assert main(["lake", "upgrade", "--to", "fleet", "--lake", str(folder), "--into", bucket]) == 0
-    assert Lake(folder, store=STORE).runs() != []  # --into leaves the folder as it was
+    shutil.copytree(FOLDER_LAKE, folder)  # written by the last code that wrote the format
+    before = sorted(p.relative_to(folder) for p in folder.rglob("*"))
+    assert main(["lake", "upgrade", "--lake", str(folder), "--into", bucket]) == 0
+    assert sorted(p.relative_to(folder) for p in folder.rglob("*")) == before  # left as it was
     log_b = small_log(tmp_path / "b", stream="b", n=2)
     assert main(["lake", "add", str(log_b), "--robot", "r", "--lake", bucket]) == 0
     capsys.readouterr()
-    sql = "SELECT run, count(*) AS n FROM events GROUP BY 1 ORDER BY 1"
+    sql = "SELECT robot, run FROM events GROUP BY ALL ORDER BY ALL"
     assert main(["query", "--lake", bucket, "--format", "csv", sql]) == 0
-    assert capsys.readouterr().out.splitlines() == ["run,n", "a,3", "b,2"]
+    assert capsys.readouterr().out.splitlines() == [
+        "robot,run",
+        "r,b",
+        "r2d2,run-a",
+        "sim,robot",
+    ]
 
 
 @pytest.mark.slow

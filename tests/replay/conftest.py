@@ -11,7 +11,7 @@ from objsearch.agent.catalogue import STORE, DayClock
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
-from objsearch.events.lake import Lake, compact_log
+from objsearch.events.lake_table import TableLake, add_log
 from objsearch.sim.placements import Schedule
 from objsearch.sim.world import SimClock, SimWorld
 
@@ -50,8 +50,8 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 @pytest.fixture(scope="session")
-def lake(tmp_path_factory: pytest.TempPathFactory, logs: dict[str, Path]) -> Lake:
-    lake = Lake(tmp_path_factory.mktemp("lake"), store=STORE)
+def lake(tmp_path_factory: pytest.TempPathFactory, logs: dict[str, Path]) -> TableLake:
+    lake = TableLake(tmp_path_factory.mktemp("lake"), store=STORE)
     for log_dir in logs.values():
-        compact_log(log_dir, lake, robot="sim")
+        add_log(log_dir, lake, robot="sim")
     return lake

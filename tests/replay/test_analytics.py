@@ -4,47 +4,26 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
 from pathlib import Path
 
 import duckdb
-import pyarrow.parquet as pq
 import pytest
 
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.scene_graph import SceneGraphProjection
-from objsearch.agent.scene_graph_sql import EQ4_UPDATES
 from objsearch.cli import main
 from objsearch.events import fold, read_log
-from objsearch.events.arrow import events_to_tables
-from objsearch.events.derived import DERIVED_DIR, derived_tables
-from objsearch.events.lake import Lake
+from objsearch.events.derived import derived_tables
+from objsearch.events.lake_table import TableLake
 from objsearch.replay.analytics import open_analytics
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "analytics.md"
 QUESTIONS = re.findall(r"### (\d+)\. [^\n]*\n.*?```sql\n(.*?)```", DOC.read_text(), re.S)
 
 
-def _without_derived(lake: Lake, root: Path, runs: set[str]) -> Lake:
-    """A copy of ``lake`` as older code wrote it: ``runs`` have no derived tables."""
-    shutil.copytree(lake.root, root)
-    copy = Lake(root, store=STORE)
-    for info in copy.runs():
-        if info.run in runs:
-            shutil.rmtree(info.path / DERIVED_DIR)
-    return copy
-
-
-# Every test below runs on the lake as committed (derived tables), as older code wrote it (none:
-# every view computes from the events) and mixed, so both paths must give the same answers.
-@pytest.fixture(scope="module", params=["derived", "legacy", "mixed"])
-def con(
-    request: pytest.FixtureRequest, lake: Lake, tmp_path_factory: pytest.TempPathFactory
-) -> duckdb.DuckDBPyConnection:
-    if request.param == "derived":
-        return open_analytics(lake.root)
-    runs = {"robot", "targets"} if request.param == "legacy" else {"targets"}
-    return open_analytics(_without_derived(lake, tmp_path_factory.mktemp("lake") / "l", runs).root)
+@pytest.fixture(scope="module")
+def con(lake: TableLake) -> duckdb.DuckDBPyConnection:
+    return open_analytics(lake.root)
 
 
 def test_the_doc_has_ten_questions_at_least() -> None:
@@ -169,74 +148,28 @@ def test_plans_keep_the_chosen_order(con: duckdb.DuckDBPyConnection, logs: dict[
 # --- derived tables --------------------------------------------------------------------------
 
 
-def test_derived_tables_equal_the_live_query(lake: Lake, tmp_path: Path) -> None:
-    legacy = open_analytics(_without_derived(lake, tmp_path / "l", {"robot", "targets"}).root)
-    derived = open_analytics(lake.root)
-    for name, key in (
-        ("searches", "run, task_index"),
-        ("eq4_updates", "run, end_seq, dynamic"),
-        ("scene_graph", "run, dynamic, static"),
+def test_derived_tables_equal_the_live_query(con: duckdb.DuckDBPyConnection) -> None:
+    # What a lake whose runs lack a derived table at its version (older code wrote them) reads:
+    # the same SQL over the events, live (replay/analytics.py: _open_fleet).
+    for spec, key in zip(
+        derived_tables(STORE),
+        ("run, task_index", "run, end_seq, dynamic", "run, dynamic, static"),
+        strict=True,
     ):
+        live = f"SELECT robot, date, run, * EXCLUDE (robot, date, run) FROM ({spec.sql})"
         # Sums may add in another order per run than over the lake: Rel to 1e-12.
-        columns = "* REPLACE (round(rel, 12) AS rel)" if name == "scene_graph" else "*"
-        sql = f"SELECT {columns} FROM {name} ORDER BY {key}"
-        rows = derived.execute(sql).fetchall()
-        assert rows and rows == legacy.execute(sql).fetchall(), name
-        assert [d[0] for d in derived.description] == [d[0] for d in legacy.description]
-
-
-def test_a_run_without_derived_tables_is_computed_live_and_upgraded(
-    lake: Lake, tmp_path: Path, logs: dict[str, Path]
-) -> None:
-    old = _without_derived(lake, tmp_path / "l", {"targets"})
-    (info,) = [r for r in old.runs() if r.run == "targets"]
-    assert info.missing_derived() == list(derived_tables(STORE))
-    before = open_analytics(old.root).execute("SELECT * FROM scene_graph ORDER BY ALL").fetchall()
-    # Committing the same content again adds what is missing, and nothing else changes.
-    tables = events_to_tables(read_log(logs["targets"], store=STORE), STORE)
-    again = old.commit_tables(tables, robot="sim", run="targets", date=info.date)
-    assert again.digest == info.digest and not again.missing_derived()
-    shutil.rmtree(info.path / DERIVED_DIR)
-    assert [r.run for r in old.upgrade()] == ["targets"] and old.upgrade() == []
-    assert all(not r.missing_derived() for r in old.runs())
-    after = open_analytics(old.root).execute("SELECT * FROM scene_graph ORDER BY ALL").fetchall()
-    assert after == before
-
-
-def test_cli_lake_upgrade_writes_what_older_code_left_out(
-    lake: Lake, tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    old = _without_derived(lake, tmp_path / "l", {"targets"})
-    assert main(["lake", "upgrade", "--lake", str(old.root)]) == 0
-    assert "1 run(s) upgraded" in capsys.readouterr().out
-    assert all(not r.missing_derived() for r in old.runs())
-    assert main(["lake", "upgrade", "--lake", str(old.root)]) == 0
-    assert "0 run(s) upgraded" in capsys.readouterr().out
-    assert main(["lake", "upgrade", "--lake", str(tmp_path / "missing")]) == 2
-    assert "no lake at" in capsys.readouterr().err
-
-
-def test_a_derived_table_of_an_older_version_is_not_trusted(lake: Lake, tmp_path: Path) -> None:
-    old = _without_derived(lake, tmp_path / "l", set())
-    (info,) = [r for r in old.runs() if r.run == "targets"]
-    current = EQ4_UPDATES.path(info.path)
-    stale = current.with_name("eq4_updates.v0.parquet")
-    # An older version's rows, made wrong on purpose: if read, the graph would change.
-    table = pq.read_table(current)
-    pq.write_table(table.slice(0, table.num_rows // 2), stale)
-    current.unlink()
-    assert (
-        open_analytics(old.root).execute("SELECT * FROM scene_graph ORDER BY ALL").fetchall()
-        == open_analytics(lake.root).execute("SELECT * FROM scene_graph ORDER BY ALL").fetchall()
-    )
-    old.upgrade()
-    assert current.is_file() and not stale.exists()
+        columns = "* REPLACE (round(rel, 12) AS rel)" if spec.name == "scene_graph" else "*"
+        stored = con.execute(f"SELECT {columns} FROM {spec.name} ORDER BY {key}")
+        rows, names = stored.fetchall(), [d[0] for d in stored.description]
+        computed = con.execute(f"SELECT {columns} FROM ({live}) ORDER BY {key}")
+        assert rows and rows == computed.fetchall(), spec.name
+        assert names == [d[0] for d in computed.description]
 
 
 # --- the command line ----------------------------------------------------------------------------
 
 
-def test_query_formats(lake: Lake, capsys: pytest.CaptureFixture[str]) -> None:
+def test_query_formats(lake: TableLake, capsys: pytest.CaptureFixture[str]) -> None:
     sql = "SELECT target, count(*) AS n FROM searches WHERE run = 'robot' GROUP BY 1 ORDER BY 1"
     assert main(["query", "--lake", str(lake.root), sql, "--format", "json"]) == 0
     assert json.loads(capsys.readouterr().out) == [
@@ -252,7 +185,7 @@ def test_query_formats(lake: Lake, capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_query_errors_are_clear(
-    lake: Lake, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    lake: TableLake, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     assert main(["query", "--lake", str(lake.root), "SELECT nope FROM searches"]) == 2
     assert "query failed" in capsys.readouterr().err
@@ -283,10 +216,8 @@ PYARROW_EXAMPLE = re.search(r"```python\n(# pyarrow: one event type.*?)```", DOC
 
 
 def test_the_documented_pyarrow_example_reads_one_type_with_all_its_columns(
-    lake: Lake, con: duckdb.DuckDBPyConnection
+    lake: TableLake, con: duckdb.DuckDBPyConnection
 ) -> None:
-    import pyarrow.dataset as ds
-
     assert PYARROW_EXAMPLE is not None, "docs/analytics.md lost its pyarrow example"
     code = PYARROW_EXAMPLE.group(1).replace('"out/lake"', repr(str(lake.root)))
     scope: dict[str, object] = {}
@@ -296,6 +227,3 @@ def test_the_documented_pyarrow_example_reads_one_type_with_all_its_columns(
     assert (detections.num_rows, len(set(detections.column("run").to_pylist()))) == expected  # type: ignore[attr-defined]
     names = set(detections.schema.names)  # type: ignore[attr-defined]
     assert {"mask_area", "position", "accepted", "robot", "date", "run"} <= names
-    # The trap the doc warns of stays real: the whole lake as one dataset loses those columns.
-    naive = ds.dataset(str(lake.root), partitioning="hive")
-    assert not {"mask_area", "position", "accepted"} <= set(naive.schema.names)

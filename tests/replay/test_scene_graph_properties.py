@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.events import EventLog, fold, read_log
-from objsearch.events.lake import Lake, compact_log
+from objsearch.events.lake_table import TableLake, add_log
 from objsearch.replay.analytics import open_analytics
 
 DYNAMICS = ("Cup", "Phone", "Apple")
@@ -142,8 +142,8 @@ def test_the_closed_form_is_the_fold_for_any_run(
     with tempfile.TemporaryDirectory() as tmp:
         log_dir = Path(tmp) / "log"
         _write(log_dir, mode, seed, steps)
-        lake = Lake(Path(tmp) / "lake", store=STORE)
-        compact_log(log_dir, lake, robot="r")
+        lake = TableLake(Path(tmp) / "lake", store=STORE)
+        add_log(log_dir, lake, robot="r")
         con = open_analytics(lake.root)
         events = list(read_log(log_dir, store=STORE))
         final = fold(iter(events), SceneGraphProjection())

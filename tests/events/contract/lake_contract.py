@@ -1,13 +1,13 @@
-"""What every lake passes: the per-run-folder lake (:mod:`objsearch.events.lake`) and the fleet
-lake on a Delta table (:mod:`objsearch.events.lake_table`), in a folder or a bucket.
+"""What every backend of the lake passes: the fleet lake on a Delta table
+(:mod:`objsearch.events.lake_table`), in a folder or a bucket.
 
 :class:`LakeContract` is the abstract test case (as ``eventsourcing`` tests its recorders: one
-case, one subclass a backend, ``tests/events/contract/test_lake_contract.py``). It drives what
-the lakes share: adding an event log as a run (``compact_log`` / ``add_log``, one signature),
-``runs``, ``find``, ``holding``, ``read_events``, ``read_tables``, ``commit_tables`` and the
-views queries read (:func:`objsearch.replay.analytics.open_analytics`). Where the two differ in
-shape (removing a run, what ``verify`` returns, what "nothing was written" looks like), a
-subclass says it through a hook; where one cannot do a thing, it skips that case with a reason.
+case, one subclass a backend, ``tests/events/contract/test_lake_contract.py``). It drives what a
+lake does: adding an event log as a run (``add_log``), ``runs``, ``find``, ``holding``,
+``read_events``, ``read_tables``, ``commit_tables`` and the views queries read
+(:func:`objsearch.replay.analytics.open_analytics`). What differs by backend (removing a run,
+what ``verify`` returns, what "nothing was written" looks like) a subclass says through a hook;
+where one cannot do a thing, it skips that case with a reason.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""The lake contract (:mod:`.lake_contract`) run against each lake: the per-run-folder lake, the
-fleet lake's Delta table in a folder, and the same table in a bucket of moto's S3 server."""
+"""The lake contract (:mod:`.lake_contract`) run against each backend of the fleet lake: its
+Delta table in a folder, and the same table in a bucket of moto's S3 server."""
 
 from __future__ import annotations
 
@@ -9,35 +9,9 @@ from typing import Any
 import pytest
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake import WRITER_HINT, Lake, RunInfo, compact_log
 from objsearch.events.lake_table import TableLake, TableRun, add_log
 
 from .lake_contract import LakeContract, damage_file
-
-
-class TestFolderLake(LakeContract[Lake, RunInfo]):
-    def open(self, root: Path | str) -> Lake:
-        return Lake(root, store=STORE)
-
-    def add(
-        self, log: Path, lake: Lake, *, robot: str, run: str | None = None, **kwargs: Any
-    ) -> RunInfo:
-        return compact_log(log, lake, robot=robot, run=run, **kwargs)
-
-    def remove(self, lake: Lake, info: RunInfo) -> None:
-        lake.remove_run(info)
-
-    def written(self, lake: Lake) -> object:
-        files = [p for p in lake.root.rglob("*") if p.is_file() and p.name != WRITER_HINT]
-        return sorted((str(p), p.stat().st_mtime_ns) for p in files)
-
-    def damage(self, lake: Lake, info: RunInfo, event_type: str, how: str) -> str:
-        path = info.path / f"{event_type}.parquet"
-        damage_file(path, how)
-        return path.name
-
-    def reported(self, lake: Lake) -> list[str]:
-        return [f"{d.path}: {d.reason}" for d in lake.verify().damaged]
 
 
 class TestTableLake(LakeContract[TableLake, TableRun]):

@@ -7,10 +7,9 @@ from pathlib import Path
 
 from objsearch.agent.catalogue import STORE
 from objsearch.events import Event, read_log
-from objsearch.events.lake import Lake
 from objsearch.events.lake_table import TableLake
 from objsearch.pipeline.bags.formats import BagFormat
-from objsearch.pipeline.bags.lake import FleetBagLake, open_bag_lake
+from objsearch.pipeline.bags.lake import FleetBagLake
 from objsearch.pipeline.bags.record import Recording, record
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
@@ -47,21 +46,21 @@ Content = tuple[list[tuple[str, str, dict[str, int], list[tuple[str, int, str]]]
 
 
 def fleet(root: Path | str) -> str:
-    """An empty fleet lake at ``root`` (ingest writes to a folder lake unless one is there)."""
+    """An empty fleet lake at ``root`` (as ingest's first commit would create it)."""
     TableLake(root, store=STORE).create()
     return str(root)
 
 
 def content(root: Path | str) -> Content:
     """Each bag run (robot, date, rows per type, its agent events) and the bags the lake knows
-    (bag id → converter), whichever lake it is."""
-    bags = open_bag_lake(root)
-    lake = bags.lake if isinstance(bags, FleetBagLake) else Lake(Path(root), store=STORE)
+    (bag id → converter)."""
+    bags = FleetBagLake(root)
+    lake = bags.lake
     runs = []
     for info in lake.runs():
         events = sorted(
             (e.event_id, e.time_ns, e.type)
-            for e in lake.read_events(info)  # type: ignore[arg-type]
+            for e in lake.read_events(info)
             if not e.stream.startswith("bag:")
         )
         runs.append((info.robot, info.date, dict(info.rows), events))

@@ -1,7 +1,7 @@
-"""What ingest does whichever lake keeps the runs: the per-run-folder lake (:class:`BagLake`) and
-the fleet lake's Delta table (:class:`FleetBagLake`). :class:`BagLakeContract` is the abstract
-test case, one subclass a lake (``test_bags_lake_contract.py``); the lakes themselves have their
-contract in ``tests/events/contract/``."""
+"""What ingest does with the lake that keeps the runs: the fleet lake's Delta table
+(:class:`FleetBagLake`). :class:`BagLakeContract` is the abstract test case, one subclass a
+backend (``test_bags_lake_contract.py``); the lake itself has its contract in
+``tests/events/contract/``."""
 
 from __future__ import annotations
 

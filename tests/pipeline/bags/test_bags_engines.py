@@ -20,7 +20,7 @@ from objsearch.pipeline.bags.engines import (
 )
 from objsearch.pipeline.bags.errors import BagConfigError
 from objsearch.pipeline.bags.ingest import ingest
-from objsearch.pipeline.bags.lake import BagLake
+from objsearch.pipeline.bags.lake import FleetBagLake
 
 from .bag_fixtures import Recorded
 
@@ -67,7 +67,9 @@ def test_ray_ingest_equals_local_ingest(recorded: Recorded, ray_local: Any, tmp_
     assert on_ray[2].error is not None and "no bag at" in on_ray[2].error
     assert on_ray[1].committed == local[1].committed > 0
     assert on_ray[1].report == local[1].report
-    assert list(BagLake(tmp_path / "ray").events()) == list(BagLake(tmp_path / "local").events())
+    assert list(FleetBagLake(tmp_path / "ray").events()) == list(
+        FleetBagLake(tmp_path / "local").events()
+    )
     files = sorted(p.stat().st_mtime_ns for p in (tmp_path / "ray").rglob("*.parquet"))
     [again] = ingest([recorded.bag], tmp_path / "ray", engine=RayEngine())
     assert again.already and again.committed == 0 and again.error is None

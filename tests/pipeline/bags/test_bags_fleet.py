@@ -17,7 +17,7 @@ from objsearch.agent.catalogue import STORE
 from objsearch.events.lake_table import BAG_TYPE, TableLake
 from objsearch.pipeline.bags.identity import bag_identity
 from objsearch.pipeline.bags.ingest import ingest
-from objsearch.pipeline.bags.lake import BagLake, FleetBagLake
+from objsearch.pipeline.bags.lake import FleetBagLake
 from objsearch.pipeline.bags.session import converter_key
 from objsearch.ros.topics import TopicMap
 
@@ -61,12 +61,10 @@ def test_a_bag_with_nothing_in_it_is_accounted_for(tmp_path: Path) -> None:
     doc = json.loads(record)
     assert doc["run"] is None and doc["report"]["bag_id"] == bag_id
     assert {f.kind for f in table.data_files()} == {BAG_TYPE}
-    [again] = ingest([empty], lake)  # read again (as the folder lake does), nothing to keep
+    [again] = ingest([empty], lake)  # read again , nothing to keep
     assert again.error is None and again.committed == 0
     assert list(table.bag_records()) == [bag_id] and table.runs() == []
-    # The folder lake keeps the same record in _bags/.
-    ingest([empty], tmp_path / "folder")
-    assert BagLake(tmp_path / "folder").known_pieces() == FleetBagLake(lake).known_pieces()
+    assert list(FleetBagLake(lake).known_pieces()) == [bag_id]
 
 
 def _answers(lake: str, bags: list[Path], topic_map: TopicMap | None = None) -> dict[str, str]:
@@ -170,8 +168,8 @@ def test_the_cli_ingests_into_a_bucket(
     assert "committed" in capsys.readouterr().out
     assert main(argv) == 0
     assert "already in the lake" in capsys.readouterr().out
-    ingest([ros1.bag], tmp_path / "folder", robot="r1")
-    assert content(lake) == content(tmp_path / "folder")
+    ingest([ros1.bag], tmp_path / "local", robot="r1")
+    assert content(lake) == content(tmp_path / "local")
     sql = "SELECT count(*) FROM pose_observed"
     assert main(["query", "--lake", lake, "--format", "csv", sql]) == 0
     [run] = TableLake(lake, store=STORE).runs()

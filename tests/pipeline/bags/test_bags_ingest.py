@@ -10,7 +10,7 @@ from objsearch.cli import main
 from objsearch.cli_bags import BAG_FORMATS
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.ingest import ingest
-from objsearch.pipeline.bags.lake import BagLake
+from objsearch.pipeline.bags.lake import FleetBagLake
 
 from .bag_fixtures import Recorded
 
@@ -27,7 +27,8 @@ def test_a_failed_commit_leaves_nothing(
     [result] = ingest([recorded.bag], tmp_path / "lake")
     assert result.error is not None and "No space left" in result.error
     assert not list((tmp_path / "lake").rglob("*.parquet"))
-    assert not list((tmp_path / "lake").rglob("*.json"))
+    fleet = FleetBagLake(tmp_path / "lake").lake
+    assert fleet.runs() == [] and fleet.data_files() == [] and fleet.bag_records() == {}
     monkeypatch.undo()
     [again] = ingest([recorded.bag], tmp_path / "lake")  # the next try commits it whole
     assert again.error is None and again.committed > 0
@@ -55,7 +56,9 @@ def test_two_workers_give_the_same_lake_as_one(recorded: Recorded, tmp_path: Pat
     assert all(r.error is None for r in two)
     assert sum(r.committed for r in one) == sum(r.committed for r in two) > 0
     assert [r.report for r in one] == [r.report for r in two]
-    assert list(BagLake(tmp_path / "one").events()) == list(BagLake(tmp_path / "two").events())
+    assert list(FleetBagLake(tmp_path / "one").events()) == list(
+        FleetBagLake(tmp_path / "two").events()
+    )
 
 
 def test_cli_ingest_reports_and_is_idempotent(

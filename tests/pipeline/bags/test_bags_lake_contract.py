@@ -1,4 +1,5 @@
-"""The bag lake contract (:mod:`.bag_lake_contract`) run against each lake ingest writes to."""
+"""The bag lake contract (:mod:`.bag_lake_contract`) run against the fleet lake ingest writes to
+(in a folder; ``test_bags_fleet.py`` ingests into a bucket)."""
 
 from __future__ import annotations
 
@@ -9,15 +10,6 @@ from objsearch.events.lake_table import TableLake
 
 from .bag_fixtures import fleet
 from .bag_lake_contract import BagLakeContract
-
-
-class TestFolderBagLake(BagLakeContract):
-    def make(self, root: Path) -> str:
-        return str(root)
-
-    def written(self, lake: str) -> object:
-        files = sorted(p for p in Path(lake).rglob("*") if p.is_file())
-        return [(str(p), p.stat().st_mtime_ns) for p in files]
 
 
 class TestFleetBagLake(BagLakeContract):

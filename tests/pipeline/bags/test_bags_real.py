@@ -67,7 +67,7 @@ def test_ros2_talker_bags(shared_bags: Path, name: str) -> None:
     assert skipped["/topic"].msgtype == "std_msgs/msg/String"
 
 
-def test_a_real_bag_reaches_the_fleet_lake_directly_and_through_a_folder_lake(
+def test_a_real_bag_reaches_the_lake(
     shared_bags: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from objsearch.agent.catalogue import STORE
@@ -77,30 +77,16 @@ def test_a_real_bag_reaches_the_fleet_lake_directly_and_through_a_folder_lake(
     config = tmp_path / "topics.toml"
     config.write_text('[topics]\n"/base_pose_ground_truth" = "odometry"\n', encoding="utf-8")
     bag = str(shared_bags / "embag" / "test.bag")
-    fleet, folder, direct = tmp_path / "fleet", tmp_path / "folder", tmp_path / "direct"
-    TableLake(fleet, store=STORE).create()
-    TableLake(direct, store=STORE).create()
+    lake = tmp_path / "lake"
     argv = ["ingest", bag, "--topics", str(config), "--robot", "r1", "--no-progress"]
-    # Through a folder lake: the run, its events and its ingest report; twice is a no-op.
+    # The run, its events and its ingest report; twice is a no-op.
     for _ in range(2):
-        assert main([*argv, "--lake", str(folder)]) == 0
-        upgrade = ["lake", "upgrade", "--to", "fleet", "--lake", str(folder), "--into", str(fleet)]
-        assert main(upgrade) == 0
-        # Straight into the fleet lake (a Delta table in a folder): the same run.
-        assert main([*argv, "--lake", str(direct)]) == 0
-    runs = TableLake(fleet, store=STORE).runs()
+        assert main([*argv, "--lake", str(lake)]) == 0
+    runs = TableLake(lake, store=STORE).runs()
     assert [(r.robot, dict(r.rows)) for r in runs] == [("r1", {"pose_observed": 5})]
     report = json.loads(runs[0].attachments["_ingest.json"])
     assert report and runs[0].source.startswith("bag:")
-    [straight] = TableLake(direct, store=STORE).runs()
-    assert (straight.robot, straight.run, straight.digest) == (
-        runs[0].robot,
-        runs[0].run,
-        runs[0].digest,
-    )
-    assert json.loads(straight.attachments["_ingest.json"]) == report
     capsys.readouterr()
     sql = "SELECT run, count(*) AS n FROM pose_observed GROUP BY 1"
-    for lake in (fleet, direct):
-        assert main(["query", "--lake", str(lake), "--format", "csv", sql]) == 0
-        assert capsys.readouterr().out.splitlines() == ["run,n", f"{runs[0].run},5"]
+    assert main(["query", "--lake", str(lake), "--format", "csv", sql]) == 0
+    assert capsys.readouterr().out.splitlines() == ["run,n", f"{runs[0].run},5"]

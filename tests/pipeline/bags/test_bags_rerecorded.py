@@ -16,7 +16,7 @@ from rosbags.highlevel import AnyReader
 from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
 from objsearch.events import Event, read_log
-from objsearch.events.lake import Lake, compact_log
+from objsearch.events.lake_table import TableLake, add_log
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.read import read_bag
 
@@ -38,8 +38,8 @@ def _log() -> list[Event]:
 def _tables(lake: Path) -> dict[str, pa.Table]:
     """Every run's tables, concatenated per event type."""
     by_type: dict[str, list[pa.Table]] = {}
-    for run in Lake(lake, store=STORE).runs():
-        for event_type, table in Lake(lake, store=STORE).read_tables(run).items():
+    for run in TableLake(lake, store=STORE).runs():
+        for event_type, table in TableLake(lake, store=STORE).read_tables(run).items():
             by_type.setdefault(event_type, []).append(table)
     return {t: pa.concat_tables(ts, promote_options="default") for t, ts in by_type.items()}
 
@@ -64,11 +64,11 @@ def test_split_pieces_without_run_started_are_one_run_on_one_clock(
 ) -> None:
     results = ingest([PIECES[i] for i in order], tmp_path / "lake")
     assert [r.error for r in results] == [None] * len(PIECES)
-    [run] = Lake(tmp_path / "lake", store=STORE).runs()
+    [run] = TableLake(tmp_path / "lake", store=STORE).runs()
     assert run.date == "2026-01-01"
     ids = _ids(tmp_path / "lake")
     assert len(ids) == len(set(ids))
-    events = Lake(tmp_path / "lake", store=STORE).read_events(run)
+    events = TableLake(tmp_path / "lake", store=STORE).read_events(run)
     agent = {e.event_id: e for e in events if not e.stream.startswith("bag:")}
     logged = {e.event_id: e for e in _log() if e.seq >= 3}  # the recorder missed seqs 1 and 2
     assert agent.keys() == logged.keys()
@@ -100,7 +100,7 @@ def test_the_pieces_give_the_poses_of_the_bag_that_was_played(tmp_path: Path) ->
 
 def test_pieces_of_a_log_already_in_the_lake_are_refused_naming_it(tmp_path: Path) -> None:
     lake = tmp_path / "lake"
-    compact_log(FIXTURES / "log", Lake(lake, store=STORE), robot="robot", run="agent-log")
+    add_log(FIXTURES / "log", TableLake(lake, store=STORE), robot="robot", run="agent-log")
     for order in itertools.islice(itertools.permutations(AGENT_PIECES), 2):
         results = ingest(list(order), lake)
         for r in results:
@@ -115,7 +115,7 @@ def test_a_log_whose_pieces_are_already_in_the_lake_is_refused_naming_them(
 ) -> None:
     lake = tmp_path / "lake"
     ingest(AGENT_PIECES, lake)
-    [run] = Lake(lake, store=STORE).runs()
+    [run] = TableLake(lake, store=STORE).runs()
     before = _ids(lake)
     args = ["lake", "add", str(FIXTURES / "log"), "--lake", str(lake), "--robot", "robot"]
     assert main(args) == 2
@@ -128,9 +128,9 @@ def test_a_log_whose_pieces_are_already_in_the_lake_is_refused_naming_them(
 def test_a_piece_of_a_recording_refused_leaves_its_session_out(tmp_path: Path) -> None:
     """The same through the CLI: exit 2, `objsearch: error:` naming the run."""
     lake = tmp_path / "lake"
-    compact_log(FIXTURES / "log", Lake(lake, store=STORE), robot="robot", run="agent-log")
+    add_log(FIXTURES / "log", TableLake(lake, store=STORE), robot="robot", run="agent-log")
     assert main(["ingest", str(PIECES[2]), "--lake", str(lake), "--no-progress"]) == 2
-    assert [r.run for r in Lake(lake, store=STORE).runs()] == ["agent-log"]
+    assert [r.run for r in TableLake(lake, store=STORE).runs()] == ["agent-log"]
 
 
 def test_an_empty_last_piece_is_accepted_as_empty(tmp_path: Path) -> None:
@@ -144,12 +144,12 @@ def test_an_empty_last_piece_is_accepted_as_empty(tmp_path: Path) -> None:
 def test_liveview_of_a_bag_run_stamps_the_bags_clock(tmp_path: Path) -> None:
     lake = tmp_path / "lake"
     ingest([FIXTURES / "run.bag"], lake)
-    [run] = Lake(lake, store=STORE).runs()
+    [run] = TableLake(lake, store=STORE).runs()
     out = tmp_path / "view.mcap"
     assert main(["liveview", str(lake), "--run", run.run, "--mcap", str(out)]) == 0
     with AnyReader([out]) as reader:
         stamps = [t for _, t, _ in reader.messages()]
-    first = min(e.time_ns for e in Lake(lake, store=STORE).read_events(run))
+    first = min(e.time_ns for e in TableLake(lake, store=STORE).read_events(run))
     assert min(stamps) == first == SIM_START_NS
 
 
@@ -171,7 +171,7 @@ def test_a_bag_and_its_rerecording_in_one_lake_are_one_run_on_one_clock(tmp_path
     lake = tmp_path / "lake"
     results = ingest([FIXTURES / "run.bag", *PIECES], lake)
     assert [r.error for r in results] == [None] * (len(PIECES) + 1)
-    assert len(Lake(lake, store=STORE).runs()) == 1
+    assert len(TableLake(lake, store=STORE).runs()) == 1
     ids = _ids(lake)
     assert len(ids) == len(set(ids))
     times = [t for table in _tables(lake).values() for t in table["time_ns"].to_pylist()]

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from objsearch.events import Event
 from objsearch.pipeline.bags.ingest import ingest
-from objsearch.pipeline.bags.lake import BagLake
+from objsearch.pipeline.bags.lake import FleetBagLake
 from objsearch.pipeline.bags.read import read_bag
 
 from .bag_fixtures import Recorded
@@ -28,7 +28,7 @@ def test_round_trip_through_the_lake_equals_the_agents_log(
     [result] = ingest([recorded.bag], tmp_path / "lake")
     assert result.error is None and result.report is not None
     assert result.report.reader == "AnyReader" and not result.report.damaged
-    lake_events = list(BagLake(tmp_path / "lake").events())
+    lake_events = list(FleetBagLake(tmp_path / "lake").events())
     agent = sorted((e for e in lake_events if not e.stream.startswith("bag:")), key=lambda e: e.seq)
     # Every field, recorded_at_ns included; time_ns moved onto the bag's clock (one per run).
     offset = result.report.clock_offset_ns

@@ -10,10 +10,11 @@ import pyarrow.compute as pc
 import pytest
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake import Lake, LakeError, compact_log
+from objsearch.events.lake import LakeError
+from objsearch.events.lake_table import TableLake, add_log
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.ingest import ingest
-from objsearch.pipeline.bags.lake import BagLake
+from objsearch.pipeline.bags.lake import FleetBagLake
 
 from .bag_fixtures import Recorded, record_run
 from .splitter import rerecord_ros1, split_ros1
@@ -31,12 +32,12 @@ def whole(ros1: Recorded, tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def _content(lake: Path) -> tuple[list[tuple[str, int, str]], dict[str, int], list[int]]:
     """What a run says, ids of derived events aside: agent events, rows per type, pose times."""
-    runs = Lake(lake, store=STORE).runs()
+    runs = TableLake(lake, store=STORE).runs()
     assert len(runs) == 1, [r.run for r in runs]
-    tables = Lake(lake, store=STORE).read_tables(runs[0])
+    tables = TableLake(lake, store=STORE).read_tables(runs[0])
     agent = sorted(
         (e.event_id, e.time_ns, e.type)
-        for e in Lake(lake, store=STORE).read_events(runs[0])
+        for e in TableLake(lake, store=STORE).read_events(runs[0])
         if not e.stream.startswith("bag:")
     )
     rows = {t: table.num_rows for t, table in tables.items()}
@@ -52,7 +53,7 @@ def test_split_pieces_in_any_order_are_one_run(
     results = ingest(shuffled, tmp_path / "split")
     assert [r.error for r in results] == [None] * len(pieces)
     assert _content(tmp_path / "split") == _content(whole)
-    [run] = Lake(tmp_path / "split", store=STORE).runs()
+    [run] = TableLake(tmp_path / "split", store=STORE).runs()
     assert run.date == "2026-01-01" and run.identity.get("run_id")
     assert not list((tmp_path / "split").glob("robot=*/date=1970-*"))
 
@@ -66,9 +67,9 @@ def test_pieces_at_different_times_first_one_last(
     [first] = ingest([pieces[0]], lake)
     assert first.error is None and "merged into run" in first.note
     assert _content(lake) == _content(whole)
-    searches = Lake(lake, store=STORE).runs()[0].path / "_derived"
-    assert list(searches.glob("searches.*.parquet"))
-    assert len(BagLake(lake).known_pieces()) == len(pieces)
+    kinds = {f.kind for f in TableLake(lake, store=STORE).data_files()}
+    assert any(kind.startswith("derived.searches.") for kind in kinds)
+    assert len(FleetBagLake(lake).known_pieces()) == len(pieces)
 
 
 def test_the_same_recording_in_three_formats_counts_once(ros1: Recorded, tmp_path: Path) -> None:
@@ -96,32 +97,32 @@ def test_a_piece_with_nothing_in_it_makes_no_run(tmp_path: Path) -> None:
         )
     [result] = ingest([empty], tmp_path / "lake")
     assert result.error is None and result.committed == 0 and "nothing committed" in result.note
-    assert Lake(tmp_path / "lake", store=STORE).runs() == []
+    assert TableLake(tmp_path / "lake", store=STORE).runs() == []
 
 
 def test_one_clock_per_run(ros1: Recorded, tmp_path: Path) -> None:
     [result] = ingest([ros1.bag], tmp_path / "lake")
     assert result.report is not None and result.report.clock_offset_ns == BAG_CLOCK_2026
-    [run] = Lake(tmp_path / "lake", store=STORE).runs()
-    tables = Lake(tmp_path / "lake", store=STORE).read_tables(run)
+    [run] = TableLake(tmp_path / "lake", store=STORE).runs()
+    tables = TableLake(tmp_path / "lake", store=STORE).read_tables(run)
     start, end = result.report.start_ns, result.report.end_ns
     assert start is not None and end is not None
     for event_type, table in tables.items():
         times = table["time_ns"]
         assert pc.min(times).as_py() >= start and pc.max(times).as_py() <= end, event_type
     logged = {e.event_id: e.time_ns for e in ros1.log}
-    for e in Lake(tmp_path / "lake", store=STORE).read_events(run):
+    for e in TableLake(tmp_path / "lake", store=STORE).read_events(run):
         if e.event_id in logged:
             assert e.time_ns == logged[e.event_id] + BAG_CLOCK_2026
 
 
 def test_lake_add_refuses_a_log_already_in_the_lake(ros1: Recorded, tmp_path: Path) -> None:
-    lake = Lake(tmp_path / "lake", store=STORE)
+    lake = TableLake(tmp_path / "lake", store=STORE)
     log_dir = ros1.bag.parent / "log"
-    compact_log(log_dir, lake, robot="robot", run="first")
-    compact_log(log_dir, lake, robot="robot", run="first")  # the same run again: a no-op
+    add_log(log_dir, lake, robot="robot", run="first")
+    add_log(log_dir, lake, robot="robot", run="first")  # the same run again: a no-op
     with pytest.raises(LakeError, match="already in the lake as run 'first'"):
-        compact_log(log_dir, lake, robot="robot", run="second")
+        add_log(log_dir, lake, robot="robot", run="second")
     assert [r.run for r in lake.runs()] == ["first"]
 
 
@@ -130,7 +131,7 @@ def test_lake_add_and_ingest_of_one_run_count_once(ros1: Recorded, tmp_path: Pat
     [result] = ingest([ros1.bag], lake)
     assert result.error is None
     with pytest.raises(LakeError, match="already in the lake as run 'bag-"):
-        compact_log(ros1.bag.parent / "log", Lake(lake, store=STORE), robot="robot", run="log")
+        add_log(ros1.bag.parent / "log", TableLake(lake, store=STORE), robot="robot", run="log")
 
 
 # -- recordings no piece of which holds run_started (the recorder started after the agent) ---
@@ -139,8 +140,8 @@ def test_lake_add_and_ingest_of_one_run_count_once(ros1: Recorded, tmp_path: Pat
 def _agent_ids(lake: Path) -> list[str]:
     return [
         e.event_id
-        for run in Lake(lake, store=STORE).runs()
-        for e in Lake(lake, store=STORE).read_events(run)
+        for run in TableLake(lake, store=STORE).runs()
+        for e in TableLake(lake, store=STORE).read_events(run)
         if not e.stream.startswith("bag:")
     ]
 
@@ -148,8 +149,8 @@ def _agent_ids(lake: Path) -> list[str]:
 def _all_ids(lake: Path) -> list[str]:
     return [
         i
-        for run in Lake(lake, store=STORE).runs()
-        for table in Lake(lake, store=STORE).read_tables(run).values()
+        for run in TableLake(lake, store=STORE).runs()
+        for table in TableLake(lake, store=STORE).read_tables(run).values()
         for i in table["event_id"].to_pylist()
     ]
 
@@ -161,7 +162,7 @@ def test_pieces_without_run_started_in_any_order_are_one_run(
     for r in ingest(late, tmp_path / "a"):
         assert r.error is None and r.report is not None
         assert "run_started" not in r.report.event_types
-    assert len(Lake(tmp_path / "a", store=STORE).runs()) == 1
+    assert len(TableLake(tmp_path / "a", store=STORE).runs()) == 1
     shuffled = late[::-1]
     random.Random(5).shuffle(shuffled)
     ingest(shuffled, tmp_path / "b")
@@ -182,7 +183,7 @@ def test_pieces_of_two_recordings_stay_two_runs(
     other = record_run(tmp_path / "other", BagFormat.ROS1, seed=1)
     other_pieces = split_ros1(other.bag, tmp_path / "other-split", duration_s=60.0)
     ingest([*pieces[1:], *other_pieces[1:]], tmp_path / "lake")
-    runs = Lake(tmp_path / "lake", store=STORE).runs()
+    runs = TableLake(tmp_path / "lake", store=STORE).runs()
     assert len(runs) == 2
     ids = _all_ids(tmp_path / "lake")
     assert len(ids) == len(set(ids))
@@ -192,7 +193,7 @@ def test_pieces_of_a_compacted_log_are_refused_naming_it(
     ros1: Recorded, pieces: list[Path], tmp_path: Path
 ) -> None:
     lake = tmp_path / "lake"
-    compact_log(ros1.bag.parent / "log", Lake(lake, store=STORE), robot="robot", run="agent-log")
+    add_log(ros1.bag.parent / "log", TableLake(lake, store=STORE), robot="robot", run="agent-log")
     for result in ingest(pieces[1:], lake):
         assert result.error is not None and "run 'agent-log' of robot 'robot'" in result.error
     ids = _all_ids(lake)
@@ -213,9 +214,9 @@ def test_a_rerecorded_bag_is_on_one_clock(ros1: Recorded, tmp_path: Path, whole:
     assert (agent, rows) == _content(whole)[:2]
     original = _content(whole)[2]
     assert max(abs(a - b) for a, b in zip(poses, original, strict=True)) < 1_000  # ns
-    [run] = Lake(tmp_path / "lake", store=STORE).runs()
+    [run] = TableLake(tmp_path / "lake", store=STORE).runs()
     assert run.date == "2026-01-01"
-    received = Lake(tmp_path / "lake", store=STORE).read_tables(run)["pose_observed"][
+    received = TableLake(tmp_path / "lake", store=STORE).read_tables(run)["pose_observed"][
         "recorded_at_ns"
     ]
     assert pc.min(received).as_py() >= RECORDER_CLOCK
@@ -229,14 +230,14 @@ def test_a_rerecorded_split_recording_is_one_run_on_one_clock(
     assert len(late) >= 2
     results = ingest(late[::-1], tmp_path / "lake")
     assert [r.error for r in results] == [None] * len(late)
-    [run] = Lake(tmp_path / "lake", store=STORE).runs()
+    [run] = TableLake(tmp_path / "lake", store=STORE).runs()
     assert run.date == "2026-01-01"
-    events = Lake(tmp_path / "lake", store=STORE).read_events(run)
+    events = TableLake(tmp_path / "lake", store=STORE).read_events(run)
     # Every derived event is where the original bag has it (the receive clock mapped back).
     derived = {
         (e.type, e.time_ns)
-        for r in Lake(whole, store=STORE).runs()
-        for e in Lake(whole, store=STORE).read_events(r)
+        for r in TableLake(whole, store=STORE).runs()
+        for e in TableLake(whole, store=STORE).read_events(r)
         if e.stream.startswith("bag:")
     }
     for e in events:
@@ -258,7 +259,7 @@ def test_pieces_of_odometry_alone_join_their_recording(
     ]
     assert len(odometry_only) >= 3
     assert _content(tmp_path / "a") == _content(whole)
-    [run] = Lake(tmp_path / "a", store=STORE).runs()
+    [run] = TableLake(tmp_path / "a", store=STORE).runs()
     assert run.identity.get("run_id")
     shuffled = cut[:]
     random.Random(7).shuffle(shuffled)
@@ -267,6 +268,6 @@ def test_pieces_of_odometry_alone_join_their_recording(
     late = cut[1:]
     random.Random(8).shuffle(late)
     ingest(late, tmp_path / "c")
-    assert len(Lake(tmp_path / "c", store=STORE).runs()) == 1
+    assert len(TableLake(tmp_path / "c", store=STORE).runs()) == 1
     ids = _all_ids(tmp_path / "c")
     assert len(ids) == len(set(ids))
