@@ -1672,7 +1672,9 @@ def add_log(
     progress: Callable[[Iterable[Event]], Iterable[Event]] | None = None,
 ) -> TableRun:
     """Seal an event log into the fleet lake as one run (``run`` defaults to the log's stream),
-    without reading any other run. Only a sealed log is added (its writer closed it); adding
+    reading no other run's rows but those of runs that record no identity (a bag session's
+    provisional run: :func:`_refuse_runs_holding_events_of`; the ``_run`` rows are filtered for
+    them). Only a sealed log is added (its writer closed it); adding
     it again unchanged is a no-op, after more appends it needs ``replace``. ``progress`` wraps
     the events of each full read of the log (the CLI's progress line)."""
     log_dir = Path(log_dir)

@@ -220,16 +220,25 @@ def _remote(lake: str) -> bool:
 
 
 def _existing_lake(where: str) -> None:
-    """Raise unless a fleet lake is at ``where``; a per-run-folder lake gets the migration's
-    command."""
+    """Raise unless a fleet lake is at ``where`` (a per-run-folder lake gets the migration's
+    command); warn of old run folders beside its table."""
     from objsearch.events.lake import LakeError
-    from objsearch.events.lake_folder_v1 import refuse_folder_lake
+    from objsearch.events.lake_folder_v1 import is_folder_lake, refuse_folder_lake
     from objsearch.events.lake_table import is_table_lake
 
     refuse_folder_lake(where)
     if not is_table_lake(where):
         raise LakeError(
             f"no lake at {where} (add runs with `objsearch lake add LOG --lake {where}`)"
+        )
+    if is_folder_lake(where):  # what `lake upgrade` left in place: said, not hidden
+        left = sorted(Path(where).glob("robot=*/date=*/run=*"))
+        print(
+            f"objsearch: warning: {where} also holds {len(left)} run folder(s) of the old "
+            f"per-run-folder format that `lake upgrade` left in place (damaged, or a run the "
+            f"table already held), e.g. {left[0] if left else Path(where) / '.staging'}; no "
+            "command reads them",
+            file=sys.stderr,
         )
 
 

@@ -103,10 +103,6 @@ def _identity(bag: Path) -> tuple[str, int] | None:
 def commit_converted(lake: LakeWriter, converted: Converted, robot: str) -> IngestResult:
     """The driver's half: commit one task's tables atomically; an error is returned, not raised."""
     if converted.already:
-        try:
-            lake.restore_report(converted.bag_id)  # a crash may have come between run and report
-        except Exception as exc:
-            return IngestResult(converted.path, None, 0, already=True, error=str(exc) or repr(exc))
         return IngestResult(converted.path, None, 0, already=True)
     if converted.error is not None or converted.report is None:
         return IngestResult(converted.path, None, 0, converted.already, converted.error)
@@ -169,7 +165,6 @@ def ingest(
     if engine is None:
         engine = InlineEngine() if workers <= 1 or len(unique) <= 1 else ProcessEngine(workers)
     lake = open_bag_lake(lake_dir)  # a folder, or the fleet lake (a bucket, a Delta table)
-    lake.complete_merges()  # a commit killed between its steps in an earlier ingest
     identities: dict[Path, tuple[str, int]] = {}
     known: Mapping[str, str] | None = None
     if lake.asks_by_bag_id:

@@ -132,7 +132,6 @@ def _encloses(ranges: Mapping[bool, tuple[int, int]], received: tuple[int, int] 
 @dataclass(frozen=True, slots=True)
 class Commit:
     bag_id: str
-    path: Path | None  # the run's folder
     events: int  # events the lake gained
     new: bool  # False when the bag added nothing (it, or its events, were already in the lake)
     run: str = ""  # the run that holds the bag's session
@@ -149,8 +148,6 @@ class LakeWriter(Protocol):
     def pieces_known(self, bag_ids: Sequence[str], converter: str) -> Mapping[str, str] | None: ...
 
     def record_without_run(self, bag_id: str, report: dict[str, Any]) -> None: ...
-
-    def restore_report(self, bag_id: str) -> bool: ...
 
     def commit_piece(self, piece: Piece, *, robot: str) -> Commit: ...
 
@@ -230,11 +227,6 @@ class _SessionLake(ABC):
     def _held_ids(self, info: TableRun) -> set[str]: ...
 
     @abstractmethod
-    def _where(self, info: TableRun) -> Path | None:
-        """A run's folder (None in the fleet lake: its rows are in the table)."""
-        ...
-
-    @abstractmethod
     def _store(
         self,
         tables: Mapping[str, pa.Table],
@@ -246,16 +238,13 @@ class _SessionLake(ABC):
         absorbed: Sequence[_SessionRun],
         doc: Mapping[str, Any],
         identity: Mapping[str, str],
-    ) -> Path | None:
+    ) -> None:
         """Commit a session's run (replacing ``existing``, taking out ``absorbed``) and the
-        pieces' records; the run's folder, if it has one."""
+        pieces' records."""
         ...
 
     @abstractmethod
     def _write_report(self, bag_id: str, data: bytes) -> None: ...
-
-    @abstractmethod
-    def restore_report(self, bag_id: str) -> bool: ...
 
     def _sessions(self, runs: Sequence[TableRun] | None = None) -> list[_SessionRun]:
         """Every bag run with its ingest record."""
@@ -302,8 +291,7 @@ class _SessionLake(ABC):
         if holder is not None:
             same = holder.pieces[piece.bag_id].get("converter") == piece.converter
             if same and not piece.reingest and holder is existing and not absorbed:
-                self.restore_report(piece.bag_id)
-                return Commit(piece.bag_id, self._where(holder.info), 0, new=False, run=run)
+                return Commit(piece.bag_id, 0, new=False, run=run)
             redo = True  # read again with another topic map or converter: replace its rows
         old_tables = [self._read(s.info) for s in previous]
         pieces: dict[str, Mapping[str, Any]] = {}
@@ -336,7 +324,6 @@ class _SessionLake(ABC):
             self._write_report(piece.bag_id, _json(doc))
             return Commit(
                 piece.bag_id,
-                self._where(existing.info),
                 0,
                 new=False,
                 run=run,
@@ -351,7 +338,7 @@ class _SessionLake(ABC):
             "clock": dataclasses.asdict(clock) if clock else None,
         }
         doc = {"session": session, "pieces": pieces}
-        where = self._store(
+        self._store(
             tables,
             robot=robot,
             run=run,
@@ -369,7 +356,7 @@ class _SessionLake(ABC):
             )
         elif len(pieces) > 1:
             note = f"merged into run {run} ({len(pieces)} bags of one recording session)"
-        return Commit(piece.bag_id, where, events - before, new=True, run=run, note=note)
+        return Commit(piece.bag_id, events - before, new=True, run=run, note=note)
 
     @staticmethod
     def _proven_run_id(first: FirstEvent | None, runs: Sequence[TableRun]) -> str | None:
@@ -538,9 +525,6 @@ class FleetBagLake(_SessionLake):
     def _held_ids(self, info: TableRun) -> set[str]:
         return {str(i) for t in self._read(info).values() for i in t["event_id"].to_pylist()}
 
-    def _where(self, info: TableRun) -> Path | None:
-        return None
-
     def _store(
         self,
         tables: Mapping[str, pa.Table],
@@ -552,7 +536,7 @@ class FleetBagLake(_SessionLake):
         absorbed: Sequence[_SessionRun],
         doc: Mapping[str, Any],
         identity: Mapping[str, str],
-    ) -> Path | None:
+    ) -> None:
         replacing = [s.info.run for s in ([existing] if existing is not None else [])]
         self.lake.commit_as_read(
             self._current(),
@@ -567,7 +551,6 @@ class FleetBagLake(_SessionLake):
             apps=[bags_app(robot)],
             stamps=[a for k, v in sorted(doc["pieces"].items()) for a in _doc_stamps(k, v)],
         )
-        return None
 
     def _write_report(self, bag_id: str, data: bytes) -> None:
         doc = json.loads(data)
@@ -612,14 +595,6 @@ class FleetBagLake(_SessionLake):
             if stamped is not None and table.transaction_version(latest) == stamped:
                 known[bag_id] = converter
         return known
-
-    def complete_merges(self) -> list[str]:
-        """Nothing to finish: a merge is one transaction."""
-        return []
-
-    def restore_report(self, bag_id: str) -> bool:
-        """Nothing to restore: a run's pieces are recorded in its own commit."""
-        return False
 
     def record_without_run(self, bag_id: str, report: dict[str, Any]) -> None:
         doc = {"bag_id": bag_id, "robot": None, "run": None, "events": 0, "report": report}

@@ -87,8 +87,11 @@ def test_a_damaged_run_is_named_not_copied_and_left_in_place(
     assert damaged.read_bytes() == bytes(data)  # the damaged run is as it was
     assert not (lake / SMALL_RUN).exists()  # the healthy one is in the table
     assert main(["lake", "ls", "--lake", str(lake), "--format", "csv"]) == 0
-    rows = capsys.readouterr().out.splitlines()[1:]
+    captured = capsys.readouterr()
+    rows = captured.out.splitlines()[1:]
     assert [r.split(",")[:3] for r in rows] == [["r2d2", "2023-11-14", "run-a"]]
+    assert "holds 1 run folder(s) of the old per-run-folder format" in captured.err
+    assert str(lake / SIM_RUN) in captured.err
 
 
 def test_upgrade_into_another_lake_leaves_the_folder_lake_as_it_is(
