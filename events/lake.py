@@ -68,7 +68,7 @@ def _check_name(what: str, value: str) -> None:
     if not (isinstance(value, str) and _NAME.fullmatch(value)):
         raise LakeError(
             f"{what} name {value!r} must start with a letter or digit and hold only letters, "
-            "digits, '.', '_' and '-' (it becomes a directory name)"
+            "digits, '.', '_' and '-' (it names the run in the table and in its log's transactions)"
         )
 
 

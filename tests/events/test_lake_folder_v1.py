@@ -106,6 +106,21 @@ def test_upgrade_into_another_lake_leaves_the_folder_lake_as_it_is(
     assert is_table_lake(fleet)
 
 
+def test_upgrade_of_what_is_no_folder_lake(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "file").write_text("x")
+    assert main(["lake", "upgrade", "--lake", str(tmp_path / "file")]) == 2
+    assert "is a file, not a folder" in capsys.readouterr().err  # the option's type says it
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "notes.txt").write_text("x")
+    assert main(["lake", "upgrade", "--lake", str(tmp_path / "other")]) == 2
+    assert "holds no per-run-folder lake to upgrade" in capsys.readouterr().err
+    assert main(["lake", "upgrade", "--lake", str(tmp_path / "new")]) == 0
+    assert "created an empty fleet lake" in capsys.readouterr().out
+    assert is_table_lake(tmp_path / "new")
+
+
 def test_the_reports_of_bags_that_made_no_run_are_copied(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
