@@ -4,9 +4,11 @@ the commit wrote.
 DuckDB does not check Parquet page checksums (a flipped bit in a data page changes the answer
 without an error), and even a checking reader cannot see a flip in the footer's statistics, which
 makes it skip row groups it should read. So each run's manifest records the size and SHA-256 of
-every file the commit wrote, and a copy of the manifest's own SHA-256; :mod:`objsearch.events.lake`
-compares them before any view reads a file. SHA-256 runs at ≈ 1.7 GB/s a core here (≈ 1 GB/s
-for BLAKE2b), and files are hashed on a few threads (hashlib releases the GIL).
+every file the commit wrote, and a copy of the manifest's own SHA-256. That was the
+per-run-folder lake's (``objsearch.lake/1``); this version reads such a lake only to migrate it,
+and :mod:`objsearch.events.lake_folder_v1` compares the digests before a run is copied.
+SHA-256 runs at ≈ 1.7 GB/s a core here (≈ 1 GB/s for BLAKE2b), and files are hashed on a few
+threads (hashlib releases the GIL).
 """
 
 from __future__ import annotations
