@@ -60,7 +60,7 @@ import pyarrow.parquet as pq
 from . import _fs
 from .arrow import ENVELOPE_COLUMNS, event_schema, events_to_tables, tables_to_events
 from .derived import PARTITION_NAMES, derive_run, derived_tables
-from .envelope import Event, deterministic_event_id
+from .envelope import Event
 from .errors import EventStoreError
 from .lake import (
     ROW_GROUP_ROWS,
@@ -1672,9 +1672,7 @@ def add_log(
     progress: Callable[[Iterable[Event]], Iterable[Event]] | None = None,
 ) -> TableRun:
     """Seal an event log into the fleet lake as one run (``run`` defaults to the log's stream),
-    reading no other run's rows but those of runs that record no identity (a bag session's
-    provisional run: :func:`_refuse_runs_holding_events_of`; the ``_run`` rows are filtered for
-    them). Only a sealed log is added (its writer closed it); adding
+    without reading any other run. Only a sealed log is added (its writer closed it); adding
     it again unchanged is a no-op, after more appends it needs ``replace``. ``progress`` wraps
     the events of each full read of the log (the CLI's progress line)."""
     log_dir = Path(log_dir)
@@ -1702,7 +1700,6 @@ def add_log(
                 "adding it again would count its events twice"
             )
 
-    _refuse_runs_holding_events_of(log_dir, meta.id_key(), first.stream, lake, table, (robot, run))
     reads = 0
 
     def open_events() -> Iterator[Event]:
@@ -1723,36 +1720,6 @@ def add_log(
         identity=identity,
         table=table,
     )
-
-
-def _refuse_runs_holding_events_of(
-    log_dir: Path, id_key: str, stream: str, lake: TableLake, table: Any, target: tuple[str, str]
-) -> None:
-    """An event id is in the lake at most once: refuse a log some of whose events a run that
-    records no identity already holds (the pieces of a recording that started after
-    ``run_started``, ingested first: a bag session's provisional run). Its events carry the
-    log's own ids, uuid5(run id, seq). Only such runs are read, not every run."""
-    unnamed = lake._runs(table, pc.field(RUN_COLUMN, "identity") == "{}")
-    for other in unnamed:
-        if (other.robot, other.run) == target:
-            continue
-        for part in lake.read_tables(other, table).values():
-            if not {"event_id", "seq", "stream"} <= set(part.column_names):
-                continue
-            for event_id, seq, of in zip(
-                part["event_id"].to_pylist(),
-                part["seq"].to_pylist(),
-                part["stream"].to_pylist(),
-                strict=True,
-            ):
-                if of == stream and event_id == deterministic_event_id(id_key, seq):
-                    raise TableLakeError(
-                        f"event log {log_dir} is already partly in the lake: run "
-                        f"{other.run!r} of robot {other.robot!r} (from {other.source}) holds its "
-                        f"event seq {seq} ({event_id}); adding the log would count those events "
-                        "twice. Take that run out of the lake first (the log holds every event "
-                        "the recording has)"
-                    )
 
 
 __all__ = [

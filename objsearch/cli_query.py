@@ -259,9 +259,11 @@ def cmd_lake_add(args: argparse.Namespace) -> int:
 def _lake_add(args: argparse.Namespace) -> int:
     from objsearch.events.lake_folder_v1 import check_lake_location
     from objsearch.events.lake_table import TableLake, add_log
+    from objsearch.pipeline.bags.lake import refuse_a_log_a_session_holds
     from objsearch.product import STORE
 
     check_lake_location(args.lake)
+    refuse_a_log_a_session_holds(Path(args.log), args.lake)
     info = add_log(
         Path(args.log),
         TableLake(args.lake, store=STORE),

@@ -43,7 +43,9 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events import Event, EventStoreError
+from objsearch.events import Event, EventStoreError, read_log
+from objsearch.events.envelope import deterministic_event_id
+from objsearch.events.lake import LakeError
 from objsearch.events.lake_folder_v1 import check_lake_location
 from objsearch.events.lake_table import (
     COMMIT_TRIES,
@@ -51,7 +53,9 @@ from objsearch.events.lake_table import (
     TableLake,
     TableRaceLost,
     TableRun,
+    is_table_lake,
 )
+from objsearch.events.log_files import read_meta
 from objsearch.pipeline.bags.clock import fit_clock, pairs_from_doc
 from objsearch.pipeline.bags.errors import BagCommitError
 from objsearch.pipeline.bags.session import (
@@ -463,6 +467,33 @@ class _SessionLake(ABC):
         if duplicate:
             doc["duplicate_of"] = run
         return doc
+
+
+def refuse_a_log_a_session_holds(log_dir: Path, root: Path | str) -> None:
+    """An event id is in the lake at most once: raise :class:`LakeError` if a bag session's
+    provisional run — pieces of a recording that started after ``run_started``, ingested
+    first, so its run id is not known — holds events of the agent log at ``log_dir``, naming
+    it (``lake add`` asks before adding the log). Such a run's lowest agent event is in its
+    ingest record; it is the log's if it is on the log's stream with the log's own id for its
+    seq, uuid5(run id, seq). Reads the ``_run`` rows of bag runs that record no run id, no
+    event."""
+    first = next(read_log(log_dir, store=STORE), None)
+    if first is None or not is_table_lake(root):
+        return
+    id_key = read_meta(log_dir).id_key()
+    bags = FleetBagLake(root)
+    for session in bags._sessions():
+        held = session.first
+        if session.run_id or held is None or held.stream != first.stream:
+            continue
+        if held.event_id == deterministic_event_id(id_key, held.seq):
+            raise LakeError(
+                f"event log {log_dir} is already partly in the lake: run "
+                f"{session.info.run!r} of robot {session.info.robot!r} (from "
+                f"{session.info.source}) holds its event seq {held.seq} ({held.event_id}); "
+                "adding the log would count those events twice. Take that run out of the lake "
+                "first (the log holds every event the recording has)"
+            )
 
 
 #: The application transaction every bag commit of a robot carries (``objsearch/bags/<robot>``):
