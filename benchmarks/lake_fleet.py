@@ -18,7 +18,8 @@ median of ``--reps``:
   ``run_query``), and with every view made (``open_analytics(lake)``, what a notebook gets),
   against plain DuckDB reading the same table (the ``deltalake`` table loaded, its current
   files listed, one ``read_parquet``) in the same run (target ≤ 2×);
-* **add**: committing one more run (``add_log`` of a log of ``--add-events`` synthetic events,
+* **add**: committing one more run (what ``objsearch lake add`` does: the bag sessions asked
+  whether they hold the log, then ``add_log`` of a log of ``--add-events`` synthetic events,
   a new log and run name each time) into the smallest and the largest fleet lake, alternating
   between them (target: the same time);
 * **ingest's "already there?"**: one recorded bag ingested into the smallest and the largest
@@ -53,7 +54,7 @@ from objsearch.events.sql_limits import close
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.identity import bag_identity
 from objsearch.pipeline.bags.ingest import ingest
-from objsearch.pipeline.bags.lake import FleetBagLake
+from objsearch.pipeline.bags.lake import FleetBagLake, refuse_a_log_a_session_holds
 from objsearch.pipeline.bags.record import record
 from objsearch.pipeline.bags.session import converter_key
 from objsearch.replay.analytics import open_analytics, run_query
@@ -280,6 +281,7 @@ def main() -> int:
         def add(lake: TableLake) -> Callable[[], object]:
             def one() -> object:
                 log = queue.pop()
+                refuse_a_log_a_session_holds(log, lake.root)  # what `objsearch lake add` asks first
                 return add_log(log, lake, robot="extra", run=log.name)
 
             return one

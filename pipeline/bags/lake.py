@@ -482,7 +482,8 @@ def refuse_a_log_a_session_holds(log_dir: Path, root: Path | str) -> None:
         return
     id_key = read_meta(log_dir).id_key()
     bags = FleetBagLake(root)
-    for session in bags._sessions():
+    bag_runs = bags.lake._runs(bags._current(), pc.starts_with(pc.field("run"), RUN_PREFIX))
+    for session in bags._sessions(bag_runs):
         held = session.first
         if session.run_id or held is None or held.stream != first.stream:
             continue
