@@ -41,6 +41,7 @@ import logging
 import math
 import os
 import random
+import re
 import shutil
 import tempfile
 import time
@@ -71,6 +72,7 @@ from .lake import (
     _conform,
     parquet_problem,
 )
+from .lake_table_verified import Identity, VerifiedFiles, sha256_file
 from .log_files import LOCK_FILE, read_meta
 from .log_read import read_log
 from .store import Store, shipped
@@ -113,6 +115,10 @@ COMPACTION_CLAIM_FRESH_S: Final = 120.0
 COMPACT_AT_FILES: Final = 256
 #: Files compaction aims for (bytes); a table of a fleet's year is a few thousand of them.
 TARGET_FILE_BYTES: Final = 256 << 20
+#: A data file the lake writes is named after the SHA-256 of its bytes (content-addressed):
+#: ``type=<kind>/part-<token>-<64 hex>.zstd.parquet``. Files written by delta-rs (``--replace``)
+#: or by code before this have no hash in their name ("unhashed"); ``lake compact`` rewrites them.
+_HASHED_NAME: Final = re.compile(r"-([0-9a-f]{64})\.zstd\.parquet$")
 _log = logging.getLogger(__name__)
 
 
@@ -255,6 +261,8 @@ class TableLake:
             else str(Path(root).absolute() / TABLE_DIR)
         )
         self.options = storage_options() if self.remote else {}
+        #: Data files :meth:`scan` hashed (not found in the verification cache) so far.
+        self.hashed = 0
 
     def __repr__(self) -> str:
         return f"TableLake({str(self.root)!r})"
@@ -451,57 +459,105 @@ class TableLake:
         upcast = self.store.upcaster.upcast
         return [upcast(e) for e in tables_to_events(tables.values(), self.store)]
 
-    def scan(self, table: Any | None = None) -> tuple[list[DataFile], list[tuple[DataFile, str]]]:
-        """The data files readers may read, and those they must leave out (missing, another
-        size than the log records, or cut). Cheap: one ``stat`` and 8 bytes a file, and the
-        number of files does not grow with the runs once the table is compacted."""
+    def scan(
+        self, table: Any | None = None, *, hashes: bool = True
+    ) -> tuple[list[DataFile], list[tuple[DataFile, str]]]:
+        """The data files readers may read, and those they must leave out: missing, of another
+        size than the log records, or — a content-addressed file (:func:`file_sha256`) — whose
+        bytes do not hash to the SHA-256 its name records; an unhashed file is checked for
+        ``PAR1`` at both ends only. A hashed file is hashed when this machine first sees it
+        and again only once its ``stat`` identity changes (:mod:`.lake_table_verified`: a
+        cache outside the lake), so a query costs one ``stat`` a file once the files were
+        seen; the number of files does not grow with the runs once the table is compacted.
+        ``hashes=False``: no hashing (:meth:`verify` hashes every file itself). On S3 nothing
+        is checked here (the object store checks what it serves; ``lake verify`` hashes)."""
         files = self.data_files(table)
         if self.remote:
-            return files, []  # the object store checks what it serves (sizes, checksums)
+            return files, []
         good, bad = [], []
         base = Path(self.uri)
+        cache = VerifiedFiles(self.uri) if hashes else None
         for f in files:
             path = base / f.path
             try:
-                size = path.stat().st_size
+                st = path.stat()
             except OSError as exc:
                 bad.append((f, f"{f.path}: {exc.strerror or exc}"))
                 continue
-            if size != f.size:
-                bad.append((f, f"{f.path} has {size} bytes, the table's log records {f.size}"))
+            if st.st_size != f.size:
+                bad.append(
+                    (f, f"{f.path} has {st.st_size} bytes, the table's log records {f.size}")
+                )
                 continue
-            problem = parquet_problem(path)
-            if problem is not None:
-                bad.append((f, f"{f.path}: {problem}"))
+            expected = file_sha256(f.path)
+            if expected is None or cache is None:
+                problem = parquet_problem(path)
+                if problem is not None:
+                    bad.append((f, f"{f.path}: {problem}"))
+                    continue
+                good.append(f)
                 continue
+            identity = Identity.of(st)
+            if not cache.known(f.path, identity, expected):
+                hashed_at = time.time_ns()
+                problem = self._hash_problem(f, path)
+                if problem is not None:
+                    bad.append((f, problem))
+                    continue
+                cache.remember(f.path, identity, expected, hashed_at)
             good.append(f)
+        if cache is not None:
+            cache.keep_only(f.path for f in files)
+            cache.save()
         return good, bad
+
+    def _hash_problem(self, f: DataFile, path: Path) -> str | None:
+        """Why a local content-addressed file's bytes are not the ones written, or None."""
+        self.hashed += 1
+        try:
+            actual = sha256_file(path)
+        except OSError as exc:
+            return f"{f.path}: {exc.strerror or exc}"
+        return _hash_mismatch(f, actual)
 
     def verify(
         self, progress: Callable[[list[DataFile]], Iterable[DataFile]] | None = None
     ) -> TableCheck:
-        """Read every byte: decode each data file in full and compare its rows with the log's
-        statistics (plus the checks of :meth:`scan`). Changes nothing. ``progress`` wraps the
-        files as they are decoded (the CLI's progress line)."""
+        """Read every byte: hash each content-addressed data file in full (whatever the
+        verification cache says) and compare with the hash its name records, decode each
+        data file in full (page checksums on) and compare its rows with the log's statistics
+        (plus the checks of :meth:`scan`). Changes nothing. ``progress`` wraps the files as
+        they are decoded (the CLI's progress line)."""
 
         table = self.table()
-        good, bad = self.scan(table)
+        good, bad = self.scan(table, hashes=False)
         size = 0
         checked = 0
         for f in progress(good) if progress else good:
-            where = f"{self.uri}/{f.path}"
             try:
                 if self.remote:
                     fs, base = _filesystem(self.uri)
-                    data = pq.read_table(f"{base}/{f.path}", filesystem=fs)
+                    with fs.open_input_file(f"{base}/{f.path}") as fh:
+                        data = fh.read()
                 else:
-                    data = pq.ParquetFile(where, page_checksum_verification=True).read()
+                    data = (Path(self.uri) / f.path).read_bytes()
+            except OSError as exc:
+                bad.append((f, f"{f.path} cannot be read: {exc}"))
+                continue
+            mismatch = _hash_mismatch(f, hashlib.sha256(data).hexdigest())
+            if mismatch is not None:
+                bad.append((f, mismatch))
+                continue
+            try:
+                decoded = pq.ParquetFile(
+                    pa.BufferReader(data), page_checksum_verification=True
+                ).read()
             except (OSError, pa.ArrowException) as exc:
                 bad.append((f, f"{f.path} does not decode: {exc}"))
                 continue
-            if f.rows is not None and data.num_rows != f.rows:
+            if f.rows is not None and decoded.num_rows != f.rows:
                 bad.append(
-                    (f, f"{f.path} holds {data.num_rows} rows, the table's log records {f.rows}")
+                    (f, f"{f.path} holds {decoded.num_rows} rows, the table's log records {f.rows}")
                 )
                 continue
             checked += 1
@@ -832,6 +888,19 @@ class TableLake:
             _fs.fsync_file(Path(self.uri) / rel)
         return size
 
+    def _rename(self, rel: str, new: str) -> None:
+        """Give a written data file its content-addressed name, durably, before a commit names
+        it: locally a rename and an fsync of the folder; on S3 a copy and a delete
+        (``S3FileSystem.move``), stored once it returns."""
+        if self.remote:
+            fs, base = _filesystem(self.uri)
+            fs.move(f"{base}/{rel}", f"{base}/{new}")
+            _fs.durable_step()
+            return
+        base = Path(self.uri)
+        _fs.rename(base / rel, base / new)
+        _fs.fsync_dir((base / new).parent)
+
     def commit_stream(
         self,
         open_events: Callable[[], Iterator[Event]],
@@ -1085,7 +1154,7 @@ class TableLake:
                 write_page_checksum=True,
             )
             data = sink.getvalue()
-            rel = f"type={kind}/part-{token}.zstd.parquet"
+            rel = _hashed_name(kind, token, hashlib.sha256(memoryview(data)).hexdigest())
             self._put(rel, data)
             stats = _stats(part)
             adds.append(
@@ -1199,8 +1268,78 @@ class TableLake:
         return pinned
 
     def _optimize(self, table: Any) -> None:
-        table.optimize.compact(target_size=TARGET_FILE_BYTES)
+        """Compact ``table`` (the claimed, pinned version): per ``type`` partition, its small
+        files — and every unhashed one, so compaction makes a lake content-addressed — are
+        rewritten, whole files in the log's order (a run's rows keep their order), into
+        content-addressed files of at most about :data:`TARGET_FILE_BYTES`, written as the
+        writers write (zstd, page checksums); one transaction from ``table`` removes the inputs
+        (``dataChange = false``) and adds the outputs. Not delta-rs's ``optimize.compact``: it
+        names its files itself, with no hash. A commit that fails deletes what it wrote, unless
+        it landed (its answer lost)."""
+        from deltalake.exceptions import CommitFailedError
+        from deltalake.transaction import RemoveAction
+
+        by_kind: dict[str, list[DataFile]] = {}
+        for f in self.data_files(table):
+            by_kind.setdefault(f.kind, []).append(f)
+        token = _token()
+        removes: list[Any] = []
+        adds: list[Any] = []
+        try:
+            for kind in sorted(by_kind):
+                for group in _compaction_groups(by_kind[kind]):
+                    written = self._rewrite(kind, group, token)
+                    if written is not None:
+                        adds.append(written)
+                    now = int(time.time() * 1000)
+                    removes += [
+                        RemoveAction(f.path, False, now, f.size, {"type": kind}) for f in group
+                    ]
+            if not removes:
+                return
+            table.create_write_transaction(
+                [*removes, *adds],
+                mode="append",
+                schema=table_schema(self.store),
+                partition_by=["type"],
+            )
+        except CommitFailedError:
+            landed = {f.path for f in self.data_files(self.table())}
+            if adds and all(a.path in landed for a in adds):
+                _fs.durable_step()
+                return  # it landed; its answer was lost
+            self._delete_files(adds)
+            raise
+        except BaseException:
+            self._delete_files(adds)
+            raise
         _fs.durable_step()
+
+    def _rewrite(self, kind: str, files: Sequence[DataFile], token: str) -> Any | None:
+        """One content-addressed file of ``kind`` holding the rows of ``files`` in their order,
+        read a batch at a time; its add action (None if they hold no row: no file). Its columns: those the inputs hold (a file
+        holds its own type's columns, one delta-rs wrote may hold all), in the table's order."""
+        dataset = self.files_dataset(files)
+        held: set[str] = set()
+        for fragment in dataset.get_fragments():
+            held.update(fragment.physical_schema.names)
+        schema = pa.schema([f for f in table_schema(self.store) if f.name in held - {"type"}])
+        out = _StreamFile(self, kind, kind, token, schema=schema)
+        try:
+            for f in files:  # one at a time: the order of the files is the order of the rows
+                for batch in self.files_dataset([f]).to_batches(
+                    columns=schema.names, use_threads=False
+                ):
+                    rows = pa.Table.from_batches([batch])
+                    out.add(pa.Table.from_arrays(rows.columns, schema=schema))
+            out._flush()
+            if not out.rows:
+                self._abandon([out])
+                return None
+            return out.close()
+        except BaseException:
+            self._abandon([out])
+            raise
 
     def _compact(self, *, vacuum_hours: float | None, yielding: bool = False) -> dict[str, int]:
         """``yielding``: give up at the first race lost (another writer's claim came after
@@ -1352,21 +1491,65 @@ def stream_digest(events: Iterable[Event], store: Store) -> tuple[str, dict[str,
     return _combine({t: d.hexdigest() for t, d in digests.items()}), rows
 
 
+class _TeeSink:
+    """A writable file that passes every byte on to ``out`` and into a hash (a streamed data
+    file is hashed as it is written, never read back)."""
+
+    def __init__(self, out: Any, digest: Any) -> None:
+        self._out = out
+        self._digest = digest
+        self._size = 0
+        self.closed = False
+
+    def write(self, data: Any) -> int:
+        view = memoryview(data)
+        self._out.write(view)
+        self._digest.update(view)
+        self._size += view.nbytes
+        return view.nbytes
+
+    def tell(self) -> int:
+        return self._size
+
+    def flush(self) -> None:
+        pass
+
+    def close(self) -> None:
+        self.closed = True  # ``out`` is closed by its owner
+
+
 class _StreamFile:
     """One ``type`` partition's Parquet file, written as rows arrive (row groups of
-    :data:`ROW_GROUP_ROWS`), with the statistics the Delta log keeps."""
+    :data:`ROW_GROUP_ROWS`), with the statistics the Delta log keeps, hashed as it is written.
+    Written under a temporary name in the partition's folder (``part-<token>.zstd.parquet``),
+    then renamed to its content-addressed name (:func:`_hashed_name`) when closed: a file a
+    killed writer leaves under either name is no file of the table (vacuum deletes it).
+    ``schema``: the file's columns (default: those of ``column``'s rows, :func:`file_schema`)."""
 
-    def __init__(self, lake: TableLake, kind: str, column: str, token: str) -> None:
+    def __init__(
+        self,
+        lake: TableLake,
+        kind: str,
+        column: str,
+        token: str,
+        schema: pa.Schema | None = None,
+    ) -> None:
         self.kind = kind
+        self.token = token
         self.rel = f"type={kind}/part-{token}.zstd.parquet"
         self.lake = lake
         self.out = lake._open(self.rel)
-        schema = file_schema(column, envelope=kind in lake.store.registry.types, store=lake.store)
+        self.digest = hashlib.sha256()
+        self.sink = pa.PythonFile(_TeeSink(self.out, self.digest), mode="w")
+        if schema is None:
+            schema = file_schema(
+                column, envelope=kind in lake.store.registry.types, store=lake.store
+            )
+        if "type" in schema.names:
+            schema = schema.remove(schema.get_field_index("type"))
+        self.schema = schema
         self.writer = pq.ParquetWriter(
-            self.out,
-            schema.remove(schema.get_field_index("type")),
-            compression="zstd",
-            write_page_checksum=True,
+            self.sink, schema, compression="zstd", write_page_checksum=True
         )
         self.pending: list[pa.Table] = []
         self.buffered = 0
@@ -1374,7 +1557,9 @@ class _StreamFile:
         self.stats: list[str] = []
 
     def add(self, table: pa.Table) -> None:
-        self.pending.append(table.drop_columns(["type"]))
+        if "type" in table.column_names:
+            table = table.drop_columns(["type"])
+        self.pending.append(table)
         self.buffered += table.num_rows
         if self.buffered >= min(ROW_GROUP_ROWS, CHUNK_EVENTS):
             self._flush()
@@ -1394,9 +1579,33 @@ class _StreamFile:
         self._flush()
         self.writer.close()
         size = self.lake._close(self.rel, self.out)
+        final = _hashed_name(self.kind, self.token, self.digest.hexdigest())
+        self.lake._rename(self.rel, final)
+        self.rel = final
         return AddAction(
             self.rel, size, {"type": self.kind}, int(time.time() * 1000), True, _merge(self.stats)
         )
+
+
+def _compaction_groups(files: Sequence[DataFile]) -> list[list[DataFile]]:
+    """The files of one partition a compaction rewrites, each group into one file: the small
+    ones (under half of :data:`TARGET_FILE_BYTES`) and every unhashed one, in the log's order,
+    a group holding at most about :data:`TARGET_FILE_BYTES`; a group of one content-addressed
+    file is left as it is."""
+    groups: list[list[DataFile]] = []
+    group: list[DataFile] = []
+    size = 0
+    for f in files:
+        if f.size >= TARGET_FILE_BYTES // 2 and file_sha256(f.path) is not None:
+            continue
+        if group and size + f.size > TARGET_FILE_BYTES:
+            groups.append(group)
+            group, size = [], 0
+        group.append(f)
+        size += f.size
+    if group:
+        groups.append(group)
+    return [g for g in groups if len(g) > 1 or file_sha256(g[0].path) is None]
 
 
 def _merge(stats: Sequence[str]) -> str:
@@ -1465,6 +1674,27 @@ def _stats(part: pa.Table) -> str:
     return json.dumps(
         {"numRecords": part.num_rows, "minValues": low, "maxValues": high, "nullCount": nulls}
     )
+
+
+def file_sha256(path: str) -> str | None:
+    """The SHA-256 a data file's name records (hex), or None for an unhashed file."""
+    found = _HASHED_NAME.search(path.rpartition("/")[2])
+    return found.group(1) if found else None
+
+
+def _hash_mismatch(f: DataFile, actual: str) -> str | None:
+    """Why a data file whose bytes hash to ``actual`` is not the file written, or None."""
+    expected = file_sha256(f.path)
+    if expected is None or actual == expected:
+        return None
+    return (
+        f"{f.path}: its bytes are not the ones written (SHA-256 {actual[:16]}…, its name "
+        f"records {expected[:16]}…): changed after the commit"
+    )
+
+
+def _hashed_name(kind: str, token: str, sha256: str) -> str:
+    return f"type={kind}/part-{token}-{sha256}.zstd.parquet"
 
 
 def _token() -> str:
