@@ -891,7 +891,9 @@ class TableLake:
     def _rename(self, rel: str, new: str) -> None:
         """Give a written data file its content-addressed name, durably, before a commit names
         it: locally a rename and an fsync of the folder; on S3 a copy and a delete
-        (``S3FileSystem.move``), stored once it returns."""
+        (``S3FileSystem.move``), stored once it returns. (Arrow then puts an empty marker
+        object ``type=<kind>/`` for the partition's "folder", as S3 consoles do: one key a
+        partition, which no Delta reader reads and vacuum leaves.)"""
         if self.remote:
             fs, base = _filesystem(self.uri)
             fs.move(f"{base}/{rel}", f"{base}/{new}")

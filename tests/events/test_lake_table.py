@@ -4,6 +4,7 @@ removal, damage, many writers, plain readers, and the same answers as the per-ru
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 import subprocess
 import sys
@@ -26,6 +27,7 @@ from objsearch.events.lake_table import (
     TableLake,
     TableLakeError,
     add_log,
+    file_sha256,
     is_table_lake,
     migrate,
     run_parts,
@@ -34,7 +36,7 @@ from objsearch.events.lake_table import (
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query, views_for
 
-from .lake_logs import COMPACTING_WRITER, check_two_compactions_at_once
+from .lake_logs import COMPACTING_WRITER, check_two_compactions_at_once, same_size_rewrite
 from .payloads import EXAMPLES
 
 V1_LOG = Path(__file__).parent / "fixtures" / "v1-log"
@@ -382,3 +384,68 @@ def test_a_writer_killed_mid_commit_leaves_whole_runs_and_the_next_one_finishes(
 
 def test_two_compactions_at_once_rewrite_every_row_once(tmp_path: Path) -> None:
     check_two_compactions_at_once(tmp_path / "lake", tmp_path / "logs")
+
+
+def test_a_same_size_valid_parquet_rewrite_is_left_out_and_named_by_verify(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # What the damage battery found silent before files were content-addressed: the size and
+    # the PAR1 ends are the same, the file decodes, its rows count as the log says.
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    add_log(small_log(tmp_path / "log"), lake, robot="r2d2")
+    victim = next(f for f in lake.data_files() if f.kind == "search_failed")
+    same_size_rewrite(tmp_path / "lake" / TABLE_DIR / victim.path)
+    with caplog.at_level(logging.WARNING):
+        con = open_analytics(tmp_path / "lake")
+    try:
+        assert run_query(con, "SELECT count(*) FROM search_failed")[1] == [(0,)]
+        assert run_query(con, "SELECT count(*) FROM task_ended")[1] == [(1,)]
+    finally:
+        close(con)
+    assert "damaged data file left out of every view" in caplog.text
+    assert victim.path in caplog.text and "not the ones written" in caplog.text
+    [(name, why)] = lake.verify().damaged
+    assert name == victim.path and "not the ones written" in why
+
+
+def test_compacted_files_are_content_addressed_and_checked(tmp_path: Path) -> None:
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    for i in range(3):
+        add_log(small_log(tmp_path / f"log{i}", stream=f"s{i}", n=i), lake, robot="r")
+    before = table_counts(lake)
+    digests = {r.run: r.digest for r in lake.runs()}
+    lake.compact(vacuum_hours=0)
+    files = lake.data_files()
+    assert all(file_sha256(f.path) is not None for f in files)
+    assert lake.verify().damaged == []
+    # reads and digests as before compaction
+    assert table_counts(lake) == before
+    for run in lake.runs():
+        assert len(lake.read_events(run)) == run.events and digests[run.run] == run.digest
+    victim = next(f for f in files if f.kind == "search_failed")
+    same_size_rewrite(tmp_path / "lake" / TABLE_DIR / victim.path)
+    _, bad = TableLake(lake.root, store=STORE).scan()
+    assert [f.path for f, _ in bad] == [victim.path]
+
+
+def test_unhashed_files_get_the_cheap_checks_until_compaction_hashes_them(
+    tmp_path: Path,
+) -> None:
+    # A replace is written by delta-rs (its own file names, no hash), as every file of a lake
+    # written before content-addressed names.
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    add_log(small_log(tmp_path / "a", n=3), lake, robot="r", run="x")
+    add_log(small_log(tmp_path / "b", n=5), lake, robot="r", run="x", replace=True)
+    unhashed = [f for f in lake.data_files() if file_sha256(f.path) is None]
+    assert unhashed
+    victim = unhashed[0]
+    path = tmp_path / "lake" / TABLE_DIR / victim.path
+    intact = path.read_bytes()
+    path.write_bytes(intact[:-1] + b"X")  # the same size, no PAR1 at the end
+    _, bad = TableLake(lake.root, store=STORE).scan()
+    assert [(f.path, "PAR1" in why) for f, why in bad] == [(victim.path, True)]
+    path.write_bytes(intact)
+    lake.compact(vacuum_hours=0)
+    assert all(file_sha256(f.path) is not None for f in lake.data_files())
+    assert [r.events for r in lake.runs()] == [len(EXAMPLES) + 5]
+    assert lake.verify().damaged == []

@@ -57,7 +57,12 @@ def _stored(root: str) -> set[str]:
             for p in pages.paginate(Bucket=bucket, Prefix=table)
             for o in p.get("Contents", [])
         ]
-        return {k.removeprefix(table) for k in keys if "/_delta_log/" not in f"/{k}"}
+        # not the empty "folder" markers Arrow's S3 client puts when it moves an object
+        return {
+            k.removeprefix(table)
+            for k in keys
+            if "/_delta_log/" not in f"/{k}" and not k.endswith("/")
+        }
     base = Path(root) / TABLE_DIR
     return {
         str(p.relative_to(base))
