@@ -22,9 +22,24 @@ crash) sees all of a run or none of it, with no staging folder, rename or lock o
   a commit that loses a race with another transaction is retried (:data:`COMMIT_TRIES`).
 * **replace** / **remove**: an overwrite (or delete) with the predicate ``robot = … AND run = …``,
   one transaction, bumping the run's application-transaction version.
-* **damage**: the table records every data file's size; readers leave out a file that is
-  missing, has another size or is cut (no ``PAR1`` at both ends), naming it, and ``verify``
-  decodes every file in full and compares its row count with the table's statistics.
+* **damage**: every data file this module writes is **content-addressed** — named after the
+  SHA-256 of its bytes, ``type=<kind>/part-<token>-<sha256>.zstd.parquet`` (a file written from
+  memory is hashed before it is stored; a streamed one is hashed as it is written under a
+  temporary name in the partition's folder, then renamed — locally a rename and an fsync of the
+  folder, on S3 a copy and a delete — before the commit names it), so any reader finds each
+  file's hash in the table's log alone. Compaction is ours (:meth:`TableLake._optimize`) and
+  writes content-addressed files too. Readers (:meth:`TableLake.scan`: every query, ``replay``,
+  ``where``) leave out, naming it, a file that is missing, has another size than the log
+  records, or — content-addressed — whose bytes do not hash to its name's SHA-256. A file is
+  hashed once per change of its ``stat`` identity (size, mtime, ctime, inode), remembered in a
+  verification cache outside the lake (:mod:`.lake_table_verified`): a query costs one ``stat``
+  a file once this machine has hashed the files, and the first query after a file appears or
+  changes hashes that file (about as long as reading it). Unhashed files (written by delta-rs
+  for ``replace``, or by code before content-addressed names) get the cheap check only (no
+  ``PAR1`` at both ends: cut); ``compact`` rewrites them content-addressed. On S3 a query
+  hashes nothing (a first sight would download every object once per machine: see
+  ``docs/analytics.md``). ``verify`` hashes every content-addressed file in full, whatever the
+  cache says, decodes every file (page checksums on) and compares its rows with the log's.
 
 Any Delta reader reads the table: DuckDB's ``delta_scan`` (the ``delta`` extension),
 ``polars.scan_delta``, ``deltalake.DeltaTable(…).to_pyarrow_dataset()``; ``docs/analytics.md``.
@@ -509,6 +524,16 @@ class TableLake:
         if cache is not None:
             cache.keep_only(f.path for f in files)
             cache.save()
+            unhashed = sum(1 for f in good if file_sha256(f.path) is None)
+            if unhashed:
+                _log.warning(
+                    "%s: %d data file(s) have no hash in their name (written by a replace, or "
+                    "before data files were content-addressed): checked for size and PAR1 ends "
+                    "only; `objsearch lake compact --lake %s` rewrites them content-addressed",
+                    self.root,
+                    unhashed,
+                    self.root,
+                )
         return good, bad
 
     def _hash_problem(self, f: DataFile, path: Path) -> str | None:
@@ -1232,7 +1257,8 @@ class TableLake:
             )
 
     def compact(self, *, vacuum_hours: float | None = 1.0) -> dict[str, int]:
-        """Rewrite the small files into few large ones (per ``type``), checkpoint the log, and
+        """Rewrite the small files into few large ones (per ``type``) and every unhashed file,
+        all content-addressed (:meth:`_optimize`), checkpoint the log, and
         with ``vacuum_hours`` delete files no version younger than that reads (readers that
         began earlier may still need them). Safe to run from many places at once, on a folder
         or a bucket: concurrent commits are not lost (compaction changes no data; a commit
