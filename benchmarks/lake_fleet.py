@@ -274,7 +274,8 @@ def main() -> int:
         def cold(n: int) -> Callable[[], object]:
             def opened() -> object:
                 shutil.rmtree(cache, ignore_errors=True)
-                return close(open_analytics(lakes[n].root))
+                close(open_analytics(lakes[n].root))
+                return None
 
             return opened
 

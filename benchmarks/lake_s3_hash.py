@@ -67,7 +67,8 @@ def main() -> int:
         total = sum(f.size for f in files)
 
         def setup() -> object:
-            return close(open_analytics(lake.root))
+            close(open_analytics(lake.root))
+            return None
 
         def heads() -> object:
             return fs.get_file_info([f"{base}/{f.path}" for f in files])

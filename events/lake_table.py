@@ -924,9 +924,9 @@ class TableLake:
             fs.move(f"{base}/{rel}", f"{base}/{new}")
             _fs.durable_step()
             return
-        base = Path(self.uri)
-        _fs.rename(base / rel, base / new)
-        _fs.fsync_dir((base / new).parent)
+        table = Path(self.uri)
+        _fs.rename(table / rel, table / new)
+        _fs.fsync_dir((table / new).parent)
 
     def commit_stream(
         self,
