@@ -449,3 +449,39 @@ def test_unhashed_files_get_the_cheap_checks_until_compaction_hashes_them(
     assert all(file_sha256(f.path) is not None for f in lake.data_files())
     assert [r.events for r in lake.runs()] == [len(EXAMPLES) + 5]
     assert lake.verify().damaged == []
+
+
+def test_a_replace_committed_while_a_compaction_plans_is_not_undone(tmp_path: Path) -> None:
+    # Our compaction removes its input files in an append (create_write_transaction with
+    # remove actions): a replace that removed one of them first must make it plan again, or
+    # the run's old rows would come back beside the new ones.
+    from .lake_logs import two_type_log
+
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    for i in range(2):
+        add_log(two_type_log(tmp_path / f"log{i}", stream=f"s{i}"), lake, robot="r", run=f"run{i}")
+    real = TableLake._optimize
+    raced: list[int] = []
+
+    def replaced_meanwhile(self: TableLake, table: object) -> None:
+        if not raced:
+            raced.append(1)
+            other = TableLake(self.root, store=STORE)
+            add_log(
+                small_log(tmp_path / "new", stream="new"),
+                other,
+                robot="r",
+                run="run0",
+                replace=True,
+            )
+        real(self, table)
+
+    TableLake._optimize = replaced_meanwhile  # type: ignore[method-assign]
+    try:
+        lake.compact(vacuum_hours=None)
+    finally:
+        TableLake._optimize = real  # type: ignore[method-assign]
+    assert raced
+    assert [(r.run, r.events) for r in lake.runs()] == [("run0", len(EXAMPLES) + 3), ("run1", 4)]
+    assert table_counts(lake) == [("r", "run0", len(EXAMPLES) + 3), ("r", "run1", 4)]
+    assert all(file_sha256(f.path) is not None for f in lake.data_files())
