@@ -1315,7 +1315,12 @@ class TableLake:
         adds: list[Any] = []
         try:
             for kind in sorted(by_kind):
-                for group in _compaction_groups(by_kind[kind]):
+                for planned in _compaction_groups(by_kind[kind]):
+                    # A damaged input is left where it is (readers keep leaving it out): its
+                    # rows rewritten would be a healthy file with a new hash, the damage hidden.
+                    group = [f for f in planned if not self._damaged_input(f)]
+                    if not group or (len(group) == 1 and file_sha256(group[0].path)):
+                        continue
                     written = self._rewrite(kind, group, token)
                     if written is not None:
                         adds.append(written)
@@ -1343,23 +1348,82 @@ class TableLake:
             raise
         _fs.durable_step()
 
+    def _source(self, rel: str) -> tuple[str, Any]:
+        """A data file's path and file system, as Arrow's readers take them."""
+        if self.remote:
+            fs, base = _filesystem(self.uri)
+            return f"{base}/{rel}", fs
+        return str(Path(self.uri) / rel), pafs.LocalFileSystem()
+
+    def _damaged_input(self, f: DataFile) -> bool:
+        """Whether a file a compaction would rewrite is not the file written (another size
+        than the log records; a content-addressed one whose bytes hash otherwise; an unhashed
+        one without ``PAR1`` at both ends), warned of, naming it. Reads the file once (on S3:
+        downloads it; the rewrite reads it again)."""
+        problem: str | None
+        try:
+            if self.remote:
+                fs, base = _filesystem(self.uri)
+                digest = hashlib.sha256()
+                size = 0
+                with fs.open_input_file(f"{base}/{f.path}") as fh:
+                    while chunk := fh.read(1 << 20):
+                        digest.update(chunk)
+                        size += len(chunk)
+                actual = digest.hexdigest()
+                head_ok = True
+            else:
+                path = Path(self.uri) / f.path
+                size = path.stat().st_size
+                actual = sha256_file(path) if file_sha256(f.path) else ""
+                head_ok = file_sha256(f.path) is not None or parquet_problem(path) is None
+        except OSError as exc:
+            problem = f"{f.path}: {exc.strerror or exc}"
+        else:
+            if size != f.size:
+                problem = f"{f.path} has {size} bytes, the table's log records {f.size}"
+            elif not head_ok:
+                problem = f"{f.path} is truncated or not Parquet (no PAR1 at both ends)"
+            else:
+                problem = _hash_mismatch(f, actual) if file_sha256(f.path) else None
+        if problem is None:
+            return False
+        _log.warning(
+            "%s: compaction leaves a damaged data file as it is (queries leave it out): %s",
+            self.root,
+            problem,
+        )
+        return True
+
     def _rewrite(self, kind: str, files: Sequence[DataFile], token: str) -> Any | None:
         """One content-addressed file of ``kind`` holding the rows of ``files`` in their order,
         read a batch at a time; its add action (None if they hold no row: no file). Its columns: those the inputs hold (a file
         holds its own type's columns, one delta-rs wrote may hold all), in the table's order."""
-        dataset = self.files_dataset(files)
         held: set[str] = set()
-        for fragment in dataset.get_fragments():
-            held.update(fragment.physical_schema.names)
+        for f in files:
+            try:
+                where, fs = self._source(f.path)
+                held.update(pq.read_schema(where, filesystem=fs).names)
+            except (OSError, pa.ArrowException) as exc:
+                raise TableLakeError(
+                    f"{self.root}: compaction cannot read {f.path} ({exc}); `objsearch lake "
+                    "verify` names the damaged files"
+                ) from exc
         schema = pa.schema([f for f in table_schema(self.store) if f.name in held - {"type"}])
         out = _StreamFile(self, kind, kind, token, schema=schema)
         try:
             for f in files:  # one at a time: the order of the files is the order of the rows
-                for batch in self.files_dataset([f]).to_batches(
-                    columns=schema.names, use_threads=False
-                ):
-                    rows = pa.Table.from_batches([batch])
-                    out.add(pa.Table.from_arrays(rows.columns, schema=schema))
+                try:
+                    for batch in self.files_dataset([f]).to_batches(
+                        columns=schema.names, use_threads=False
+                    ):
+                        rows = pa.Table.from_batches([batch])
+                        out.add(pa.Table.from_arrays(rows.columns, schema=schema))
+                except (OSError, pa.ArrowException) as exc:
+                    raise TableLakeError(
+                        f"{self.root}: compaction cannot read {f.path} ({exc}); `objsearch lake "
+                        "verify` names the damaged files"
+                    ) from exc
             out._flush()
             if not out.rows:
                 self._abandon([out])

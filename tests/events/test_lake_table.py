@@ -485,3 +485,23 @@ def test_a_replace_committed_while_a_compaction_plans_is_not_undone(tmp_path: Pa
     assert [(r.run, r.events) for r in lake.runs()] == [("run0", len(EXAMPLES) + 3), ("run1", 4)]
     assert table_counts(lake) == [("r", "run0", len(EXAMPLES) + 3), ("r", "run1", 4)]
     assert all(file_sha256(f.path) is not None for f in lake.data_files())
+
+
+def test_compaction_leaves_a_damaged_file_as_it_is(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # Rewritten into a compacted file, a damaged file's rows would get a new, valid hash: the
+    # damage hidden for good. Compaction leaves it; queries keep leaving it out.
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    for i in range(3):
+        add_log(small_log(tmp_path / f"log{i}", stream=f"s{i}", n=i), lake, robot="r")
+    victim = next(f for f in lake.data_files() if f.kind == "search_failed")
+    same_size_rewrite(tmp_path / "lake" / TABLE_DIR / victim.path)
+    with caplog.at_level(logging.WARNING):
+        lake.compact(vacuum_hours=0)
+    assert "compaction leaves a damaged data file as it is" in caplog.text
+    failed = [f for f in lake.data_files() if f.kind == "search_failed"]
+    assert victim.path in {f.path for f in failed} and len(failed) == 2  # it, and the rest
+    assert [name for name, _ in lake.verify().damaged] == [victim.path]
+    _, bad = TableLake(lake.root, store=STORE).scan()
+    assert [f.path for f, _ in bad] == [victim.path]
