@@ -3,14 +3,14 @@
     python benchmarks/lake_s3_hash.py [--runs 20] [--events 5000] [--reps 3]
 
 A fleet lake of ``--runs`` runs (each ``lake add`` of a synthetic log of ``--events`` events,
-``benchmarks/lake_writers.py``'s, then compacted) on a local S3 server (moto's, started here). Timed, median of ``--reps``, in
-turn: what ``objsearch query`` pays to open the lake today (``open_analytics``: the table's log
-read, views bound; no request a data file but the footers the views bind); one ``HEAD`` a data
-file (``get_file_info``: what a cache keyed by size and last-modified needs each query); and
-downloading and hashing every data file (what a first sight costs a machine, per file that is
-new to it). On a local server a byte costs far less than over a network: the ratio of the
-download to the setup is the least it would be against a real bucket. Decides whether a query
-on S3 hashes on first sight (``docs/analytics.md``).
+``benchmarks/lake_writers.py``'s, then compacted) on a local S3 server (moto's, started here).
+Timed, median of ``--reps``, in turn: what ``objsearch query`` pays to open the lake today
+(``open_analytics``: the table's log read, views bound; no request a data file but the footers
+the views bind); one ``HEAD`` a data file (``get_file_info``: what a cache keyed by size and
+last-modified needs each query); and downloading and hashing every data file (what a first sight
+costs a machine, per file that is new to it). On a local server a byte costs far less than over
+a network: the ratio of the download to the setup is the least it would be against a real
+bucket. Decides whether a query on S3 hashes on first sight (``docs/analytics.md``).
 """
 
 from __future__ import annotations
@@ -82,8 +82,8 @@ def main() -> int:
         t_setup, t_heads, t_hash = median_in_turn([setup, heads, download_and_hash], args.reps)
     shutil.rmtree(work, ignore_errors=True)
     print(
-        f"fleet lake on moto's S3 server, {args.runs} runs of {args.events} events compacted: {len(files)} data files, "
-        f"{total / 1e6:.2f} MB; {args.reps} reps, medians"
+        f"fleet lake on moto's S3 server, {args.runs} runs of {args.events} events compacted: "
+        f"{len(files)} data files, {total / 1e6:.2f} MB; {args.reps} reps, medians"
     )
     print(f"  command: python benchmarks/lake_s3_hash.py {' '.join(sys.argv[1:])}".rstrip())
     print(f"  query setup (open_analytics)           {t_setup:.3f} s")

@@ -28,18 +28,20 @@ crash) sees all of a run or none of it, with no staging folder, rename or lock o
   temporary name in the partition's folder, then renamed — locally a rename and an fsync of the
   folder, on S3 a copy and a delete — before the commit names it), so any reader finds each
   file's hash in the table's log alone. Compaction is ours (:meth:`TableLake._optimize`) and
-  writes content-addressed files too. Readers (:meth:`TableLake.scan`: every query, ``replay``,
-  ``where``) leave out, naming it, a file that is missing, has another size than the log
-  records, or — content-addressed — whose bytes do not hash to its name's SHA-256. A file is
-  hashed once per change of its ``stat`` identity (size, mtime, ctime, inode), remembered in a
-  verification cache outside the lake (:mod:`.lake_table_verified`): a query costs one ``stat``
-  a file once this machine has hashed the files, and the first query after a file appears or
-  changes hashes that file (about as long as reading it). Unhashed files (written by delta-rs
-  for ``replace``, or by code before content-addressed names) get the cheap check only (no
-  ``PAR1`` at both ends: cut); ``compact`` rewrites them content-addressed. On S3 a query
-  hashes nothing (a first sight would download every object once per machine: see
-  ``docs/analytics.md``). ``verify`` hashes every content-addressed file in full, whatever the
-  cache says, decodes every file (page checksums on) and compares its rows with the log's.
+  writes content-addressed files too, after checking each input (a damaged one stays as it
+  is: rewritten, its damage would get a fresh hash). Readers (:meth:`TableLake.scan`: every
+  query, ``replay``, ``where``) leave out, naming it, a file that is missing, has another size
+  than the log records, or — content-addressed — whose bytes do not hash to its name's SHA-256.
+  A file is hashed once per change of its ``stat`` identity (size, mtime, ctime, inode),
+  remembered in a verification cache outside the lake (:mod:`.lake_table_verified`): a query
+  costs one ``stat`` a file once this machine has hashed the files, and the first query after a
+  file appears or changes hashes that file (about as long as reading it). Unhashed files
+  (written by delta-rs for ``replace``, or by code before content-addressed names) get the
+  cheap check only (no ``PAR1`` at both ends: cut); ``compact`` rewrites them
+  content-addressed. On S3 a query hashes nothing (a first sight would download every object
+  once per machine: see ``docs/analytics.md``). ``verify`` hashes every content-addressed file
+  in full, whatever the cache says, decodes every file (page checksums on) and compares its
+  rows with the log's.
 
 Any Delta reader reads the table: DuckDB's ``delta_scan`` (the ``delta`` extension),
 ``polars.scan_delta``, ``deltalake.DeltaTable(…).to_pyarrow_dataset()``; ``docs/analytics.md``.
@@ -1397,8 +1399,9 @@ class TableLake:
 
     def _rewrite(self, kind: str, files: Sequence[DataFile], token: str) -> Any | None:
         """One content-addressed file of ``kind`` holding the rows of ``files`` in their order,
-        read a batch at a time; its add action (None if they hold no row: no file). Its columns: those the inputs hold (a file
-        holds its own type's columns, one delta-rs wrote may hold all), in the table's order."""
+        read a batch at a time; its add action (None if they hold no row: no file). Its columns:
+        those the inputs hold (a file holds its own type's columns, one delta-rs wrote may hold
+        all), in the table's order."""
         held: set[str] = set()
         for f in files:
             try:

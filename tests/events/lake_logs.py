@@ -95,8 +95,8 @@ for log in sys.argv[2:]:
 def same_size_rewrite(path: Path) -> None:
     """Rewrite the Parquet file at ``path`` as valid Parquet of the same size with one value
     changed: its first non-null ``seq`` one more (zstd, page checksums and all), brought to the
-    old size by leaving out some columns' statistics, a key of the schema's metadata and the zstd level — damage that the size and
-    the ``PAR1`` ends do not show."""
+    old size by leaving out some columns' statistics, a key of the schema's metadata and the
+    zstd level — damage that the size and the ``PAR1`` ends do not show."""
     import pyarrow as pa
     import pyarrow.compute as pc
     import pyarrow.parquet as pq
