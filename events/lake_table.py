@@ -20,28 +20,30 @@ crash) sees all of a run or none of it, with no staging folder, rename or lock o
   concurrency); the loser re-reads and finds the run there — the same content is a no-op,
   other content needs ``replace``. Writers of different runs never conflict (blind appends);
   a commit that loses a race with another transaction is retried (:data:`COMMIT_TRIES`).
-* **replace** / **remove**: an overwrite (or delete) with the predicate ``robot = … AND run = …``,
-  one transaction, bumping the run's application-transaction version.
+* **replace** / **remove**: one transaction, bumping the run's application-transaction version,
+  that removes every data file that may hold the run's rows (by the log's statistics) and adds
+  their other rows, in their order, with the run's new rows after them (ours, not delta-rs's
+  overwrite or delete: those name their files without a hash).
 * **damage**: every data file this module writes is **content-addressed** — named after the
   SHA-256 of its bytes, ``type=<kind>/part-<token>-<sha256>.zstd.parquet`` (a file written from
   memory is hashed before it is stored; a streamed one is hashed as it is written under a
   temporary name in the partition's folder, then renamed — locally a rename and an fsync of the
   folder, on S3 a copy and a delete — before the commit names it), so any reader finds each
   file's hash in the table's log alone. Compaction is ours (:meth:`TableLake._optimize`) and
-  writes content-addressed files too, after checking each input (a damaged one stays as it
-  is: rewritten, its damage would get a fresh hash). Readers (:meth:`TableLake.scan`: every
-  query, ``replay``, ``where``) leave out, naming it, a file that is missing, has another size
-  than the log records, or — content-addressed — whose bytes do not hash to its name's SHA-256.
-  A file is hashed once per change of its ``stat`` identity (size, mtime, ctime, inode),
+  writes content-addressed files too, after checking each input (a damaged one stays as it is:
+  rewritten, its damage would get a fresh hash). Readers (:meth:`TableLake.scan`: every query,
+  ``replay``, ``where``) leave out, naming it, a file that is missing, has another size than
+  the log records, or — content-addressed — whose bytes do not hash to its name's SHA-256. A
+  file is hashed once per change of its ``stat`` identity (size, mtime, ctime, inode),
   remembered in a verification cache outside the lake (:mod:`.lake_table_verified`): a query
   costs one ``stat`` a file once this machine has hashed the files, and the first query after a
   file appears or changes hashes that file (about as long as reading it). Unhashed files
-  (written by delta-rs for ``replace``, or by code before content-addressed names) get the
-  cheap check only (no ``PAR1`` at both ends: cut); ``compact`` rewrites them
-  content-addressed. On S3 a query hashes nothing (a first sight would download every object
-  once per machine: see ``docs/analytics.md``). ``verify`` hashes every content-addressed file
-  in full, whatever the cache says, decodes every file (page checksums on) and compares its
-  rows with the log's.
+  (written by code before content-addressed names, or by delta-rs: its compaction, overwrite
+  and delete name their files without a hash) get the cheap check only (no ``PAR1`` at both
+  ends: cut); ``compact`` rewrites them content-addressed. On S3 a query hashes nothing (a
+  first sight would download every object once per machine: see ``docs/analytics.md``).
+  ``verify`` hashes every content-addressed file in full, whatever the cache says, decodes
+  every file (page checksums on) and compares its rows with the log's.
 
 Any Delta reader reads the table: DuckDB's ``delta_scan`` (the ``delta`` extension),
 ``polars.scan_delta``, ``deltalake.DeltaTable(…).to_pyarrow_dataset()``; ``docs/analytics.md``.
@@ -133,8 +135,9 @@ COMPACT_AT_FILES: Final = 256
 #: Files compaction aims for (bytes); a table of a fleet's year is a few thousand of them.
 TARGET_FILE_BYTES: Final = 256 << 20
 #: A data file the lake writes is named after the SHA-256 of its bytes (content-addressed):
-#: ``type=<kind>/part-<token>-<64 hex>.zstd.parquet``. Files written by delta-rs (``--replace``)
-#: or by code before this have no hash in their name ("unhashed"); ``lake compact`` rewrites them.
+#: ``type=<kind>/part-<token>-<64 hex>.zstd.parquet``. Files written by code before this, which
+#: let delta-rs compact and replace, have no hash in their name ("unhashed"); ``lake compact``
+#: rewrites them.
 _HASHED_NAME: Final = re.compile(r"-([0-9a-f]{64})\.zstd\.parquet$")
 _log = logging.getLogger(__name__)
 
@@ -529,9 +532,9 @@ class TableLake:
             unhashed = sum(1 for f in good if file_sha256(f.path) is None)
             if unhashed:
                 _log.warning(
-                    "%s: %d data file(s) have no hash in their name (written by a replace, or "
-                    "before data files were content-addressed): checked for size and PAR1 ends "
-                    "only; `objsearch lake compact --lake %s` rewrites them content-addressed",
+                    "%s: %d data file(s) have no hash in their name (written before data files "
+                    "were content-addressed): checked for size and PAR1 ends only; `objsearch "
+                    "lake compact --lake %s` rewrites them content-addressed",
                     self.root,
                     unhashed,
                     self.root,
@@ -708,7 +711,7 @@ class TableLake:
         here: what to commit depends on what is there). ``stamps``: application transactions
         set to the version after ``table``'s (:func:`stamp_version`), so of a thing stamped
         by several commits the latest commit's stamp is the highest. The bag ingest's commit."""
-        from deltalake import CommitProperties, Transaction, write_deltalake
+        from deltalake import CommitProperties, Transaction
         from deltalake.exceptions import CommitFailedError
 
         info, parts = self._prepare(tables, robot, run, date, source, attachments, identity)
@@ -739,16 +742,9 @@ class TableLake:
                 raise TableRaceLost(f"{self.root}: run {robot}/{run} changed: {exc}") from exc
             _fs.durable_step()
             return info
-        runs = ", ".join(f"'{r}'" for r in sorted({*replacing, run}))
         try:
-            write_deltalake(
-                table,
-                _whole_rows(parts, self.store),
-                mode="overwrite",
-                predicate=f"robot = '{robot}' AND run IN ({runs})",
-                partition_by=["type"],
-                commit_properties=commit,
-                storage_options=self.options,
+            self._overwrite_runs(
+                table, robot, sorted({*replacing, run}), parts, info.commit, commit
             )
         except CommitFailedError as exc:
             landed = self.find(robot, run)
@@ -824,7 +820,7 @@ class TableLake:
         adds: list[Any] | None = None,
         table: Any | None = None,
     ) -> TableRun:
-        from deltalake import CommitProperties, write_deltalake
+        from deltalake import CommitProperties
         from deltalake.exceptions import CommitFailedError
 
         # ``adds``: files written for an append (given, or written on the first try), kept
@@ -867,15 +863,7 @@ class TableLake:
                         commit_properties=commit,
                     )
                 else:
-                    write_deltalake(
-                        table,
-                        _whole_rows(parts, self.store),
-                        mode="overwrite",
-                        predicate=_run_predicate(info.robot, info.run),
-                        partition_by=["type"],
-                        commit_properties=commit,
-                        storage_options=self.options,
-                    )
+                    self._overwrite_runs(table, info.robot, [info.run], parts, info.commit, commit)
             except CommitFailedError as exc:
                 _log.debug(
                     "%s: commit of %s/%s lost a race (%s); again",
@@ -1213,6 +1201,96 @@ class TableLake:
                 else:
                     (Path(self.uri) / add.path).unlink()
 
+    def _overwrite_runs(
+        self,
+        table: Any,
+        robot: str,
+        runs: Sequence[str],
+        parts: Mapping[str, pa.Table],
+        token: str,
+        commit: Any,
+    ) -> None:
+        """Replace every row of ``runs`` of ``robot`` by ``parts`` (a run's rows by ``type``;
+        none: take the runs out) in one transaction decided from ``table``, carrying
+        ``commit`` (its application transactions): each data file that may hold a row of them
+        (by the log's statistics) is removed, and its other rows, in their order, are written
+        again with the new rows of its type after them — content-addressed, as every file this
+        module writes (delta-rs's overwrite and delete name their files without a hash). A
+        damaged file among them is an error naming it (rewritten, its damage would get a fresh
+        hash). Raises ``CommitFailedError`` if another commit came between (what it wrote
+        deleted), unless this one landed (its answer lost)."""
+        from deltalake.exceptions import CommitFailedError
+        from deltalake.transaction import RemoveAction
+
+        holding = self._files_holding(table, robot, runs)
+        for f in holding:
+            problem = self._input_problem(f)
+            if problem is not None:
+                raise TableLakeError(
+                    f"{self.root}: a data file holding run {'/'.join(runs)} of robot {robot!r} "
+                    f"is damaged ({problem}); rewriting it would hide the damage: `objsearch "
+                    "lake verify` names the damaged files"
+                )
+        by_kind: dict[str, list[DataFile]] = {}
+        for f in holding:
+            by_kind.setdefault(f.kind, []).append(f)
+        adds: list[Any] = []
+        try:
+            fresh = {k: [p] for k, p in parts.items() if k not in by_kind and p.num_rows}
+            adds += self._write_files(fresh, token)
+            for kind in sorted(by_kind):
+                written = self._rewrite(
+                    kind, by_kind[kind], token, drop=(robot, runs), then=parts.get(kind)
+                )
+                if written is not None:
+                    adds.append(written)
+            now = int(time.time() * 1000)
+            removes = [RemoveAction(f.path, True, now, f.size, {"type": f.kind}) for f in holding]
+            table.create_write_transaction(
+                [*removes, *adds],
+                mode="append",
+                schema=table_schema(self.store),
+                partition_by=["type"],
+                commit_properties=commit,
+            )
+        except CommitFailedError:
+            landed = {f.path for f in self.data_files(self.table())}
+            if adds and all(a.path in landed for a in adds):
+                return  # it landed; its answer was lost
+            self._delete_files(adds)
+            raise
+        except BaseException:
+            self._delete_files(adds)
+            raise
+
+    def _files_holding(self, table: Any, robot: str, runs: Sequence[str]) -> list[DataFile]:
+        """The data files of ``table`` that may hold a row of ``runs`` of ``robot``: by the
+        minimum and maximum the log records of ``robot`` and ``run`` (this module records them
+        whole); a file without them, or unhashed (delta-rs may cut a string's statistics), is
+        taken as holding them."""
+        actions = pa.table(table.get_add_actions(flatten=True))
+        n = actions.num_rows
+
+        def column(name: str) -> list[Any]:
+            return actions.column(name).to_pylist() if name in actions.column_names else [None] * n
+
+        bounds = zip(
+            actions.column("path").to_pylist(),
+            column("min.robot"),
+            column("max.robot"),
+            column("min.run"),
+            column("max.run"),
+            strict=True,
+        )
+        maybe = set()
+        for path, lo_robot, hi_robot, lo_run, hi_run in bounds:
+            unknown = None in (lo_robot, hi_robot, lo_run, hi_run) or not file_sha256(str(path))
+            if unknown or (
+                lo_robot <= robot <= hi_robot and any(lo_run <= r <= hi_run for r in runs)
+            ):
+                maybe.add(str(path))
+        return [f for f in self.data_files(table) if f.path in maybe]
+
     def remove_run(self, robot: str, run: str) -> bool:
         """Take a run out of the lake (one transaction); False if it was not there."""
         from deltalake import CommitProperties, Transaction
@@ -1224,13 +1302,9 @@ class TableLake:
             if self.find(robot, run, table) is None:
                 return False
             version = table.transaction_version(app) or 0
+            commit = CommitProperties(app_transactions=[Transaction(app, version + 1)])
             try:
-                table.delete(
-                    _run_predicate(robot, run),
-                    commit_properties=CommitProperties(
-                        app_transactions=[Transaction(app, version + 1)]
-                    ),
-                )
+                self._overwrite_runs(table, robot, [run], {}, _token(), commit)
             except CommitFailedError:
                 time.sleep(min(0.5, 0.01 * (attempt + 1)))
                 continue
@@ -1357,10 +1431,10 @@ class TableLake:
             return f"{base}/{rel}", fs
         return str(Path(self.uri) / rel), pafs.LocalFileSystem()
 
-    def _damaged_input(self, f: DataFile) -> bool:
-        """Whether a file a compaction would rewrite is not the file written (another size
-        than the log records; a content-addressed one whose bytes hash otherwise; an unhashed
-        one without ``PAR1`` at both ends), warned of, naming it. Reads the file once (on S3:
+    def _input_problem(self, f: DataFile) -> str | None:
+        """Why a file a compaction or a replace would rewrite is not the file written (another
+        size than the log records; a content-addressed one whose bytes hash otherwise; an
+        unhashed one without ``PAR1`` at both ends), or None. Reads the file once (on S3:
         downloads it; the rewrite reads it again)."""
         problem: str | None
         try:
@@ -1388,6 +1462,12 @@ class TableLake:
                 problem = f"{f.path} is truncated or not Parquet (no PAR1 at both ends)"
             else:
                 problem = _hash_mismatch(f, actual) if file_sha256(f.path) else None
+        return problem
+
+    def _damaged_input(self, f: DataFile) -> bool:
+        """Whether a file a compaction would rewrite is damaged (:meth:`_input_problem`),
+        warned of, naming it."""
+        problem = self._input_problem(f)
         if problem is None:
             return False
         _log.warning(
@@ -1397,11 +1477,20 @@ class TableLake:
         )
         return True
 
-    def _rewrite(self, kind: str, files: Sequence[DataFile], token: str) -> Any | None:
+    def _rewrite(
+        self,
+        kind: str,
+        files: Sequence[DataFile],
+        token: str,
+        *,
+        drop: tuple[str, Sequence[str]] | None = None,
+        then: pa.Table | None = None,
+    ) -> Any | None:
         """One content-addressed file of ``kind`` holding the rows of ``files`` in their order,
-        read a batch at a time; its add action (None if they hold no row: no file). Its columns:
-        those the inputs hold (a file holds its own type's columns, one delta-rs wrote may hold
-        all), in the table's order."""
+        read a batch at a time, less those of ``drop`` (a robot and runs of it), then the rows
+        ``then``; its add action (None if there is no row: no file). Its columns: those the
+        inputs hold (a file holds its own type's columns, one delta-rs wrote may hold all), in
+        the table's order."""
         held: set[str] = set()
         for f in files:
             try:
@@ -1412,6 +1501,8 @@ class TableLake:
                     f"{self.root}: compaction cannot read {f.path} ({exc}); `objsearch lake "
                     "verify` names the damaged files"
                 ) from exc
+        if then is not None:
+            held.update(then.column_names)
         schema = pa.schema([f for f in table_schema(self.store) if f.name in held - {"type"}])
         out = _StreamFile(self, kind, kind, token, schema=schema)
         try:
@@ -1421,12 +1512,31 @@ class TableLake:
                         columns=schema.names, use_threads=False
                     ):
                         rows = pa.Table.from_batches([batch])
+                        if drop is not None:
+                            robot, runs = drop
+                            ours = pc.and_(
+                                pc.equal(rows.column("robot"), robot),
+                                pc.is_in(rows.column("run"), pa.array(list(runs), pa.string())),
+                            )
+                            rows = rows.filter(pc.invert(pc.fill_null(ours, False)))
                         out.add(pa.Table.from_arrays(rows.columns, schema=schema))
                 except (OSError, pa.ArrowException) as exc:
                     raise TableLakeError(
                         f"{self.root}: compaction cannot read {f.path} ({exc}); `objsearch lake "
                         "verify` names the damaged files"
                     ) from exc
+            if then is not None and then.num_rows:
+                out.add(
+                    pa.Table.from_arrays(
+                        [
+                            then.column(f.name).cast(f.type)
+                            if f.name in then.column_names
+                            else pa.nulls(then.num_rows, f.type)
+                            for f in schema
+                        ],
+                        schema=schema,
+                    )
+                )
             out._flush()
             if not out.rows:
                 self._abandon([out])
@@ -1840,11 +1950,6 @@ def stamp_version(table: Any) -> int:
     return int(table.version()) + 1
 
 
-def _run_predicate(robot: str, run: str) -> str:
-    # _check_name allows no quote in either name.
-    return f"robot = '{robot}' AND run = '{run}'"
-
-
 def _run_of(row: Mapping[str, Any]) -> TableRun:
     info = row[RUN_COLUMN]
     return TableRun(
@@ -1857,30 +1962,6 @@ def _run_of(row: Mapping[str, Any]) -> TableRun:
         source=info["source"],
         identity=json.loads(info["identity"]),
         attachments=json.loads(info["attachments"]),
-    )
-
-
-def _widest(part: pa.Table, store: Store) -> pa.Schema:
-    return pa.schema([table_schema(store).field(n) for n in part.column_names])
-
-
-def _whole_rows(parts: Mapping[str, pa.Table], store: Store) -> pa.Table:
-    """A run's parts as one table of every column of the table (delta-rs's overwrite refuses
-    a table lacking some: a run without some event type's rows lacks its struct)."""
-    rows = pa.concat_tables(
-        [p.cast(_widest(p, store)) for p in parts.values() if p.num_rows],
-        promote_options="default",
-    )
-    schema = table_schema(store)
-    # One chunk a column: delta-rs's writer panicked on the concatenated parts' chunks
-    # ("assertion failed: end <= self.len()", the interpreter aborted).
-    rows = rows.combine_chunks()
-    return pa.Table.from_arrays(
-        [
-            rows.column(f.name) if f.name in rows.column_names else pa.nulls(rows.num_rows, f.type)
-            for f in schema
-        ],
-        schema=schema,
     )
 
 

@@ -431,11 +431,12 @@ def test_compacted_files_are_content_addressed_and_checked(tmp_path: Path) -> No
 def test_unhashed_files_get_the_cheap_checks_until_compaction_hashes_them(
     tmp_path: Path,
 ) -> None:
-    # A replace is written by delta-rs (its own file names, no hash), as every file of a lake
-    # written before content-addressed names.
+    # Files delta-rs wrote with its own names (no hash), as the compaction of code before
+    # content-addressed names did: every file of such a lake is unhashed.
     lake = TableLake(tmp_path / "lake", store=STORE)
-    add_log(small_log(tmp_path / "a", n=3), lake, robot="r", run="x")
-    add_log(small_log(tmp_path / "b", n=5), lake, robot="r", run="x", replace=True)
+    add_log(small_log(tmp_path / "a", n=3), lake, robot="r", run="w")
+    add_log(small_log(tmp_path / "b", n=5), lake, robot="r", run="x")
+    lake.table().optimize.compact()
     unhashed = [f for f in lake.data_files() if file_sha256(f.path) is None]
     assert unhashed
     victim = unhashed[0]
@@ -447,7 +448,8 @@ def test_unhashed_files_get_the_cheap_checks_until_compaction_hashes_them(
     path.write_bytes(intact)
     lake.compact(vacuum_hours=0)
     assert all(file_sha256(f.path) is not None for f in lake.data_files())
-    assert [r.events for r in lake.runs()] == [len(EXAMPLES) + 5]
+    assert [r.events for r in lake.runs()] == [len(EXAMPLES) + 3, len(EXAMPLES) + 5]
+    assert [len(lake.read_events(r)) for r in lake.runs()] == [len(EXAMPLES) + 3, len(EXAMPLES) + 5]
     assert lake.verify().damaged == []
 
 
@@ -505,3 +507,43 @@ def test_compaction_leaves_a_damaged_file_as_it_is(
     assert [name for name, _ in lake.verify().damaged] == [victim.path]
     _, bad = TableLake(lake.root, store=STORE).scan()
     assert [f.path for f, _ in bad] == [victim.path]
+
+
+def test_a_replace_and_a_removal_rewrite_shared_files_content_addressed(tmp_path: Path) -> None:
+    # Once compacted, a file holds the rows of many runs: replacing or removing one rewrites
+    # its files with the other runs' rows kept, in their order, and every file keeps a hash.
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    for i in range(3):
+        add_log(small_log(tmp_path / f"log{i}", stream=f"s{i}", n=i), lake, robot="r", run=f"x{i}")
+    lake.compact(vacuum_hours=None)
+    before = {r.run: r for r in lake.runs()}
+    add_log(small_log(tmp_path / "new", stream="new", n=7), lake, robot="r", run="x1", replace=True)
+    assert all(file_sha256(f.path) is not None for f in lake.data_files())
+    runs = {r.run: r for r in lake.runs()}
+    assert runs["x0"] == before["x0"] and runs["x2"] == before["x2"]
+    assert runs["x1"].events == len(EXAMPLES) + 7
+    for run in runs.values():  # rows and digests read back as committed
+        assert len(lake.read_events(run)) == run.events
+    assert lake.remove_run("r", "x0")
+    assert [r.run for r in lake.runs()] == ["x1", "x2"]
+    assert all(file_sha256(f.path) is not None for f in lake.data_files())
+    assert table_counts(lake) == [("r", "x1", len(EXAMPLES) + 7), ("r", "x2", len(EXAMPLES) + 2)]
+    assert lake.verify().damaged == []
+
+
+def test_a_replace_refuses_to_rewrite_a_damaged_file(tmp_path: Path) -> None:
+    # The file holding the run also holds other runs' rows: rewritten, its damage would get a
+    # fresh hash. The replace is refused, naming the file; the lake is as it was.
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    for i in range(2):
+        add_log(small_log(tmp_path / f"log{i}", stream=f"s{i}", n=i), lake, robot="r", run=f"x{i}")
+    lake.compact(vacuum_hours=None)
+    victim = next(f for f in lake.data_files() if f.kind == "search_failed")
+    same_size_rewrite(tmp_path / "lake" / TABLE_DIR / victim.path)
+    version = lake.table().version()
+    with pytest.raises(TableLakeError, match="damaged") as refused:
+        add_log(
+            small_log(tmp_path / "new", stream="new", n=7), lake, robot="r", run="x1", replace=True
+        )
+    assert victim.path in str(refused.value)
+    assert lake.table().version() == version
