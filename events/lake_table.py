@@ -743,9 +743,7 @@ class TableLake:
             _fs.durable_step()
             return info
         try:
-            self._overwrite_runs(
-                table, robot, sorted({*replacing, run}), parts, info.commit, commit
-            )
+            self._overwrite_runs(table, robot, sorted({*replacing, run}), parts, info.commit, txns)
         except CommitFailedError as exc:
             landed = self.find(robot, run)
             if landed is not None and landed.commit == info.commit:
@@ -850,7 +848,8 @@ class TableLake:
                         f"{self.root}: another writer committed run {info.run!r} of robot "
                         f"{info.robot!r} while this one was writing it; run the command again"
                     )
-            commit = CommitProperties(app_transactions=_transactions(table, info))
+            commit_apps = _transactions(table, info)
+            commit = CommitProperties(app_transactions=commit_apps)
             try:
                 if existing is None:
                     if adds is None:
@@ -863,7 +862,9 @@ class TableLake:
                         commit_properties=commit,
                     )
                 else:
-                    self._overwrite_runs(table, info.robot, [info.run], parts, info.commit, commit)
+                    self._overwrite_runs(
+                        table, info.robot, [info.run], parts, info.commit, commit_apps
+                    )
             except CommitFailedError as exc:
                 _log.debug(
                     "%s: commit of %s/%s lost a race (%s); again",
@@ -1208,20 +1209,22 @@ class TableLake:
         runs: Sequence[str],
         parts: Mapping[str, pa.Table],
         token: str,
-        commit: Any,
+        apps: Sequence[Any],
     ) -> None:
         """Replace every row of ``runs`` of ``robot`` by ``parts`` (a run's rows by ``type``;
-        none: take the runs out) in one transaction decided from ``table``, carrying
-        ``commit`` (its application transactions): each data file that may hold a row of them
+        none: take the runs out) in one transaction decided from ``table``, carrying the
+        application transactions ``apps`` and :data:`REWRITE_APP`: each data file that may hold a row of them
         (by the log's statistics) is removed, and its other rows, in their order, are written
         again with the new rows of its type after them — content-addressed, as every file this
         module writes (delta-rs's overwrite and delete name their files without a hash). A
         damaged file among them is an error naming it (rewritten, its damage would get a fresh
         hash). Raises ``CommitFailedError`` if another commit came between (what it wrote
         deleted), unless this one landed (its answer lost)."""
+        from deltalake import CommitProperties
         from deltalake.exceptions import CommitFailedError
         from deltalake.transaction import RemoveAction
 
+        commit = CommitProperties(app_transactions=[*apps, _rewrite_transaction(table)])
         holding = self._files_holding(table, robot, runs)
         for f in holding:
             problem = self._input_problem(f)
@@ -1293,7 +1296,7 @@ class TableLake:
 
     def remove_run(self, robot: str, run: str) -> bool:
         """Take a run out of the lake (one transaction); False if it was not there."""
-        from deltalake import CommitProperties, Transaction
+        from deltalake import Transaction
         from deltalake.exceptions import CommitFailedError
 
         app = _app_id(robot, run)
@@ -1302,9 +1305,10 @@ class TableLake:
             if self.find(robot, run, table) is None:
                 return False
             version = table.transaction_version(app) or 0
-            commit = CommitProperties(app_transactions=[Transaction(app, version + 1)])
             try:
-                self._overwrite_runs(table, robot, [run], {}, _token(), commit)
+                self._overwrite_runs(
+                    table, robot, [run], {}, _token(), [Transaction(app, version + 1)]
+                )
             except CommitFailedError:
                 time.sleep(min(0.5, 0.01 * (attempt + 1)))
                 continue
@@ -1380,6 +1384,7 @@ class TableLake:
         (``dataChange = false``) and adds the outputs. Not delta-rs's ``optimize.compact``: it
         names its files itself, with no hash. A commit that fails deletes what it wrote, unless
         it landed (its answer lost)."""
+        from deltalake import CommitProperties
         from deltalake.exceptions import CommitFailedError
         from deltalake.transaction import RemoveAction
 
@@ -1411,6 +1416,7 @@ class TableLake:
                 mode="append",
                 schema=table_schema(self.store),
                 partition_by=["type"],
+                commit_properties=CommitProperties(app_transactions=[_rewrite_transaction(table)]),
             )
         except CommitFailedError:
             landed = {f.path for f in self.data_files(self.table())}
@@ -1927,6 +1933,21 @@ IDENTITY_INDEX_APP: Final = "objsearch/identity-index"
 #: :meth:`TableLake.record_bag`; ingest stamps each bag piece), so "is this bag here?" is
 #: answered from the log alone. A table made before has no such marker: ingest reads its rows.
 STAMP_INDEX_APP: Final = "objsearch/stamp-index"
+
+
+#: Carried by every transaction that removes data files and writes their rows again (a
+#: compaction, a replace, a removal), each at the version after the one its table read: of two
+#: that overlap, the second fails and reads again. delta-rs (1.6.6) does not fail an append
+#: whose remove actions name files another commit removed since (the rows they held, rewritten
+#: by both, would be there twice: a replace that read the table between a compaction's claim
+#: and its commit did so); a shared application transaction does.
+REWRITE_APP: Final = "objsearch/rewrite"
+
+
+def _rewrite_transaction(table: Any) -> Any:
+    from deltalake import Transaction
+
+    return Transaction(REWRITE_APP, (table.transaction_version(REWRITE_APP) or 0) + 1)
 
 
 def _identity_app(key: str, value: str) -> str:

@@ -547,3 +547,48 @@ def test_a_replace_refuses_to_rewrite_a_damaged_file(tmp_path: Path) -> None:
         )
     assert victim.path in str(refused.value)
     assert lake.table().version() == version
+
+
+def test_a_compaction_committed_while_a_replace_plans_makes_it_plan_again(tmp_path: Path) -> None:
+    # The other order of the race above: the replace read the table at the compaction's claim,
+    # the compaction commits, then the replace removes files already removed. Without the
+    # application transaction both carry (REWRITE_APP), delta-rs let it commit and the run's
+    # old rows, rewritten by the compaction, were there beside the new ones.
+    from .lake_logs import two_type_log
+
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    for i in range(3):
+        add_log(two_type_log(tmp_path / f"log{i}", stream=f"s{i}"), lake, robot="r", run=f"run{i}")
+    real = TableLake._files_holding
+    raced: list[int] = []
+
+    def compacted_meanwhile(
+        self: TableLake, table: DeltaTable, robot: str, runs: list[str]
+    ) -> list[object]:
+        if not raced:
+            other = TableLake(self.root, store=STORE)
+            pinned = other._claim()
+            assert pinned is not None
+            table.update_incremental()  # the replace decides from the claim's version
+            raced.append(table.version())
+            other._optimize(pinned)  # and the compaction commits first
+        return real(self, table, robot, runs)  # type: ignore[return-value]
+
+    TableLake._files_holding = compacted_meanwhile  # type: ignore[assignment,method-assign]
+    try:
+        add_log(
+            small_log(tmp_path / "new", stream="new"), lake, robot="r", run="run0", replace=True
+        )
+    finally:
+        TableLake._files_holding = real  # type: ignore[method-assign]
+    assert raced
+    assert [(r.run, r.events) for r in lake.runs()] == [
+        ("run0", len(EXAMPLES) + 3),
+        ("run1", 4),
+        ("run2", 4),
+    ]
+    assert table_counts(lake) == [
+        ("r", "run0", len(EXAMPLES) + 3),
+        ("r", "run1", 4),
+        ("r", "run2", 4),
+    ]
