@@ -1391,7 +1391,6 @@ class TableLake:
         by_kind: dict[str, list[DataFile]] = {}
         for f in self.data_files(table):
             by_kind.setdefault(f.kind, []).append(f)
-        token = _token()
         removes: list[Any] = []
         adds: list[Any] = []
         try:
@@ -1402,7 +1401,7 @@ class TableLake:
                     group = [f for f in planned if not self._damaged_input(f)]
                     if not group or (len(group) == 1 and file_sha256(group[0].path)):
                         continue
-                    written = self._rewrite(kind, group, token)
+                    written = self._rewrite(kind, group, _token())  # a name of its own
                     if written is not None:
                         adds.append(written)
                     now = int(time.time() * 1000)
