@@ -31,19 +31,19 @@ crash) sees all of a run or none of it, with no staging folder, rename or lock o
   folder, on S3 a copy and a delete — before the commit names it), so any reader finds each
   file's hash in the table's log alone. Compaction is ours (:meth:`TableLake._optimize`) and
   writes content-addressed files too, after checking each input (a damaged one stays as it is:
-  rewritten, its damage would get a fresh hash). Readers (:meth:`TableLake.scan`: every query,
-  ``replay``, ``where``) leave out, naming it, a file that is missing, has another size than
-  the log records, or — content-addressed — whose bytes do not hash to its name's SHA-256. A
-  file is hashed once per change of its ``stat`` identity (size, mtime, ctime, inode),
-  remembered in a verification cache outside the lake (:mod:`.lake_table_verified`): a query
-  costs one ``stat`` a file once this machine has hashed the files, and the first query after a
-  file appears or changes hashes that file (about as long as reading it). Unhashed files
-  (written by code before content-addressed names, or by delta-rs: its compaction, overwrite
-  and delete name their files without a hash) get the cheap check only (no ``PAR1`` at both
-  ends: cut); ``compact`` rewrites them content-addressed. On S3 a query hashes nothing (a
-  first sight would download every object once per machine: see ``docs/analytics.md``).
-  ``verify`` hashes every content-addressed file in full, whatever the cache says, decodes
-  every file (page checksums on) and compares its rows with the log's.
+  rewritten, its damage would get a fresh hash). Every query (:meth:`TableLake.scan`;
+  ``replay`` and ``where`` check a run's digest instead) leaves out, naming it, a file that is
+  missing, has another size than the log records, or — content-addressed — whose bytes do not
+  hash to its name's SHA-256. A file is hashed once per change of its ``stat`` identity (size,
+  mtime, ctime, inode), remembered in a verification cache outside the lake
+  (:mod:`.lake_table_verified`): a query costs one ``stat`` a file once this machine has hashed
+  the files, and the first query after a file appears or changes hashes that file (about as
+  long as reading it). Unhashed files (written by code before content-addressed names, or by
+  delta-rs: its compaction, overwrite and delete name their files without a hash) get the cheap
+  check only (no ``PAR1`` at both ends: cut); ``compact`` rewrites them content-addressed. On
+  S3 a query hashes nothing (a first sight would download every object once per machine: see
+  ``docs/analytics.md``). ``verify`` hashes every content-addressed file in full, whatever the
+  cache says, decodes every file (page checksums on) and compares its rows with the log's.
 
 Any Delta reader reads the table: DuckDB's ``delta_scan`` (the ``delta`` extension),
 ``polars.scan_delta``, ``deltalake.DeltaTable(…).to_pyarrow_dataset()``; ``docs/analytics.md``.
