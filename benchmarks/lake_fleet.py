@@ -12,7 +12,9 @@ median of ``--reps``:
 
 * **setup**: ``open_analytics`` (what every ``objsearch query`` does before the SQL runs) and
   closing it, per size; the ratio of the largest fleet lake to the smallest
-  (target ≤ 2);
+  (target ≤ 2); with the fleet lake's verification cache warm (the files hashed by an earlier
+  query, what a machine that queries the lake gets), and emptied before each (every data file
+  hashed: a machine's first query, or the first after the files changed);
 * **query**: a typical analyst query over the largest fleet lake as ``objsearch query`` runs it
   (``open_analytics(lake, for_sql=…)``, which makes only the views the query reads, +
   ``run_query``), and with every view made (``open_analytics(lake)``, what a notebook gets),
@@ -36,6 +38,7 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import math
+import os
 import shutil
 import statistics
 import sys
@@ -200,6 +203,10 @@ def main() -> int:
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
     work = Path(tempfile.mkdtemp(prefix="objsearch-bench-lake-fleet-"))
+    # The fleet lake's verification cache (which data files this machine hashed) in the work
+    # folder: emptied for the cold-cache rows, never the user's.
+    cache = work / "cache"
+    os.environ["OBJSEARCH_CACHE"] = str(cache)
     print(
         f"lake growth, {args.reps} reps, medians; command: python benchmarks/lake_fleet.py "
         + " ".join(sys.argv[1:])
@@ -235,6 +242,24 @@ def main() -> int:
                 f"setup ({label}), in turn: {lo} runs {s_lo:.3f} s, {hi} runs {s_hi:.3f} s, "
                 f"ratio {s_hi / s_lo:.2f} (target ≤ 2)"
             )
+
+        # The cold verification cache: a machine that never read these files hashes each
+        # content-addressed file once (every row above ran with the cache warm).
+        def cold(n: int) -> Callable[[], object]:
+            def opened() -> object:
+                shutil.rmtree(cache, ignore_errors=True)
+                close(open_analytics(lakes[n].root))
+                return None
+
+            return opened
+
+        c_lo, c_hi = timed_pair(cold(lo), cold(hi), args.reps)
+        size = {n: sum(f.size for f in lakes[n].data_files()) / 1e6 for n in (lo, hi)}
+        print(
+            f"setup (every view), verification cache emptied before each (every data file "
+            f"hashed): {lo} runs {c_lo:.3f} s ({size[lo]:.1f} MB), {hi} runs {c_hi:.3f} s "
+            f"({size[hi]:.1f} MB), ratio {c_hi / c_lo:.2f}"
+        )
 
         big = work / f"fleet-{hi}"
 

@@ -20,11 +20,30 @@ crash) sees all of a run or none of it, with no staging folder, rename or lock o
   concurrency); the loser re-reads and finds the run there — the same content is a no-op,
   other content needs ``replace``. Writers of different runs never conflict (blind appends);
   a commit that loses a race with another transaction is retried (:data:`COMMIT_TRIES`).
-* **replace** / **remove**: an overwrite (or delete) with the predicate ``robot = … AND run = …``,
-  one transaction, bumping the run's application-transaction version.
-* **damage**: the table records every data file's size; readers leave out a file that is
-  missing, has another size or is cut (no ``PAR1`` at both ends), naming it, and ``verify``
-  decodes every file in full and compares its row count with the table's statistics.
+* **replace** / **remove**: one transaction, bumping the run's application-transaction version,
+  that removes every data file that may hold the run's rows (by the log's statistics) and adds
+  their other rows, in their order, with the run's new rows after them (ours, not delta-rs's
+  overwrite or delete: those name their files without a hash).
+* **damage**: every data file this module writes is **content-addressed** — named after the
+  SHA-256 of its bytes, ``type=<kind>/part-<token>-<sha256>.zstd.parquet`` (a file written from
+  memory is hashed before it is stored; a streamed one is hashed as it is written under a
+  temporary name in the partition's folder, then renamed — locally a rename and an fsync of the
+  folder, on S3 a copy and a delete — before the commit names it), so any reader finds each
+  file's hash in the table's log alone. Compaction is ours (:meth:`TableLake._optimize`) and
+  writes content-addressed files too, after checking each input (a damaged one stays as it is:
+  rewritten, its damage would get a fresh hash). Every query (:meth:`TableLake.scan`;
+  ``replay`` and ``where`` check a run's digest instead) leaves out, naming it, a file that is
+  missing, has another size than the log records, or — content-addressed — whose bytes do not
+  hash to its name's SHA-256. A file is hashed once per change of its ``stat`` identity (size,
+  mtime, ctime, inode), remembered in a verification cache outside the lake
+  (:mod:`.lake_table_verified`): a query costs one ``stat`` a file once this machine has hashed
+  the files, and the first query after a file appears or changes hashes that file (about as
+  long as reading it). Unhashed files (written by code before content-addressed names, or by
+  delta-rs: its compaction, overwrite and delete name their files without a hash) get the cheap
+  check only (no ``PAR1`` at both ends: cut); ``compact`` rewrites them content-addressed. On
+  S3 a query hashes nothing (a first sight would download every object once per machine: see
+  ``docs/analytics.md``). ``verify`` hashes every content-addressed file in full, whatever the
+  cache says, decodes every file (page checksums on) and compares its rows with the log's.
 
 Any Delta reader reads the table: DuckDB's ``delta_scan`` (the ``delta`` extension),
 ``polars.scan_delta``, ``deltalake.DeltaTable(…).to_pyarrow_dataset()``; ``docs/analytics.md``.
@@ -41,6 +60,7 @@ import logging
 import math
 import os
 import random
+import re
 import shutil
 import tempfile
 import time
@@ -70,6 +90,7 @@ from .lake import (
     _conform,
     parquet_problem,
 )
+from .lake_table_verified import Identity, VerifiedFiles, sha256_file
 from .log_files import LOCK_FILE, read_meta
 from .log_read import read_log
 from .store import Store, shipped
@@ -112,6 +133,11 @@ COMPACTION_CLAIM_FRESH_S: Final = 120.0
 COMPACT_AT_FILES: Final = 256
 #: Files compaction aims for (bytes); a table of a fleet's year is a few thousand of them.
 TARGET_FILE_BYTES: Final = 256 << 20
+#: A data file the lake writes is named after the SHA-256 of its bytes (content-addressed):
+#: ``type=<kind>/part-<token>-<64 hex>.zstd.parquet``. Files written by code before this, which
+#: let delta-rs compact and replace, have no hash in their name ("unhashed"); ``lake compact``
+#: rewrites them.
+_HASHED_NAME: Final = re.compile(r"-([0-9a-f]{64})\.zstd\.parquet$")
 _log = logging.getLogger(__name__)
 
 
@@ -254,6 +280,8 @@ class TableLake:
             else str(Path(root).absolute() / TABLE_DIR)
         )
         self.options = storage_options() if self.remote else {}
+        #: Data files :meth:`scan` hashed (not found in the verification cache) so far.
+        self.hashed = 0
 
     def __repr__(self) -> str:
         return f"TableLake({str(self.root)!r})"
@@ -450,57 +478,115 @@ class TableLake:
         upcast = self.store.upcaster.upcast
         return [upcast(e) for e in tables_to_events(tables.values(), self.store)]
 
-    def scan(self, table: Any | None = None) -> tuple[list[DataFile], list[tuple[DataFile, str]]]:
-        """The data files readers may read, and those they must leave out (missing, another
-        size than the log records, or cut). Cheap: one ``stat`` and 8 bytes a file, and the
-        number of files does not grow with the runs once the table is compacted."""
+    def scan(
+        self, table: Any | None = None, *, hashes: bool = True
+    ) -> tuple[list[DataFile], list[tuple[DataFile, str]]]:
+        """The data files readers may read, and those they must leave out: missing, of another
+        size than the log records, or — a content-addressed file (:func:`file_sha256`) — whose
+        bytes do not hash to the SHA-256 its name records; an unhashed file is checked for
+        ``PAR1`` at both ends only. A hashed file is hashed when this machine first sees it
+        and again only once its ``stat`` identity changes (:mod:`.lake_table_verified`: a
+        cache outside the lake), so a query costs one ``stat`` a file once the files were
+        seen; the number of files does not grow with the runs once the table is compacted.
+        ``hashes=False``: no hashing (:meth:`verify` hashes every file itself). On S3 nothing
+        is checked here (the object store checks what it serves; ``lake verify`` hashes)."""
         files = self.data_files(table)
         if self.remote:
-            return files, []  # the object store checks what it serves (sizes, checksums)
+            return files, []
         good, bad = [], []
         base = Path(self.uri)
+        cache = VerifiedFiles(self.uri) if hashes else None
         for f in files:
             path = base / f.path
             try:
-                size = path.stat().st_size
+                st = path.stat()
             except OSError as exc:
                 bad.append((f, f"{f.path}: {exc.strerror or exc}"))
                 continue
-            if size != f.size:
-                bad.append((f, f"{f.path} has {size} bytes, the table's log records {f.size}"))
+            if st.st_size != f.size:
+                bad.append(
+                    (f, f"{f.path} has {st.st_size} bytes, the table's log records {f.size}")
+                )
                 continue
-            problem = parquet_problem(path)
-            if problem is not None:
-                bad.append((f, f"{f.path}: {problem}"))
+            expected = file_sha256(f.path)
+            if expected is None or cache is None:
+                problem = parquet_problem(path)
+                if problem is not None:
+                    bad.append((f, f"{f.path}: {problem}"))
+                    continue
+                good.append(f)
                 continue
+            identity = Identity.of(st)
+            if not cache.known(f.path, identity, expected):
+                hashed_at = time.time_ns()
+                problem = self._hash_problem(f, path)
+                if problem is not None:
+                    bad.append((f, problem))
+                    continue
+                cache.remember(f.path, identity, expected, hashed_at)
             good.append(f)
+        if cache is not None:
+            cache.keep_only(f.path for f in files)
+            cache.save()
+            unhashed = sum(1 for f in good if file_sha256(f.path) is None)
+            if unhashed:
+                _log.warning(
+                    "%s: %d data file(s) have no hash in their name (written before data files "
+                    "were content-addressed): checked for size and PAR1 ends only; `objsearch "
+                    "lake compact --lake %s` rewrites them content-addressed",
+                    self.root,
+                    unhashed,
+                    self.root,
+                )
         return good, bad
+
+    def _hash_problem(self, f: DataFile, path: Path) -> str | None:
+        """Why a local content-addressed file's bytes are not the ones written, or None."""
+        self.hashed += 1
+        try:
+            actual = sha256_file(path)
+        except OSError as exc:
+            return f"{f.path}: {exc.strerror or exc}"
+        return _hash_mismatch(f, actual)
 
     def verify(
         self, progress: Callable[[list[DataFile]], Iterable[DataFile]] | None = None
     ) -> TableCheck:
-        """Read every byte: decode each data file in full and compare its rows with the log's
-        statistics (plus the checks of :meth:`scan`). Changes nothing. ``progress`` wraps the
-        files as they are decoded (the CLI's progress line)."""
+        """Read every byte: hash each content-addressed data file in full (whatever the
+        verification cache says) and compare with the hash its name records, decode each
+        data file in full (page checksums on) and compare its rows with the log's statistics
+        (plus the checks of :meth:`scan`). Changes nothing. ``progress`` wraps the files as
+        they are decoded (the CLI's progress line)."""
 
         table = self.table()
-        good, bad = self.scan(table)
+        good, bad = self.scan(table, hashes=False)
         size = 0
         checked = 0
         for f in progress(good) if progress else good:
-            where = f"{self.uri}/{f.path}"
             try:
                 if self.remote:
                     fs, base = _filesystem(self.uri)
-                    data = pq.read_table(f"{base}/{f.path}", filesystem=fs)
+                    with fs.open_input_file(f"{base}/{f.path}") as fh:
+                        data = fh.read()
                 else:
-                    data = pq.ParquetFile(where, page_checksum_verification=True).read()
+                    data = (Path(self.uri) / f.path).read_bytes()
+            except OSError as exc:
+                bad.append((f, f"{f.path} cannot be read: {exc}"))
+                continue
+            mismatch = _hash_mismatch(f, hashlib.sha256(data).hexdigest())
+            if mismatch is not None:
+                bad.append((f, mismatch))
+                continue
+            try:
+                decoded = pq.ParquetFile(
+                    pa.BufferReader(data), page_checksum_verification=True
+                ).read()
             except (OSError, pa.ArrowException) as exc:
                 bad.append((f, f"{f.path} does not decode: {exc}"))
                 continue
-            if f.rows is not None and data.num_rows != f.rows:
+            if f.rows is not None and decoded.num_rows != f.rows:
                 bad.append(
-                    (f, f"{f.path} holds {data.num_rows} rows, the table's log records {f.rows}")
+                    (f, f"{f.path} holds {decoded.num_rows} rows, the table's log records {f.rows}")
                 )
                 continue
             checked += 1
@@ -624,7 +710,7 @@ class TableLake:
         here: what to commit depends on what is there). ``stamps``: application transactions
         set to the version after ``table``'s (:func:`stamp_version`), so of a thing stamped
         by several commits the latest commit's stamp is the highest. The bag ingest's commit."""
-        from deltalake import CommitProperties, Transaction, write_deltalake
+        from deltalake import CommitProperties, Transaction
         from deltalake.exceptions import CommitFailedError
 
         info, parts = self._prepare(tables, robot, run, date, source, attachments, identity)
@@ -655,17 +741,8 @@ class TableLake:
                 raise TableRaceLost(f"{self.root}: run {robot}/{run} changed: {exc}") from exc
             _fs.durable_step()
             return info
-        runs = ", ".join(f"'{r}'" for r in sorted({*replacing, run}))
         try:
-            write_deltalake(
-                table,
-                _whole_rows(parts, self.store),
-                mode="overwrite",
-                predicate=f"robot = '{robot}' AND run IN ({runs})",
-                partition_by=["type"],
-                commit_properties=commit,
-                storage_options=self.options,
-            )
+            self._overwrite_runs(table, robot, sorted({*replacing, run}), parts, info.commit, txns)
         except CommitFailedError as exc:
             landed = self.find(robot, run)
             if landed is not None and landed.commit == info.commit:
@@ -740,7 +817,7 @@ class TableLake:
         adds: list[Any] | None = None,
         table: Any | None = None,
     ) -> TableRun:
-        from deltalake import CommitProperties, write_deltalake
+        from deltalake import CommitProperties
         from deltalake.exceptions import CommitFailedError
 
         # ``adds``: files written for an append (given, or written on the first try), kept
@@ -770,7 +847,8 @@ class TableLake:
                         f"{self.root}: another writer committed run {info.run!r} of robot "
                         f"{info.robot!r} while this one was writing it; run the command again"
                     )
-            commit = CommitProperties(app_transactions=_transactions(table, info))
+            commit_apps = _transactions(table, info)
+            commit = CommitProperties(app_transactions=commit_apps)
             try:
                 if existing is None:
                     if adds is None:
@@ -783,14 +861,8 @@ class TableLake:
                         commit_properties=commit,
                     )
                 else:
-                    write_deltalake(
-                        table,
-                        _whole_rows(parts, self.store),
-                        mode="overwrite",
-                        predicate=_run_predicate(info.robot, info.run),
-                        partition_by=["type"],
-                        commit_properties=commit,
-                        storage_options=self.options,
+                    self._overwrite_runs(
+                        table, info.robot, [info.run], parts, info.commit, commit_apps
                     )
             except CommitFailedError as exc:
                 _log.debug(
@@ -830,6 +902,21 @@ class TableLake:
         else:
             _fs.fsync_file(Path(self.uri) / rel)
         return size
+
+    def _rename(self, rel: str, new: str) -> None:
+        """Give a written data file its content-addressed name, durably, before a commit names
+        it: locally a rename and an fsync of the folder; on S3 a copy and a delete
+        (``S3FileSystem.move``), stored once it returns. (Arrow then puts an empty marker
+        object ``type=<kind>/`` for the partition's "folder", as S3 consoles do: one key a
+        partition, which no Delta reader reads and vacuum leaves.)"""
+        if self.remote:
+            fs, base = _filesystem(self.uri)
+            fs.move(f"{base}/{rel}", f"{base}/{new}")
+            _fs.durable_step()
+            return
+        table = Path(self.uri)
+        _fs.rename(table / rel, table / new)
+        _fs.fsync_dir((table / new).parent)
 
     def commit_stream(
         self,
@@ -1084,7 +1171,7 @@ class TableLake:
                 write_page_checksum=True,
             )
             data = sink.getvalue()
-            rel = f"type={kind}/part-{token}.zstd.parquet"
+            rel = _hashed_name(kind, token, hashlib.sha256(memoryview(data)).hexdigest())
             self._put(rel, data)
             stats = _stats(part)
             adds.append(
@@ -1114,9 +1201,101 @@ class TableLake:
                 else:
                     (Path(self.uri) / add.path).unlink()
 
+    def _overwrite_runs(
+        self,
+        table: Any,
+        robot: str,
+        runs: Sequence[str],
+        parts: Mapping[str, pa.Table],
+        token: str,
+        apps: Sequence[Any],
+    ) -> None:
+        """Replace every row of ``runs`` of ``robot`` by ``parts`` (a run's rows by ``type``;
+        none: take the runs out) in one transaction decided from ``table``, carrying the
+        application transactions ``apps`` and :data:`REWRITE_APP`: each data file that may hold a row of them
+        (by the log's statistics) is removed, and its other rows, in their order, are written
+        again with the new rows of its type after them — content-addressed, as every file this
+        module writes (delta-rs's overwrite and delete name their files without a hash). A
+        damaged file among them is an error naming it (rewritten, its damage would get a fresh
+        hash). Raises ``CommitFailedError`` if another commit came between (what it wrote
+        deleted), unless this one landed (its answer lost)."""
+        from deltalake import CommitProperties
+        from deltalake.exceptions import CommitFailedError
+        from deltalake.transaction import RemoveAction
+
+        commit = CommitProperties(app_transactions=[*apps, _rewrite_transaction(table)])
+        holding = self._files_holding(table, robot, runs)
+        for f in holding:
+            problem = self._input_problem(f)
+            if problem is not None:
+                raise TableLakeError(
+                    f"{self.root}: a data file holding run {'/'.join(runs)} of robot {robot!r} "
+                    f"is damaged ({problem}); rewriting it would hide the damage: `objsearch "
+                    "lake verify` names the damaged files"
+                )
+        by_kind: dict[str, list[DataFile]] = {}
+        for f in holding:
+            by_kind.setdefault(f.kind, []).append(f)
+        adds: list[Any] = []
+        try:
+            fresh = {k: [p] for k, p in parts.items() if k not in by_kind and p.num_rows}
+            adds += self._write_files(fresh, token)
+            for kind in sorted(by_kind):
+                written = self._rewrite(
+                    kind, by_kind[kind], token, drop=(robot, runs), then=parts.get(kind)
+                )
+                if written is not None:
+                    adds.append(written)
+            now = int(time.time() * 1000)
+            removes = [RemoveAction(f.path, True, now, f.size, {"type": f.kind}) for f in holding]
+            table.create_write_transaction(
+                [*removes, *adds],
+                mode="append",
+                schema=table_schema(self.store),
+                partition_by=["type"],
+                commit_properties=commit,
+            )
+        except CommitFailedError:
+            landed = {f.path for f in self.data_files(self.table())}
+            if adds and all(a.path in landed for a in adds):
+                return  # it landed; its answer was lost
+            self._delete_files(adds)
+            raise
+        except BaseException:
+            self._delete_files(adds)
+            raise
+
+    def _files_holding(self, table: Any, robot: str, runs: Sequence[str]) -> list[DataFile]:
+        """The data files of ``table`` that may hold a row of ``runs`` of ``robot``: by the
+        minimum and maximum the log records of ``robot`` and ``run`` (this module records them
+        whole); a file without them, or unhashed (delta-rs may cut a string's statistics), is
+        taken as holding them."""
+        actions = pa.table(table.get_add_actions(flatten=True))
+        n = actions.num_rows
+
+        def column(name: str) -> list[Any]:
+            return actions.column(name).to_pylist() if name in actions.column_names else [None] * n
+
+        bounds = zip(
+            actions.column("path").to_pylist(),
+            column("min.robot"),
+            column("max.robot"),
+            column("min.run"),
+            column("max.run"),
+            strict=True,
+        )
+        maybe = set()
+        for path, lo_robot, hi_robot, lo_run, hi_run in bounds:
+            unknown = None in (lo_robot, hi_robot, lo_run, hi_run) or not file_sha256(str(path))
+            if unknown or (
+                lo_robot <= robot <= hi_robot and any(lo_run <= r <= hi_run for r in runs)
+            ):
+                maybe.add(str(path))
+        return [f for f in self.data_files(table) if f.path in maybe]
+
     def remove_run(self, robot: str, run: str) -> bool:
         """Take a run out of the lake (one transaction); False if it was not there."""
-        from deltalake import CommitProperties, Transaction
+        from deltalake import Transaction
         from deltalake.exceptions import CommitFailedError
 
         app = _app_id(robot, run)
@@ -1126,11 +1305,8 @@ class TableLake:
                 return False
             version = table.transaction_version(app) or 0
             try:
-                table.delete(
-                    _run_predicate(robot, run),
-                    commit_properties=CommitProperties(
-                        app_transactions=[Transaction(app, version + 1)]
-                    ),
+                self._overwrite_runs(
+                    table, robot, [run], {}, _token(), [Transaction(app, version + 1)]
                 )
             except CommitFailedError:
                 time.sleep(min(0.5, 0.01 * (attempt + 1)))
@@ -1160,7 +1336,8 @@ class TableLake:
             )
 
     def compact(self, *, vacuum_hours: float | None = 1.0) -> dict[str, int]:
-        """Rewrite the small files into few large ones (per ``type``), checkpoint the log, and
+        """Rewrite the small files into few large ones (per ``type``) and every unhashed file,
+        all content-addressed (:meth:`_optimize`), checkpoint the log, and
         with ``vacuum_hours`` delete files no version younger than that reads (readers that
         began earlier may still need them). Safe to run from many places at once, on a folder
         or a bucket: concurrent commits are not lost (compaction changes no data; a commit
@@ -1198,8 +1375,180 @@ class TableLake:
         return pinned
 
     def _optimize(self, table: Any) -> None:
-        table.optimize.compact(target_size=TARGET_FILE_BYTES)
+        """Compact ``table`` (the claimed, pinned version): per ``type`` partition, its small
+        files — and every unhashed one, so compaction makes a lake content-addressed — are
+        rewritten, whole files in the log's order (a run's rows keep their order), into
+        content-addressed files of at most about :data:`TARGET_FILE_BYTES`, written as the
+        writers write (zstd, page checksums); one transaction from ``table`` removes the inputs
+        (``dataChange = false``) and adds the outputs. Not delta-rs's ``optimize.compact``: it
+        names its files itself, with no hash. A commit that fails deletes what it wrote, unless
+        it landed (its answer lost)."""
+        from deltalake import CommitProperties
+        from deltalake.exceptions import CommitFailedError
+        from deltalake.transaction import RemoveAction
+
+        by_kind: dict[str, list[DataFile]] = {}
+        for f in self.data_files(table):
+            by_kind.setdefault(f.kind, []).append(f)
+        removes: list[Any] = []
+        adds: list[Any] = []
+        try:
+            for kind in sorted(by_kind):
+                for planned in _compaction_groups(by_kind[kind]):
+                    # A damaged input is left where it is (readers keep leaving it out): its
+                    # rows rewritten would be a healthy file with a new hash, the damage hidden.
+                    group = [f for f in planned if not self._damaged_input(f)]
+                    if not group or (len(group) == 1 and file_sha256(group[0].path)):
+                        continue
+                    written = self._rewrite(kind, group, _token())  # a name of its own
+                    if written is not None:
+                        adds.append(written)
+                    now = int(time.time() * 1000)
+                    removes += [
+                        RemoveAction(f.path, False, now, f.size, {"type": kind}) for f in group
+                    ]
+            if not removes:
+                return
+            table.create_write_transaction(
+                [*removes, *adds],
+                mode="append",
+                schema=table_schema(self.store),
+                partition_by=["type"],
+                commit_properties=CommitProperties(app_transactions=[_rewrite_transaction(table)]),
+            )
+        except CommitFailedError:
+            landed = {f.path for f in self.data_files(self.table())}
+            if adds and all(a.path in landed for a in adds):
+                _fs.durable_step()
+                return  # it landed; its answer was lost
+            self._delete_files(adds)
+            raise
+        except BaseException:
+            self._delete_files(adds)
+            raise
         _fs.durable_step()
+
+    def _source(self, rel: str) -> tuple[str, Any]:
+        """A data file's path and file system, as Arrow's readers take them."""
+        if self.remote:
+            fs, base = _filesystem(self.uri)
+            return f"{base}/{rel}", fs
+        return str(Path(self.uri) / rel), pafs.LocalFileSystem()
+
+    def _input_problem(self, f: DataFile) -> str | None:
+        """Why a file a compaction or a replace would rewrite is not the file written (another
+        size than the log records; a content-addressed one whose bytes hash otherwise; an
+        unhashed one without ``PAR1`` at both ends), or None. Reads the file once (on S3:
+        downloads it; the rewrite reads it again)."""
+        problem: str | None
+        try:
+            if self.remote:
+                fs, base = _filesystem(self.uri)
+                digest = hashlib.sha256()
+                size = 0
+                with fs.open_input_file(f"{base}/{f.path}") as fh:
+                    while chunk := fh.read(1 << 20):
+                        digest.update(chunk)
+                        size += len(chunk)
+                actual = digest.hexdigest()
+                head_ok = True
+            else:
+                path = Path(self.uri) / f.path
+                size = path.stat().st_size
+                actual = sha256_file(path) if file_sha256(f.path) else ""
+                head_ok = file_sha256(f.path) is not None or parquet_problem(path) is None
+        except OSError as exc:
+            problem = f"{f.path}: {exc.strerror or exc}"
+        else:
+            if size != f.size:
+                problem = f"{f.path} has {size} bytes, the table's log records {f.size}"
+            elif not head_ok:
+                problem = f"{f.path} is truncated or not Parquet (no PAR1 at both ends)"
+            else:
+                problem = _hash_mismatch(f, actual) if file_sha256(f.path) else None
+        return problem
+
+    def _damaged_input(self, f: DataFile) -> bool:
+        """Whether a file a compaction would rewrite is damaged (:meth:`_input_problem`),
+        warned of, naming it."""
+        problem = self._input_problem(f)
+        if problem is None:
+            return False
+        _log.warning(
+            "%s: compaction leaves a damaged data file as it is (queries leave it out): %s",
+            self.root,
+            problem,
+        )
+        return True
+
+    def _rewrite(
+        self,
+        kind: str,
+        files: Sequence[DataFile],
+        token: str,
+        *,
+        drop: tuple[str, Sequence[str]] | None = None,
+        then: pa.Table | None = None,
+    ) -> Any | None:
+        """One content-addressed file of ``kind`` holding the rows of ``files`` in their order,
+        read a batch at a time, less those of ``drop`` (a robot and runs of it), then the rows
+        ``then``; its add action (None if there is no row: no file). Its columns: those the
+        inputs hold (a file holds its own type's columns, one delta-rs wrote may hold all), in
+        the table's order."""
+        held: set[str] = set()
+        for f in files:
+            try:
+                where, fs = self._source(f.path)
+                held.update(pq.read_schema(where, filesystem=fs).names)
+            except (OSError, pa.ArrowException) as exc:
+                raise TableLakeError(
+                    f"{self.root}: compaction cannot read {f.path} ({exc}); `objsearch lake "
+                    "verify` names the damaged files"
+                ) from exc
+        if then is not None:
+            held.update(then.column_names)
+        schema = pa.schema([f for f in table_schema(self.store) if f.name in held - {"type"}])
+        out = _StreamFile(self, kind, kind, token, schema=schema)
+        try:
+            for f in files:  # one at a time: the order of the files is the order of the rows
+                try:
+                    for batch in self.files_dataset([f]).to_batches(
+                        columns=schema.names, use_threads=False
+                    ):
+                        rows = pa.Table.from_batches([batch])
+                        if drop is not None:
+                            robot, runs = drop
+                            ours = pc.and_(
+                                pc.equal(rows.column("robot"), robot),
+                                pc.is_in(rows.column("run"), pa.array(list(runs), pa.string())),
+                            )
+                            rows = rows.filter(pc.invert(pc.fill_null(ours, False)))
+                        out.add(pa.Table.from_arrays(rows.columns, schema=schema))
+                except (OSError, pa.ArrowException) as exc:
+                    raise TableLakeError(
+                        f"{self.root}: compaction cannot read {f.path} ({exc}); `objsearch lake "
+                        "verify` names the damaged files"
+                    ) from exc
+            if then is not None and then.num_rows:
+                out.add(
+                    pa.Table.from_arrays(
+                        [
+                            then.column(f.name).cast(f.type)
+                            if f.name in then.column_names
+                            else pa.nulls(then.num_rows, f.type)
+                            for f in schema
+                        ],
+                        schema=schema,
+                    )
+                )
+            out._flush()
+            if not out.rows:
+                self._abandon([out])
+                return None
+            return out.close()
+        except BaseException:
+            self._abandon([out])
+            raise
 
     def _compact(self, *, vacuum_hours: float | None, yielding: bool = False) -> dict[str, int]:
         """``yielding``: give up at the first race lost (another writer's claim came after
@@ -1351,21 +1700,65 @@ def stream_digest(events: Iterable[Event], store: Store) -> tuple[str, dict[str,
     return _combine({t: d.hexdigest() for t, d in digests.items()}), rows
 
 
+class _TeeSink:
+    """A writable file that passes every byte on to ``out`` and into a hash (a streamed data
+    file is hashed as it is written, never read back)."""
+
+    def __init__(self, out: Any, digest: Any) -> None:
+        self._out = out
+        self._digest = digest
+        self._size = 0
+        self.closed = False
+
+    def write(self, data: Any) -> int:
+        view = memoryview(data)
+        self._out.write(view)
+        self._digest.update(view)
+        self._size += view.nbytes
+        return view.nbytes
+
+    def tell(self) -> int:
+        return self._size
+
+    def flush(self) -> None:
+        pass
+
+    def close(self) -> None:
+        self.closed = True  # ``out`` is closed by its owner
+
+
 class _StreamFile:
     """One ``type`` partition's Parquet file, written as rows arrive (row groups of
-    :data:`ROW_GROUP_ROWS`), with the statistics the Delta log keeps."""
+    :data:`ROW_GROUP_ROWS`), with the statistics the Delta log keeps, hashed as it is written.
+    Written under a temporary name in the partition's folder (``part-<token>.zstd.parquet``),
+    then renamed to its content-addressed name (:func:`_hashed_name`) when closed: a file a
+    killed writer leaves under either name is no file of the table (vacuum deletes it).
+    ``schema``: the file's columns (default: those of ``column``'s rows, :func:`file_schema`)."""
 
-    def __init__(self, lake: TableLake, kind: str, column: str, token: str) -> None:
+    def __init__(
+        self,
+        lake: TableLake,
+        kind: str,
+        column: str,
+        token: str,
+        schema: pa.Schema | None = None,
+    ) -> None:
         self.kind = kind
+        self.token = token
         self.rel = f"type={kind}/part-{token}.zstd.parquet"
         self.lake = lake
         self.out = lake._open(self.rel)
-        schema = file_schema(column, envelope=kind in lake.store.registry.types, store=lake.store)
+        self.digest = hashlib.sha256()
+        self.sink = pa.PythonFile(_TeeSink(self.out, self.digest), mode="w")
+        if schema is None:
+            schema = file_schema(
+                column, envelope=kind in lake.store.registry.types, store=lake.store
+            )
+        if "type" in schema.names:
+            schema = schema.remove(schema.get_field_index("type"))
+        self.schema = schema
         self.writer = pq.ParquetWriter(
-            self.out,
-            schema.remove(schema.get_field_index("type")),
-            compression="zstd",
-            write_page_checksum=True,
+            self.sink, schema, compression="zstd", write_page_checksum=True
         )
         self.pending: list[pa.Table] = []
         self.buffered = 0
@@ -1373,7 +1766,9 @@ class _StreamFile:
         self.stats: list[str] = []
 
     def add(self, table: pa.Table) -> None:
-        self.pending.append(table.drop_columns(["type"]))
+        if "type" in table.column_names:
+            table = table.drop_columns(["type"])
+        self.pending.append(table)
         self.buffered += table.num_rows
         if self.buffered >= min(ROW_GROUP_ROWS, CHUNK_EVENTS):
             self._flush()
@@ -1393,9 +1788,33 @@ class _StreamFile:
         self._flush()
         self.writer.close()
         size = self.lake._close(self.rel, self.out)
+        final = _hashed_name(self.kind, self.token, self.digest.hexdigest())
+        self.lake._rename(self.rel, final)
+        self.rel = final
         return AddAction(
             self.rel, size, {"type": self.kind}, int(time.time() * 1000), True, _merge(self.stats)
         )
+
+
+def _compaction_groups(files: Sequence[DataFile]) -> list[list[DataFile]]:
+    """The files of one partition a compaction rewrites, each group into one file: the small
+    ones (under half of :data:`TARGET_FILE_BYTES`) and every unhashed one, in the log's order,
+    a group holding at most about :data:`TARGET_FILE_BYTES`; a group of one content-addressed
+    file is left as it is."""
+    groups: list[list[DataFile]] = []
+    group: list[DataFile] = []
+    size = 0
+    for f in files:
+        if f.size >= TARGET_FILE_BYTES // 2 and file_sha256(f.path) is not None:
+            continue
+        if group and size + f.size > TARGET_FILE_BYTES:
+            groups.append(group)
+            group, size = [], 0
+        group.append(f)
+        size += f.size
+    if group:
+        groups.append(group)
+    return [g for g in groups if len(g) > 1 or file_sha256(g[0].path) is None]
 
 
 def _merge(stats: Sequence[str]) -> str:
@@ -1466,6 +1885,27 @@ def _stats(part: pa.Table) -> str:
     )
 
 
+def file_sha256(path: str) -> str | None:
+    """The SHA-256 a data file's name records (hex), or None for an unhashed file."""
+    found = _HASHED_NAME.search(path.rpartition("/")[2])
+    return found.group(1) if found else None
+
+
+def _hash_mismatch(f: DataFile, actual: str) -> str | None:
+    """Why a data file whose bytes hash to ``actual`` is not the file written, or None."""
+    expected = file_sha256(f.path)
+    if expected is None or actual == expected:
+        return None
+    return (
+        f"{f.path}: its bytes are not the ones written (SHA-256 {actual[:16]}…, its name "
+        f"records {expected[:16]}…): changed after the commit"
+    )
+
+
+def _hashed_name(kind: str, token: str, sha256: str) -> str:
+    return f"type={kind}/part-{token}-{sha256}.zstd.parquet"
+
+
 def _token() -> str:
     return f"{time.time_ns():x}-{uuid.uuid4().hex}"
 
@@ -1493,6 +1933,21 @@ IDENTITY_INDEX_APP: Final = "objsearch/identity-index"
 STAMP_INDEX_APP: Final = "objsearch/stamp-index"
 
 
+#: Carried by every transaction that removes data files and writes their rows again (a
+#: compaction, a replace, a removal), each at the version after the one its table read: of two
+#: that overlap, the second fails and reads again. delta-rs (1.6.6) does not fail an append
+#: whose remove actions name files another commit removed since (the rows they held, rewritten
+#: by both, would be there twice: a replace that read the table between a compaction's claim
+#: and its commit did so); a shared application transaction does.
+REWRITE_APP: Final = "objsearch/rewrite"
+
+
+def _rewrite_transaction(table: Any) -> Any:
+    from deltalake import Transaction
+
+    return Transaction(REWRITE_APP, (table.transaction_version(REWRITE_APP) or 0) + 1)
+
+
 def _identity_app(key: str, value: str) -> str:
     return f"objsearch/identity/{key}={value}"
 
@@ -1514,11 +1969,6 @@ def stamp_version(table: Any) -> int:
     return int(table.version()) + 1
 
 
-def _run_predicate(robot: str, run: str) -> str:
-    # _check_name allows no quote in either name.
-    return f"robot = '{robot}' AND run = '{run}'"
-
-
 def _run_of(row: Mapping[str, Any]) -> TableRun:
     info = row[RUN_COLUMN]
     return TableRun(
@@ -1531,30 +1981,6 @@ def _run_of(row: Mapping[str, Any]) -> TableRun:
         source=info["source"],
         identity=json.loads(info["identity"]),
         attachments=json.loads(info["attachments"]),
-    )
-
-
-def _widest(part: pa.Table, store: Store) -> pa.Schema:
-    return pa.schema([table_schema(store).field(n) for n in part.column_names])
-
-
-def _whole_rows(parts: Mapping[str, pa.Table], store: Store) -> pa.Table:
-    """A run's parts as one table of every column of the table (delta-rs's overwrite refuses
-    a table lacking some: a run without some event type's rows lacks its struct)."""
-    rows = pa.concat_tables(
-        [p.cast(_widest(p, store)) for p in parts.values() if p.num_rows],
-        promote_options="default",
-    )
-    schema = table_schema(store)
-    # One chunk a column: delta-rs's writer panicked on the concatenated parts' chunks
-    # ("assertion failed: end <= self.len()", the interpreter aborted).
-    rows = rows.combine_chunks()
-    return pa.Table.from_arrays(
-        [
-            rows.column(f.name) if f.name in rows.column_names else pa.nulls(rows.num_rows, f.type)
-            for f in schema
-        ],
-        schema=schema,
     )
 
 

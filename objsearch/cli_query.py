@@ -557,8 +557,8 @@ def register(sub: Any) -> None:
     upgrade.set_defaults(func=cmd_lake_upgrade)
     compact = lake_sub.add_parser(
         "compact",
-        help="fleet lake: rewrite small data files into few large ones, checkpoint the log, "
-        "delete files no recent version reads",
+        help="fleet lake: rewrite small (and unhashed) data files into few large "
+        "content-addressed ones, checkpoint the log, delete files no recent version reads",
     )
     compact.add_argument(
         "--lake",

@@ -1,7 +1,8 @@
 """Fixtures every test package may use: the raw shared data (``../shared/data`` beside the clone,
 or ``$OBJSEARCH_SHARED``), which the data converter and the FloorPlan-set benches build homes from,
-torch on one thread for the modules that fuse maps in the test process, and one local S3 server
-(moto's) for every test of the fleet lake on a bucket."""
+torch on one thread for the modules that fuse maps in the test process, one local S3 server
+(moto's) for every test of the fleet lake on a bucket, and the fleet lake's verification cache
+in a folder of the run's own."""
 
 from __future__ import annotations
 
@@ -24,6 +25,20 @@ def _shared_data() -> Path | None:
         if (path / "ai2thor" / "ithor_scenes").is_dir():
             return path
     return None
+
+
+@pytest.fixture(scope="session", autouse=True)
+def verification_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """The fleet lake's verification cache (``$OBJSEARCH_CACHE``) in a folder of the run's
+    own, for this process and every process a test starts: no test writes into the real home."""
+    folder = tmp_path_factory.mktemp("objsearch-cache")
+    before = os.environ.get("OBJSEARCH_CACHE")
+    os.environ["OBJSEARCH_CACHE"] = str(folder)
+    yield folder
+    if before is None:
+        del os.environ["OBJSEARCH_CACHE"]
+    else:
+        os.environ["OBJSEARCH_CACHE"] = before
 
 
 @pytest.fixture(scope="session")

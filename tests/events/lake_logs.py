@@ -90,3 +90,42 @@ lake = lt.TableLake(sys.argv[1], store=STORE)
 for log in sys.argv[2:]:
     lt.add_log(Path(log), lake, robot="r", run=Path(log).name)
 """
+
+
+def same_size_rewrite(path: Path) -> None:
+    """Rewrite the Parquet file at ``path`` as valid Parquet of the same size with one value
+    changed: its first non-null ``seq`` one more (zstd, page checksums and all), brought to the
+    old size by leaving out some columns' statistics, a key of the schema's metadata and the
+    zstd level — damage that the size and the ``PAR1`` ends do not show."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
+    size = path.stat().st_size
+    table = pq.read_table(path)
+    seq = table.column("seq").combine_chunks()
+    values = seq.to_pylist()
+    row = next(i for i, v in enumerate(values) if v is not None)
+    values[row] += 1
+    table = table.set_column(table.schema.get_field_index("seq"), "seq", pa.array(values, seq.type))
+    assert not pc.all(pc.equal(table.column("seq"), seq)).as_py()
+    columns = [c for c in pq.ParquetFile(path).schema.names]
+    # fewer columns' statistics to make it smaller, then a pad and the level to make it fit
+    for drop in range(len(columns) + 1):
+        for level in (None, *range(1, 20)):
+            for pad in range(256):  # the file grows with the pad: stop once past the size
+                padded = table.replace_schema_metadata({"pad": "x" * pad}) if pad else table
+                pq.write_table(
+                    padded,
+                    path,
+                    compression="zstd",
+                    compression_level=level,
+                    write_page_checksum=True,
+                    write_statistics=columns[drop:] or False,
+                )
+                grown = path.stat().st_size
+                if grown == size:
+                    return
+                if grown > size:
+                    break
+    raise AssertionError(f"{path}: could not rewrite it at {size} bytes")

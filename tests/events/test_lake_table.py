@@ -5,6 +5,7 @@ removal, damage, many writers, plain readers. (Its answers equal the per-run-fol
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 import subprocess
 import sys
@@ -26,6 +27,7 @@ from objsearch.events.lake_table import (
     TableLake,
     TableLakeError,
     add_log,
+    file_sha256,
     is_table_lake,
     run_parts,
     table_schema,
@@ -33,7 +35,7 @@ from objsearch.events.lake_table import (
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query, views_for
 
-from .lake_logs import COMPACTING_WRITER, check_two_compactions_at_once
+from .lake_logs import COMPACTING_WRITER, check_two_compactions_at_once, same_size_rewrite
 from .payloads import EXAMPLES
 
 V1_LOG = Path(__file__).parent / "fixtures" / "v1-log"
@@ -348,3 +350,211 @@ def test_a_writer_killed_mid_commit_leaves_whole_runs_and_the_next_one_finishes(
 
 def test_two_compactions_at_once_rewrite_every_row_once(tmp_path: Path) -> None:
     check_two_compactions_at_once(tmp_path / "lake", tmp_path / "logs")
+
+
+def test_a_same_size_valid_parquet_rewrite_is_left_out_and_named_by_verify(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # What the damage battery found silent before files were content-addressed: the size and
+    # the PAR1 ends are the same, the file decodes, its rows count as the log says.
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    add_log(small_log(tmp_path / "log"), lake, robot="r2d2")
+    victim = next(f for f in lake.data_files() if f.kind == "search_failed")
+    same_size_rewrite(tmp_path / "lake" / TABLE_DIR / victim.path)
+    with caplog.at_level(logging.WARNING):
+        con = open_analytics(tmp_path / "lake")
+    try:
+        assert run_query(con, "SELECT count(*) FROM search_failed")[1] == [(0,)]
+        assert run_query(con, "SELECT count(*) FROM task_ended")[1] == [(1,)]
+    finally:
+        close(con)
+    assert "damaged data file left out of every view" in caplog.text
+    assert victim.path in caplog.text and "not the ones written" in caplog.text
+    [(name, why)] = lake.verify().damaged
+    assert name == victim.path and "not the ones written" in why
+
+
+def test_compacted_files_are_content_addressed_and_checked(tmp_path: Path) -> None:
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    for i in range(3):
+        add_log(small_log(tmp_path / f"log{i}", stream=f"s{i}", n=i), lake, robot="r")
+    before = table_counts(lake)
+    digests = {r.run: r.digest for r in lake.runs()}
+    lake.compact(vacuum_hours=0)
+    files = lake.data_files()
+    assert all(file_sha256(f.path) is not None for f in files)
+    assert lake.verify().damaged == []
+    # reads and digests as before compaction
+    assert table_counts(lake) == before
+    for run in lake.runs():
+        assert len(lake.read_events(run)) == run.events and digests[run.run] == run.digest
+    victim = next(f for f in files if f.kind == "search_failed")
+    same_size_rewrite(tmp_path / "lake" / TABLE_DIR / victim.path)
+    _, bad = TableLake(lake.root, store=STORE).scan()
+    assert [f.path for f, _ in bad] == [victim.path]
+
+
+def test_unhashed_files_get_the_cheap_checks_until_compaction_hashes_them(
+    tmp_path: Path,
+) -> None:
+    # Files delta-rs wrote with its own names (no hash), as the compaction of code before
+    # content-addressed names did: every file of such a lake is unhashed.
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    add_log(small_log(tmp_path / "a", n=3), lake, robot="r", run="w")
+    add_log(small_log(tmp_path / "b", n=5), lake, robot="r", run="x")
+    lake.table().optimize.compact()
+    unhashed = [f for f in lake.data_files() if file_sha256(f.path) is None]
+    assert unhashed
+    victim = unhashed[0]
+    path = tmp_path / "lake" / TABLE_DIR / victim.path
+    intact = path.read_bytes()
+    path.write_bytes(intact[:-1] + b"X")  # the same size, no PAR1 at the end
+    _, bad = TableLake(lake.root, store=STORE).scan()
+    assert [(f.path, "PAR1" in why) for f, why in bad] == [(victim.path, True)]
+    path.write_bytes(intact)
+    lake.compact(vacuum_hours=0)
+    assert all(file_sha256(f.path) is not None for f in lake.data_files())
+    assert [r.events for r in lake.runs()] == [len(EXAMPLES) + 3, len(EXAMPLES) + 5]
+    assert [len(lake.read_events(r)) for r in lake.runs()] == [len(EXAMPLES) + 3, len(EXAMPLES) + 5]
+    assert lake.verify().damaged == []
+
+
+def test_a_replace_committed_while_a_compaction_plans_is_not_undone(tmp_path: Path) -> None:
+    # Our compaction removes its input files in an append (create_write_transaction with
+    # remove actions): a replace that removed one of them first must make it plan again, or
+    # the run's old rows would come back beside the new ones.
+    from .lake_logs import two_type_log
+
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    for i in range(2):
+        add_log(two_type_log(tmp_path / f"log{i}", stream=f"s{i}"), lake, robot="r", run=f"run{i}")
+    real = TableLake._optimize
+    raced: list[int] = []
+
+    def replaced_meanwhile(self: TableLake, table: object) -> None:
+        if not raced:
+            raced.append(1)
+            other = TableLake(self.root, store=STORE)
+            add_log(
+                small_log(tmp_path / "new", stream="new"),
+                other,
+                robot="r",
+                run="run0",
+                replace=True,
+            )
+        real(self, table)
+
+    TableLake._optimize = replaced_meanwhile  # type: ignore[method-assign]
+    try:
+        lake.compact(vacuum_hours=None)
+    finally:
+        TableLake._optimize = real  # type: ignore[method-assign]
+    assert raced
+    assert [(r.run, r.events) for r in lake.runs()] == [("run0", len(EXAMPLES) + 3), ("run1", 4)]
+    assert table_counts(lake) == [("r", "run0", len(EXAMPLES) + 3), ("r", "run1", 4)]
+    assert all(file_sha256(f.path) is not None for f in lake.data_files())
+
+
+def test_compaction_leaves_a_damaged_file_as_it_is(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    # Rewritten into a compacted file, a damaged file's rows would get a new, valid hash: the
+    # damage hidden for good. Compaction leaves it; queries keep leaving it out.
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    for i in range(3):
+        add_log(small_log(tmp_path / f"log{i}", stream=f"s{i}", n=i), lake, robot="r")
+    victim = next(f for f in lake.data_files() if f.kind == "search_failed")
+    same_size_rewrite(tmp_path / "lake" / TABLE_DIR / victim.path)
+    with caplog.at_level(logging.WARNING):
+        lake.compact(vacuum_hours=0)
+    assert "compaction leaves a damaged data file as it is" in caplog.text
+    failed = [f for f in lake.data_files() if f.kind == "search_failed"]
+    assert victim.path in {f.path for f in failed} and len(failed) == 2  # it, and the rest
+    assert [name for name, _ in lake.verify().damaged] == [victim.path]
+    _, bad = TableLake(lake.root, store=STORE).scan()
+    assert [f.path for f, _ in bad] == [victim.path]
+
+
+def test_a_replace_and_a_removal_rewrite_shared_files_content_addressed(tmp_path: Path) -> None:
+    # Once compacted, a file holds the rows of many runs: replacing or removing one rewrites
+    # its files with the other runs' rows kept, in their order, and every file keeps a hash.
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    for i in range(3):
+        add_log(small_log(tmp_path / f"log{i}", stream=f"s{i}", n=i), lake, robot="r", run=f"x{i}")
+    lake.compact(vacuum_hours=None)
+    before = {r.run: r for r in lake.runs()}
+    add_log(small_log(tmp_path / "new", stream="new", n=7), lake, robot="r", run="x1", replace=True)
+    assert all(file_sha256(f.path) is not None for f in lake.data_files())
+    runs = {r.run: r for r in lake.runs()}
+    assert runs["x0"] == before["x0"] and runs["x2"] == before["x2"]
+    assert runs["x1"].events == len(EXAMPLES) + 7
+    for run in runs.values():  # rows and digests read back as committed
+        assert len(lake.read_events(run)) == run.events
+    assert lake.remove_run("r", "x0")
+    assert [r.run for r in lake.runs()] == ["x1", "x2"]
+    assert all(file_sha256(f.path) is not None for f in lake.data_files())
+    assert table_counts(lake) == [("r", "x1", len(EXAMPLES) + 7), ("r", "x2", len(EXAMPLES) + 2)]
+    assert lake.verify().damaged == []
+
+
+def test_a_replace_refuses_to_rewrite_a_damaged_file(tmp_path: Path) -> None:
+    # The file holding the run also holds other runs' rows: rewritten, its damage would get a
+    # fresh hash. The replace is refused, naming the file; the lake is as it was.
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    for i in range(2):
+        add_log(small_log(tmp_path / f"log{i}", stream=f"s{i}", n=i), lake, robot="r", run=f"x{i}")
+    lake.compact(vacuum_hours=None)
+    victim = next(f for f in lake.data_files() if f.kind == "search_failed")
+    same_size_rewrite(tmp_path / "lake" / TABLE_DIR / victim.path)
+    version = lake.table().version()
+    with pytest.raises(TableLakeError, match="damaged") as refused:
+        add_log(
+            small_log(tmp_path / "new", stream="new", n=7), lake, robot="r", run="x1", replace=True
+        )
+    assert victim.path in str(refused.value)
+    assert lake.table().version() == version
+
+
+def test_a_compaction_committed_while_a_replace_plans_makes_it_plan_again(tmp_path: Path) -> None:
+    # The other order of the race above: the replace read the table at the compaction's claim,
+    # the compaction commits, then the replace removes files already removed. Without the
+    # application transaction both carry (REWRITE_APP), delta-rs let it commit and the run's
+    # old rows, rewritten by the compaction, were there beside the new ones.
+    from .lake_logs import two_type_log
+
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    for i in range(3):
+        add_log(two_type_log(tmp_path / f"log{i}", stream=f"s{i}"), lake, robot="r", run=f"run{i}")
+    real = TableLake._files_holding
+    raced: list[int] = []
+
+    def compacted_meanwhile(
+        self: TableLake, table: DeltaTable, robot: str, runs: list[str]
+    ) -> list[object]:
+        if not raced:
+            other = TableLake(self.root, store=STORE)
+            pinned = other._claim()
+            assert pinned is not None
+            table.update_incremental()  # the replace decides from the claim's version
+            raced.append(table.version())
+            other._optimize(pinned)  # and the compaction commits first
+        return real(self, table, robot, runs)  # type: ignore[return-value]
+
+    TableLake._files_holding = compacted_meanwhile  # type: ignore[assignment,method-assign]
+    try:
+        add_log(
+            small_log(tmp_path / "new", stream="new"), lake, robot="r", run="run0", replace=True
+        )
+    finally:
+        TableLake._files_holding = real  # type: ignore[method-assign]
+    assert raced
+    assert [(r.run, r.events) for r in lake.runs()] == [
+        ("run0", len(EXAMPLES) + 3),
+        ("run1", 4),
+        ("run2", 4),
+    ]
+    assert table_counts(lake) == [
+        ("r", "run0", len(EXAMPLES) + 3),
+        ("r", "run1", 4),
+        ("r", "run2", 4),
+    ]
