@@ -36,9 +36,8 @@ from abc import ABC, abstractmethod
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
-import polars as pl
 import pyarrow as pa
 import pyarrow.compute as pc
 
@@ -72,6 +71,9 @@ from objsearch.pipeline.bags.session import (
     session_run_name,
     spans_of,
 )
+
+if TYPE_CHECKING:
+    import polars as pl
 
 RUN_PREFIX = "bag-"
 RUN_REPORT = "_ingest.json"  # the report's copy inside the run, committed with it

@@ -34,10 +34,8 @@ import json
 import uuid
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Final
+from typing import TYPE_CHECKING, Final
 
-import numpy as np
-import polars as pl
 import pyarrow as pa
 import pyarrow.compute as pc
 
@@ -45,6 +43,9 @@ from objsearch.events import Event
 from objsearch.events.envelope import deterministic_event_id
 from objsearch.pipeline.bags.clock import ClockMap
 from objsearch.ros.topics import TopicMap
+
+if TYPE_CHECKING:
+    import polars as pl
 
 #: Bump when a change to the conversion changes what a bag gives: bags ingested by an older
 #: converter are read again on the next ingest.
@@ -139,6 +140,8 @@ class Span:
 
 def agent_rows(tables: Mapping[str, pa.Table]) -> pl.DataFrame:
     """``stream, seq, event_id, time_ns`` of the agent's events in a set of tables."""
+    import polars as pl  # on first use: `lake add`'s check of bag runs imports this module
+
     columns = ["stream", "seq", "event_id", "time_ns"]
     frames = []
     for table in tables.values():
@@ -177,6 +180,8 @@ def overlaps(a: Span, b: Span) -> bool:
 def same_ids(a: pl.DataFrame, b: pl.DataFrame) -> bool | None:
     """Whether two sets of agent rows are one run's where they share (stream, seq): True if
     every shared seq has the same event id, False if one differs, None if none is shared."""
+    import polars as pl  # on first use: `lake add`'s check of bag runs imports this module
+
     shared = a.select("stream", "seq", "event_id").join(
         b.select("stream", "seq", pl.col("event_id").alias("other")), on=["stream", "seq"]
     )
@@ -200,6 +205,9 @@ def merge_tables(
     ``time_ns`` = its map of the row's receive time, ``recorded_at_ns`` (rows of a recording
     whose receive times are already the agent's clock lie outside it and are left alone).
     """
+    import numpy as np
+    import polars as pl  # on first use: `lake add`'s check of bag runs imports this module
+
     types = sorted({t for p in parts for t in p})
     merged: dict[str, pl.DataFrame] = {}
     for event_type in types:
