@@ -55,6 +55,7 @@ import dataclasses
 import datetime as dt
 import functools
 import hashlib
+import io
 import json
 import logging
 import math
@@ -916,7 +917,7 @@ class TableLake:
             return
         table = Path(self.uri)
         _fs.rename(table / rel, table / new)
-        _fs.fsync_dir((table / new).parent)
+        _fs.fsync_dir((table / new).parent, step=False)
 
     def commit_stream(
         self,
@@ -1032,11 +1033,14 @@ class TableLake:
     def _abandon(self, files: Iterable[_StreamFile]) -> None:
         """Close and delete files a failed commit was writing."""
         files = list(files)
+        spilled = [f for f in files if f.spilled]
         for f in files:
             with suppress(Exception):
                 f.writer.close()
+        for f in spilled:
+            with suppress(Exception):
                 self._close(f.rel, f.out)
-        self._delete_files([_Named(f.rel) for f in files])
+        self._delete_files([_Named(f.rel) for f in spilled])
 
     def _derive(self, files: Mapping[str, str]) -> dict[str, pa.Table]:
         """The derived tables of one run from its data files just written (``files``: event
@@ -1180,6 +1184,7 @@ class TableLake:
         return adds
 
     def _put(self, rel: str, data: pa.Buffer) -> None:
+        """Store a new data file whole, durably (contents and name), before a commit names it."""
         if self.remote:
             fs, base = _filesystem(self.uri)
             with fs.open_output_stream(f"{base}/{rel}") as out:
@@ -1191,6 +1196,7 @@ class TableLake:
         with path.open("wb") as fh:
             fh.write(memoryview(data))
         _fs.fsync_file(path)
+        _fs.fsync_dir(path.parent, step=False)  # its name too, before a commit names it
 
     def _delete_files(self, adds: Sequence[Any]) -> None:
         for add in adds:
@@ -1604,6 +1610,10 @@ DERIVE_MEMORY_MAX: Final = 4 << 30
 #: Events read from a log at a time by the streaming commit (a chunk of 16 Ki synthetic events
 #: costs ~46 MB while it is turned into tables; benchmarks/lake_add_memory.py).
 CHUNK_EVENTS: Final = 1 << 13
+#: A streamed data file stays in memory until its bytes pass this, then goes on in a temporary
+#: file: a smaller one is stored once, under its final name (one durable step, not three: the
+#: kill tests' and a short run's cost), and the ~16 files of a long run hold at most this each.
+SPILL_BYTES: Final = 1 << 20
 
 
 class _HashSink:
@@ -1710,6 +1720,10 @@ class _TeeSink:
         self._size = 0
         self.closed = False
 
+    def retarget(self, out: Any) -> None:
+        """Pass the bytes to come on to ``out`` instead."""
+        self._out = out
+
     def write(self, data: Any) -> int:
         view = memoryview(data)
         self._out.write(view)
@@ -1730,9 +1744,12 @@ class _TeeSink:
 class _StreamFile:
     """One ``type`` partition's Parquet file, written as rows arrive (row groups of
     :data:`ROW_GROUP_ROWS`), with the statistics the Delta log keeps, hashed as it is written.
-    Written under a temporary name in the partition's folder (``part-<token>.zstd.parquet``),
-    then renamed to its content-addressed name (:func:`_hashed_name`) when closed: a file a
-    killed writer leaves under either name is no file of the table (vacuum deletes it).
+    Its bytes stay in memory until they pass :data:`SPILL_BYTES`: a file that never does (most
+    of a run's types, every file of a short run) is stored once, under its content-addressed
+    name (:func:`_hashed_name`), when closed. A larger one spills to a temporary name in the
+    partition's folder (``part-<token>.zstd.parquet``), is written on from there, then renamed
+    to its content-addressed name when closed. A file a killed writer leaves under either name
+    is no file of the table (vacuum deletes it).
     ``schema``: the file's columns (default: those of ``column``'s rows, :func:`file_schema`)."""
 
     def __init__(
@@ -1747,9 +1764,11 @@ class _StreamFile:
         self.token = token
         self.rel = f"type={kind}/part-{token}.zstd.parquet"
         self.lake = lake
-        self.out = lake._open(self.rel)
+        self.memory: io.BytesIO | None = io.BytesIO()
+        self.out: Any = None  # the temporary file, once spilled
         self.digest = hashlib.sha256()
-        self.sink = pa.PythonFile(_TeeSink(self.out, self.digest), mode="w")
+        self.tee = _TeeSink(self.memory, self.digest)
+        self.sink = pa.PythonFile(self.tee, mode="w")
         if schema is None:
             schema = file_schema(
                 column, envelope=kind in lake.store.registry.types, store=lake.store
@@ -1781,15 +1800,36 @@ class _StreamFile:
         self.stats.append(_stats(part))
         self.rows += part.num_rows
         self.pending, self.buffered = [], 0
+        if self.memory is not None and self.memory.tell() > SPILL_BYTES:
+            self._spill()
+
+    def _spill(self) -> None:
+        """Go on writing in the temporary file, the bytes so far first (hashed already)."""
+        assert self.memory is not None
+        self.out = self.lake._open(self.rel)
+        self.out.write(self.memory.getbuffer())
+        self.tee.retarget(self.out)
+        self.memory = None
+
+    @property
+    def spilled(self) -> bool:
+        return self.memory is None
 
     def close(self) -> Any:
         from deltalake.transaction import AddAction
 
         self._flush()
         self.writer.close()
-        size = self.lake._close(self.rel, self.out)
         final = _hashed_name(self.kind, self.token, self.digest.hexdigest())
-        self.lake._rename(self.rel, final)
+        if self.memory is not None:
+            data = self.memory.getbuffer()
+            size = data.nbytes
+            self.lake._put(final, pa.py_buffer(data))
+            del data
+            self.memory = None
+        else:
+            size = self.lake._close(self.rel, self.out)
+            self.lake._rename(self.rel, final)
         self.rel = final
         return AddAction(
             self.rel, size, {"type": self.kind}, int(time.time() * 1000), True, _merge(self.stats)
