@@ -293,6 +293,16 @@ def test_a_streamed_commit_equals_an_in_memory_one_whatever_the_chunks(
     by_memory = whole.commit_tables(tables, robot="sim", run="robot", date="2026-01-01")
     monkeypatch.setattr(lt, "CHUNK_EVENTS", 37)
     monkeypatch.setattr(lt, "ROW_GROUP_ROWS", 50)
+    # Files past 8 KiB spill from memory to a temporary name, the others are stored from memory.
+    monkeypatch.setattr(lt, "SPILL_BYTES", 8192)
+    spilled: list[str] = []
+    spill = lt._StreamFile._spill
+
+    def counted_spill(self: lt._StreamFile) -> None:
+        spilled.append(self.kind)
+        spill(self)
+
+    monkeypatch.setattr(lt._StreamFile, "_spill", counted_spill)
     # DuckDB's memory for the derived tables too small at first: it is given more until enough.
     monkeypatch.setattr(lt, "DERIVE_MEMORY", 1 << 16)
     spills: list[str] = []
@@ -306,6 +316,10 @@ def test_a_streamed_commit_equals_an_in_memory_one_whatever_the_chunks(
     streamed = TableLake(tmp_path / "streamed", store=STORE)
     by_stream = add_log(log, streamed, robot="sim")
     assert len(spills) > 1  # the derived tables were tried again with more memory
+    # both ways of storing a file were taken
+    assert 0 < len(spilled) < len(streamed.data_files()), spilled
+    stored = {str(p.relative_to(streamed.uri)) for p in Path(streamed.uri).rglob("*.parquet")}
+    assert stored == {f.path for f in streamed.data_files()}  # no temporary name left
     assert (by_stream.digest, dict(by_stream.rows)) == (by_memory.digest, dict(by_memory.rows))
     got = streamed.read_tables(by_stream)
     for event_type, table in tables.items():
