@@ -20,6 +20,11 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/objsearch demo --out out/demo --force
 
+# The suite in two worker processes (pytest-xdist): most of its time is processes waiting on
+# processes (servers, kills, subprocess commands), so a second worker nearly halves it on two
+# cores. tests/conftest.py keeps a module's tests in one worker and the transports' in one.
+TEST_WORKERS ?= 2
+
 # ros2_types rebuilds only what changed (a no-op, ~0.3 s, after the install built it). The suite
 # starts hundreds of Python processes; where PYTHONDONTWRITEBYTECODE is set (our machines) each
 # would compile the sources it imports anew (~0.1-0.25 CPU-s a command), so they are compiled
@@ -27,7 +32,7 @@ demo: $(STAMP)
 test: $(STAMP) lint typecheck
 	$(BIN)/python -m objsearch.runtime.ros2_types
 	$(BIN)/python -m compileall -q -x '/\.' .
-	$(BIN)/pytest
+	$(BIN)/pytest -n $(TEST_WORKERS) --dist loadgroup
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -92,3 +92,27 @@ def bucket(
     name = f"{readable}-{uuid.uuid4().hex[:8]}"
     boto3.client("s3").create_bucket(Bucket=name)
     return f"s3://{name}/lake"
+
+
+#: Under pytest-xdist (``make test``: ``-n 2 --dist loadgroup``) the tests of one group run in one
+#: worker, in turn. The transports' tests are one group: their DDS domain ids and ports are
+#: chosen per process, so two workers would share domains and see each other's nodes.
+TRANSPORT_GROUP = "tests/runtime"
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Group every test for ``--dist loadgroup``: a module's tests stay in one worker (its module
+    fixtures are built once), every test of tests/runtime in one worker; that group first, as
+    it is the longest (a worker takes the next group when it is done with one). Without
+    xdist the marks do nothing and the order is only the transports' tests first."""
+    runtime = REPO_ROOT / "tests" / "runtime"
+
+    def group(item: pytest.Item) -> str:
+        if item.path.is_relative_to(runtime):
+            return TRANSPORT_GROUP
+        return str(item.path.relative_to(REPO_ROOT))
+
+    for item in items:
+        item.add_marker(pytest.mark.xdist_group(group(item)))
+    items.sort(key=lambda item: group(item) != TRANSPORT_GROUP)  # stable: the rest as collected
