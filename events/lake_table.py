@@ -1226,7 +1226,6 @@ class TableLake:
         hash). Raises ``CommitFailedError`` if another commit came between (what it wrote
         deleted), unless this one landed (its answer lost)."""
         from deltalake import CommitProperties
-        from deltalake.exceptions import CommitFailedError
         from deltalake.transaction import RemoveAction
 
         commit = CommitProperties(app_transactions=[*apps, _rewrite_transaction(table)])
@@ -1252,8 +1251,24 @@ class TableLake:
                 )
                 if written is not None:
                     adds.append(written)
-            now = int(time.time() * 1000)
-            removes = [RemoveAction(f.path, True, now, f.size, {"type": f.kind}) for f in holding]
+        except BaseException:
+            self._delete_files(adds)
+            raise
+        now = int(time.time() * 1000)
+        removes = [RemoveAction(f.path, True, now, f.size, {"type": f.kind}) for f in holding]
+        self._commit_actions(table, removes, adds, commit)
+
+    def _commit_actions(
+        self, table: Any, removes: Sequence[Any], adds: Sequence[Any], commit: Any
+    ) -> None:
+        """One transaction decided from ``table`` that removes ``removes`` and adds ``adds``
+        (files this writer has just written), with the commit properties ``commit``. Raises
+        ``CommitFailedError`` if another commit came between, having deleted ``adds``, unless
+        this one landed (every file it adds is in the table: its answer was lost), which returns
+        as a commit does."""
+        from deltalake.exceptions import CommitFailedError
+
+        try:
             table.create_write_transaction(
                 [*removes, *adds],
                 mode="append",
@@ -1390,7 +1405,6 @@ class TableLake:
         names its files itself, with no hash. A commit that fails deletes what it wrote, unless
         it landed (its answer lost)."""
         from deltalake import CommitProperties
-        from deltalake.exceptions import CommitFailedError
         from deltalake.transaction import RemoveAction
 
         by_kind: dict[str, list[DataFile]] = {}
@@ -1413,25 +1427,13 @@ class TableLake:
                     removes += [
                         RemoveAction(f.path, False, now, f.size, {"type": kind}) for f in group
                     ]
-            if not removes:
-                return
-            table.create_write_transaction(
-                [*removes, *adds],
-                mode="append",
-                schema=table_schema(self.store),
-                partition_by=["type"],
-                commit_properties=CommitProperties(app_transactions=[_rewrite_transaction(table)]),
-            )
-        except CommitFailedError:
-            landed = {f.path for f in self.data_files(self.table())}
-            if adds and all(a.path in landed for a in adds):
-                _fs.durable_step()
-                return  # it landed; its answer was lost
-            self._delete_files(adds)
-            raise
         except BaseException:
             self._delete_files(adds)
             raise
+        if not removes:
+            return
+        commit = CommitProperties(app_transactions=[_rewrite_transaction(table)])
+        self._commit_actions(table, removes, adds, commit)
         _fs.durable_step()
 
     def _source(self, rel: str) -> tuple[str, Any]:
