@@ -32,7 +32,7 @@ TEST_WORKERS ?= 2
 test: $(STAMP) lint typecheck
 	$(BIN)/python -m objsearch.runtime.ros2_types
 	$(BIN)/python -m compileall -q -x '/\.' .
-	$(BIN)/pytest -n $(TEST_WORKERS) --dist loadgroup
+	$(BIN)/pytest -n $(TEST_WORKERS) --dist loadscope
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

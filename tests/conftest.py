@@ -11,6 +11,7 @@ import re
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -94,25 +95,24 @@ def bucket(
     return f"s3://{name}/lake"
 
 
-#: Under pytest-xdist (``make test``: ``-n 2 --dist loadgroup``) the tests of one group run in one
-#: worker, in turn. The transports' tests are one group: their DDS domain ids and ports are
-#: chosen per process, so two workers would share domains and see each other's nodes.
-TRANSPORT_GROUP = "tests/runtime"
+#: Under pytest-xdist (``make test``: ``-n 2 --dist loadscope``) the tests of one scope run in one
+#: worker, in turn. Every test of tests/runtime is one scope: the transports' DDS domain ids and
+#: ports are chosen per process, so two workers would share domains and see each other's nodes.
+TRANSPORT_SCOPE = "tests/runtime/"
 
 
-@pytest.hookimpl(tryfirst=True)
-def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Group every test for ``--dist loadgroup``: a module's tests stay in one worker (its module
-    fixtures are built once), every test of tests/runtime in one worker; that group first, as
-    it is the longest (a worker takes the next group when it is done with one). Without
-    xdist the marks do nothing and the order is only the transports' tests first."""
-    runtime = REPO_ROOT / "tests" / "runtime"
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """xdist's scope scheduling with a scope a test module (its module fixtures are built once),
+    and all of tests/runtime one scope. (Its ``loadgroup`` marks would say the same, but with
+    pytest 9.2 they have no effect: xdist 3.8 renames ``item._nodeid``, which pytest no longer
+    reads.) Scopes are handed out largest first, a worker taking the next when done."""
+    from xdist.scheduler import LoadScopeScheduling
 
-    def group(item: pytest.Item) -> str:
-        if item.path.is_relative_to(runtime):
-            return TRANSPORT_GROUP
-        return str(item.path.relative_to(REPO_ROOT))
+    class ModuleScopes(LoadScopeScheduling):  # type: ignore[misc]
+        def _split_scope(self, nodeid: str) -> str:
+            if nodeid.startswith(TRANSPORT_SCOPE):
+                return TRANSPORT_SCOPE
+            return nodeid.split("::", 1)[0]
 
-    for item in items:
-        item.add_marker(pytest.mark.xdist_group(group(item)))
-    items.sort(key=lambda item: group(item) != TRANSPORT_GROUP)  # stable: the rest as collected
+    return ModuleScopes(config, log)
