@@ -20,9 +20,10 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/objsearch demo --out out/demo --force
 
-# The suite in two worker processes (pytest-xdist): most of its time is processes waiting on
-# processes (servers, kills, subprocess commands), so a second worker nearly halves it on two
-# cores. tests/conftest.py keeps a module's tests in one worker and the transports' in one.
+# The suite in two worker processes (pytest-xdist): much of its time is processes waiting on
+# processes (servers, kills, subprocess commands). Idle 2-core machine: pytest 528 s in two
+# workers (4df6357), 1040 s in one (s39's end, before the kill tests' cut). tests/conftest.py
+# keeps a module's tests in one worker and all of tests/runtime in one.
 TEST_WORKERS ?= 2
 
 # ros2_types rebuilds only what changed (a no-op, ~0.3 s, after the install built it). The suite
