@@ -1033,14 +1033,13 @@ class TableLake:
     def _abandon(self, files: Iterable[_StreamFile]) -> None:
         """Close and delete files a failed commit was writing."""
         files = list(files)
-        spilled = [f for f in files if f.spilled]
         for f in files:
             with suppress(Exception):
                 f.writer.close()
-        for f in spilled:
-            with suppress(Exception):
-                self._close(f.rel, f.out)
-        self._delete_files([_Named(f.rel) for f in spilled])
+            if f.out is not None:
+                with suppress(Exception):
+                    self._close(f.rel, f.out)
+        self._delete_files([_Named(f.rel) for f in files if f.on_storage])
 
     def _derive(self, files: Mapping[str, str]) -> dict[str, pa.Table]:
         """The derived tables of one run from its data files just written (``files``: event
@@ -1768,6 +1767,9 @@ class _StreamFile:
         self.lake = lake
         self.memory: io.BytesIO | None = io.BytesIO()
         self.out: Any = None  # the temporary file, once spilled
+        #: Whether bytes of it are on storage under ``rel`` (spilled, or closed): what a failed
+        #: commit deletes.
+        self.on_storage = False
         self.digest = hashlib.sha256()
         self.tee = _TeeSink(self.memory, self.digest)
         self.sink = pa.PythonFile(self.tee, mode="w")
@@ -1812,10 +1814,7 @@ class _StreamFile:
         self.out.write(self.memory.getbuffer())
         self.tee.retarget(self.out)
         self.memory = None
-
-    @property
-    def spilled(self) -> bool:
-        return self.memory is None
+        self.on_storage = True
 
     def close(self) -> Any:
         from deltalake.transaction import AddAction
@@ -1826,13 +1825,17 @@ class _StreamFile:
         if self.memory is not None:
             data = self.memory.getbuffer()
             size = data.nbytes
+            # a put that fails may leave part of it there: a failed commit deletes it too
+            self.rel, self.on_storage = final, True
             self.lake._put(final, pa.py_buffer(data))
             del data
             self.memory = None
         else:
             size = self.lake._close(self.rel, self.out)
+            self.out = None
             self.lake._rename(self.rel, final)
         self.rel = final
+        self.on_storage = True
         return AddAction(
             self.rel, size, {"type": self.kind}, int(time.time() * 1000), True, _merge(self.stats)
         )

@@ -279,6 +279,33 @@ def test_files_of_a_writer_killed_before_its_commit_are_never_read(tmp_path: Pat
     assert not list((tmp_path / "lake" / TABLE_DIR).glob("type=*/part-dead*"))
 
 
+def test_a_streamed_commit_that_fails_leaves_no_file_it_wrote(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Files stored from memory, files spilled to their temporary name, and files closed before
+    the failure: none is left behind (the next vacuum would delete them, but nothing waits)."""
+    import objsearch.events.lake_table as lt
+
+    monkeypatch.setattr(lt, "SPILL_BYTES", 8192)
+    monkeypatch.setattr(lt, "ROW_GROUP_ROWS", 50)
+    close = lt._StreamFile.close
+    closed: list[str] = []
+
+    def failing_close(self: lt._StreamFile) -> object:
+        if len(closed) == 3:
+            raise OSError("disk full")
+        closed.append(self.kind)
+        return close(self)
+
+    monkeypatch.setattr(lt._StreamFile, "close", failing_close)
+    lake = TableLake(tmp_path / "lake", store=STORE)
+    with pytest.raises(OSError, match="disk full"):
+        add_log(GOLDEN / "sim-wpl-updates", lake, robot="sim")
+    assert len(closed) == 3
+    assert not list((tmp_path / "lake" / TABLE_DIR).rglob("*.parquet"))
+    assert lake.runs() == []
+
+
 def test_a_streamed_commit_equals_an_in_memory_one_whatever_the_chunks(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
