@@ -1,8 +1,8 @@
 """Fixtures every test package may use: the raw shared data (``../shared/data`` beside the clone,
 or ``$OBJSEARCH_SHARED``), which the data converter and the FloorPlan-set benches build homes from,
 torch on one thread for the modules that fuse maps in the test process, one local S3 server
-(moto's) for every test of the fleet lake on a bucket, and the fleet lake's verification cache
-in a folder of the run's own."""
+(moto's) for every test of the fleet lake on a bucket, the fleet lake's verification cache
+in a folder of the run's own, and how pytest-xdist shares the tests between its workers."""
 
 from __future__ import annotations
 
@@ -106,7 +106,7 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     """xdist's scope scheduling with a scope a test module (its module fixtures are built once),
     and all of tests/runtime one scope. (Its ``loadgroup`` marks would say the same, but with
     pytest 9.2 they have no effect: xdist 3.8 renames ``item._nodeid``, which pytest no longer
-    reads.) Scopes are handed out largest first, a worker taking the next when done."""
+    reads.) Scopes are handed out most tests first, a worker taking the next when done."""
     from xdist.scheduler import LoadScopeScheduling
 
     class ModuleScopes(LoadScopeScheduling):  # type: ignore[misc]
