@@ -20,9 +20,8 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/objsearch demo --out out/demo --force
 
-# The suite in two worker processes (pytest-xdist): much of its time is processes waiting on
-# processes (servers, kills, subprocess commands). Idle 2-core machine: pytest 528-642 s in two
-# workers (three runs), 1040 s in one (s39's end, before the kill tests' cut). tests/conftest.py
+# The suite in two worker processes (pytest-xdist). Idle 2-core machine: pytest 528-642 s in two
+# workers (three runs), 1040 s in one (s39's end, before the kill tests' cut; not an A/B). tests/conftest.py
 # keeps a module's tests in one worker and all of tests/runtime in one.
 TEST_WORKERS ?= 2
 
