@@ -128,6 +128,7 @@ def test_a_session_merge_killed_at_every_step_is_all_or_nothing(bag: Path, tmp_p
             shutil.rmtree(lake)
             assert n < 200
     # Every data file the merge writes is a step (content-addressed files of our own, the
-    # provisional run's files rewritten without it): measured 2026-12-06, 47 kills before the
-    # commit left the provisional run, the 48th, right after the commit, the merged one.
+    # provisional run's files rewritten without it; each stored once since a7a8ab1): measured
+    # 2026-12-06, 19 kills before the commit left the provisional run, the 20th, right after
+    # the commit, the merged one (47 and the 48th before a7a8ab1).
     assert outcomes and outcomes == sorted(outcomes), outcomes
