@@ -42,6 +42,7 @@ from objsearch.events.catalogue import Catalogue
 from objsearch.events.envelope import ReadPayload
 from objsearch.events.errors import InvalidEventError
 from objsearch.events.projection import shared_decodes
+from objsearch.events.record_json import RecordCodec
 from objsearch.events.store import Store
 
 NonNegative: TypeAlias = Annotated[float, msgspec.Meta(ge=0)]
@@ -895,8 +896,6 @@ R = TypeVar("R", bound=Record)
 _JSON_DECODERS: Final[Mapping[type[Record], Callable[[Any], Any]]] = {
     record: msgspec.json.Decoder(record, strict=True).decode for record in RECORDS.values()
 }
-_json_encode: Final = msgspec.json.Encoder().encode
-_json_decode: Final = msgspec.json.Decoder(dict[str, Any]).decode
 
 
 class _Typed(Protocol):
@@ -910,9 +909,7 @@ class _Typed(Protocol):
 
 def encode(record: Record) -> dict[str, Any]:
     """The payload dict of ``record`` (JSON types only: tuples become lists)."""
-    # to_builtins keeps tuples; the JSON round trip (both halves in C) gives what a reader gets.
-    payload: dict[str, Any] = _json_decode(_json_encode(record))
-    return payload
+    return RecordCodec.payload(record)
 
 
 @overload

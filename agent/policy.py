@@ -36,7 +36,6 @@ from objsearch.agent.catalogue import (
     TaskStarted,
     ViewReason,
     ViewTaken,
-    encode,
 )
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.errors import ObjsearchError
@@ -105,6 +104,10 @@ class EventSink(Protocol):
         self, type: str, payload: Mapping[str, Any], *, time_ns: int, task_id: str | None = None
     ) -> EventView: ...
 
+    def append_record(
+        self, record: Record, *, time_ns: int, task_id: str | None = None
+    ) -> EventView: ...
+
 
 @dataclass
 class Recorder:
@@ -123,6 +126,15 @@ class Recorder:
     def record(
         self, type: str, payload: Mapping[str, Any], *, time_ns: int, task_id: str | None = None
     ) -> EventView:
+        time_ns = self._stamp(time_ns)
+        return self._tell(self.sink.append(type, payload, time_ns=time_ns, task_id=task_id))
+
+    def emit(self, record: Record, *, time_ns: int, task_id: str | None = None) -> EventView:
+        """:meth:`record` of a typed record (its type, its payload), appended as the record."""
+        time_ns = self._stamp(time_ns)
+        return self._tell(self.sink.append_record(record, time_ns=time_ns, task_id=task_id))
+
+    def _stamp(self, time_ns: int) -> int:
         if time_ns < self.time_floor_ns:
             if not self._behind:
                 _log.warning(
@@ -135,14 +147,12 @@ class Recorder:
         else:
             self._behind = False
             self.time_floor_ns = time_ns
-        event = self.sink.append(type, payload, time_ns=time_ns, task_id=task_id)
+        return time_ns
+
+    def _tell(self, event: EventView) -> EventView:
         for observer in self.observers:
             observer.apply(event)
         return event
-
-    def emit(self, record: Record, *, time_ns: int, task_id: str | None = None) -> EventView:
-        """:meth:`record` of a typed record (its type, its payload)."""
-        return self.record(record.TYPE, encode(record), time_ns=time_ns, task_id=task_id)
 
 
 @dataclass(frozen=True, slots=True)

@@ -40,6 +40,8 @@ class _NoSink:
     def append(self, *args: object, **kwargs: object) -> object:
         raise AssertionError("planning only")
 
+    append_record = append
+
 
 def planning_agent(
     home: str,

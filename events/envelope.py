@@ -195,12 +195,22 @@ class Event(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tru
         copied, text = json_payload(payload, event_type, version)
         return _Adopted(**envelope, payload=MappingProxyType(copied)), copied, text
 
+    @classmethod
+    def _for_append_json(cls, payload_json: bytes, **envelope: Any) -> Event:
+        """The event an append of a typed record stores: the envelope checked as ``Event(...)``
+        checks it, the payload the record's JSON (checked by the caller against its record),
+        decoded only if someone reads it (:class:`ReadPayload`)."""
+        check_envelope(**envelope)
+        return _Adopted(**envelope, payload=ReadPayload(payload_json))
+
 
 class _Adopted(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
-    """An event from a dict its builder owns (``_adopt``): checked there, wrapped, not copied."""
+    """An event whose builder checked its payload (``_adopt``, the appends): wrapped, not
+    copied."""
 
     def __post_init__(self) -> None:
-        if type(self.payload) is not MappingProxyType:  # a copy with another payload
+        kind = type(self.payload)
+        if kind is not MappingProxyType and kind is not ReadPayload:  # a copy, another payload
             Event.__post_init__(self)
 
 

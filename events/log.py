@@ -35,6 +35,8 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
+import msgspec
+
 from . import _fs
 from .envelope import Event, deterministic_event_id
 from .errors import (
@@ -345,13 +347,92 @@ class EventLog:
         self._check_usable()
         if version is None:
             version = self._registry.latest_version(type)
+        seq, event_id, stored = self._claim(event_id, expected_last_seq)
+        if stored:
+            return self._existing(event_id, type, version, payload, time_ns, task_id)
+        # The payload copied and its JSON made once, in C where it can be (not copied, then
+        # dumped with the envelope again): most of what a batched append costs.
+        event, copied, payload_json = Event._for_append(
+            payload,
+            event_id=event_id,
+            stream=self._meta.stream,
+            seq=seq,
+            time_ns=time_ns,
+            recorded_at_ns=self._wall_clock(),
+            type=type,
+            version=version,
+            task_id=task_id,
+        )
+        self._check_time(event)
+        self._registry.validate(type, version, copied)
+        if type == QUARANTINED_TYPE and payload.get("chain") is not None:
+            raise InvalidEventError(
+                f"invalid {type} v{version} event: payload.chain: only `objsearch log repair` "
+                "redirects the checksum chain (it writes the record in place of a damaged one)",
+                event_type=type,
+                version=version,
+                path="payload.chain",
+                reason="not null",
+            )
+        return self._store_event(event, payload_json)
+
+    def append_record(
+        self,
+        record: msgspec.Struct,
+        *,
+        time_ns: int,
+        task_id: str | None = None,
+        event_id: str | None = None,
+        expected_last_seq: int | None = None,
+    ) -> Event:
+        """:meth:`append` of a typed record of the store's catalogue (``Catalogue.records``):
+        its type and version are the record's, and the same bytes are stored as for its payload
+        dict, without making the dict (:mod:`.record_json`). A record that does not fit its type,
+        or whose text msgspec would spell otherwise, takes :meth:`append`'s path and errors.
+        The event returned decodes its payload only when it is read."""
+        codec = self._store.record_codec(type(record))
+        payload_json = None if codec.type == QUARANTINED_TYPE else codec.payload_json(record)
+        if payload_json is None:
+            return self.append(
+                codec.type,
+                codec.payload(record),
+                time_ns=time_ns,
+                task_id=task_id,
+                version=codec.version,
+                event_id=event_id,
+                expected_last_seq=expected_last_seq,
+            )
+        self._check_usable()
+        self._registry.latest_version(codec.type)  # a known type (the catalogue's schemas)
+        seq, event_id, stored = self._claim(event_id, expected_last_seq)
+        if stored:
+            return self._existing(
+                event_id, codec.type, codec.version, codec.payload(record), time_ns, task_id
+            )
+        event = Event._for_append_json(
+            payload_json,
+            event_id=event_id,
+            stream=self._meta.stream,
+            seq=seq,
+            time_ns=time_ns,
+            recorded_at_ns=self._wall_clock(),
+            type=codec.type,
+            version=codec.version,
+            task_id=task_id,
+        )
+        self._check_time(event)
+        return self._store_event(event, payload_json.decode())
+
+    def _claim(self, event_id: str | None, expected_last_seq: int | None) -> tuple[int, str, bool]:
+        """The seq and id of the next record, and whether that id is already stored (the caller
+        then checks the append asks for the same fact); the expected seq checked."""
         at = self._at
         seq = at.seq + 1
         ids = self._ids
         if ids is None and event_id is not None:
             ids = self._index_ids()
         if event_id is not None and ids is not None and event_id in ids:
-            return self._existing(event_id, type, version, payload, time_ns, task_id)
+            return seq, event_id, True
         if expected_last_seq is not None and expected_last_seq != at.seq:
             raise WrongExpectedSeqError(
                 f"event log {self._directory} ends at seq {at.seq}, "
@@ -366,49 +447,36 @@ class EventLog:
                     f"the default id {event_id} of seq {seq} is already used by an earlier "
                     f"event in {self._directory} (an explicit id copied from this stream?)"
                 )
-        # The payload copied and its JSON made once, in C where it can be (not copied, then
-        # dumped with the envelope again): most of what a batched append costs.
-        event, copied, payload_json = Event._for_append(
-            payload,
-            event_id=event_id,
-            stream=self._meta.stream,
-            seq=seq,
-            time_ns=time_ns,
-            recorded_at_ns=self._wall_clock(),
-            type=type,
-            version=version,
-            task_id=task_id,
-        )
-        if time_ns < at.time_ns:
+        return seq, event_id, False
+
+    def _check_time(self, event: Event) -> None:
+        last = self._at.time_ns
+        if event.time_ns < last:
             raise InvalidEventError(
-                f"invalid {type} v{version} event: time_ns {time_ns} is before the last event's "
-                f"({at.time_ns}); a stream's time never runs backwards",
-                event_type=type,
-                version=version,
+                f"invalid {event.type} v{event.version} event: time_ns {event.time_ns} is before "
+                f"the last event's ({last}); a stream's time never runs backwards",
+                event_type=event.type,
+                version=event.version,
                 path="time_ns",
                 reason="earlier than the previous event",
             )
-        self._registry.validate(type, version, copied)
-        if type == QUARANTINED_TYPE and payload.get("chain") is not None:
-            raise InvalidEventError(
-                f"invalid {type} v{version} event: payload.chain: only `objsearch log repair` "
-                "redirects the checksum chain (it writes the record in place of a damaged one)",
-                event_type=type,
-                version=version,
-                path="payload.chain",
-                reason="not null",
-            )
+
+    def _store_event(self, event: Event, payload_json: str) -> Event:
+        """Write the checked ``event`` (its payload's JSON text made) and, outside a batch,
+        fsync it."""
+        at = self._at
         record = encode_new_record(event, payload_json, at.checksum if self._meta.chained else 0)
         offset = at.offset
         self._write(record)
         self._sealer.add(record)
+        ids = self._ids
         if ids is not None:
             ids[event.event_id] = offset
         at.offset += len(record)
         at.line += 1
-        at.seq = seq
+        at.seq = event.seq
         at.checksum = int(record[-9:-1], 16)
-        at.time_ns = time_ns
+        at.time_ns = event.time_ns
         if self._batch_depth:
             self._unsynced = True
         else:

@@ -21,7 +21,11 @@ import threading
 from importlib import resources
 from typing import Final
 
+import msgspec
+
 from .catalogue import Catalogue
+from .errors import InvalidEventError
+from .record_json import RecordCodec, record_codecs
 from .schemas import SchemaRegistry
 from .upcast import Upcaster
 
@@ -35,13 +39,14 @@ class Store:
     and safe to share between threads.
     """
 
-    __slots__ = ("_lock", "_registry", "_upcaster", "catalogue")
+    __slots__ = ("_codecs", "_lock", "_registry", "_upcaster", "catalogue")
 
     def __init__(self, catalogue: Catalogue) -> None:
         self.catalogue: Final = catalogue
         self._lock = threading.Lock()
         self._registry: SchemaRegistry | None = None
         self._upcaster: Upcaster | None = None
+        self._codecs: dict[type[msgspec.Struct], RecordCodec] | None = None
 
     @property
     def registry(self) -> SchemaRegistry:
@@ -72,6 +77,20 @@ class Store:
                     )
                 upcaster = self._upcaster
         return upcaster
+
+    def record_codec(self, record_type: type[msgspec.Struct]) -> RecordCodec:
+        """The codec of one of the catalogue's records (``Catalogue.records``);
+        :class:`InvalidEventError` for any other type."""
+        codecs = self._codecs
+        if codecs is None:
+            codecs = self._codecs = record_codecs(self.catalogue.records)
+        codec = codecs.get(record_type)
+        if codec is None:
+            raise InvalidEventError(
+                f"{record_type.__name__} is not a record of this store's catalogue",
+                reason="not a record of the catalogue",
+            )
+        return codec
 
     def __repr__(self) -> str:
         return f"Store({self.catalogue.schemas!s})"

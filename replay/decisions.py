@@ -121,6 +121,8 @@ class _NoSink:
     def append(self, *args: Any, **kwargs: Any) -> Any:
         raise RuntimeError("replay must not append events")
 
+    append_record = append
+
 
 class Replayer:
     """Folds a log event by event and re-plans at every ``plan_computed``."""

@@ -24,6 +24,8 @@ class _PlanOnly:
     def append(self, *args: object, **kwargs: object) -> object:
         raise AssertionError("planning only")
 
+    append_record = append
+
 
 def _agent() -> SearchAgent:
     ctx = load_context("paper")
