@@ -12,7 +12,7 @@ import math
 import random
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol, TypedDict, Unpack
+from typing import Protocol, TypedDict, Unpack
 
 import numpy as np
 
@@ -100,9 +100,7 @@ class SearchConfig:
 
 
 class EventSink(Protocol):
-    def append(
-        self, type: str, payload: Mapping[str, Any], *, time_ns: int, task_id: str | None = None
-    ) -> EventView: ...
+    """Where the agent's events go: the log (``EventLog``)."""
 
     def append_record(
         self, record: Record, *, time_ns: int, task_id: str | None = None
@@ -123,18 +121,9 @@ class Recorder:
     time_floor_ns: int = 0
     _behind: bool = field(default=False, init=False)
 
-    def record(
-        self, type: str, payload: Mapping[str, Any], *, time_ns: int, task_id: str | None = None
-    ) -> EventView:
-        time_ns = self._stamp(time_ns)
-        return self._tell(self.sink.append(type, payload, time_ns=time_ns, task_id=task_id))
-
     def emit(self, record: Record, *, time_ns: int, task_id: str | None = None) -> EventView:
-        """:meth:`record` of a typed record (its type, its payload), appended as the record."""
-        time_ns = self._stamp(time_ns)
-        return self._tell(self.sink.append_record(record, time_ns=time_ns, task_id=task_id))
-
-    def _stamp(self, time_ns: int) -> int:
+        """Append ``record`` stamped ``time_ns`` (or the last event's time, see above) and tell
+        every observer of the event."""
         if time_ns < self.time_floor_ns:
             if not self._behind:
                 _log.warning(
@@ -147,9 +136,7 @@ class Recorder:
         else:
             self._behind = False
             self.time_floor_ns = time_ns
-        return time_ns
-
-    def _tell(self, event: EventView) -> EventView:
+        event = self.sink.append_record(record, time_ns=time_ns, task_id=task_id)
         for observer in self.observers:
             observer.apply(event)
         return event

@@ -13,7 +13,9 @@ from functools import cache
 from pathlib import Path
 from typing import Any, Unpack
 
-from objsearch.agent.catalogue import STORE
+import msgspec
+
+from objsearch.agent.catalogue import STORE, SceneGraphSeeded, SeedValue, TaskAborted
 from objsearch.agent.categories import Vocabulary, read_json
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
@@ -73,20 +75,20 @@ def prior_file(name: str) -> str:
         ) from None
 
 
-def prior_values(
-    vocabulary: Vocabulary, name: str = DEFAULT_PRIOR
-) -> tuple[str, list[dict[str, Any]]]:
-    """The ``scene_graph_seeded`` source and values of a named prior. The source names the
-    reading of Eq. 2 (``vg-hoz-masked: vg/VSGM/…``), except for the default, which keeps the
-    source string older logs carry; the values are in the log, so nothing re-reads the file."""
+def prior_values(vocabulary: Vocabulary, name: str = DEFAULT_PRIOR) -> SceneGraphSeeded:
+    """The ``scene_graph_seeded`` record of a named prior. Its source names the reading of Eq. 2
+    (``vg-hoz-masked: vg/VSGM/…``), except for the default, which keeps the source string older
+    logs carry; the values are in the log, so nothing re-reads the file."""
     rel_path = prior_file(name)
     prior = read_json(data_dir() / rel_path, f"the {name} prior")
     relations = seed_relations(prior, vocabulary)
-    values = [
-        {"dynamic": d, "static": s, "rel": round(v, 12)} for (d, s), v in sorted(relations.items())
-    ]
+    values = tuple(
+        SeedValue(dynamic=d, static=s, rel=round(v, 12)) for (d, s), v in sorted(relations.items())
+    )
     source = str(prior.get("source", rel_path))
-    return (source if name == DEFAULT_PRIOR else f"{name}: {source}"), values
+    return SceneGraphSeeded(
+        source=source if name == DEFAULT_PRIOR else f"{name}: {source}", values=values
+    )
 
 
 def prior_of_source(source: str) -> str:
@@ -255,17 +257,16 @@ class Session:
         # cannot start leaves the log as it was.
         prior = None if self.state.seeded else prior_values(self.ctx.vocabulary, spec.prior)
         at = self.resume_time_ns
-        payload = spec.payload()
+        started = spec.record()
         if self.log.run_id is not None:
             # The log's run id, so a reader holding only some events (a split bag's piece) can
             # prove which run they belong to: event ids are uuid5(run id, seq).
-            payload["params"] = {**payload["params"], "run_id": self.log.run_id}
-        self.recorder.record("run_started", payload, time_ns=at)
-        if prior is not None:
-            source, values = prior
-            self.recorder.record(
-                "scene_graph_seeded", {"source": source, "values": values}, time_ns=at
+            started = msgspec.structs.replace(
+                started, params={**started.params, "run_id": self.log.run_id}
             )
+        self.recorder.emit(started, time_ns=at)
+        if prior is not None:
+            self.recorder.emit(prior, time_ns=at)
         ctx = self.ctx
         self._agent = SearchAgent(
             ctx.navmap,
@@ -282,13 +283,10 @@ class Session:
         open_task = self.state.tasks.open
         if open_task is None:
             return
-        self.recorder.record(
-            "task_aborted",
-            {
-                "target": open_task.target,
-                "reason": "restart",
-                "path_length": round(open_task.metres, 4),
-            },
+        self.recorder.emit(
+            TaskAborted(
+                target=open_task.target, reason="restart", path_length=round(open_task.metres, 4)
+            ),
             time_ns=self.resume_time_ns,
             task_id=open_task.task_id,
         )

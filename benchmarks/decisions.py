@@ -37,10 +37,8 @@ ROUTINE_SCENES = 56
 
 
 class _NoSink:
-    def append(self, *args: object, **kwargs: object) -> object:
+    def append_record(self, *args: object, **kwargs: object) -> object:
         raise AssertionError("planning only")
-
-    append_record = append
 
 
 def planning_agent(

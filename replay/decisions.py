@@ -118,10 +118,8 @@ class DecisionReplay:
 class _NoSink:
     """Replay plans; it never acts, so nothing may be appended."""
 
-    def append(self, *args: Any, **kwargs: Any) -> Any:
+    def append_record(self, *args: Any, **kwargs: Any) -> Any:
         raise RuntimeError("replay must not append events")
-
-    append_record = append
 
 
 class Replayer:

@@ -21,10 +21,8 @@ from objsearch.sim.longterm import run_schedule
 
 
 class _PlanOnly:
-    def append(self, *args: object, **kwargs: object) -> object:
+    def append_record(self, *args: object, **kwargs: object) -> object:
         raise AssertionError("planning only")
-
-    append_record = append
 
 
 def _agent() -> SearchAgent:
