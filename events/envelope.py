@@ -348,8 +348,9 @@ check_event: Final[Callable[[bytes], Event]] = msgspec.json.Decoder(_Checked).de
 
 
 def _plain_dict(payload: Mapping[str, Any]) -> dict[str, Any]:
-    if type(payload) is ReadPayload:
-        return payload.copy()
+    kind = type(payload)
+    if kind is ReadPayload or kind is MappingProxyType:
+        return payload.copy()  # type: ignore[attr-defined,no-any-return]  # in C, not key by key
     return dict(payload)
 
 
