@@ -215,7 +215,8 @@ class _Adopted(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=
 
 
 class ReadPayload(Mapping[str, Any]):
-    """The payload of an event read from a log, decoded only when first looked at.
+    """The payload of an event read from a log (or appended as a typed record: its JSON made in
+    C), decoded only when first looked at.
 
     A read that only verifies never builds it; a fold that wants the typed record decodes it
     from these JSON bytes straight into the record (:func:`payload_json`), one decode per event.

@@ -353,15 +353,7 @@ class EventLog:
         # The payload copied and its JSON made once, in C where it can be (not copied, then
         # dumped with the envelope again): most of what a batched append costs.
         event, copied, payload_json = Event._for_append(
-            payload,
-            event_id=event_id,
-            stream=self._meta.stream,
-            seq=seq,
-            time_ns=time_ns,
-            recorded_at_ns=self._wall_clock(),
-            type=type,
-            version=version,
-            task_id=task_id,
+            payload, **self._envelope(event_id, seq, time_ns, type, version, task_id)
         )
         self._check_time(event)
         self._registry.validate(type, version, copied)
@@ -391,8 +383,10 @@ class EventLog:
         or whose text msgspec would spell otherwise, takes :meth:`append`'s path and errors.
         The event returned decodes its payload only when it is read."""
         codec = self._store.record_codec(type(record))
-        payload_json = None if codec.type == QUARANTINED_TYPE else codec.payload_json(record)
-        if payload_json is None:
+        payload_json = None
+        if codec.type != QUARANTINED_TYPE and self._registry.knows(codec.type, codec.version):
+            payload_json = codec.payload_json(record)
+        if payload_json is None:  # the dict path: its normalisation, and its errors worded
             return self.append(
                 codec.type,
                 codec.payload(record),
@@ -403,7 +397,6 @@ class EventLog:
                 expected_last_seq=expected_last_seq,
             )
         self._check_usable()
-        self._registry.latest_version(codec.type)  # a known type (the catalogue's schemas)
         seq, event_id, stored = self._claim(event_id, expected_last_seq)
         if stored:
             return self._existing(
@@ -411,14 +404,7 @@ class EventLog:
             )
         event = Event._for_append_json(
             payload_json,
-            event_id=event_id,
-            stream=self._meta.stream,
-            seq=seq,
-            time_ns=time_ns,
-            recorded_at_ns=self._wall_clock(),
-            type=codec.type,
-            version=codec.version,
-            task_id=task_id,
+            **self._envelope(event_id, seq, time_ns, codec.type, codec.version, task_id),
         )
         self._check_time(event)
         return self._store_event(event, payload_json.decode())
@@ -448,6 +434,27 @@ class EventLog:
                     f"event in {self._directory} (an explicit id copied from this stream?)"
                 )
         return seq, event_id, False
+
+    def _envelope(
+        self,
+        event_id: str,
+        seq: int,
+        time_ns: int,
+        type: str,
+        version: int,
+        task_id: str | None,
+    ) -> dict[str, Any]:
+        """The envelope fields of the next record (the wall clock read now)."""
+        return {
+            "event_id": event_id,
+            "stream": self._meta.stream,
+            "seq": seq,
+            "time_ns": time_ns,
+            "recorded_at_ns": self._wall_clock(),
+            "type": type,
+            "version": version,
+            "task_id": task_id,
+        }
 
     def _check_time(self, event: Event) -> None:
         last = self._at.time_ns
