@@ -13,7 +13,7 @@ from typing import IO, Final, NoReturn
 import msgspec
 
 from .diagnose import Witness, diagnose
-from .envelope import Event, check_event, decode_event
+from .envelope import Event, canonical_ids, decode_event, frame_event
 from .errors import (
     CorruptLogError,
     InvalidEventError,
@@ -126,12 +126,20 @@ class _Scan:
         sealer = self.sealer
         stop_after = self.stop_after
         crc32 = zlib.crc32
-        decode = decode_event if self.payloads else check_event
+        decode = decode_event if self.payloads else frame_event
+        # A scan that only verifies decodes with ``frame_event``, which leaves the ids' spelling
+        # to the scan: checked a batch at a time (``pending``: the ids since ``batch``, the cursor
+        # before them), and before anything else is reported, so the first bad record is the one
+        # named.
+        framed = not self.payloads
+        pending: list[str] = []
+        batch = _Cursor(offset, line_no, seq, checksum, time_ns)
         try:
             for line in f:
                 start = offset
                 if line[-1:] != b"\n":
                     # The only shape an interrupted append can leave: bytes after the last newline.
+                    self._check_ids(pending, batch)
                     self.torn_tail = TornTail(
                         path=self.path, offset=start, length=len(line), line=line_no + 1
                     )
@@ -153,7 +161,9 @@ class _Scan:
                     or (event.type, event.version) not in known
                     or event.time_ns < time_ns
                     or event.type == QUARANTINED_TYPE
+                    or (framed and bytes(event.payload)[:1] != b"{")  # type: ignore[arg-type]
                 ):
+                    self._check_ids(pending, batch)  # an earlier record's id is reported first
                     at.move_to(offset, line_no, seq, checksum, time_ns)
                     try:
                         event, value = check_record(line[:-1], at, meta, registry)
@@ -181,11 +191,45 @@ class _Scan:
                     ids[event.event_id] = start
                 if sealer is not None:
                     sealer.add(line)
+                if framed:
+                    pending.append(event.event_id)
+                    if len(pending) == _ID_BATCH:
+                        self._check_ids(pending, batch)
+                        batch = _Cursor(offset, line_no, seq, checksum, time_ns)
                 yield event
                 if stop_after is not None and seq >= stop_after:
+                    self._check_ids(pending, batch)
                     return
+            self._check_ids(pending, batch)
         finally:
             at.move_to(offset, line_no, seq, checksum, time_ns)
+
+    def _check_ids(self, ids: list[str], batch: _Cursor) -> None:
+        """Check the ids of the records read since ``batch`` (and forget them); if one is not
+        canonical, read those records again one by one from ``batch`` and report the first bad
+        one as the slow path words it."""
+        if not ids:
+            return
+        good = canonical_ids(ids)
+        count = len(ids)
+        ids.clear()
+        if good:
+            return
+        at = _Cursor(batch.offset, batch.line, batch.seq, batch.checksum, batch.time_ns)
+        with self.path.open("rb") as f:
+            f.seek(at.offset)
+            for _ in range(count):
+                line = f.readline()
+                try:
+                    event, value = check_record(line[:-1], at, self.meta, self.registry)
+                except BadRecord as exc:
+                    reason = exc.reason
+                    if exc.record_error is not None:
+                        self.at.move_to(at.offset, at.line, at.seq, at.checksum, at.time_ns)
+                        reason = self._explain(line[:-1], exc.record_error, f)
+                    self._corrupt(at.line + 1, at.offset, reason)
+                at.move_to(at.offset + len(line), at.line + 1, event.seq, value, event.time_ns)
+        raise AssertionError(f"{self.path}: canonical_ids refused ids that check_record accepts")
 
     def _explain(self, line: bytes, exc: RecordError, f: IO[bytes]) -> str:
         reason = exc.reason
@@ -260,6 +304,9 @@ class _Scan:
             offset=offset,
         )
 
+
+#: How many ids a verifying scan checks at once (:meth:`_Scan._check_ids`).
+_ID_BATCH: Final = 1024
 
 #: The type ``objsearch log repair`` writes in the place of a record it moved out; the one type
 #: the store reads a field of (``chain``: where the next record's checksum chain continues from).

@@ -215,22 +215,32 @@ def test_the_canonical_id_check_accepts_exactly_what_the_regex_does(value: str) 
     from objsearch.events.envelope import (
         _CANONICAL_UUID,
         _is_canonical_uuid,
-        check_event,
+        canonical_ids,
         decode_event,
+        frame_event,
     )
 
     canonical = _CANONICAL_UUID.fullmatch(value) is not None
     assert _is_canonical_uuid(value) == canonical
-    # The decoders check the id in their own (inlined) copy of the check: the same set.
+    # The decoder checks the id in its own (inlined) copy of the check: the same set.
     body = json.dumps({**make_event().to_json_dict(), "event_id": value}).encode()
-    for decode in (check_event, decode_event):
-        try:
-            decode(body)
-        except msgspec.ValidationError:
-            accepted = False
-        else:
-            accepted = True
-        assert accepted == canonical, decode
+    try:
+        decode_event(body)
+    except msgspec.ValidationError:
+        accepted = False
+    else:
+        accepted = True
+    assert accepted == canonical
+    # A verifying scan's decoder checks only the length; the scan checks the ids in batches.
+    try:
+        frame_event(body)
+    except msgspec.ValidationError:
+        assert len(value) != 36
+    else:
+        assert len(value) == 36
+        good = make_event().event_id
+        assert canonical_ids([good, value, good]) == canonical
+        assert canonical_ids([value]) == canonical
 
 
 @pytest.mark.parametrize(
