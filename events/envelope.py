@@ -288,9 +288,9 @@ class _Framed(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=F
     """A record's envelope as the decoder checks it in C (types, constraints, the id's length),
     its payload left as JSON text (``msgspec.Raw``), never a mapping. No ``__post_init__``: the
     two rules msgspec does not check — the id's spelling and a payload that is an object — are
-    the caller's, and the scans that only verify check them in batches (:func:`canonical_ids`),
-    since a Python call per record was a fifth of what such a scan costs. Only those scans see
-    these events."""
+    the caller's, and the scans that only verify check them in batches (:func:`canonical_ids`):
+    checked in a ``__post_init__``, they were half of a record's decode (0.28 against 0.14 CPU-s
+    for 100 k records, one process). Only those scans see these events."""
 
     event_id: _IdLength
     payload: msgspec.Raw  # type: ignore[assignment]

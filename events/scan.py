@@ -164,6 +164,7 @@ class _Scan:
                     or (framed and bytes(event.payload)[:1] != b"{")  # type: ignore[arg-type]
                 ):
                     self._check_ids(pending, batch)  # an earlier record's id is reported first
+                    batch = _Cursor(offset, line_no, seq, checksum, time_ns)
                     at.move_to(offset, line_no, seq, checksum, time_ns)
                     try:
                         event, value = check_record(line[:-1], at, meta, registry)

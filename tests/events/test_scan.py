@@ -80,6 +80,29 @@ def test_a_bad_id_before_another_fault_in_its_batch_is_the_one_named(tmp_path: P
     assert str(verified) == str(read)
 
 
+def test_a_bad_id_after_a_record_the_slow_path_read_is_named_at_its_line(tmp_path: Path) -> None:
+    """A record_quarantined always takes the slow path, which checks the ids read before it:
+    the batch then starts again at that record, not where the scan began."""
+
+    def quarantined(record: dict[str, Any]) -> None:
+        record["type"], record["version"] = "record_quarantined", 1
+        record["payload"] = {
+            "reason": "test",
+            "quarantine": None,
+            "offset": 0,
+            "length": 0,
+            "chain": None,
+        }
+
+    # Past the first _ID_BATCH lines: read again from where the scan began, the batch would not
+    # reach it.
+    bad = _ID_BATCH + 100
+    _rewrite(tmp_path, _log(tmp_path), {200: quarantined, bad: _upper_id})
+    verified, read = _both_errors(tmp_path)
+    assert verified.line == read.line == bad
+    assert str(verified) == str(read)
+
+
 def test_a_payload_that_is_not_an_object_is_named_at_its_line(tmp_path: Path) -> None:
     def scalar(record: dict[str, Any]) -> None:
         record["payload"] = 5
