@@ -893,10 +893,6 @@ LATEST: Final[Mapping[str, type[Record]]] = {
 }
 
 R = TypeVar("R", bound=Record)
-#: Each record's decoder straight from a payload's JSON text (what ``read_log`` keeps).
-_JSON_DECODERS: Final[Mapping[type[Record], Callable[[Any], Any]]] = {
-    record: msgspec.json.Decoder(record, strict=True).decode for record in RECORDS.values()
-}
 
 
 class _Typed(Protocol):
@@ -1032,3 +1028,9 @@ CATALOGUE: Final = _catalogue()
 #: (``EventLog.open(..., store=STORE)``, ``read_log(dir, store=STORE)``, ``Lake(root,
 #: store=STORE)``). Building it reads nothing: its schemas compile on first use.
 STORE: Final = Store(CATALOGUE)
+
+#: Each record's decoder straight from a payload's JSON text (what ``read_log`` keeps): the
+#: store's codecs' own, so each is compiled once for appends and folds alike.
+_JSON_DECODERS: Final[Mapping[type[Record], Callable[[Any], Any]]] = {
+    record: STORE.record_codec(record).decode for record in RECORDS.values()
+}

@@ -34,15 +34,17 @@ _TINY: Final = b"0.0000"
 
 
 class RecordCodec:
-    """One record type of a catalogue: its event type and version, its payload's JSON (or None:
-    take the dict path) and its payload as a dict."""
+    """One record type of a catalogue: its event type and version, its strict JSON decoder, its
+    payload's JSON (or None: take the dict path) and its payload as a dict."""
 
-    __slots__ = ("_check", "type", "version")
+    __slots__ = ("decode", "type", "version")
 
     def __init__(self, event_type: str, version: int, record_type: type[msgspec.Struct]) -> None:
         self.type: Final = event_type
         self.version: Final = version
-        self._check: Callable[[bytes], object] = msgspec.json.Decoder(
+        #: The record from a payload's JSON, every constraint checked (the one decoder of this
+        #: record: appends check with it, folds read with it).
+        self.decode: Final[Callable[[bytes | msgspec.Raw], Any]] = msgspec.json.Decoder(
             record_type, strict=True
         ).decode
 
@@ -56,7 +58,7 @@ class RecordCodec:
         if _TINY in text or _EXPONENT.search(text) is not None:
             return None
         try:
-            self._check(text)
+            self.decode(text)
         except msgspec.ValidationError:
             return None  # NaN (encoded as null), a value of the wrong type: refused there
         return text
