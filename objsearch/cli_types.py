@@ -39,6 +39,13 @@ class Parser(argparse.ArgumentParser):
     ``objsearch --help`` and every other command never pay for them.
     """
 
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        # An option is spelled out: argparse would take `--strat` for `--strategy` silently, and a
+        # script so written breaks (or changes meaning) when another option shares the prefix.
+        # Subparsers are built with this class too (add_subparsers' default parser_class).
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
+
     def defer(self, add: Callable[[argparse.ArgumentParser], object]) -> None:
         """Call ``add(self)`` just before this parser is first used."""
         self.__dict__.setdefault("_deferred", []).append(add)

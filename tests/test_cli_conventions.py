@@ -151,6 +151,42 @@ def test_the_object_a_command_finds_is_positional() -> None:
         assert action is None or isinstance(action, t.Deprecated), f"{command} --target"
 
 
+def _every_parser(
+    parser: argparse.ArgumentParser, words: tuple[str, ...] = ()
+) -> list[tuple[str, argparse.ArgumentParser]]:
+    """The parser and every parser below it (commands with subcommands too), by their words."""
+    found = [(" ".join(words) or "objsearch", parser)]
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, child in action.choices.items():
+                found += _every_parser(child, (*words, name))
+    return found
+
+
+def test_no_parser_accepts_an_abbreviated_option() -> None:
+    parsers = _every_parser(build_parser())
+    assert {"bench paper", "lake ls", "agent find"} <= {words for words, _ in parsers}
+    lenient = [words for words, p in parsers if not isinstance(p, t.Parser) or p.allow_abbrev]
+    assert not lenient
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["search", "Apple", "--start", "kitchen-1", "--strat", "wpl"],
+        ["bench", "paper", "--strat", "wpl"],
+        ["bench", "homes", "--seed", "2"],
+    ],
+)
+def test_an_abbreviated_option_is_a_usage_error(
+    argv: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        build_parser().parse_args(argv)
+    assert exit_.value.code == 2
+    assert f"unrecognized arguments: {argv[-2]}" in capsys.readouterr().err
+
+
 def test_long_commands_take_no_progress() -> None:
     assert set(LEAVES) >= LONG_COMMANDS
     missing = [c for c in sorted(LONG_COMMANDS) if "--no-progress" not in _options(LEAVES[c])]
