@@ -2,6 +2,11 @@
 answered from the belief of a log (:class:`~objsearch.agent.belief.PlaceBelief`): probabilities
 per place and per room that sum, with "elsewhere" (at no mapped place), to one.
 
+"Elsewhere" is one mass in the belief, with no room of its own: the answer gives it the room of the
+object's latest sighting when that sighting was away from every mapped place (``elsewhere_room``),
+and counts it in that room's probability; otherwise its room is not known (null) and it stays apart.
+Older sightings away from the mapped places are not located (the fold keeps only the latest).
+
 One fold answers every way of asking: a log folder and a lake run (``objsearch where``) are folded
 by :func:`where`, and the running agent keeps the same projection live (:class:`LiveMemory`,
 ``objsearch agent where``), so the three cannot disagree about the same events.
@@ -98,6 +103,12 @@ def answer(
         elif last.position is not None:
             # Rare (a sighting away from every static): the map is built only then (~12 ms).
             last_room = NavigationMap.from_home(home).room_at(last.position[0], last.position[1])
+    elsewhere = dist.get(ELSEWHERE, 0.0)
+    # The belief's elsewhere has no room; the latest sighting, when it was away from every mapped
+    # place, says where the mass it put there is (a sighting in the kitchen gave the kitchen 0.0 %).
+    elsewhere_room = last_room if last is not None and not last.at else None
+    if elsewhere_room is not None:
+        rooms[elsewhere_room] = rooms.get(elsewhere_room, 0.0) + elsewhere
     weights = belief.weights.get(target, (1 / 3, 1 / 3, 1 / 3))
     last_outcome = belief.last_outcome.get(target)
     return {
@@ -125,7 +136,10 @@ def answer(
         },
         # Every mapped place the belief gives mass, over which (with elsewhere) it sums to one.
         "belief_over_places": len(places),
-        "elsewhere": round(dist.get(ELSEWHERE, 0.0), 4),
+        # Away from every mapped place; its room when the latest sighting was there (null: not
+        # known). rooms counts it in that room, so rooms sum to one less an unlocated elsewhere.
+        "elsewhere": round(elsewhere, 4),
+        "elsewhere_room": elsewhere_room,
         "evidence": {
             "episodes": round(counts.total, 3) if counts is not None else 0.0,
             "episodes_since_last": None
@@ -141,7 +155,7 @@ def answer(
         if usual is None or counts is None
         else {
             "static_id": usual,
-            "room": statics[usual].room if usual in statics else None,
+            "room": statics[usual].room if usual in statics else elsewhere_room,
             "episodes": round(counts.at[usual], 3),
             "share_of_episodes": round(counts.at[usual] / counts.total, 4),
         },
@@ -243,7 +257,21 @@ def _fresh() -> AgentState:
     return AgentState(counterfactual=ROUTINE_BELIEF)
 
 
+def _task(seen: dict[str, Any]) -> str:
+    """(task T, scene N) of a sighting; a search run outside a schedule has no scene."""
+    scene = "" if seen["scene"] is None else f", scene {seen['scene']}"
+    return f"(task {seen['task_id']}{scene})"
+
+
+def _elsewhere(answer: dict[str, Any]) -> str:
+    room = answer.get("elsewhere_room")
+    return "away from every mapped place" + (
+        f", in {room}" if room is not None else " (room not known)"
+    )
+
+
 def render(answer: dict[str, Any]) -> str:
+    """The answer as text (never "None": a missing room or scene is said or left out)."""
     lines = [f"{answer['target']} ({answer['tasks']} searches folded)"]
     when = answer.get("time_of_day")
     if when is not None:
@@ -258,21 +286,24 @@ def render(answer: dict[str, Any]) -> str:
     if last is None:
         lines.append("  last seen: never")
     elif last.get("at", True):
-        lines.append(
-            f"  last seen: {last['static_id']} in {last['room']} "
-            f"(task {last['task_id']}, scene {last['scene']})"
-        )
+        lines.append(f"  last seen: {last['static_id']} in {last['room']} {_task(last)}")
     else:
         x, y, _ = last["position"]
         near = "" if last["static_id"] is None else f", nearest static {last['static_id']}"
+        room = "" if last["room"] is None else f" in {last['room']}"
         lines.append(
-            f"  last seen: away from every mapped place, at ({x:.2f}, {y:.2f}) in "
-            f"{last['room']}{near} (task {last['task_id']}, scene {last['scene']})"
+            f"  last seen: away from every mapped place, at ({x:.2f}, {y:.2f}){room}{near} "
+            f"{_task(last)}"
         )
     usual = answer["usually"]
     if usual is not None:
+        place = (
+            _elsewhere(answer)
+            if usual["static_id"] == ELSEWHERE
+            else f"{usual['static_id']} in {usual['room']}"
+        )
         lines.append(
-            f"  usually:   {usual['static_id']} in {usual['room']} "
+            f"  usually:   {place} "
             f"(seen there in {usual['episodes']:g} of {answer['evidence']['episodes']:g} days, "
             f"{usual['share_of_episodes']:.0%})"
         )
@@ -285,14 +316,29 @@ def render(answer: dict[str, Any]) -> str:
             f"  evidence:  its latest from {latest}; trusting the long memory {w['long']:.0%}, "
             f"the recent {w['short']:.0%}, yesterday {w['yesterday']:.0%}"
         )
+    located = answer.get("elsewhere_room") is not None
     if answer["rooms"]:
         rooms = ", ".join(f"{r['room']} {r['probability']:.1%}" for r in answer["rooms"])
-        lines.append(f"  rooms:     {rooms}; elsewhere (no mapped place) {answer['elsewhere']:.1%}")
-    if answer["most_likely_now"]:
+        apart = (
+            f" ({answer['elsewhere_room']}'s counts {answer['elsewhere']:.1%} away from every "
+            "mapped place)"
+            if located
+            else f"; elsewhere (room not known) {answer['elsewhere']:.1%}"
+        )
+        lines.append(f"  rooms:     {rooms}{apart}")
+    ranked = [
+        (p["probability"], f"{p['static_id']} in {p['room']}") for p in answer["most_likely_now"]
+    ]
+    if ranked:
         lines.append(
             f"  most likely now (probabilities over the {answer['belief_over_places']} places "
             "it could be at, and elsewhere):"
         )
-    for p in answer["most_likely_now"]:
-        lines.append(f"  {p['probability']:6.1%}  {p['static_id']} in {p['room']}")
+        # Elsewhere in its rank, when it outweighs a place listed.
+        if answer["elsewhere"] > ranked[-1][0]:
+            ranked = sorted(
+                [*ranked, (answer["elsewhere"], _elsewhere(answer))], key=lambda r: -r[0]
+            )
+    for probability, place in ranked:
+        lines.append(f"  {probability:6.1%}  {place}")
     return "\n".join(lines)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import uuid
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -99,6 +100,11 @@ def test_later_searches_of_a_scene_walk_less_than_the_first(
     assert excess(later) < excess(first)
 
 
+def _unlocated(answer: dict[str, Any]) -> float:
+    """Elsewhere's mass when no room holds it (rooms count it when its room is known)."""
+    return 0.0 if answer["elsewhere_room"] else float(answer["elsewhere"])
+
+
 def test_where_answers_from_the_log(
     memory_log: tuple[Path, list[Trial]], capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -115,9 +121,10 @@ def test_where_answers_from_the_log(
     assert answer["last_seen"]["static_id"] == truth.support
     assert answer["last_seen"]["room"] == truth.room
     assert answer["most_likely_now"][0]["static_id"] == truth.support
-    # Probabilities: the rooms' and elsewhere's sum to one, each room's is its places' sum.
+    # Probabilities: the rooms' and an unlocated elsewhere's sum to one, each room's is its
+    # places' sum (and elsewhere's, when it was last seen there).
     rooms = {r["room"]: r["probability"] for r in answer["rooms"]}
-    assert sum(rooms.values()) + answer["elsewhere"] == pytest.approx(1.0, abs=1e-3)
+    assert sum(rooms.values()) + _unlocated(answer) == pytest.approx(1.0, abs=1e-3)
     top = answer["most_likely_now"][0]
     assert rooms[top["room"]] >= top["probability"]
     assert main(["where", "Cup", str(log)]) == 0
@@ -139,7 +146,7 @@ def test_where_answers_for_a_time_of_day(
     assert sum(when["weights"].values()) == pytest.approx(1.0, abs=1e-3)
     for answer in answers.values():
         rooms = sum(r["probability"] for r in answer["rooms"])
-        assert rooms + answer["elsewhere"] == pytest.approx(1.0, abs=1e-3)
+        assert rooms + _unlocated(answer) == pytest.approx(1.0, abs=1e-3)
     assert main(["where", "Cup", str(log)]) == 0
     assert "  at:" in capsys.readouterr().out
     assert main(["where", "Cup", str(log), "--at", "25:00"]) == 2
