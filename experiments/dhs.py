@@ -473,20 +473,32 @@ class AgentRun:
     max_attempts: int
     queries: list[Query] = field(default_factory=list)
     elapsed_s: float = 0.0
-    #: Its code raised: the run stops there and its queries so far count.
+    #: Its code raised: the run stops there and its queries so far count (a run whose code
+    #: raised on its first query has none, and no metrics: None).
     crash: str | None = None
 
     @property
-    def mean_attempts(self) -> float:
-        return statistics.fmean(q.attempts for q in self.queries)
+    def mean_attempts(self) -> float | None:
+        return statistics.fmean(q.attempts for q in self.queries) if self.queries else None
 
     @property
-    def found(self) -> float:
-        return sum(q.found for q in self.queries) / len(self.queries)
+    def found(self) -> float | None:
+        return sum(q.found for q in self.queries) / len(self.queries) if self.queries else None
 
     @property
-    def mean_cost(self) -> float:
-        return statistics.fmean(q.cost for q in self.queries)
+    def mean_cost(self) -> float | None:
+        return statistics.fmean(q.cost for q in self.queries) if self.queries else None
+
+    def line(self) -> str:
+        """What ``bench dhs`` prints when the run ends: its metrics, or that it has none."""
+        crash = f"; its code raised: {self.crash}" if self.crash else ""
+        name = f"{self.experiment} {self.agent} seed {self.seed}"
+        if self.mean_attempts is None or self.found is None:
+            return f"{name}: CRASHED before a query was answered ({self.elapsed_s} s){crash}"
+        return (
+            f"{name}: {self.mean_attempts:.3f} attempts, {self.found:.1%} found, "
+            f"{len(self.queries)} queries ({self.elapsed_s} s){crash}"
+        )
 
 
 def _make_agent(name: str, cfg: Any, sampler: Any, evolver: Any) -> Any:
@@ -600,8 +612,20 @@ def _spread(values: Sequence[float]) -> dict[str, float]:
     }
 
 
+def _mean(values: Sequence[float | None]) -> float | None:
+    """The mean of the seeds that have one (None when none has: every run crashed at once)."""
+    have = [v for v in values if v is not None]
+    return statistics.fmean(have) if have else None
+
+
+def _rounded(value: float | None) -> float | None:
+    return None if value is None else round(value, 4)
+
+
 def summarise(runs: Sequence[AgentRun]) -> dict[str, Any]:
-    """Per experiment and agent: its metrics per seed, their mean over seeds, and the targets."""
+    """Per experiment and agent: its metrics per seed, their mean over the seeds that answered a
+    query, and the targets. A run whose code raised before any query has None per seed and is
+    named in ``crashes``; an agent none of whose runs answered one has None metrics."""
     by: dict[str, dict[str, list[AgentRun]]] = {}
     for r in runs:
         by.setdefault(r.experiment, {}).setdefault(r.agent, []).append(r)
@@ -613,11 +637,11 @@ def summarise(runs: Sequence[AgentRun]) -> dict[str, Any]:
             rows[agent] = {
                 "seeds": [r.seed for r in rs],
                 "queries": sum(len(r.queries) for r in rs),
-                "attempts": statistics.fmean(r.mean_attempts for r in rs),
-                "attempts_per_seed": [round(r.mean_attempts, 4) for r in rs],
-                "found": statistics.fmean(r.found for r in rs),
-                "found_per_seed": [round(r.found, 4) for r in rs],
-                "cost": statistics.fmean(r.mean_cost for r in rs),
+                "attempts": _mean([r.mean_attempts for r in rs]),
+                "attempts_per_seed": [_rounded(r.mean_attempts) for r in rs],
+                "found": _mean([r.found for r in rs]),
+                "found_per_seed": [_rounded(r.found) for r in rs],
+                "cost": _mean([r.mean_cost for r in rs]),
                 "elapsed_s": round(math.fsum(r.elapsed_s for r in rs), 1),
                 "crashes": [f"seed {r.seed}: {r.crash}" for r in rs if r.crash],
             }
@@ -628,6 +652,7 @@ def summarise(runs: Sequence[AgentRun]) -> dict[str, Any]:
 def _targets(rows: Mapping[str, Mapping[str, Any]]) -> dict[str, Any] | None:
     """Fewer attempts than frequentist and myopic, and at least half the gap from the better of
     them to the oracle closed (the better of its two oracles when both ran)."""
+    rows = {a: row for a, row in rows.items() if row["attempts"] is not None}  # not all crashed
     need = {OURS, "frequentist", "memorization"}
     oracles = [a for a in ("upper_bound", "oracle_upper_bound") if a in rows]
     if not need <= rows.keys() or not oracles:
@@ -707,13 +732,20 @@ def render(summary: Mapping[str, Any]) -> str:
             "attempts per seed"
         )
         crashes = []
-        for agent, row in sorted(rows.items(), key=lambda kv: kv[1]["attempts"]):
+        # Agents whose every run crashed at once come last, with no metrics.
+        ranked = sorted(
+            rows.items(), key=lambda kv: (kv[1]["attempts"] is None, kv[1]["attempts"] or 0)
+        )
+        for agent, row in ranked:
             name = DISPLAY.get(agent, agent)
-            per_seed = " ".join(f"{v:.2f}" for v in row["attempts_per_seed"])
-            lines.append(
-                f"  {name:<14} {row['attempts']:>9.3f} {row['found']:>7.1%} "
-                f"{row['cost']:>7.2f} {row['queries']:>8}  {per_seed}"
+            per_seed = " ".join(
+                "crashed" if v is None else f"{v:.2f}" for v in row["attempts_per_seed"]
             )
+            if row["attempts"] is None:
+                metrics = f"{'crashed':>9} {'-':>7} {'-':>7}"
+            else:
+                metrics = f"{row['attempts']:>9.3f} {row['found']:>7.1%} {row['cost']:>7.2f}"
+            lines.append(f"  {name:<14} {metrics} {row['queries']:>8}  {per_seed}")
             crashes += [f"  {name} {crash}" for crash in row["crashes"]]
         if crashes:
             lines.append("  runs its code ended by raising (their queries so far count):")

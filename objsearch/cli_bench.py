@@ -285,11 +285,8 @@ def cmd_bench_dhs(args: argparse.Namespace) -> int:
 
     def progress(run: Any) -> None:
         if not args.no_progress:  # on stderr with --format json, so stdout stays JSON
-            crash = f"; its code raised: {run.crash}" if run.crash else ""
             print(
-                f"  {run.experiment} {run.agent} seed {run.seed}: {run.mean_attempts:.3f} "
-                f"attempts, {run.found:.1%} found, {len(run.queries)} queries "
-                f"({run.elapsed_s} s){crash}",
+                f"  {run.line()}",
                 file=sys.stderr if args.format == "json" else sys.stdout,
                 flush=True,
             )

@@ -124,11 +124,12 @@ def test_its_agents_and_ours_run_in_its_task_by_its_rules() -> None:
     for q in runs[dhs.OURS].queries:
         assert q.looks == q.attempts + q.found
     # Its oracle knows the true move probabilities: fewer attempts than its random agent.
-    assert runs["upper_bound"].mean_attempts < runs["random"].mean_attempts
-    assert runs[dhs.OURS].mean_attempts < runs["random"].mean_attempts
+    upper, chance, ours = (runs[a].mean_attempts for a in ("upper_bound", "random", dhs.OURS))
+    assert upper is not None and chance is not None and ours is not None
+    assert upper < chance and ours < chance
     summary = dhs.summarise(list(runs.values()))
     rows = summary["experiments"]["small_scenes"]["agents"]
-    assert rows[dhs.OURS]["attempts_per_seed"] == [round(runs[dhs.OURS].mean_attempts, 4)]
+    assert rows[dhs.OURS]["attempts_per_seed"] == [round(ours, 4)]
     assert "small_scenes" in dhs.render(summary)
 
 
@@ -147,3 +148,46 @@ def test_the_targets_read_the_gap_from_the_better_baseline_to_the_better_oracle(
     assert none is not None and none["gap_closed"] is None and none["beats_oracle"]
     assert "no gap to close" in dhs._verdict(none)
     assert dhs._targets(rows(belief=2.0, frequentist=2.4)) is None  # no oracle ran
+
+
+def _run(agent: str, seed: int, attempts: list[int], crash: str | None = None) -> dhs.AgentRun:
+    run = dhs.AgentRun("agent_ok_priors", agent, seed, max_attempts=10, crash=crash)
+    run.queries = [dhs.Query(1, a, a <= 10, 2.0 * a) for a in attempts]
+    return run
+
+
+def test_a_run_whose_code_raised_on_its_first_query_is_a_crash_not_an_error() -> None:
+    # As `bench dhs --experiments agent_ok_priors --agents bayesian`: its code raises on the first
+    # query, so the run has none (fmean of nothing raised StatisticsError, exit 1).
+    raised = "ValueError: probabilities do not sum to 1 in its code at query 1, scene 1"
+    crashed = _run("bayesian", 0, [], crash=raised)
+    assert crashed.mean_attempts is None and crashed.found is None and crashed.mean_cost is None
+    line = crashed.line()
+    assert "CRASHED before a query was answered" in line and raised in line
+    runs = [
+        crashed,
+        _run("bayesian", 1, [1, 3]),
+        _run("random", 0, [], crash=raised),
+        _run(dhs.OURS, 0, [1, 2]),
+        _run("frequentist", 0, [2, 4]),
+        _run("memorization", 0, [3, 5]),
+        _run("upper_bound", 0, [1, 1]),
+    ]
+    summary = dhs.summarise(runs)
+    rows = summary["experiments"]["agent_ok_priors"]["agents"]
+    # The seed that answered counts; the one that crashed is named, not averaged as a number.
+    assert rows["bayesian"]["attempts"] == 2.0 and rows["bayesian"]["attempts_per_seed"] == [
+        None,
+        2.0,
+    ]
+    assert rows["bayesian"]["crashes"] == [f"seed 0: {raised}"]
+    assert rows["random"]["attempts"] is None and rows["random"]["found"] is None
+    assert summary["experiments"]["agent_ok_priors"]["targets"]["attempts"]["ours"] == 1.5
+    text = dhs.render(summary)
+    random_row = next(line for line in text.splitlines() if line.split()[:1] == ["random"])
+    assert random_row.split()[1] == "crashed"
+    assert "runs its code ended by raising" in text and raised in text
+    # Every agent crashed at once: no targets, still a table.
+    alone = dhs.summarise([_run("bayesian", 0, [], crash=raised)])
+    assert alone["experiments"]["agent_ok_priors"]["targets"] is None
+    assert "crashed" in dhs.render(alone)
