@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import random
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -382,7 +383,8 @@ def _change(diffs: Sequence[float]) -> str:
 
 def moved_lines(rows: Sequence[Row]) -> list[str]:
     """What a move costs: per strategy the pre-move level (days 6–10), the days after the move
-    until the first-search ratio is back within 10 % of it, and days worse than ``ecost``."""
+    until the first-search ratio is back within 10 % of it, and days worse than ``ecost`` (its
+    twin of the same inspection; "not run" without one, "–" for ecost itself)."""
     days = per_day(rows)
     lines = [
         "| strategy | days 6–10 | "
@@ -399,7 +401,12 @@ def moved_lines(rows: Sequence[Row]) -> list[str]:
         level = math.fsum(before) / len(before)
         after = [n for n in sorted(curve) if n >= MOVE_SCENE]
         back = next((n - MOVE_SCENE for n in after if curve[n] <= 1.1 * level), None)
-        worse = sum(1 for n in after if n in ecost and curve[n] > ecost[n]) if s != twin else 0
+        if s == twin:
+            worse = "–"
+        elif not ecost:
+            worse = f"{twin} not run"
+        else:
+            worse = str(sum(1 for n in after if n in ecost and curve[n] > ecost[n]))
         cells = " | ".join(
             f"{curve[n]:.2f}" if n in curve else "–" for n in range(MOVE_SCENE, MOVE_SCENE + 5)
         )
@@ -441,13 +448,34 @@ def failure_lines(rows: Sequence[Row]) -> list[str]:
 def plot_curves(rows: Sequence[Row], path: Path) -> None:
     """Panels per schedule kind: first-search oracle× per day, mean over runs with a 95 %
     bootstrap band (runs resampled), one line per strategy; PNG and SVG."""
+    import matplotlib.pyplot as plt
+
+    fig = curves_figure(rows)
+    # tight: the legend below the panels is saved whole, whatever its rows.
+    fig.savefig(path.with_suffix(".png"), dpi=130, bbox_inches="tight")
+    fig.savefig(path.with_suffix(".svg"), bbox_inches="tight")
+    plt.close(fig)
+
+
+#: Width of a legend entry under the curves (the longest names, dist-oracle-global+cover, ~2.6 in).
+LEGEND_INCHES_PER_ENTRY = 2.6
+
+
+def curves_figure(rows: Sequence[Row]) -> Any:
+    """:func:`plot_curves`' figure: one colour per strategy in every panel (each panel's own
+    colour cycle gave a strategy another colour in a panel that lacks one before it, against the
+    legend), and a legend in as many rows as its entries need to fit the figure's width."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     kinds = sorted({kind(r) for r in rows})
-    fig, axes = plt.subplots(1, len(kinds), figsize=(4.2 * len(kinds), 3.4), squeeze=False)
+    strategies = list(dict.fromkeys(r.strategy for r in first_of_day(rows)))
+    palette = plt.get_cmap("tab10" if len(strategies) <= 10 else "tab20")
+    colour = {s: palette(i % palette.N) for i, s in enumerate(strategies)}
+    width = max(4.2 * len(kinds), 6.0)
+    fig, axes = plt.subplots(1, len(kinds), figsize=(width, 3.4), squeeze=False)
     for ax, k in zip(axes[0], kinds, strict=True):
         mine = first_of_day([r for r in rows if kind(r) == k])
         for s in dict.fromkeys(r.strategy for r in mine):
@@ -467,8 +495,8 @@ def plot_curves(rows: Sequence[Row], path: Path) -> None:
                 )
                 low.append(boot[12])
                 high.append(boot[487])
-            ax.plot(days, mean, label=s, linewidth=1.5)
-            ax.fill_between(days, low, high, alpha=0.2)
+            ax.plot(days, mean, label=s, linewidth=1.5, color=colour[s])
+            ax.fill_between(days, low, high, alpha=0.2, color=colour[s])
         if k == "moved":
             ax.axvline(MOVE_SCENE - 0.5, color="grey", linestyle=":", linewidth=1)
         ax.set_title(f"{k} schedules")
@@ -480,19 +508,35 @@ def plot_curves(rows: Sequence[Row], path: Path) -> None:
     for ax in axes[0]:
         for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
             legend.setdefault(label, handle)
-    fig.legend(
-        list(legend.values()), list(legend), loc="lower center", ncol=len(legend), frameon=False
-    )
-    fig.tight_layout(rect=(0, 0.1, 1, 1))
-    fig.savefig(path.with_suffix(".png"), dpi=130)
-    fig.savefig(path.with_suffix(".svg"))
-    plt.close(fig)
+    columns = max(1, min(len(legend), int(width // LEGEND_INCHES_PER_ENTRY)))
+    legend_rows = math.ceil(len(legend) / columns)
+    # Room under the panels for the legend's rows (~0.25 in each) and the axis labels.
+    height = 3.4 + 0.25 * legend_rows
+    fig.set_size_inches(width, height)
+    bottom = (0.3 + 0.25 * legend_rows) / height
+    fig.legend(list(legend.values()), list(legend), loc="lower center", ncol=columns, frameon=False)
+    fig.tight_layout(rect=(0, bottom, 1, 1))
+    return fig
+
+
+def labelled(rows: Iterable[Row]) -> list[Row]:
+    """Each row under its run's label: a run without updates (``bench homes`` runs ``wpl`` twice,
+    the second with update mode none) is ``NAME/none``, ``NAME/none+cover`` with cover, so no
+    table merges it with the run that updates (every table groups by ``strategy``)."""
+    out = []
+    for r in rows:
+        if r.update_mode != "all":
+            suffix = inspection_suffix(r.strategy)
+            name = r.strategy.removesuffix(suffix)
+            r = replace(r, strategy=f"{name}/{r.update_mode}{suffix}")
+        out.append(r)
+    return out
 
 
 def read_outputs(folders: Sequence[Path]) -> list[Row]:
     """The searches of ``bench homes`` outputs (:func:`read_output`: a ``cover`` run's strategies
-    are ``NAME+cover``)."""
-    return [r for folder in folders for r in read_output(folder)]
+    are ``NAME+cover``), each under its run's :func:`labelled` name."""
+    return labelled(r for folder in folders for r in read_output(folder))
 
 
 def report(

@@ -3,13 +3,19 @@ schedule's evaluation after day 14 and per slot of the day."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from matplotlib.colors import to_hex
 
 from objsearch.experiments.report_belief import (
+    MOVE_SCENE,
     ROUTINE_AFTER,
+    curves_figure,
     first_of_scene_lines,
+    moved_lines,
     ratio_table,
     report,
     slot_lines,
@@ -95,3 +101,78 @@ def test_a_routine_home_is_also_read_on_the_first_search_of_each_scene_and_day()
     assert per_scene.split("|")[4].strip().startswith(f"{ratio_scene:.3f}")
     assert per_day.split("|")[4].strip().startswith(f"{0.5 / 1.0:.3f}")
     assert any("ecost-routine − dist-oracle" in x for x in lines[scenes:days])
+
+
+def _twin_rows() -> list[Row]:
+    """A stats schedule run with wpl, its no-update twin (bench homes runs both) and the oracle."""
+    rows = []
+    for scene in range(1, 16):
+        rows.append(_row("dist-oracle", "stats-0", scene, 2.0))
+        rows.append(_row("wpl", "stats-0", scene, 2.5))
+        twin = _row("wpl", "stats-0", scene, 5.0)
+        rows.append(replace(twin, update_mode="none", task_id=twin.task_id + "-none"))
+    return rows
+
+
+def test_the_no_update_twin_is_a_row_of_its_own_in_every_table(tmp_path: Path) -> None:
+    write_rows(_twin_rows(), tmp_path, "homes_trials")
+    text = report([tmp_path])
+    table = [line for line in text.splitlines() if line.startswith("| wpl")]
+    wpl = next(line for line in table if line.startswith("| wpl |"))
+    twin = next(line for line in table if line.startswith("| wpl/none |"))
+    # first× all: 2.5 ÷ 2.0 with updates, 5.0 ÷ 2.0 without (merged, both read 1.875).
+    assert wpl.split("|")[2].strip() == "1.250" and twin.split("|")[2].strip() == "2.500"
+    # Each run's searches counted once per row: 15 days of one target.
+    assert wpl.split("|")[6].strip() == "15" and twin.split("|")[6].strip() == "15"
+
+
+def _moved_rows(strategies: Sequence[str]) -> list[Row]:
+    return [
+        _row(s, "moved-0", scene, 2.0 + (scene >= MOVE_SCENE) * (1.0 + i))
+        for i, s in enumerate(strategies)
+        for scene in range(1, MOVE_SCENE + 5)
+    ]
+
+
+def test_days_worse_than_ecost_say_when_ecost_was_not_run() -> None:
+    alone = moved_lines(_moved_rows(["ecost-belief"]))
+    assert alone[-1].endswith("| ecost not run |")
+    both = moved_lines(_moved_rows(["ecost", "ecost-belief"]))
+    rows = {line.split("|")[1].strip(): line.split("|")[-2].strip() for line in both[2:]}
+    # ecost-belief is worse than ecost on each of the 5 days from the move; ecost itself: –.
+    assert rows == {"ecost": "–", "ecost-belief": "5"}
+
+
+def _panel_rows() -> list[Row]:
+    """Two panels with strategies in other orders, the moved one lacking some (each panel's own
+    colour cycle coloured them otherwise than the legend); nine strategies for a wide legend."""
+    stats = ["dist-oracle", "dist-oracle-global+cover", "ecost", "ecost-belief", "ecost-memory",
+             "ecost-routine-pooled+cover", "global-belief+cover", "wpl", "wpl/none"]  # fmt: skip
+    moved = ["global-belief+cover", "wpl", "ecost"]
+    rows = [_row(s, "stats-0", n, 2.0 + i / 10) for i, s in enumerate(stats) for n in (1, 2)]
+    rows += [_row(s, "moved-0", n, 2.0 + i / 10) for i, s in enumerate(moved) for n in (1, 2)]
+    return rows
+
+
+def test_the_curves_colour_each_strategy_as_the_legend_in_every_panel() -> None:
+    fig = curves_figure(_panel_rows())
+    (legend,) = fig.legends
+    colours = {
+        text.get_text(): to_hex(handle.get_color())
+        for text, handle in zip(legend.get_texts(), legend.legend_handles, strict=True)
+    }
+    assert len(colours) == 9 and len(set(colours.values())) == 9
+    for ax in fig.axes:
+        for line in ax.get_lines():
+            if line.get_label() in colours:
+                assert to_hex(line.get_color()) == colours[line.get_label()], ax.get_title()
+
+
+def test_the_curves_legend_fits_the_figure_below_the_panels() -> None:
+    fig = curves_figure(_panel_rows())
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    box = fig.legends[0].get_window_extent(renderer)
+    assert box.x0 >= 0 and box.y0 >= 0 and box.x1 <= fig.bbox.x1
+    labels = min(ax.get_tightbbox(renderer).y0 for ax in fig.axes)
+    assert box.y1 <= labels  # under the x axis labels, not over them
