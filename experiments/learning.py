@@ -9,8 +9,9 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-from objsearch.experiments.runner import Row
+from objsearch.experiments.runner import Row, inspection_suffix
 from objsearch.experiments.stats import CI, MIN_RUNS, Spread, spread
+from objsearch.experiments.strategies import COVER_SUFFIX
 
 
 def key(r: Row) -> str:
@@ -107,7 +108,8 @@ def learning_summary(rows: Sequence[Row], *, after: int = 10) -> dict[str, Any]:
 
 def render_paired(paired: dict[str, Spread], base: str = "wpl") -> str:
     lines = [
-        f"\npath length minus {base}'s, mean over (home, schedule, seed) runs (m), "
+        f"\npath length minus {base}'s ({base}{COVER_SUFFIX}'s for a cover run), mean over "
+        "(home, schedule, seed) runs (m), "
         f"{CI} or, under {MIN_RUNS} runs, the range"
     ]
     for k, d in paired.items():
@@ -132,19 +134,21 @@ def paired_differences(
 ) -> dict[str, Spread]:
     """Per strategy: over the runs both it and ``base`` made, its run mean ``metric`` minus
     ``base``'s, summarised by :func:`experiments.stats.spread` (a 95 % interval only over enough
-    runs)."""
+    runs). ``base`` is taken with each strategy's own inspection: a ``+cover`` run pairs with
+    ``wpl+cover`` (``--inspection cover`` names every strategy so), never with plain ``wpl``."""
     means: dict[tuple[str, str, str], list[float]] = {}
     for r in rows:
         means.setdefault((key(r), r.home, r.placements), []).append(metric(r))
     run_mean = {k: math.fsum(v) / len(v) for k, v in means.items()}
     out: dict[str, Spread] = {}
     for k in dict.fromkeys(key(r) for r in rows):
+        own_base = base + inspection_suffix(k.partition("/")[0])
         diffs = [
-            m - run_mean[(base, home, spec)]
+            m - run_mean[(own_base, home, spec)]
             for (kk, home, spec), m in sorted(run_mean.items())
-            if kk == k and (base, home, spec) in run_mean
+            if kk == k and (own_base, home, spec) in run_mean
         ]
-        if diffs and k != base:
+        if diffs and k != own_base:
             out[k] = spread(diffs)
     return out
 
@@ -231,14 +235,16 @@ def plot_curves(
         kinds_drawn: set[str] = set()
         for i, k in enumerate(keys):
             ax = axes[i // cols][i % cols]
-            if base in curves and k != base:
-                ref = sorted(curves[base]["first"].items())
+            # The reference of the panel's own inspection (wpl+cover for a cover run).
+            own_base = base + inspection_suffix(k.partition("/")[0])
+            if own_base in curves and k != own_base:
+                ref = sorted(curves[own_base]["first"].items())
                 ax.plot(
                     [s for s, _ in ref],
                     [math.fsum(v) / len(v) for _, v in ref],
                     color="0.6",
                     lw=1,
-                    label=f"{base}, first search (reference)",
+                    label=f"{own_base}, first search (reference)",
                 )
             runs = 0
             for which, style in (("first", "-"), ("all", "--")):

@@ -102,10 +102,14 @@ def excess_table(rows: Sequence[Row]) -> list[str]:
 def paired_table(rows: Sequence[Row]) -> list[str]:
     paired = paired_differences(rows, metric=discovery)
     if not paired:
-        return ["(no `wpl` runs to pair with: run bench homes with wpl among --strategies)"]
+        ran = ", ".join(dict.fromkeys(key(r) for r in rows))
+        return [
+            f"(no strategy shares a run with wpl of its own inspection to pair with; these "
+            f"outputs hold {ran}: add wpl to bench homes --strategies)"
+        ]
     lines = [
-        f"| strategy | Δ path to discovery vs wpl m | {CI} (or the range, under {MIN_RUNS} "
-        "runs) | runs |",
+        f"| strategy | Δ path to discovery vs wpl (wpl+cover for a cover run) m | {CI} (or the "
+        f"range, under {MIN_RUNS} runs) | runs |",
         "|---|---|---|---|",
     ]
     for k, d in paired.items():

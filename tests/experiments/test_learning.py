@@ -100,3 +100,16 @@ def test_paired_differences_give_a_ci_over_enough_runs() -> None:
     assert got.low < got.mean < got.high
     assert got.low > -1.0 - 0.1 * (MIN_RUNS - 1) and got.high < -1.0
     assert paired_json({"ecost": got})["ecost"]["ci_low"] == got.low
+
+
+def test_a_cover_run_pairs_with_wpl_of_its_own_inspection() -> None:
+    # bench homes --inspection cover names every strategy NAME+cover, wpl too (and its no-update
+    # twin wpl+cover/none): each pairs with wpl+cover, a plain run with plain wpl.
+    cover = _shifted(ROWS, "wpl+cover", 0.0)
+    twin = [dataclasses.replace(r, update_mode="none") for r in _shifted(ROWS, "wpl+cover", 2.0)]
+    plain = [*ROWS, *_shifted(ROWS, "ecost", -1.0)]
+    got = paired_differences([*cover, *_shifted(ROWS, "ecost+cover", -0.5), *twin, *plain])
+    assert set(got) == {"ecost+cover", "wpl+cover/none", "ecost"}
+    assert got["ecost+cover"].mean == pytest.approx(-0.5)
+    assert got["wpl+cover/none"].mean == pytest.approx(2.0)
+    assert got["ecost"].mean == pytest.approx(-1.0)

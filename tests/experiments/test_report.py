@@ -89,7 +89,8 @@ def test_without_optional_inputs_their_sections_say_how_to_produce_them(
         "| strategy | full path m | oracle m | excess m | wrong rooms m | of which start room m "
         "| right room m | approach m | wrong rooms share of the path |",
         "![homes_stats](img/homes_stats.png)",
-        "| strategy | Δ path to discovery vs wpl m | 95 % CI (or the range, under 10 runs) | runs |",
+        "| strategy | Δ path to discovery vs wpl (wpl+cover for a cover run) m | 95 % CI (or "
+        "the range, under 10 runs) | runs |",
         # Two runs (one per home): the range and n, never a "95 % CI" over 2 runs.
         "(no CI: < 10 runs) | 2 |",
         "updates made it longer than wpl/none in **",
