@@ -48,6 +48,7 @@ from objsearch.agent.catalogue import (
     ViewTaken,
     decode,
 )
+from objsearch.agent.detector_model import PerceptionModel
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.scene_graph import Pair, UpdateMode
 from objsearch.agent.sightings import LastSeen
@@ -117,6 +118,10 @@ class Today:
     looked: dict[str, int] = field(default_factory=dict)
     missed: dict[str, dict[str, int]] = field(default_factory=dict)
     searched: set[str] = field(default_factory=set)
+    #: P(a look at a place holding the target does not see it): ``MISS`` with a perfect
+    #: detector; with a modelled one (the run's ``params.perception``) also its own miss
+    #: probability at a medium-sized mask (:func:`look_miss`).
+    miss: float = MISS
 
     def starts(self, event: EventView, started: TaskStarted) -> bool:
         """A task starts; True if it opens a new episode (the caller closes the old one first)."""
@@ -130,7 +135,9 @@ class Today:
 
     def apply(self, event: EventView) -> None:
         kind = event.type
-        if kind == "task_started":
+        if kind == "run_started":
+            self.miss = look_miss(decode(event, RunStarted).params.get("perception"))
+        elif kind == "task_started":
             self.target = decode(event, TaskStarted).target
             self.searched.add(self.target)
         elif kind == "view_taken":
@@ -162,7 +169,7 @@ class Today:
         """``base`` conditioned on this episode's looks and sightings (sums to 1 if base does)."""
         missed = self.missed.get(d, {})
         seen = self.seen.get(d)
-        today = {p: v * MISS ** missed.get(p, 0) for p, v in base.items()}
+        today = {p: v * self.miss ** missed.get(p, 0) for p, v in base.items()}
         total = math.fsum(today.values())
         today = {p: v / total for p, v in today.items()} if total > 0 else dict(base)
         if seen is not None:
@@ -180,6 +187,8 @@ class Today:
             "looked": dict(sorted(self.looked.items())),
             "missed": {d: dict(sorted(m.items())) for d, m in sorted(self.missed.items())},
             "searched": sorted(self.searched),
+            # Only when a modelled detector set it: perfect runs' snapshots stay as they were.
+            **({"miss": self.miss} if self.miss != MISS else {}),
         }
 
     @classmethod
@@ -194,7 +203,25 @@ class Today:
             looked={p: int(n) for p, n in state["looked"].items()},
             missed={d: {p: int(n) for p, n in m.items()} for d, m in state["missed"].items()},
             searched=set(state["searched"]),
+            miss=float(state.get("miss", MISS)),
         )
+
+
+#: The mask a target shows from a stop's viewpoint, for the detector's miss probability there: the
+#: middle of COCO's medium bin (a cup at about 1.5 m). A per-view size is not modelled yet.
+TYPICAL_MASK_PX = 48.0 * 48.0
+
+
+def look_miss(perception: object) -> float:
+    """P(a look misses a target that is there) for a run's detector (``params.perception``;
+    None: perfect): the belief's own ``MISS`` (occlusion, range), or else the detector's miss on
+    top of it."""
+    if not isinstance(perception, Mapping):
+        return MISS
+    model = PerceptionModel.from_params(perception)
+    if model.perfect:
+        return MISS
+    return 1.0 - (1.0 - MISS) * model.recall(TYPICAL_MASK_PX)
 
 
 def responsibilities(

@@ -357,7 +357,7 @@ class DetectionV1(Record, frozen=True):
     ]
 
 
-class Detected(Record, frozen=True):
+class DetectedV2(Record, frozen=True):
     """Perception reported an object in the last view. v2: the nearest static object is one
     nullable object (v1 had three loose fields)."""
 
@@ -372,6 +372,66 @@ class Detected(Record, frozen=True):
         Support | None,
         doc("The nearest static object in the room, or null if the room has none."),
     ]
+
+
+class ClassScore(Part, frozen=True):
+    """One class of a detection's class distribution."""
+
+    SCHEMA_NAME: ClassVar[str] = "class_score"
+
+    object_class: Annotated[str, doc("A class the detector weighed.")]
+    p: Annotated[Probability, doc("Its probability.")]
+
+
+class Detected(Record, frozen=True):
+    """Perception reported an object in the last view. v3: the detector's score and class
+    distribution; ``accepted`` also says whether the agent took it as a sighting (a perfect
+    detector's always are)."""
+
+    TYPE: ClassVar[str] = "detection"
+    VERSION: ClassVar[int] = 3
+    object_class: Annotated[str, doc("Detected class.")]
+    instance_id: Annotated[str, doc("Instance id (simulator id, or tracker id on a robot).")]
+    mask_area: Annotated[NonNegative, doc("Segmentation mask area, pixels.")]
+    position: Annotated[XYZ, doc("Object position [x, y, z], map frame, metres.")]
+    accepted: Annotated[
+        bool,
+        doc(
+            "Whether the detection counts as a sighting: it passed the mask-area threshold and "
+            "its score (or a confirming look) made it sure enough (docs/perception.md). Only "
+            "accepted detections are learned."
+        ),
+    ]
+    support: Annotated[
+        Support | None,
+        doc("The nearest static object in the room, or null if the room has none."),
+    ]
+    score: Annotated[
+        Probability,
+        doc("The detector's confidence; 1 for a perfect detector (v2 and older logs)."),
+    ]
+    classes: Annotated[
+        tuple[ClassScore, ...],
+        doc(
+            "The detector's class distribution, reported class first; empty when it gave only "
+            "object_class at score (v2 and older logs)."
+        ),
+    ]
+
+
+class SightingRejected(Record, frozen=True):
+    """A sighting of the target that confirmation rejected: not the target, or not sure enough
+    after the looks the rule allows (docs/perception.md). It is not learned and does not end the
+    search."""
+
+    TYPE: ClassVar[str] = "sighting_rejected"
+    VERSION: ClassVar[int] = 1
+    object_class: Annotated[str, doc("The class it was reported as (the target's).")]
+    instance_id: Annotated[str, doc("Instance id of the first detection.")]
+    position: Annotated[XYZ, doc("Its position [x, y, z], map frame, metres.")]
+    score: Annotated[Probability, doc("The first detection's score.")]
+    posterior: Annotated[Probability, doc("P(the target is there) after the confirming looks.")]
+    looks: Annotated[int, msgspec.Meta(ge=0), doc("Confirming looks taken.")]
 
 
 class Moved(Record, frozen=True):
@@ -864,6 +924,7 @@ RECORDS: Final[Mapping[tuple[str, int], type[Record]]] = {
     for r in (
         ContainerOpened,
         DetectionV1,
+        DetectedV2,
         Detected,
         Moved,
         ObjectsDetected,
@@ -877,6 +938,7 @@ RECORDS: Final[Mapping[tuple[str, int], type[Record]]] = {
         RecordQuarantined,
         SceneGraphSeeded,
         SearchFailed,
+        SightingRejected,
         TargetFound,
         TargetDetected,
         TaskAborted,

@@ -18,17 +18,22 @@ import numpy as np
 
 from objsearch.agent.camera_frames import pitch_towards
 from objsearch.agent.catalogue import (
+    LATEST,
+    STORE,
     XY,
     XYZ,
     Candidate,
+    ClassScore,
     ContainerOpened,
     DayClock,
     Detected,
+    DetectedV2,
     Moved,
     PlanarPose,
     PlanComputed,
     Record,
     SearchFailed,
+    SightingRejected,
     Support,
     TargetDetected,
     TargetFound,
@@ -38,6 +43,7 @@ from objsearch.agent.catalogue import (
     ViewTaken,
 )
 from objsearch.agent.categories import Vocabulary
+from objsearch.agent.detector_model import PerceptionModel
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point, Pose, Vec3, heading, wrap_angle
 from objsearch.agent.navmap import NavigationMap
@@ -54,6 +60,7 @@ from objsearch.agent.relations import RelationModel, instance_value, per_instanc
 from objsearch.agent.room_order import expected_cost_order
 from objsearch.agent.semmap import MappedStatic, SemanticMap
 from objsearch.agent.world import Detection, Navigation, World
+from objsearch.events import Event
 from objsearch.events.projection import EventObserver, EventView
 
 _log = logging.getLogger(__name__)
@@ -67,6 +74,13 @@ INSPECTIONS = ("single", "cover")
 #: The whole-home planner's exact size: its DP holds 2^K · K states, K = 12 keeps a decision within
 #: the 50 ms target on the largest home (benchmarks/decisions.py); beyond, a bounded approximation.
 GLOBAL_EXACT_STOPS = 12
+#: Confirmation (docs/perception.md): a sighting not sure by its score is looked at again from
+#: at most this many other viewpoints, nearest the object first; a detection of the target class
+#: this close to it (m) is the same object seen again.
+CONFIRM_LOOKS = 2
+SAME_OBJECT_M = 0.5
+#: Below this P(real) a sighting is rejected without spending the remaining looks.
+REJECT_BELOW = 0.05
 
 
 class Method(enum.Enum):
@@ -87,6 +101,9 @@ class SearchConfig:
     #: "single": each static from its N_s (the paper); "cover": when that finds nothing, a second
     #: pass looks at long statics from the viewpoints nearest each stretch (:func:`cover_points`).
     inspection: str = "single"
+    #: The detector the robot sees with (what a detection's score and a miss mean); perfect:
+    #: every detection of the target ends the search, as the paper's simulator had it.
+    perception: PerceptionModel = field(default_factory=PerceptionModel)
 
     @property
     def effective_alpha(self) -> float:
@@ -137,6 +154,10 @@ class Recorder:
             self._behind = False
             self.time_floor_ns = time_ns
         event = self.sink.append_record(record, time_ns=time_ns, task_id=task_id)
+        if type(record).VERSION < LATEST[record.TYPE].VERSION and isinstance(event, Event):
+            # An older version kept for byte-identical logs (a perfect detector's v2
+            # detection): observers read latest versions, as read_log hands them out.
+            event = STORE.upcaster.upcast(event)
         for observer in self.observers:
             observer.apply(event)
         return event
@@ -195,8 +216,16 @@ class GlobalPlan:
 
 @dataclass
 class _Found:
+    """A sighting of the target: the detection, and where the robot stood and how far it had
+    driven when it was made (the paper's path to discovery)."""
+
     instance_id: str
     position: Vec3
+    pose: Pose
+    path_length: float
+    score: float = 1.0
+    mask_area: float = 0.0
+    sure: bool = True
 
 
 def _planar(pose: Pose) -> PlanarPose:
@@ -472,14 +501,14 @@ class SearchAgent:
         if found is None:
             run.emit(SearchFailed(reason=f"{target} not found in any room"))
         else:
-            arrived = world.pose()
-            result.path_to_discovery = result.path_length
+            arrived = found.pose
+            result.path_to_discovery = found.path_length
             run.emit(
                 TargetDetected(
                     instance_id=found.instance_id,
                     position=_xyz(found.position),
                     pose=_planar(arrived),
-                    path_length=round(result.path_length, 4),
+                    path_length=round(found.path_length, 4),
                 )
             )
             room = self.navmap.room_at(arrived.x, arrived.y)
@@ -577,27 +606,136 @@ class _Task:
     def emit(self, record: Record) -> None:
         self.agent.recorder.emit(record, time_ns=self.world.now_ns(), task_id=self.task_id)
 
-    def detection(self, det: Detection, room: str) -> bool:
-        """Record one detection; True if it is the target and passes its class's threshold."""
+    def detection(self, det: Detection, room: str, *, sure: bool | None = None) -> bool:
+        """Record one detection; True if it is of the target and passes its class's threshold
+        (a sighting, sure or still to confirm). It is ``accepted`` (learned) when it passes and is
+        sure: by its score alone (:meth:`PerceptionModel.sure`), or as ``sure`` says (a
+        confirming look's verdict)."""
         oc = self.agent.vocabulary.classes.get(det.object_class)
-        accepted = oc is not None and det.mask_area >= oc.min_mask_area_px
+        passes = oc is not None and det.mask_area >= oc.min_mask_area_px
+        model = self.agent.config.perception
         nearest = self.agent.semmap.nearest(det.position, room)
         at_static = nearest is not None and nearest[1] <= self.agent.config.support_radius
-        self.emit(
-            Detected(
-                object_class=det.object_class,
-                instance_id=det.instance_id,
-                mask_area=round(det.mask_area, 2),
-                position=_xyz(det.position),
-                accepted=accepted,
-                support=(
-                    Support(static_id=nearest[0].id, static_class=nearest[0].cls, at=at_static)
-                    if nearest
-                    else None
+        support = (
+            Support(static_id=nearest[0].id, static_class=nearest[0].cls, at=at_static)
+            if nearest
+            else None
+        )
+        object_class, instance_id = det.object_class, det.instance_id
+        mask_area, position = round(det.mask_area, 2), _xyz(det.position)
+        if model.perfect:
+            # What a perfect detector's logs always held (v2): every passing detection counts.
+            self.emit(
+                DetectedV2(
+                    object_class=object_class,
+                    instance_id=instance_id,
+                    mask_area=mask_area,
+                    position=position,
+                    accepted=passes,
+                    support=support,
+                )
+            )
+        else:
+            counted = model.sure(det.score) if sure is None else sure
+            self.emit(
+                Detected(
+                    object_class=object_class,
+                    instance_id=instance_id,
+                    mask_area=mask_area,
+                    position=position,
+                    accepted=passes and counted,
+                    support=support,
+                    score=round(det.score, 4),
+                    classes=tuple(
+                        ClassScore(object_class=c, p=round(p, 4)) for c, p in det.class_scores
+                    ),
+                )
+            )
+        return passes and det.object_class == self.target
+
+    def sighting(self, det: Detection, result: SearchResult) -> _Found:
+        return _Found(
+            det.instance_id,
+            det.position,
+            self.world.pose(),
+            result.path_length,
+            det.score,
+            det.mask_area,
+            self.agent.config.perception.sure(det.score),
+        )
+
+    def confirm(self, found: _Found, result: SearchResult) -> _Found | None:
+        """The sighting if it is confirmed, else None (a ``sighting_rejected`` is recorded).
+
+        A sighting sure by its score stands. Otherwise, starting from even odds times its score's
+        likelihood ratio, the robot looks at the object again from the viewpoints nearest it
+        (:data:`CONFIRM_LOOKS` at most, none it stands at): a detection of the target there
+        multiplies the odds by its own ratio, none by the detector's miss probability for the
+        mask the object would show from there. It is confirmed once P(real) reaches the model's
+        ``accept_posterior``, rejected when it falls below :data:`REJECT_BELOW` or the looks run out."""
+        if found.sure:
+            return found
+        model = self.agent.config.perception
+        nav = self.agent.navmap
+        odds = model.likelihood_ratio(found.score)
+        room = nav.room_at(found.pose.x, found.pose.y)
+        px, py, pz = found.position
+        seen_from = math.dist((found.pose.x, found.pose.y, 1.0), (px, py, pz))
+        candidates = sorted(
+            (v for v in nav.viewpoints(room) if v != found.pose.point),
+            key=lambda v: (math.dist((v.x, v.y), (px, py)), v),
+        )
+        looks = 0
+        for viewpoint in candidates[:CONFIRM_LOOKS]:
+            self.go(viewpoint, result, watch=False, final_yaw=heading(viewpoint, Point(px, py)))
+            pitch = pitch_towards((viewpoint.x, viewpoint.y), (px, py, pz))
+            dets = self.world.look(heading(viewpoint, Point(px, py)), pitch)
+            looks += 1
+            pose = self.world.pose()
+            self.emit(
+                ViewTaken(pose=_planar(pose), pitch=round(pitch, 4), static_id=None, reason="look")
+            )
+            again = next(
+                (
+                    d
+                    for d in dets
+                    if d.object_class == self.target
+                    and math.dist(d.position, found.position) <= SAME_OBJECT_M
                 ),
+                None,
+            )
+            if again is None:
+                here = math.dist((pose.x, pose.y, 1.0), (px, py, pz))
+                expected = found.mask_area * (seen_from / max(here, 0.1)) ** 2
+                odds *= model.miss(expected)
+            else:
+                odds *= model.likelihood_ratio(again.score)
+            verdict = model.posterior(odds) >= model.accept_posterior
+            for d in dets:
+                self.detection(d, room, sure=verdict if d is again else None)
+            if verdict and again is not None:
+                return _Found(
+                    again.instance_id,
+                    again.position,
+                    found.pose,
+                    found.path_length,
+                    again.score,
+                    again.mask_area,
+                    True,
+                )
+            if model.posterior(odds) < REJECT_BELOW:
+                break
+        self.emit(
+            SightingRejected(
+                object_class=self.target,
+                instance_id=found.instance_id,
+                position=_xyz(found.position),
+                score=round(found.score, 4),
+                posterior=round(model.posterior(odds), 6),
+                looks=looks,
             )
         )
-        return accepted and det.object_class == self.target
+        return None
 
     def go(
         self,
@@ -614,7 +752,7 @@ class _Task:
         ):
             return None
         seen: set[str] = set()
-        found: list[_Found] = []
+        found: list[Detection] = []
 
         def on_detection(det: Detection, pose: Pose) -> bool:
             if det.instance_id in seen:
@@ -622,23 +760,39 @@ class _Task:
             seen.add(det.instance_id)
             hit = self.detection(det, self.agent.navmap.room_at(pose.x, pose.y))
             if hit and watch:
-                found.append(_Found(det.instance_id, det.position))
+                found.append(det)
                 return True
             return False
 
-        nav: Navigation = self.world.navigate(goal, on_detection=on_detection, final_yaw=final_yaw)
-        result.path_length += nav.metres
-        result.route.extend(nav.path[1:])
-        self.emit(
-            Moved(
-                start=_planar(start),
-                end=_planar(nav.end),
-                metres=round(nav.metres, 4),
-                rooms=tuple(nav.rooms),
-                interrupted=nav.interrupted,
+        while True:
+            nav: Navigation = self.world.navigate(
+                goal, on_detection=on_detection, final_yaw=final_yaw
             )
-        )
-        return found[0] if found else None
+            result.path_length += nav.metres
+            result.route.extend(nav.path[1:])
+            self.emit(
+                Moved(
+                    start=_planar(start),
+                    end=_planar(nav.end),
+                    metres=round(nav.metres, 4),
+                    rooms=tuple(nav.rooms),
+                    interrupted=nav.interrupted,
+                )
+            )
+            if not found:
+                return None
+            sightings = [self.sighting(det, result) for det in found]
+            found.clear()
+            for sighting in sightings:
+                confirmed = self.confirm(sighting, result)
+                if confirmed is not None:
+                    return confirmed
+            # Rejected: on to the goal, as if it had not been seen.
+            start = self.world.pose()
+            if start.point == goal and (
+                final_yaw is None or abs(wrap_angle(start.yaw - final_yaw)) < 1e-9
+            ):
+                return None
 
     def inspect(self, stop: Stop, result: SearchResult) -> _Found | None:
         """Open each container of the stop and look in; look at the others from θ_s and ±45°.
@@ -646,12 +800,15 @@ class _Task:
         room = stop.statics[0].room
         yaws_done: list[float] = []
         for s in stop.statics:
+            back = self.back_to(stop.viewpoint, result)
+            if back:
+                return back
             pitch = static_pitch(self.world.pose().point, s)
             if s.container:
                 dets = self.world.open(s.id, pitch)
                 pose = self.world.pose()
                 self.emit(ContainerOpened(static_id=s.id, pose=_planar(pose)))
-                hit = self._view(pose, pitch, s.id, "inside", dets, room)
+                hit = self._view(pose, pitch, s.id, "inside", dets, room, result)
                 if hit:
                     return hit
                 continue
@@ -660,11 +817,21 @@ class _Task:
                 if any(abs(wrap_angle(yaw - y)) < 1e-3 for y in yaws_done):
                     continue
                 yaws_done.append(yaw)
+                back = self.back_to(stop.viewpoint, result)
+                if back:
+                    return back
                 dets = self.world.look(yaw, pitch)
-                hit = self._view(self.world.pose(), pitch, s.id, "look", dets, room)
+                hit = self._view(self.world.pose(), pitch, s.id, "look", dets, room, result)
                 if hit:
                     return hit
         return None
+
+    def back_to(self, viewpoint: Point, result: SearchResult) -> _Found | None:
+        """Back at ``viewpoint`` after a rejected sighting's looks took the robot away (nothing
+        happens when it is there: always so with a perfect detector)."""
+        if self.world.pose().point == viewpoint:
+            return None
+        return self.go(viewpoint, result)
 
     def cover(self, stop: Stop, result: SearchResult) -> _Found | None:
         """The stretches of the stop's long statics that its viewpoint may not see
@@ -682,7 +849,7 @@ class _Task:
             pitch = static_pitch(view.viewpoint, view.static)
             dets = self.world.look(heading(view.viewpoint, view.stretch), pitch)
             hit = self._view(
-                self.world.pose(), pitch, view.static.id, "look", dets, view.static.room
+                self.world.pose(), pitch, view.static.id, "look", dets, view.static.room, result
             )
             if hit:
                 return hit
@@ -696,12 +863,14 @@ class _Task:
         reason: ViewReason,
         dets: Sequence[Detection],
         room: str,
+        result: SearchResult,
     ) -> _Found | None:
         self.emit(
             ViewTaken(pose=_planar(pose), pitch=round(pitch, 4), static_id=static_id, reason=reason)
         )
-        found: _Found | None = None
-        for det in dets:
-            if self.detection(det, room) and found is None:
-                found = _Found(det.instance_id, det.position)
-        return found
+        sightings = [self.sighting(det, result) for det in dets if self.detection(det, room)]
+        for sighting in sightings:
+            confirmed = self.confirm(sighting, result)
+            if confirmed is not None:
+                return confirmed
+        return None

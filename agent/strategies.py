@@ -29,6 +29,7 @@ from objsearch.agent.catalogue import (
     decode_payload,
     encode,
 )
+from objsearch.agent.detector_model import PerceptionModel
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home
 from objsearch.agent.planner import (
@@ -469,6 +470,7 @@ class RunSpec:
             support_radius=self.support_radius,
             seed=self.seed,
             inspection=self.inspection,
+            perception=PerceptionModel.from_params(self.params.get("perception")),
         )
 
     def relation_model(self, models: RelationModels = AGENT_MODELS) -> RelationModel:

@@ -27,6 +27,14 @@ def detection_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
     return payload
 
 
+def detection_v2_to_v3(payload: dict[str, Any]) -> dict[str, Any]:
+    # v3 records the detector's score and class distribution; before it the simulator's detector
+    # was perfect (score 1, one class), and an accepted detection was one above the mask threshold.
+    payload["score"] = 1.0
+    payload["classes"] = []
+    return payload
+
+
 def run_started_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
     # What a v1 run *was*, with the defaults of the code that wrote it. v1 recorded the method and
     # α; bench runs put the strategy's name in params; the Beta model's parameters were constants
@@ -89,6 +97,7 @@ def view_taken_v1_to_v2(payload: dict[str, Any]) -> dict[str, Any]:
 STEPS: Final[Mapping[tuple[str, int], UpcastStep]] = MappingProxyType(
     {
         ("detection", 1): detection_v1_to_v2,
+        ("detection", 2): detection_v2_to_v3,
         ("run_started", 1): run_started_v1_to_v2,
         ("run_started", 2): run_started_v2_to_v3,
         ("run_started", 3): run_started_v3_to_v4,

@@ -21,6 +21,10 @@ class Detection:
     instance_id: str
     mask_area: float  # pixels
     position: Vec3  # object position reconstructed from depth, map frame
+    #: The detector's confidence (1: a perfect detector) and its class distribution: (class,
+    #: probability) pairs, the reported class first; empty when it gave only ``object_class``.
+    score: float = 1.0
+    class_scores: tuple[tuple[str, float], ...] = ()
 
 
 @dataclass(frozen=True, slots=True)

@@ -52,7 +52,7 @@ import pyarrow as pa
 from objsearch.agent.catalogue import (
     LATEST,
     STORE,
-    Detected,
+    DetectedV2,
     Moved,
     PlanarPose,
     Record,
@@ -204,7 +204,7 @@ def _mix_records(n: int, seed: int = 0) -> list[Record]:
             out.append(ViewTaken(pose=pose, pitch=0.0, static_id=f"{static}|1", reason="look"))
         else:
             support = Support(static_id=f"{static}|1", static_class=static, at=rng.random() < 0.5)
-            out.append(Detected(object_class=DYNAMIC[i % len(DYNAMIC)], instance_id="i",
+            out.append(DetectedV2(object_class=DYNAMIC[i % len(DYNAMIC)], instance_id="i",
                                 mask_area=900.0, position=(1.0, 2.0, 0.5),
                                 accepted=rng.random() < 0.8, support=support))  # fmt: skip
     return out

@@ -196,6 +196,8 @@ def sighting(object_class: str, instance_id: str, static_id: str, static_class: 
         position=(0.0, 0.0, 0.0),
         accepted=True,
         support=Support(static_id=static_id, static_class=static_class, at=True),
+        score=1.0,
+        classes=(),
     )
 
 

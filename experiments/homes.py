@@ -60,6 +60,7 @@ def homes_jobs(
     starts_per_search: int | None = None,
     camera: str = DEFAULT_CAMERA,
     inspection: str = "single",
+    perception: str | None = None,
 ) -> list[Job]:
     known = set(available_homes())
     unknown = [h for h in homes if h not in known]
@@ -106,6 +107,7 @@ def homes_jobs(
                             scene_ids,
                             starts_per_search=starts_per_search,
                             camera=camera,
+                            perception=perception,
                         )
                     )
                 for wpl in (n for n in strategies if split_strategy(n)[0].name == "wpl"):
@@ -121,6 +123,7 @@ def homes_jobs(
                             scene_ids,
                             starts_per_search=starts_per_search,
                             camera=camera,
+                            perception=perception,
                         )
                     )
     return jobs
@@ -211,12 +214,25 @@ def homes_command(summary: dict[str, Any], folder: Path) -> str:
     return str(command)
 
 
+def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
+    """The bench homes options that name a perception model (none for a perfect one): the
+    preset, and each parameter the preset does not give."""
+    if not perception:
+        return {}
+    from objsearch.agent.detector_model import OVERRIDES, preset
+
+    base = preset(str(perception["preset"])).params()
+    changed = {k: perception[k] for k in OVERRIDES if perception.get(k) != base.get(k)}
+    return {"perception": perception["preset"], **changed}
+
+
 def homes_summary(rows: Sequence[Row]) -> dict[str, Any]:
     keys = list(dict.fromkeys(_key(r) for r in rows))
     out: dict[str, Any] = {"overall": {}, "by_schedule": {}, "by_family": {}, "by_home": {}}
     for k in keys:
         mine = [r for r in rows if _key(r) == k]
         out["overall"][k] = _with_spread(mine)
+        out["overall"][k]["false_found_rate"] = sum(r.false_found for r in mine) / len(mine)
         for kind in sorted({schedule_kind(r.placements) for r in mine}):
             out["by_schedule"].setdefault(kind, {})[k] = _with_spread(
                 [r for r in mine if schedule_kind(r.placements) == kind]
@@ -263,18 +279,25 @@ def homes_summary(rows: Sequence[Row]) -> dict[str, Any]:
 def render(summary: dict[str, Any]) -> str:
     starts = summary.get("starts_per_search")
     homes, seeds = summary.get("homes") or [], summary.get("seeds") or []
+    # A run with a modelled detector says which, and how often a false sighting ended a search.
+    noisy = summary.get("perception", {}).get("preset", "perfect") != "perfect" or any(
+        s.get("false_found_rate") for s in summary["overall"].values()
+    )
+    perception = f", perception {summary['perception']['preset']}" if noisy else ""
     lines = [
         f"{len(homes)} home(s) × {len(seeds)} seed(s): every target in every scene "
         f"from {f'{starts} start point(s)' if starts else 'every start point'}; "
-        f"full path (m), camera {summary.get('camera', '?')}"
+        f"full path (m), camera {summary.get('camera', '?')}{perception}"
     ]
     lines.append(
         f"{'strategy':20}{'n':>7}{'path m':>9}{'±runs':>7}{'success':>9}{'SPL':>7}{'oracle×':>9}{'< wpl':>8}"
+        + (f"{'false found':>13}" if noisy else "")
     )
     for k, s in summary["overall"].items():
         lines.append(
             f"{k:20}{s['n']:7d}{s['mean_path_length']:9.2f}{s['std_over_runs']:7.2f}{s['success_rate']:9.1%}"
             f"{s['spl']:7.3f}{s['oracle_ratio']:9.2f}{s['runs_better_than_wpl']:>8}"
+            + (f"{s.get('false_found_rate', 0.0):13.2%}" if noisy else "")
         )
     if len(summary.get("by_schedule", {})) > 1:
         for kind, per in summary["by_schedule"].items():
@@ -306,6 +329,7 @@ def run_homes(
     starts_per_search: int | None = None,
     camera: str = DEFAULT_CAMERA,
     inspection: str = "single",
+    perception: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     homes = list(homes) if homes else list(heldout_homes())
@@ -319,6 +343,7 @@ def run_homes(
         starts_per_search=starts_per_search,
         camera=camera,
         inspection=inspection,
+        perception=json.dumps(perception, sort_keys=True) if perception else None,
     )
     started = time.perf_counter()
     rows = run_jobs(jobs, workers=workers, progress=progress, label="bench homes")
@@ -337,6 +362,7 @@ def run_homes(
             "starts_per_scene": starts_per_search,
             "camera": None if camera == DEFAULT_CAMERA else camera,
             "inspection": None if inspection == "single" else inspection,
+            **perception_options(perception),
             "workers": workers,
         },
     )
@@ -345,6 +371,7 @@ def run_homes(
         # How the data folder the homes came from was built, so the run can be repeated.
         "data_build": data_build_commands(Path(data)) if data else [],
         "camera": camera,
+        "perception": perception or {"preset": "perfect"},
         "inspection": inspection,
         # Every search of this bench starts from this prior; dist-oracle alone also reads the
         # schedule's own distribution (a reference, never a default).

@@ -48,6 +48,8 @@ class Job:
     #: Search each target from this many seeded start points per scene (None: from every start).
     starts_per_search: int | None = None
     camera: str = DEFAULT_CAMERA
+    #: The simulated detector's parameters as JSON (``params.perception``); None: perfect.
+    perception: str | None = None
 
 
 @dataclass(frozen=True)
@@ -80,6 +82,9 @@ class Row:
     belief_top_hit: bool | None = None
     belief_p_found: float | None = None
     belief_brier: float | None = None
+    #: The agent said found, on a modelled detector's false positive or confusion (then
+    #: ``success`` is False).
+    false_found: bool = False
 
     def record(self) -> dict[str, object]:
         d = asdict(self)
@@ -98,7 +103,10 @@ def run_job(job: Job) -> list[Row]:
         update_mode=UpdateMode(job.update_mode),
         schedule=job.placements,
         prior=job.prior,
-        params={"camera": job.camera},
+        params={
+            "camera": job.camera,
+            **({"perception": json.loads(job.perception)} if job.perception else {}),
+        },
     )
     scenes = scenes_of(job.home, job.placements, upto=_last_scene(job))
     with tempfile.TemporaryDirectory(prefix="objsearch-bench-") as tmp:
@@ -145,6 +153,7 @@ def _row(job: Job, t: Trial, excess: Excess | None, forecast: Forecast | None = 
         belief_top_hit=None if forecast is None else forecast.top_hit,
         belief_p_found=None if forecast is None else round(forecast.p_found, 6),
         belief_brier=None if forecast is None else round(forecast.brier, 6),
+        false_found=t.false_found,
     )
 
 

@@ -95,9 +95,15 @@ def run_spec(args: argparse.Namespace, home: Any, **extra: Any) -> Any:
         seed=args.seed,
         alpha=args.alpha,
         update_mode=UpdateMode(getattr(args, "update_mode", "all")),
-        params={"camera": args.camera},
+        params=_sim_params(args),
         **extra,
     )
+
+
+def _sim_params(args: argparse.Namespace) -> dict[str, Any]:
+    """The simulated robot's sensors a run records: its camera and, unless perfect, its detector."""
+    perception = t.perception_params(args)
+    return {"camera": args.camera, **({"perception": perception} if perception else {})}
 
 
 #: The paper's Table II schedule belongs to the paper home alone (data/schedules/table2.json).
@@ -114,8 +120,10 @@ def _paper_schedule_only(home: str, what: str, how: str) -> str:
 
 
 def cmd_search(args: argparse.Namespace) -> int:
+    from objsearch.agent.categories import Category
     from objsearch.agent.session import Session, load_context
     from objsearch.product import relation_models
+    from objsearch.sim.detector_model import with_perception
     from objsearch.sim.placements import base_placements, has_table1_scenario, table1_removals
     from objsearch.sim.world import SimClock, SimWorld, with_camera
 
@@ -151,6 +159,7 @@ def cmd_search(args: argparse.Namespace) -> int:
         spec, camera = with_camera(
             run_spec(args, ctx.home, schedule=None if args.scene is None else args.schedule)
         )
+        spec, detector = with_perception(spec, movable=ctx.vocabulary.names(Category.SEMI_DYNAMIC))
         inputs = {"target": target, "start": args.start, "scene": args.scene}
         session = Session.start(
             ctx, log_dir, spec, inputs=inputs, models=relation_models(simulator=True)
@@ -163,11 +172,14 @@ def cmd_search(args: argparse.Namespace) -> int:
                 pose,
                 clock=SimClock(session.resume_time_ns),
                 camera=camera,
+                detector=detector,
             )
             oracle = world.oracle_length(
                 target, min_mask_px=ctx.vocabulary.classes[target].min_mask_area_px
             )
             result = session.search(world, target, args.start, scene=args.scene)
+            # A "found" on a false positive or a confusion is a failure (the agent believed it).
+            real = world.is_instance_of(result.found_instance, target)
         finally:
             session.close()
     finally:
@@ -178,7 +190,9 @@ def cmd_search(args: argparse.Namespace) -> int:
         "start": args.start,
         "strategy": args.strategy,
         "camera": camera.name,
-        "success": result.success,
+        "perception": spec.params.get("perception", {"preset": "perfect"})["preset"],
+        "success": result.success and real,
+        "false_found": result.success and not real,
         "found": result.found_instance,
         "path_length_m": round(result.path_length, 3),
         "oracle_length_m": round(oracle, 3),
@@ -190,9 +204,10 @@ def cmd_search(args: argparse.Namespace) -> int:
     if args.format == "json":
         print(json.dumps(summary, indent=2))
         return 0
-    print(
-        f"{'found' if result.success else 'NOT found'}: {target} from {args.start} ({args.strategy})"
-    )
+    verdict = "found" if result.success and real else "NOT found"
+    if result.success and not real:
+        verdict += f" (the agent took {result.found_instance} for it: a false sighting)"
+    print(f"{verdict}: {target} from {args.start} ({args.strategy})")
     for room, order in result.plans:
         print(
             f"  {room}: plan "
@@ -206,7 +221,7 @@ def cmd_search(args: argparse.Namespace) -> int:
     print(f"  path length {result.path_length:.2f} m (oracle {oracle:.2f} m)")
     if args.log:
         print(f"  events appended to {args.log} ({result.task_id})")
-    return 0 if result.success else 1
+    return 0 if result.success and real else 1
 
 
 # -- demo -------------------------------------------------------------------------------------
@@ -238,6 +253,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
             baseline=not args.no_baseline,
             strategy=args.strategy,
             camera=args.camera,
+            perception=t.perception_params(args),
         )
     if args.format == "json" and code == 0:
         print(json.dumps(demo_summary(Path(args.out)), indent=2))
@@ -450,6 +466,7 @@ def build_parser() -> argparse.ArgumentParser:
         )
     )
     t.camera_option(demo)
+    t.perception_option(demo)
     t.format_option(demo, "print a JSON summary (the report goes to stderr)")
     demo.set_defaults(func=cmd_demo)
 
@@ -524,8 +541,14 @@ def _search_options(p: argparse.ArgumentParser) -> None:
         "docs/results-belief.md); objsearch bench compares them",
     )
     p.add_argument("--alpha", type=t.ALPHA, default=10.0, help="alpha of Eq. 3, 0-1000 (10)")
-    p.add_argument("--seed", type=t.SEED, default=0, help="seed (SDP's random room order)")
+    p.add_argument(
+        "--seed",
+        type=t.SEED,
+        default=0,
+        help="seed (SDP's random room order, the simulated detector's draws)",
+    )
     t.camera_option(p)
+    t.perception_option(p)
 
 
 def expected_errors() -> tuple[type[BaseException], ...]:

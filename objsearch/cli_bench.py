@@ -100,6 +100,7 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
             starts_per_search=args.starts_per_scene,
             camera=args.camera,
             inspection=args.inspection,
+            perception=t.perception_params(args),
         )
     if args.format == "json":
         print(json.dumps(_headline(summary), indent=2))
@@ -427,6 +428,7 @@ def register(sub: Any) -> None:
         help="single: each static from its nearest viewpoint N_s (the paper); cover: statics "
         "longer than 1.5 m also from the viewpoints nearest each 1.5 m stretch (single)",
     )
+    t.perception_option(homes)
     homes.set_defaults(func=cmd_bench_homes)
 
     table1 = bsub.add_parser(

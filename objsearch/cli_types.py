@@ -526,6 +526,56 @@ def _add_camera_option(p: argparse.ArgumentParser) -> None:
     )
 
 
+def perception_option(p: argparse.ArgumentParser) -> None:
+    """``--perception PRESET`` and the options that override one of its parameters: the
+    simulated detector (docs/perception.md), recorded in the run (added when ``p`` is first
+    used, as ``--camera``). :func:`perception_params` reads them."""
+    if isinstance(p, Parser):
+        p.defer(_add_perception_options)
+    else:
+        _add_perception_options(p)
+
+
+def _add_perception_options(p: argparse.ArgumentParser) -> None:
+    from objsearch.agent.detector_model import OVERRIDES, PRESETS
+
+    p.add_argument(
+        "--perception",
+        type=text,
+        choices=PRESETS,
+        default=PRESETS[0],
+        help="simulated detector: perfect (every object in view, nothing false), realistic "
+        "(Mask R-CNN's published recall by size, false positives, confusions, scores) or harsh "
+        "(half its recall, twice its false positives) (perfect)",
+    )
+    helps = {
+        "recall_scale": "multiply the preset's recall by this",
+        "fp_per_image": "false positives of the movable classes per view (Poisson mean)",
+        "confusion": "probability that a detection carries a similar class",
+        "occluded_recall": "recall factor of an object less than half visible",
+        "accept_posterior": "P(real) at which a sighting is confirmed",
+    }
+    for name, (low, high) in OVERRIDES.items():
+        p.add_argument(
+            "--" + name.replace("_", "-"),
+            type=float_range(low, high),
+            metavar="X",
+            help=f"{helps[name]}, {low:g}-{high:g} (the preset's)",
+        )
+
+
+def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
+    """The run spec's ``params.perception`` the options name; None for a perfect detector (a run
+    that records none, so its log is what it always was)."""
+    from objsearch.agent.detector_model import OVERRIDES, preset
+
+    overrides = {
+        name: value for name in OVERRIDES if (value := getattr(args, name, None)) is not None
+    }
+    model = preset(getattr(args, "perception", "perfect"), **overrides)
+    return None if model.perfect else model.params()
+
+
 #: ``--format`` values of a command whose output is a report (``query`` and ``lake ls``, whose
 #: output is a table, take ``table``, ``csv`` or ``json``).
 OUTPUT_FORMATS = ("text", "json")

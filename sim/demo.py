@@ -6,8 +6,9 @@ import csv
 import math
 import statistics
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from tqdm import tqdm
 
@@ -33,20 +34,28 @@ def run_demo(
     baseline: bool = True,
     strategy: str = "wpl",  # the paper's method: the demo reproduces its experiment
     camera: str = DEFAULT_CAMERA,
+    perception: Mapping[str, Any] | None = None,
 ) -> int:
     modes = [UpdateMode.ALL, UpdateMode.NONE] if baseline else [UpdateMode.ALL]
     # --force replaces only what an earlier demo wrote here; anything else in --out is refused.
     with claim(out, command="demo", owns=OUTPUTS, force=force):
-        return _run(out, home, modes, progress, strategy, camera)
+        return _run(out, home, modes, progress, strategy, camera, perception)
 
 
 def _run(
-    out: Path, home: str, modes: list[UpdateMode], progress: bool, strategy: str, camera: str
+    out: Path,
+    home: str,
+    modes: list[UpdateMode],
+    progress: bool,
+    strategy: str,
+    camera: str,
+    perception: Mapping[str, Any] | None = None,
 ) -> int:
     ctx = load_context(home)
-    spec = RunSpec.of(
-        home, ctx.home.digest, strategy, seed=0, schedule="table2", params={"camera": camera}
-    )
+    params: dict[str, Any] = {"camera": camera}
+    if perception:
+        params["perception"] = dict(perception)  # docs/perception.md; absent: perfect
+    spec = RunSpec.of(home, ctx.home.digest, strategy, seed=0, schedule="table2", params=params)
     results: dict[UpdateMode, list[Trial]] = {}
     total = SCENES * len(TARGET_ORDER) * STARTS * len(modes)
     # disable=None: drawn on a terminal only, never into a pipe or log (DEVELOPERS.md).

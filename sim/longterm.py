@@ -13,10 +13,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.categories import Category
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.geometry import Point, Pose
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
+from objsearch.sim.detector_model import with_perception
 from objsearch.sim.models import SIM_MODELS
 from objsearch.sim.placements import Placements, base_placements, table1_removals
 from objsearch.sim.schedule_names import load_schedule, schedule_clock
@@ -46,6 +48,9 @@ class Trial:
     #: Metres from the start to the detection of the target (the paper's path length); the
     #: whole path when the target was never found.
     path_to_discovery: float | None = None
+    #: The agent said found, but the instance it found is no placed target (a modelled
+    #: detector's false positive or confusion): counted as a failure (``success`` is False).
+    false_found: bool = False
 
 
 def scenes_of(home_name: str, source: str, *, upto: int | None = None) -> dict[int, Placements]:
@@ -91,6 +96,7 @@ def run_schedule(
     """
     ctx = load_context(spec.home)
     spec, camera = with_camera(spec)
+    spec, detector = with_perception(spec, movable=ctx.vocabulary.names(Category.SEMI_DYNAMIC))
     if placements is None:
         if spec.schedule is None:
             raise DataFileError("a long-term run needs placements or a schedule in its spec")
@@ -142,6 +148,7 @@ def run_schedule(
                         clock=clock,
                         camera=camera,
                         observer=observer,
+                        detector=detector,
                     )
                     oracle = world.oracle_length(
                         target, min_mask_px=ctx.vocabulary.classes[target].min_mask_area_px
@@ -153,11 +160,12 @@ def run_schedule(
                         scene=scene,
                         clock=schedule_clock(spec.schedule, scene),
                     )
+                    real = world.is_instance_of(result.found_instance, target)
                     trial = Trial(
                         scene,
                         target,
                         start_name,
-                        result.success,
+                        result.success and real,
                         result.path_length,
                         oracle,
                         result.task_id,
@@ -165,6 +173,7 @@ def run_schedule(
                         result.path_length
                         if result.path_to_discovery is None
                         else result.path_to_discovery,
+                        false_found=result.success and not real,
                     )
                     trials.append(trial)
                     if on_trial:

@@ -19,6 +19,7 @@ from objsearch.sim.visibility import OccludingCamera
 
 if TYPE_CHECKING:
     from objsearch.agent.strategies import RunSpec
+    from objsearch.sim.detector_model import NoisyDetector
 
 SPEED_M_PER_S = 0.5
 LOOK_S = 1.0
@@ -176,6 +177,7 @@ class SimWorld:
         clock: SimClock | None = None,
         camera: SearchCamera | None = None,
         observer: WorldObserver | None = None,
+        detector: NoisyDetector | None = None,
     ) -> None:
         self.home = home
         self.navmap = navmap
@@ -183,6 +185,9 @@ class SimWorld:
         self._placed: dict[str, tuple[Placement, ...]] = {}
         self.clock = clock or SimClock()
         self.camera = camera or search_camera()
+        #: The modelled detector the camera's detections pass through (None: a perfect one);
+        #: the oracle measures with the camera alone.
+        self.detector = detector
         self._statics = home.statics
         self._pose = start
         self.observer = observer
@@ -208,6 +213,8 @@ class SimWorld:
         placed = self._in_room(room)
         candidates = [p for p in placed if not p.inside or p.support == opened]
         seen = self.camera.detections(self.home, room, pose, pitch, placed, candidates, opened)
+        if self.detector is not None:
+            seen = self.detector.observe(self.home, room, pose, placed, seen)
         if self.observer is not None:
             self.observer.camera_frame(self.clock.ns, pose, seen)
         return seen
@@ -222,6 +229,12 @@ class SimWorld:
                 )
             )
         return self._placed[room]
+
+    def is_instance_of(self, instance_id: str | None, cls: str) -> bool:
+        """Whether ``instance_id`` is a placed ``cls`` object: a search's "found" is a success
+        only then (a modelled detector's false positive or confusion is not)."""
+        placed = self.placements.get(instance_id) if instance_id is not None else None
+        return placed is not None and placed.cls == cls
 
     def view(self) -> tuple[Detection, ...]:
         """What the camera sees from where the robot stands, without turning or spending time."""

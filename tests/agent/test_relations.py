@@ -50,6 +50,8 @@ def det(cls: str, static: str | None) -> dict[str, Any]:
             mask_area=900.0,
             position=(0.0, 0.0, 0.0),
             accepted=True,
+            score=1.0,
+            classes=(),
             support=None
             if static is None
             else Support(static_id=f"{static}|1", static_class=static, at=True),

@@ -87,6 +87,8 @@ def detection(seq: int, cls: str, static: str | None, *, accepted: bool = True) 
                 mask_area=900.0,
                 position=(0.0, 0.0, 0.0),
                 accepted=accepted,
+                score=1.0,
+                classes=(),
                 support=None
                 if static is None
                 else Support(static_id=f"{static}|1", static_class=static, at=True),

@@ -15,6 +15,8 @@ def _detected(cls: str, *, accepted: bool = True, at: bool | None = True) -> Det
         mask_area=900.0,
         position=(1.0, 0.5, 2.0),
         accepted=accepted,
+        score=1.0,
+        classes=(),
         support=support,
     )
 

@@ -1,0 +1,216 @@
+"""A model of a real object detector, shared by the simulator that samples from it
+(:mod:`objsearch.sim.detector_model`) and the agent that reasons with it: a detection is evidence
+with a likelihood, not truth.
+
+Per view, an object in view is reported with probability :meth:`PerceptionModel.recall` (its COCO
+size bin by mask area, its visible fraction); ``fp_per_image`` false positives of the vocabulary's
+movable classes are reported on surfaces; a reported object carries a similar class with
+probability ``confusion`` (:data:`SIMILAR`); scores lie above the detector's operating threshold,
+true detections' drawn from ``tp_score``, false ones' from ``fp_score`` (Beta shapes over the
+span above the threshold). docs/perception.md gives every number with its source.
+
+``perfect`` is the simulator as it was before: every object in view reported, score 1, nothing
+false; a run records no perception model then, so its log is byte for byte what it was.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any, Final
+
+from objsearch.agent.errors import ObjsearchError
+
+#: COCO's object size bins (mask or box area, pixels): small below 32², large above 96².
+SMALL_PX: Final = 32.0 * 32.0
+LARGE_PX: Final = 96.0 * 96.0
+#: Mask R-CNN R-50-FPN 1x (Detectron), box AR (100 detections, IoU .50:.95) on COCO val2017,
+#: small / medium / large: 32.3 / 54.8 / 64.8 (Detectron.pytorch BENCHMARK.md, Detectron row).
+MASK_RCNN_RECALL: Final = (0.323, 0.548, 0.648)
+#: An object less than this visible counts as occluded (recall times ``occluded_recall``).
+OCCLUDED_BELOW: Final = 0.5
+#: Classes a detector takes a class for: COCO's supercategories (the "Sim" errors of COCO's
+#: analyze(), after Hoiem et al. 2012). A class outside the vocabulary is dropped by the robot's
+#: vocabulary, so such a confusion is a miss (an Apple reported as an orange).
+SIMILAR: Final[Mapping[str, tuple[str, ...]]] = {
+    "Apple": ("Orange", "Tomato"),
+    "Bowl": ("Cup",),
+    "Cup": ("Bowl",),
+    "Laptop": ("Phone",),
+    "Phone": ("Laptop", "RemoteControl"),
+}
+PRESETS: Final = ("perfect", "realistic", "harsh")
+#: Options that override one parameter of a preset (``--recall-scale`` …), with their bounds.
+OVERRIDES: Final[Mapping[str, tuple[float, float]]] = {
+    "recall_scale": (0.0, 1.0),
+    "fp_per_image": (0.0, 20.0),
+    "confusion": (0.0, 1.0),
+    "occluded_recall": (0.0, 1.0),
+    "accept_posterior": (0.5, 1.0),
+}
+
+
+@dataclass(frozen=True, slots=True)
+class PerceptionModel:
+    """The detector's statistics; ``preset`` names where they came from."""
+
+    preset: str = "perfect"
+    recall_small: float = 1.0
+    recall_medium: float = 1.0
+    recall_large: float = 1.0
+    #: Multiplies every recall (``harsh``: 0.5).
+    recall_scale: float = 1.0
+    #: Recall factor of an object less than ``OCCLUDED_BELOW`` visible.
+    occluded_recall: float = 1.0
+    #: False positives of the vocabulary's movable classes per view (Poisson mean).
+    fp_per_image: float = 0.0
+    #: Probability that a reported object carries a similar class (:data:`SIMILAR`).
+    confusion: float = 0.0
+    #: The operating threshold: no score below it is reported.
+    threshold: float = 0.5
+    #: Beta shapes of a true / a false detection's score above the threshold.
+    tp_score: tuple[float, float] = (5.0, 2.0)
+    fp_score: tuple[float, float] = (2.0, 5.0)
+    #: Posterior P(real) at which the agent takes a sighting as confirmed.
+    accept_posterior: float = 0.99
+
+    def __post_init__(self) -> None:
+        if self.preset not in PRESETS:
+            raise ObjsearchError(
+                f"unknown perception preset {self.preset!r}; choose from {', '.join(PRESETS)}"
+            )
+        for name in (
+            "recall_small",
+            "recall_medium",
+            "recall_large",
+            "recall_scale",
+            "occluded_recall",
+            "confusion",
+        ):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise ObjsearchError(f"perception {name} must be in [0, 1], not {value}")
+        if self.fp_per_image < 0:
+            raise ObjsearchError(f"perception fp_per_image must be >= 0, not {self.fp_per_image}")
+        if not 0.0 <= self.threshold < 1.0 or not 0.5 <= self.accept_posterior <= 1.0:
+            raise ObjsearchError(
+                "perception threshold must be in [0, 1) and accept_posterior in [0.5, 1]"
+            )
+        if min(*self.tp_score, *self.fp_score) <= 0:
+            raise ObjsearchError("perception score shapes must be > 0")
+
+    @property
+    def perfect(self) -> bool:
+        """Every object in view reported with score 1, nothing false: the simulator of old."""
+        return (
+            min(self.recall_small, self.recall_medium, self.recall_large) == 1.0
+            and self.recall_scale == 1.0
+            and self.occluded_recall == 1.0
+            and self.fp_per_image == 0.0
+            and self.confusion == 0.0
+        )
+
+    # -- what the detector does ---------------------------------------------------------------
+
+    def recall(self, mask_px: float, visible: float = 1.0) -> float:
+        """P(an object in view showing ``mask_px`` pixels, ``visible`` of it, is reported)."""
+        if mask_px < SMALL_PX:
+            base = self.recall_small
+        elif mask_px < LARGE_PX:
+            base = self.recall_medium
+        else:
+            base = self.recall_large
+        occluded = self.occluded_recall if visible < OCCLUDED_BELOW else 1.0
+        return base * self.recall_scale * occluded
+
+    def miss(self, mask_px: float, visible: float = 1.0) -> float:
+        """P(not reported | present in view): what a look that saw nothing says."""
+        return 1.0 - self.recall(mask_px, visible)
+
+    # -- what a score says --------------------------------------------------------------------
+
+    def likelihood_ratio(self, score: float) -> float:
+        """p(score | true detection) / p(score | false one); infinite for a score of 1."""
+        u = (score - self.threshold) / (1.0 - self.threshold)
+        if u >= 1.0:
+            return math.inf
+        if u <= 0.0:
+            return 0.0
+        return math.exp(_log_beta_pdf(u, *self.tp_score) - _log_beta_pdf(u, *self.fp_score))
+
+    def posterior(self, odds: float) -> float:
+        """P(real) from the odds of real against false."""
+        return 1.0 if math.isinf(odds) else odds / (1.0 + odds)
+
+    def sure(self, score: float) -> bool:
+        """Whether one detection at ``score`` is a sighting by itself (even prior odds)."""
+        return self.perfect or self.posterior(self.likelihood_ratio(score)) >= self.accept_posterior
+
+    # -- the run spec -------------------------------------------------------------------------
+
+    def params(self) -> dict[str, Any]:
+        """As the run spec records it (``params.perception``)."""
+        doc = asdict(self)
+        doc["tp_score"] = list(self.tp_score)
+        doc["fp_score"] = list(self.fp_score)
+        return doc
+
+    @classmethod
+    def from_params(cls, doc: Mapping[str, Any] | None) -> PerceptionModel:
+        """The model a run spec's ``params.perception`` names (none: ``perfect``)."""
+        if doc is None:
+            return cls()
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(doc) - known)
+        if unknown:
+            raise ObjsearchError(f"unknown perception parameter(s) {', '.join(unknown)}")
+        values = dict(doc)
+        for pair in ("tp_score", "fp_score"):
+            if pair in values:
+                a, b = values[pair]
+                values[pair] = (float(a), float(b))
+        return cls(**values)
+
+
+def _log_beta_pdf(u: float, a: float, b: float) -> float:
+    return (
+        (a - 1.0) * math.log(u)
+        + (b - 1.0) * math.log1p(-u)
+        - (math.lgamma(a) + math.lgamma(b) - math.lgamma(a + b))
+    )
+
+
+def preset(name: str, **overrides: float) -> PerceptionModel:
+    """A preset, with some parameters overridden (:data:`OVERRIDES`).
+
+    ``realistic``: Mask R-CNN's COCO recall by size bin (:data:`MASK_RCNN_RECALL`), 0.1 false
+    positives of the vocabulary per view, 5 % confusions, occluded objects at half recall;
+    ``harsh``: half its recall and twice its false positives and confusions."""
+    if name not in PRESETS:
+        raise ObjsearchError(
+            f"unknown perception preset {name!r}; choose from {', '.join(PRESETS)}"
+        )
+    model = PerceptionModel()
+    if name != "perfect":
+        small, medium, large = MASK_RCNN_RECALL
+        model = PerceptionModel(
+            preset=name,
+            recall_small=small,
+            recall_medium=medium,
+            recall_large=large,
+            occluded_recall=0.5,
+            fp_per_image=0.1,
+            confusion=0.05,
+        )
+    if name == "harsh":
+        model = replace(model, recall_scale=0.5, fp_per_image=0.2, confusion=0.1)
+    for key, value in overrides.items():
+        if key not in OVERRIDES:
+            raise ObjsearchError(f"unknown perception parameter {key!r}")
+        low, high = OVERRIDES[key]
+        if not low <= value <= high:
+            raise ObjsearchError(f"perception {key} must be in [{low}, {high}], not {value}")
+    for key, value in overrides.items():
+        model = replace(model, **{key: float(value)})  # type: ignore[arg-type]
+    return model

@@ -1,0 +1,203 @@
+"""The simulated robot's detector: the search camera's perfect detections passed through a model of
+a real detector (:class:`~objsearch.agent.detector_model.PerceptionModel`): misses, false
+positives on surfaces, confusions between similar classes and scores.
+
+Each view draws from its own generator, seeded from the run's seed and the view's index in the
+run (never a global one), so a run replays exactly. docs/perception.md gives the numbers.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Collection, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from objsearch.agent.detector_model import SIMILAR, PerceptionModel
+from objsearch.agent.geometry import Pose
+from objsearch.agent.home import Home
+from objsearch.agent.world import Detection
+from objsearch.sim.perception import Camera
+
+if TYPE_CHECKING:
+    from objsearch.agent.strategies import RunSpec
+    from objsearch.sim.world import Placement
+
+#: Mask area of a false positive: log-uniform over this range (px), from just under the smallest
+#: class threshold (100 px) to the top of COCO's medium bin.
+FALSE_MASK_PX = (64.0, 96.0 * 96.0)
+#: Instance ids of false positives start with this (no placement has one).
+FALSE_PREFIX = "false:"
+#: The unoccluded camera: a detection's visible fraction is its mask over this one's box area.
+_UNOCCLUDED = Camera()
+
+
+class NoisyDetector:
+    """Turns one view's perfect detections into what the modelled detector reports."""
+
+    def __init__(self, model: PerceptionModel, seed: int, movable: Collection[str]) -> None:
+        self.model = model
+        self.seed = seed
+        self.movable = tuple(sorted(movable))
+        self.views = 0
+
+    def observe(
+        self,
+        home: Home,
+        room: str,
+        pose: Pose,
+        placed: Sequence[Placement],
+        seen: Sequence[Detection],
+    ) -> tuple[Detection, ...]:
+        """The detector's report of one view: ``seen`` are the camera's detections (every object
+        in view), ``placed`` the placements of the room (for visible fractions)."""
+        rng = np.random.default_rng([self.seed, self.views])
+        self.views += 1
+        model = self.model
+        boxes = {p.instance_id: p.box for p in placed}
+        out: list[Detection] = []
+        for det in seen:
+            box = boxes.get(det.instance_id)
+            full = _UNOCCLUDED.mask_area(pose, box) if box is not None else det.mask_area
+            visible = min(1.0, det.mask_area / full) if full > 0 else 1.0
+            # Every draw is made whatever the outcome, so one view's draws never depend on another.
+            detected, confused, pick, u = rng.random(4)
+            if detected >= model.recall(det.mask_area, visible):
+                continue
+            cls, real = det.object_class, True
+            similar = SIMILAR.get(cls, ())
+            if similar and confused < model.confusion:
+                cls, real = similar[int(pick * len(similar))], False
+                if cls not in self.movable:
+                    continue  # a class the robot's vocabulary drops: a miss
+            score = self._score(u, real)
+            out.append(
+                Detection(
+                    cls,
+                    det.instance_id,
+                    det.mask_area,
+                    det.position,
+                    score,
+                    self._distribution(cls, score),
+                )
+            )
+        out.extend(self._false_positives(rng, home, room, pose))
+        return tuple(out)
+
+    def _score(self, u: float, real: bool) -> float:
+        a, b = self.model.tp_score if real else self.model.fp_score
+        # The Beta quantile of u by bisection on its CDF (scipy is not a dependency).
+        q = _beta_quantile(u, a, b)
+        t = self.model.threshold
+        return round(t + (1.0 - t) * q, 4)
+
+    def _distribution(self, cls: str, score: float) -> tuple[tuple[str, float], ...]:
+        """The reported class at its score, the rest shared by its similar classes the
+        vocabulary knows (what a softmax over them leaves)."""
+        others = [c for c in SIMILAR.get(cls, ()) if c in self.movable]
+        rest = round((1.0 - score) / (len(others) + 1), 4)
+        return ((cls, score), *((c, rest) for c in others))
+
+    def _false_positives(
+        self, rng: np.random.Generator, home: Home, room: str, pose: Pose
+    ) -> list[Detection]:
+        n = int(rng.poisson(self.model.fp_per_image)) if self.model.fp_per_image > 0 else 0
+        if n == 0 or not self.movable:
+            return []
+        surfaces = [s for s in home.room(room).statics if _UNOCCLUDED.in_view(pose, s.box)]
+        out: list[Detection] = []
+        for k in range(n):
+            which, cls_pick, fx, fy, size, u = rng.random(6)
+            if not surfaces:
+                break
+            s = surfaces[int(which * len(surfaces))]
+            cls = self.movable[int(cls_pick * len(self.movable))]
+            (cx, cy, _), (sx, sy, _) = s.box.center, s.box.size
+            position = (cx + (fx - 0.5) * sx, cy + (fy - 0.5) * sy, s.box.top)
+            low, high = FALSE_MASK_PX
+            mask = math.exp(math.log(low) + size * (math.log(high) - math.log(low)))
+            score = self._score(u, False)
+            out.append(
+                Detection(
+                    cls,
+                    f"{FALSE_PREFIX}{self.views - 1}:{k}",
+                    round(mask, 2),
+                    position,
+                    score,
+                    self._distribution(cls, score),
+                )
+            )
+        return out
+
+
+def _beta_quantile(u: float, a: float, b: float) -> float:
+    """x with I_x(a, b) = u, by bisection on the regularized incomplete Beta (midpoint sums)."""
+    lo, hi = 0.0, 1.0
+    for _ in range(40):
+        mid = (lo + hi) / 2
+        if _beta_cdf(mid, a, b) < u:
+            lo = mid
+        else:
+            hi = mid
+    return (lo + hi) / 2
+
+
+def _beta_cdf(x: float, a: float, b: float) -> float:
+    if x <= 0.0:
+        return 0.0
+    if x >= 1.0:
+        return 1.0
+    # Continued fraction (Numerical Recipes' betacf), converging fast for the shapes used here.
+    ln_front = (
+        math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b) + a * math.log(x) + b * math.log1p(-x)
+    )
+    if x < (a + 1.0) / (a + b + 2.0):
+        return math.exp(ln_front) * _betacf(x, a, b) / a
+    return 1.0 - math.exp(ln_front) * _betacf(1.0 - x, b, a) / b
+
+
+def _betacf(x: float, a: float, b: float) -> float:
+    tiny = 1e-300
+    qab, qap, qam = a + b, a + 1.0, a - 1.0
+    c, d = 1.0, 1.0 - qab * x / qap
+    d = 1.0 / (d if abs(d) > tiny else tiny)
+    h = d
+    for m in range(1, 200):
+        m2 = 2 * m
+        aa = m * (b - m) * x / ((qam + m2) * (a + m2))
+        d = 1.0 + aa * d
+        d = 1.0 / (d if abs(d) > tiny else tiny)
+        c = 1.0 + aa / c
+        c = c if abs(c) > tiny else tiny
+        h *= d * c
+        aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2))
+        d = 1.0 + aa * d
+        d = 1.0 / (d if abs(d) > tiny else tiny)
+        c = 1.0 + aa / c
+        c = c if abs(c) > tiny else tiny
+        delta = d * c
+        h *= delta
+        if abs(delta - 1.0) < 1e-12:
+            break
+    return h
+
+
+def perception_model(spec: RunSpec) -> PerceptionModel:
+    """The perception model a run spec records (``params.perception``; none: perfect)."""
+    doc = spec.params.get("perception")
+    return PerceptionModel.from_params(doc if isinstance(doc, dict) else None)
+
+
+def with_perception(
+    spec: RunSpec, model: PerceptionModel | None = None, *, movable: Collection[str] = ()
+) -> tuple[RunSpec, NoisyDetector | None]:
+    """The spec with ``model`` recorded (``params.perception``; given none, the one it already
+    records), and the detector that samples it for the run, None for a perfect one. A perfect
+    model is not recorded, so a run without noise writes the log it always did."""
+    chosen = model if model is not None else perception_model(spec)
+    params = {k: v for k, v in spec.params.items() if k != "perception"}
+    if chosen.perfect:
+        return spec.with_changes(params=params), None
+    spec = spec.with_changes(params={**params, "perception": chosen.params()})
+    return spec, NoisyDetector(chosen, spec.seed, movable)

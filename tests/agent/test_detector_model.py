@@ -1,0 +1,57 @@
+"""The detector model the agent reasons with: presets, recall by size, what a score says."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from objsearch.agent.detector_model import (
+    LARGE_PX,
+    MASK_RCNN_RECALL,
+    SMALL_PX,
+    PerceptionModel,
+    preset,
+)
+from objsearch.agent.errors import ObjsearchError
+
+
+def test_perfect_sees_everything_and_is_sure_of_it() -> None:
+    model = preset("perfect")
+    assert model.perfect and model == PerceptionModel()
+    assert model.recall(10.0, visible=0.1) == 1.0
+    assert model.sure(0.51)
+
+
+def test_realistic_is_mask_rcnn_by_size_and_harsh_halves_it_with_twice_the_false() -> None:
+    realistic, harsh = preset("realistic"), preset("harsh")
+    small, medium, large = MASK_RCNN_RECALL
+    assert realistic.recall(SMALL_PX - 1) == small
+    assert realistic.recall(SMALL_PX) == medium
+    assert realistic.recall(LARGE_PX) == large
+    assert realistic.recall(LARGE_PX, visible=0.3) == pytest.approx(large * 0.5)
+    assert harsh.recall(LARGE_PX) == pytest.approx(large / 2)
+    assert harsh.fp_per_image == 2 * realistic.fp_per_image
+    assert not realistic.perfect and not harsh.perfect
+
+
+def test_a_score_is_evidence_by_its_likelihood_ratio() -> None:
+    model = preset("realistic")
+    # Beta(5, 2) over Beta(2, 5) is (u / (1 - u))³ above the threshold.
+    u = (0.8 - model.threshold) / (1 - model.threshold)
+    assert model.likelihood_ratio(0.8) == pytest.approx((u / (1 - u)) ** 3)
+    assert model.likelihood_ratio(1.0) == math.inf
+    assert model.likelihood_ratio(model.threshold) == 0.0
+    assert model.sure(0.97) and not model.sure(0.7)
+
+
+def test_the_run_spec_round_trips_and_bad_values_are_refused() -> None:
+    model = preset("harsh", fp_per_image=1.0)
+    assert PerceptionModel.from_params(model.params()) == model
+    assert PerceptionModel.from_params(None) == PerceptionModel()
+    with pytest.raises(ObjsearchError, match="unknown perception preset"):
+        preset("blurry")
+    with pytest.raises(ObjsearchError, match="recall_scale must be in"):
+        preset("realistic", recall_scale=1.5)
+    with pytest.raises(ObjsearchError, match="unknown perception parameter"):
+        PerceptionModel.from_params({"recall": 1.0})
