@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import os
+import stat
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -200,3 +202,67 @@ def write_new(path: Path, data: bytes) -> None:
     finally:
         os.close(fd)
     fsync_dir(path.parent)
+
+
+class NotARegularFileError(OSError):
+    """A path that :func:`read_regular` will not read: a link, a FIFO, a device, a folder, a
+    socket, or a file past the size bound."""
+
+
+def _kind_of(mode: int) -> str:
+    kinds = (
+        (stat.S_ISLNK, "a symbolic link"),
+        (stat.S_ISDIR, "a folder"),
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+    )
+    return next((name for test, name in kinds if test(mode)), "not a regular file")
+
+
+def read_regular(path: Path, max_bytes: int) -> bytes:
+    """The bytes of ``path`` if it is a regular file of at most ``max_bytes``, read without
+    following a link and without blocking on a FIFO (``O_NOFOLLOW | O_NONBLOCK``, then
+    ``fstat`` of what was opened).
+
+    Raises :class:`FileNotFoundError` if nothing is there, :class:`NotARegularFileError` naming
+    what is there instead (or the size) for anything else, and other :class:`OSError` as the
+    system reports them. A device or a FIFO is never opened (``lstat`` first), so neither its
+    side effects nor an endless read can happen; one swapped in after that is caught by the
+    ``fstat`` of the descriptor."""
+    st = os.lstat(path)
+    if not stat.S_ISREG(st.st_mode):
+        raise NotARegularFileError(
+            errno.EINVAL, f"{_kind_of(st.st_mode)}, not a regular file", str(path)
+        )
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:  # replaced by a link since the lstat
+            raise NotARegularFileError(
+                errno.ELOOP, "a symbolic link, not a regular file", str(path)
+            ) from None
+        raise
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise NotARegularFileError(
+                errno.EINVAL, f"{_kind_of(st.st_mode)}, not a regular file", str(path)
+            )
+        if st.st_size > max_bytes:
+            raise NotARegularFileError(
+                errno.EFBIG, f"{st.st_size:,} bytes, past the bound of {max_bytes:,}", str(path)
+            )
+        chunks: list[bytes] = []
+        held = 0
+        while chunk := os.read(fd, min(1 << 20, max_bytes + 1 - held)):
+            chunks.append(chunk)
+            held += len(chunk)
+            if held > max_bytes:  # grew since the fstat
+                raise NotARegularFileError(
+                    errno.EFBIG, f"more than the bound of {max_bytes:,} bytes", str(path)
+                )
+        return b"".join(chunks)
+    finally:
+        os.close(fd)
