@@ -10,6 +10,7 @@ import decimal
 import json
 import math
 import os
+import re
 import sys
 import uuid
 from collections.abc import Iterable, Sequence
@@ -73,7 +74,7 @@ def cmd_query(args: argparse.Namespace) -> int:
     except QueryLimitError as exc:
         return _fail(str(exc))
     except duckdb.Error as exc:
-        return _fail(f"query failed: {exc}")
+        return _fail(f"query failed: {lake_names_hint(str(exc))}")
     except ResultTooLargeError as exc:
         return _fail(str(exc))
     except OSError as exc:
@@ -167,13 +168,54 @@ def write_rows(names: Sequence[str], rows: Sequence[Sequence[Any]], fmt: str, ou
     if fmt in ("json", "csv"):
         write_batches(names, [rows], fmt, out)
         return
-    cells = [[_cell(v) for v in row] for row in rows]
+    cells = [[_cell(_rounded(v)) for v in row] for row in rows]
     widths = [max([len(n), *(len(r[i]) for r in cells)]) for i, n in enumerate(names)]
     out.write("  ".join(n.ljust(w) for n, w in zip(names, widths, strict=True)).rstrip() + "\n")
     out.write("  ".join("-" * w for w in widths) + "\n")
     for r in cells:
         out.write("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() + "\n")
     out.write(f"({len(rows)} row{'s' if len(rows) != 1 else ''})\n")
+
+
+#: Significant digits of a float in a table (csv and json keep every digit).
+TABLE_DIGITS = 6
+
+
+def _rounded(value: Any) -> Any:
+    """A float for a person to read: ``TABLE_DIGITS`` significant digits, but every digit of its
+    whole part (17.909299999999998 → 17.9093, 1234567.891 → 1234568.0, 1.23456789e-07 stays
+    small: 1.23457e-07)."""
+    if not isinstance(value, float) or not math.isfinite(value) or value == 0:
+        return value
+    whole = math.floor(math.log10(abs(value))) + 1
+    if whole > 0:
+        return round(value, max(0, TABLE_DIGITS - whole))
+    return float(f"{value:.{TABLE_DIGITS}g}")
+
+
+_NO_SUCH_TABLE = re.compile(
+    r'Table with name (?P<name>[^\s!]+) does not exist!(?P<guess>\nDid you mean "[^"\n]*"\?)?'
+)
+
+
+def lake_names_hint(message: str) -> str:
+    """DuckDB's error, its guess at a misspelt table taken from the lake's views: a query's
+    connection holds only the views the query names, so DuckDB guessed from its own catalogue
+    (``serches``: "Did you mean "sqlite_schema"?")."""
+    found = _NO_SUCH_TABLE.search(message)
+    if found is None:
+        return message
+    import difflib
+
+    from objsearch.replay.analytics import queryable_names
+
+    names = queryable_names()
+    close = difflib.get_close_matches(found["name"].lower(), names, n=3, cutoff=0.6)
+    guess = "Did you mean " + " or ".join(f'"{n}"' for n in close) + "? " if close else ""
+    return (
+        f"{message[: found.start()]}Table with name {found['name']} does not exist!\n{guess}"
+        f"The lake's views and table macros: {', '.join(names)}{message[found.end() :]}"
+    )
 
 
 def _plain(value: Any) -> Any:

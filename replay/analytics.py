@@ -149,6 +149,13 @@ def views_for(sql: str, definitions: Mapping[str, str]) -> set[str] | None:
     return needed
 
 
+def queryable_names() -> list[str]:
+    """What a query over a lake reads by name, sorted: a view per event type, ``events``, the
+    derived tables, ``plans`` and ``detections``, and the scene-graph table macros."""
+    derived = [spec.name for spec in derived_tables(STORE)]
+    return sorted({*STORE.registry.types, "events", *derived, *_common_ddl()})
+
+
 def open_analytics(
     lake_dir: Path | str,
     *,

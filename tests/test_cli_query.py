@@ -172,6 +172,32 @@ def test_every_result_type_prints_in_every_format(
     assert "2026-12-01" in table and '"2026-12-01"' not in table and "(1 row)" in table
 
 
+def test_a_table_rounds_its_floats_and_csv_and_json_keep_every_digit(
+    lake: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    sql = "SELECT 53.7279::DOUBLE / 3 AS third, 1234567.891::DOUBLE AS big, 1.23456789e-7 AS tiny"
+    assert main(_query(lake, sql)) == 0
+    row = capsys.readouterr().out.splitlines()[2].split()
+    assert row == ["17.9093", "1234568.0", "1.23457e-07"]  # not 17.909299999999998
+    assert main(_query(lake, sql, "--format", "csv")) == 0
+    assert capsys.readouterr().out.splitlines()[1].split(",")[0] == repr(53.7279 / 3)
+    assert main(_query(lake, sql, "--format", "json")) == 0
+    assert json.loads(capsys.readouterr().out)[0]["third"] == 53.7279 / 3
+
+
+def test_a_misspelt_view_is_guessed_from_the_lakes_views(
+    lake: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The connection holds only the views a query names: DuckDB guessed "sqlite_schema".
+    assert main(_query(lake, "SELECT * FROM serches")) == 2
+    err = capsys.readouterr().err
+    assert 'Table with name serches does not exist!\nDid you mean "searches"' in err
+    assert "sqlite_schema" not in err and "The lake's views and table macros: " in err
+    assert main(_query(lake, "SELECT * FROM zzzz")) == 2
+    err = capsys.readouterr().err
+    assert "Did you mean" not in err and "plans, pose_observed" in err
+
+
 def test_csv_dates_are_not_quoted_twice(lake: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(_query(lake, "SELECT date FROM searches LIMIT 1", "--format", "csv")) == 0
     assert capsys.readouterr().out.splitlines()[1] == str(
