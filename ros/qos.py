@@ -63,6 +63,11 @@ DEFAULT = QoS()
 SENSOR_DATA = QoS(Reliability.BEST_EFFORT, Durability.VOLATILE, 5)
 LATCHED = QoS(Reliability.RELIABLE, Durability.TRANSIENT_LOCAL, 1)
 EVENTS = QoS(Reliability.RELIABLE, Durability.VOLATILE, 1000)
+#: The agent's request and result topics (find, where, open, reset): a reader must hold a burst
+#: until it is taken, and rclpy's executor takes one message per callback, much slower than a
+#: burst arrives, so ROS 2's default depth of 10 dropped requests (issue 43). The depth is
+#: offered and requested alike and is not matched between peers, so any client still meets it.
+REQUESTS = QoS(Reliability.RELIABLE, Durability.VOLATILE, 1000)
 #: rmw_qos_profile_services_default.
 SERVICES = QoS(Reliability.RELIABLE, Durability.VOLATILE, 10)
 #: rcl_action's status topic (rcl_action_qos_profile_status_default): latched.

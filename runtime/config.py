@@ -45,7 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.ros.errors import QosError
-from objsearch.ros.qos import DEFAULT, EVENTS, TF, TF_STATIC, QoS
+from objsearch.ros.qos import DEFAULT, EVENTS, REQUESTS, TF, TF_STATIC, QoS
 from objsearch.runtime.errors import RuntimeConfigError
 from objsearch.runtime.transport import Backend, TransportConfig
 
@@ -74,7 +74,7 @@ class QosSettings:
     detections: QoS = DEFAULT
     goal: QoS = DEFAULT
     events: QoS = EVENTS
-    requests: QoS = DEFAULT
+    requests: QoS = REQUESTS  # find, where, open, reset and their results
     tf: QoS = TF
     tf_static: QoS = TF_STATIC
 
