@@ -315,10 +315,44 @@ def per_strategy(summary: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def figures(summary: dict[str, Any]) -> dict[str, Any]:
+    """``bench paper --format json``: the figures :func:`render` prints, rounded as it rounds
+    them (metres to 2 decimals, changes to 2), beside the paper's: Table I's path to discovery
+    per strategy and target, and the long-term experiment's per scene."""
+
+    def m(v: float | None) -> float | None:
+        return None if v is None or math.isnan(v) else round(v, 2)
+
+    table1 = {
+        name: {
+            "path_to_discovery_m": m(s["mean_path_to_discovery"]),
+            "std_over_seeds_m": m(s["avg_std_over_seeds"]) if len(s["seeds"]) > 1 else None,
+            "full_path_m": m(s["mean_path_length"]),
+            "per_target_m": {t: m(v["mean"]) for t, v in s["per_target"].items()},
+            "paper_m": s["paper"],
+        }
+        for name, s in summary["table1"].items()
+    }
+    longterm = {
+        key: {
+            "path_to_discovery_m": m(s["mean_path_to_discovery"]),
+            "full_path_m": m(s["mean_path_length"]),
+            "per_scene_m": {sc: m(v) for sc, v in s["per_scene"].items()},
+            "change_vs_wpl_none_pct": m(s["change_vs_wpl_none_pct"]),
+        }
+        for key, s in summary["longterm"].items()
+    }
+    return {
+        "table1": table1,
+        "longterm": longterm,
+        "paper_longterm_reduction_pct": PAPER_REDUCTION_PCT,
+    }
+
+
 def _json_default(o: object) -> object:
     if isinstance(o, float) and math.isnan(o):
         return None
     raise TypeError(type(o))
 
 
-__all__ = ["PAPER_STRATEGIES", "run_paper"]
+__all__ = ["PAPER_STRATEGIES", "figures", "run_paper"]

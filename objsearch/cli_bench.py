@@ -55,7 +55,7 @@ def _targets(args: argparse.Namespace) -> list[str]:
 
 
 def cmd_bench_paper(args: argparse.Namespace) -> int:
-    from objsearch.experiments.paper import render, run_paper
+    from objsearch.experiments.paper import figures, render, run_paper
 
     targets = _targets(args)
     out = Path(args.out)
@@ -73,7 +73,8 @@ def cmd_bench_paper(args: argparse.Namespace) -> int:
             camera=args.camera,
         )
     if args.format == "json":
-        print(json.dumps(_headline(summary), indent=2))
+        # The figures the text prints, not only the headline metrics (summary.json: everything).
+        print(json.dumps({**_headline(summary), **figures(summary)}, indent=2))
     else:
         print(render(summary))
         print(
@@ -255,7 +256,22 @@ def _unseeable(summary: dict[str, Any]) -> str:
 
 def _headline(summary: dict[str, Any]) -> dict[str, Any]:
     keys = ("command", "camera", "elapsed_s", "searches", "unseeable", "strategies", "files")
-    return {k: summary[k] for k in keys if k in summary}
+    return {k: _rounded(summary[k]) for k in keys if k in summary}
+
+
+#: Decimals of a metric in a printed summary (summary.json keeps every digit).
+SUMMARY_DECIMALS = 4
+
+
+def _rounded(value: Any) -> Any:
+    """``value`` with every float in it rounded to :data:`SUMMARY_DECIMALS`."""
+    if isinstance(value, float):
+        return round(value, SUMMARY_DECIMALS)
+    if isinstance(value, dict):
+        return {k: _rounded(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_rounded(v) for v in value]
+    return value
 
 
 def _prior_option(p: argparse.ArgumentParser) -> None:

@@ -50,6 +50,26 @@ def test_tiny_bench_paper_writes_outputs_and_json(
     assert summary["table1"]["sdp"]["seeds"] == [0, 1]
     assert summary["table1"]["wpl"]["paper"]["avg"] == 10.04
     assert "Table I" in (out / "tables.txt").read_text()
+    # --format json prints the figures the text prints (the paper's metric, per target and per
+    # scene), rounded as there; the headline metrics to 4 decimals.
+    wpl = headline["table1"]["wpl"]
+    assert set(wpl["per_target_m"]) == {"Apple", "Vase"} and wpl["paper_m"]["avg"] == 10.04
+    assert wpl["path_to_discovery_m"] == round(
+        summary["table1"]["wpl"]["mean_path_to_discovery"], 2
+    )
+    updates = headline["longterm"]["wpl/all"]
+    assert set(updates["per_scene_m"]) == {"1"} and updates["change_vs_wpl_none_pct"] is not None
+    assert headline["longterm"]["wpl/none"]["change_vs_wpl_none_pct"] == 0.0
+
+    def floats(value: object) -> list[float]:
+        if isinstance(value, float):
+            return [value]
+        if isinstance(value, dict):
+            return [f for v in value.values() for f in floats(v)]
+        return [f for v in value for f in floats(v)] if isinstance(value, list) else []
+
+    assert all(f == round(f, 4) for f in floats(headline))
+    assert any(f != round(f, 4) for f in floats(summary["strategies"]))  # summary.json: all
 
 
 def test_same_seed_same_results(tmp_path: Path) -> None:

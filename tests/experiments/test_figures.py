@@ -67,6 +67,24 @@ def test_demo_headline_is_path_to_discovery_against_the_papers_figure() -> None:
     assert f"{change}%" in wpl_all.replace(" ", "")
 
 
+def test_the_bench_paper_block_is_what_its_command_prints() -> None:
+    """The README's bench paper command runs the strategies its block shows, no more (without
+    --strategies it ran all 17, about an hour, and the block kept three of them), and the block
+    keeps every line the command prints but its timing (too slow a run for the suite: ``make
+    check-figures`` compares the numbers)."""
+    from objsearch.cli import build_parser
+    from objsearch.cli_bench import _strategies
+
+    path, body = _doc_blocks()["bench-paper"]
+    command = body.split("`")[1]
+    args = build_parser().parse_args(command.split()[1:])
+    table1 = body.split("\nstrategy ", 1)[1].split("\n\n", 1)[0].splitlines()[1:]
+    shown = [line.split()[0] for line in table1]
+    assert _strategies(args.strategies, "all") == shown, path
+    assert FIGURES["bench-paper"].keep == (r"^",)
+    assert re.search(r"^\d+ searches; results in out/bench-paper$", body, re.MULTILINE)
+
+
 def test_a_stale_block_is_named_and_a_rewrite_fixes_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
