@@ -185,6 +185,8 @@ def cmd_search(args: argparse.Namespace) -> int:
     finally:
         if tmp:
             shutil.rmtree(tmp, ignore_errors=True)
+    found = result.found_instance if result.success and real else None
+    placed = placements.get(found) if found is not None else None
     summary = {
         "target": target,
         "start": args.start,
@@ -194,6 +196,14 @@ def cmd_search(args: argparse.Namespace) -> int:
         "success": result.success and real,
         "false_found": result.success and not real,
         "found": result.found_instance,
+        # Where the simulator had placed what was found: its static (inside it, for a closed
+        # container) and room; null when nothing of the target's was found.
+        "found_at": None
+        if placed is None
+        else {"static_id": placed.support, "inside": placed.inside, "room": placed.room},
+        "path_to_discovery_m": None
+        if result.path_to_discovery is None
+        else round(result.path_to_discovery, 3),
         "path_length_m": round(result.path_length, 3),
         "oracle_length_m": round(oracle, 3),
         "rooms": [room for room, _ in result.plans],
@@ -208,6 +218,8 @@ def cmd_search(args: argparse.Namespace) -> int:
     if result.success and not real:
         verdict += f" (the agent took {result.found_instance} for it: a false sighting)"
     print(f"{verdict}: {target} from {args.start} ({args.strategy})")
+    if placed is not None:
+        print(f"  {_found_at(placed, found or '', result.path_to_discovery)}")
     for room, order in result.plans:
         print(
             f"  {room}: plan "
@@ -222,6 +234,17 @@ def cmd_search(args: argparse.Namespace) -> int:
     if args.log:
         print(f"  events appended to {args.log} ({result.task_id})")
     return 0 if result.success and real else 1
+
+
+def _found_at(placed: Placement, instance: str, seen_after: float | None) -> str:
+    """Where the search found the target: ``found Apple|… inside Fridge|… in kitchen, seen after
+    2.50 m``."""
+    if placed.support is None:
+        where = "away from the furniture"
+    else:
+        where = ("inside " if placed.inside else "on ") + placed.support.split("/", 1)[-1]
+    seen = "" if seen_after is None else f", seen after {seen_after:.2f} m"
+    return f"found {instance} {where} in {placed.room}{seen}"
 
 
 # -- demo -------------------------------------------------------------------------------------

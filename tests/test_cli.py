@@ -55,6 +55,19 @@ def test_search_prints_the_route_and_writes_the_log(
     assert events[-1].payload["path_length"] == pytest.approx(out["path_length_m"], abs=1e-3)
 
 
+def test_search_says_where_it_found_the_target(capsys: pytest.CaptureFixture[str]) -> None:
+    # The README's first example: the paper home's Apple is in the kitchen's fridge.
+    assert main(["search", "Apple", "--start", "kitchen-1", "--format", "json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["found_at"]["room"] == "kitchen" and out["found_at"]["inside"] is True
+    assert out["found_at"]["static_id"].startswith("kitchen/Fridge|")
+    assert 0 < out["path_to_discovery_m"] <= out["path_length_m"]
+    assert main(["search", "Apple", "--start", "kitchen-1"]) == 0
+    text = capsys.readouterr().out.splitlines()
+    where = f"  found {out['found']} inside {out['found_at']['static_id'].split('/', 1)[1]}"
+    assert text[1] == f"{where} in kitchen, seen after {out['path_to_discovery_m']:.2f} m"
+
+
 @pytest.mark.parametrize("camera", ["occluding", "geometric"])
 def test_search_records_its_camera_and_the_camera_tilt(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], camera: str
