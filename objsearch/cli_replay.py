@@ -151,14 +151,30 @@ def _short(order: tuple[str, ...]) -> str:
     return "[" + ", ".join(names) + "]"
 
 
+#: Events that end a task: what ``audit`` counts for its lines in a pipe.
+TASK_END_EVENTS = frozenset({"task_ended", "task_aborted"})
+#: Tasks between two of ``audit``'s lines in a pipe (a demo log holds 1,280).
+AUDIT_LINE_EVERY = 100
+
+
 def cmd_audit(args: argparse.Namespace) -> int:
     from objsearch.product import relation_models
     from objsearch.replay.audit import anomaly_counts, audit, write_report
     from objsearch.replay.source import open_events
 
     events, name = open_events(args.log, run=args.run, robot=args.robot)
+    shown = not args.no_progress
+    # A terminal gets the bar; a pipe or a log a line per AUDIT_LINE_EVERY tasks read.
+    tasks = t.log_lines(
+        t.progress(events, "audit", " events", enabled=shown),
+        "audit",
+        "tasks",
+        counts=lambda event: event.type in TASK_END_EVENTS,
+        every=AUDIT_LINE_EVERY,
+        enabled=shown,
+    )
     auditor = audit(
-        t.progress(events, "audit", " events", enabled=not args.no_progress),
+        tasks,
         oracle_ratio=args.oracle_ratio,
         oracle_excess_m=args.oracle_excess,
         models=relation_models(simulator=True),
@@ -171,6 +187,7 @@ def cmd_audit(args: argparse.Namespace) -> int:
 
         html = partial(write_audit_html, plots=args.plots, max_plots=args.max_plots, title=title)
 
+    t.log_line(f"audit: writing the report of {len(auditor.tasks)} tasks to {out}", enabled=shown)
     write_report(auditor, out, plots=args.plots, max_plots=args.max_plots, title=title, html=html)
     counts = anomaly_counts(auditor.tasks)
     if args.format == "json":

@@ -333,6 +333,40 @@ def test_long_commands_draw_progress_on_a_terminal_only(
     assert "\r" not in err.getvalue() or stderr == "terminal"
 
 
+@pytest.mark.parametrize("stderr", ["pipe", "pipe --no-progress", "terminal"])
+def test_audit_prints_lines_in_a_pipe_and_a_bar_on_a_terminal(
+    stderr: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # audit of a long log ran 4¾ minutes saying nothing into a pipe (DEVELOPERS.md: a long
+    # command prints a line per unit of work there, as data build and bench dhs do).
+    err = _Terminal() if stderr == "terminal" else io.StringIO()
+    monkeypatch.setenv("COLUMNS", "100")
+    monkeypatch.setattr(sys, "stderr", err)
+    monkeypatch.setattr(sys, "stdout", io.StringIO())
+    argv = ["audit", str(GOLDEN), "--out", str(tmp_path / "audit")]
+    assert main([*argv, *(["--no-progress"] if stderr.endswith("--no-progress") else [])]) == 0
+    lines = err.getvalue().splitlines()
+    if stderr == "pipe":
+        assert re.fullmatch(r"audit: 8 tasks read \(\d+ s\)", lines[0])
+        assert lines[1] == f"audit: writing the report of 8 tasks to {tmp_path / 'audit'}"
+        assert "\r" not in err.getvalue()
+    elif stderr == "terminal":
+        assert "audit: " in err.getvalue() and "tasks read" not in err.getvalue()
+    else:
+        assert err.getvalue() == ""
+
+
+def test_log_lines_come_every_so_many_and_at_the_end(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    err = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", err)
+    items = list(t.log_lines(range(25), "count", "evens", counts=lambda n: n % 2 == 0, every=5))
+    assert items == list(range(25))
+    counted = [line.split(" (")[0] for line in err.getvalue().splitlines()]
+    assert counted == ["count: 5 evens read", "count: 10 evens read", "count: 13 evens read"]
+
+
 def test_progress_stays_out_of_a_pipe(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     # record and ingest drew their bars into pipes and logs once (a redraw every few seconds).
     piped = io.StringIO()
