@@ -68,6 +68,21 @@ def test_search_says_where_it_found_the_target(capsys: pytest.CaptureFixture[str
     assert text[1] == f"{where} in kitchen, seen after {out['path_to_discovery_m']:.2f} m"
 
 
+def test_the_readme_explains_its_first_example_with_what_it_prints(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    why = readme.split("**Why `objsearch search Apple --start kitchen-1` walks ", 1)[1]
+    why = why.split("\n\n", 1)[0]
+    lengths = {}
+    for strategy in ("global-belief+cover", "wpl"):
+        argv = ["search", "Apple", "--start", "kitchen-1", "--strategy", strategy]
+        assert main([*argv, "--format", "json"]) == 0
+        lengths[strategy] = json.loads(capsys.readouterr().out)["path_to_discovery_m"]
+    assert why.startswith(f"{lengths['global-belief+cover']:.2f} m")
+    assert f"opens the fridge third: {lengths['wpl']:.2f} m" in why
+
+
 @pytest.mark.parametrize("camera", ["occluding", "geometric"])
 def test_search_records_its_camera_and_the_camera_tilt(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], camera: str
