@@ -66,6 +66,7 @@ import shutil
 import tempfile
 import time
 import uuid
+from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import suppress
 from dataclasses import dataclass
@@ -163,10 +164,19 @@ class TableRun:
     source: str
     identity: Mapping[str, str] = dataclasses.field(default_factory=dict)
     attachments: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    #: Rows of each derived table's partition (``derived.<name>.v<N>`` → rows) the commit
+    #: wrote, as its ``_run`` row records them beside ``rows`` (empty: a run committed before
+    #: they were recorded; its derived rows cannot be counted against the table).
+    #: Not compared: they follow from the events (a run as committed equals the run read back).
+    derived_rows: Mapping[str, int] = dataclasses.field(default_factory=dict, compare=False)
 
     @property
     def events(self) -> int:
         return sum(self.rows.values())
+
+    @property
+    def label(self) -> str:
+        return f"{self.robot}/{self.run}"
 
 
 @dataclass(frozen=True, slots=True)
@@ -185,6 +195,8 @@ class TableCheck:
     bytes: int
     runs: int
     damaged: list[tuple[str, str]]  # (file, why)
+    #: What does not agree with the runs' records: (a run ``robot/run``, or ``_delta_log``; why)
+    runs_damaged: list[tuple[str, str]] = dataclasses.field(default_factory=list)
 
 
 def _nullable(kind: pa.DataType) -> pa.DataType:
@@ -364,14 +376,19 @@ class TableLake:
             )
         ]
 
-    def files_dataset(self, files: Sequence[DataFile]) -> pds.Dataset:
+    def files_dataset(self, files: Sequence[DataFile], *, checksums: bool = False) -> pds.Dataset:
         """An Arrow dataset of some of the table's data files, typed as the table, read through
         Arrow's own S3 client with the sizes the table's log records (no request a file before
         the read). Not ``to_pyarrow_dataset``: delta-rs's Python file-system handler can abort
         the interpreter at exit ("terminate called without an active exception": a writer of
-        the S3 writers' test died so, once it had read a run's ``_run`` row)."""
+        the S3 writers' test died so, once it had read a run's ``_run`` row). ``checksums``:
+        check each page's CRC as it is read."""
         fs, base = _filesystem(self.uri) if self.remote else (pafs.LocalFileSystem(), self.uri)
-        parquet = pds.ParquetFileFormat()
+        parquet = pds.ParquetFileFormat(
+            default_fragment_scan_options=pds.ParquetFragmentScanOptions(
+                page_checksum_verification=checksums
+            )
+        )
         fragments = [
             parquet.make_fragment(
                 f"{base}/{f.path}",
@@ -398,22 +415,97 @@ class TableLake:
         )
 
     def runs(self, table: Any | None = None) -> list[TableRun]:
-        """Every committed run, sorted by (robot, date, run)."""
+        """Every committed run, sorted by (robot, date, run); a ``_run`` file that cannot be
+        read raises :class:`TableLakeError` naming it (:meth:`read_runs` reads past it)."""
         return self._runs(self.table() if table is None else table, None)
 
     def _runs(self, table: Any, where: pc.Expression | None) -> list[TableRun]:
-        dataset = self._dataset(table, [RUN_TYPE])
-        rows = dataset.to_table(
-            columns=["robot", "date", "run", "commit", RUN_COLUMN], filter=where
-        ).to_pylist()
-        found = [_run_of(r) for r in rows]
-        return sorted(found, key=lambda r: (r.robot, r.date, r.run))
+        """The runs ``where`` picks; a ``_run`` file that cannot be read raises, unless the
+        log's statistics show it holds one run's record only and ``where`` does not pick
+        that run (a damaged record of another run costs this question nothing)."""
+        found, unreadable = self.read_runs(table, where)
+        unreadable = self._may_match(table, unreadable, where)
+        if unreadable:
+            raise _unreadable_records(self.root, unreadable)
+        return found
+
+    def _may_match(
+        self, table: Any, unreadable: list[tuple[DataFile, str]], where: pc.Expression | None
+    ) -> list[tuple[DataFile, str]]:
+        """Those of ``unreadable`` that may hold a row ``where`` picks: each, unless the log
+        records one robot and one run for it (min = max) and a row of them fails ``where``
+        (a ``where`` on other columns: each)."""
+        if not unreadable or where is None:
+            return unreadable
+        actions = pa.table(table.get_add_actions(flatten=True)).to_pylist()
+        one: dict[str, tuple[str, str]] = {}
+        for a in actions:
+            robot, run = a.get("min.robot"), a.get("min.run")
+            if None not in (robot, run) and (robot, run) == (a.get("max.robot"), a.get("max.run")):
+                one[str(a["path"])] = (robot, run)
+        kept = []
+        for f, why in unreadable:
+            if f.path in one:
+                robot, run = one[f.path]
+                try:
+                    probe = pa.table({"robot": [robot], "run": [run]})
+                    if not probe.filter(where).num_rows:
+                        continue
+                except (pa.ArrowException, TypeError, ValueError):
+                    pass  # ``where`` reads other columns: it may pick the file's row
+            kept.append((f, why))
+        return kept
+
+    def read_runs(
+        self,
+        table: Any | None = None,
+        where: pc.Expression | None = None,
+        *,
+        files: Sequence[DataFile] | None = None,
+        checked: bool = False,
+    ) -> tuple[list[TableRun], list[tuple[DataFile, str]]]:
+        """The ``_run`` rows (sorted by robot, date, run) of every ``_run`` file that reads, and
+        each one that does not, with why: missing, of another size than the log records, not
+        the bytes its name's SHA-256 records (locally: :meth:`scan`'s checks), not decoding
+        (page checksums on), or holding a row that is no run's record. One damaged file costs
+        the runs it records, not the lake's. ``files``: those ``_run`` files only (default:
+        all of ``table``'s); ``checked``: they passed :meth:`scan`'s checks already."""
+        table = self.table() if table is None else table
+        if files is None:
+            files = [f for f in self.data_files(table) if f.kind == RUN_TYPE]
+        good, bad = (list(files), []) if checked else self._check_files(files, hashes=True)
+        columns = ["robot", "date", "run", "commit", RUN_COLUMN]
+
+        def read(some: list[DataFile]) -> list[TableRun]:
+            if not some:
+                return []
+            dataset = self.files_dataset(some, checksums=True)
+            return [_run_of(r) for r in dataset.to_table(columns=columns, filter=where).to_pylist()]
+
+        try:
+            found = read(good)
+        except (OSError, pa.ArrowException, *_RECORD_ERRORS):
+            found = []  # one at a time, to name the file that does not read
+            for f in good:
+                try:
+                    found += read([f])
+                except (OSError, pa.ArrowException) as exc:
+                    bad.append((f, f"{f.path} does not decode: {str(exc)[:300]}"))
+                except _RECORD_ERRORS as exc:
+                    bad.append((f, f"{f.path} holds a row that is no run's record ({exc!r})"))
+        return sorted(found, key=lambda r: (r.robot, r.date, r.run)), bad
 
     def find(self, robot: str, run: str, table: Any | None = None) -> TableRun | None:
         table = self.table() if table is None else table
         if table.transaction_version(_app_id(robot, run)) is None:
             return None  # never committed (every commit of a run sets it): no row to read
-        found = self._runs(table, (pc.field("robot") == robot) & (pc.field("run") == run))
+        where = (pc.field("robot") == robot) & (pc.field("run") == run)
+        found, unreadable = self.read_runs(table, where)
+        unreadable = self._may_match(table, unreadable, where)
+        if unreadable:
+            raise _unreadable_records(
+                self.root, unreadable, f"the record of run {robot}/{run} cannot be read"
+            )
         if len(found) > 1:  # cannot happen through this class: its commits conflict
             raise TableLakeError(f"{self.root}: run {run!r} of robot {robot!r} is there twice")
         return found[0] if found else None
@@ -434,7 +526,14 @@ class TableLake:
         for _, value in wanted:
             hit = pc.match_substring(text, json.dumps(value))
             where = hit if where is None else where | hit
-        found = self._runs(table, where)
+        found, unreadable = self.read_runs(table, where)
+        if unreadable:
+            raise _unreadable_records(
+                self.root,
+                unreadable,
+                "whether a run of the lake holds this recording cannot be told, a record of "
+                "its runs cannot be read",
+            )
         return [r for r in found if wanted & set(r.identity.items())]
 
     def read_tables(self, run: TableRun, table: Any | None = None) -> dict[str, pa.Table]:
@@ -492,8 +591,27 @@ class TableLake:
         ``hashes=False``: no hashing (:meth:`verify` hashes every file itself). On S3 nothing
         is checked here (the object store checks what it serves; ``lake verify`` hashes)."""
         files = self.data_files(table)
+        good, bad = self._check_files(files, hashes=hashes, forget_others=True)
+        if hashes and not self.remote:
+            unhashed = sum(1 for f in good if file_sha256(f.path) is None)
+            if unhashed:
+                _log.warning(
+                    "%s: %d data file(s) have no hash in their name (written before data files "
+                    "were content-addressed): checked for size and PAR1 ends only; `objsearch "
+                    "lake compact --lake %s` rewrites them content-addressed",
+                    self.root,
+                    unhashed,
+                    self.root,
+                )
+        return good, bad
+
+    def _check_files(
+        self, files: Sequence[DataFile], *, hashes: bool, forget_others: bool = False
+    ) -> tuple[list[DataFile], list[tuple[DataFile, str]]]:
+        """:meth:`scan`'s checks of ``files``: those that pass, and the others with why.
+        ``forget_others``: ``files`` are all the table's (the cache forgets any other)."""
         if self.remote:
-            return files, []
+            return list(files), []
         good, bad = [], []
         base = Path(self.uri)
         cache = VerifiedFiles(self.uri) if hashes else None
@@ -527,18 +645,9 @@ class TableLake:
                 cache.remember(f.path, identity, expected, hashed_at)
             good.append(f)
         if cache is not None:
-            cache.keep_only(f.path for f in files)
+            if forget_others:
+                cache.keep_only(f.path for f in files)
             cache.save()
-            unhashed = sum(1 for f in good if file_sha256(f.path) is None)
-            if unhashed:
-                _log.warning(
-                    "%s: %d data file(s) have no hash in their name (written before data files "
-                    "were content-addressed): checked for size and PAR1 ends only; `objsearch "
-                    "lake compact --lake %s` rewrites them content-addressed",
-                    self.root,
-                    unhashed,
-                    self.root,
-                )
         return good, bad
 
     def _hash_problem(self, f: DataFile, path: Path) -> str | None:
@@ -556,13 +665,21 @@ class TableLake:
         """Read every byte: hash each content-addressed data file in full (whatever the
         verification cache says) and compare with the hash its name records, decode each
         data file in full (page checksums on) and compare its rows with the log's statistics
-        (plus the checks of :meth:`scan`). Changes nothing. ``progress`` wraps the files as
-        they are decoded (the CLI's progress line)."""
+        (plus the checks of :meth:`scan`); then count each run's rows of each type in the
+        decoded files against what its ``_run`` row records (``runs_damaged``: a run short of
+        rows — a commit file's ``add`` removed — or rows no run records), and check the log
+        (:meth:`_log_problems`) and each run's application transactions. A ``_run`` file that
+        does not read is a damaged file like any other; the check goes on without its runs.
+        Changes nothing. ``progress`` wraps the files as they are decoded (the CLI's progress
+        line)."""
 
         table = self.table()
         good, bad = self.scan(table, hashes=False)
         size = 0
         checked = 0
+        verified: list[DataFile] = []
+        #: rows of each (robot, run, commit, type) the decoded files hold
+        held: dict[tuple[str, str, str, str], int] = {}
         for f in progress(good) if progress else good:
             try:
                 if self.remote:
@@ -592,12 +709,195 @@ class TableLake:
                 continue
             checked += 1
             size += f.size
-        return TableCheck(
-            files=checked,
-            bytes=size,
-            runs=len(self.runs(table)),
-            damaged=[(f.path, why) for f, why in bad],
+            verified.append(f)
+            if decoded.num_rows and {"robot", "run", "commit"} <= set(decoded.column_names):
+                per_commit = decoded.group_by(["robot", "run", "commit"]).aggregate(
+                    [([], "count_all")]
+                )
+                for robot, run, commit, n in zip(*per_commit.to_pydict().values(), strict=True):
+                    key = (robot, run, commit, f.kind)
+                    held[key] = held.get(key, 0) + n
+        runs, unreadable = self.read_runs(
+            table, files=[f for f in verified if f.kind == RUN_TYPE], checked=True
         )
+        bad += unreadable
+        problems = [("_delta_log", p) for p in self._log_problems(table)]
+        problems += [("_delta_log", p) for p in self._empty_commits()]
+        damaged_kinds = {f.kind for f, _ in bad}
+        problems += _run_problems(runs, held, damaged_kinds, RUN_TYPE in damaged_kinds)
+        problems += [(r, p) for r, p in self._transaction_problems(table, runs)]
+        return TableCheck(
+            files=checked - len(unreadable),
+            bytes=size,
+            runs=len(runs),
+            damaged=[(f.path, why) for f, why in bad],
+            runs_damaged=problems,
+        )
+
+    # -- the runs' records against the table ---------------------------------------------------
+
+    def check_runs(
+        self, table: Any | None = None
+    ) -> tuple[list[TableRun], list[tuple[DataFile, str]]]:
+        """The runs and the ``_run`` files that cannot be read (:meth:`read_runs`), after
+        checking the table against the runs' records from the table's log alone (no event
+        read): each partition's rows, by the log's statistics, against what the ``_run`` rows
+        record of it — events, derived tables, one ``_run`` row a run — and the table's
+        version against the latest this lake recorded committing (:data:`HEAD_FILE`). Raises
+        :class:`TableLakeError` saying what disagrees: a commit file edited (an ``add``
+        removed) or the newest deleted, whose rows no query would then read. What it cannot
+        see: a ``_run`` file that cannot be read hides its runs' rows from the count (only
+        more rows than the readable records name is then allowed); derived rows of a run
+        committed before they were recorded; a log edited so the totals still agree (two
+        edits; ``lake verify`` counts each run's rows). The read paths' guard: ``query``,
+        ``lake ls``, ``lake add``, ``lake compact``."""
+        table = self.table() if table is None else table
+        files = self.data_files(table)
+        runs, unreadable = self.read_runs(table, files=[f for f in files if f.kind == RUN_TYPE])
+        problems = self._log_problems(table, writing=False) + self._empty_commits()
+        problems += _count_problems(files, runs, unreadable, self.store)
+        if problems:
+            said = "; ".join(problems[:3]) + (
+                f"; and {len(problems) - 3} more" if len(problems) > 3 else ""
+            )
+            raise TableLakeError(
+                f"{self.root}: the table does not hold what its runs recorded, so an answer from "
+                f"it would be wrong: {said}. A commit file of the table's log "
+                f"({self.uri}/_delta_log) was edited or deleted; `objsearch lake verify "
+                f"{self.root}` names the runs. Nothing was read or changed"
+            )
+        return runs, unreadable
+
+    def _log_problems(self, table: Any, *, writing: bool = True) -> list[str]:
+        """What is wrong with the table's log that delta-rs reads past: a version older than
+        one this lake recorded committing (:data:`HEAD_FILE`: the newest commit files were
+        deleted, and the runs they committed with them), and — ``writing`` — the latest
+        version's commit file missing (read from its checkpoint, the table cannot take a
+        commit: delta-rs fails it with "Invalid table version")."""
+        problems = []
+        version = int(table.version())
+        head = self._recorded_head()
+        if head is not None and head > version:
+            problems.append(
+                f"the log ends at version {version}, but a commit of version {head} was made "
+                f"({HEAD_FILE} records it): the commit file(s) of version {version + 1} to "
+                f"{head} are missing, with every row they committed"
+            )
+        if writing and not self.remote:
+            latest = Path(self.uri) / "_delta_log" / f"{version:020d}.json"
+            if not latest.exists():
+                problems.append(
+                    f"the commit file of the latest version, _delta_log/{latest.name}, is "
+                    "missing (the version reads from its checkpoint, but no commit can follow "
+                    "it): restore the file"
+                )
+        return problems
+
+    def _empty_commits(self) -> list[str]:
+        """Commit files of the log (local) after its latest checkpoint — those a reader reads
+        — that hold no action but their ``commitInfo``: every commit this lake makes adds,
+        removes or records something, so one cut down to its first line took a whole commit
+        out (a run with its record, which no count can see). A checkpoint comes with each
+        compaction, so these are the commits since the last one (a ``lake add`` compacts past
+        :data:`COMPACT_AT_FILES` files)."""
+        if self.remote:
+            return []
+        log = Path(self.uri) / "_delta_log"
+        since = -1
+        with suppress(OSError, ValueError, TypeError, KeyError):
+            since = int(json.loads((log / "_last_checkpoint").read_text())["version"])
+        problems = []
+        for path in sorted(log.glob("[0-9]*[0-9].json")):
+            if not path.stem.isdigit() or int(path.stem) <= since:
+                continue
+            try:
+                lines = path.read_text(encoding="utf-8").splitlines()
+            except (OSError, UnicodeDecodeError) as exc:
+                problems.append(f"commit file {path.name} cannot be read: {exc}")
+                continue
+            if not any(line.strip() and not line.startswith('{"commitInfo"') for line in lines):
+                problems.append(
+                    f"commit file {path.name} holds no action, only its commitInfo: what it "
+                    "committed (a run, with its record) is not in the table"
+                )
+        return problems
+
+    def check_writable(self, table: Any) -> None:
+        """Raise :class:`TableLakeError` if the table's log cannot take a commit
+        (:meth:`_log_problems`)."""
+        problems = self._log_problems(table)
+        if problems:
+            raise TableLakeError(f"{self.root}: the table's log is damaged: {'; '.join(problems)}")
+
+    def _transaction_problems(self, table: Any, runs: Sequence[TableRun]) -> list[tuple[str, str]]:
+        """Runs whose application transactions (what a writer asks instead of reading the
+        ``_run`` rows) are missing from the table's log: adding their log again would count
+        it twice."""
+        indexed = table.transaction_version(IDENTITY_INDEX_APP) is not None
+        problems = []
+        for r in runs:
+            apps = [_app_id(r.robot, r.run)]
+            if indexed:
+                apps += [_identity_app(k, v) for k, v in sorted(r.identity.items()) if v]
+            missing = [a for a in apps if table.transaction_version(a) is None]
+            if missing and not r.run.startswith("_"):
+                problems.append(
+                    (
+                        r.label,
+                        f"its application transaction(s) {', '.join(missing)} are missing from "
+                        "the table's log (a commit file was edited): adding its log again would "
+                        "not be refused, and would count its events twice",
+                    )
+                )
+        return problems
+
+    def _recorded_head(self) -> int | None:
+        """The latest version a commit of this lake recorded making (:data:`HEAD_FILE`), or
+        None (no such record, or one that does not check: then nothing is compared)."""
+        try:
+            if self.remote:
+                fs, base = _filesystem(self.uri)
+                with fs.open_input_file(f"{base}/{HEAD_FILE}") as fh:
+                    text = fh.read(4096).decode()
+            else:
+                text = (Path(self.uri) / HEAD_FILE).read_text(encoding="utf-8")
+            doc = json.loads(text)
+            version = doc["version"]
+            if type(version) is int and doc.get("check") == _head_check(version):
+                return version
+        except FileNotFoundError:
+            return None
+        except (OSError, ValueError, TypeError, KeyError, UnicodeDecodeError):
+            pass
+        _log.warning(
+            "%s: %s does not check; ignored (a deleted newest commit file would go unseen until "
+            "the next commit rewrites it)",
+            self.root,
+            HEAD_FILE,
+        )
+        return None
+
+    def _record_head(self, version: int) -> None:
+        """Record that the table reached ``version`` (after a commit; :data:`HEAD_FILE`),
+        replaced atomically. Not a durable step: a record lost in a crash, or lowered by a
+        slower writer, is older than the log, which costs only the check of newer commits."""
+        text = json.dumps(
+            {"format": HEAD_FORMAT, "version": version, "check": _head_check(version)}
+        )
+        try:
+            if self.remote:
+                fs, base = _filesystem(self.uri)
+                with fs.open_output_stream(f"{base}/{HEAD_FILE}") as out:
+                    out.write(text.encode())
+                return
+            tmp = Path(self.uri) / f".{HEAD_FILE}.{os.getpid()}.{uuid.uuid4().hex}.tmp"
+            try:
+                tmp.write_text(text, encoding="utf-8")
+                os.replace(tmp, Path(self.uri) / HEAD_FILE)
+            finally:
+                tmp.unlink(missing_ok=True)
+        except OSError as exc:
+            _log.warning("%s: %s not written (%s); the commit stands", self.root, HEAD_FILE, exc)
 
     # -- writing --------------------------------------------------------------------------------
 
@@ -741,6 +1041,7 @@ class TableLake:
                 self._delete_files(adds)
                 raise TableRaceLost(f"{self.root}: run {robot}/{run} changed: {exc}") from exc
             _fs.durable_step()
+            self._record_head(int(table.version()) + 1)
             return info
         try:
             self._overwrite_runs(table, robot, sorted({*replacing, run}), parts, info.commit, txns)
@@ -750,6 +1051,7 @@ class TableLake:
                 return landed
             raise TableRaceLost(f"{self.root}: run {robot}/{run} changed: {exc}") from exc
         _fs.durable_step()
+        self._record_head(int(table.version()) + 1)
         return info
 
     def record_bag(
@@ -790,6 +1092,7 @@ class TableLake:
                     ),
                 )
                 _fs.durable_step()
+                self._record_head(int(table.version()) + 1)
                 return
             except CommitFailedError:
                 time.sleep(min(0.5, 0.01 * (attempt + 1)))
@@ -819,7 +1122,7 @@ class TableLake:
         table: Any | None = None,
     ) -> TableRun:
         from deltalake import CommitProperties
-        from deltalake.exceptions import CommitFailedError
+        from deltalake.exceptions import CommitFailedError, DeltaError
 
         # ``adds``: files written for an append (given, or written on the first try), kept
         # across retries
@@ -875,7 +1178,17 @@ class TableLake:
                 )
                 time.sleep(min(0.5, 0.01 * (attempt + 1)))
                 continue
+            except DeltaError as exc:  # e.g. "Invalid table version": a damaged log
+                if adds is not None:
+                    self._delete_files(adds)
+                problems = self._log_problems(table)
+                raise TableLakeError(
+                    f"{self.root}: the table's log took no commit of run {info.robot}/{info.run} "
+                    f"({str(exc).splitlines()[0][:200]})"
+                    + (f": {'; '.join(problems)}" if problems else "")
+                ) from exc
             _fs.durable_step()
+            self._record_head(int(table.version()) + 1)
             self._maybe_compact(table)
             return info
         if adds is not None:
@@ -1132,6 +1445,7 @@ class TableLake:
                         commit_properties=CommitProperties(app_transactions=apps),
                     )
                     _fs.durable_step()
+                    self._record_head(int(table.version()) + 1)
                     return
                 except CommitFailedError:
                     # e.g. a compaction's claim (a metadata change) came first: read again
@@ -1332,6 +1646,7 @@ class TableLake:
                 time.sleep(min(0.5, 0.01 * (attempt + 1)))
                 continue
             _fs.durable_step()
+            self._record_head(int(table.version()) + 1)
             return True
         raise TableLakeError(
             f"{self.root}: removing run {run!r} lost {COMMIT_TRIES} races; try again"
@@ -1564,7 +1879,12 @@ class TableLake:
         compacting every 30 files on moto's bucket: each compaction lost 50 races)."""
         from deltalake.exceptions import CommitFailedError
 
-        before = len(self.table().file_uris())
+        # Compaction and vacuum would make a loss permanent: the files of a removed ``add`` are
+        # deleted as unreferenced, the rows of a deleted newest commit with them.
+        current = self.table()
+        self.check_runs(current)
+        self.check_writable(current)
+        before = len(current.file_uris())
         for attempt in range(COMMIT_TRIES):
             table = self._claim()
             if table is not None:
@@ -1583,6 +1903,7 @@ class TableLake:
         table = self.table()
         table.create_checkpoint()
         _fs.durable_step()
+        self._record_head(int(table.version()))
         removed = 0
         if vacuum_hours is not None:
             removed = len(
@@ -2014,14 +2335,135 @@ def stamp_version(table: Any) -> int:
     return int(table.version()) + 1
 
 
+#: What a ``_run`` row that is no run's record raises when read (:func:`_run_of`).
+_RECORD_ERRORS: Final = (TypeError, ValueError, KeyError, AttributeError)
+#: Where a commit records the latest version it made (in the table's folder; Delta readers and
+#: vacuum leave a name starting with ``_`` alone): a version of the table older than this means
+#: its newest commit files were deleted (:meth:`TableLake.check_runs`).
+HEAD_FILE: Final = "_objsearch_head.json"
+HEAD_FORMAT: Final = "objsearch.head/1"
+#: A ``rows`` key of a ``_run`` row that names a derived table's partition, not an event type.
+_DERIVED_PREFIX: Final = "derived."
+
+
+def _head_check(version: int) -> str:
+    return hashlib.sha256(f"{HEAD_FORMAT}:{version}".encode()).hexdigest()[:16]
+
+
+def _unreadable_records(
+    root: Path | str,
+    unreadable: Sequence[tuple[DataFile, str]],
+    what: str = "the records of its runs cannot be read",
+) -> TableLakeError:
+    return TableLakeError(
+        f"{root}: {what}: "
+        + "; ".join(why for _, why in unreadable)
+        + f" (a damaged `_run` file; `objsearch lake verify {root}` lists every damaged file)"
+    )
+
+
+def _recorded_kinds(runs: Sequence[TableRun], store: Store) -> dict[str, int]:
+    """The rows of each partition the runs' records add up to (derived partitions only when
+    every run records them)."""
+    recorded: dict[str, int] = {t: 0 for t in store.registry.types}
+    recorded[RUN_TYPE] = len(runs)
+    every = all(r.derived_rows for r in runs)
+    for r in runs:
+        for kind, n in [*r.rows.items(), *(r.derived_rows.items() if every else ())]:
+            recorded[kind] = recorded.get(kind, 0) + n
+    return recorded
+
+
+def _count_problems(
+    files: Sequence[DataFile],
+    runs: Sequence[TableRun],
+    unreadable: Sequence[tuple[DataFile, str]],
+    store: Store,
+) -> list[str]:
+    """Partitions whose rows, by the table's log, are not what the runs' records add up to
+    (with ``_run`` files that cannot be read: only fewer rows than the readable records name
+    is wrong, and their own rows count as recorded)."""
+    held: dict[str, int] = {}
+    unknown: set[str] = set()
+    for f in files:
+        if f.rows is None:
+            unknown.add(f.kind)
+        else:
+            held[f.kind] = held.get(f.kind, 0) + f.rows
+    recorded = _recorded_kinds(runs, store)
+    recorded[RUN_TYPE] += sum(f.rows or 0 for f, _ in unreadable)
+    problems = []
+    # a commit file copied as a later version adds the run's files (and record) again
+    seen = Counter(r.label for r in runs)
+    problems += [f"run {label} is recorded {n} times" for label, n in seen.items() if n > 1]
+    for kind in sorted(recorded):
+        got, want = held.get(kind, 0), recorded[kind]
+        if kind in unknown or got == want or (unreadable and got > want):
+            continue
+        if got < want:
+            why = f"{want - got} row(s) the runs recorded are in no data file of the log"
+        else:
+            why = f"{got - want} row(s) no run's record names"
+        problems.append(f"type={kind} holds {got} rows, the runs recorded {want} ({why})")
+    return problems
+
+
+def _run_problems(
+    runs: Sequence[TableRun],
+    held: Mapping[tuple[str, str, str, str], int],
+    damaged_kinds: set[str],
+    unreadable: bool,
+) -> list[tuple[str, str]]:
+    """Each run whose rows of a type in the table (``held``: by robot, run, commit, type) are
+    not what its ``_run`` row records, and rows of a commit no ``_run`` row records (not with
+    ``unreadable`` records: they may be those runs'). A type with a damaged file is left to
+    that file's report."""
+    problems = []
+    commits = {(r.robot, r.run, r.commit) for r in runs}
+    for r in runs:
+        want = {**r.rows, **r.derived_rows, RUN_TYPE: 1}
+        for kind in sorted(want):
+            got = held.get((r.robot, r.run, r.commit, kind), 0)
+            if got != want[kind] and kind not in damaged_kinds:
+                problems.append(
+                    (
+                        r.label,
+                        f"type={kind}: {got} row(s) in the table, its `_run` row records "
+                        f"{want[kind]} (a data file's `add` is missing from the table's log)",
+                    )
+                )
+    if not unreadable:
+        kinds_recorded = {k for r in runs for k in (*r.rows, *r.derived_rows, RUN_TYPE)}
+        unrecorded: dict[tuple[str, str, str], dict[str, int]] = {}
+        for (robot, run, commit, kind), n in sorted(held.items()):
+            if (robot, run, commit) in commits or kind in damaged_kinds:
+                continue
+            if kind in kinds_recorded or not kind.startswith((_DERIVED_PREFIX, "_")):
+                unrecorded.setdefault((robot, run, commit), {})[kind] = n
+        for (robot, run, commit), kinds in unrecorded.items():
+            problems.append(
+                (
+                    f"{robot}/{run}",
+                    f"{sum(kinds.values())} row(s) of {len(kinds)} type(s) "
+                    f"({', '.join(sorted(kinds))}) of commit {commit[:16]}… that no `_run` row "
+                    "records (its `_run` file's `add` is missing from the table's log)",
+                )
+            )
+    return problems
+
+
 def _run_of(row: Mapping[str, Any]) -> TableRun:
     info = row[RUN_COLUMN]
+    rows = json.loads(info["rows"])
+    if not isinstance(rows, dict) or not all(type(n) is int for n in rows.values()):
+        raise ValueError(f"rows {info['rows']!r}")
     return TableRun(
         robot=row["robot"],
         date=row["date"].isoformat(),
         run=row["run"],
         commit=row["commit"],
-        rows=json.loads(info["rows"]),
+        rows={t: n for t, n in rows.items() if not t.startswith(_DERIVED_PREFIX)},
+        derived_rows={t: n for t, n in rows.items() if t.startswith(_DERIVED_PREFIX)},
         digest=info["digest"],
         source=info["source"],
         identity=json.loads(info["identity"]),
@@ -2063,10 +2505,13 @@ def _small_tables(
     specs = {d.name: d for d in derived_tables(store)}
     for name, table in derived.items():
         parts[derived_kind(name, specs[name].version)] = (derived_column(name), table)
+    # The rows of each derived partition beside the events' (read back as ``derived_rows``),
+    # so the table's rows of every partition can be counted against the runs' records.
+    rows = {**info.rows, **{kind: table.num_rows for kind, (_, table) in parts.items()}}
     description = {
         "format": TABLE_FORMAT,
         "digest": info.digest,
-        "rows": json.dumps(dict(info.rows), sort_keys=True),
+        "rows": json.dumps(rows, sort_keys=True),
         "source": info.source,
         "identity": json.dumps(dict(info.identity), sort_keys=True),
         "attachments": json.dumps(dict(info.attachments), sort_keys=True),
@@ -2163,6 +2608,12 @@ def add_log(
         identity["run_id"] = meta.run_id
     lake.create()
     table = lake.table()
+    # A lake whose runs' records and table disagree takes no run: the next compaction would
+    # make the loss permanent. One whose `_run` file is damaged does (it costs those runs).
+    _, unreadable = lake.check_runs(table)
+    for _, why in unreadable:
+        _log.warning("%s: the records of the runs it holds cannot be read: %s", lake.root, why)
+    lake.check_writable(table)
     for other in lake.holding(identity, table):
         if (other.robot, other.run) != (robot, run):
             raise TableLakeError(

@@ -446,20 +446,29 @@ def _verify_fleet(where: str, as_json: bool, progress: bool) -> int:
             "bytes_checked": check.bytes,
             "seconds": round(seconds, 3),
             "damaged": [{"file": f, "problems": [why]} for f, why in check.damaged],
+            "runs_damaged": [{"run": r, "problems": [why]} for r, why in check.runs_damaged],
         }
         print(json.dumps(doc, indent=2))
     else:
         for name, why in check.damaged:
             print(f"DAMAGED  {name}: {why}")
+        for name, why in check.runs_damaged:
+            print(f"DAMAGED  {'' if name.startswith('_') else 'run '}{name}: {why}")
         print(
             f"{check.runs} run(s), {check.files} file(s), {check.bytes / 1e6:.1f} MB checked in "
-            f"{seconds:.2f} s; {len(check.damaged)} damaged file(s)"
+            f"{seconds:.2f} s; {len(check.runs_damaged)} disagreement(s) between the runs' "
+            f"records and the table; {len(check.damaged)} damaged file(s)"
         )
+    said = []
     if check.damaged:
-        return _fail(
-            f"{len(check.damaged)} damaged data file(s) in {where}; queries leave them out "
-            "(see docs/analytics.md)"
+        said.append(f"{len(check.damaged)} damaged data file(s) in {where}; queries leave them out")
+    if check.runs_damaged:
+        said.append(
+            f"{len(check.runs_damaged)} disagreement(s) between the runs' records and the "
+            f"table's log of {where}; queries refuse the lake"
         )
+    if said:
+        return _fail(f"{'; '.join(said)} (see docs/analytics.md)")
     return 0
 
 
@@ -469,8 +478,17 @@ def cmd_lake_ls(args: argparse.Namespace) -> int:
 
     _existing_lake(args.lake)  # as query says: listing nothing would hide a wrong path
     fleet = TableLake(args.lake, store=STORE)
-    rows = [(r.robot, r.date, r.run, r.events, r.source) for r in fleet.runs()]
+    # refuses a table that does not hold what its runs recorded; lists past a damaged `_run`
+    # file, then says which runs it could not list
+    runs, unreadable = fleet.check_runs()
+    rows = [(r.robot, r.date, r.run, r.events, r.source) for r in runs]
     write_rows(["robot", "date", "run", "events", "source"], rows, args.format, sys.stdout)
+    if unreadable:
+        return _fail(
+            f"the runs recorded in {len(unreadable)} damaged `_run` file(s) are not listed: "
+            + "; ".join(why for _, why in unreadable)
+            + f" (`objsearch lake verify {args.lake}` lists every damaged file)"
+        )
     return 0
 
 

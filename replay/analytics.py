@@ -202,6 +202,9 @@ def _open_fleet(
     files, damaged = lake.scan(table)
     for _, why in damaged:
         _log.warning("%s: damaged data file left out of every view: %s", lake.root, why)
+    # the table's log against the runs' records: an `add` removed, the newest commit deleted
+    # (a damaged `_run` file is among those left out above)
+    lake.check_runs(table)
     if lake.remote and len(files) > lake_table.COMPACT_AT_FILES:
         # each file costs requests of its own: 850 small ones took 16.5 s to read, 1.5 s compacted
         _log.warning(
