@@ -34,6 +34,7 @@ from objsearch.runtime.errors import RobotError
 from objsearch.runtime.livesinks import TopicSink
 from objsearch.runtime.liveview import LiveSink, LiveView
 from objsearch.runtime.node import Node, Server
+from objsearch.runtime.oneagent import OneAgent
 from objsearch.runtime.requests import (
     FindRequest,
     WhereRequest,
@@ -118,6 +119,14 @@ class AgentNode:
             if live_topics:
                 self.live_sinks += (TopicSink(transport),)
             self.node = Node(transport)
+            # Before the log is opened or a request taken: another agent serving this robot on
+            # the graph makes this one refuse (runtime/oneagent.py).
+            self.one = OneAgent(self.node, config, log_dir)
+            try:
+                self.one.claim()
+            except BaseException:
+                self.one.close()
+                raise
         except BaseException:
             self._close_live()
             if transport is not None:
@@ -158,6 +167,7 @@ class AgentNode:
             assert isinstance(memory, LiveMemory)
             self.memory = memory
         except BaseException:
+            self.one.close()
             self.node.close()
             self._close_live()
             raise
@@ -186,8 +196,11 @@ class AgentNode:
         except ObjsearchError as exc:
             return {"ok": False, "error": f"where request: field 'target': {exc}"}
 
+    def _serving(self) -> bool:
+        return not self._stop.is_set() and self.one.rival is None
+
     def _answer_questions(self) -> None:
-        while not self._stop.is_set():
+        while self._serving():
             request = self.questions.next(0.2)
             if request is None:
                 continue
@@ -247,7 +260,9 @@ class AgentNode:
         )
         self._answering.start()
         try:
-            while not self._stop.is_set():
+            # Another agent of this robot met while serving, whose claim came first: this one
+            # stops after the search it is in (runtime/oneagent.py).
+            while self._serving():
                 request = self.requests.next(0.2)
                 if request is not None:
                     self.requests.answer(request, self.handle(request))
@@ -255,11 +270,14 @@ class AgentNode:
             self._stop.set()
             self._answering.join()
             self.close()
+        if self.one.rival is not None:
+            raise self.one.refusal()
         return 0
 
     def close(self) -> None:
         try:
             self.session.close()  # the hub's one snapshot: the agent's state and its memory
+            self.one.close()
             self.node.close()
         finally:
             self._close_live()

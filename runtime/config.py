@@ -64,6 +64,7 @@ class Topics:
     open_result: str = "/objsearch/open/result"
     sim_reset: str = "/objsearch_sim/reset"  # the stand-in only: {id, scene, start}
     sim_reset_result: str = "/objsearch_sim/reset/result"
+    agents: str = "/objsearch/agents"  # std_msgs/String JSON heartbeats: one agent per robot
     tf: str = "/tf"  # tf2_msgs/TFMessage, with [pose] source = "tf"
     tf_static: str = "/tf_static"
 
@@ -87,6 +88,7 @@ class Timeouts:
     detections_s: float = 5.0  # the camera view after arriving
     tolerance_m: float = 0.05
     tolerance_rad: float = 0.05
+    claim_s: float = 5.0  # at start: no other agent of this robot heard for this long → serve
 
 
 @dataclass(frozen=True, slots=True)

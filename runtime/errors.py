@@ -19,3 +19,7 @@ class MessageError(ObjsearchError):
 
 class RobotError(ObjsearchError):
     """The robot did not do what it was asked: it timed out, disappeared or refused."""
+
+
+class AnotherAgentError(ObjsearchError):
+    """Another agent serves the same robot on this graph: this one does not serve."""

@@ -22,6 +22,9 @@ open request (agent→robot)  ``id``, ``static_id``
 open result                 ``id``, ``ok``, ``stamp_ns``, ``yaw``, ``error``
 reset request (stand-in)    ``id``, ``scene`` (int or null), ``start`` (label)
 reset result                ``id``, ``ok``, ``stamp_ns``, ``error``
+agent heartbeat             ``agent`` (an id), ``node``, ``host`` (names), ``pid`` (int ≥ 0),
+                            ``log`` (text), ``state`` (claiming|serving), ``since_ns`` (int ≥ 0),
+                            ``serves`` (1-16 ROS names: its find topic, its robot's goal)
 ==========================  ======================================================================
 """
 
@@ -344,3 +347,75 @@ def check_reset_result(doc: Mapping[str, Any]) -> dict[str, Any]:
     elif f.error() is None:
         raise f.fail("error", "must say why when ok is false")
     return dict(doc)
+
+
+# -- heartbeats: agent ↔ agent (runtime/oneagent.py) -------------------------------------------
+
+#: A ROS name (a topic or an action): absolute or relative, tokens of letters, digits and ``_``.
+ROS_NAME_PATTERN = re.compile(r"/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")
+#: Text shown to an operator (a log folder): no control characters, at most this many.
+MAX_TEXT_CHARS = 1024
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+HEARTBEAT_STATES = ("claiming", "serving")
+MAX_SERVES = 16
+
+
+@dataclass(frozen=True, slots=True)
+class Heartbeat:
+    """What an agent says about itself, several times a second, to the other agents on its
+    graph: who it is, whether it is still claiming its robot or serving it, since when, and
+    which names it serves (its find topic and where it sends its robot's goals)."""
+
+    agent: str
+    node: str
+    host: str
+    pid: int
+    log: str
+    state: str
+    since_ns: int
+    serves: tuple[str, ...]
+
+    def key(self) -> tuple[int, str]:
+        """The order two agents claiming one robot agree on: the earlier claim, then the id."""
+        return (self.since_ns, self.agent)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "agent": self.agent,
+            "node": self.node,
+            "host": self.host,
+            "pid": self.pid,
+            "log": self.log,
+            "state": self.state,
+            "since_ns": self.since_ns,
+            "serves": list(self.serves),
+        }
+
+
+HEARTBEAT_FIELDS = {"agent", "node", "host", "pid", "log", "state", "since_ns", "serves"}
+
+
+def parse_heartbeat(doc: Mapping[str, Any]) -> Heartbeat:
+    f = _Fields(doc, "agent heartbeat", HEARTBEAT_FIELDS)
+    agent = doc.get("agent")
+    if not isinstance(agent, str) or not ID_PATTERN.fullmatch(agent):
+        raise f.fail("agent", "must be an id (a string of 1-128 printable characters)")
+    node, host = f.name("node"), f.name("host")
+    pid, since_ns = f.int("pid", 0, MAX_SCENE), f.int("since_ns", 0, MAX_NS)
+    assert node is not None and host is not None and pid is not None and since_ns is not None
+    log = doc.get("log")
+    if not isinstance(log, str) or len(log) > MAX_TEXT_CHARS or _CONTROL.search(log):
+        raise f.fail("log", f"must be text of at most {MAX_TEXT_CHARS} characters")
+    state = doc.get("state")
+    if state not in HEARTBEAT_STATES:
+        raise f.fail("state", f"must be one of {', '.join(HEARTBEAT_STATES)}")
+    serves = doc.get("serves")
+    if (
+        not isinstance(serves, list)
+        or not 1 <= len(serves) <= MAX_SERVES
+        or not all(
+            isinstance(s, str) and len(s) <= 256 and ROS_NAME_PATTERN.fullmatch(s) for s in serves
+        )
+    ):
+        raise f.fail("serves", f"must be a list of 1-{MAX_SERVES} ROS names")
+    return Heartbeat(agent, node, host, pid, log, state, since_ns, tuple(serves))

@@ -9,6 +9,7 @@ import pytest
 from objsearch.runtime.errors import MessageError
 from objsearch.runtime.requests import (
     FindRequest,
+    Heartbeat,
     RequestError,
     WhereRequest,
     check_find_result,
@@ -16,6 +17,7 @@ from objsearch.runtime.requests import (
     check_where_result,
     parse_document,
     parse_find_request,
+    parse_heartbeat,
     parse_open_request,
     parse_open_result,
     parse_reset_request,
@@ -164,3 +166,24 @@ def test_where_request_and_result() -> None:
             check_where_result(bad)
     with pytest.raises(RequestError, match="'error'"):
         check_where_result({"id": "w", "ok": False})
+
+
+def test_heartbeats() -> None:
+    beat = Heartbeat(
+        "a1", "objsearch", "robot-pc", 7, "/logs/é", "serving", 5, ("/objsearch/find",)
+    )
+    assert parse_heartbeat(beat.to_json()) == beat
+    cases: list[tuple[dict[str, Any], str]] = [
+        ({"agent": "a b"}, "agent"),
+        ({"pid": -1}, "pid"),
+        ({"state": "yielding"}, "state"),
+        ({"log": "x\x1b[2J"}, "log"),
+        ({"serves": []}, "serves"),
+        ({"serves": ["/objsearch/find", "no spaces"]}, "serves"),
+        ({"since_ns": 1.5}, "since_ns"),
+        ({"extra": 1}, "extra"),
+    ]
+    for change, field in cases:
+        with pytest.raises(RequestError) as caught:
+            parse_heartbeat({**beat.to_json(), **change})
+        assert caught.value.field == field
