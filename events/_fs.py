@@ -209,7 +209,8 @@ class NotARegularFileError(OSError):
     socket, or a file past the size bound."""
 
 
-def _kind_of(mode: int) -> str:
+def describe_mode(mode: int) -> str:
+    """What a file of this ``st_mode`` is, in words (``a FIFO``, ``a symbolic link``, …)."""
     kinds = (
         (stat.S_ISLNK, "a symbolic link"),
         (stat.S_ISDIR, "a folder"),
@@ -234,7 +235,7 @@ def read_regular(path: Path, max_bytes: int) -> bytes:
     st = os.lstat(path)
     if not stat.S_ISREG(st.st_mode):
         raise NotARegularFileError(
-            errno.EINVAL, f"{_kind_of(st.st_mode)}, not a regular file", str(path)
+            errno.EINVAL, f"{describe_mode(st.st_mode)}, not a regular file", str(path)
         )
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
@@ -248,7 +249,7 @@ def read_regular(path: Path, max_bytes: int) -> bytes:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
             raise NotARegularFileError(
-                errno.EINVAL, f"{_kind_of(st.st_mode)}, not a regular file", str(path)
+                errno.EINVAL, f"{describe_mode(st.st_mode)}, not a regular file", str(path)
             )
         if st.st_size > max_bytes:
             raise NotARegularFileError(

@@ -66,7 +66,6 @@ import shutil
 import tempfile
 import time
 import uuid
-from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import suppress
 from dataclasses import dataclass
@@ -736,14 +735,14 @@ class TableLake:
 
     # -- the runs' records against the table ---------------------------------------------------
 
-    def check_runs(
-        self, table: Any | None = None
-    ) -> tuple[list[TableRun], list[tuple[DataFile, str]]]:
-        """The runs and the ``_run`` files that cannot be read (:meth:`read_runs`), after
-        checking the table against the runs' records from the table's log alone (no event
-        read): each partition's rows, by the log's statistics, against what the ``_run`` rows
-        record of it — events, derived tables, one ``_run`` row a run — and the table's
-        version against the latest this lake recorded committing (:data:`HEAD_FILE`). Raises
+    def check_runs(self, table: Any | None = None) -> list[tuple[DataFile, str]]:
+        """The ``_run`` files that cannot be read (:meth:`read_runs`), after checking the table
+        against the runs' records from the table's log and the ``_run`` rows' ``rows`` alone
+        (no event read; each distinct record parsed once): each partition's rows, by the log's
+        statistics, against what the records add up to — events, derived tables, one ``_run``
+        row a run — no run recorded twice, no commit after the checkpoint emptied
+        (:meth:`_empty_commits`), and the table's version against the latest this lake
+        recorded committing (:data:`HEAD_FILE`). Raises
         :class:`TableLakeError` saying what disagrees: a commit file edited (an ``add``
         removed) or the newest deleted, whose rows no query would then read. What it cannot
         see: a ``_run`` file that cannot be read hides its runs' rows from the count (only
@@ -753,9 +752,37 @@ class TableLake:
         ``lake ls``, ``lake add``, ``lake compact``."""
         table = self.table() if table is None else table
         files = self.data_files(table)
-        runs, unreadable = self.read_runs(table, files=[f for f in files if f.kind == RUN_TYPE])
+        good, unreadable = self._check_files([f for f in files if f.kind == RUN_TYPE], hashes=True)
+        columns = {
+            "robot": pc.field("robot"),
+            "run": pc.field("run"),
+            "rows": pc.field(RUN_COLUMN, "rows"),
+        }
+
+        def tally(some: list[DataFile]) -> tuple[dict[str, int], list[str]]:
+            if not some:
+                return _tally(pa.table({k: pa.array([], pa.string()) for k in columns}), self.store)
+            rows = self.files_dataset(some, checksums=True).to_table(columns=columns)
+            return _tally(rows, self.store)
+
+        try:
+            recorded, twice = tally(good)
+        except (OSError, pa.ArrowException, *_RECORD_ERRORS):
+            readable = []  # one at a time, to name the file that does not read
+            for f in good:
+                try:
+                    tally([f])
+                    readable.append(f)
+                except (OSError, pa.ArrowException) as exc:
+                    unreadable.append((f, f"{f.path} does not decode: {str(exc)[:300]}"))
+                except _RECORD_ERRORS as exc:
+                    unreadable.append(
+                        (f, f"{f.path} holds a row that is no run's record ({exc!r})")
+                    )
+            recorded, twice = tally(readable)
         problems = self._log_problems(table, writing=False) + self._empty_commits()
-        problems += _count_problems(files, runs, unreadable, self.store)
+        problems += [f"run {label} is recorded more than once" for label in twice]
+        problems += _count_problems(files, recorded, unreadable)
         if problems:
             said = "; ".join(problems[:3]) + (
                 f"; and {len(problems) - 3} more" if len(problems) > 3 else ""
@@ -766,7 +793,7 @@ class TableLake:
                 f"({self.uri}/_delta_log) was edited or deleted; `objsearch lake verify "
                 f"{self.root}` names the runs. Nothing was read or changed"
             )
-        return runs, unreadable
+        return unreadable
 
     def _log_problems(self, table: Any, *, writing: bool = True) -> list[str]:
         """What is wrong with the table's log that delta-rs reads past: a version older than
@@ -815,7 +842,9 @@ class TableLake:
             except (OSError, UnicodeDecodeError) as exc:
                 problems.append(f"commit file {path.name} cannot be read: {exc}")
                 continue
-            if not any(line.strip() and not line.startswith('{"commitInfo"') for line in lines):
+            if _writes(lines) and not any(
+                line.strip() and not line.startswith('{"commitInfo"') for line in lines
+            ):
                 problems.append(
                     f"commit file {path.name} holds no action, only its commitInfo: what it "
                     "committed (a run, with its record) is not in the table"
@@ -2346,6 +2375,18 @@ HEAD_FORMAT: Final = "objsearch.head/1"
 _DERIVED_PREFIX: Final = "derived."
 
 
+def _writes(lines: Sequence[str]) -> bool:
+    """Whether a commit file's ``commitInfo`` says it is a write (every commit of this module
+    that adds, removes or records: ``create_write_transaction``), not a commit that holds no
+    action by design (delta-rs's ``VACUUM START`` / ``VACUUM END``)."""
+    for line in lines:
+        if line.startswith('{"commitInfo"'):
+            with suppress(ValueError, TypeError, KeyError, AttributeError):
+                return bool(json.loads(line)["commitInfo"].get("operation") == "WRITE")
+            return False
+    return False
+
+
 def _head_check(version: int) -> str:
     return hashlib.sha256(f"{HEAD_FORMAT}:{version}".encode()).hexdigest()[:16]
 
@@ -2362,23 +2403,37 @@ def _unreadable_records(
     )
 
 
-def _recorded_kinds(runs: Sequence[TableRun], store: Store) -> dict[str, int]:
-    """The rows of each partition the runs' records add up to (derived partitions only when
-    every run records them)."""
+def _tally(records: pa.Table, store: Store) -> tuple[dict[str, int], list[str]]:
+    """What ``_run`` rows (``robot``, ``run`` and their ``rows`` JSON) add up to per
+    partition (derived partitions only when every run records them), each distinct ``rows``
+    parsed once; and the runs recorded more than once (``robot/run``). Raises ValueError or
+    TypeError for a ``rows`` that is no record's."""
     recorded: dict[str, int] = {t: 0 for t in store.registry.types}
-    recorded[RUN_TYPE] = len(runs)
-    every = all(r.derived_rows for r in runs)
-    for r in runs:
-        for kind, n in [*r.rows.items(), *(r.derived_rows.items() if every else ())]:
-            recorded[kind] = recorded.get(kind, 0) + n
-    return recorded
+    recorded[RUN_TYPE] = records.num_rows
+    docs = []
+    for item in pc.value_counts(records.column("rows").combine_chunks()).to_pylist():
+        doc = json.loads(item["values"])
+        if not isinstance(doc, dict) or not all(type(n) is int for n in doc.values()):
+            raise ValueError(f"rows {item['values']!r}")
+        docs.append((doc, int(item["counts"])))
+    every = all(any(k.startswith(_DERIVED_PREFIX) for k in doc) for doc, _ in docs)
+    for doc, count in docs:
+        for kind, n in doc.items():
+            if every or not kind.startswith(_DERIVED_PREFIX):
+                recorded[kind] = recorded.get(kind, 0) + n * count
+    per_run = records.group_by(["robot", "run"]).aggregate([([], "count_all")])
+    twice = [
+        f"{robot}/{run}"
+        for robot, run, n in zip(*per_run.to_pydict().values(), strict=True)
+        if n > 1
+    ]
+    return recorded, sorted(twice)
 
 
 def _count_problems(
     files: Sequence[DataFile],
-    runs: Sequence[TableRun],
+    recorded: Mapping[str, int],
     unreadable: Sequence[tuple[DataFile, str]],
-    store: Store,
 ) -> list[str]:
     """Partitions whose rows, by the table's log, are not what the runs' records add up to
     (with ``_run`` files that cannot be read: only fewer rows than the readable records name
@@ -2390,12 +2445,8 @@ def _count_problems(
             unknown.add(f.kind)
         else:
             held[f.kind] = held.get(f.kind, 0) + f.rows
-    recorded = _recorded_kinds(runs, store)
-    recorded[RUN_TYPE] += sum(f.rows or 0 for f, _ in unreadable)
+    recorded = {**recorded, RUN_TYPE: recorded[RUN_TYPE] + sum(f.rows or 0 for f, _ in unreadable)}
     problems = []
-    # a commit file copied as a later version adds the run's files (and record) again
-    seen = Counter(r.label for r in runs)
-    problems += [f"run {label} is recorded {n} times" for label, n in seen.items() if n > 1]
     for kind in sorted(recorded):
         got, want = held.get(kind, 0), recorded[kind]
         if kind in unknown or got == want or (unreadable and got > want):
@@ -2610,7 +2661,7 @@ def add_log(
     table = lake.table()
     # A lake whose runs' records and table disagree takes no run: the next compaction would
     # make the loss permanent. One whose `_run` file is damaged does (it costs those runs).
-    _, unreadable = lake.check_runs(table)
+    unreadable = lake.check_runs(table)
     for _, why in unreadable:
         _log.warning("%s: the records of the runs it holds cannot be read: %s", lake.root, why)
     lake.check_writable(table)

@@ -9,6 +9,16 @@ DuckDB lets a query read its temp directory whatever ``allowed_directories`` say
 ``.tmp`` under the working directory, which would let a query read whatever lies there. So each
 connection spills into a fresh private directory (``mkdtemp``: mode 0700, empty) that is removed
 when the connection is garbage-collected or the process exits.
+
+DuckDB's ``memory_limit`` covers its buffers, not the rows it hands to Python: a result fetched
+row by row escaped both limits (``SELECT repeat('x', 1000000000)`` under 256 MB and 30 s ran
+51 s and reached 7.0 GB, its rows held as Python objects). :class:`BoundedResult` fetches the
+result as Arrow batches, counts their bytes against the connection's memory limit before any
+becomes Python objects, converts them a slice at a time, and checks the deadline between
+slices until it is closed, so the time limit covers the fetch and what the caller does with
+the rows too. Not bounded: what DuckDB itself allocates to compute one vector of values (a
+scalar function's result such as ``repeat``'s is not counted by its ``memory_limit``, and a
+vector cannot be interrupted halfway), and one Arrow copy of that vector.
 """
 
 from __future__ import annotations
@@ -22,12 +32,14 @@ import weakref
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from types import TracebackType
 from typing import TYPE_CHECKING, Any, Final
 
 from .errors import EventStoreError
 
 if TYPE_CHECKING:  # duckdb is imported when a connection is bounded, not by the CLI's parser
     import duckdb
+    import pyarrow as pa
 
 #: Defaults that protect a shared machine; ``objsearch query`` raises them with --memory-limit
 #: and --timeout.
@@ -59,6 +71,14 @@ _SIZE: Final = re.compile(r"\s*([0-9]+(?:\.[0-9]+)?)\s*([A-Za-z]*)\s*")
 _REMOVERS: weakref.WeakKeyDictionary[duckdb.DuckDBPyConnection, weakref.finalize[Any, Any]] = (
     weakref.WeakKeyDictionary()
 )
+#: Each bounded connection's memory limit, which also bounds the result it hands to Python.
+_MEMORY_LIMITS: weakref.WeakKeyDictionary[duckdb.DuckDBPyConnection, int] = (
+    weakref.WeakKeyDictionary()
+)
+#: Rows of an Arrow batch of the result: DuckDB's vector, the least it produces at once.
+RESULT_BATCH_ROWS: Final = 2048
+#: Arrow bytes converted to Python objects at a time; the deadline is checked between slices.
+_SLICE_BYTES: Final = 4 << 20
 
 
 class QueryLimitError(EventStoreError):
@@ -110,11 +130,20 @@ def apply_limits(con: duckdb.DuckDBPyConnection, *, memory_limit: int, threads: 
         f"memory_limit = '{memory_limit}B'",
         f"max_temp_directory_size = '{SPILL_FACTOR * memory_limit}B'",
         f"threads = {threads}",
+        # The result comes out as Arrow (BoundedResult): every DuckDB type kept (HUGEINT, UUID,
+        # TIME WITH TIME ZONE, BIT, …), so its Python values are what DuckDB's own fetch gives.
+        "arrow_lossless_conversion = true",
     ]
     for setting in settings:
         con.execute(f"SET {setting}")
     progress_bar_off(con)
+    _MEMORY_LIMITS[con] = memory_limit
     return temp
+
+
+def memory_limit_of(con: duckdb.DuckDBPyConnection) -> int | None:
+    """The memory limit :func:`apply_limits` gave ``con`` (None: it did not bound it)."""
+    return _MEMORY_LIMITS.get(con)
 
 
 def progress_bar_off(con: duckdb.DuckDBPyConnection) -> None:
@@ -191,12 +220,147 @@ class Deadline:
             f"query exceeded its {self.timeout_s:g} s time limit (raise it with --timeout)"
         )
 
+    def check(self) -> None:
+        """Raise :class:`QueryLimitError` if the time is up."""
+        if self.expired:
+            raise self._timed_out()
+
+
+class BoundedResult:
+    """The rows of ``sql`` on ``con``, in batches of Python tuples (the values DuckDB's own fetch
+    gives), bounded by the connection's memory limit (:func:`memory_limit_of`) and by
+    ``deadline`` until :meth:`close`.
+
+    The result is read as Arrow batches of :data:`RESULT_BATCH_ROWS` rows; each batch's bytes are
+    counted before any of it becomes Python objects: past the limit in one batch — or, with
+    ``holds_all`` (a caller that keeps every row: a table to lay out, :func:`run_query`), in all
+    of them together — the query stops with :class:`QueryLimitError`. A batch becomes Python a
+    slice of about 4 MiB at a time, through a private in-memory DuckDB that reads nothing but the
+    batch; the deadline is checked before each slice, and :meth:`check` lets the caller check
+    it while it writes."""
+
+    def __init__(
+        self,
+        con: duckdb.DuckDBPyConnection,
+        sql: str,
+        deadline: Deadline,
+        *,
+        holds_all: bool = False,
+        batch_rows: int = RESULT_BATCH_ROWS,
+    ) -> None:
+        import duckdb
+
+        self.deadline = deadline
+        self.holds_all = holds_all
+        self.limit = memory_limit_of(con)
+        self.held = 0
+        self._limit_text = _memory_limit(con)
+        self._reader: pa.RecordBatchReader | None = None
+        self._convert: duckdb.DuckDBPyConnection | None = None
+        try:
+            with deadline.guard():
+                relation = con.sql(sql)
+                self.names: list[str] = [] if relation is None else list(relation.columns)
+                if relation is not None:
+                    self._reader = relation.to_arrow_reader(batch_rows)
+            self._convert = duckdb.connect(":memory:")
+            for setting in (
+                "threads = 1",
+                "enable_external_access = false",
+                "autoload_known_extensions = false",
+                "lock_configuration = true",
+            ):
+                self._convert.execute(f"SET {setting}")
+        except BaseException:
+            self.close()
+            raise
+        self._rows = self._batches()
+
+    def __iter__(self) -> BoundedResult:
+        return self
+
+    def __next__(self) -> list[tuple[Any, ...]]:
+        return next(self._rows)
+
+    def __enter__(self) -> BoundedResult:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def check(self) -> None:
+        """Raise :class:`QueryLimitError` if the time is up (for a caller writing the rows)."""
+        self.deadline.check()
+
+    def close(self) -> None:
+        """Stop the deadline and let go of the result and the converter."""
+        self.deadline.stop()
+        if self._reader is not None:
+            self._reader.close()
+            self._reader = None
+        if self._convert is not None:
+            self._convert.close()
+            self._convert = None
+
+    def _batches(self) -> Iterator[list[tuple[Any, ...]]]:
+        while self._reader is not None and (batch := self._next_batch()) is not None:
+            self._count(batch)
+            step = max(1, batch.num_rows * _SLICE_BYTES // max(1, batch.nbytes))
+            for start in range(0, batch.num_rows, step):
+                self.deadline.check()
+                assert self._convert is not None
+                yield self._convert.from_arrow(batch.slice(start, step)).fetchall()
+            if not self.holds_all:
+                self.held = 0
+        self.deadline.check()
+
+    def _next_batch(self) -> pa.RecordBatch | None:
+        import duckdb
+
+        assert self._reader is not None
+        try:
+            return self._reader.read_next_batch()
+        except StopIteration:
+            return None
+        except Exception as exc:
+            # DuckDB's errors reach the reader's caller through Arrow's stream (OSError, …)
+            if self.deadline.expired:
+                raise self.deadline._timed_out() from exc
+            text = str(exc)
+            if "Out of Memory Error" in text:
+                raise QueryLimitError(
+                    f"query exceeded its {self._limit_text} memory limit (raise it with "
+                    f"--memory-limit): {text.splitlines()[0]}"
+                ) from exc
+            if isinstance(exc, duckdb.Error):
+                raise
+            raise duckdb.Error(text) from exc
+
+    def _count(self, batch: pa.RecordBatch) -> None:
+        self.held += batch.nbytes
+        if self.limit is None or self.held <= self.limit:
+            return
+        what = (
+            f"the {format_size(self.held)} of its rows held at once"
+            if self.holds_all
+            else f"one batch of {batch.num_rows:,} row(s), {format_size(batch.nbytes)}"
+        )
+        raise QueryLimitError(
+            f"query exceeded its {self._limit_text} memory limit (raise it with "
+            f"--memory-limit): the result needs more than that in objsearch: {what}"
+        )
+
 
 def _memory_limit(con: duckdb.DuckDBPyConnection) -> str:
     import duckdb
 
-    try:
-        row = con.execute("SELECT current_setting('memory_limit')").fetchone()
+    try:  # fetchall: a result left unfinished would keep the connection from the next query
+        rows = con.execute("SELECT current_setting('memory_limit')").fetchall()
     except duckdb.Error:
         return "memory"
-    return str(row[0]) if row else "memory"
+    return str(rows[0][0]) if rows else "memory"

@@ -13,7 +13,7 @@ import os
 import re
 import sys
 import uuid
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -57,8 +57,12 @@ def cmd_query(args: argparse.Namespace) -> int:
             return _fail("--out needs a file path")
         if not remote and out.resolve().is_relative_to(lake.resolve()):
             return _fail(f"--out {args.out} is inside the lake {lake}; write results elsewhere")
-        if out.is_dir():
-            return _fail(f"--out {args.out} is a directory, not a file")
+        try:
+            _check_out(out, force=args.force)
+        except OutputRefusedError as exc:
+            return _fail(str(exc))
+    elif args.force:
+        return _fail("--force replaces the file --out names; there is no --out")
     if not args.sql.strip():
         return _fail('no SQL given (e.g. "SELECT count(*) FROM events")')
     con = None
@@ -66,16 +70,22 @@ def cmd_query(args: argparse.Namespace) -> int:
         con = open_analytics(
             args.lake if remote else lake, memory_limit=args.memory_limit, for_sql=args.sql
         )
-        names, batches = stream_query(con, args.sql, timeout_s=args.timeout)
-        if out is None:
-            write_batches(names, batches, args.format, sys.stdout)
-            return 0
-        rows = _write_file(out, names, batches, args.format)
+        # a table is laid out from every row: they count against the memory limit together
+        names, result = stream_query(
+            con, args.sql, timeout_s=args.timeout, holds_all=args.format == "table"
+        )
+        with result:
+            if out is None:
+                write_batches(names, result, args.format, sys.stdout, check=result.check)
+                return 0
+            rows = _write_file(
+                out, names, result, args.format, force=args.force, check=result.check
+            )
     except QueryLimitError as exc:
         return _fail(str(exc))
     except duckdb.Error as exc:
         return _fail(f"query failed: {lake_names_hint(str(exc))}")
-    except ResultTooLargeError as exc:
+    except (ResultTooLargeError, OutputRefusedError) as exc:
         return _fail(str(exc))
     except OSError as exc:
         if out is None or exc.filename is None:
@@ -98,26 +108,91 @@ class ResultTooLargeError(Exception):
     """A result too long to lay out as a table."""
 
 
-def _write_file(
-    out: Path, names: Sequence[str], batches: Iterable[Sequence[Sequence[Any]]], fmt: str
-) -> int:
-    """Stream the result into ``out``, atomically: a query stopped halfway leaves no file."""
-    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
+class OutputRefusedError(Exception):
+    """``--out`` names something ``query`` does not write over."""
+
+
+def _check_out(out: Path, *, force: bool) -> None:
+    """Raise :class:`OutputRefusedError` unless ``out`` is free, or (with ``force``) a regular
+    file: a link, a FIFO, a device or a folder is never written through nor replaced."""
+    import stat
+
+    from objsearch.events._fs import describe_mode
+
     try:
-        with tmp.open("w", encoding="utf-8", newline="") as fh:
-            rows = write_batches(names, batches, fmt, fh)
-        os.replace(tmp, out)
-    except BaseException:
+        mode = os.lstat(out).st_mode
+    except FileNotFoundError:
+        return
+    if not stat.S_ISREG(mode):
+        raise OutputRefusedError(
+            f"--out {out} is {describe_mode(mode)}, not a regular file; query writes only "
+            "regular files (nothing was written)"
+        )
+    if not force:
+        raise OutputRefusedError(f"--out {out} already exists; pass --force to replace it")
+
+
+def _write_file(
+    out: Path,
+    names: Sequence[str],
+    batches: Iterable[Sequence[Sequence[Any]]],
+    fmt: str,
+    *,
+    force: bool,
+    check: Callable[[], None] | None = None,
+) -> int:
+    """Stream the result into a new hidden file beside ``out`` (``O_CREAT | O_EXCL |
+    O_NOFOLLOW``), then put it at ``out``: a query stopped halfway leaves no file, and nothing
+    but a regular file is ever replaced (without ``force``, nothing at all: the file is linked
+    into place, which fails if anything appeared there meanwhile)."""
+    import secrets
+
+    from objsearch.events._fs import fsync_dir
+
+    tmp = out.with_name(f".{out.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
+    fd = os.open(tmp, flags, 0o666)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+            rows = write_batches(names, batches, fmt, fh, check=check)
+            fh.flush()
+            os.fsync(fh.fileno())
+        _place(tmp, out, force=force)
+    finally:
         tmp.unlink(missing_ok=True)
-        raise
+    fsync_dir(out.parent, step=False)
     return rows
 
 
+def _place(tmp: Path, out: Path, *, force: bool) -> None:
+    """Put the finished ``tmp`` at ``out``, as :func:`_check_out` allows, checked again now."""
+    import errno
+
+    if not force:
+        try:
+            os.link(tmp, out)  # never replaces: EEXIST if anything is at out, a dangling link too
+            return
+        except FileExistsError:
+            _check_out(out, force=False)  # says what is there
+            raise
+        except OSError as exc:  # a file system without hard links: checked, then renamed
+            if exc.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EMLINK):
+                raise
+    _check_out(out, force=force)
+    os.replace(tmp, out)
+
+
 def write_batches(
-    names: Sequence[str], batches: Iterable[Sequence[Sequence[Any]]], fmt: str, out: Any
+    names: Sequence[str],
+    batches: Iterable[Sequence[Sequence[Any]]],
+    fmt: str,
+    out: Any,
+    *,
+    check: Callable[[], None] | None = None,
 ) -> int:
     """Write a result that arrives in batches; csv and json as they come, a table at the end
-    (at most :data:`TABLE_MAX_ROWS` rows). Returns the number of rows."""
+    (at most :data:`TABLE_MAX_ROWS` rows). ``check`` is called as the table is written (it
+    raises to stop: the query's time limit). Returns the number of rows."""
     if fmt == "table":
         rows: list[Sequence[Any]] = []
         for batch in batches:
@@ -127,7 +202,7 @@ def write_batches(
                     f"the result has more than {TABLE_MAX_ROWS:,} rows, too many to lay out as "
                     "a table; use --format csv or json (they stream), or add a LIMIT"
                 )
-        write_rows(names, rows, fmt, out)
+        write_rows(names, rows, fmt, out, check=check)
         return len(rows)
     count = 0
     if fmt == "json":
@@ -164,7 +239,14 @@ def _writes_utf8(out: Any) -> bool:
         return False
 
 
-def write_rows(names: Sequence[str], rows: Sequence[Sequence[Any]], fmt: str, out: Any) -> None:
+def write_rows(
+    names: Sequence[str],
+    rows: Sequence[Sequence[Any]],
+    fmt: str,
+    out: Any,
+    *,
+    check: Callable[[], None] | None = None,
+) -> None:
     if fmt in ("json", "csv"):
         write_batches(names, [rows], fmt, out)
         return
@@ -173,6 +255,8 @@ def write_rows(names: Sequence[str], rows: Sequence[Sequence[Any]], fmt: str, ou
     out.write("  ".join(n.ljust(w) for n, w in zip(names, widths, strict=True)).rstrip() + "\n")
     out.write("  ".join("-" * w for w in widths) + "\n")
     for r in cells:
+        if check is not None:
+            check()
         out.write("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() + "\n")
     out.write(f"({len(rows)} row{'s' if len(rows) != 1 else ''})\n")
 
@@ -516,8 +600,14 @@ def register(sub: Any) -> None:
         "--out",
         metavar="PATH",
         type=t.file_path,
-        help="write the result to this file (not inside the lake) instead of stdout; SQL itself "
-        "cannot write files",
+        help="write the result to this new file (not inside the lake) instead of stdout; SQL "
+        "itself cannot write files",
+    )
+    query.add_argument(
+        "--force",
+        action="store_true",
+        help="with --out: replace the file if it exists (a regular file only: never a link, "
+        "FIFO, device or folder)",
     )
     query.add_argument(
         "--timeout",

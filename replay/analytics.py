@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import logging
 import re
-from collections.abc import Collection, Iterator, Mapping
+from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any, Final
 
@@ -60,6 +60,7 @@ from objsearch.events.sql_limits import (
     DEFAULT_MEMORY_LIMIT,
     DEFAULT_THREADS,
     DEFAULT_TIMEOUT_S,
+    BoundedResult,
     Deadline,
     apply_limits,
 )
@@ -251,10 +252,12 @@ def run_query(
 ) -> tuple[list[str], list[tuple[Any, ...]]]:
     """Column names and rows of a read-only query (:func:`~objsearch.events.sql.check_read_only`
     refuses anything else with :class:`~objsearch.events.sql.QueryRefusedError`), stopped with
-    :class:`~objsearch.events.sql_limits.QueryLimitError` after ``timeout_s`` (None: never) or
-    at the connection's memory limit."""
-    names, batches = stream_query(con, sql, timeout_s=timeout_s)
-    return names, [row for batch in batches for row in batch]
+    :class:`~objsearch.events.sql_limits.QueryLimitError` after ``timeout_s`` (None: never), at
+    the connection's memory limit, or when the rows it returns would take more than that limit
+    (counted as Arrow bytes)."""
+    names, batches = stream_query(con, sql, timeout_s=timeout_s, holds_all=True)
+    with batches:
+        return names, [row for batch in batches for row in batch]
 
 
 def stream_query(
@@ -262,26 +265,13 @@ def stream_query(
     sql: str,
     *,
     timeout_s: float | None = DEFAULT_TIMEOUT_S,
-    batch_rows: int = 10_000,
-) -> tuple[list[str], Iterator[list[tuple[Any, ...]]]]:
+    holds_all: bool = False,
+) -> tuple[list[str], BoundedResult]:
     """As :func:`run_query`, but the rows come in batches as DuckDB produces them, so a huge
-    result never sits in memory whole; the time limit runs until the last batch is taken."""
+    result never sits in memory whole: no batch may take more than the connection's memory limit
+    (``holds_all``: all of them together). The time limit runs until the result is closed
+    (``with`` it, or :meth:`~objsearch.events.sql_limits.BoundedResult.close`), so it covers what
+    the caller does with the rows too (:mod:`objsearch.events.sql_limits`)."""
     check_read_only(con, sql)
-    deadline = Deadline(con, timeout_s)
-    try:
-        with deadline.guard():
-            result = con.execute(sql)
-    except BaseException:
-        deadline.stop()
-        raise
-    names = [d[0] for d in result.description or ()]
-
-    def batches() -> Iterator[list[tuple[Any, ...]]]:
-        try:
-            with deadline.guard():
-                while not deadline.expired and (batch := result.fetchmany(batch_rows)):
-                    yield batch
-        finally:
-            deadline.stop()
-
-    return names, batches()
+    result = BoundedResult(con, sql, Deadline(con, timeout_s), holds_all=holds_all)
+    return result.names, result

@@ -9,9 +9,11 @@ import io
 import json
 import os
 import shutil
+import stat
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -19,6 +21,8 @@ import pytest
 from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
 from objsearch.events.lake_table import DataFile, TableLake, is_table_lake
+from objsearch.events.sql_limits import QueryLimitError, close
+from objsearch.replay.analytics import open_analytics, run_query, stream_query
 from objsearch.testing.killtest import tree
 
 
@@ -132,6 +136,100 @@ def test_a_result_file_is_an_explicit_option(
     assert main(_query(lake, sql, "--out", str(lake / "x.csv"))) == 2
     assert "inside the lake" in capsys.readouterr().err
     assert not (lake / "x.csv").exists()
+
+
+def _entry(path: Path) -> tuple[int, int, str | None]:
+    """What is at ``path`` itself (a link not followed): inode, mode, a link's target."""
+    st = os.lstat(path)
+    return st.st_ino, st.st_mode, os.readlink(path) if path.is_symlink() else None
+
+
+def _make_odd(kind: str, path: Path, tmp_path: Path) -> None:
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "device":  # /dev/null's numbers, in the test's own folder
+        os.mknod(path, 0o600 | stat.S_IFCHR, os.makedev(1, 3))
+    elif kind == "link to a file":
+        (tmp_path / "notes.txt").write_text("keep me\n")
+        path.symlink_to(tmp_path / "notes.txt")
+    elif kind == "dangling link":
+        path.symlink_to(tmp_path / "nowhere.csv")
+    elif kind == "folder":
+        path.mkdir()
+    else:
+        raise AssertionError(kind)
+
+
+ODD_OUT = {
+    "fifo": "a FIFO",
+    "device": "a character device",
+    "link to a file": "a symbolic link",
+    "dangling link": "a symbolic link",
+    "folder": "a folder",
+}
+
+
+@pytest.mark.parametrize("force", [False, True], ids=["", "force"])
+@pytest.mark.parametrize("kind", ODD_OUT, ids=list(ODD_OUT))
+def test_out_writes_only_regular_files_it_creates(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str, force: bool
+) -> None:
+    """A link, FIFO, device or folder at --out is refused (exit 2) and left as it was, even with
+    --force; nothing is written through it and no temp file is left beside it."""
+    if kind == "device" and os.geteuid() != 0:
+        pytest.skip("making a device node needs root")
+    out = tmp_path / "result.csv"
+    _make_odd(kind, out, tmp_path)
+    before = _entry(out), sorted(p.name for p in tmp_path.iterdir())
+    extra = ["--force"] if force else []
+    assert main(_query(lake, "SELECT 1 AS one", "--format", "csv", "--out", str(out), *extra)) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("objsearch: error: ") and "Traceback" not in err
+    if kind != "folder":  # a folder is refused by the option's type, as before
+        assert f"is {ODD_OUT[kind]}, not a regular file" in err
+    assert (_entry(out), sorted(p.name for p in tmp_path.iterdir())) == before
+    if kind == "link to a file":
+        assert (tmp_path / "notes.txt").read_text() == "keep me\n"
+
+
+def test_out_replaces_an_existing_file_only_with_force(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "result.csv"
+    out.write_text("yesterday\n")
+    os.link(out, tmp_path / "kept.csv")  # another name of the same file
+    sql = "SELECT 1 AS one"
+    assert main(_query(lake, sql, "--format", "csv", "--out", str(out))) == 2
+    assert capsys.readouterr().err == (
+        f"objsearch: error: --out {out} already exists; pass --force to replace it\n"
+    )
+    assert out.read_text() == "yesterday\n"
+    assert main(_query(lake, sql, "--format", "csv", "--out", str(out), "--force")) == 0
+    assert out.read_text() == "one\n1\n"
+    # replaced by a new file, not written through: the other name keeps the old content
+    assert (tmp_path / "kept.csv").read_text() == "yesterday\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.csv", "result.csv"]
+    assert main(_query(lake, sql, "--force")) == 2
+    assert "there is no --out" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("force", [False, True], ids=["", "force"])
+def test_a_fifo_made_while_the_query_runs_is_not_replaced(tmp_path: Path, force: bool) -> None:
+    """What appears at --out after the check (another process, while the rows stream) is looked
+    at again before the result is put in place."""
+    from objsearch.cli_query import OutputRefusedError, _write_file
+
+    out = tmp_path / "result.csv"
+
+    def rows() -> Iterator[list[tuple[int]]]:
+        yield [(1,)]
+        os.mkfifo(out)
+        yield [(2,)]
+
+    with pytest.raises(OutputRefusedError, match="is a FIFO, not a regular file"):
+        _write_file(out, ["n"], rows(), "csv", force=force)
+    assert stat.S_ISFIFO(os.lstat(out).st_mode)
+    assert [p.name for p in tmp_path.iterdir()] == ["result.csv"]
 
 
 @pytest.mark.parametrize("sql", ["", "   ", " ; ", "-- nothing\n"])
@@ -309,6 +407,97 @@ def test_a_query_past_its_memory_limit_stops_with_a_clear_error(
     err = capsys.readouterr().err
     assert err.startswith("objsearch: error: query exceeded its 32.0 MiB memory limit ")
     assert "(raise it with --memory-limit)" in err and "Traceback" not in err
+
+
+# One value of 64 MB: DuckDB computes it outside its memory limit (a scalar's result), so only
+# objsearch's count of the result's bytes can stop it before it becomes Python objects.
+BIG_VALUE = "SELECT repeat('x', 64000000) AS x"
+
+
+@pytest.mark.parametrize("fmt", ["table", "csv", "json"])
+@pytest.mark.parametrize("to_file", [False, True], ids=["stdout", "out"])
+def test_a_result_past_the_memory_limit_stops_before_it_reaches_python(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], fmt: str, to_file: bool
+) -> None:
+    extra = ["--out", str(tmp_path / "big.txt")] if to_file else []
+    argv = _query(lake, BIG_VALUE, "--memory-limit", "32MiB", "--format", fmt, *extra)
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert captured.err.startswith("objsearch: error: query exceeded its 32.0 MiB memory limit ")
+    assert "the result needs more than that in objsearch: " in captured.err
+    # stdout may have had csv's header or json's "[" before the first batch: never a value
+    assert len(captured.out) < 10 and list(tmp_path.iterdir()) == []
+
+
+def test_a_table_counts_every_row_it_holds_csv_streams_them(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """50,000 rows of 1 kB: a few MB a batch, 50 MB in all. csv writes them a batch at a time
+    under a 32 MiB limit; a table, which holds every row to size its columns, cannot."""
+    sql = "SELECT i, repeat('x', 1000) AS x FROM range(50000) t(i)"
+    out = tmp_path / "rows.csv"
+    limit = ["--memory-limit", "32MiB"]
+    assert main(_query(lake, sql, *limit, "--format", "csv", "--out", str(out))) == 0
+    assert "wrote 50000 rows" in capsys.readouterr().err
+    assert out.stat().st_size > 50_000_000
+    assert main(_query(lake, sql, *limit)) == 2
+    captured = capsys.readouterr()
+    assert captured.err.startswith("objsearch: error: query exceeded its 32.0 MiB memory limit ")
+    assert "of its rows held at once" in captured.err and captured.out == ""
+    con = open_analytics(lake, memory_limit=32 << 20)  # run_query holds every row too
+    try:
+        with pytest.raises(QueryLimitError, match="of its rows held at once"):
+            run_query(con, sql)
+        assert run_query(con, "SELECT count(*) FROM range(50000)")[1] == [(50000,)]
+    finally:
+        close(con)
+
+
+def test_the_time_limit_runs_until_the_result_is_closed(lake: Path) -> None:
+    """A caller slow with the rows (a table being written, a slow pipe) is stopped too: the
+    deadline is checked between slices and by the writer, not only while DuckDB runs."""
+    con = open_analytics(lake)
+    try:
+        names, result = stream_query(con, "SELECT i FROM range(5000) t(i)", timeout_s=0.5)
+        with result:
+            first = next(result)
+            assert names == ["i"] and first[0] == (0,)
+            waited = time.monotonic()
+            while not result.deadline.expired:  # the timer's own thread; no fixed sleep
+                assert time.monotonic() - waited < 120, "the deadline never fired"
+                time.sleep(0.05)
+            with pytest.raises(QueryLimitError, match=r"0\.5 s time limit"):
+                result.check()
+            with pytest.raises(QueryLimitError, match=r"0\.5 s time limit"):
+                next(result)
+        assert run_query(con, "SELECT 42")[1] == [(42,)]  # the next query is not hit
+    finally:
+        close(con)
+
+
+VALUES = (
+    "SELECT INTERVAL 14 MONTH + INTERVAL 3 DAY AS i, 'a0eebc99-9c0b-4ef8-bb6d-6bb9bd380a11'::UUID"
+    " AS u, TIMESTAMP_NS '2026-12-01 10:00:00.123456789' AS ns, TIMETZ '10:11:12+02' AS tz, "
+    "MAP {'k': 1} AS m, '0101'::BIT AS b, [1, 2, 3]::INTEGER[3] AS a, 'a'::ENUM('a', 'b') AS e, "
+    "12345678901234567890::UHUGEINT AS h, '123456789012345678901234567890'::BIGNUM AS n, "
+    "'infinity'::DATE AS d, union_value(num := 2)::UNION(num INT, str VARCHAR) AS un, "
+    "[{'x': [1.5], 'y': MAP {'z': NULL::DATE}}] AS nested, 1.25::DECIMAL(38, 10) AS dec"
+)
+
+
+def test_rows_come_back_as_duckdbs_own_python_values(lake: Path) -> None:
+    """The result travels as Arrow (to count its bytes) and comes back as the values DuckDB's
+    own fetch gives, for every type (Arrow alone would give bytes, tuples, or fail)."""
+    import duckdb
+
+    con = open_analytics(lake)
+    try:
+        got = run_query(con, VALUES)
+    finally:
+        close(con)
+    plain = duckdb.connect()
+    want = plain.execute(VALUES).fetchall()
+    assert got == ([d[0] for d in plain.description or ()], want)
 
 
 def test_the_limits_have_defaults_and_options_raise_them(
