@@ -564,7 +564,9 @@ def cmd_lake_ls(args: argparse.Namespace) -> int:
     fleet = TableLake(args.lake, store=STORE)
     # refuses a table that does not hold what its runs recorded; lists past a damaged `_run`
     # file, then says which runs it could not list
-    runs, unreadable = fleet.check_runs()
+    table = fleet.table()
+    fleet.check_runs(table)
+    runs, unreadable = fleet.read_runs(table)
     rows = [(r.robot, r.date, r.run, r.events, r.source) for r in runs]
     write_rows(["robot", "date", "run", "events", "source"], rows, args.format, sys.stdout)
     if unreadable:

@@ -336,6 +336,13 @@ def run_battery(
             said = query.stderr + ls.stderr + verify.stderr
             raise RuntimeError(f"the intact lake does not answer cleanly: {said[-2000:]}")
         intact = Intact(answer_rows(query), _runs(ls))
+        # the intact lake compacts (its vacuum too) and takes a run, then answers: a check
+        # that refused a healthy lake would pass as a clear error below
+        healthy = _compacted_and_added(intact_lake, log, work / "healthy")
+        if any(c.code for c in healthy.values()):
+            raise RuntimeError(f"the intact lake refuses: {healthy}")
+        if answer_rows(healthy["compacted query"]) != intact.rows:
+            raise RuntimeError("the intact lake answers otherwise once compacted")
         for name in kinds or list(KINDS):
             row = report.by_kind.setdefault(name, Counter())
             targets = variants(intact_lake, name)
@@ -370,18 +377,27 @@ def _one(
     query, ls, verify = ask(lake)
     changed = tree(lake) != before
     commands = {"query": query, "ls": ls, "verify": verify}
+    commands |= _compacted_and_added(lake, log, work / "variant")
+    verdict, why = judge(intact, commands, changed)
+    return verdict, why, what
+
+
+def _compacted_and_added(lake: Path, log: Path, work: Path) -> dict[str, BatteryOutcome]:
+    """``lake compact --keep-hours 0`` on a copy of ``lake`` then the query, and ``lake add``
+    of ``log`` on another copy then the query (copies under ``work``)."""
+    commands = {}
     sql = every_row_sql()
     for step, argv in (
         ("compact", ["lake", "compact", "--keep-hours", "0"]),
         ("add", ["lake", "add", str(log), "--robot", "r1", "--run", ADDED[0], "--no-progress"]),
     ):
-        copy = work / "variant" / step
+        copy = work / step
+        shutil.rmtree(copy, ignore_errors=True)
         shutil.copytree(lake, copy)
         commands[step] = run_cli([*argv, "--lake", str(copy)])
         after = run_cli(["query", "--lake", str(copy), "--format", "json", sql])
         commands["compacted query" if step == "compact" else "added query"] = after
-    verdict, why = judge(intact, commands, changed)
-    return verdict, why, what
+    return commands
 
 
 __all__ = ["COLUMNS", "KINDS", "Report", "build", "judge", "run_battery", "variants"]
