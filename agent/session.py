@@ -20,6 +20,7 @@ from objsearch.agent.categories import Vocabulary, read_json
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
+from objsearch.agent.maps import DEFAULT_MAP, next_map
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.policy import Recorder, SearchAgent, SearchOptions, SearchResult
 from objsearch.agent.relations import RelationModel
@@ -208,14 +209,16 @@ class Session:
         stream: str = "robot",
         run_id: str | None = None,
         inputs: Mapping[str, Any] | None = None,
+        new_map: bool = False,
         **kwargs: Any,
     ) -> Session:
-        """:meth:`open` then :meth:`start_run`; a new log's run id is derived from ``spec`` and
-        ``inputs`` (what the run will be asked to do) unless ``run_id`` is given."""
+        """:meth:`open` then :meth:`start_run` (in a new map with ``new_map``); a new log's run id
+        is derived from ``spec`` and ``inputs`` (what the run will be asked to do) unless
+        ``run_id`` is given."""
         chosen = run_id if run_id is not None else derived_run_id(stream, spec, inputs)
         session = cls.open(ctx, log_dir, stream=stream, run_id=chosen, **kwargs)
         try:
-            session.start_run(spec)
+            session.start_run(spec, new_map=new_map)
         except BaseException:
             session.close()
             raise
@@ -236,9 +239,19 @@ class Session:
             raise ObjsearchError("no run started in this session: call start_run(spec) first")
         return self._agent
 
-    def start_run(self, spec: RunSpec) -> None:
+    def start_run(self, spec: RunSpec, *, new_map: bool = False) -> None:
         """Record ``run_started`` (and, the first time, the Visual Genome prior) and build the
-        agent from ``spec``. A log's relation model is fixed by its first run."""
+        agent from ``spec``. A log's relation model is fixed by its first run.
+
+        The run is in the map ``spec`` names (``params.map``); naming none, in the map of the
+        log's latest run; with ``new_map``, in the map after it (agent/maps.py)."""
+        current = self.state.maps.current
+        if new_map:
+            spec = spec.with_changes(
+                params={**spec.params, "map": next_map(current or DEFAULT_MAP)}
+            )
+        elif "map" not in spec.params and current not in (None, DEFAULT_MAP):
+            spec = spec.with_changes(params={**spec.params, "map": current})
         first = self.state.first_run
         if first is not None and first.relations != spec.relations:
             raise ObjsearchError(

@@ -19,11 +19,14 @@ from typing import Any, ClassVar
 
 from objsearch.agent.catalogue import Moved, RunStarted, TaskStarted, decode
 from objsearch.agent.errors import ObjsearchError
+from objsearch.agent.maps import MapEvidence
 from objsearch.agent.relations import RelationModel
 from objsearch.agent.strategies import AGENT_MODELS, RelationModels, RelationSpec, RunSpec
 from objsearch.events.projection import EventView
 
 _TASK_NUMBER = re.compile(r"task-(\d+)")
+#: The event types :class:`~objsearch.agent.maps.MapEvidence` reads.
+_MAP_TYPES = frozenset({"run_started", "detection"})
 #: The event types :meth:`TaskLedger.apply` reads.
 _LEDGER_TYPES = frozenset({"task_started", "moved", "task_ended", "task_aborted"})
 
@@ -87,11 +90,14 @@ class AgentState:
     counterfactual: RelationSpec | None = None
     #: Relation models outside the agent the log's spec may name (the simulator's dist-oracle).
     models: RelationModels = field(default_factory=lambda: AGENT_MODELS, repr=False, compare=False)
+    #: The map each session ran in and each class's sightings per map (agent/maps.py).
+    maps: MapEvidence = field(default_factory=MapEvidence)
     last_seq: int = 0
     last_time_ns: int = 0
 
     snapshot_name: ClassVar[str] = "agent_state"
-    snapshot_version: ClassVar[int] = 3  # 2: sightings with position and ``at``; 3: oracle's today
+    # 2: sightings with position and ``at``; 3: oracle's today; 4: maps and their evidence
+    snapshot_version: ClassVar[int] = 4
 
     @property
     def state(self) -> AgentState:
@@ -110,6 +116,8 @@ class AgentState:
         model = self.model
         if model is not None:
             model.apply(event)
+        if kind in _MAP_TYPES:
+            self.maps.apply(event)
         if kind in _LEDGER_TYPES:  # the rest pass the ledger by (most of a log: detections)
             self.tasks.apply(event, getattr(event, "task_id", None))
         self.last_seq = event.seq
@@ -143,6 +151,7 @@ class AgentState:
             "seeded": self.seeded,
             "seeded_source": self.seeded_source,
             "last_time_ns": self.last_time_ns,
+            "maps": self.maps.to_snapshot(),
             # Which model folded it, when not the run's own (a snapshot without the key: none).
             "counterfactual": None
             if self.counterfactual is None
@@ -175,6 +184,7 @@ class AgentState:
             seeded_source=state.get("seeded_source"),
             counterfactual=counterfactual,
             models=models,
+            maps=MapEvidence.from_snapshot(state["maps"]),
             last_seq=last_seq,
             last_time_ns=int(state["last_time_ns"]),
         )

@@ -110,6 +110,10 @@ def answer(
     if elsewhere_room is not None:
         rooms[elsewhere_room] = rooms.get(elsewhere_room, 0.0) + elsewhere
     weights = belief.weights.get(target, (1 / 3, 1 / 3, 1 / 3))
+    maps = map_answer(state, target)
+    last_map = (
+        None if last is None else state.maps.map_of_sighting(target, last.task_id, last.time_ns)
+    )
     last_outcome = belief.last_outcome.get(target)
     return {
         "target": target,
@@ -133,7 +137,12 @@ def answer(
             "task_id": last.task_id,
             "time_ns": last.time_ns,
             "scene": last.scene,
+            # Seconds from the sighting to the log's latest event, and the map it was made in.
+            "age_s": _age_s(state, last.time_ns),
+            "map": last_map,
+            "map_left": last_map is not None and last_map != state.maps.current,
         },
+        "map": maps,
         # Every mapped place the belief gives mass, over which (with elsewhere) it sums to one.
         "belief_over_places": len(places),
         # Away from every mapped place; its room when the latest sighting was there (null: not
@@ -253,6 +262,47 @@ class LiveMemory:
             return answer(self._state, target, self._home)
 
 
+def _age_s(state: AgentState, time_ns: int) -> float:
+    return round(max(0, state.last_time_ns - time_ns) / 1e9, 3)
+
+
+def map_answer(state: AgentState, target: str) -> dict[str, Any]:
+    """The map the robot is in now, the maps the evidence about ``target`` was gathered in (each
+    with its sightings and the age of its latest), and the flag: set when any of it comes from
+    a map the robot has since left (agent/maps.py says what carries over)."""
+    current = state.maps.current
+    per = state.maps.by_class.get(target, {})
+    evidence = [
+        {
+            "map": m,
+            "sightings": s.sightings,
+            "latest_time_ns": s.latest_ns,
+            "age_s": _age_s(state, s.latest_ns),
+            "current": m == current,
+        }
+        for m, s in sorted(per.items(), key=lambda ms: -ms[1].latest_ns)
+    ]
+    stale = [e for e in evidence if not e["current"]]
+    flag = None
+    if stale:
+        old = ", ".join(f"{e['map']} ({e['sightings']} sightings)" for e in stale)
+        flag = (
+            f"rests on evidence from {old}, a map the robot has left (now in {current}): "
+            "places carried over by their static's id, positions not re-anchored"
+        )
+    return {"current": current, "evidence": evidence, "flagged": bool(stale), "flag": flag}
+
+
+def _age(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 2 * 3600:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 2 * 86400:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"
+
+
 def _fresh() -> AgentState:
     return AgentState(counterfactual=ROUTINE_BELIEF)
 
@@ -268,6 +318,28 @@ def _elsewhere(answer: dict[str, Any]) -> str:
     return "away from every mapped place" + (
         f", in {room}" if room is not None else " (room not known)"
     )
+
+
+def _when(seen: dict[str, Any]) -> str:
+    """How old a sighting is and the map it was made in (answers from before maps: nothing)."""
+    if "age_s" not in seen:
+        return ""
+    left = ", a map the robot has left" if seen.get("map_left") else ""
+    return f", {_age(seen['age_s'])} ago in {seen['map']}{left}"
+
+
+def _map_lines(maps: dict[str, Any] | None) -> list[str]:
+    if maps is None:
+        return []
+    gathered = "; ".join(
+        f"{e['map']}{' (now)' if e['current'] else ''}: {e['sightings']} sighting(s), latest "
+        f"{_age(e['age_s'])} ago"
+        for e in maps["evidence"]
+    )
+    lines = [f"  map:       now {maps['current']}; evidence " + (gathered or "none yet")]
+    if maps["flagged"]:
+        lines.append(f"  FLAGGED:   {maps['flag']}")
+    return lines
 
 
 def render(answer: dict[str, Any]) -> str:
@@ -286,15 +358,18 @@ def render(answer: dict[str, Any]) -> str:
     if last is None:
         lines.append("  last seen: never")
     elif last.get("at", True):
-        lines.append(f"  last seen: {last['static_id']} in {last['room']} {_task(last)}")
+        lines.append(
+            f"  last seen: {last['static_id']} in {last['room']} {_task(last)}{_when(last)}"
+        )
     else:
         x, y, _ = last["position"]
         near = "" if last["static_id"] is None else f", nearest static {last['static_id']}"
         room = "" if last["room"] is None else f" in {last['room']}"
         lines.append(
             f"  last seen: away from every mapped place, at ({x:.2f}, {y:.2f}){room}{near} "
-            f"{_task(last)}"
+            f"{_task(last)}{_when(last)}"
         )
+    lines.extend(_map_lines(answer.get("map")))
     usual = answer["usually"]
     if usual is not None:
         place = (

@@ -10,6 +10,7 @@ import re
 import statistics
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -330,6 +331,8 @@ def run_homes(
     camera: str = DEFAULT_CAMERA,
     inspection: str = "single",
     perception: dict[str, Any] | None = None,
+    localisation: dict[str, Any] | None = None,
+    new_map_day: int | None = None,
 ) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     homes = list(homes) if homes else list(heldout_homes())
@@ -345,6 +348,10 @@ def run_homes(
         inspection=inspection,
         perception=json.dumps(perception, sort_keys=True) if perception else None,
     )
+    if localisation or new_map_day is not None:
+        # The robot's pose error and its change of map (sim/localisation.py, agent/maps.py).
+        loc = json.dumps(localisation, sort_keys=True) if localisation else None
+        jobs = [replace(j, localisation=loc, new_map_day=new_map_day) for j in jobs]
     started = time.perf_counter()
     rows = run_jobs(jobs, workers=workers, progress=progress, label="bench homes")
     elapsed = time.perf_counter() - started
@@ -363,6 +370,8 @@ def run_homes(
             "camera": None if camera == DEFAULT_CAMERA else camera,
             "inspection": None if inspection == "single" else inspection,
             **perception_options(perception),
+            "localisation": localisation["preset"] if localisation else None,
+            "new_map_day": new_map_day,
             "workers": workers,
         },
     )
@@ -372,6 +381,8 @@ def run_homes(
         "data_build": data_build_commands(Path(data)) if data else [],
         "camera": camera,
         "perception": perception or {"preset": "perfect"},
+        "localisation": localisation or {"preset": "perfect"},
+        "new_map_day": new_map_day,
         "inspection": inspection,
         # Every search of this bench starts from this prior; dist-oracle alone also reads the
         # schedule's own distribution (a reference, never a default).

@@ -50,6 +50,10 @@ class Job:
     camera: str = DEFAULT_CAMERA
     #: The simulated detector's parameters as JSON (``params.perception``); None: perfect.
     perception: str | None = None
+    #: The simulated localisation's parameters as JSON (``params.localisation``); None: perfect.
+    localisation: str | None = None
+    #: From this scene on the robot runs in a new map (``params.new_map_day``); None: never.
+    new_map_day: int | None = None
 
 
 @dataclass(frozen=True)
@@ -106,6 +110,8 @@ def run_job(job: Job) -> list[Row]:
         params={
             "camera": job.camera,
             **({"perception": json.loads(job.perception)} if job.perception else {}),
+            **({"localisation": json.loads(job.localisation)} if job.localisation else {}),
+            **({"new_map_day": job.new_map_day} if job.new_map_day is not None else {}),
         },
     )
     scenes = scenes_of(job.home, job.placements, upto=_last_scene(job))

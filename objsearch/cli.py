@@ -101,9 +101,15 @@ def run_spec(args: argparse.Namespace, home: Any, **extra: Any) -> Any:
 
 
 def _sim_params(args: argparse.Namespace) -> dict[str, Any]:
-    """The simulated robot's sensors a run records: its camera and, unless perfect, its detector."""
+    """The simulated robot's sensors a run records: its camera and, unless perfect, its detector
+    and its localisation."""
     perception = t.perception_params(args)
-    return {"camera": args.camera, **({"perception": perception} if perception else {})}
+    localisation = t.localisation_params(args)
+    return {
+        "camera": args.camera,
+        **({"perception": perception} if perception else {}),
+        **({"localisation": localisation} if localisation else {}),
+    }
 
 
 #: The paper's Table II schedule belongs to the paper home alone (data/schedules/table2.json).
@@ -124,6 +130,7 @@ def cmd_search(args: argparse.Namespace) -> int:
     from objsearch.agent.session import Session, load_context
     from objsearch.product import relation_models
     from objsearch.sim.detector_model import with_perception
+    from objsearch.sim.localisation import with_localisation
     from objsearch.sim.placements import base_placements, has_table1_scenario, table1_removals
     from objsearch.sim.world import SimClock, SimWorld, with_camera
 
@@ -160,9 +167,17 @@ def cmd_search(args: argparse.Namespace) -> int:
             run_spec(args, ctx.home, schedule=None if args.scene is None else args.schedule)
         )
         spec, detector = with_perception(spec, movable=ctx.vocabulary.names(Category.SEMI_DYNAMIC))
+        spec, localiser = with_localisation(spec)
         inputs = {"target": target, "start": args.start, "scene": args.scene}
+        if args.new_map:
+            inputs["new_map"] = True
         session = Session.start(
-            ctx, log_dir, spec, inputs=inputs, models=relation_models(simulator=True)
+            ctx,
+            log_dir,
+            spec,
+            inputs=inputs,
+            new_map=args.new_map,
+            models=relation_models(simulator=True),
         )
         try:
             world = SimWorld(
@@ -173,6 +188,7 @@ def cmd_search(args: argparse.Namespace) -> int:
                 clock=SimClock(session.resume_time_ns),
                 camera=camera,
                 detector=detector,
+                localiser=localiser,
             )
             oracle = world.oracle_length(
                 target, min_mask_px=ctx.vocabulary.classes[target].min_mask_area_px
@@ -180,6 +196,7 @@ def cmd_search(args: argparse.Namespace) -> int:
             result = session.search(world, target, args.start, scene=args.scene)
             # A "found" on a false positive or a confusion is a failure (the agent believed it).
             real = world.is_instance_of(result.found_instance, target)
+            map_id = session.state.maps.current
         finally:
             session.close()
     finally:
@@ -193,6 +210,8 @@ def cmd_search(args: argparse.Namespace) -> int:
         "strategy": args.strategy,
         "camera": camera.name,
         "perception": spec.params.get("perception", {"preset": "perfect"})["preset"],
+        "localisation": spec.params.get("localisation", {"preset": "perfect"})["preset"],
+        "map": map_id,
         "success": result.success and real,
         "false_found": result.success and not real,
         "found": result.found_instance,
@@ -277,6 +296,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
             strategy=args.strategy,
             camera=args.camera,
             perception=t.perception_params(args),
+            localisation=t.localisation_params(args),
         )
     if args.format == "json" and code == 0:
         print(json.dumps(demo_summary(Path(args.out)), indent=2))
@@ -464,6 +484,12 @@ def build_parser() -> argparse.ArgumentParser:
         choices=["none", "targets", "all"],
         help="which experience Eq. 4 folds in at the end of the task (all)",
     )
+    search.add_argument(
+        "--new-map",
+        action="store_true",
+        help="this session starts in a new map (the id after the log's latest, map-1 after "
+        "map-0): where flags every answer resting on evidence from the map it left",
+    )
     t.format_option(search, "print a JSON summary")
     search.set_defaults(func=cmd_search)
 
@@ -490,6 +516,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     t.camera_option(demo)
     t.perception_option(demo)
+    t.localisation_option(demo)
     t.format_option(demo, "print a JSON summary (the report goes to stderr)")
     demo.set_defaults(func=cmd_demo)
 
@@ -572,6 +599,7 @@ def _search_options(p: argparse.ArgumentParser) -> None:
     )
     t.camera_option(p)
     t.perception_option(p)
+    t.localisation_option(p)
 
 
 def expected_errors() -> tuple[type[BaseException], ...]:

@@ -102,6 +102,8 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
             camera=args.camera,
             inspection=args.inspection,
             perception=t.perception_params(args),
+            localisation=t.localisation_params(args),
+            new_map_day=args.new_map_day,
         )
     if args.format == "json":
         print(json.dumps(_headline(summary), indent=2))
@@ -445,6 +447,14 @@ def register(sub: Any) -> None:
         "longer than 1.5 m also from the viewpoints nearest each 1.5 m stretch (single)",
     )
     t.perception_option(homes)
+    t.localisation_option(homes)
+    homes.add_argument(
+        "--new-map-day",
+        type=t.int_range(1),
+        metavar="N",
+        help="from scene N on the robot runs in a new map (a new session with the next map id; "
+        "where flags answers resting on the old map) (never)",
+    )
     homes.set_defaults(func=cmd_bench_homes)
 
     table1 = bsub.add_parser(

@@ -576,6 +576,39 @@ def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
     return None if model.perfect else model.params()
 
 
+def localisation_option(p: argparse.ArgumentParser) -> None:
+    """``--localisation PRESET``: the simulated robot's pose error (docs/perception.md,
+    Localisation), recorded in the run (added when ``p`` is first used, as ``--camera``).
+    :func:`localisation_params` reads it."""
+    if isinstance(p, Parser):
+        p.defer(_add_localisation_option)
+    else:
+        _add_localisation_option(p)
+
+
+def _add_localisation_option(p: argparse.ArgumentParser) -> None:
+    from objsearch.sim.localisation import PRESETS
+
+    p.add_argument(
+        "--localisation",
+        type=text,
+        choices=PRESETS,
+        default=PRESETS[0],
+        help="simulated localisation: perfect (the robot knows its pose), realistic (wheel "
+        "odometry drift corrected by an AMCL-like localiser with occasional jumps) or harsh "
+        "(twice the drift and error, five times the jumps) (perfect)",
+    )
+
+
+def localisation_params(args: argparse.Namespace) -> dict[str, Any] | None:
+    """The run spec's ``params.localisation`` the option names; None when perfect (a run that
+    records none, so its log is what it always was)."""
+    from objsearch.sim.localisation import preset
+
+    model = preset(getattr(args, "localisation", "perfect"))
+    return None if model.perfect else model.params()
+
+
 #: ``--format`` values of a command whose output is a report (``query`` and ``lake ls``, whose
 #: output is a table, take ``table``, ``csv`` or ``json``).
 OUTPUT_FORMATS = ("text", "json")

@@ -35,11 +35,12 @@ def run_demo(
     strategy: str = "wpl",  # the paper's method: the demo reproduces its experiment
     camera: str = DEFAULT_CAMERA,
     perception: Mapping[str, Any] | None = None,
+    localisation: Mapping[str, Any] | None = None,
 ) -> int:
     modes = [UpdateMode.ALL, UpdateMode.NONE] if baseline else [UpdateMode.ALL]
     # --force replaces only what an earlier demo wrote here; anything else in --out is refused.
     with claim(out, command="demo", owns=OUTPUTS, force=force):
-        return _run(out, home, modes, progress, strategy, camera, perception)
+        return _run(out, home, modes, progress, strategy, camera, perception, localisation)
 
 
 def _run(
@@ -50,11 +51,14 @@ def _run(
     strategy: str,
     camera: str,
     perception: Mapping[str, Any] | None = None,
+    localisation: Mapping[str, Any] | None = None,
 ) -> int:
     ctx = load_context(home)
     params: dict[str, Any] = {"camera": camera}
     if perception:
         params["perception"] = dict(perception)  # docs/perception.md; absent: perfect
+    if localisation:
+        params["localisation"] = dict(localisation)  # docs/perception.md; absent: perfect
     spec = RunSpec.of(home, ctx.home.digest, strategy, seed=0, schedule="table2", params=params)
     results: dict[UpdateMode, list[Trial]] = {}
     total = SCENES * len(TARGET_ORDER) * STARTS * len(modes)

@@ -19,6 +19,7 @@ from objsearch.agent.geometry import Point, Pose
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.sim.detector_model import with_perception
+from objsearch.sim.localisation import with_localisation
 from objsearch.sim.models import SIM_MODELS
 from objsearch.sim.placements import Placements, base_placements, table1_removals
 from objsearch.sim.schedule_names import load_schedule, schedule_clock
@@ -97,6 +98,9 @@ def run_schedule(
     ctx = load_context(spec.home)
     spec, camera = with_camera(spec)
     spec, detector = with_perception(spec, movable=ctx.vocabulary.names(Category.SEMI_DYNAMIC))
+    spec, localiser = with_localisation(spec)
+    # From this scene on the robot runs in a new map (a new session: run_started with its id).
+    new_map_day = spec.params.get("new_map_day")
     if placements is None:
         if spec.schedule is None:
             raise DataFileError("a long-term run needs placements or a schedule in its spec")
@@ -128,6 +132,9 @@ def run_schedule(
     try:
         clock = SimClock(session.resume_time_ns)
         for scene in scenes or sorted(placements):
+            if new_map_day is not None and scene >= int(new_map_day):
+                session.start_run(spec, new_map=True)
+                new_map_day = None
             scene_placements = placements[scene]
             present = {p.cls for p in scene_placements.values()}
             for target in targets:
@@ -149,6 +156,7 @@ def run_schedule(
                         camera=camera,
                         observer=observer,
                         detector=detector,
+                        localiser=localiser,
                     )
                     oracle = world.oracle_length(
                         target, min_mask_px=ctx.vocabulary.classes[target].min_mask_area_px

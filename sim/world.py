@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -20,6 +21,7 @@ from objsearch.sim.visibility import OccludingCamera
 if TYPE_CHECKING:
     from objsearch.agent.strategies import RunSpec
     from objsearch.sim.detector_model import NoisyDetector
+    from objsearch.sim.localisation import Localiser
 
 SPEED_M_PER_S = 0.5
 LOOK_S = 1.0
@@ -178,6 +180,7 @@ class SimWorld:
         camera: SearchCamera | None = None,
         observer: WorldObserver | None = None,
         detector: NoisyDetector | None = None,
+        localiser: Localiser | None = None,
     ) -> None:
         self.home = home
         self.navmap = navmap
@@ -188,6 +191,9 @@ class SimWorld:
         #: The modelled detector the camera's detections pass through (None: a perfect one);
         #: the oracle measures with the camera alone.
         self.detector = detector
+        #: The robot's pose error (None: it knows where it is). The pose the agent reads and the
+        #: graph the robot moves on are the *believed* ones; the camera sees from the true pose.
+        self.localiser = localiser
         self._statics = home.statics
         self._pose = start
         self.observer = observer
@@ -212,9 +218,16 @@ class SimWorld:
         room = self.navmap.room_at(pose.x, pose.y)
         placed = self._in_room(room)
         candidates = [p for p in placed if not p.inside or p.support == opened]
-        seen = self.camera.detections(self.home, room, pose, pitch, placed, candidates, opened)
+        loc = self.localiser
+        at = pose if loc is None else loc.true_pose(pose)
+        seen = self.camera.detections(self.home, room, at, pitch, placed, candidates, opened)
         if self.detector is not None:
-            seen = self.detector.observe(self.home, room, pose, placed, seen)
+            seen = self.detector.observe(self.home, room, at, placed, seen)
+        if loc is not None:
+            # Placed from where the robot believes it stands: off by its pose error.
+            seen = tuple(
+                dataclasses.replace(d, position=loc.reconstruct(d.position, pose)) for d in seen
+            )
         if self.observer is not None:
             self.observer.camera_frame(self.clock.ns, pose, seen)
         return seen
@@ -256,8 +269,14 @@ class SimWorld:
             final_yaw=final_yaw,
         )
 
+    def true_pose(self) -> Pose:
+        """Where the robot is (the simulator's truth; the agent reads :meth:`pose`)."""
+        return self._pose if self.localiser is None else self.localiser.true_pose(self._pose)
+
     def _step(self, pose: Pose, metres: float, *, view: bool) -> tuple[Detection, ...]:
         self.clock.advance(metres / SPEED_M_PER_S)
+        if self.localiser is not None:
+            self.localiser.advance(metres)
         self._set_pose(pose)
         return self._view(pose) if view else ()
 

@@ -1,0 +1,118 @@
+"""Map identity: which map a session ran in, and which map each piece of evidence was gathered in.
+
+Every session runs in a map. ``run_started.params.map`` names it; a run that records none ran in
+:data:`DEFAULT_MAP`, the map its home was first given (so logs from before maps had ids read
+as they always did). A session that starts in a new map (``objsearch search --new-map``, ``bench
+homes --new-map-day N``) records the next id (:func:`next_map`).
+
+Positions are in a map's frame, so evidence gathered in a map the robot has since left cannot be
+trusted silently: :class:`MapEvidence` (part of :class:`~objsearch.agent.state.AgentState`) keeps,
+for each object class, how many accepted sightings each map gave and when the latest was, and
+``where`` flags an answer that rests on another map's evidence. What carries over is what is
+anchored to a static object by its id (the belief counts places by static id): re-anchored when
+the new map names the same statics; a position alone is not.
+"""
+
+from __future__ import annotations
+
+import bisect
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from objsearch.events.projection import EventView
+
+#: The map of a run that records none.
+DEFAULT_MAP = "map-0"
+_NUMBERED = re.compile(r"(.*?)(\d+)")
+
+
+def map_of(params: Mapping[str, Any]) -> str:
+    """The map a run spec's ``params`` say it ran in."""
+    return str(params.get("map") or DEFAULT_MAP)
+
+
+def next_map(current: str) -> str:
+    """The id of the map after ``current``: its number plus one (``map-0`` → ``map-1``)."""
+    match = _NUMBERED.fullmatch(current)
+    if match is None:
+        return f"{current}-1"
+    return f"{match.group(1)}{int(match.group(2)) + 1}"
+
+
+@dataclass(frozen=True, slots=True)
+class MapSightings:
+    """The accepted sightings of one class gathered in one map."""
+
+    sightings: int
+    latest_ns: int
+    latest_task: str | None
+
+
+@dataclass
+class MapEvidence:
+    """The map each session ran in, and each class's sightings per map (a fold of the log)."""
+
+    current: str | None = None
+    #: (first event time, map) of each change of map, in log order.
+    changes: list[tuple[int, str]] = field(default_factory=list)
+    by_class: dict[str, dict[str, MapSightings]] = field(default_factory=dict)
+
+    def apply(self, event: EventView) -> None:
+        kind = event.type
+        if kind == "run_started":
+            chosen = map_of(event.payload.get("params") or {})
+            if chosen != self.current:
+                self.current = chosen
+                self.changes.append((int(getattr(event, "time_ns", 0)), chosen))
+        elif kind == "detection" and self.current is not None:
+            payload = event.payload
+            if not payload.get("accepted"):
+                return
+            cls = str(payload["object_class"])
+            per = self.by_class.setdefault(cls, {})
+            before = per.get(self.current)
+            count = 1 if before is None else before.sightings + 1
+            per[self.current] = MapSightings(
+                count, int(getattr(event, "time_ns", 0)), getattr(event, "task_id", None)
+            )
+
+    def map_at(self, time_ns: int) -> str | None:
+        """The map the robot was in at ``time_ns`` (None: before any run)."""
+        k = bisect.bisect_right([t for t, _ in self.changes], time_ns)
+        return self.changes[k - 1][1] if k else None
+
+    def map_of_sighting(self, cls: str, task_id: str | None, time_ns: int) -> str | None:
+        """The map a sighting of ``cls`` (in ``task_id`` at ``time_ns``) was gathered in: the map
+        whose latest sighting it is, else the map the robot was in at that time."""
+        for chosen, s in self.by_class.get(cls, {}).items():
+            if s.latest_task == task_id and s.latest_ns == time_ns:
+                return chosen
+        return self.map_at(time_ns)
+
+    def left(self) -> list[str]:
+        """Maps the robot ran in and has since left, in the order it left them."""
+        seen = list(dict.fromkeys(m for _, m in self.changes))
+        return [m for m in seen if m != self.current]
+
+    def to_snapshot(self) -> dict[str, Any]:
+        return {
+            "current": self.current,
+            "changes": [[t, m] for t, m in self.changes],
+            "by_class": {
+                cls: {m: [s.sightings, s.latest_ns, s.latest_task] for m, s in per.items()}
+                for cls, per in self.by_class.items()
+            },
+        }
+
+    @classmethod
+    def from_snapshot(cls, doc: Mapping[str, Any]) -> MapEvidence:
+        return cls(
+            current=doc["current"],
+            changes=[(int(t), str(m)) for t, m in doc["changes"]],
+            by_class={
+                c: {m: MapSightings(int(n), int(t), task) for m, (n, t, task) in per.items()}
+                for c, per in doc["by_class"].items()
+            },
+        )
