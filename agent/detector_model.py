@@ -28,6 +28,10 @@ LARGE_PX: Final = 96.0 * 96.0
 #: Mask R-CNN R-50-FPN 1x (Detectron), box AR (100 detections, IoU .50:.95) on COCO val2017,
 #: small / medium / large: 32.3 / 54.8 / 64.8 (Detectron.pytorch BENCHMARK.md, Detectron row).
 MASK_RCNN_RECALL: Final = (0.323, 0.548, 0.648)
+#: D-ECE of a real detector's scores: Deformable DETR (R-50) on MS-COCO, 12.8 % (Munir et al.,
+#: CVPR 2023, "Bridging Precision and Confidence", the baseline row of their repository's table).
+#: The realistic preset's score shapes reproduce it (tests/sim/test_detector_model.py measures it).
+PUBLISHED_D_ECE: Final = 0.128
 #: An object less than this visible counts as occluded (recall times ``occluded_recall``).
 OCCLUDED_BELOW: Final = 0.5
 #: Classes a detector takes a class for: COCO's supercategories (the "Sim" errors of COCO's
@@ -69,9 +73,11 @@ class PerceptionModel:
     confusion: float = 0.0
     #: The operating threshold: no score below it is reported.
     threshold: float = 0.5
-    #: Beta shapes of a true / a false detection's score above the threshold.
-    tp_score: tuple[float, float] = (5.0, 2.0)
-    fp_score: tuple[float, float] = (2.0, 5.0)
+    #: Beta shapes of a true / a false detection's score above the threshold: chosen so that
+    #: the scores' D-ECE on simulated searches is a real detector's (docs/perception.md,
+    #: :data:`PUBLISHED_D_ECE`): true scores rise linearly to 1, false ones crowd the threshold.
+    tp_score: tuple[float, float] = (2.0, 1.0)
+    fp_score: tuple[float, float] = (1.5, 4.0)
     #: Posterior P(real) at which the agent takes a sighting as confirmed.
     accept_posterior: float = 0.99
 

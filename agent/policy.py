@@ -16,6 +16,7 @@ from typing import Protocol, TypedDict, Unpack
 
 import numpy as np
 
+from objsearch.agent.belief import look_miss
 from objsearch.agent.camera_frames import pitch_towards
 from objsearch.agent.catalogue import (
     LATEST,
@@ -74,13 +75,22 @@ INSPECTIONS = ("single", "cover")
 #: The whole-home planner's exact size: its DP holds 2^K · K states, K = 12 keeps a decision within
 #: the 50 ms target on the largest home (benchmarks/decisions.py); beyond, a bounded approximation.
 GLOBAL_EXACT_STOPS = 12
-#: Confirmation (docs/perception.md): a sighting not sure by its score is looked at again from
-#: at most this many other viewpoints, nearest the object first; a detection of the target class
-#: this close to it (m) is the same object seen again.
-CONFIRM_LOOKS = 2
+#: Confirmation (docs/perception.md), a sequential test: a sighting not sure by its score is
+#: looked at again, in turn from the ``CONFIRM_VIEWPOINTS`` viewpoints nearest the object, until
+#: P(real) reaches the model's ``accept_posterior`` or falls below ``REJECT_BELOW``, at most
+#: ``CONFIRM_LOOKS`` looks; a detection of the target class this close to it (m) is the same
+#: object seen again. A sighting the looks leave undecided keeps its odds for the rest of the task.
+CONFIRM_LOOKS = 6
+CONFIRM_VIEWPOINTS = 1
 SAME_OBJECT_M = 0.5
-#: Below this P(real) a sighting is rejected without spending the remaining looks.
 REJECT_BELOW = 0.05
+#: Revisits (docs/perception.md): with a detector whose misses are independent from look to look,
+#: a search that found nothing searches the stops again, each weighted by its value times the
+#: per-look miss to the power of its inspections so far, until the mass left at the stops is below
+#: ``REVISIT_EPSILON`` of what it was (1 − the 99.5 % success target), or after
+#: ``REVISIT_PASSES`` passes in all (the budget).
+REVISIT_EPSILON = 0.005
+REVISIT_PASSES = 8
 
 
 class Method(enum.Enum):
@@ -482,24 +492,15 @@ class SearchAgent:
         start_room = self.navmap.room_at(pose.x, pose.y)
         if self.config.method is Method.GLOBAL:
             rooms = list(self.rooms)
-            room_stops = {room: self.stops(room, target) for room in rooms}
-            found = self._search_global(run, result, room_stops)
         else:
             rooms = self.room_order(start_room, target, task_id, here=pose.point)
-            room_stops = {room: self.stops(room, target) for room in rooms}
-            found = self._search_rooms(run, result, rooms, room_stops)
-        if found is None and self.config.inspection == "cover":
-            # A second pass, only when the first found nothing: the long statics' stretches their
-            # N_s may not see, room by room in the same order, likeliest stops first.
-            for room in rooms:
-                for stop in sorted(room_stops[room], key=lambda st: (-st.rel, st.key)):
-                    found = run.cover(stop, result)
-                    if found:
-                        break
-                if found:
-                    break
+        room_stops = {room: self.stops(room, target) for room in rooms}
+        found = self._pass(run, result, rooms, room_stops)
+        reason = f"{target} not found in any room"
+        if found is None and not self.config.perception.perfect:
+            found, reason = self._revisit(run, result, rooms, room_stops)
         if found is None:
-            run.emit(SearchFailed(reason=f"{target} not found in any room"))
+            run.emit(SearchFailed(reason=reason))
         else:
             arrived = found.pose
             result.path_to_discovery = found.path_length
@@ -529,6 +530,79 @@ class SearchAgent:
             )
         )
         return result
+
+    def _pass(
+        self,
+        run: _Task,
+        result: SearchResult,
+        rooms: Sequence[str],
+        room_stops: Mapping[str, Sequence[Stop]],
+    ) -> _Found | None:
+        """One pass of the search over ``room_stops``: the strategy's own (the whole home, or
+        room by room in ``rooms``' order), then, with inspection ``cover`` and only when it found
+        nothing, the long statics' stretches their N_s may not see, room by room in the same
+        order, likeliest stops first."""
+        if self.config.method is Method.GLOBAL:
+            found = self._search_global(run, result, room_stops)
+        else:
+            found = self._search_rooms(run, result, rooms, room_stops)
+        if found is None and self.config.inspection == "cover":
+            for room in rooms:
+                for stop in sorted(room_stops[room], key=lambda st: (-st.rel, st.key)):
+                    found = run.cover(stop, result)
+                    if found:
+                        return found
+        return found
+
+    def _revisit(
+        self,
+        run: _Task,
+        result: SearchResult,
+        rooms: Sequence[str],
+        room_stops: Mapping[str, Sequence[Stop]],
+    ) -> tuple[_Found | None, str]:
+        """Search the stops again while the mass left at them says the target may still be
+        there (a modelled detector misses independently from look to look; a perfect one's
+        misses are geometry, which a second look repeats, so it never comes here). Each pass is
+        the first's (:meth:`_pass`), over the stops weighted by their value times
+        :func:`~objsearch.agent.belief.look_miss` to the power of their inspections in this task
+        (one per pass, whatever its views: the target may show in only one of them);
+        a stop whose weight is below ε / (number of stops) of the total is left out (together
+        they hold less than ε). Returns the sighting, or None and why the search stopped."""
+        miss = look_miss(self.config.perception.params())
+        every = [s for stops in room_stops.values() for s in stops]
+        total = math.fsum(s.rel for s in every)
+        passes = 1
+        while True:
+            weighted = {
+                room: [Stop(s.statics, s.rel * miss ** run.looks_at(s)) for s in stops]
+                for room, stops in room_stops.items()
+            }
+            left = (
+                math.fsum(s.rel for stops in weighted.values() for s in stops) / total
+                if total > 0
+                else 0.0
+            )
+            if left < REVISIT_EPSILON:
+                return None, (
+                    f"{run.target} not found: the mass left at the stops is {left:.2%} < "
+                    f"ε {REVISIT_EPSILON:.1%} after {passes} pass(es)"
+                )
+            if passes >= REVISIT_PASSES:
+                return None, (
+                    f"{run.target} not found: budget of {REVISIT_PASSES} passes spent, "
+                    f"{left:.2%} of the mass left at the stops"
+                )
+            passes += 1
+            for sighting, odds in run.undecided():
+                found = run.confirm(sighting, result, odds) or run.settle([], result)
+                if found is not None:
+                    return found, ""
+            floor = REVISIT_EPSILON * total / len(every)
+            kept = {room: [s for s in stops if s.rel >= floor] for room, stops in weighted.items()}
+            found = self._pass(run, result, rooms, kept)
+            if found is not None:
+                return found, ""
 
     def _search_rooms(
         self,
@@ -602,6 +676,44 @@ class _Task:
         self.world = world
         self.task_id = task_id
         self.target = target
+        #: Inspections of each stop (by key) in this task: what the revisits' weights count.
+        self.inspected: dict[str, int] = {}
+        #: Each sighting confirmation rejected or left undecided, with its odds: a later sighting
+        #: of the same object starts from them (one sequential test per object), and a revisit
+        #: pass looks again at those still undecided.
+        self.unconfirmed: list[tuple[_Found, float]] = []
+        #: Sightings of the target made during another's confirming looks, still to confirm.
+        self.queued: list[_Found] = []
+
+    def looks_at(self, stop: Stop) -> int:
+        return self.inspected.get(stop.key, 0)
+
+    def prior_odds(self, position: Vec3) -> float:
+        """The odds this task's earlier looks left at ``position`` (even when none)."""
+        for sighting, odds in reversed(self.unconfirmed):
+            if math.dist(sighting.position, position) <= SAME_OBJECT_M:
+                return odds
+        return 1.0
+
+    def undecided(self) -> list[tuple[_Found, float]]:
+        """The sightings whose odds are still above the rejection bound, likeliest first (the
+        latest odds of each object)."""
+        model = self.agent.config.perception
+        latest: list[tuple[_Found, float]] = []
+        for sighting, odds in reversed(self.unconfirmed):
+            if all(math.dist(sighting.position, s.position) > SAME_OBJECT_M for s, _ in latest):
+                latest.append((sighting, odds))
+        kept = [(s, o) for s, o in latest if model.posterior(o) >= REJECT_BELOW]
+        return sorted(kept, key=lambda so: -so[1])
+
+    def is_sure(self, det: Detection) -> bool:
+        """Whether one detection of the target is a sighting by itself: its score's likelihood
+        ratio times the odds earlier looks left at its place reach ``accept_posterior``."""
+        model = self.agent.config.perception
+        if model.perfect:
+            return True
+        odds = self.prior_odds(det.position) * model.likelihood_ratio(det.score)
+        return model.posterior(odds) >= model.accept_posterior
 
     def emit(self, record: Record) -> None:
         self.agent.recorder.emit(record, time_ns=self.world.now_ns(), task_id=self.task_id)
@@ -636,7 +748,12 @@ class _Task:
                 )
             )
         else:
-            counted = model.sure(det.score) if sure is None else sure
+            if sure is not None:
+                counted = sure
+            elif det.object_class == self.target:
+                counted = self.is_sure(det)
+            else:
+                counted = model.sure(det.score)
             self.emit(
                 Detected(
                     object_class=object_class,
@@ -661,32 +778,45 @@ class _Task:
             result.path_length,
             det.score,
             det.mask_area,
-            self.agent.config.perception.sure(det.score),
+            self.is_sure(det),
         )
 
-    def confirm(self, found: _Found, result: SearchResult) -> _Found | None:
+    def confirm(
+        self, found: _Found, result: SearchResult, odds: float | None = None
+    ) -> _Found | None:
         """The sighting if it is confirmed, else None (a ``sighting_rejected`` is recorded).
 
-        A sighting sure by its score stands. Otherwise, starting from even odds times its score's
-        likelihood ratio, the robot looks at the object again from the viewpoints nearest it
-        (:data:`CONFIRM_LOOKS` at most, none it stands at): a detection of the target there
-        multiplies the odds by its own ratio, none by the detector's miss probability for the
-        mask the object would show from there. It is confirmed once P(real) reaches the model's
-        ``accept_posterior``, rejected when it falls below :data:`REJECT_BELOW` or the looks run out."""
+        A sighting sure by its score (and the odds earlier looks left at its place) stands.
+        Otherwise it is a sequential test: from those odds times its score's likelihood ratio,
+        the robot looks at the object again, in turn from the :data:`CONFIRM_VIEWPOINTS`
+        viewpoints nearest it (none it stands at), at most :data:`CONFIRM_LOOKS` looks: a
+        detection of the target there multiplies the odds by its own ratio, none by the
+        detector's miss probability for the mask the object would show from there. It is
+        confirmed once P(real) reaches the model's ``accept_posterior``, rejected when it falls
+        below :data:`REJECT_BELOW` or the looks run out; its odds stay with its place for the
+        rest of the task. A sighting of the target elsewhere during the looks is queued.
+        ``odds``: go on with a test an earlier call left undecided (a revisit)."""
         if found.sure:
             return found
         model = self.agent.config.perception
         nav = self.agent.navmap
-        odds = model.likelihood_ratio(found.score)
+        if odds is None:
+            odds = self.prior_odds(found.position) * model.likelihood_ratio(found.score)
         room = nav.room_at(found.pose.x, found.pose.y)
         px, py, pz = found.position
         seen_from = math.dist((found.pose.x, found.pose.y, 1.0), (px, py, pz))
-        candidates = sorted(
-            (v for v in nav.viewpoints(room) if v != found.pose.point),
-            key=lambda v: (math.dist((v.x, v.y), (px, py)), v),
-        )
+        # Where it was seen from first (a look there costs no metres: this detector's draws are
+        # independent from view to view), then the viewpoints nearest it.
+        nearest = [
+            found.pose.point,
+            *sorted(
+                (v for v in nav.viewpoints(room) if v != found.pose.point),
+                key=lambda v: (math.dist((v.x, v.y), (px, py)), v),
+            )[: CONFIRM_VIEWPOINTS - 1],
+        ]
         looks = 0
-        for viewpoint in candidates[:CONFIRM_LOOKS]:
+        while looks < CONFIRM_LOOKS:
+            viewpoint = nearest[looks % len(nearest)]
             self.go(viewpoint, result, watch=False, final_yaw=heading(viewpoint, Point(px, py)))
             pitch = pitch_towards((viewpoint.x, viewpoint.y), (px, py, pz))
             dets = self.world.look(heading(viewpoint, Point(px, py)), pitch)
@@ -707,12 +837,14 @@ class _Task:
             if again is None:
                 here = math.dist((pose.x, pose.y, 1.0), (px, py, pz))
                 expected = found.mask_area * (seen_from / max(here, 0.1)) ** 2
-                odds *= model.miss(expected)
+                odds *= model.miss(expected, visible=0.0)
             else:
                 odds *= model.likelihood_ratio(again.score)
             verdict = model.posterior(odds) >= model.accept_posterior
             for d in dets:
-                self.detection(d, room, sure=verdict if d is again else None)
+                hit = self.detection(d, room, sure=verdict if d is again else None)
+                if hit and d is not again:
+                    self.queued.append(self.sighting(d, result))
             if verdict and again is not None:
                 return _Found(
                     again.instance_id,
@@ -725,6 +857,7 @@ class _Task:
                 )
             if model.posterior(odds) < REJECT_BELOW:
                 break
+        self.unconfirmed.append((found, odds))
         self.emit(
             SightingRejected(
                 object_class=self.target,
@@ -735,6 +868,18 @@ class _Task:
                 looks=looks,
             )
         )
+        return None
+
+    def settle(self, sightings: Sequence[_Found], result: SearchResult) -> _Found | None:
+        """Confirm ``sightings`` in turn, and any their confirming looks queued; the first
+        confirmed one, or None."""
+        todo = list(sightings)
+        while todo or self.queued:
+            if not todo:
+                todo, self.queued = self.queued, []
+            confirmed = self.confirm(todo.pop(0), result)
+            if confirmed is not None:
+                return confirmed
         return None
 
     def go(
@@ -783,10 +928,9 @@ class _Task:
                 return None
             sightings = [self.sighting(det, result) for det in found]
             found.clear()
-            for sighting in sightings:
-                confirmed = self.confirm(sighting, result)
-                if confirmed is not None:
-                    return confirmed
+            confirmed = self.settle(sightings, result)
+            if confirmed is not None:
+                return confirmed
             # Rejected: on to the goal, as if it had not been seen.
             start = self.world.pose()
             if start.point == goal and (
@@ -798,6 +942,7 @@ class _Task:
         """Open each container of the stop and look in; look at the others from θ_s and ±45°.
         Each view tilts the camera at the static (:func:`static_pitch`)."""
         room = stop.statics[0].room
+        self.inspected[stop.key] = self.inspected.get(stop.key, 0) + 1
         yaws_done: list[float] = []
         for s in stop.statics:
             back = self.back_to(stop.viewpoint, result)
@@ -869,8 +1014,4 @@ class _Task:
             ViewTaken(pose=_planar(pose), pitch=round(pitch, 4), static_id=static_id, reason=reason)
         )
         sightings = [self.sighting(det, result) for det in dets if self.detection(det, room)]
-        for sighting in sightings:
-            confirmed = self.confirm(sighting, result)
-            if confirmed is not None:
-                return confirmed
-        return None
+        return self.settle(sightings, result)

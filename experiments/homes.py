@@ -5,6 +5,7 @@ AI2-THOR rearrangement episodes (iTHOR-based homes only)."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import statistics
@@ -50,6 +51,18 @@ def family(home: str) -> str:
     return "procthor" if home.startswith("procthor") else "ithor"
 
 
+#: The reference a strategy is measured against under a modelled detector: the whole-home
+#: distribution oracle, seeing with the same detector and confirming by the same rule (it runs
+#: the same search loop), inspecting as the strategy does (issue 45).
+REFERENCE = "dist-oracle-global"
+
+
+def reference_of(strategy: str) -> str:
+    """The reference run beside ``strategy`` under a modelled detector (:data:`REFERENCE`, with
+    the strategy's own inspection)."""
+    return full_strategy_name(REFERENCE, split_strategy(strategy)[1])
+
+
 def homes_jobs(
     homes: Sequence[str],
     strategies: Sequence[str],
@@ -89,6 +102,9 @@ def homes_jobs(
                 f"home(s) {', '.join(missing)} have no rearrangement data: {why}; homes with "
                 f"data: {', '.join(sorted(have)) or 'none'}; use --schedules stats for the others"
             )
+    if perception is not None:
+        # Path ÷ a reference that sees with the same detector: add it, once per inspection.
+        strategies = list(dict.fromkeys([*strategies, *map(reference_of, strategies)]))
     scene_ids = tuple(range(1, scenes + 1)) if scenes else None
     jobs = []
     for home in homes:
@@ -227,6 +243,21 @@ def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
     return {"perception": perception["preset"], **changed}
 
 
+def _search_key(r: Row) -> tuple[str, str, int, int, str, str]:
+    return (r.home, r.placements, r.seed, r.scene, r.target, r.start)
+
+
+def reference_ratio(rows: Sequence[Row], reference: Sequence[Row]) -> float | None:
+    """Σ path ÷ Σ the reference's path over the searches both made (same home, schedule, seed,
+    scene, target and start); None when they share none."""
+    theirs = {_search_key(r): r.path_length for r in reference}
+    shared = [(r.path_length, theirs[_search_key(r)]) for r in rows if _search_key(r) in theirs]
+    denominator = math.fsum(b for _, b in shared)
+    if not shared or denominator <= 0:
+        return None
+    return math.fsum(a for a, _ in shared) / denominator
+
+
 def homes_summary(rows: Sequence[Row]) -> dict[str, Any]:
     keys = list(dict.fromkeys(_key(r) for r in rows))
     out: dict[str, Any] = {"overall": {}, "by_schedule": {}, "by_family": {}, "by_home": {}}
@@ -234,6 +265,16 @@ def homes_summary(rows: Sequence[Row]) -> dict[str, Any]:
         mine = [r for r in rows if _key(r) == k]
         out["overall"][k] = _with_spread(mine)
         out["overall"][k]["false_found_rate"] = sum(r.false_found for r in mine) / len(mine)
+        ref = reference_of(k.partition("/")[0])
+        if ref != k and any(_key(r) == ref for r in rows):
+            reference = [r for r in rows if _key(r) == ref]
+            out["overall"][k]["reference"] = ref
+            out["overall"][k]["reference_ratio"] = reference_ratio(mine, reference)
+            for fam in sorted({family(r.home) for r in mine}):
+                out.setdefault("reference_by_family", {}).setdefault(fam, {})[k] = reference_ratio(
+                    [r for r in mine if family(r.home) == fam],
+                    [r for r in reference if family(r.home) == fam],
+                )
         for kind in sorted({schedule_kind(r.placements) for r in mine}):
             out["by_schedule"].setdefault(kind, {})[k] = _with_spread(
                 [r for r in mine if schedule_kind(r.placements) == kind]
@@ -290,15 +331,25 @@ def render(summary: dict[str, Any]) -> str:
         f"from {f'{starts} start point(s)' if starts else 'every start point'}; "
         f"full path (m), camera {summary.get('camera', '?')}{perception}"
     ]
+    referenced = any("reference_ratio" in s for s in summary["overall"].values())
     lines.append(
         f"{'strategy':20}{'n':>7}{'path m':>9}{'±runs':>7}{'success':>9}{'SPL':>7}{'oracle×':>9}{'< wpl':>8}"
         + (f"{'false found':>13}" if noisy else "")
+        + (f"{'÷ ref':>8}" if referenced else "")
     )
     for k, s in summary["overall"].items():
+        ratio = s.get("reference_ratio")
         lines.append(
             f"{k:20}{s['n']:7d}{s['mean_path_length']:9.2f}{s['std_over_runs']:7.2f}{s['success_rate']:9.1%}"
             f"{s['spl']:7.3f}{s['oracle_ratio']:9.2f}{s['runs_better_than_wpl']:>8}"
             + (f"{s.get('false_found_rate', 0.0):13.2%}" if noisy else "")
+            + ((f"{ratio:8.2f}" if ratio is not None else f"{'–':>8}") if referenced else "")
+        )
+    if referenced:
+        refs = sorted({s["reference"] for s in summary["overall"].values() if "reference" in s})
+        lines.append(
+            f"÷ ref: path ÷ the path of {', '.join(refs)} on the same searches (the distribution "
+            "oracle, seeing with the same detector and confirming by the same rule)"
         )
     if len(summary.get("by_schedule", {})) > 1:
         for kind, per in summary["by_schedule"].items():
@@ -310,9 +361,12 @@ def render(summary: dict[str, Any]) -> str:
                 )
     for fam, per in summary["by_family"].items():
         lines.append(f"\n{fam} homes: mean path length (m) / SPL")
+        by_ref = summary.get("reference_by_family", {}).get(fam, {})
         for k, s in per.items():
+            ratio = by_ref.get(k)
             lines.append(
                 f"  {k:20}{s['mean_path_length']:8.2f}{s['spl']:8.3f}  success {s['success_rate']:.1%}"
+                + (f"  ÷ ref {ratio:.2f}" if ratio is not None else "")
             )
     return "\n".join(lines)
 

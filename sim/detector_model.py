@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Collection, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -41,6 +42,9 @@ class NoisyDetector:
         self.seed = seed
         self.movable = tuple(sorted(movable))
         self.views = 0
+        #: (score, true) of every detection reported: true when the object is there with the
+        #: reported class (what :func:`reliability` measures).
+        self.scored: list[tuple[float, bool]] = []
 
     def observe(
         self,
@@ -72,6 +76,7 @@ class NoisyDetector:
                 if cls not in self.movable:
                     continue  # a class the robot's vocabulary drops: a miss
             score = self._score(u, real)
+            self.scored.append((score, real))
             out.append(
                 Detection(
                     cls,
@@ -118,6 +123,7 @@ class NoisyDetector:
             low, high = FALSE_MASK_PX
             mask = math.exp(math.log(low) + size * (math.log(high) - math.log(low)))
             score = self._score(u, False)
+            self.scored.append((score, False))
             out.append(
                 Detection(
                     cls,
@@ -129,6 +135,36 @@ class NoisyDetector:
                 )
             )
         return out
+
+
+@dataclass(frozen=True, slots=True)
+class Reliability:
+    """How well a detector's scores say how often it is right (Küppers et al. 2020)."""
+
+    detections: int
+    #: Share of detections that are true.
+    precision: float
+    #: D-ECE: per score bin, |precision − mean score|, weighted by the bin's share.
+    d_ece: float
+    #: Mean squared difference between score and truth (1 true, 0 false).
+    brier: float
+
+
+def reliability(scored: Sequence[tuple[float, bool]], bins: int = 10) -> Reliability:
+    """D-ECE and Brier of (score, true) pairs, scores binned evenly over [0, 1] (the D-ECE of
+    Küppers et al. 2020 with only the confidence dimension, as Munir et al. 2023 report it)."""
+    if not scored:
+        raise ValueError("no detections to measure")
+    n = len(scored)
+    per: dict[int, list[tuple[float, bool]]] = {}
+    for score, true in scored:
+        per.setdefault(min(int(score * bins), bins - 1), []).append((score, true))
+    d_ece = math.fsum(
+        len(b) / n * abs(math.fsum(t for _, t in b) / len(b) - math.fsum(s for s, _ in b) / len(b))
+        for b in per.values()
+    )
+    brier = math.fsum((s - t) ** 2 for s, t in scored) / n
+    return Reliability(n, sum(t for _, t in scored) / n, d_ece, brier)
 
 
 def _beta_quantile(u: float, a: float, b: float) -> float:

@@ -37,9 +37,10 @@ def test_realistic_is_mask_rcnn_by_size_and_harsh_halves_it_with_twice_the_false
 
 def test_a_score_is_evidence_by_its_likelihood_ratio() -> None:
     model = preset("realistic")
-    # Beta(5, 2) over Beta(2, 5) is (u / (1 - u))³ above the threshold.
+    # Beta(2, 1) over Beta(1.5, 4) is 2 B(1.5, 4) √u / (1 - u)³ above the threshold.
     u = (0.8 - model.threshold) / (1 - model.threshold)
-    assert model.likelihood_ratio(0.8) == pytest.approx((u / (1 - u)) ** 3)
+    b = math.gamma(1.5) * math.gamma(4) / math.gamma(5.5)
+    assert model.likelihood_ratio(0.8) == pytest.approx(2 * b * math.sqrt(u) / (1 - u) ** 3)
     assert model.likelihood_ratio(1.0) == math.inf
     assert model.likelihood_ratio(model.threshold) == 0.0
     assert model.sure(0.97) and not model.sure(0.7)
