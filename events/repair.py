@@ -2,24 +2,21 @@
 
 A writer refuses a damaged log and touches nothing (``CorruptLogError``); only a person running
 ``objsearch log repair`` changes one, and the repair removes nothing it does not keep: the bytes it
-takes out of ``events.log`` go to a quarantine file beside it, named in its report.
+takes out of ``events.log`` go to a quarantine file beside it, named in its report. What it keeps
+is planned by :mod:`.repair_plan`.
 """
 
 from __future__ import annotations
 
 import collections
-import json
 import os
 import time
-import uuid
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol, TypeVar
 
 from . import _fs
-from .diagnose import Witness, diagnose
-from .envelope import EVENT_ID_NAMESPACE, Event, deterministic_event_id
 from .errors import CorruptLogError, LogLockedError
 from .log_files import (
     DURABLE_FILE,
@@ -34,10 +31,11 @@ from .log_files import (
     read_meta,
     write_durable,
 )
+from .log_links import line_info, meta_mismatch
 from .log_seal_check import _check_sealed
 from .log_torn_tail import quarantine
-from .record import encode_record
-from .scan import QUARANTINED_TYPE, BadRecord, _Cursor, _Scan, check_record
+from .repair_plan import Plan, RepairAction, plan_repair
+from .scan import QUARANTINED_TYPE, _Scan
 from .schemas import SchemaRegistry
 from .seal import Sealer, check_seals
 from .store import Store, shipped
@@ -55,19 +53,6 @@ class Verification:
     last_seq: int
     durable_seq: int | None  # the high-water mark's seq, if the writer left one
     torn_bytes: int  # an unterminated fragment after the last record (never acknowledged)
-
-
-@dataclass(frozen=True, slots=True)
-class RepairAction:
-    """One thing :func:`repair_log` did, at one place of the original file."""
-
-    #: "checksum-rewritten", "bit-restored", "quarantined", "extra", "lost", "cut", "missing"
-    kind: str
-    first_seq: int  # the seq(s) it concerns
-    last_seq: int
-    line: int  # line (1-based) and byte offset in the file as it was (the end, for "missing")
-    offset: int
-    reason: str
 
 
 @dataclass(frozen=True, slots=True)
@@ -141,18 +126,21 @@ def repair_log(
     """Make ``directory`` a clean log again, removing only what is damaged and keeping every
     byte it takes out.
 
-    Under the writer's lock: a log whose every line ends in CR LF is converted back (the
-    original kept as ``events.log.crlf``) if that makes it clean. Otherwise each bad record is
-    diagnosed by its witness, the next record (:mod:`~objsearch.events.diagnose`): checksum
-    digits damaged on an intact record are rewritten; a single flipped bit is corrected; a
-    record damaged otherwise is replaced by a ``record_quarantined`` event at its seq that
-    carries its checksum on, so every later record stays. From the first record nothing proves
-    (spliced, reordered, two damaged in a row, lines lost) everything is moved out, and
-    ``record_quarantined`` events take the seqs it held and any acknowledged seqs the file had
-    lost, so no later event reuses a removed record's seq or id. The bytes taken out are kept in
+    Under the writer's lock: a log whose every line ends in CR LF is converted back first (the
+    original kept as ``events.log.crlf``). Each record is then found by its witnesses, not by
+    where it stands (:mod:`~objsearch.events.repair_plan`): the next record is the line whose
+    checksum was chained from the last one kept, so blank, duplicated, inserted or swapped lines
+    cost no record; damage is judged in place (a flipped bit corrected, checksum digits
+    rewritten, a record damaged otherwise replaced by a ``record_quarantined`` event that
+    carries its chain on); after lines lost or damaged beyond that, the next intact record of
+    this log resumes it. What no witness places is moved out, and ``record_quarantined`` events
+    take every seq a removed line may have held and any acknowledged seqs the file had lost, so
+    no later event reuses a removed record's seq or id. The bytes taken out are kept in
     ``events.log.repair-<offset>``; seals and the high-water mark are rewritten (snapshot
-    attestations dropped: the log changed). Raises :class:`LogLockedError` if a writer has the
-    log open. ``progress`` wraps the records checked, then (a damaged log) the lines judged.
+    attestations dropped: the log changed). Raises :class:`CorruptLogError`, changing nothing,
+    for a ``meta.json`` the records prove edited (:func:`~.log_links.meta_mismatch`) and where a
+    repair would be a guess; :class:`LogLockedError` if a writer has the log open. ``progress``
+    wraps the records checked, then the steps of the repair.
     """
     directory = Path(directory)
     meta = read_meta(directory)
@@ -192,24 +180,52 @@ def _repair_locked(
     problem = problem or damaged_mark
     if problem is None:
         return Repair(directory, False, events, last_seq, 0, 0, None, None, None)
+    crlf = _is_crlf(data)
+    original = data
+    if crlf:
+        data = data.replace(b"\r\n", b"\n")
+    wrong_meta = meta_mismatch(lambda n: data[:n], meta)
+    if wrong_meta is not None:
+        raise CorruptLogError(
+            f"cannot repair {path}: {wrong_meta} (nothing was changed)",
+            path=str(directory / META_FILE),
+            line=1,
+            offset=0,
+        )
+
+    def name(offset: int) -> str:
+        return _quarantine_name(directory, offset)
+
+    plan = plan_repair(data, meta, durable, registry, wall_clock, name, progress)
+    _refuse_what_repair_cannot_judge(directory, meta, data, plan, record)
     if damaged_mark is not None:
         quarantine(directory, "durable-damaged", (directory / DURABLE_FILE).read_bytes())
-    if _is_crlf(data):
-        converted = data.replace(b"\r\n", b"\n")
-        plan = _plan(converted, meta, durable, wall_clock, directory, registry, progress)
-        if not plan.actions and plan.end == len(converted):
-            original = quarantine(directory, "crlf", data)
-            _fs.write_atomic(path, converted)
+    if crlf:
+        kept_original = quarantine(directory, "crlf", original)
+        if plan.clean:
+            _fs.write_atomic(path, data)
             _write_mark(directory, meta, plan)
-            return Repair(directory, True, plan.events, plan.at.seq, 0, 0, problem, original, None)
-    plan = _plan(data, meta, durable, wall_clock, directory, registry, progress)
-    _refuse_what_repair_cannot_judge(directory, meta, data, plan, record)
+            return Repair(
+                directory, True, plan.events, plan.at.seq, 0, 0, problem, kept_original, None
+            )
+        plan.actions.insert(
+            0,
+            RepairAction(
+                "line-ending-restored",
+                1,
+                plan.at.seq,
+                1,
+                0,
+                f"every line ended in CR LF: converted back (the file as it was is kept in "
+                f"{kept_original.name}); the offsets below are of the converted file",
+            ),
+        )
     kept: Path | None = None
     if plan.removed:
         kept = directory / plan.quarantine_name
         _fs.write_new(kept, bytes(plan.removed))
     new = plan.output()
-    if new != data:
+    if new != original:
         _fs.write_atomic(path, new)
     if plan.at.seq:
         _write_mark(directory, meta, plan)
@@ -231,16 +247,21 @@ def _repair_locked(
 
 
 def _refuse_what_repair_cannot_judge(
-    directory: Path, meta: LogMeta, data: bytes, plan: _Plan, record: DurableRecord | None
+    directory: Path, meta: LogMeta, data: bytes, plan: Plan, record: DurableRecord | None
 ) -> None:
     """Raise :class:`CorruptLogError` (nothing changed) where a repair would be a guess."""
     path = directory / LOG_FILE
-    if plan.events == 0 and data.count(b"\n") > 0 and not plan.actions_before_cut():
+    if (
+        plan.kept_records == 0
+        and not plan.actions_before_cut()
+        and any(line_info(line).seq is not None for line in data.split(b"\n")[:-1])
+    ):
         raise CorruptLogError(
-            f"cannot repair {path}: not one record belongs to the log meta.json describes "
-            f"(stream {meta.stream!r}, run id {meta.run_id}): meta.json was probably edited or "
-            "replaced, and a repair would move every record out; restore meta.json (nothing "
-            "was changed)",
+            f"cannot repair {path}: not one record can be proven to belong to the log "
+            f"meta.json describes (stream {meta.stream!r}, run id {meta.run_id}, format "
+            f"{meta.format!r}): meta.json was probably edited or replaced, or events.log is "
+            "another log's, and a repair would move every record out; restore meta.json or "
+            "compare with a copy (nothing was changed)",
             path=str(directory / META_FILE),
             line=1,
             offset=0,
@@ -291,7 +312,7 @@ def _first_problem(
     return None, events, scan.last_seq
 
 
-def _write_mark(directory: Path, meta: LogMeta, plan: _Plan) -> None:
+def _write_mark(directory: Path, meta: LogMeta, plan: Plan) -> None:
     """The high-water mark at the repaired file's end, sealed from the lines just written (no
     second read of the file)."""
     sealer = Sealer(crc=meta.genesis)
@@ -300,237 +321,6 @@ def _write_mark(directory: Path, meta: LogMeta, plan: _Plan) -> None:
     at = plan.at
     mark = LogPosition(at.seq, at.offset, at.checksum, at.line, at.time_ns)
     write_durable(directory, mark, sealer.seals())
-
-
-@dataclass
-class _Plan:
-    """The repaired file, built line by line from the damaged one."""
-
-    meta: LogMeta
-    wall_clock: Callable[[], int]
-    quarantine_name: str = ""
-    at: _Cursor = field(default_factory=_Cursor)
-    lines: list[bytes] = field(default_factory=list)  # the new file's lines, newlines included
-    removed: bytearray = field(default_factory=bytearray)
-    actions: list[RepairAction] = field(default_factory=list)
-    events: int = 0
-    end: int = 0  # bytes of the original file read as kept records
-    missing: tuple[int, int] | None = None
-    mark_seq: int = 0  # the durable mark's seq, and the chain value the repair reached there
-    mark_chain: int | None = None
-
-    def actions_before_cut(self) -> bool:
-        return any(a.kind != "cut" and a.kind != "missing" for a in self.actions)
-
-    def keep(self, line: bytes, event: Event, chain: int) -> None:
-        self.lines.append(line + b"\n")
-        at = self.at
-        at.offset += len(line) + 1
-        at.line += 1
-        at.seq = event.seq
-        at.checksum = chain
-        at.time_ns = event.time_ns
-        if event.seq == self.mark_seq and not self.actions:
-            self.mark_chain = chain  # every record up to the mark verified as it stands
-        if event.type != QUARANTINED_TYPE:
-            self.events += 1
-
-    def marker(
-        self, *, reason: str, offset: int, length: int, chain: int | None, kept: bool
-    ) -> None:
-        """A ``record_quarantined`` event at the next seq."""
-        at = self.at
-        seq = at.seq + 1
-        event = Event(
-            event_id=str(uuid.uuid5(EVENT_ID_NAMESPACE, f"{self.meta.id_key()}/{seq}/quarantined")),
-            stream=self.meta.stream,
-            seq=seq,
-            time_ns=at.time_ns,
-            recorded_at_ns=self.wall_clock(),
-            type=QUARANTINED_TYPE,
-            version=1,
-            task_id=None,
-            payload={
-                "reason": reason,
-                "quarantine": self.quarantine_name if kept else None,
-                "offset": offset,
-                "length": length,
-                "chain": None if chain is None else f"{chain:08x}",
-            },
-        )
-        line = encode_record(event, at.checksum if self.meta.chained else 0)[:-1]
-        own = int(line[-8:], 16)
-        self.keep(line, event, own if chain is None else chain)
-
-    def output(self) -> bytes:
-        return b"".join(self.lines)
-
-
-def _plan(
-    data: bytes,
-    meta: LogMeta,
-    durable: LogPosition | None,
-    wall_clock: Callable[[], int],
-    directory: Path,
-    registry: SchemaRegistry,
-    progress: Progress,
-) -> _Plan:
-    plan = _Plan(meta, wall_clock, mark_seq=0 if durable is None else durable.seq)
-    plan.at.checksum = meta.genesis
-    lines = data.split(b"\n")
-    lines.pop()  # the unterminated fragment after the last newline (b"" if none): part of the tail
-    offsets = [0]
-    for line in lines:
-        offsets.append(offsets[-1] + len(line) + 1)
-    first_change: int | None = None
-    stop = len(lines)  # the first line from which nothing is proven (the tail), or past the last
-    for i, line in enumerate(progress(lines)):
-        at = plan.at
-        try:
-            event, chain = check_record(line, at, meta, registry)
-        except BadRecord as bad:
-            found = None
-            if bad.record_error is not None and not bad.record_error.intact:
-                mark = None
-                if (
-                    durable is not None
-                    and durable.seq == at.seq + 1
-                    and durable.offset == offsets[i + 1]
-                ):
-                    mark = durable.checksum
-                found = diagnose(
-                    line,
-                    at.checksum,
-                    seq=at.seq + 1,
-                    stream=meta.stream,
-                    id_key=meta.id_key(),
-                    chained=meta.chained,
-                    witness=Witness(lines[i + 1] if i + 1 < len(lines) else None, mark),
-                )
-            if found is None or found.kind == "unproven":
-                stop = i
-                break
-            restored = None
-            if found.original is not None:
-                try:
-                    restored = check_record(found.original, at, meta, registry)
-                except BadRecord:
-                    stop = i
-                    break  # recovered bytes that are still not the next record: prove nothing
-            if first_change is None:
-                first_change = offsets[i]
-                plan.quarantine_name = _quarantine_name(directory, first_change)
-            kept_at = len(plan.removed)
-            plan.removed += line + b"\n"
-            seq = at.seq + 1
-            if restored is not None and found.original is not None:
-                plan.keep(found.original, *restored)
-                kind = "checksum-rewritten" if found.kind == "checksum" else "bit-restored"
-            elif found.kind == "lost":
-                plan.removed = plan.removed[:kept_at]  # the line stays: only seqs were lost
-                last = found.found_seq - 1
-                while plan.at.seq < last:
-                    plan.marker(
-                        reason=f"missing: {found.reason}",
-                        offset=0,
-                        length=0,
-                        chain=found.chain if plan.at.seq + 1 == last else None,
-                        kept=False,
-                    )
-                try:
-                    kept_event, chain = check_record(line, plan.at, meta, registry)
-                except BadRecord:
-                    raise AssertionError("a solved chain that does not verify") from None
-                plan.keep(line, kept_event, chain)
-                plan.actions.append(
-                    RepairAction("lost", seq, last, i + 1, offsets[i], found.reason)
-                )
-                continue
-            elif found.kind == "extra":
-                plan.actions.append(
-                    RepairAction("extra", seq, seq, i + 1, offsets[i], found.reason)
-                )
-                continue
-            else:
-                plan.marker(
-                    reason=f"damaged: {found.reason}",
-                    offset=kept_at,
-                    length=len(line) + 1,
-                    chain=found.chain if meta.chained else None,
-                    kept=True,
-                )
-                kind = "quarantined"
-            plan.actions.append(RepairAction(kind, seq, seq, i + 1, offsets[i], found.reason))
-            continue
-        plan.keep(line, event, chain)
-    i = stop
-    plan.end = offsets[i]
-    tail = data[offsets[i] :]
-    first_seq = plan.at.seq + 1
-    if tail:
-        if first_change is None:
-            first_change = offsets[i]
-            plan.quarantine_name = _quarantine_name(directory, first_change)
-        kept_at = len(plan.removed)
-        plan.removed += tail
-        complete = len(lines) - i
-        why = (
-            "an unterminated fragment (an interrupted append, never acknowledged)"
-            if complete == 0
-            else "from here on no record can be proven to belong to this log (spliced, "
-            "reordered, copied from another log, two damaged in a row, or lines lost before it)"
-        )
-        # Every seq a removed line may have held is taken by a marker, so no later event reuses
-        # a removed record's seq or id: as many as there were lines, and up to the highest seq
-        # a removed line provably held (this log's own id at that seq; a line may have been
-        # lost before it).
-        last = max(plan.at.seq + complete, _highest_own_seq(lines[i:], meta))
-        plan.actions.append(RepairAction("cut", first_seq, last, i + 1, offsets[i], why))
-        while plan.at.seq < last:
-            plan.marker(
-                reason=f"moved out: {why}", offset=kept_at, length=len(tail), chain=None, kept=True
-            )
-    if durable is not None and durable.seq > plan.at.seq:
-        lost_from = plan.at.seq + 1
-        plan.missing = (lost_from, durable.seq)
-        plan.actions.append(
-            RepairAction(
-                "missing",
-                lost_from,
-                durable.seq,
-                len(lines) + 1,
-                len(data),
-                "acknowledged (below the high-water mark) but no longer in the file",
-            )
-        )
-        while plan.at.seq < durable.seq:
-            plan.marker(
-                reason="missing: acknowledged, but the file had already lost it",
-                offset=0,
-                length=0,
-                chain=None,
-                kept=False,
-            )
-    return plan
-
-
-def _highest_own_seq(lines: list[bytes], meta: LogMeta) -> int:
-    highest = 0
-    key = meta.id_key()
-    for line in lines:
-        try:
-            doc = json.loads(line.rpartition(b"\t")[0])
-            seq = doc["seq"]
-            if (
-                type(seq) is int
-                and seq > highest
-                and doc.get("stream") == meta.stream
-                and doc.get("event_id") == deterministic_event_id(key, seq)
-            ):
-                highest = seq
-        except (ValueError, KeyError, TypeError):
-            continue
-    return highest
 
 
 def _quarantine_name(directory: Path, offset: int) -> str:

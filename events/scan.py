@@ -19,6 +19,7 @@ from .errors import (
     InvalidEventError,
 )
 from .log_files import DURABLE_FILE, Durable, LogMeta, LogPosition, TornTail
+from .log_links import meta_mismatch
 from .record import RECORD_SEPARATOR, RecordError, decode_record
 from .schemas import SchemaRegistry
 from .seal import Sealer
@@ -172,6 +173,8 @@ class _Scan:
                         reason = exc.reason
                         if exc.record_error is not None:
                             reason = self._explain(line[:-1], exc.record_error, f)
+                        if start == 0:
+                            reason = self._meta_reason() or reason
                         self._corrupt(line_no + 1, start, reason)
                 offset = start + len(line)
                 line_no += 1
@@ -280,6 +283,16 @@ class _Scan:
             "damaged but spliced, reordered or copied from another log (its checksum does not "
             "follow its predecessor)"
         )
+
+    def _meta_reason(self) -> str | None:
+        """Why the first record fails: ``meta.json`` is not the one the records were written
+        under (:func:`~.log_links.meta_mismatch`), if its witnesses prove it."""
+
+        def prefix(n: int) -> bytes:
+            with self.path.open("rb") as f:
+                return f.read(n)
+
+        return meta_mismatch(prefix, self.meta)
 
     def _check_durable(self) -> None:
         mark = self.durable

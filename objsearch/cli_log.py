@@ -27,14 +27,18 @@ def register(sub: Any) -> None:
     repair = log_sub.add_parser(
         "repair",
         help="take only the damage out of a log, keeping what is removed beside it",
-        description="Converts CR LF line endings back when that makes the log clean. Otherwise "
-        "each bad record is judged by the next one, whose checksum chains from it: damaged "
-        "checksum digits are rewritten, a single flipped bit is corrected, a record damaged "
-        "otherwise is replaced by a record_quarantined event at its seq (every later record "
-        "stays); from the first record nothing proves (spliced, reordered, lines lost) the rest "
-        "is moved out. The bytes taken out go to events.log.repair-<offset> beside the log; "
-        "nothing is deleted, and removed or lost seqs stay taken, so no later event reuses "
-        "their ids. Prints every change, with its line, byte offset and reason.",
+        description="Converts CR LF line endings back. Each record is found by its witnesses, "
+        "not by where it stands: the next record is the line whose checksum was chained from "
+        "the last one kept, so blank, duplicated, inserted or swapped lines cost no record. A "
+        "damaged record is judged by its witnesses (the next record, the high-water mark): a "
+        "flipped bit is corrected, damaged checksum digits are rewritten, a record damaged "
+        "otherwise is replaced by a record_quarantined event at its seq; after lines lost or "
+        "damaged beyond that, the next intact record of this log (its own id, its checksum "
+        "proven) resumes it. What no witness places is moved out to "
+        "events.log.repair-<offset> beside the log; nothing is deleted, and removed or lost "
+        "seqs stay taken, so no later event reuses their ids. Refuses (exit 2, nothing "
+        "changed) a meta.json the records prove edited. Prints every change, with its line, "
+        "byte offset and reason.",
     )
     repair.add_argument("log", metavar="LOG", type=t.existing_dir, help="event log folder")
     t.format_option(repair, "print the result as JSON")
@@ -123,8 +127,11 @@ def cmd_log_repair(args: argparse.Namespace) -> int:
 _ACTION_WORDS = {
     "checksum-rewritten": "checksum rewritten, record kept",
     "bit-restored": "flipped bit corrected, record kept",
-    "quarantined": "record moved out, its seq kept by a record_quarantined event",
-    "extra": "line moved out (out of place here; no seq lost)",
+    "line-ending-restored": "line ending converted back, record kept",
+    "byte-restored": "a byte overwritten by a newline restored, record kept",
+    "reordered": "record kept, put back in its order",
+    "quarantined": "moved out, its seq(s) kept by record_quarantined events",
+    "extra": "moved out (no record of this log at this place; no seq lost)",
     "lost": "missing from the file; the seqs are kept by record_quarantined events",
     "cut": "moved out with everything after it",
     "missing": "already missing from the file, cannot be recovered",

@@ -38,9 +38,11 @@ def test_repair_takes_out_only_what_it_must_and_loses_nothing() -> None:
     assert report.ok, report.summary()
     assert {key.split(":")[0] for key in report.by_mutation} == {m.__name__ for m in MUTATIONS}
     assert report.repaired > 0.6 * report.tried
-    # Damage confined to records (bit flips, edited values, lost, duplicated or foreign lines)
-    # never costs an intact record; only re-checksummed edits and swapped lines still can.
-    assert set(report.moved_by_mutation) <= {"edit_value_plain_crc", "swap_lines"}
+    # No damage here costs an intact record: each is found by its witnesses (its chained
+    # checksum, its id), swapped lines and re-checksummed edits included (they cost records
+    # before events/repair_plan.py).
+    assert report.moved_by_mutation == {}
+    assert sum(report.intact_moved_out) == 0
 
 
 def test_a_damaged_snapshot_is_never_believed() -> None:

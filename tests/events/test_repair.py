@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 
@@ -12,6 +13,7 @@ from objsearch.cli import main
 from objsearch.events import CorruptLogError, EventLog, LogLockedError, read_log
 from objsearch.events.envelope import deterministic_event_id
 from objsearch.events.repair import repair_log, verify_log
+from objsearch.testing.repair_battery import LINE_DAMAGE, run_repair_battery
 
 RUN = "00000000-0000-4000-8000-0000000000bb"
 
@@ -126,25 +128,17 @@ def test_a_flipped_bit_is_corrected_and_damaged_checksum_digits_are_rewritten(
         assert (result.kept_events, result.kept_last_seq) == (6, 6)
 
 
-def test_records_out_of_order_lose_only_their_place(tmp_path: Path) -> None:
+def test_records_out_of_order_are_put_back_in_their_order(tmp_path: Path) -> None:
     data = _write(tmp_path, 6)
     lines = data.splitlines(keepends=True)
     lines[2], lines[3] = lines[3], lines[2]  # seq 4 where seq 3 belongs, then seq 3
     (tmp_path / "events.log").write_bytes(b"".join(lines))
     result = repair_log(tmp_path, store=STORE)
-    assert [(a.kind, a.first_seq, a.line) for a in result.actions] == [
-        ("extra", 3, 3),  # seq 4's record, out of place (seq 3 follows seq 2 in the chain)
-        ("lost", 4, 5),  # seq 4's place: a marker; seq 5 is kept, its chain solved
-    ]
-    assert _reasons(tmp_path) == [
-        (1, "r0"),
-        (2, "r1"),
-        (3, "r2"),
-        (4, "record_quarantined"),
-        (5, "r4"),
-        (6, "r5"),
-    ]
-    assert result.quarantine is not None and result.quarantine.read_bytes() == lines[2]
+    # seq 3's checksum chains from seq 2's and seq 4's from seq 3's, wherever they stand
+    assert [(a.kind, a.first_seq, a.line) for a in result.actions] == [("reordered", 4, 3)]
+    assert (tmp_path / "events.log").read_bytes() == data
+    assert (result.kept_events, result.removed_bytes, result.quarantine) == (6, 0, None)
+    assert _reasons(tmp_path) == [(i + 1, f"r{i}") for i in range(6)]
 
 
 def test_records_that_do_not_belong_are_moved_out_and_their_seqs_stay_taken(
@@ -245,3 +239,131 @@ def test_a_search_on_a_damaged_log_is_refused_and_changes_nothing(
     err = capsys.readouterr().err
     assert err.startswith("objsearch: error: corrupt event log") and "byte offset" in err
     assert {p.name: p.read_bytes() for p in log.iterdir()} == before
+
+
+def _intact_moved_out(written: bytes, directory: Path) -> int:
+    kept = set((directory / "events.log").read_bytes().splitlines())
+    return sum(1 for line in written.splitlines() if line not in kept)
+
+
+def test_a_blank_line_or_lines_duplicated_in_place_cost_no_record(tmp_path: Path) -> None:
+    """Issue 43: an empty line inserted after line 143 moved 143 records out; three lines
+    duplicated in place, 234. The next record is the line chained from the last one kept."""
+    damages: list[tuple[str, Callable[[list[bytes]], list[bytes]]]] = [
+        ("blank", lambda ls: [*ls[:143], b"\n", *ls[143:]]),
+        ("dup3", lambda ls: [*ls[:103], *ls[100:103], *ls[103:]]),
+    ]
+    for name, damage in damages:
+        directory = tmp_path / name
+        data = _write(directory, 200)
+        lines = data.splitlines(keepends=True)
+        damaged = b"".join(damage(lines))
+        (directory / "events.log").write_bytes(damaged)
+        result = repair_log(directory, store=STORE)
+        assert _intact_moved_out(data, directory) == 0
+        assert (directory / "events.log").read_bytes() == data
+        assert [a.kind for a in result.actions] == ["extra"]
+        assert (result.kept_events, result.kept_last_seq) == (200, 200)
+        assert result.quarantine is not None
+        assert len(result.quarantine.read_bytes()) == len(damaged) - len(data)
+        assert verify_log(directory, store=STORE).events == 200
+
+
+def test_a_damaged_record_after_a_deleted_one_costs_only_itself(tmp_path: Path) -> None:
+    data = _write(tmp_path, 12)
+    lines = data.splitlines(keepends=True)
+    damaged = bytearray(lines[6])
+    damaged[damaged.index(b'"r6"') + 2] = ord("X")  # an edit, its checksum not recomputed
+    lines[6] = bytes(damaged)
+    del lines[3]  # seq 4 lost
+    (tmp_path / "events.log").write_bytes(b"".join(lines))
+    result = repair_log(tmp_path, store=STORE)
+    assert [(a.kind, a.first_seq, a.last_seq) for a in result.actions] == [
+        ("lost", 4, 4),
+        ("quarantined", 7, 7),
+    ]
+    assert [seq for seq, what in _reasons(tmp_path) if what == "record_quarantined"] == [4, 7]
+    assert _intact_moved_out(data, tmp_path) == 2  # seq 4 (deleted) and seq 7 (damaged)
+
+
+def test_a_record_cut_short_or_split_in_two_costs_no_other(tmp_path: Path) -> None:
+    data = _write(tmp_path, 8)
+    lines = data.splitlines(keepends=True)
+    cut = [*lines[:2], lines[2][:30] + b"\n", *lines[3:]]  # seq 3 cut short
+    (tmp_path / "events.log").write_bytes(b"".join(cut))
+    result = repair_log(tmp_path, store=STORE)
+    assert [(a.kind, a.first_seq) for a in result.actions] == [("quarantined", 3)]
+    assert _intact_moved_out(data, tmp_path) == 1
+    split = tmp_path / "split"
+    data = _write(split, 8)
+    lines = data.splitlines(keepends=True)
+    half = len(lines[4]) // 2
+    (split / "events.log").write_bytes(
+        b"".join([*lines[:4], lines[4][:half], b"\n", lines[4][half:], *lines[5:]])
+    )
+    result = repair_log(split, store=STORE)
+    assert [(a.kind, a.first_seq) for a in result.actions] == [("line-ending-restored", 5)]
+    assert (split / "events.log").read_bytes() == data
+
+
+@pytest.mark.parametrize(
+    "edit",
+    [
+        {"format": "objsearch.events/1", "run_id": None},  # the issue's: "keeps 0 events"
+        {"run_id": "00000000-0000-4000-8000-00000000beef"},
+        {"stream": "robot2"},
+    ],
+)
+def test_an_edited_meta_json_is_refused_with_a_clear_error(
+    tmp_path: Path, edit: dict[str, str | None], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 43: meta.json edited to format /1 without its run id made every record "damaged"
+    and the repair kept 0 events; the refusal meant for it never triggered."""
+    _write(tmp_path, 20)
+    meta = json.loads((tmp_path / "meta.json").read_text())
+    for key, value in edit.items():
+        if value is None:
+            del meta[key]
+        else:
+            meta[key] = value
+    (tmp_path / "meta.json").write_text(json.dumps(meta))
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    capsys.readouterr()
+    assert main(["log", "verify", str(tmp_path)]) == 2
+    assert main(["log", "repair", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2 and all(e.startswith("objsearch: error: ") for e in err)
+    assert all("meta.json was edited" in e for e in err), err
+    assert "nothing was changed" in err[1]
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def test_a_damaged_first_record_is_not_taken_for_an_edited_meta_json(tmp_path: Path) -> None:
+    data = _write(tmp_path, 10)
+    lines = data.splitlines(keepends=True)
+    first = bytearray(lines[0])
+    first[first.index(b'"version":') + 10] ^= 0x06  # its version digit edited: 1 -> 7
+    lines[0] = bytes(first)
+    (tmp_path / "events.log").write_bytes(b"".join(lines))
+    with pytest.raises(CorruptLogError, match="record at seq 1 is damaged"):
+        verify_log(tmp_path, store=STORE)
+    result = repair_log(tmp_path, store=STORE)
+    assert [(a.kind, a.first_seq) for a in result.actions] == [("quarantined", 1)]
+    assert result.kept_events == 9 and _intact_moved_out(data, tmp_path) == 1
+
+
+def test_the_battery_moves_no_intact_record_out_loses_nothing_and_changes_nothing_silently() -> (
+    None
+):
+    """Every kind of line damage at every fourth line of a small closed and a small crashed log,
+    and every meta.json edit, through `objsearch log repair` (the large run:
+    benchmarks/log_fuzz.py --battery-events)."""
+    report = run_repair_battery(12, stride=4)
+    assert report.failures == [], report.failures[:5]
+    assert (report.traceback, report.silent_change, report.loss) == (0, 0, 0)
+    assert report.intact_moved_out == 0, report.summary()
+    assert set(report.by_kind) == {d.__name__ for d in LINE_DAMAGE} | {"meta_or_durable_edit"}
+    # not vacuous: nearly every case changed the log, and every meta.json edit was refused
+    assert report.repaired > 0.8 * report.tried
+    refused = report.outcomes["meta_or_durable_edit: clear error"]
+    assert refused == 2 * 9, report.outcomes
