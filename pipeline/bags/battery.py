@@ -11,8 +11,9 @@ intact bag's ingest:
 * for every topic the intact bag holds, (messages read) + (reported lost) equals the intact
   count, where a topic converted one event per message (odometry, detections, the agent's
   events) has every message read either in the lake or reported rejected. When the damaged
-  bag's own index is gone its report says its losses are lower bounds; then (read + lost) may
-  fall short, but only if the report says so.
+  bag's own index is gone its report says its claims are incomplete and gives each topic's loss
+  as not known (``lost: null``); then (read + lost) may fall short, but only if the report says
+  so.
 
 Used by ``tests/pipeline/bags/test_bags_battery.py`` (a few variants per format) and
 ``benchmarks/damaged_bags.py`` (many).
@@ -222,7 +223,7 @@ def _per_topic(report: Mapping[str, Any]) -> dict[str, dict[str, int]]:
             t["topic"], {"read": 0, "lost": 0, "rejected": 0, "events": 0, "one_to_one": 0}
         )
         row["read"] += t["messages"]
-        row["lost"] += t.get("lost", 0)
+        row["lost"] += t.get("lost") or 0  # None: not known (the report says its claims fall short)
         row["rejected"] += t["rejected"]
         row["events"] += t["events"]
         row["one_to_one"] |= int(t["role"] in one_to_one)
@@ -231,7 +232,7 @@ def _per_topic(report: Mapping[str, Any]) -> dict[str, dict[str, int]]:
             s["topic"], {"read": 0, "lost": 0, "rejected": 0, "events": 0, "one_to_one": 0}
         )
         row["read"] += s["messages"]
-        row["lost"] += s.get("lost", 0)
+        row["lost"] += s.get("lost") or 0
     return out
 
 

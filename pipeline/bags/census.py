@@ -55,6 +55,9 @@ class FileCensus:
     #: Ids declared twice with different topics (a flipped id in a declaration): which topic
     #: their counts belong to is unknown, so they claim nothing.
     ambiguous: set[int] = field(default_factory=set)
+    #: ROS 1 without its index section: the chunks its bag header lists (None: the header does
+    #: not say, as in a bag the recorder never closed).
+    expected_chunks: int | None = None
 
     def declare(self, cid: int, topic: str) -> None:
         """A declaration of ``cid`` as ``topic`` (a file repeats them; they must agree)."""
@@ -372,7 +375,16 @@ def _ros1(buf: Buffer, census: FileCensus) -> None:
             )
             return
     census.chunks.clear()
-    _ros1_walk(buf, data_start, census)
+    # The index section is gone or damaged. The bag header (written again when the recorder
+    # closed the bag) still says where the chunks end and how many there are: if all of them
+    # are there, whole, each followed by Index Data records that check out, those records
+    # count every message exactly; otherwise (cut inside the chunks, or a bag never closed)
+    # what the lost part held is not known.
+    end = index_pos if len(ROS1_MAGIC) < index_pos <= len(buf) else len(buf)
+    whole = _ros1_walk(buf, data_start, census, end)
+    census.expected_chunks = chunk_count if index_pos > len(ROS1_MAGIC) else None
+    if whole and end == index_pos and 0 < chunk_count == len(census.chunks):
+        census.complete = census.chunks_verified = True
 
 
 def _ros1_index(buf: Buffer, pos: int, census: FileCensus) -> bool:
@@ -427,16 +439,21 @@ def _ros1_check_chunk(buf: Buffer, pos: int, census: FileCensus) -> bool:
     return True
 
 
-def _ros1_walk(buf: Buffer, pos: int, census: FileCensus) -> None:
-    """The Index Data records after each chunk (the index section is gone or damaged)."""
+def _ros1_walk(buf: Buffer, pos: int, census: FileCensus, end: int) -> bool:
+    """The Index Data records after each chunk up to ``end`` (the index section is gone or
+    damaged). True if every record up to ``end`` was read, every chunk is whole and each Index
+    Data record checks out: then the counts are every message of those chunks."""
     from objsearch.pipeline.bags.salvage import _resync_ros1
 
-    buf = bytes(buf)  # only for a damaged bag, which the salvage scan reads whole anyway
+    buf = bytes(buf[:end])  # only for a damaged bag, which the salvage scan reads whole anyway
     chunk: int | None = None
+    whole = True
     while pos < len(buf):
         try:
             fields, rec = _ros1_record(buf, pos)
             op = fields["op"]
+            if rec.end > len(buf):
+                raise _Cut
             if op == b"\x05":
                 chunk = pos
                 census.chunks.setdefault(chunk, Counter())
@@ -444,6 +461,8 @@ def _ros1_walk(buf: Buffer, pos: int, census: FileCensus) -> None:
                 n = _u(fields, "count", "<I")
                 if rec.end - rec.pos == 12 * n:
                     census.chunks[chunk][_u(fields, "conn", "<I")] += n
+                else:
+                    whole = False
             elif op in (b"\x06", b"\x07"):
                 if op == b"\x07":
                     cid = _u(fields, "conn", "<I")
@@ -451,10 +470,12 @@ def _ros1_walk(buf: Buffer, pos: int, census: FileCensus) -> None:
                 chunk = None
             pos = rec.end
         except _Cut:
+            whole = False
             resume = _resync_ros1(buf, pos + 1)
             if resume is None:
-                return
+                return False
             pos, chunk = resume, None
+    return whole
 
 
 # -- SQLite -----------------------------------------------------------------------------------

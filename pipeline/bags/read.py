@@ -24,7 +24,7 @@ from objsearch.pipeline.bags.formats import detect
 from objsearch.pipeline.bags.identity import bag_identity
 from objsearch.pipeline.bags.losses import topic_losses, unrecovered
 from objsearch.pipeline.bags.posetrack import POSE_TYPE, PoseTrack
-from objsearch.pipeline.bags.readers import read_messages
+from objsearch.pipeline.bags.readers import ReadOutcome, read_messages
 from objsearch.pipeline.bags.report import BagReport, skipped_rows, topic_rows
 from objsearch.ros.topics import TopicMap
 
@@ -87,8 +87,10 @@ def read_bag(
     if not outcome.claims_complete:
         notes.append(
             "the bag's own index is gone or damaged and only some chunks' indexes could be read: "
-            "losses per topic are lower bounds (messages after a cut cannot be counted)"
+            "how many messages each topic lost is not known (messages after a cut cannot be "
+            "counted); the report gives the lower bound where there is one"
         )
+        notes.extend(_missing_chunks(outcome))
     types = done.event_types()
     start_ns, end_ns = conv.time_range(done)
     report = BagReport(
@@ -97,8 +99,8 @@ def read_bag(
         bag_id=bag_id,
         size_bytes=size,
         reader=outcome.reader,
-        topics=topic_rows(conv, outcome.claimed, per_topic),
-        skipped=skipped_rows(conv, per_topic),
+        topics=topic_rows(conv, outcome.claimed, per_topic, outcome.claims_complete),
+        skipped=skipped_rows(conv, per_topic, outcome.claims_complete),
         losses=tuple(losses),
         start_ns=start_ns,
         end_ns=end_ns,
@@ -113,3 +115,15 @@ def read_bag(
         clock_pairs=done.clock_pairs if done.clock is not None else (),
     )
     return BagContents(report, done.agent, done.derived, done.poses, conv.stream)
+
+
+def _missing_chunks(outcome: ReadOutcome) -> list[str]:
+    """What a cut ROS 1 bag's header says it held that the walk did not find."""
+    notes = []
+    for f in outcome.census.files:
+        if f.expected_chunks is not None and f.expected_chunks > len(f.chunks):
+            notes.append(
+                f"{f.path.name}: its header lists {f.expected_chunks} chunks and "
+                f"{len(f.chunks)} were found: messages of any topic may have been in the rest"
+            )
+    return notes

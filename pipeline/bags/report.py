@@ -36,8 +36,10 @@ class TopicReport:
     reasons: tuple[str, ...] = ()
     #: Messages the bag's own index/metadata says the topic has (None: no claim survived).
     claimed: int | None = None
-    #: Of those, not read at all (the bag is damaged there), and why where known.
-    lost: int = 0
+    #: Of those, not read at all (the bag is damaged there), and why where known. None: not
+    #: known, because the bag's claims do not cover all of it (a cut bag); ``lost_reasons``
+    #: then starts with the lower bound ("at least N") when there is one.
+    lost: int | None = 0
     lost_reasons: tuple[str, ...] = ()
 
 
@@ -47,7 +49,7 @@ class Skipped:
     msgtype: str
     messages: int
     reason: str
-    lost: int = 0  # claimed by the bag's index but not read (see TopicReport.lost)
+    lost: int | None = 0  # claimed by the bag's index but not read (see TopicReport.lost)
 
 
 @dataclass(frozen=True, slots=True)
@@ -85,8 +87,8 @@ class BagReport:
     def damaged(self) -> bool:
         return (
             bool(self.losses)
-            or any(t.rejected or t.lost for t in self.topics)
-            or any(s.lost for s in self.skipped)
+            or any(t.rejected or t.lost or t.lost is None for t in self.topics)
+            or any(s.lost or s.lost is None for s in self.skipped)
         )
 
     def render(self) -> str:
@@ -100,14 +102,14 @@ class BagReport:
             )
         for t in self.topics:
             extra = f", {t.rejected} rejected ({'; '.join(t.reasons)})" if t.rejected else ""
-            if t.lost or not self.claims_complete:
-                extra += f", {_lost(t.lost, self.claims_complete)} lost"
+            if t.lost or t.lost is None:
+                extra += f", {_lost(t.lost)} lost"
                 extra += f" ({'; '.join(t.lost_reasons)})" if t.lost_reasons else ""
             lines.append(
                 f"  {t.topic:32} {t.msgtype:36} {t.role:12} {t.messages:8} msgs → {t.events} events{extra}"
             )
         for s in self.skipped:
-            lost = f", {_lost(s.lost, self.claims_complete)} lost" if s.lost else ""
+            lost = f", {_lost(s.lost)} lost" if s.lost or s.lost is None else ""
             lines.append(f"  skipped {s.topic} ({s.msgtype}, {s.messages} msgs{lost}): {s.reason}")
         for loss in self.losses:
             lines.append(f"  LOST {loss}")
@@ -118,17 +120,28 @@ class BagReport:
         return "\n".join(lines)
 
 
-def _lost(n: int, exact: bool) -> str:
-    return str(n) if exact else f"at least {n}"
+def _lost(n: int | None) -> str:
+    return "an unknown number" if n is None else str(n)
+
+
+def _unknown(loss: TopicLoss | None) -> tuple[str, ...]:
+    """The reasons of a loss the bag's claims cannot count: the lower bound first."""
+    if loss is None or not loss.lost:
+        return ("the bag's claims do not cover all of it (cut)",)
+    return (f"at least {loss.lost}", *loss.reasons)
 
 
 def topic_rows(
-    conv: Converter, claimed: Mapping[str, int], losses: Mapping[str, TopicLoss]
+    conv: Converter,
+    claimed: Mapping[str, int],
+    losses: Mapping[str, TopicLoss],
+    exact: bool = True,
 ) -> tuple[TopicReport, ...]:
     """One row per (topic, type): a topic recorded by several publishers has one connection each.
 
     A topic's losses go on its first row; a topic the bag claims messages of whose connection
-    was never read (its declaration was lost with the damage) gets a row of its own.
+    was never read (its declaration was lost with the damage) gets a row of its own. Unless the
+    claims are ``exact`` (they cover the whole bag), no topic's loss is known: ``lost`` is None.
     """
     merged: dict[tuple[str, str], TopicState] = {}
     for s in conv.topics.values():
@@ -159,8 +172,8 @@ def topic_rows(
                 sum(m.rejected.values()),
                 tuple(r for r, _ in m.rejected.most_common(MAX_REASONS)),
                 claimed.get(topic) if first else None,
-                0 if loss is None else loss.lost,
-                () if loss is None else loss.reasons,
+                (0 if loss is None else loss.lost) if exact else None,
+                (() if loss is None else loss.reasons) if exact else _unknown(loss),
             )
         )
     for topic, loss in sorted(losses.items()):
@@ -175,14 +188,16 @@ def topic_rows(
                     0,
                     (),
                     loss.claimed,
-                    loss.lost,
-                    loss.reasons,
+                    loss.lost if exact else None,
+                    loss.reasons if exact else _unknown(loss),
                 )
             )
     return tuple(rows)
 
 
-def skipped_rows(conv: Converter, losses: Mapping[str, TopicLoss]) -> tuple[Skipped, ...]:
+def skipped_rows(
+    conv: Converter, losses: Mapping[str, TopicLoss], exact: bool = True
+) -> tuple[Skipped, ...]:
     merged: Counter[tuple[str, str, str]] = Counter()
     for cid, (c, reason) in conv.skipped.items():
         merged[(c.topic, c.msgtype, reason)] += conv.skipped_messages[cid]
@@ -191,5 +206,6 @@ def skipped_rows(conv: Converter, losses: Mapping[str, TopicLoss]) -> tuple[Skip
     for (t, m, r), n in sorted(merged.items()):
         loss = None if t in placed else losses.get(t)
         placed.add(t)
-        rows.append(Skipped(t, m, n, r, 0 if loss is None else loss.lost))
+        lost = (0 if loss is None else loss.lost) if exact else None
+        rows.append(Skipped(t, m, n, r, lost))
     return tuple(rows)

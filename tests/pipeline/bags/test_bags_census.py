@@ -53,16 +53,18 @@ def test_zeroed_block_in_a_chunk_is_lost_per_topic_never_silently(
     data.write_bytes(bytes(buf))
     report = read_bag(bag).report
     intact = read_bag(recorded.bag).report
+    assert report.claims_complete  # the bag's own index still counts every message
     by_topic = {t.topic: t for t in report.topics}
     skipped = {s.topic: s for s in report.skipped}
     lost = 0
     for t in intact.topics:
         if t.topic in skipped:  # its declaration was damaged: counted, not converted
-            assert skipped[t.topic].messages + skipped[t.topic].lost == t.messages
-            lost += skipped[t.topic].lost
+            gone = skipped[t.topic].lost
+            assert gone is not None and skipped[t.topic].messages + gone == t.messages
+            lost += gone
             continue
         got = by_topic[t.topic]
-        assert got.messages + got.lost == t.messages, t.topic
+        assert got.lost is not None and got.messages + got.lost == t.messages, t.topic
         assert got.claimed == t.messages
         lost += got.lost
         if got.lost:  # why: the damaged chunk, what AnyReader skipped, or rows not found
@@ -106,3 +108,38 @@ def test_an_id_declared_as_two_topics_claims_nothing() -> None:
     claimed, notes = Census((f,), None).per_topic()
     assert claimed == {"/objsearch/detections": 16}
     assert any("declared as different topics" in n for n in notes)
+
+
+def _cut(recorded: Recorded, dest: Path, keep: int) -> Path:
+    bag, data = _copy(recorded, dest)
+    data.write_bytes(data.read_bytes()[:keep])
+    return bag
+
+
+def test_a_ros1_bag_cut_in_its_chunks_says_its_losses_are_not_known(
+    ros1: Recorded, tmp_path: Path
+) -> None:
+    """Cut in the middle: the chunks after the cut and their counts are gone, so no topic's
+    loss can be counted; the report says so (``lost`` None) rather than 0."""
+    size = ros1.bag.stat().st_size
+    report = read_bag(_cut(ros1, tmp_path / "cut", size // 2)).report
+    assert not report.claims_complete and report.damaged
+    read = {t.topic: t.messages for t in report.topics}
+    assert sum(read.values()) < sum(ros1.recording.messages.values())
+    for t in report.topics:
+        assert t.lost is None, t
+        assert t.lost_reasons, t
+    assert "an unknown number lost" in report.render()
+    assert any("header lists" in n and "chunks" in n for n in report.notes), report.notes
+
+
+def test_a_ros1_bag_cut_in_its_index_section_counts_its_messages_exactly(
+    ros1: Recorded, tmp_path: Path
+) -> None:
+    """Every chunk is whole, each followed by its Index Data records, and the bag header says
+    how many chunks there are: the counts are exact (and the loss is 0), not lower bounds."""
+    size = ros1.bag.stat().st_size
+    report = read_bag(_cut(ros1, tmp_path / "cut", size - 100)).report
+    assert report.claims_complete
+    for t in report.topics:
+        assert (t.messages, t.claimed, t.lost) == (ros1.recording.messages[t.topic],) * 2 + (0,)
