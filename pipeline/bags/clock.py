@@ -9,6 +9,13 @@ time), so they give the map from one clock to the other: ``stamp ≈ stamp_ns + 
 recv_ns)``, fitted by least squares. Every derived event (poses, detections) is put on the agent's
 clock with it; its ``recorded_at_ns`` keeps the receive time.
 
+A derived event's time is its message's header stamp — what was recorded, the same in every
+recording of that message — wherever the stamp can be trusted to be on the agent's clock: within
+:data:`STAMP_TOLERANCE_NS` of the message's receive time mapped onto it (:func:`event_times`).
+Elsewhere (no stamp; a stamp on another clock, or damaged) it is the mapped receive time, as
+before. In a bag with no agent clock (no stamped agent events) the stamp is taken as it is: a
+session that the bag joins later checks it against the session's clock.
+
 A bag keeps at most :data:`MAX_PAIRS` of its (receive time, stamp) pairs in its report, spread
 evenly over it, and is mapped with the fit over those; a session of several pieces (a split
 recording) is mapped with the fit over all its pieces' pairs, so a piece whose few events span no
@@ -27,8 +34,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 Ints = NDArray[np.int64]
+Bools = NDArray[np.bool_]
 
 MAX_PAIRS: Final = 64
+#: A header stamp farther than this from its message's receive time on the agent's clock is not
+#: taken as the message's time. The recorder's delivery jitter times the playback rate stays
+#: well inside it (272 ms at worst on the fixture played at 20×); a clock of another origin is
+#: far outside it.
+STAMP_TOLERANCE_NS: Final = 1_000_000_000
 
 
 @dataclass(frozen=True, slots=True)
@@ -117,3 +130,41 @@ def iso(ns: int) -> str:
     import datetime as dt
 
     return dt.datetime.fromtimestamp(ns / 1e9, dt.UTC).isoformat(timespec="milliseconds")
+
+
+def event_times(received: Ints, stamps: Ints, clock: ClockMap | None) -> tuple[Ints, Bools]:
+    """Derived events' times from their messages' receive times and header stamps (0: none),
+    and which of them took the stamp: the stamp where it is within :data:`STAMP_TOLERANCE_NS`
+    of the receive time on ``clock``, else that mapped receive time. Without a clock fitted
+    with a rate (no agent events, or events spanning no time), nothing can check a stamp: it
+    is taken wherever there is one."""
+    mapped = received if clock is None else clock.apply(received)
+    took: Bools = stamps > 0
+    if clock is not None and clock.rate_fitted:
+        took &= np.abs(stamps - mapped) <= STAMP_TOLERANCE_NS
+    times: Ints = np.where(took, stamps, mapped).astype(np.int64)
+    return times, took
+
+
+def on_receive_clock(time: Ints, received: Ints, clock: ClockMap | None) -> Bools:
+    """Which derived rows' times are their receive times (as they are, or mapped by ``clock``,
+    the clock they were put on) rather than header stamps: the rows a session maps again."""
+    same: Bools = time == received
+    return same if clock is None else same | (time == clock.apply(received))
+
+
+def clock_from_doc(doc: Any) -> ClockMap | None:
+    """A :class:`ClockMap` from its JSON (``dataclasses.asdict``); None for anything else."""
+    if not isinstance(doc, dict):
+        return None
+    try:
+        return ClockMap(
+            int(doc["recv_ns"]),
+            int(doc["stamp_ns"]),
+            float(doc["rate"]),
+            int(doc["events"]),
+            int(doc["residual_ns"]),
+            bool(doc.get("rate_fitted", True)),
+        )
+    except (KeyError, TypeError, ValueError):
+        return None

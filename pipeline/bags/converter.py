@@ -22,12 +22,20 @@ from dataclasses import dataclass, field
 from typing import Any, Final
 
 import numpy as np
+import numpy.typing as npt
 
 from objsearch.agent.catalogue import STORE
 from objsearch.events import Event, InvalidEventError, deterministic_event_id
 from objsearch.events.record import encode_record
 from objsearch.pipeline.bags import fastdecode
-from objsearch.pipeline.bags.clock import ClockMap, fit_clock, iso, kept_pairs
+from objsearch.pipeline.bags.clock import (
+    STAMP_TOLERANCE_NS,
+    ClockMap,
+    event_times,
+    fit_clock,
+    iso,
+    kept_pairs,
+)
 from objsearch.pipeline.bags.detections import detection_payload
 from objsearch.pipeline.bags.posetrack import POSE_TYPE, PoseStream, PoseTrack, convert_sources
 from objsearch.pipeline.bags.salvage import Loss, RawConnection
@@ -66,9 +74,13 @@ class Converter:
         self.skipped: dict[int, tuple[RawConnection, str]] = {}
         self.skipped_messages: Counter[int] = Counter()
         self.pose_sources: dict[int, PoseStream] = {}
-        #: Other derived events, (bag time, topic, arrival, type, payload): numbered by finish()
-        #: among the poses in (time, topic, arrival) order.
-        self.derived: list[tuple[int, str, int, str, dict[str, Any]]] = []
+        #: Other derived events, (bag time, topic, arrival, type, payload, header stamp or 0):
+        #: numbered by finish() among the poses in (time, topic, arrival) order.
+        self.derived: list[tuple[int, str, int, str, dict[str, Any], int]] = []
+        #: Notes on derived events: per topic, those whose header stamp was not taken as their
+        #: time (off the agent's clock) or was taken far from their receive time (no agent
+        #: clock), and poses that look damaged (:func:`~.posetrack.suspects`).
+        self.derived_notes: list[str] = []
         self.arrivals = 0  # converted messages fed so far: the order they came in
         #: The pose track and the other derived events, numbered: made by end_of_messages().
         self.numbered: tuple[PoseTrack, list[Event]] | None = None
@@ -171,7 +183,11 @@ class Converter:
                 "topic": topic,
                 "detections": [detection_payload(d) for d in msg.detections],
             }
-            self.derived.append((log_ns, topic, self.arrivals, "objects_detected", payload))
+            stamp = getattr(msg.header, "stamp", None)
+            stamp_ns = 0 if stamp is None else int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+            self.derived.append(
+                (log_ns, topic, self.arrivals, "objects_detected", payload, max(stamp_ns, 0))
+            )
             return 1
         if state.role is Role.EVENTS:
             return self._agent_event(msg, log_ns)
@@ -181,11 +197,22 @@ class Converter:
         if self.numbered is None:
             self.numbered = self._pose_track()
 
-    def _pose_track(self) -> tuple[PoseTrack, list[Event]]:
-        """Convert the collected odometry and TF, then number every derived event.
+    def _clock(self) -> tuple[tuple[tuple[int, int], ...], ClockMap | None]:
+        """The (receive time, header stamp) pairs of the agent's events, and the clock fitted
+        over them (:mod:`..clock`)."""
+        pairs = kept_pairs(
+            (self.received[i], self.stamps[i]) for i in self.agent if i in self.stamps
+        )
+        return pairs, fit_clock(pairs)
 
-        Poses from TF only where the bag has no odometry; numbered in (time, topic, arrival)
-        order, which is the same whichever reader (index or scan) delivered the messages.
+    def _pose_track(self) -> tuple[PoseTrack, list[Event]]:
+        """Convert the collected odometry and TF, then time and number every derived event.
+
+        Poses from TF only where the bag has no odometry. A derived event's time is its header
+        stamp where that is on the agent's clock, else its receive time on it
+        (:func:`~objsearch.pipeline.bags.clock.event_times`): what was recorded, so two
+        recordings of one message give one time. Numbered in (time, topic, arrival) order,
+        which is the same whichever reader (index or scan) delivered the messages.
         """
         sources = list(self.pose_sources.items())
         poses, outcomes = convert_sources([s for _, s in sources], self.map.frames)
@@ -195,6 +222,7 @@ class Converter:
             # TF's poses are dropped below when odometry gives them: credit none to TF then.
             state.events += 0 if odometry and source.tf else outcome.events
             state.rejected.update(outcome.rejected)
+            self.derived_notes.extend(outcome.suspects)
             if outcome.first_ns is not None and outcome.last_ns is not None:
                 self._accepted(outcome.first_ns, outcome.last_ns)
         if odometry:
@@ -202,7 +230,10 @@ class Converter:
         topics = sorted({*poses.topics, *(d[1] for d in self.derived)})
         rank = np.array([topics.index(t) for t in poses.topics] + [0], dtype=np.int64)
         n_derived = len(self.derived)
-        time = np.concatenate([poses.time, np.array([d[0] for d in self.derived], np.int64)])
+        received = np.concatenate([poses.time, np.array([d[0] for d in self.derived], np.int64)])
+        stamps = np.concatenate([poses.stamp, np.array([d[5] for d in self.derived], np.int64)])
+        _, clock = self._clock()
+        time, took = event_times(received, stamps, clock)
         topic = np.concatenate(
             [rank[poses.topic], np.array([topics.index(d[1]) for d in self.derived], np.int64)]
         )
@@ -210,11 +241,22 @@ class Converter:
         index = np.concatenate([poses.index, np.zeros(n_derived, np.int64)])
         seq = np.empty(len(time), dtype=np.int64)
         seq[np.lexsort((index, arrival, topic, time))] = np.arange(1, len(time) + 1)
-        pose_seq = seq[: len(poses.time)]
+        self._note_stamps(
+            [*(poses.topics[c] for c in poses.topic.tolist()), *(d[1] for d in self.derived)],
+            received,
+            stamps,
+            time,
+            took,
+            clock,
+        )
+        n_poses = len(poses.time)
+        pose_seq = seq[:n_poses]
         order = np.argsort(pose_seq)
+        pose_received = poses.time[order]
+        pose_time = time[:n_poses][order]
         track = PoseTrack(
             pose_seq[order],
-            poses.time[order],
+            pose_time,
             poses.x[order],
             poses.y[order],
             poses.yaw[order],
@@ -222,6 +264,7 @@ class Converter:
             poses.topic[order],
             poses.frames,
             poses.topics,
+            None if np.array_equal(pose_time, pose_received) else pose_received,
         )
         # Event._adopt: the envelope's types are still checked, but no deep copy of a payload
         # this converter built from checked floats and strings (and owns), nor a parse of an id
@@ -234,7 +277,7 @@ class Converter:
                         "event_id": deterministic_event_id(self.stream, s),
                         "stream": self.stream,
                         "seq": s,
-                        "time_ns": log_ns,
+                        "time_ns": t,
                         "recorded_at_ns": log_ns,
                         "type": type,
                         "version": 1,
@@ -242,13 +285,49 @@ class Converter:
                         "payload": payload,
                     }
                 )
-                for s, (log_ns, _, _, type, payload) in zip(
-                    seq[len(poses.time) :].tolist(), self.derived, strict=True
+                for s, t, (log_ns, _, _, type, payload, _) in zip(
+                    seq[n_poses:].tolist(), time[n_poses:].tolist(), self.derived, strict=True
                 )
             ),
             key=lambda e: e.seq,
         )
         return track, derived
+
+    def _note_stamps(
+        self,
+        topics: Sequence[str],
+        received: npt.NDArray[np.int64],
+        stamps: npt.NDArray[np.int64],
+        time: npt.NDArray[np.int64],
+        took: npt.NDArray[np.bool_],
+        clock: ClockMap | None,
+    ) -> None:
+        """Notes, per topic, on header stamps not taken (off the agent's clock: another clock,
+        or damage) or taken far from the receive time (a bag with no agent clock)."""
+        tol = STAMP_TOLERANCE_NS / 1e9
+        checked = clock is not None and clock.rate_fitted
+        apart = np.abs(time - received)
+        none = np.zeros(len(time), dtype=bool)
+        off_rows = (stamps > 0) & ~took if checked else none
+        far_rows = none if checked else took & (apart > STAMP_TOLERANCE_NS)
+        off = Counter(topics[i] for i in np.flatnonzero(off_rows).tolist())
+        far = Counter(topics[i] for i in np.flatnonzero(far_rows).tolist())
+        worst: dict[str, float] = {}
+        for i in np.flatnonzero(far_rows).tolist():
+            worst[topics[i]] = max(worst.get(topics[i], 0.0), float(apart[i]) / 1e9)
+        for topic, n in sorted(off.items()):
+            self.derived_notes.append(
+                f"{n} message(s) of {topic} carry a header stamp more than {tol:g} s off the "
+                "agent's clock (another clock, or damage): their events take their receive "
+                "times mapped onto it"
+            )
+        for topic, n in sorted(far.items()):
+            self.derived_notes.append(
+                f"{n} message(s) of {topic} carry a header stamp more than {tol:g} s (up to "
+                f"{worst[topic]:.3g} s) from their receive time, and the bag has no agent clock to "
+                "check them against: their events take the stamps (recorded_at_ns keeps the "
+                "receive times)"
+            )
 
     def _agent_event(self, msg: Any, log_ns: int) -> int:
         try:
@@ -302,12 +381,7 @@ class Converter:
                 f"agent events moved onto their header stamps' clock: time_ns + {offset} ns "
                 f"(the simulator's 0 is {iso(offset)})"
             )
-        pairs = kept_pairs(
-            (self.received[e.event_id], self.stamps[e.event_id])
-            for e in agent
-            if e.event_id in self.stamps
-        )
-        clock = fit_clock(pairs)
+        pairs, clock = self._clock()
         if clock is not None:
             notes.append(clock.describe())
         by_stream: dict[str, list[int]] = {}
@@ -328,10 +402,7 @@ class Converter:
         self.end_of_messages()
         assert self.numbered is not None
         poses, derived = self.numbered
-        if clock is not None:
-            poses = poses.on_clock(clock.apply(poses.time))
-            # recorded_at_ns keeps each derived event's receive time
-            derived = [_shifted(e, clock.at(e.time_ns) - e.time_ns) for e in derived]
+        notes += self.derived_notes
         return Finished(tuple(agent), tuple(derived), poses, losses, notes, offset, clock, pairs)
 
     def time_range(self, done: Finished) -> tuple[int | None, int | None]:

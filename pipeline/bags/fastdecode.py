@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Final
 
 import numpy as np
@@ -30,7 +30,8 @@ import numpy.typing as npt
 
 from objsearch.ros.types import Distro
 
-#: (frame_id, x, y, qx, qy, qz, qw): an odometry message's header frame and planar pose.
+#: (frame_id, x, y, qx, qy, qz, qw): an odometry message's header frame and planar pose. (The
+#: header stamps are read by :func:`decode_batch` only, at the offsets :class:`Layout` gives.)
 OdomFields = tuple[str, float, float, float, float, float, float]
 #: (parent frame, child frame, x, y, qx, qy, qz, qw) per transform of a TF message.
 TransformFields = tuple[str, str, float, float, float, float, float, float]
@@ -57,6 +58,10 @@ class Layout:
     #: The byte ranges [start, end) the layout was read from; with the message's length they
     #: determine it.
     deciding: tuple[tuple[int, int], ...]
+    #: Offset of each pose's header stamp: seconds, then nanoseconds, 4 little-endian bytes each.
+    stamps: tuple[int, ...] = ()
+    #: The seconds are signed (CDR's ``builtin_interfaces/Time``) rather than unsigned (ROS 1).
+    signed: bool = False
 
 
 LayoutReader = Callable[[bytes], Layout | None]
@@ -105,7 +110,7 @@ def odometry_layout_cdr(raw: bytes) -> Layout | None:
     pos = _align8_cdr(pos)
     if not _cdr_complete(raw, pos + _ODOM_TAIL):
         return None
-    return Layout((frame,), (pos,), tuple(deciding))
+    return Layout((frame,), (pos,), tuple(deciding), (4,), signed=True)
 
 
 def odometry_layout_ros1(raw: bytes) -> Layout | None:
@@ -117,7 +122,7 @@ def odometry_layout_ros1(raw: bytes) -> Layout | None:
         return None
     if len(raw) != pos + _ODOM_TAIL:
         return None
-    return Layout((frame,), (pos,), tuple(deciding))
+    return Layout((frame,), (pos,), tuple(deciding), (4,))  # after the header's seq
 
 
 def tf_layout_cdr(raw: bytes) -> Layout | None:
@@ -131,8 +136,10 @@ def tf_layout_cdr(raw: bytes) -> Layout | None:
         pos = 8
         frames: list[str] = []
         poses = []
+        stamps = []
         for _ in range(count):
-            parent, pos = _string_cdr(raw, ((pos + 3) & ~3) + 8, deciding)  # stamp, frame_id
+            stamps.append((pos + 3) & ~3)
+            parent, pos = _string_cdr(raw, stamps[-1] + 8, deciding)  # stamp, frame_id
             child, pos = _string_cdr(raw, pos, deciding)
             pos = _align8_cdr(pos)
             frames += (parent, child)
@@ -142,7 +149,7 @@ def tf_layout_cdr(raw: bytes) -> Layout | None:
         return None
     if not _cdr_complete(raw, pos):
         return None
-    return Layout(tuple(frames), tuple(poses), tuple(deciding))
+    return Layout(tuple(frames), tuple(poses), tuple(deciding), tuple(stamps), signed=True)
 
 
 def tf_layout_ros1(raw: bytes) -> Layout | None:
@@ -154,7 +161,9 @@ def tf_layout_ros1(raw: bytes) -> Layout | None:
         pos = 4
         frames: list[str] = []
         poses = []
+        stamps = []
         for _ in range(count):
+            stamps.append(pos + 4)
             parent, pos = _string_ros1(raw, pos + 12, deciding)  # header seq, sec, nsec
             child, pos = _string_ros1(raw, pos, deciding)
             frames += (parent, child)
@@ -164,7 +173,7 @@ def tf_layout_ros1(raw: bytes) -> Layout | None:
         return None
     if pos != len(raw):
         return None
-    return Layout(tuple(frames), tuple(poses), tuple(deciding))
+    return Layout(tuple(frames), tuple(poses), tuple(deciding), tuple(stamps))
 
 
 def _pose(raw: bytes, pos: int) -> tuple[float, float, float, float, float, float]:
@@ -237,6 +246,8 @@ class Decoded:
     qw: Floats
     #: Indices of messages not in the standard layout (for the caller's deserialiser).
     undecoded: tuple[int, ...]
+    #: Each pose's header stamp (ns since the epoch; 0 where the header has none).
+    stamp: Ints = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
 
 def decode_batch(raws: Sequence[bytes], layout: LayoutReader, *, tf: bool) -> Decoded:
@@ -271,7 +282,7 @@ def decode_batch(raws: Sequence[bytes], layout: LayoutReader, *, tf: bool) -> De
                 undecoded.append(i)
             else:
                 parts.append((np.array([i], dtype=np.int64), found, block[r : r + 1]))
-    message, index, parent, child, values = [], [], [], [], []
+    message, index, parent, child, values, stamps = [], [], [], [], [], []
     for which, found, data in parts:
         codes = [frames.setdefault(f, len(frames)) for f in found.frames]
         for k, pos in enumerate(found.poses):
@@ -281,6 +292,7 @@ def decode_batch(raws: Sequence[bytes], layout: LayoutReader, *, tf: bool) -> De
             parent.append(np.full(n, codes[2 * k] if tf else codes[0], dtype=np.int64))
             child.append(np.full(n, codes[2 * k + 1] if tf else -1, dtype=np.int64))
             values.append(np.ascontiguousarray(data[:, pos : pos + _POSE_BYTES]).view("<f8"))
+            stamps.append(_stamps(data, found.stamps[k], found.signed))
     if not parts:
         no_ints, no_floats = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float64)
         return Decoded(
@@ -291,6 +303,7 @@ def decode_batch(raws: Sequence[bytes], layout: LayoutReader, *, tf: bool) -> De
             no_ints,
             *(no_floats,) * 6,  # x, y, qx, qy, qz, qw
             tuple(sorted(undecoded)),
+            no_ints,
         )
     pose = np.concatenate(values).astype(np.float64, copy=False)
     return Decoded(
@@ -306,4 +319,12 @@ def decode_batch(raws: Sequence[bytes], layout: LayoutReader, *, tf: bool) -> De
         pose[:, 5].copy(),
         pose[:, 6].copy(),
         tuple(sorted(undecoded)),
+        np.concatenate(stamps),
     )
+
+
+def _stamps(data: npt.NDArray[np.uint8], pos: int, signed: bool) -> Ints:
+    """The header stamps (ns) at ``pos`` of each message (row) of ``data``."""
+    sec = np.ascontiguousarray(data[:, pos : pos + 4]).view("<i4" if signed else "<u4")
+    nsec = np.ascontiguousarray(data[:, pos + 4 : pos + 8]).view("<u4")
+    return sec[:, 0].astype(np.int64) * 1_000_000_000 + nsec[:, 0].astype(np.int64)

@@ -55,7 +55,7 @@ from objsearch.events.lake_table import (
     is_table_lake,
 )
 from objsearch.events.log_files import read_meta
-from objsearch.pipeline.bags.clock import fit_clock, pairs_from_doc
+from objsearch.pipeline.bags.clock import clock_from_doc, fit_clock, pairs_from_doc
 from objsearch.pipeline.bags.errors import BagCommitError
 from objsearch.pipeline.bags.session import (
     DERIVED_PREFIX,
@@ -64,6 +64,7 @@ from objsearch.pipeline.bags.session import (
     agent_rows,
     belongs,
     continues,
+    disagreements,
     merge_tables,
     overlaps,
     provisional_run_name,
@@ -127,6 +128,19 @@ def _receive_ranges(docs: Iterable[Mapping[str, Any]]) -> dict[bool, tuple[int, 
             clocked = bool(pairs_from_doc(report.get("clock_pairs")))
             spans.setdefault(clocked, []).append(received)
     return {k: (min(a for a, _ in v), max(b for _, b in v)) for k, v in spans.items()}
+
+
+def _widens(session: _SessionRun, piece: Piece) -> bool:
+    """Whether a piece with agent events, all of them in ``session`` already, is received
+    outside the session's pieces on its receive clock: another recording of the session (its
+    rows kept once, judged by what was recorded), which stays a piece of it, so that its
+    receive times and clock pairs place the stretches recorded with it that hold no agent
+    events. A copy of a piece the session holds is not."""
+    if piece.first is None or piece.received is None:
+        return False
+    clocked = bool(pairs_from_doc(piece.report.get("clock_pairs")))
+    span = _receive_ranges(session.pieces.values()).get(clocked)
+    return span is None or not (span[0] <= piece.received[0] and piece.received[1] <= span[1])
 
 
 def _encloses(ranges: Mapping[bool, tuple[int, int]], received: tuple[int, int] | None) -> bool:
@@ -310,6 +324,11 @@ class _SessionLake(ABC):
             for pair in pairs_from_doc((p.get("report") or {}).get("clock_pairs"))
         )
         tables: Mapping[str, pa.Table] = piece.tables
+        # Messages this bag and the session's other recordings hold differently at one header
+        # stamp: one of them is damaged, and nothing tells which; both rows are kept.
+        differ = disagreements([*old_tables, piece.tables]) if old_tables else {}
+        if differ:
+            pieces[piece.bag_id] = {**pieces[piece.bag_id], "disagreements": differ}
         if old_tables or first is not None or clock is not None:
             # A session's derived events are numbered in its own stream, whichever piece came
             # first, so the run does not depend on the order the pieces arrived in.
@@ -321,10 +340,21 @@ class _SessionLake(ABC):
                 drop,
                 clock,
                 _receive_ranges(pieces.values()).get(True),
+                # The clock each part's rows timed by their receive time were put on.
+                [
+                    *(clock_from_doc(s.doc.get("session", {}).get("clock")) for s in previous),
+                    clock_from_doc(piece.report.get("clock")),
+                ],
             )
         before = sum(t.num_rows for ts in old_tables for t in ts.values())
         events = sum(t.num_rows for t in tables.values())
-        if existing is not None and not absorbed and not redo and events == before:
+        if (
+            existing is not None
+            and not absorbed
+            and not redo
+            and events == before
+            and not _widens(existing, piece)
+        ):
             # Every event of this bag is in the run already: the same recording again.
             doc = self._piece_doc(piece, robot, existing.info.run, duplicate=True)
             self._write_report(piece.bag_id, _json(doc))
@@ -362,6 +392,13 @@ class _SessionLake(ABC):
             )
         elif len(pieces) > 1:
             note = f"merged into run {run} ({len(pieces)} bags of one recording session)"
+        if differ:
+            said = ", ".join(f"{n} {t}" for t, n in sorted(differ.items()))
+            note += (
+                f"{'; ' if note else ''}{said} message(s) recorded differently by this bag and "
+                "the session's other recording(s) at the same header stamp: one copy is damaged "
+                "and nothing tells which, so both are kept"
+            )
         return Commit(piece.bag_id, events - before, new=True, run=run, note=note)
 
     @staticmethod

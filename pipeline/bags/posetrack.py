@@ -23,7 +23,6 @@ bit-for-bit what the per-message arithmetic gives.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -48,6 +47,15 @@ from objsearch.ros.topics import Frames
 
 MAX_COORD_M: Final = 1e5  # a pose or position farther than this from the origin is damage
 ROTATION_TOLERANCE: Final = 1e-3
+#: A pose that leaves both its neighbours faster than this while they agree with each other is
+#: noted as a damaged message: 10x the simulator's robot (0.5 m/s), over 3x a household robot's
+#: top speed. Noted, not rejected (a real jump can look the same).
+MAX_SPEED_M_S: Final = 5.0
+_SPIKE_SLACK_M: Final = 0.01
+#: A quaternion whose |norm - 1| is this many times the 90th percentile of its topic's (and at
+#: least 1e-12) is not as precise as the topic's other messages: a damaged number.
+_PRECISION_RATIO: Final = 1000.0
+_MIN_FOR_PRECISION: Final = 10
 POSE_TYPE: Final = "pose_observed"
 POSE_VERSION: Final = 1
 
@@ -103,6 +111,11 @@ def odometry_fields(msg: Any) -> OdomFields:
     )
 
 
+def stamp_ns(header: Any) -> int:
+    """A deserialised header's stamp in ns (0: none)."""
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
 def transform_fields(msg: Any) -> list[TransformFields]:
     """What :mod:`fastdecode` reads, from a deserialised TF message."""
     out = []
@@ -152,6 +165,8 @@ class SourceOutcome:
     rejected: Counter[str]
     first_ns: int | None  # of the messages accepted
     last_ns: int | None
+    #: Accepted poses that look damaged (:func:`suspects`), as report notes: kept.
+    suspects: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -169,6 +184,7 @@ class Poses:
     frame: Ints  # code into ``frames``
     topics: tuple[str, ...]
     frames: tuple[str, ...]
+    stamp: Ints  # the pose's header stamp (0: none)
 
     def take(self, rows: Ints | Bools) -> Poses:
         return Poses(
@@ -183,6 +199,7 @@ class Poses:
             self.frame[rows],
             self.topics,
             self.frames,
+            self.stamp[rows],
         )
 
 
@@ -199,16 +216,13 @@ class PoseTrack:
     topic: Ints
     frames: tuple[str, ...]
     topics: tuple[str, ...]
-    #: When the recorder received each pose (``recorded_at_ns``), where ``time`` was put on
-    #: another clock (:mod:`~objsearch.pipeline.bags.clock`); None: the same as ``time``.
+    #: When the recorder received each pose (``recorded_at_ns``), where ``time`` differs (the
+    #: header stamp, or the receive time on the agent's clock:
+    #: :mod:`~objsearch.pipeline.bags.clock`); None: the same as ``time``.
     received: Ints | None = None
 
     def __len__(self) -> int:
         return len(self.seq)
-
-    def on_clock(self, time: Ints) -> PoseTrack:
-        """The same rows with ``time`` on another clock, their receive times kept."""
-        return dataclasses.replace(self, time=time, received=self.recorded_at)
 
     @property
     def recorded_at(self) -> Ints:
@@ -307,27 +321,29 @@ def _undecoded_rows(source: PoseStream, decoded: Decoded, rejected: dict[int, st
         return decoded
     assert source.deserialize is not None
     frames = {name: i for i, name in enumerate(decoded.frames)}
-    rows: list[tuple[int, int, int, int, float, float, float, float, float, float]] = []
+    rows: list[tuple[int, int, int, int, int, float, float, float, float, float, float]] = []
     for m in decoded.undecoded:
         try:
             msg = source.deserialize(source.raws[m], source.msgtype)
             fields: list[TransformFields]
             if source.tf:
                 fields = transform_fields(msg)
+                stamps = [stamp_ns(tr.header) for tr in msg.transforms]
             else:
                 frame, *values = odometry_fields(msg)
                 fields = [(frame, "", *values)]  # type: ignore[list-item]
+                stamps = [stamp_ns(msg.header)]
         except Exception as exc:
             rejected[m] = _reason(exc)
             continue
         for k, (parent, child, *values) in enumerate(fields):
             p = frames.setdefault(parent, len(frames))
             c = frames.setdefault(child, len(frames)) if source.tf else -1
-            rows.append((m, k, p, c, *values))  # type: ignore[arg-type]
+            rows.append((m, k, p, c, stamps[k], *values))  # type: ignore[arg-type]
     if not rows:
         return decoded
-    ints = np.array([r[:4] for r in rows], dtype=np.int64).reshape(-1, 4)
-    floats = np.array([r[4:] for r in rows], dtype=np.float64).reshape(-1, 6)
+    ints = np.array([r[:5] for r in rows], dtype=np.int64).reshape(-1, 5)
+    floats = np.array([r[5:] for r in rows], dtype=np.float64).reshape(-1, 6)
     x, y, qx, qy, qz, qw = (
         np.concatenate([old, floats[:, i]]) for i, old in enumerate(_values(decoded))
     )
@@ -344,6 +360,7 @@ def _undecoded_rows(source: PoseStream, decoded: Decoded, rejected: dict[int, st
         qz,
         qw,
         (),
+        np.concatenate([decoded.stamp, ints[:, 4]]),
     )
 
 
@@ -432,6 +449,7 @@ def _convert_source(
             parent[is_pose],
             (),
             (),
+            d.stamp[is_pose],
         )
     )
     kept = times[accepted]
@@ -440,7 +458,68 @@ def _convert_source(
         rejected=Counter(rejected.values()),
         first_ns=int(kept.min()) if len(kept) else None,
         last_ns=int(kept.max()) if len(kept) else None,
+        suspects=tuple(suspects(source.topic, d, is_pose, times)),
     )
+
+
+def suspects(topic: str, d: Decoded, rows: Bools, received: Ints) -> list[str]:
+    """What marks a pose that passed the checks as damaged (a flipped bit), by comparing it with
+    the topic's other poses (``rows`` of ``d``, ``received`` per message):
+
+    * its quaternion is unit to a precision far worse than the topic's others (a flipped
+      mantissa bit the rotation check's tolerance lets through);
+    * its header stamp breaks the order of its neighbours' (which are in order);
+    * its position leaves both neighbours faster than :data:`MAX_SPEED_M_S` while they agree.
+
+    A sign flip, or a flip in the low bits of a coordinate, changes none of these.
+    """
+    order = np.lexsort((d.index[rows], d.message[rows]))  # the order the recorder got them
+    x, y, qx, qy, qz, qw, stamp = (
+        v[rows][order] for v in (d.x, d.y, d.qx, d.qy, d.qz, d.qw, d.stamp)
+    )
+    n = len(x)
+    notes = []
+    with np.errstate(all="ignore"):
+        dev = np.abs(np.sqrt(qx * qx + qy * qy + qz * qz + qw * qw) - 1.0)
+    if n >= _MIN_FOR_PRECISION:
+        usual = float(np.quantile(dev, 0.9))
+        odd = dev > max(_PRECISION_RATIO * usual, 1e-12)
+        if odd.any():
+            notes.append(
+                f"{topic}: {int(odd.sum())} pose(s) whose quaternion is unit only to "
+                f"{float(dev[odd].max()):.2g} where 90% of the topic's are to {usual:.2g}: a "
+                f"damaged number (a flipped bit) within the rotation check's ±{ROTATION_TOLERANCE:g}; "
+                "kept"
+            )
+    if n >= 3:
+        before, here, after = stamp[:-2], stamp[1:-1], stamp[2:]
+        stamped = (before > 0) & (here > 0) & (after > 0)
+        broken = stamped & (before <= after) & ((here < before) | (here > after))
+        if broken.any():
+            notes.append(
+                f"{topic}: {int(broken.sum())} pose(s) whose header stamp breaks the order of "
+                "its neighbours': a damaged stamp (a flipped bit), or a publisher out of order; "
+                "kept"
+            )
+        t = np.where(stamp > 0, stamp, received[d.message[rows]][order]).astype(np.float64) / 1e9
+
+        def far(i: slice, j: slice) -> Bools:
+            reach = MAX_SPEED_M_S * np.abs(t[j] - t[i]) + _SPIKE_SLACK_M
+            return np.asarray(np.hypot(x[j] - x[i], y[j] - y[i]) > reach)
+
+        with np.errstate(all="ignore"):
+            spike = (
+                far(slice(0, -2), slice(1, -1))
+                & far(slice(1, -1), slice(2, None))
+                & ~far(slice(0, -2), slice(2, None))
+            )
+        if spike.any():
+            notes.append(
+                f"{topic}: {int(spike.sum())} pose(s) that leave both neighbours faster than "
+                f"{MAX_SPEED_M_S:g} m/s while those agree: a damaged coordinate (a flipped bit), "
+                "or a real jump; kept"
+            )
+    return notes
 
 
 def _compose(poses: Poses, collected: _Collected, frames: Frames, names: _Names) -> Poses:
@@ -481,6 +560,7 @@ def _compose(poses: Poses, collected: _Collected, frames: Frames, names: _Names)
         frame,
         poses.topics,
         names.names(),
+        poses.stamp,
     )
 
 
@@ -509,5 +589,6 @@ def convert_sources(
         cat("frame", np.int64),
         topics.names(),
         names.names(),
+        cat("stamp", np.int64),
     )
     return _compose(poses, collected, frames, names), outcomes

@@ -22,7 +22,9 @@ recomputed from the ``run_started`` event. So:
   the same robot whose receive times enclose its own.
 
 Merging keeps the agent's events once (by id) and the derived ones (poses, detections) once by
-content, puts the derived ones on the session's clock (:mod:`~objsearch.pipeline.bags.clock`,
+what was recorded — content and time, which is the message's header stamp wherever that is on
+the agent's clock (:func:`~objsearch.pipeline.bags.clock.event_times`), never the receive time
+of one recorder — puts the derived ones on the session's clock (:mod:`~objsearch.pipeline.bags.clock`,
 fitted over all its pieces) and numbers them again in the session's own stream in (time, type,
 seq) order, so the run is the same whatever order the pieces came in.
 """
@@ -30,6 +32,7 @@ seq) order, so the run is the same whatever order the pieces came in.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import uuid
 from collections.abc import Iterable, Mapping, Sequence
@@ -41,7 +44,7 @@ import pyarrow.compute as pc
 
 from objsearch.events import Event
 from objsearch.events.envelope import deterministic_event_id
-from objsearch.pipeline.bags.clock import ClockMap
+from objsearch.pipeline.bags.clock import ClockMap, on_receive_clock
 from objsearch.ros.topics import TopicMap
 
 if TYPE_CHECKING:
@@ -49,7 +52,7 @@ if TYPE_CHECKING:
 
 #: Bump when a change to the conversion changes what a bag gives: bags ingested by an older
 #: converter are read again on the next ingest.
-CONVERTER_VERSION: Final = 2
+CONVERTER_VERSION: Final = 3
 DERIVED_PREFIX: Final = "bag:"
 #: uuid.uuid5(uuid.NAMESPACE_URL, "urn:objsearch:runs"), as objsearch.agent.session defines it
 #: (not imported: the pipeline must not load the agent).
@@ -196,14 +199,19 @@ def merge_tables(
     drop: Sequence[tuple[int, int]] = (),
     clock: ClockMap | None = None,
     clock_range: tuple[int, int] | None = None,
+    part_clocks: Sequence[ClockMap | None] | None = None,
 ) -> dict[str, pa.Table]:
     """One session's tables from several pieces' (earlier pieces win ties).
 
     ``drop`` are receive-time ranges whose derived rows are removed first from every part but
     the last (a piece read again with another topic map or converter replaces its rows).
-    ``clock`` puts the derived rows received within ``clock_range`` on the session's clock:
-    ``time_ns`` = its map of the row's receive time, ``recorded_at_ns`` (rows of a recording
-    whose receive times are already the agent's clock lie outside it and are left alone).
+    ``clock`` puts the derived rows received within ``clock_range`` whose time is their receive
+    time on the session's clock: ``time_ns`` = its map of ``recorded_at_ns``. ``part_clocks``
+    (one per part: the clock its rows were put on, None for none) tells those rows from rows
+    timed by their header stamp, which keep it (:func:`~.clock.on_receive_clock`); without it
+    every derived row in the range is mapped. Rows of a recording whose receive times are
+    already the agent's clock lie outside the range and are left alone. Derived rows are then
+    kept once by content and time, whichever recorder received them when.
     """
     import numpy as np
     import polars as pl  # on first use: `lake add`'s check of bag runs imports this module
@@ -225,10 +233,17 @@ def merge_tables(
                 df = df.filter(~(derived & inside))
             if clock is not None and clock_range is not None and df.height:
                 received = df["recorded_at_ns"].to_numpy().astype(np.int64)
-                on_clock = df.select(derived).to_series().to_numpy() & (
-                    (received >= clock_range[0]) & (received <= clock_range[1])
+                time = df["time_ns"].to_numpy().astype(np.int64)
+                # Rows timed by their header stamps keep them (what was recorded: two
+                # recordings of one message give one time); rows timed by their receive time
+                # (on the clock their part put them on) take the session's map of it.
+                part_clock = part_clocks[i] if part_clocks is not None else None
+                on_clock = (
+                    df.select(derived).to_series().to_numpy()
+                    & ((received >= clock_range[0]) & (received <= clock_range[1]))
+                    & (on_receive_clock(time, received, part_clock) | (part_clocks is None))
                 )
-                times = np.where(on_clock, clock.apply(received), df["time_ns"].to_numpy())
+                times = np.where(on_clock, clock.apply(received), time)
                 df = df.with_columns(pl.Series("time_ns", times, dtype=df.schema["time_ns"]))
             frames.append(df)
         merged[event_type] = pl.concat(frames, how="vertical_relaxed")
@@ -239,7 +254,11 @@ def merge_tables(
         agent_frames[event_type] = df.filter(~is_derived).unique(
             subset=["event_id"], keep="first", maintain_order=True
         )
-        content = [c for c in df.columns if c not in _ENVELOPE_IDS]
+        # What was recorded: the message's content and its time (its header stamp, where on
+        # the session's clock), not when each recorder received it (recorded_at_ns).
+        content = [c for c in df.columns if c not in (*_ENVELOPE_IDS, "recorded_at_ns")]
+        # A message recorded twice keeps the receive time (recorded_at_ns) of the recording
+        # ingested first (earlier parts come first).
         derived_frames[event_type] = df.filter(is_derived).unique(
             subset=content, keep="first", maintain_order=True
         )
@@ -286,3 +305,50 @@ def rows_of(tables: Mapping[str, pa.Table], agent: bool) -> int:
         derived = pc.starts_with(table["stream"], DERIVED_PREFIX)
         n += pc.sum(pc.invert(derived) if agent else derived).as_py() or 0
     return n
+
+
+def disagreements(parts: Sequence[Mapping[str, pa.Table]]) -> dict[str, int]:
+    """Per derived event type, the messages two parts (two recordings of one session) hold
+    differently: (topic, time) keys at which each of two parts has a row the other lacks. Rows
+    timed by their header stamps share their key across recordings, so a message damaged in one
+    of them (a flipped bit) shows up here; a message one recorder missed does not (its rows are
+    a subset of the other's)."""
+    import polars as pl  # on first use: `lake add`'s check of bag runs imports this module
+
+    out: dict[str, int] = {}
+    for event_type in sorted({t for p in parts for t in p}):
+        frames = []
+        for i, part in enumerate(parts):
+            table = part.get(event_type)
+            if table is None or "topic" not in table.column_names:
+                continue
+            df = pl.from_arrow(table)
+            assert isinstance(df, pl.DataFrame)
+            df = df.filter(pl.col("stream").str.starts_with(DERIVED_PREFIX))
+            content = [c for c in df.columns if c not in (*_ENVELOPE_IDS, "recorded_at_ns")]
+            frames.append(
+                df.select(
+                    pl.lit(i).alias("part"),
+                    "topic",
+                    "time_ns",
+                    pl.struct(content).hash().alias("h"),
+                )
+            )
+        if len(frames) < 2:
+            continue
+        keys = ["topic", "time_ns"]
+        rows = pl.concat(frames)
+        shared = (
+            rows.group_by(keys).agg(pl.col("part").n_unique().alias("n")).filter(pl.col("n") > 1)
+        )
+        if shared.is_empty():
+            continue
+        sets = rows.join(shared.select(keys), on=keys).group_by([*keys, "part"]).agg(pl.col("h"))
+        differ = 0
+        for _, group in sets.group_by(keys):
+            held = [set(h) for h in group["h"].to_list()]
+            if any(not (a <= b or b <= a) for a, b in itertools.combinations(held, 2)):
+                differ += 1
+        if differ:
+            out[event_type] = differ
+    return out

@@ -1,14 +1,16 @@
-"""The byte-level odometry/TF decoders against rosbags' deserialisers, message by message."""
+"""The byte-level odometry/TF decoders against rosbags' deserialisers, message by message
+(the batch decoder's header stamps too)."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from objsearch.pipeline.bags import fastdecode
 from objsearch.pipeline.bags.formats import detect
-from objsearch.pipeline.bags.posetrack import odometry_fields, transform_fields
+from objsearch.pipeline.bags.posetrack import odometry_fields, stamp_ns, transform_fields
 from objsearch.ros.topics import ACCEPTED_TYPES, Role
 from objsearch.ros.types import typestore
 
@@ -31,15 +33,16 @@ def _compare(bag: Path) -> int:
         for conn in conns:
             raws, expected = [], []
             for c, _, raw in reader.messages(connections=[conn]):
-                msg = reader.deserialize(raw, c.msgtype)
+                msg: Any = reader.deserialize(raw, c.msgtype)
                 if c.msgtype in ODOM:
                     fields = odometry_fields(msg)
                     assert fastdecode.ODOMETRY[fmt.distro](raw) == fields
-                    expected.append([(fields[0], "", *fields[1:])])
+                    expected.append([(fields[0], "", *fields[1:], stamp_ns(msg.header))])
                 else:
                     transforms = transform_fields(msg)
                     assert fastdecode.TF[fmt.distro](raw) == transforms
-                    expected.append(transforms)
+                    stamps = [stamp_ns(t.header) for t in msg.transforms]
+                    expected.append([(*t, s) for t, s in zip(transforms, stamps, strict=True)])
                 raws.append(raw)
                 compared += 1
             tf = conn.msgtype in TF
@@ -51,7 +54,8 @@ def _compare(bag: Path) -> int:
 def _batch(
     raws: list[bytes], layout: fastdecode.LayoutReader, tf: bool
 ) -> list[list[tuple[object, ...]]]:
-    """decode_batch's rows, per message in transform order, as the single decoders give them."""
+    """decode_batch's rows, per message in transform order, as the single decoders give them,
+    each with its header stamp."""
     d = fastdecode.decode_batch(raws, layout, tf=tf)
     assert d.undecoded == ()
     frames = [*d.frames, ""]  # code -1: no child (odometry)
@@ -59,7 +63,7 @@ def _batch(
     out: list[list[tuple[object, ...]]] = [[] for _ in raws]
     for m, _, r in rows:
         values = (float(v[r]) for v in (d.x, d.y, d.qx, d.qy, d.qz, d.qw))
-        out[m].append((frames[d.parent[r]], frames[d.child[r]], *values))
+        out[m].append((frames[d.parent[r]], frames[d.child[r]], *values, int(d.stamp[r])))
     return out
 
 
