@@ -13,9 +13,10 @@ its log and continues the task numbering and the scene graph.
 from __future__ import annotations
 
 import logging
+import queue
 import threading
 import uuid
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -29,8 +30,17 @@ from objsearch.agent.where import LiveMemory
 from objsearch.events import Event
 from objsearch.events.projection import EventObserver, EventView
 from objsearch.runtime import messages as m
+from objsearch.runtime.action import (
+    STATUS_ABORTED,
+    STATUS_CANCELED,
+    STATUS_SUCCEEDED,
+    ActionServer,
+)
+from objsearch.runtime.agent_interfaces import FindFeedback, find_result, where_response
 from objsearch.runtime.config import RuntimeConfig
-from objsearch.runtime.errors import RobotError
+from objsearch.runtime.errors import RobotError, SearchCancelled
+from objsearch.runtime.interfaces import FIND_OBJECT
+from objsearch.runtime.interfaces import WHERE as WHERE_SRV
 from objsearch.runtime.livesinks import TopicSink
 from objsearch.runtime.liveview import LiveSink, LiveView
 from objsearch.runtime.node import Node, Server
@@ -51,6 +61,8 @@ log = logging.getLogger("objsearch.agent")
 SNAPSHOT_DIR = "snapshots"
 #: The ``where`` memory in the hub (a fold with the memory model, whatever the run's model).
 WHERE = "where"
+#: FindObject goals waiting for the search loop; more are rejected (as JSON requests get busy).
+MAX_GOALS_QUEUED = 64
 
 
 class EventPublisher:
@@ -134,6 +146,8 @@ class AgentNode:
             raise
         try:
             self.events = EventPublisher(self.node, config)
+            # The FindObject action's feedback, folded from the events the search appends.
+            self.feedback = FindFeedback(self.ctx.home, self._most_likely)
             spec = RunSpec.of(
                 self.ctx.home.name,
                 self.ctx.home.digest,
@@ -149,7 +163,7 @@ class AgentNode:
             self.session = Session.open(
                 self.ctx,
                 log_dir,
-                observers=[self.events],
+                observers=[self.events, self.feedback],
                 projections=[LiveMemory.member(self.ctx.home, WHERE)],
                 views=self._views,
                 # A robot's runs never repeat: a new log gets a random run id, so no two robots'
@@ -180,6 +194,21 @@ class AgentNode:
         self.questions = Server(
             self.node, t.where, t.where_result, config.qos.requests, parse_where_request
         )
+        # The typed interfaces: objsearch_msgs/action/FindObject and objsearch_msgs/srv/Where.
+        self._goals: queue.Queue[tuple[bytes, FindRequest]] = queue.Queue()
+        self._cancelled: set[bytes] = set()
+        self._active_goal: bytes | None = None
+        self._goal_lock = threading.Lock()
+        self.finder = ActionServer(
+            self.node,
+            t.find_action,
+            FIND_OBJECT,
+            self._on_find_goal,
+            self._on_find_cancel,
+            self.world.now_ns,
+        )
+        self.feedback.server = self.finder
+        self.node.serve(t.where_service, WHERE_SRV, self._on_where_call)
         self._stop = threading.Event()
         self._answering = threading.Thread(target=self._answer_questions, name="where", daemon=True)
 
@@ -195,6 +224,108 @@ class AgentNode:
             return {"ok": True, "answer": self.memory.answer(request.target)}
         except ObjsearchError as exc:
             return {"ok": False, "error": f"where request: field 'target': {exc}"}
+
+    def _most_likely(self, target: str) -> list[Mapping[str, Any]]:
+        try:
+            return list(self.memory.answer(target)["most_likely_now"])
+        except ObjsearchError:
+            return []
+
+    def _on_where_call(self, request: Any, respond: Any) -> None:
+        """The Where service, on a middleware thread (the memory has its own lock)."""
+        target = str(request.target)
+        try:
+            resolved = self.ctx.vocabulary.resolve_target(target).name
+        except ObjsearchError as exc:
+            result: dict[str, Any] = {"ok": False, "error": f"where: target: {exc}"}
+        else:
+            result = self.answer_where(WhereRequest(id="service", target=resolved))
+        respond(where_response(self.ctx.home, result, target))
+
+    def _on_find_goal(self, goal_id: bytes, goal: Any) -> bool:
+        """A FindObject goal, on a middleware thread: an unknown target or a full queue is
+        rejected (logged); an accepted one waits for the search loop."""
+        gid = uuid.UUID(bytes=goal_id)
+        try:
+            target = self.ctx.vocabulary.resolve_target(str(goal.target)).name
+        except ObjsearchError as exc:
+            log.warning("rejected FindObject goal %s: target: %s", gid, exc)
+            return False
+        if self._goals.qsize() >= MAX_GOALS_QUEUED:
+            log.warning("rejected FindObject goal %s: %d goals are waiting", gid, MAX_GOALS_QUEUED)
+            return False
+        request = FindRequest(
+            id=str(gid),
+            target=target,
+            start=str(goal.start) or None,
+            scene=int(goal.scene) if int(goal.scene) >= 0 else None,
+            not_before_ns=max(0, int(goal.not_before_ns)),
+        )
+        log.info("accepted FindObject goal %s: find %s", gid, target)
+        self._goals.put((goal_id, request))
+        return True
+
+    def _on_find_cancel(self, goal_id: bytes) -> None:
+        """A cancel of a goal still running: the search stops before its next robot command (a
+        goal still waiting ends CANCELED when its turn comes, without a search)."""
+        gid = uuid.UUID(bytes=goal_id)
+        with self._goal_lock:
+            self._cancelled.add(goal_id)
+            if self._active_goal == goal_id:
+                self.world.cancel_reason = f"cancelled by the client (FindObject goal {gid})"
+                self.world.cancel.set()
+        log.warning("FindObject goal %s: cancel requested by the client", gid)
+
+    def run_goal(self, goal_id: bytes, request: FindRequest) -> None:
+        """One FindObject goal: the search, its feedback, and its result (SUCCEEDED whether or
+        not the target was found; CANCELED when the client cancelled it; ABORTED when the
+        search could not run)."""
+        gid = uuid.UUID(bytes=goal_id)
+        with self._goal_lock:
+            if goal_id in self._cancelled:
+                self._cancelled.discard(goal_id)
+                log.warning("FindObject goal %s: cancelled before it began", gid)
+                self.finder.finish(goal_id, STATUS_CANCELED, self._goal_result(request, {}))
+                return
+            self._active_goal = goal_id
+            self.world.cancel.clear()
+        self.finder.executing(goal_id)
+        self.feedback.begin(goal_id, request.target)
+        try:
+            outcome = self.handle(request)
+        finally:
+            self.feedback.end()
+            with self._goal_lock:
+                self._active_goal = None
+                cancelled = goal_id in self._cancelled
+                self._cancelled.discard(goal_id)
+                self.world.cancel.clear()
+        if outcome.get("cancelled") or (cancelled and not outcome.get("ok")):
+            status = STATUS_CANCELED
+        elif outcome.get("ok"):
+            status = STATUS_SUCCEEDED
+        else:
+            status = STATUS_ABORTED
+        self.finder.finish(goal_id, status, self._goal_result(request, outcome))
+
+    def _goal_result(self, request: FindRequest, outcome: dict[str, Any]) -> Any:
+        last = None
+        if outcome.get("success"):
+            try:
+                last = self.memory.answer(request.target)["last_seen"]
+            except ObjsearchError:
+                last = None
+        return find_result(
+            target=request.target,
+            task_id=str(outcome.get("task_id") or ""),
+            found=bool(outcome.get("success")),
+            path_length=float(outcome.get("path_length") or 0.0),
+            error=str(outcome.get("error") or ""),
+            last_seen=last,
+            home=self.ctx.home,
+            stamp_ns=self.world.now_ns(),
+            diagnosis=[],
+        )
 
     def _serving(self) -> bool:
         return not self._stop.is_set() and self.one.rival is None
@@ -225,11 +356,21 @@ class AgentNode:
                 self.world, target, start, scene=request.scene, clock=self.clock()
             )
         except RobotError as exc:
-            log.error("%s: search for %s failed: %s", task_id, target, exc)
+            cancelled = isinstance(exc, SearchCancelled)
+            if cancelled:
+                log.warning("%s: search for %s stopped: %s", task_id, target, exc)
+            else:
+                log.error("%s: search for %s failed: %s", task_id, target, exc)
             open_task = self.session.state.tasks.open
+            metres = 0.0
             if open_task is not None and open_task.task_id == task_id:
-                self._fail_task(task_id, target, str(exc), open_task.metres)
-            return {"ok": False, "target": target, "task_id": task_id, "error": str(exc)}
+                metres = open_task.metres
+                reason = f"cancelled: {exc}" if cancelled else f"robot: {exc}"
+                self._fail_task(task_id, target, reason, metres)
+            failed = {"ok": False, "target": target, "task_id": task_id, "error": str(exc)}
+            if cancelled:
+                failed.update(cancelled=True, path_length=round(metres, 4))
+            return failed
         return {
             "ok": True,
             "target": target,
@@ -244,7 +385,7 @@ class AgentNode:
         now = self.world.now_ns()
         with self.session.log.batch():
             recorder = self.session.recorder
-            recorder.emit(SearchFailed(reason=f"robot: {reason}"), time_ns=now, task_id=task_id)
+            recorder.emit(SearchFailed(reason=reason), time_ns=now, task_id=task_id)
             recorder.emit(
                 TaskEnded(target=target, success=False, path_length=round(metres, 4)),
                 time_ns=now,
@@ -263,9 +404,14 @@ class AgentNode:
             # Another agent of this robot met while serving, whose claim came first: this one
             # stops after the search it is in (runtime/oneagent.py).
             while self._serving():
-                request = self.requests.next(0.2)
+                request = self.requests.next(0.1)
                 if request is not None:
                     self.requests.answer(request, self.handle(request))
+                try:
+                    goal_id, goal = self._goals.get(timeout=0.1)
+                except queue.Empty:
+                    continue
+                self.run_goal(goal_id, goal)
         finally:
             self._stop.set()
             self._answering.join()

@@ -60,6 +60,9 @@ class Topics:
     find_result: str = "/objsearch/find/result"
     where: str = "/objsearch/where"  # std_msgs/String JSON {id, target}: the agent's memory
     where_result: str = "/objsearch/where/result"
+    # The typed interfaces a ROS user calls (the JSON topics above stay for clients without ROS 2)
+    find_action: str = "/objsearch/find_object"  # objsearch_msgs/action/FindObject
+    where_service: str = "/objsearch/where_object"  # objsearch_msgs/srv/Where
     open: str = "/objsearch/open"  # std_msgs/String JSON {id, static_id}
     open_result: str = "/objsearch/open/result"
     sim_reset: str = "/objsearch_sim/reset"  # the stand-in only: {id, scene, start}

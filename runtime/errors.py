@@ -21,5 +21,9 @@ class RobotError(ObjsearchError):
     """The robot did not do what it was asked: it timed out, disappeared or refused."""
 
 
+class SearchCancelled(RobotError):
+    """The client that asked for the search cancelled it (a FindObject goal's cancel_goal)."""
+
+
 class AnotherAgentError(ObjsearchError):
     """Another agent serves the same robot on this graph: this one does not serve."""

@@ -38,6 +38,9 @@ IDL_ROOT = "idl"
 NAVIGATE_TO_POSE = "nav2_msgs/action/NavigateToPose"
 CANCEL_GOAL = "action_msgs/srv/CancelGoal"
 SERVICE_EVENT_INFO = "service_msgs/msg/ServiceEventInfo"
+#: The agent's own (their messages are in ``ros/msg/objsearch_msgs``, registered by ros/types.py).
+FIND_OBJECT = "objsearch_msgs/action/FindObject"
+WHERE = "objsearch_msgs/srv/Where"
 
 
 def _read(name: str) -> str:
@@ -132,6 +135,8 @@ def definitions() -> dict[str, Any]:
     b.add(_read(SERVICE_EVENT_INFO), SERVICE_EVENT_INFO)
     b.service(CANCEL_GOAL, *_sections(_read(CANCEL_GOAL), 2))
     b.action(NAVIGATE_TO_POSE, *_sections(_read(NAVIGATE_TO_POSE), 3))
+    b.action(FIND_OBJECT, *_sections(_read(FIND_OBJECT), 3))
+    b.service(WHERE, *_sections(_read(WHERE), 2))
     return b.result()
 
 

@@ -7,8 +7,8 @@ project's ``objsearch_msgs``. This builds them the way a ROS 2 workspace does â€
 package each calling ``rosidl_generate_interfaces`` (the rosidl generator and ament wheels) â€”
 from the same definition files the rest of the runtime reads (``runtime/idl``, ``ros/msg``), and
 installs them into ``sys.prefix``: the Python packages into site-packages, the libraries into
-``lib/``, which the wheels' bootstrapper puts on ``LD_LIBRARY_PATH`` of every interpreter of the
-environment. A package is rebuilt only when its inputs changed (a hash under
+``lib/``, which :mod:`objsearch.runtime.ros2_env` puts on ``LD_LIBRARY_PATH`` of the processes that
+use rclpy. A package is rebuilt only when its inputs changed (a hash under
 ``share/objsearch_ros2/``).
 
     python -m objsearch.runtime.ros2_types            # build what is missing or stale
@@ -30,24 +30,27 @@ from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
 
+from objsearch.runtime import ros2_env
 from objsearch.runtime.errors import TransportError
 
 
 @dataclass(frozen=True, slots=True)
 class Package:
     name: str
-    #: (package-data root, paths of the interface files under it, relative to the package)
-    source: str
+    #: The package-data roots holding the interface files, searched in order (``objsearch.ros``:
+    #: ``msg/<package>/``; ``objsearch.runtime``: ``idl/<package>/``).
+    sources: tuple[str, ...]
+    #: Paths of the interface files, relative to the package (``msg/Event.msg``).
     interfaces: tuple[str, ...]
     depends: tuple[str, ...]
 
 
 #: In build order (a package's dependencies first).
 PACKAGES = (
-    Package("tf2_msgs", "objsearch.ros", ("msg/TFMessage.msg",), ("geometry_msgs",)),
+    Package("tf2_msgs", ("objsearch.ros",), ("msg/TFMessage.msg",), ("geometry_msgs",)),
     Package(
         "vision_msgs",
-        "objsearch.ros",
+        ("objsearch.ros",),
         tuple(
             f"msg/{n}.msg"
             for n in (
@@ -62,10 +65,32 @@ PACKAGES = (
         ),
         ("std_msgs", "geometry_msgs"),
     ),
-    Package("objsearch_msgs", "objsearch.ros", ("msg/Event.msg",), ("std_msgs",)),
+    # Messages in ros/msg (the bag pipeline reads them too); the service and the action in
+    # runtime/idl (interfaces.py registers them for the other transports).
+    Package(
+        "objsearch_msgs",
+        ("objsearch.ros", "objsearch.runtime"),
+        (
+            *(
+                f"msg/{n}.msg"
+                for n in (
+                    "Event",
+                    "PlaceProbability",
+                    "RoomProbability",
+                    "Sighting",
+                    "Belief",
+                    "Relation",
+                    "SceneGraph",
+                )
+            ),
+            "srv/Where.srv",
+            "action/FindObject.action",
+        ),
+        ("std_msgs", "geometry_msgs", "builtin_interfaces", "action_msgs"),
+    ),
     Package(
         "nav2_msgs",
-        "objsearch.runtime",
+        ("objsearch.runtime",),
         ("action/NavigateToPose.action",),
         ("geometry_msgs", "std_msgs", "builtin_interfaces", "action_msgs"),
     ),
@@ -111,9 +136,12 @@ ament_package()
 
 
 def _definition(package: Package, rel: str) -> bytes:
-    root = files(package.source)
-    base = root / "msg" if package.source == "objsearch.ros" else root / "idl"
-    return (base / package.name / rel).read_bytes()
+    for source in package.sources:
+        root = files(source)
+        path = (root / "msg" if source == "objsearch.ros" else root / "idl") / package.name / rel
+        if path.is_file():
+            return path.read_bytes()
+    raise TransportError(f"no {package.name}/{rel} in {', '.join(package.sources)}")
 
 
 def _inputs_hash(package: Package) -> str:
@@ -140,7 +168,9 @@ def stale(prefix: Path | None = None) -> list[Package]:
 
 
 def _environment(prefix: Path) -> dict[str, str]:
-    env = dict(os.environ)
+    # The wheels' libraries on the path (runtime/ros2_env.py): the linker resolves the
+    # dependencies of the libraries it links against through it.
+    env = ros2_env.environment(prefix=prefix)
     for var in ("AMENT_PREFIX_PATH", "CMAKE_PREFIX_PATH"):
         env[var] = os.pathsep.join(p for p in (str(prefix), env.get(var, "")) if p)
     return env

@@ -37,7 +37,7 @@ from objsearch.ros.tf import TransformBuffer
 from objsearch.runtime import messages as m
 from objsearch.runtime.action import STATUS_NAMES, STATUS_SUCCEEDED, ActionClient, new_goal_id
 from objsearch.runtime.config import RuntimeConfig
-from objsearch.runtime.errors import MessageError, RobotError
+from objsearch.runtime.errors import MessageError, RobotError, SearchCancelled
 from objsearch.runtime.interfaces import NAVIGATE_TO_POSE
 from objsearch.runtime.node import Node, Requester
 from objsearch.runtime.requests import OpenResult, parse_open_result
@@ -173,6 +173,13 @@ class RosWorld:
         #: Nav2 said SUCCEEDED at ``_commanded``: within its tolerance, which is its business.
         self._arrived = False
         self._told_no_tilt = False
+        #: Set by a cancelled FindObject goal: the search stops before its next robot command.
+        self.cancel = threading.Event()
+        self.cancel_reason = ""
+
+    def _check_cancel(self) -> None:
+        if self.cancel.is_set():
+            raise SearchCancelled(self.cancel_reason or "the search was cancelled")
 
     def _pose_topic(self) -> str:
         c = self.link.config
@@ -235,6 +242,7 @@ class RosWorld:
 
     def _drive(self, goal: Pose, *, view: bool) -> tuple[Detection, ...]:
         """Send one goal (again if need be) and wait for arrival and, with ``view``, the view."""
+        self._check_cancel()
         if self.link.navigator is not None:
             return self._drive_action(self.link.navigator, goal, view=view)
         goal_stamp = time.time_ns() + next(self._goal_ids)  # unique: the goal's identity
@@ -358,6 +366,7 @@ class RosWorld:
 
     def open(self, static_id: str, pitch: float = 0.0) -> tuple[Detection, ...]:
         self._level_camera(pitch)
+        self._check_cancel()
         mark = self.link.mark()
         t = self.timeouts
         try:
