@@ -44,6 +44,12 @@ crash) sees all of a run or none of it, with no staging folder, rename or lock o
   S3 a query hashes nothing (a first sight would download every object once per machine: see
   ``docs/analytics.md``). ``verify`` hashes every content-addressed file in full, whatever the
   cache says, decodes every file (page checksums on) and compares its rows with the log's.
+* **the log against the runs' records**: each ``_run`` row records its run's rows per event
+  type and derived table, and each commit records the version it made (:data:`HEAD_FILE`), so
+  ``query``, ``lake ls``, ``lake add`` and ``lake compact`` refuse a table whose log lost an
+  ``add``, a whole commit or its newest commits (:meth:`TableLake.check_runs`), and ``verify``
+  counts each run's rows; a damaged ``_run`` file costs its runs, not the lake
+  (:meth:`TableLake.read_runs`).
 
 Any Delta reader reads the table: DuckDB's ``delta_scan`` (the ``delta`` extension),
 ``polars.scan_delta``, ``deltalake.DeltaTable(…).to_pyarrow_dataset()``; ``docs/analytics.md``.
