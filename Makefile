@@ -12,6 +12,10 @@ $(STAMP): pyproject.toml
 	# torch first and pinned: here pip finds the local CPU wheel; unpinned, it pulls CUDA.
 	$(BIN)/pip install --quiet torch==2.13.0
 	$(BIN)/pip install --quiet -e '.[dev]'
+	# The ROS 2 wheels' .pth re-executes every interpreter of the venv, and setuptools' editable
+	# hook imports pathlib and re in each: the first goes (the processes that use rclpy set their
+	# own environment: runtime/ros2_env.py), the second becomes lazy (benchmarks/python_startup.py).
+	$(BIN)/python -m objsearch.runtime.ros2_env --setup
 	# nav2_msgs, vision_msgs, tf2_msgs, objsearch_msgs have no wheel: generated and compiled into
 	# .venv for rclpy (--transport ros2), as a ROS 2 workspace would (runtime/ros2_types.py).
 	$(BIN)/python -m objsearch.runtime.ros2_types
@@ -30,6 +34,7 @@ TEST_WORKERS ?= 2
 # would compile the sources it imports anew (~0.1-0.25 CPU-s a command), so they are compiled
 # once here (compileall writes bytecode whatever that variable says; only stale files again).
 test: $(STAMP) lint typecheck
+	$(BIN)/python -m objsearch.runtime.ros2_env --setup
 	$(BIN)/python -m objsearch.runtime.ros2_types
 	$(BIN)/python -m compileall -q -x '/\.' .
 	$(BIN)/pytest -n $(TEST_WORKERS) --dist loadscope
@@ -62,6 +67,7 @@ bench: $(STAMP)
 # a checkout of the pinned commit that the user names with --source or OBJSEARCH_DHS_SOURCE.
 dhs: $(STAMP)
 	$(BIN)/pip install --quiet -e '.[dev,dhs]'
+	$(BIN)/python -m objsearch.runtime.ros2_env --setup
 
 data: $(STAMP)
 	$(BIN)/objsearch data build --source $(SHARED)

@@ -82,6 +82,17 @@ def runtime_config(args: argparse.Namespace) -> RuntimeConfig:
     return config
 
 
+def _ros_environment(config: RuntimeConfig) -> None:
+    """Over ``--transport ros2`` the command starts again once with the environment rclpy needs
+    (runtime/ros2_env.py): only the processes that use rclpy pay for it."""
+    from objsearch.runtime.transport import Backend
+
+    if config.transport.backend is Backend.ROS2:
+        from objsearch.runtime import ros2_env
+
+        ros2_env.reexec()
+
+
 def _node_named(config: RuntimeConfig, name: str) -> RuntimeConfig:
     """On ROS 2 every node is listed by name and two of one name confuse the graph tools: the
     stand-in and the clients take their own unless robot.toml names the node."""
@@ -161,6 +172,7 @@ def cmd_agent_run(args: argparse.Namespace) -> int:
 
     _logging()
     config = runtime_config(args)  # bad options fail before a port is taken or a file made
+    _ros_environment(config)
     sinks = live_sinks(
         args.live,
         args.live_mcap,
@@ -261,6 +273,7 @@ def _ask(
     from objsearch.runtime.client import AgentClient
 
     config = _node_named(runtime_config(args), f"objsearch_client_{os.getpid()}")
+    _ros_environment(config)
     with AgentClient(config) as client:
 
         def hint_if_alone() -> None:
@@ -321,8 +334,10 @@ def cmd_robot_sim(args: argparse.Namespace) -> int:
     from objsearch.runtime.standin import Faults, StandInRobot
 
     _logging()
+    config = _node_named(runtime_config(args), "objsearch_robot")
+    _ros_environment(config)
     robot = StandInRobot(
-        _node_named(runtime_config(args), "objsearch_robot"),
+        config,
         schedule=args.schedule,
         scene=args.scene,
         start=args.start,

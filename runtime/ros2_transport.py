@@ -8,7 +8,8 @@ are services — go through rclpy's own clients and servers, converted at the se
 ``rclpy.serialization``. The node is visible to every ROS 2 tool (``ros2 node list``,
 ``get_node_names_and_namespaces``), with the types' RIHS01 hashes that rosidl computed.
 
-rclpy is imported only here, when this transport is chosen. The Python classes of the
+rclpy is imported only here, when this transport is chosen, in a process started with the ROS
+environment (:mod:`objsearch.runtime.ros2_env`). The Python classes of the
 interfaces without a wheel come from :mod:`objsearch.runtime.ros2_types`.
 
 Discovery: ``interface = "lo"`` (the default) keeps the node on this host
@@ -170,6 +171,14 @@ class Ros2Transport:
             from rclpy.callback_groups import ReentrantCallbackGroup
             from rclpy.executors import MultiThreadedExecutor
         except ImportError as exc:
+            from objsearch.runtime import ros2_env
+
+            if ros2_env.library_dirs() and not ros2_env.ready():
+                raise TransportError(
+                    "rclpy cannot load its libraries: this process was started without them on "
+                    "LD_LIBRARY_PATH; start it under `python -m objsearch.runtime.ros2_env "
+                    "COMMAND` (objsearch's own commands restart themselves so)"
+                ) from exc
             raise TransportError(
                 f"the ros2 transport needs rclpy ({exc}): pip install 'objsearch[ros2]'"
             ) from exc

@@ -101,6 +101,24 @@ def bucket(
 TRANSPORT_SCOPE = "tests/runtime/"
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_configure(config: pytest.Config) -> None:
+    """rclpy needs the ROS 2 wheels' libraries on LD_LIBRARY_PATH from its process's start
+    (runtime/ros2_env.py; the venv's Python processes no longer all start twice for it): the
+    run starts again once with them, before any test, and xdist's workers and every process a
+    test starts inherit them."""
+    if hasattr(config, "workerinput"):
+        return
+    from objsearch.runtime import ros2_env
+
+    if ros2_env.ready() or not ros2_env.library_dirs():
+        return
+    capture = config.pluginmanager.getplugin("capturemanager")
+    if capture is not None:
+        capture.stop_global_capturing()  # the restarted run's output goes where this one's went
+    ros2_env.reexec()
+
+
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     """xdist's scope scheduling with a scope a test module (its module fixtures are built once),
