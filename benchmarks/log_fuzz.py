@@ -159,8 +159,10 @@ def _snapshot(args: argparse.Namespace, rows: list[str], failures: list[str]) ->
 def _battery(args: argparse.Namespace, rows: list[str], failures: list[str]) -> bool:
     start = time.perf_counter()
     report = run_repair_battery(args.battery_events, stride=args.battery_stride)
+    stride = args.battery_stride
+    where = "every line" if stride == 1 else f"every {stride}th line"
     print(
-        f"battery ({args.battery_events}-event logs, damage at every {args.battery_stride}. line): "
+        f"battery ({args.battery_events}-event logs, damage at {where}): "
         f"{report.summary()} ({time.perf_counter() - start:.1f} s)"
     )
     print(f"  {'damage':32} {'cases':>6} {'intact moved out':>17}")

@@ -580,10 +580,37 @@ class _Walk:
                 found = self._check(self.lines[j], self._cursor(s - 1, start, at.time_ns))
                 if found is None or not self._placed(j, info, found):
                     continue
+                if self._contradicted(j, s, start):
+                    # Its checksum is proven, its bytes are not: moved out with what stood
+                    # before it, its seq held by a marker that carries its chain on.
+                    self._gap(j, s + 1, found[1], moved=j)
+                    self.used[j] = 2
+                    self.last = max(self.last, j)
+                    return j + 1
                 self._gap(j, s, start if self.meta.chained else None)
                 self._keep(j, self.lines[j], *found, verbatim=True)
                 return j + 1
         return None
+
+    def _contradicted(self, j: int, seq: int, start: int) -> bool:
+        """The line right before line ``j`` claims seq ``seq - 1`` with a checksum its writer
+        could have written (not a plain CRC recomputed by hand), and the record of ``seq`` on
+        line ``j`` was not chained from it: one of the two was damaged in its bytes, so the
+        latter's bytes are not proven (two damaged records in a row)."""
+        if not self.meta.chained:
+            return False
+        k = j - 1
+        while k > self.last and (self.used[k] or not self.lines[k].strip()):
+            k -= 1
+        if k <= self.last:
+            return False  # nothing stands between: lines lost, not damaged
+        before = self._info(k)
+        return (
+            before.checksum is not None
+            and before.seq == seq - 1
+            and before.checksum != start
+            and zlib.crc32(before.body) != before.checksum
+        )
 
     def _placed(self, j: int, info: LineInfo, found: tuple[Event, int]) -> bool:
         event, chain = found
@@ -598,14 +625,24 @@ class _Walk:
             return True
         return all(not line.strip() for line in self.lines[j + 1 :]) and not self.tail
 
-    def _gap(self, j: int, seq: int, chain: int | None) -> None:
-        """Markers for the seqs before the record of ``seq`` on line ``j``."""
+    def _gap(self, j: int, seq: int, chain: int | None, *, moved: int | None = None) -> None:
+        """Markers for the seqs before the record of ``seq`` on line ``j`` (``moved``: that
+        line too is moved out, its record not proven)."""
         first = self.at.seq + 1
         between = tuple(
             k for k in range(self.last + 1, j) if not self.used[k] and self.lines[k].strip()
         )
         last = seq - 1
-        if between:
+        if moved is not None:
+            between += (moved,)
+            kind = "quarantined"
+            why = (
+                f"{_lines_named(between)}: the record of seq {last} keeps this log's id and a "
+                "checksum the next record proves, but its bytes were not chained from the "
+                "checksum of the line before it, which claims the seq before: two records "
+                "damaged in a row, neither proven"
+            )
+        elif between:
             kind = "quarantined"
             why = (
                 f"{_lines_named(between)} hold(s) no record that verifies here "

@@ -151,6 +151,15 @@ def flip_bits_in_two_records(lines: list[bytes], k: int, other: list[bytes]) -> 
     return out
 
 
+def edit_digits_in_two_records(
+    lines: list[bytes], k: int, other: list[bytes]
+) -> list[bytes] | None:
+    """Two records in a row edited, their checksums kept: neither may be kept as it reads."""
+    if k + 1 >= len(lines):
+        return None
+    return [*lines[:k], _edit_digit(lines[k], k), _edit_digit(lines[k + 1], k + 1), *lines[k + 2 :]]
+
+
 def insert_garbage(lines: list[bytes], k: int, other: list[bytes]) -> list[bytes]:
     junk = [b"\x00\xff garbage \x7f\n", b'{"seq": 3, "stream": "robot"}\n', b"\t0000000a\n"]
     return [*lines[:k], junk[k % 3], *lines[k:]]
@@ -210,6 +219,7 @@ LINE_DAMAGE: tuple[LineDamage, ...] = (
     flip_bit_in_newline,
     byte_to_newline,
     flip_bits_in_two_records,
+    edit_digits_in_two_records,
     insert_garbage,
     insert_foreign_line,
     crlf_line,

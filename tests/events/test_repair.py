@@ -286,6 +286,28 @@ def test_a_damaged_record_after_a_deleted_one_costs_only_itself(tmp_path: Path) 
     assert _intact_moved_out(data, tmp_path) == 2  # seq 4 (deleted) and seq 7 (damaged)
 
 
+def test_two_records_damaged_in_a_row_are_both_moved_out_never_kept_changed(
+    tmp_path: Path,
+) -> None:
+    """The second keeps its id, seq and checksum (proven by the record after it), but its bytes
+    do not chain from the checksum the first carries: neither is proven, so neither is kept."""
+    data = _write(tmp_path, 10)
+    lines = data.splitlines(keepends=True)
+    for i in (4, 5):
+        lines[i] = lines[i].replace(f'"r{i}"'.encode(), f'"X{i}"'.encode())
+    (tmp_path / "events.log").write_bytes(b"".join(lines))
+    result = repair_log(tmp_path, store=STORE)
+    assert [(a.kind, a.first_seq, a.last_seq) for a in result.actions] == [("quarantined", 5, 6)]
+    assert _reasons(tmp_path) == [
+        *((i + 1, f"r{i}") for i in range(4)),
+        (5, "record_quarantined"),
+        (6, "record_quarantined"),
+        *((i + 1, f"r{i}") for i in range(6, 10)),
+    ]
+    assert result.quarantine is not None
+    assert result.quarantine.read_bytes() == lines[4] + lines[5]
+
+
 def test_a_record_cut_short_or_split_in_two_costs_no_other(tmp_path: Path) -> None:
     data = _write(tmp_path, 8)
     lines = data.splitlines(keepends=True)
