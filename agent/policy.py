@@ -76,7 +76,9 @@ INSPECTIONS = ("single", "cover")
 #: the 50 ms target on the largest home (benchmarks/decisions.py); beyond, a bounded approximation.
 GLOBAL_EXACT_STOPS = 12
 #: Confirmation (docs/perception.md), a sequential test: a sighting not sure by its score is
-#: looked at again, in turn from the ``CONFIRM_VIEWPOINTS`` viewpoints nearest the object, until
+#: looked at again, in turn from the ``CONFIRM_VIEWPOINTS`` viewpoints it was seen from or nearest
+#: it (1: only where it was seen from; 3, with the two nearest others, rejected more true
+#: sightings on the development homes, misses from where it was hidden), until
 #: P(real) reaches the model's ``accept_posterior`` or falls below ``REJECT_BELOW``, at most
 #: ``CONFIRM_LOOKS`` looks; a detection of the target class this close to it (m) is the same
 #: object seen again. A sighting the looks leave undecided keeps its odds for the rest of the task.
@@ -789,9 +791,11 @@ class _Task:
         A sighting sure by its score (and the odds earlier looks left at its place) stands.
         Otherwise it is a sequential test: from those odds times its score's likelihood ratio,
         the robot looks at the object again, in turn from the :data:`CONFIRM_VIEWPOINTS`
-        viewpoints nearest it (none it stands at), at most :data:`CONFIRM_LOOKS` looks: a
+        viewpoints it was seen from or nearest it, at most :data:`CONFIRM_LOOKS` looks: a
         detection of the target there multiplies the odds by its own ratio, none by the
-        detector's miss probability for the mask the object would show from there. It is
+        detector's miss probability for the mask the object would show from there, occluded
+        (the agent cannot tell how much of it is hidden; the unoccluded miss rejected true
+        sightings that were partly hidden). It is
         confirmed once P(real) reaches the model's ``accept_posterior``, rejected when it falls
         below :data:`REJECT_BELOW` or the looks run out; its odds stay with its place for the
         rest of the task. A sighting of the target elsewhere during the looks is queued.
