@@ -811,6 +811,11 @@ class TableLake:
         version = int(table.version())
         head = self._recorded_head()
         if head is not None and head > version:
+            # The table handed in may only be older than a commit another writer made since it
+            # was loaded (the head record is written after that commit): damage only if the log
+            # as it is now still ends before the recorded head.
+            version = max(version, int(self.table().version()))
+        if head is not None and head > version:
             problems.append(
                 f"the log ends at version {version}, but a commit of version {head} was made "
                 f"({HEAD_FILE} records it): the commit file(s) of version {version + 1} to "

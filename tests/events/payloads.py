@@ -70,6 +70,16 @@ EXAMPLES: dict[str, dict[str, Any]] = {
         "position": [1.0, 2.0, 0.9],
         "accepted": True,
         "support": {"static_id": "Table|1", "static_class": "Table", "at": True},
+        "score": 1.0,
+        "classes": [],
+    },
+    "sighting_rejected": {
+        "object_class": "Cup",
+        "instance_id": "Cup|3",
+        "position": [1.0, 2.0, 0.9],
+        "score": 0.62,
+        "posterior": 0.31,
+        "looks": 2,
     },
     "target_detected": {
         "instance_id": "Cup|3",
@@ -140,12 +150,20 @@ OLD_EXAMPLES: dict[tuple[str, int], dict[str, Any]] = {
         "nearest_static_class": "Table",
         "at_static": True,
     },
+    ("detection", 2): {
+        "object_class": "Cup",
+        "instance_id": "Cup|3",
+        "mask_area": 812.0,
+        "position": [1.0, 2.0, 0.9],
+        "accepted": True,
+        "support": {"static_id": "Table|1", "static_class": "Table", "at": True},
+    },
     ("task_started", 1): {"target": "Cup", "start": "kitchen", "pose": POSE, "scene": 3},
     ("view_taken", 1): {"pose": POSE, "static_id": None, "reason": "on_the_way"},
 }
 
 LATEST: dict[str, int] = {t: 1 for t in EXAMPLES} | {
-    "detection": 2,
+    "detection": 3,
     "run_started": 5,
     "task_started": 2,
     "view_taken": 2,

@@ -53,7 +53,7 @@ def test_tables_hold_every_event_upcast(tmp_path: Path) -> None:
     tables = events_to_tables(read_log(small_log(tmp_path), store=STORE), STORE)
     assert sum(t.num_rows for t in tables.values()) == len(EXAMPLES) + 4
     detections = tables["detection"].to_pylist()
-    assert [d["version"] for d in detections] == [2, 2]
+    assert [d["version"] for d in detections] == [3, 3]
     assert detections[1]["support"] == EXAMPLES["detection"]["support"]
     assert tables["run_started"].column("params").to_pylist() == [
         '{"fov_deg":90,"nested":{"ok":[1,2]}}'
