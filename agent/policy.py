@@ -238,6 +238,8 @@ class _Found:
     score: float = 1.0
     mask_area: float = 0.0
     sure: bool = True
+    #: The container the robot had opened when it saw it (a confirming look opens it again).
+    container: str | None = None
 
 
 def _planar(pose: Pose) -> PlanarPose:
@@ -772,7 +774,10 @@ class _Task:
             )
         return passes and det.object_class == self.target
 
-    def sighting(self, det: Detection, result: SearchResult) -> _Found:
+    def sighting(
+        self, det: Detection, result: SearchResult, container: str | None = None
+    ) -> _Found:
+        """A sighting of the target by ``det``, made with ``container`` opened (or none)."""
         return _Found(
             det.instance_id,
             det.position,
@@ -781,6 +786,7 @@ class _Task:
             det.score,
             det.mask_area,
             self.is_sure(det),
+            container,
         )
 
     def confirm(
@@ -810,24 +816,36 @@ class _Task:
         px, py, pz = found.position
         seen_from = math.dist((found.pose.x, found.pose.y, 1.0), (px, py, pz))
         # Where it was seen from first (a look there costs no metres: this detector's draws are
-        # independent from view to view), then the viewpoints nearest it.
+        # independent from view to view), then the viewpoints nearest it. Seen inside an opened
+        # container: only from where it was opened (within reach), opening it again each look.
+        others = 0 if found.container is not None else CONFIRM_VIEWPOINTS - 1
         nearest = [
             found.pose.point,
             *sorted(
                 (v for v in nav.viewpoints(room) if v != found.pose.point),
                 key=lambda v: (math.dist((v.x, v.y), (px, py)), v),
-            )[: CONFIRM_VIEWPOINTS - 1],
+            )[:others],
         ]
         looks = 0
         while looks < CONFIRM_LOOKS:
             viewpoint = nearest[looks % len(nearest)]
-            self.go(viewpoint, result, watch=False, final_yaw=heading(viewpoint, Point(px, py)))
+            # Opening a container turns the robot to it; otherwise it turns to the object.
+            facing = None if found.container is not None else heading(viewpoint, Point(px, py))
+            self.go(viewpoint, result, watch=False, final_yaw=facing)
             pitch = pitch_towards((viewpoint.x, viewpoint.y), (px, py, pz))
-            dets = self.world.look(heading(viewpoint, Point(px, py)), pitch)
+            reason: ViewReason = "look"
+            if found.container is not None:
+                dets = self.world.open(found.container, pitch)
+                self.emit(
+                    ContainerOpened(static_id=found.container, pose=_planar(self.world.pose()))
+                )
+                reason = "inside"
+            else:
+                dets = self.world.look(heading(viewpoint, Point(px, py)), pitch)
             looks += 1
             pose = self.world.pose()
             self.emit(
-                ViewTaken(pose=_planar(pose), pitch=round(pitch, 4), static_id=None, reason="look")
+                ViewTaken(pose=_planar(pose), pitch=round(pitch, 4), static_id=None, reason=reason)
             )
             again = next(
                 (
@@ -848,7 +866,7 @@ class _Task:
             for d in dets:
                 hit = self.detection(d, room, sure=verdict if d is again else None)
                 if hit and d is not again:
-                    self.queued.append(self.sighting(d, result))
+                    self.queued.append(self.sighting(d, result, found.container))
             if verdict and again is not None:
                 return _Found(
                     again.instance_id,
@@ -858,6 +876,7 @@ class _Task:
                     again.score,
                     again.mask_area,
                     True,
+                    found.container,
                 )
             if model.posterior(odds) < REJECT_BELOW:
                 break
@@ -957,7 +976,7 @@ class _Task:
                 dets = self.world.open(s.id, pitch)
                 pose = self.world.pose()
                 self.emit(ContainerOpened(static_id=s.id, pose=_planar(pose)))
-                hit = self._view(pose, pitch, s.id, "inside", dets, room, result)
+                hit = self._view(pose, pitch, s.id, "inside", dets, room, result, s.id)
                 if hit:
                     return hit
                 continue
@@ -1013,9 +1032,14 @@ class _Task:
         dets: Sequence[Detection],
         room: str,
         result: SearchResult,
+        container: str | None = None,
     ) -> _Found | None:
+        """Record a view and its detections; confirm its sightings (``container``: the one
+        opened for it)."""
         self.emit(
             ViewTaken(pose=_planar(pose), pitch=round(pitch, 4), static_id=static_id, reason=reason)
         )
-        sightings = [self.sighting(det, result) for det in dets if self.detection(det, room)]
+        sightings = [
+            self.sighting(det, result, container) for det in dets if self.detection(det, room)
+        ]
         return self.settle(sightings, result)
