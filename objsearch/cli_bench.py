@@ -457,6 +457,10 @@ def register(sub: Any) -> None:
     )
     homes.set_defaults(func=cmd_bench_homes)
 
+    from objsearch.cli_sensitivity import register as register_sensitivity
+
+    register_sensitivity(bsub)
+
     table1 = bsub.add_parser(
         "table1",
         help="Table I over a seeded sample of FloorPlan sets that satisfy the paper's removal rule "

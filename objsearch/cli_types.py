@@ -206,6 +206,19 @@ def int_list(lo: int | None = None, hi: int | None = None) -> Callable[[str], li
     return _typed("int_list", convert)  # type: ignore[return-value]
 
 
+def float_list(lo: float | None = None, hi: float | None = None) -> Callable[[str], list[float]]:
+    """A comma-separated list of finite numbers, each in ``[lo, hi]``."""
+    one = float_range(lo, hi)
+
+    def convert(value: str) -> list[float]:
+        parts = [p for p in value.split(",") if p.strip()]
+        if not parts:
+            raise argparse.ArgumentTypeError(f"expected numbers {_bounds(lo, hi)}, got nothing")
+        return [one(p) for p in parts]
+
+    return _typed("float_list", convert)  # type: ignore[return-value]
+
+
 def name_list(value: str) -> list[str]:
     """A comma-separated list of non-empty names."""
     parts = [p.strip() for p in value.split(",")]

@@ -22,7 +22,7 @@ from objsearch.cli import build_parser, main
 REPO = Path(__file__).resolve().parents[1]
 LEAVES = {" ".join(words): leaf for words, leaf in battery.leaf_parsers(build_parser())}
 #: The list types of cli_types (each returns a list from one comma-separated value).
-LIST_TYPES = {"name_list", "int_list", "subset_of", "number_spans"}
+LIST_TYPES = {"name_list", "int_list", "float_list", "subset_of", "number_spans"}
 #: Repeatable options whose values may hold commas (paths, endpoints, NAME=FILE pairs).
 REPEATED_ONLY_TYPES = {"dir_path", "existing_dir", "text", "zenoh_endpoint", "host"}
 #: Commands that can run longer than a few seconds (a bench, a whole log or lake, a data build).
@@ -33,6 +33,7 @@ LONG_COMMANDS = {
     "data build",
     "bench paper",
     "bench homes",
+    "bench sensitivity",
     "bench table1",
     "bench dhs",
     "bench report",

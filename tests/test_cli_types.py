@@ -50,6 +50,10 @@ def test_text_and_lists() -> None:
     _rejects(t.name_list, "a,,b", "empty name")
     assert t.int_list(1, 10)("1,3") == [1, 3]
     _rejects(t.int_list(1, 10), "1,99", "not 99")
+    assert t.float_list(0, 1)("1, 0.85,0.5") == [1.0, 0.85, 0.5]
+    _rejects(t.float_list(0, 1), "1,1.5", "between 0 and 1, not 1.5")
+    _rejects(t.float_list(0, 1), "0.5,nan", "finite")
+    _rejects(t.float_list(0, 1), ",", "expected numbers between 0 and 1, got nothing")
     _rejects(t.sql, " \n", "empty")
 
 
