@@ -126,6 +126,7 @@ class AgentNode:
         self.live_sinks = tuple(live)
         transport = None
         try:
+            config.check()
             self.ctx = load_context(config.home)
             transport = open_transport(config.transport)
             if live_topics:

@@ -29,6 +29,7 @@ arrival_s = 60.0
 interface = "goal_pose"        # or "navigate_to_pose": Nav2's action (see docs/runtime.md)
 action = "/navigate_to_pose"
 behavior_tree = ""             # Nav2's default tree
+distro = "auto"                # or "humble" / "jazzy": which Nav2's NavigateToPose (see docs)
 
 [pose]
 source = "odometry"            # or "tf": map → base_link from /tf and /tf_static
@@ -102,12 +103,21 @@ class NavigationSettings:
     interface: str = "goal_pose"
     action: str = "/navigate_to_pose"
     behavior_tree: str = ""
+    #: Which Nav2's NavigateToPose: ``humble`` (result std_msgs/Empty), ``jazzy`` (Jazzy and
+    #: later: error_code, error_msg; over --transport ros2), or ``auto``: the server's, read from
+    #: the type hash its get_result service shows on the graph (Humble's where the transport
+    #: shows none). docs/runtime.md, *Which Nav2*.
+    distro: str = "auto"
 
     def __post_init__(self) -> None:
         if self.interface not in {"goal_pose", "navigate_to_pose"}:
             raise RuntimeConfigError(
                 f"[navigation] interface must be goal_pose or navigate_to_pose, "
                 f"not {self.interface!r}"
+            )
+        if self.distro not in {"auto", "humble", "jazzy"}:
+            raise RuntimeConfigError(
+                f"[navigation] distro must be auto, humble or jazzy, not {self.distro!r}"
             )
 
 
@@ -137,6 +147,21 @@ class RuntimeConfig:
     timeouts: Timeouts = Timeouts()
     navigation: NavigationSettings = NavigationSettings()
     pose: PoseSource = PoseSource()
+
+    def check(self) -> None:
+        """What no single section can tell: Jazzy's NavigateToPose travels over the ``ros2``
+        transport only (rclpy's build of it; the zenoh and dds transports name Humble's)."""
+        nav = self.navigation
+        if (
+            nav.interface == "navigate_to_pose"
+            and nav.distro == "jazzy"
+            and self.transport.backend is not Backend.ROS2
+        ):
+            raise RuntimeConfigError(
+                "[navigation] distro = 'jazzy' needs --transport ros2: over "
+                f"{self.transport.backend.value} only Humble's NavigateToPose is spoken "
+                "(docs/runtime.md, the transport x capability matrix)"
+            )
 
     @classmethod
     def load(cls, path: Path) -> RuntimeConfig:

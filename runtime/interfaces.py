@@ -23,6 +23,7 @@ The definitions are kept verbatim in ``idl/`` (sources in ``idl/README.md``).
 
 from __future__ import annotations
 
+from functools import cache
 from importlib import resources
 from typing import TYPE_CHECKING, Any
 
@@ -38,14 +39,26 @@ IDL_ROOT = "idl"
 NAVIGATE_TO_POSE = "nav2_msgs/action/NavigateToPose"
 CANCEL_GOAL = "action_msgs/srv/CancelGoal"
 SERVICE_EVENT_INFO = "service_msgs/msg/ServiceEventInfo"
+#: Nav2's ``NavigateToPose`` as Jazzy and later distros define it (result ``uint16 error_code``,
+#: ``string error_msg``; ``idl/nav2_msgs/action-jazzy/``). On the wire it is the same
+#: ``nav2_msgs/action/NavigateToPose`` (:data:`WIRE_NAMES`); in the typestore it has a name of its
+#: own, so that one process may encode both.
+NAVIGATE_TO_POSE_JAZZY = "nav2_msgs/action/NavigateToPoseJazzy"
+#: A typestore name that is not the wire's → (the wire's, the nav2_msgs build that carries it).
+WIRE_NAMES = {NAVIGATE_TO_POSE_JAZZY: (NAVIGATE_TO_POSE, "jazzy")}
+#: ``[navigation] distro`` → the action type the agent speaks.
+NAV2_DISTROS = {"humble": NAVIGATE_TO_POSE, "jazzy": NAVIGATE_TO_POSE_JAZZY}
+
 #: The agent's own (their messages are in ``ros/msg/objsearch_msgs``, registered by ros/types.py).
 FIND_OBJECT = "objsearch_msgs/action/FindObject"
 WHERE = "objsearch_msgs/srv/Where"
 
 
 def _read(name: str) -> str:
-    pkg, kind, leaf = name.split("/")
-    path = resources.files(__package__).joinpath(IDL_ROOT, pkg, kind, f"{leaf}.{kind}")
+    wire, variant = WIRE_NAMES.get(name, (name, ""))
+    pkg, kind, leaf = wire.split("/")
+    folder = f"{kind}-{variant}" if variant else kind
+    path = resources.files(__package__).joinpath(IDL_ROOT, pkg, folder, f"{leaf}.{kind}")
     return path.read_text(encoding="utf-8")
 
 
@@ -135,6 +148,7 @@ def definitions() -> dict[str, Any]:
     b.add(_read(SERVICE_EVENT_INFO), SERVICE_EVENT_INFO)
     b.service(CANCEL_GOAL, *_sections(_read(CANCEL_GOAL), 2))
     b.action(NAVIGATE_TO_POSE, *_sections(_read(NAVIGATE_TO_POSE), 3))
+    b.action(NAVIGATE_TO_POSE_JAZZY, *_sections(_read(NAVIGATE_TO_POSE_JAZZY), 3))
     b.action(FIND_OBJECT, *_sections(_read(FIND_OBJECT), 3))
     b.service(WHERE, *_sections(_read(WHERE), 2))
     return b.result()
@@ -143,3 +157,28 @@ def definitions() -> dict[str, Any]:
 def register(store: Typestore) -> None:
     """Adds what the store lacks (a definition it has is kept: its hash is the real one)."""
     store.register({k: v for k, v in definitions().items() if k not in store.fielddefs})
+
+
+@cache
+def wire_hashes(name: str) -> dict[str, str]:
+    """The RIHS01 hashes of an action's parts as its own distro's rosidl computes them (under the
+    wire's names): ``{"GetResult_Response": "RIHS01_…", …}``. For a typestore alias
+    (:data:`WIRE_NAMES`) they are computed in a store of their own, where the definition has
+    the wire's name."""
+    from rosbags.typesys import Stores, get_typestore
+
+    from objsearch.ros.types import message_definitions
+
+    wire, _ = WIRE_NAMES.get(name, (name, ""))
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    extra: dict[str, Any] = {}
+    for msg, text in message_definitions().items():
+        if msg not in store.fielddefs:
+            extra.update(get_types_from_msg(text, msg))
+    store.register(extra)
+    b = _Builder()
+    b.add(_read(SERVICE_EVENT_INFO), SERVICE_EVENT_INFO)
+    b.action(wire, *_sections(_read(name), 3))
+    store.register({k: v for k, v in b.result().items() if k not in store.fielddefs})
+    parts = ("SendGoal", "GetResult", "GetResult_Response", "FeedbackMessage", "Result")
+    return {part: str(store.hash_rihs01(f"{wire}_{part}")) for part in parts}

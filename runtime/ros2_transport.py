@@ -46,11 +46,27 @@ _ACTION_PARTS = {
 
 
 def interface(typename: str) -> Any:
-    """``pkg/msg/Name``, ``pkg/srv/Name`` or ``pkg/action/Name[_Part]`` → the rclpy class."""
+    """``pkg/msg/Name``, ``pkg/srv/Name`` or ``pkg/action/Name[_Part]`` → the rclpy class. A
+    typestore alias of another distro's definition (``interfaces.WIRE_NAMES``: Jazzy's
+    ``NavigateToPose``) is the wire's class from that distro's build, which this process then
+    uses for good (``ros2_types.activate``)."""
+    from objsearch.runtime import ros2_types
+    from objsearch.runtime.interfaces import WIRE_NAMES
+
     try:
         pkg, kind, name = typename.split("/")
     except ValueError:
         raise MessageError(f"not a ROS 2 type name: {typename!r}") from None
+    variant = ""
+    for alias, (wire, which) in WIRE_NAMES.items():
+        leaf, wire_leaf = alias.rsplit("/", 1)[1], wire.rsplit("/", 1)[1]
+        if typename.startswith(alias.rsplit("/", 1)[0] + "/") and (
+            name == leaf or name.startswith(leaf + "_")
+        ):
+            name, variant = wire_leaf + name[len(leaf) :], which
+            break
+    if pkg == "nav2_msgs":
+        ros2_types.activate(pkg, variant)
     try:
         module = importlib.import_module(f"{pkg}.{kind}")
     except ImportError as exc:
@@ -283,6 +299,13 @@ class Ros2Transport:
 
     def client(self, service: str, srvtype: str) -> _Ros2Client:
         return _Ros2Client(self, service, srvtype)
+
+    def service_type_hashes(self, service: str) -> list[str]:
+        """The RIHS01 hashes the graph shows for the servers of ``service``: the type hash each
+        server's reply writer carries (that of the service's ``_Response``; ``rr/<service>Reply``
+        under ROS 2's DDS name mangling)."""
+        infos = self.node.get_publishers_info_by_topic(f"rr{service}Reply", no_mangle=True)
+        return sorted({str(i.topic_type_hash) for i in infos})
 
     def close(self) -> None:
         if self._closed.is_set():

@@ -43,6 +43,10 @@ class Package:
     #: Paths of the interface files, relative to the package (``msg/Event.msg``).
     interfaces: tuple[str, ...]
     depends: tuple[str, ...]
+    #: A second build of a package whose definitions differ by ROS distro (``jazzy``): its files
+    #: come from ``<kind>-<variant>/`` (``action-jazzy/NavigateToPose.action``) and it installs
+    #: into a prefix of its own (:func:`variant_prefix`), chosen per process (:func:`activate`).
+    variant: str = ""
 
 
 #: In build order (a package's dependencies first).
@@ -94,6 +98,15 @@ PACKAGES = (
         ("action/NavigateToPose.action",),
         ("geometry_msgs", "std_msgs", "builtin_interfaces", "action_msgs"),
     ),
+    # Nav2's NavigateToPose as Jazzy and later have it (result error_code, error_msg): the wire
+    # type names are the same, the layouts are not, so one process speaks one of them.
+    Package(
+        "nav2_msgs",
+        ("objsearch.runtime",),
+        ("action/NavigateToPose.action",),
+        ("geometry_msgs", "std_msgs", "builtin_interfaces", "action_msgs"),
+        variant="jazzy",
+    ),
 )
 
 _PACKAGE_XML = """<?xml version="1.0"?>
@@ -136,6 +149,9 @@ ament_package()
 
 
 def _definition(package: Package, rel: str) -> bytes:
+    if package.variant:
+        kind, _, leaf = rel.partition("/")
+        rel = f"{kind}-{package.variant}/{leaf}"
     for source in package.sources:
         root = files(source)
         path = (root / "msg" if source == "objsearch.ros" else root / "idl") / package.name / rel
@@ -146,14 +162,64 @@ def _definition(package: Package, rel: str) -> bytes:
 
 def _inputs_hash(package: Package) -> str:
     h = hashlib.sha256()
-    h.update(_CMAKELISTS.encode() + _PACKAGE_XML.encode() + repr(package).encode())
+    # Without a variant, the package as it was described before variants existed (the builds
+    # already made stay valid).
+    identity = repr(package) if package.variant else repr(package).replace(", variant=''", "")
+    h.update(_CMAKELISTS.encode() + _PACKAGE_XML.encode() + identity.encode())
     for rel in package.interfaces:
         h.update(rel.encode() + b"\0" + _definition(package, rel))
     return h.hexdigest()
 
 
 def _stamp(package: Package, prefix: Path) -> Path:
-    return prefix / "share" / "objsearch_ros2" / f"{package.name}.sha256"
+    leaf = f"{package.name}-{package.variant}" if package.variant else package.name
+    return prefix / "share" / "objsearch_ros2" / f"{leaf}.sha256"
+
+
+def variant_prefix(name: str, variant: str, prefix: Path | None = None) -> Path:
+    """Where a variant of a package is installed (its own prefix: Python package and libraries)."""
+    return (prefix or Path(sys.prefix)) / "opt" / "objsearch_ros2" / f"{name}-{variant}"
+
+
+def _install_prefix(package: Package, prefix: Path) -> Path:
+    return variant_prefix(package.name, package.variant, prefix) if package.variant else prefix
+
+
+#: The variant each package was loaded as in this process ("" the main prefix's).
+_active: dict[str, str] = {}
+
+
+def activate(name: str, variant: str) -> None:
+    """Make ``import <name>`` load ``variant`` ("" the main prefix's) in this process: the
+    variant's Python package goes first on ``sys.path`` and its libraries are loaded. One variant
+    per process: a module, once imported, cannot be swapped."""
+    current = _active.get(name)
+    if current == variant:
+        return
+    if current is not None or (name in sys.modules and variant):
+        raise TransportError(
+            f"this process already loaded {name} as {current or 'the default (Humble)'}; "
+            f"it cannot also speak {variant or 'the default (Humble)'}: one {name} per process"
+        )
+    _active[name] = variant
+    if not variant:
+        return
+    root = variant_prefix(name, variant)
+    if not root.is_dir():
+        raise TransportError(
+            f"no {name} built for {variant} in {root}: `python -m objsearch.runtime.ros2_types` "
+            "builds it (make does)"
+        )
+    sys.path.insert(0, str(ros2_env.site_packages(root)))
+    # rosidl loads a package's type support libraries by name when a message is first
+    # serialised: the dynamic linker would find the main prefix's build first (its folder is
+    # on LD_LIBRARY_PATH from the process's start; changing the variable now changes nothing).
+    # A library already loaded answers to its name, so the variant's are loaded first, each
+    # finding the variant's others through its RPATH.
+    import ctypes
+
+    for library in sorted((root / "lib").glob(f"lib{name}__*.so")):
+        ctypes.CDLL(str(library))
 
 
 def stale(prefix: Path | None = None) -> list[Package]:
@@ -177,7 +243,21 @@ def _environment(prefix: Path) -> dict[str, str]:
 
 
 def build(package: Package, prefix: Path, work: Path, jobs: int = 2) -> None:
-    src, out = work / package.name / "src", work / package.name / "build"
+    leaf = f"{package.name}-{package.variant}" if package.variant else package.name
+    src, out = work / leaf / "src", work / leaf / "build"
+    target = _install_prefix(package, prefix)
+    # A variant's libraries and Python modules find the variant's other libraries first through
+    # an RPATH (not RUNPATH: that one comes after LD_LIBRARY_PATH, which names the main prefix's
+    # build of the same package).
+    rpath = (
+        [
+            f"-DCMAKE_INSTALL_RPATH={target / 'lib'}",
+            "-DCMAKE_SHARED_LINKER_FLAGS=-Wl,--disable-new-dtags",
+            "-DCMAKE_MODULE_LINKER_FLAGS=-Wl,--disable-new-dtags",
+        ]
+        if package.variant
+        else []
+    )
     for rel in package.interfaces:
         (src / rel).parent.mkdir(parents=True, exist_ok=True)
         (src / rel).write_bytes(_definition(package, rel))
@@ -202,9 +282,10 @@ def build(package: Package, prefix: Path, work: Path, jobs: int = 2) -> None:
             f"-DPython3_EXECUTABLE={sys.executable}",
             "-DBUILD_TESTING=OFF",
             "-DCMAKE_BUILD_TYPE=Release",
+            *rpath,
         ],
         ["cmake", "--build", str(out), f"-j{jobs}"],
-        ["cmake", "--install", str(out), "--prefix", str(prefix)],
+        ["cmake", "--install", str(out), "--prefix", str(target)],
     ]
     for step in steps:
         done = subprocess.run(step, env=env, capture_output=True, text=True)
@@ -254,13 +335,14 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="objsearch-ros2-") as tmp:
         for package in todo:
             start = time.monotonic()
-            print(f"building ROS 2 interfaces: {package.name} …", file=sys.stderr, flush=True)
+            what = package.name + (f" ({package.variant})" if package.variant else "")
+            print(f"building ROS 2 interfaces: {what} …", file=sys.stderr, flush=True)
             try:
                 build(package, prefix, Path(tmp), args.jobs)
             except TransportError as exc:
                 print(f"objsearch: error: {exc}", file=sys.stderr)
                 return 1
-            print(f"  {package.name}: {time.monotonic() - start:.0f} s", file=sys.stderr)
+            print(f"  {what}: {time.monotonic() - start:.0f} s", file=sys.stderr)
     return 0
 
 

@@ -38,7 +38,7 @@ from objsearch.runtime import messages as m
 from objsearch.runtime.action import STATUS_NAMES, STATUS_SUCCEEDED, ActionClient, new_goal_id
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import MessageError, RobotError, SearchCancelled
-from objsearch.runtime.interfaces import NAVIGATE_TO_POSE
+from objsearch.runtime.interfaces import NAV2_DISTROS, NAVIGATE_TO_POSE, wire_hashes
 from objsearch.runtime.node import Node, Requester
 from objsearch.runtime.requests import OpenResult, parse_open_result
 
@@ -68,10 +68,10 @@ class RobotLink:
         self._views: deque[tuple[int, int, tuple[Detection, ...]]] = deque(maxlen=VIEWS_KEPT)
         self._received = itertools.count()
         nav = config.navigation
+        self._node = node
+        #: Nav2's action client, made at the first goal once the server's type is known (nav2).
         self.navigator: ActionClient | None = None
-        if nav.interface == "navigate_to_pose":
-            self.navigator = ActionClient(node, nav.action, NAVIGATE_TO_POSE)
-        else:
+        if nav.interface != "navigate_to_pose":
             self.goal_pub = node.publisher(t.goal, m.POSE_STAMPED, q.goal)
         self.opener: Requester[OpenResult] = Requester(
             node, t.open, t.open_result, q.requests, parse_open_result
@@ -83,6 +83,64 @@ class RobotLink:
         else:
             node.subscribe(t.odometry, m.ODOMETRY, q.odometry, self._on_odometry)
         node.subscribe(t.detections, m.DETECTIONS, q.detections, self._on_detections)
+
+    def nav2(self) -> ActionClient:
+        """The client of Nav2's action, of the distro ``[navigation] distro`` names, or (auto)
+        of the server's: read from the type hash its get_result reply writer carries on the
+        graph. A server of the other distro is an error naming both, at the first goal, rather
+        than results that never arrive (Fast DDS drops a result larger than the type it
+        expects)."""
+        if self.navigator is None:
+            nav = self.config.navigation
+            self.navigator = ActionClient(self._node, nav.action, self._nav2_type())
+        return self.navigator
+
+    def _nav2_type(self) -> str:
+        from objsearch.runtime.action import topics
+
+        nav, robot_s = self.config.navigation, self.config.timeouts.robot_s
+        known = {d: wire_hashes(t)["GetResult_Response"] for d, t in NAV2_DISTROS.items()}
+        hashes_of = getattr(self._node.transport, "service_type_hashes", None)
+        service = topics(nav.action)["get_result"]
+        seen: list[str] = []
+        if hashes_of is not None:
+            deadline = time.monotonic() + robot_s
+            while not (seen := hashes_of(service)) and time.monotonic() < deadline:
+                time.sleep(0.05)
+        kinds = [d for d, h in known.items() if h in seen]
+
+        def shapes() -> str:
+            named = [f"{d.title()}'s ({known[d]})" for d in kinds]
+            other = [h for h in seen if h not in known.values()]
+            return ", ".join(named + [f"unknown ({h})" for h in other])
+
+        if nav.distro == "auto":
+            if hashes_of is None:
+                log.info(
+                    "%s: this transport shows no type hashes; speaking Humble's NavigateToPose "
+                    "(set [navigation] distro for another)",
+                    nav.action,
+                )
+                return NAVIGATE_TO_POSE
+            if not seen:
+                raise RobotError(
+                    f"no {nav.action} server on the graph within {robot_s:g} s; {self.silence()}"
+                )
+            if len(kinds) != 1:
+                raise RobotError(
+                    f"the {nav.action} server's result type is {shapes()}: this agent speaks "
+                    f"Humble's ({known['humble']}) or Jazzy's ({known['jazzy']})"
+                )
+            log.info("%s: the server speaks %s's NavigateToPose", nav.action, kinds[0].title())
+            return NAV2_DISTROS[kinds[0]]
+        if seen and known[nav.distro] not in seen:
+            hint = f"set it to {kinds[0]!r} or 'auto'" if len(kinds) == 1 else "see docs/runtime.md"
+            raise RobotError(
+                f"the {nav.action} server's result type is {shapes()}, not "
+                f"{nav.distro.title()}'s ({known[nav.distro]}) that [navigation] distro = "
+                f"{nav.distro!r} asks for: {hint}"
+            )
+        return NAV2_DISTROS[nav.distro]
 
     def _on_odometry(self, msg: Any) -> None:
         self._set_pose(m.pose_of_odometry(msg), m.stamp_ns(msg.header))
@@ -243,8 +301,8 @@ class RosWorld:
     def _drive(self, goal: Pose, *, view: bool) -> tuple[Detection, ...]:
         """Send one goal (again if need be) and wait for arrival and, with ``view``, the view."""
         self._check_cancel()
-        if self.link.navigator is not None:
-            return self._drive_action(self.link.navigator, goal, view=view)
+        if self.link.config.navigation.interface == "navigate_to_pose":
+            return self._drive_action(self.link.nav2(), goal, view=view)
         goal_stamp = time.time_ns() + next(self._goal_ids)  # unique: the goal's identity
         msg = m.pose_stamped(goal, goal_stamp)
         mark = self.link.mark()
@@ -287,7 +345,7 @@ class RosWorld:
         self._arrived = False
         for attempt in range(1, t.attempts + 1):
             goal_id = new_goal_id()
-            request = m.types()[f"{NAVIGATE_TO_POSE}_Goal"](
+            request = m.types()[f"{nav.action}_Goal"](
                 pose=m.pose_stamped(goal, self.link.clock_ns),
                 behavior_tree=self.link.config.navigation.behavior_tree,
             )
@@ -311,8 +369,11 @@ class RosWorld:
                 )
                 continue
             if outcome.status != STATUS_SUCCEEDED:
+                # Jazzy's result says why (error_code, error_msg); Humble's is empty.
+                code = getattr(outcome.result, "error_code", 0)
+                detail = f" (error_code {code}: {outcome.result.error_msg!r})" if code else ""
                 raise RobotError(
-                    f"the {what} ended {STATUS_NAMES.get(outcome.status, outcome.status)}"
+                    f"the {what} ended {STATUS_NAMES.get(outcome.status, outcome.status)}{detail}"
                 )
             self._commanded, self._arrived = goal, True
             if not view:

@@ -35,14 +35,14 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.errors import ObjsearchError
-from objsearch.agent.geometry import Point, Pose
+from objsearch.agent.geometry import Point, Pose, distance
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import DEFAULT_STRATEGY, RunSpec
 from objsearch.runtime import messages as m
 from objsearch.runtime.action import STATUS_ABORTED, STATUS_CANCELED, STATUS_SUCCEEDED, ActionServer
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import MessageError
-from objsearch.runtime.interfaces import NAVIGATE_TO_POSE
+from objsearch.runtime.interfaces import NAV2_DISTROS
 from objsearch.runtime.node import Node, Server
 from objsearch.runtime.requests import (
     OpenRequest,
@@ -84,6 +84,7 @@ class StandInRobot:
         faults: Faults = Faults(),
         heartbeat_s: float = 0.2,
     ) -> None:
+        config.check()
         self.config = config
         self.ctx = load_context(config.home)
         self.schedule = load_schedule(self.ctx.home, schedule)
@@ -101,10 +102,12 @@ class StandInRobot:
         self._inbox: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=INBOX_SIZE)
         self.action: ActionServer | None = None
         if config.navigation.interface == "navigate_to_pose":
+            # The robot's Nav2: Humble's NavigateToPose unless [navigation] distro says Jazzy.
+            nav2 = NAV2_DISTROS["jazzy" if config.navigation.distro == "jazzy" else "humble"]
             self.action = ActionServer(
                 self.node,
                 config.navigation.action,
-                NAVIGATE_TO_POSE,
+                nav2,
                 self._on_action_goal,
                 lambda goal_id: self._put(("cancel", goal_id)),
                 lambda: self.world.now_ns(),
@@ -211,12 +214,46 @@ class StandInRobot:
             return
         if f.abort_after and n == f.abort_after:
             log.info("fault: aborting goal %d", n)
-            self.action.finish(goal_id, STATUS_ABORTED)
+            self.action.finish(goal_id, STATUS_ABORTED, self._nav2_result(9000, "fault"))
             return
+        self.action.executing(goal_id)
+        start = self.world.now_ns()
+        self._nav2_feedback(goal_id, pose, start)
         views = self._move(pose)
         self._publish_pose()
         self._publish_views(views)
+        self._nav2_feedback(goal_id, pose, start)
         self.action.finish(goal_id, STATUS_SUCCEEDED)
+
+    def _nav2_result(self, code: int, message: str) -> Any:
+        """Jazzy's result carries why a goal failed; Humble's is empty."""
+        assert self.action is not None
+        result = m.default(f"{self.action.action}_Result")
+        if hasattr(result, "error_code"):
+            result.error_code, result.error_msg = code, message
+        return result
+
+    def _nav2_feedback(self, goal_id: bytes, goal: Pose, start_ns: int) -> None:
+        """Nav2's feedback: where the robot is, the time so far and the distance left (on the
+        viewpoint graph), before each goal's move and at its end."""
+        assert self.action is not None
+        t = m.types()
+        here, now = self.world.pose(), self.world.now_ns()
+        target = self._viewpoint(goal)
+        path = self.ctx.navmap.path(here.point, target)
+        left = sum(distance(path[i], path[i + 1]) for i in range(len(path) - 1))
+
+        def duration(ns: int) -> Any:
+            return t["builtin_interfaces/msg/Duration"](sec=ns // 10**9, nanosec=ns % 10**9)
+
+        feedback = t[f"{self.action.action}_Feedback"](
+            current_pose=m.pose_stamped(here, now),
+            navigation_time=duration(max(0, now - start_ns)),
+            estimated_time_remaining=duration(0),
+            number_of_recoveries=0,
+            distance_remaining=float(left),
+        )
+        self.action.publish_feedback(goal_id, feedback)
 
     def _move(self, goal: Pose) -> list[Any]:
         """Drive to ``goal`` along the viewpoint graph; the views taken on the way."""
