@@ -138,6 +138,7 @@ def synthetic_run(n: int, seed: int = 0, stream: str = "bench") -> list[Event]:
                     "position": [1.0, 2.0, 0.5], "accepted": rng.random() < 0.8,
                     "support": {"static_id": f"{static}|1", "static_class": static,
                                 "at": rng.random() < 0.5},
+                    "score": 1.0, "classes": [],  # v3: a perfect detector's (as v2 upcasts)
                 }, tid)  # fmt: skip
         add("task_ended", {"target": target, "success": True, "path_length": 10.0}, tid)
     return events

@@ -14,11 +14,13 @@ from __future__ import annotations
 import functools
 import json
 from collections.abc import Iterable, Mapping
+from types import MappingProxyType
 from typing import Any, Final
 
 import pyarrow as pa
+import pyarrow.compute as pc
 
-from .envelope import Event
+from .envelope import Event, _Adopted, canonical_ids
 from .errors import EventStoreError
 from .schemas import SchemaRegistry
 from .store import Store, shipped
@@ -33,6 +35,15 @@ ENVELOPE_COLUMNS: Final = (
     pa.field("task_id", pa.string()),
 )
 _ENVELOPE_NAMES: Final = frozenset(f.name for f in ENVELOPE_COLUMNS)
+_ENVELOPE_ORDER: Final = (
+    "event_id",
+    "stream",
+    "seq",
+    "time_ns",
+    "recorded_at_ns",
+    "version",
+    "task_id",
+)
 
 
 def arrow_type(node: Mapping[str, Any], root: Mapping[str, Any], where: str) -> pa.DataType:
@@ -159,26 +170,80 @@ def tables_to_events(tables: Iterable[pa.Table], store: Store | None = None) -> 
             and pa.types.is_string(f.type)
             and _is_free(store.registry, event_type, f.name)
         }
-        for row in table.to_pylist():
-            payload = {
-                k: (json.loads(v) if k in free and isinstance(v, str) else v)
-                for k, v in row.items()
-                if k not in _ENVELOPE_NAMES
-            }
+        # The payloads as Arrow's fresh dicts, lists and plain numbers, owned by no one else:
+        # adopted, not deep-copied as Event(...) copies a caller's payload (that copy was most
+        # of a lake run's read, 13 of 24 s for 300 k events).
+        payloads = table.select(
+            [n for n in table.column_names if n not in _ENVELOPE_NAMES]
+        ).to_pylist()
+        for name in free:
+            for payload in payloads:
+                value = payload[name]
+                if isinstance(value, str):
+                    payload[name] = json.loads(value)
+        columns = [table.column(n).to_pylist() for n in _ENVELOPE_ORDER]
+        # The envelope checked a column at a time (the ids with one regex, as a log's scan
+        # does): then each event is built unchecked; otherwise each is checked, to word the error.
+        checked = _envelope_holds(table) and canonical_ids(columns[0])
+        for event_id, stream, seq, time_ns, recorded_at_ns, version, task_id, payload in zip(
+            *columns, payloads, strict=True
+        ):
+            if checked:
+                events.append(
+                    _Adopted(
+                        event_id=event_id,
+                        stream=stream,
+                        seq=seq,
+                        time_ns=time_ns,
+                        recorded_at_ns=recorded_at_ns,
+                        type=event_type,
+                        version=version,
+                        task_id=task_id,
+                        payload=MappingProxyType(payload),
+                    )
+                )
+                continue
             events.append(
-                Event(
-                    event_id=row["event_id"],
-                    stream=row["stream"],
-                    seq=row["seq"],
-                    time_ns=row["time_ns"],
-                    recorded_at_ns=row["recorded_at_ns"],
-                    type=event_type,
-                    version=row["version"],
-                    task_id=row["task_id"],
-                    payload=payload,
+                Event._adopt(
+                    {
+                        "event_id": event_id,
+                        "stream": stream,
+                        "seq": seq,
+                        "time_ns": time_ns,
+                        "recorded_at_ns": recorded_at_ns,
+                        "type": event_type,
+                        "version": version,
+                        "task_id": task_id,
+                        "payload": payload,
+                    }
                 )
             )
     return sorted(events, key=lambda e: (e.stream, e.seq))
+
+
+def _envelope_holds(table: pa.Table) -> bool:
+    """Whether every row's envelope keeps :class:`Event`'s rules but the id's spelling: ids of
+    36 characters, a stream and a type, seq and version from 1, times from 0, a task id absent
+    or not empty."""
+    if table.num_rows == 0:
+        return True
+    required = ("event_id", "stream", "seq", "time_ns", "recorded_at_ns", "version")
+    if any(table.column(n).null_count for n in required):
+        return False
+    lengths = pc.min_max(pc.utf8_length(table.column("event_id"))).as_py()
+    least = {
+        n: pc.min(table.column(n)).as_py() for n in ("seq", "time_ns", "recorded_at_ns", "version")
+    }
+    task = table.column("task_id")
+    return bool(
+        lengths == {"min": 36, "max": 36}
+        and pc.min(pc.utf8_length(table.column("stream"))).as_py() >= 1
+        and least["seq"] >= 1
+        and least["version"] >= 1
+        and least["time_ns"] >= 0
+        and least["recorded_at_ns"] >= 0
+        and (task.null_count == len(task) or pc.min(pc.utf8_length(task)).as_py() >= 1)
+    )
 
 
 def _is_free(registry: SchemaRegistry, event_type: str, field: str) -> bool:

@@ -62,6 +62,7 @@ import datetime as dt
 import functools
 import hashlib
 import io
+import itertools
 import json
 import logging
 import math
@@ -85,7 +86,13 @@ import pyarrow.fs as pafs
 import pyarrow.parquet as pq
 
 from . import _fs
-from .arrow import ENVELOPE_COLUMNS, event_schema, events_to_tables, tables_to_events
+from .arrow import (
+    ENVELOPE_COLUMNS,
+    event_schema,
+    events_to_tables,
+    payload_schema,
+    tables_to_events,
+)
 from .derived import PARTITION_NAMES, derive_run, derived_tables
 from .envelope import Event
 from .errors import EventStoreError
@@ -100,6 +107,7 @@ from .lake import (
 from .lake_table_verified import Identity, VerifiedFiles, sha256_file
 from .log_files import LOCK_FILE, read_meta
 from .log_read import read_log
+from .run_digest import DIGEST_PREFIX, RunDigest, digest_version, values_digest
 from .store import Store, shipped
 
 TABLE_FORMAT: Final = "objsearch.lake/2"
@@ -250,6 +258,25 @@ def table_schema(store: Store) -> pa.Schema:
     fields += [pa.field(derived_column(n), s) for n, s in derived_structs(store).items()]
     fields.append(pa.field(RUN_COLUMN, _RUN_STRUCT))
     return pa.schema(fields)
+
+
+@functools.cache  # per store (by identity)
+def _events_schema(store: Store) -> pa.Schema:
+    """:func:`table_schema` without the derived tables' columns."""
+    fields = [*BASE_COLUMNS, *(pa.field(f.name, f.type) for f in ENVELOPE_COLUMNS)]
+    fields += [pa.field(t, payload_struct(t, store)) for t in store.registry.types]
+    fields.append(pa.field(RUN_COLUMN, _RUN_STRUCT))
+    return pa.schema(fields)
+
+
+def read_schema(store: Store, kinds: frozenset[str]) -> pa.Schema:
+    """The columns a reader of files of ``kinds`` (``type`` partitions) types them with:
+    :func:`table_schema`, less the derived tables' columns unless a derived kind is read
+    (their types come from running the derived tables' SQL on an empty run: a DuckDB start,
+    ~50 MB, that ``replay`` or ``where`` from a lake run has no use for)."""
+    if kinds <= {*store.registry.types, RUN_TYPE, BAG_TYPE}:
+        return _events_schema(store)
+    return table_schema(store)
 
 
 def is_table_lake(root: Path | str) -> bool:
@@ -403,7 +430,13 @@ class TableLake:
             )
             for f in files
         ]
-        return pds.FileSystemDataset(fragments, table_schema(self.store), parquet, fs)
+        # A file this module wrote holds its own type's columns only; one delta-rs wrote (no
+        # hash in its name) may hold every column of the table.
+        if all(file_sha256(f.path) is not None for f in files):
+            schema = read_schema(self.store, frozenset(f.kind for f in files))
+        else:
+            schema = table_schema(self.store)
+        return pds.FileSystemDataset(fragments, schema, parquet, fs)
 
     def _dataset(self, table: Any, kinds: Sequence[str]) -> pds.Dataset:
         where = [("type", "in", list(kinds))]
@@ -413,7 +446,7 @@ class TableLake:
         # can abort the interpreter at exit ("terminate called without an active exception").
         return pds.dataset(
             table.file_uris(file_pruning_predicate=where),
-            schema=table_schema(self.store),
+            schema=read_schema(self.store, frozenset(kinds)),
             format="parquet",
             partitioning=pds.partitioning(pa.schema([("type", pa.string())]), flavor="hive"),
             partition_base_dir=self.uri,
@@ -546,9 +579,10 @@ class TableLake:
         table = self.table() if table is None else table
         dataset = self._dataset(table, sorted(run.rows))
         rows = dataset.to_table(
+            columns=[*(f.name for f in ENVELOPE_COLUMNS), "type", *sorted(run.rows)],
             filter=(pc.field("robot") == run.robot)
             & (pc.field("run") == run.run)
-            & (pc.field("commit") == run.commit)
+            & (pc.field("commit") == run.commit),
         )
         envelope = [f.name for f in ENVELOPE_COLUMNS]
         out = {}
@@ -574,7 +608,7 @@ class TableLake:
                 f"{self.root}: run {run.robot}/{run.run} could not be read: {exc}"
             ) from exc
         rows = {event_type: part.num_rows for event_type, part in tables.items()}
-        if rows != dict(run.rows) or table_digest(tables) != run.digest:
+        if rows != dict(run.rows) or not self._digest_holds(run, tables):
             raise TableLakeError(
                 f"{self.root}: run {run.robot}/{run.run} is damaged: its rows do not read back "
                 f"as committed (rows {rows}, committed {dict(run.rows)}); `objsearch lake verify "
@@ -582,6 +616,55 @@ class TableLake:
             )
         upcast = self.store.upcaster.upcast
         return [upcast(e) for e in tables_to_events(tables.values(), self.store)]
+
+    def _digest_holds(self, run: TableRun, tables: Mapping[str, pa.Table]) -> bool:
+        """Whether ``tables`` (the run's rows as read back) have the digest its ``_run`` row
+        records. A version-1 digest (Arrow IPC bytes, runs committed before version 2) is
+        checked on the rows as read and, failing that, on the rows rebuilt from their Python
+        values under the schema of the version they record, as that commit built and hashed
+        them: rows read back from Parquet may hold equal values in other buffers (a null
+        struct's children gain validity bitmaps), and a type may have gained a version (and
+        columns) since."""
+        version = digest_version(run.digest)
+        if version == 2:
+            return table_digest(tables) == run.digest
+        if version != 1:
+            return False
+        if ipc_digest(tables) == run.digest:
+            return True
+        # Per type, the hashes of its rows as that commit may have hashed them: as read back
+        # (a bag's commit hashed rows it had read back) and as built from Python values (a
+        # log's), each under the schema of the version they record; one of each type's must do.
+        candidates: dict[str, set[str]] = {}
+        for event_type, part in tables.items():
+            versions = pc.unique(part.column("version")).to_pylist()
+            if len(versions) > 1:
+                return False  # a commit wrote one version a type (the latest, then)
+            try:
+                schema = committed_schema(event_type, versions[0] if versions else None, self.store)
+                read = part.select(schema.names).cast(schema)
+                built = pa.Table.from_pylist(read.to_pylist(), schema=schema)
+            except (KeyError, EventStoreError, pa.ArrowException):
+                return False
+            candidates[event_type] = {_ipc_type_digest(read), _ipc_type_digest(built)}
+        types = sorted(candidates)
+        return any(
+            _combine(dict(zip(types, choice, strict=True))) == run.digest
+            for choice in itertools.product(*(sorted(candidates[t]) for t in types))
+        )
+
+    def _same_content(self, existing: TableRun, digest: str, table: Any) -> bool:
+        """Whether the committed run ``existing`` holds the rows whose (version-2) ``digest``
+        is given: a run committed under version 1 is read back and hashed again."""
+        if existing.digest == digest:
+            return True
+        if digest_version(existing.digest) == 2 or not digest.startswith(DIGEST_PREFIX):
+            return False
+        try:
+            tables = self.read_tables(existing, table)
+        except (OSError, pa.ArrowException):
+            return False
+        return table_digest(tables) == digest
 
     def scan(
         self, table: Any | None = None, *, hashes: bool = True
@@ -1179,7 +1262,7 @@ class TableLake:
                 self._delete_files(adds)  # another writer committed the run first
                 adds = None
             if existing is not None:
-                if existing.digest == info.digest and existing.date == info.date:
+                if existing.date == info.date and self._same_content(existing, info.digest, table):
                     return existing  # the same run again: nothing to do
                 if not replace:
                     raise TableLakeError(
@@ -1304,7 +1387,7 @@ class TableLake:
         existing = self.find(robot, run, table)
         if existing is not None:
             digest, _ = stream_digest(open_events(), self.store)
-            if existing.digest == digest and existing.date == day:
+            if existing.date == day and self._same_content(existing, digest, table):
                 return existing
             if not replace:
                 raise TableLakeError(
@@ -1339,12 +1422,12 @@ class TableLake:
         and the files' add actions. The files are not part of the table until committed."""
 
         files: dict[str, _StreamFile] = {}
-        digests: dict[str, _TypeDigest] = {}
+        digest = RunDigest()
         rows: dict[str, int] = {}
         try:
             for chunk in _chunks(events, self.store):
                 for event_type, table in chunk.items():
-                    digests.setdefault(event_type, _TypeDigest()).add(table)
+                    digest.add(event_type, table)
                     rows[event_type] = rows.get(event_type, 0) + table.num_rows
                     if event_type not in files:
                         files[event_type] = _StreamFile(self, event_type, event_type, info.commit)
@@ -1353,9 +1436,7 @@ class TableLake:
         except BaseException:
             self._abandon(files.values())
             raise
-        info = dataclasses.replace(
-            info, rows=rows, digest=_combine({t: d.hexdigest() for t, d in digests.items()})
-        )
+        info = dataclasses.replace(info, rows=rows, digest=digest.hexdigest())
         # The chunks' buffers back to the system before DuckDB reads the files (Arrow's pool
         # keeps freed memory for reuse otherwise).
         pa.default_memory_pool().release_unused()
@@ -1962,8 +2043,8 @@ class TableLake:
         return {"files_before": before, "files_after": len(table.file_uris()), "vacuumed": removed}
 
 
-#: Rows of one event type hashed at a time by :func:`table_digest` (and by the streaming commit,
-#: so both give the same digest for the same events however they arrive).
+#: Rows of one event type hashed at a time by :func:`ipc_digest` (the version-1 digest, kept to
+#: check the runs committed with it; version 2 is :mod:`.run_digest`).
 DIGEST_ROWS: Final = 1 << 16
 #: DuckDB's memory for the derived tables of a streamed commit (bytes; it spills beyond), and
 #: the most it is given when an operator that cannot spill needs more.
@@ -1998,8 +2079,9 @@ class _HashSink:
 
 
 class _TypeDigest:
-    """SHA-256 of one type's rows in slices of :data:`DIGEST_ROWS` (each as one Arrow IPC
-    stream), whatever chunks they are fed in."""
+    """The version-1 digest of one type's rows: SHA-256 of slices of :data:`DIGEST_ROWS` (each
+    as one Arrow IPC stream), whatever chunks they are fed in. The bytes of the buffers, not the
+    values: rows read back from Parquet may not hash as they did (:mod:`.run_digest`)."""
 
     def __init__(self) -> None:
         self._hash = hashlib.sha256()
@@ -2038,7 +2120,29 @@ def _combine(per_type: Mapping[str, str]) -> str:
 
 
 def table_digest(tables: Mapping[str, pa.Table]) -> str:
-    """The digest of a run's event tables (conformed to their schemas, by seq)."""
+    """The digest of a run's event tables (conformed to their schemas, by seq): of their values
+    (version 2, :mod:`.run_digest`)."""
+    return values_digest(tables)
+
+
+def committed_schema(event_type: str, version: int | None, store: Store) -> pa.Schema:
+    """The schema :func:`event_schema` gave ``event_type`` when ``version`` was its latest (its
+    latest now if None): what a version-1 digest hashed."""
+    if version is None:
+        return event_schema(event_type, store)
+    schema = store.registry.schema(event_type, version)
+    fields = payload_schema(schema, f"{event_type} v{version}")
+    return pa.schema([*ENVELOPE_COLUMNS, *fields], metadata={"event_type": event_type})
+
+
+def _ipc_type_digest(table: pa.Table) -> str:
+    d = _TypeDigest()
+    d.add(table)
+    return d.hexdigest()
+
+
+def ipc_digest(tables: Mapping[str, pa.Table]) -> str:
+    """The version-1 digest (``sha256:…``, Arrow IPC bytes) of a run's event tables."""
     digests = {}
     for event_type, table in tables.items():
         d = _TypeDigest()
@@ -2063,13 +2167,13 @@ def _chunks(events: Iterable[Event], store: Store) -> Iterator[dict[str, pa.Tabl
 
 def stream_digest(events: Iterable[Event], store: Store) -> tuple[str, dict[str, int]]:
     """The digest :func:`table_digest` gives, and the rows per type, read in chunks."""
-    digests: dict[str, _TypeDigest] = {}
+    digest = RunDigest()
     rows: dict[str, int] = {}
     for chunk in _chunks(events, store):
         for event_type, table in chunk.items():
-            digests.setdefault(event_type, _TypeDigest()).add(table)
+            digest.add(event_type, table)
             rows[event_type] = rows.get(event_type, 0) + table.num_rows
-    return _combine({t: d.hexdigest() for t, d in digests.items()}), rows
+    return digest.hexdigest(), rows
 
 
 class _TeeSink:
@@ -2639,6 +2743,23 @@ def file_schema(column: str, *, envelope: bool, store: Store) -> pa.Schema:
     return pa.schema([f for f in table_schema(store) if f.name in names])
 
 
+def _valid(log_dir: Path, store: Store) -> Iterator[Event]:
+    """The log's events, each checked against the schema of the version it was written in,
+    then upcast. ``read_log`` checks records (checksums, envelopes), not payloads: a record
+    another writer made may lack a field its schema requires, which the table would read back
+    as null (or not take at all), so the lake refuses it, naming it."""
+    registry, upcast = store.registry, store.upcaster.upcast
+    for event in read_log(log_dir, upcast=False, store=store):
+        try:
+            registry.validate_event(event)
+        except EventStoreError as exc:
+            raise TableLakeError(
+                f"event log {log_dir}: the record of seq {event.seq} does not match its schema "
+                f"({exc}); the lake takes only events valid under their schemas"
+            ) from exc
+        yield upcast(event)
+
+
 def add_log(
     log_dir: Path | str,
     lake: TableLake,
@@ -2689,7 +2810,7 @@ def add_log(
     def open_events() -> Iterator[Event]:
         nonlocal reads
         reads += 1
-        events = read_log(log_dir, store=lake.store)
+        events = _valid(log_dir, lake.store)
         if progress is None or reads == 1:  # the first read peeks at one event
             return events
         return iter(progress(events))

@@ -4,13 +4,14 @@ refused: ``objsearch lake upgrade`` migrates it."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.errors import ObjsearchError
 from objsearch.events import Event, read_log
 from objsearch.events.lake_folder_v1 import refuse_folder_lake
+from objsearch.events.lake_run_read import RunReader
 from objsearch.events.lake_table import TableLake, TableRun, is_table_lake
 
 
@@ -44,27 +45,30 @@ def _one_run(
     )
 
 
-def table_lake_events(
+def _agent_stream(streams: Iterable[str]) -> str:
+    found = sorted(streams)
+    if not found:
+        raise ObjsearchError("the run holds no agent events (no run_started)")
+    if len(found) > 1:
+        raise ObjsearchError(f"the run holds several agent streams: {', '.join(found)}")
+    return found[0]
+
+
+def table_lake_stream(
     where: Path | str, *, run: str | None = None, robot: str | None = None
-) -> tuple[list[Event], TableRun]:
-    """The events of the one run of the fleet lake at ``where`` that ``run`` / ``robot`` select,
-    checked against what its commit recorded (:meth:`TableLake.read_events`)."""
+) -> tuple[Iterator[Event], TableRun]:
+    """The agent's events of the one run of the fleet lake at ``where`` that ``run`` / ``robot``
+    select, streamed: every row of the run is read and checked against what its commit
+    recorded before the first event is handed out, then read again a few thousand rows at a
+    time (:class:`~objsearch.events.lake_run_read.RunReader`), so a fold from a lake run costs
+    about the memory of a fold from its log."""
     lake = TableLake(where, store=STORE)
     table = lake.table()
     info = _one_run(lake.runs(table), where, run=run, robot=robot)
-    return lake.read_events(info, table), info
-
-
-def agent_events(events: Iterable[Event]) -> list[Event]:
-    """The agent's own stream of a lake run (a bag's run also holds the poses and detections the
-    pipeline derived from other topics, in streams of their own)."""
-    events = list(events)
-    streams = sorted({e.stream for e in events if e.type == "run_started"})
-    if not streams:
-        raise ObjsearchError("the run holds no agent events (no run_started)")
-    if len(streams) > 1:
-        raise ObjsearchError(f"the run holds several agent streams: {', '.join(streams)}")
-    return [e for e in events if e.stream == streams[0]]
+    reader = RunReader(lake, info, table)
+    reader.check()
+    stream = _agent_stream(reader.streams.get("run_started", ()))
+    return reader.events([stream]), info
 
 
 def open_events(
@@ -73,8 +77,8 @@ def open_events(
     """Events of a log folder (streamed) or of one lake run, and a name for reports.
     ``location``: a folder, or a fleet lake's ``s3://bucket/prefix``."""
     if "://" in str(location) or is_table_lake(location):
-        events, committed = table_lake_events(location, run=run, robot=robot)
-        return agent_events(events), f"{location} ({committed.robot}/{committed.run})"
+        events, committed = table_lake_stream(location, run=run, robot=robot)
+        return events, f"{location} ({committed.robot}/{committed.run})"
     path = Path(location)
     if not path.exists():
         raise ObjsearchError(f"no log or lake at {path}")
