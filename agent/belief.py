@@ -212,16 +212,17 @@ class Today:
 TYPICAL_MASK_PX = 48.0 * 48.0
 
 
-def look_miss(perception: object) -> float:
+def look_miss(perception: object, mask_px: float = TYPICAL_MASK_PX) -> float:
     """P(a look misses a target that is there) for a run's detector (``params.perception``;
     None: perfect): the belief's own ``MISS`` (occlusion, range), or else the detector's miss on
-    top of it."""
+    top of it, for a target showing ``mask_px`` pixels (the belief's fold: a typical mask; a
+    revisit: the target's expected mask from each stop, agent/policy.py)."""
     if not isinstance(perception, Mapping):
         return MISS
     model = PerceptionModel.from_params(perception)
     if model.perfect:
         return MISS
-    return 1.0 - (1.0 - MISS) * model.recall(TYPICAL_MASK_PX)
+    return 1.0 - (1.0 - MISS) * model.recall(mask_px)
 
 
 def responsibilities(

@@ -18,9 +18,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
+from functools import cache
 from typing import Any, Final
 
-from objsearch.agent.errors import ObjsearchError
+from objsearch.agent.categories import read_json
+from objsearch.agent.datapaths import data_dir
+from objsearch.agent.errors import DataFileError, ObjsearchError
 
 #: COCO's object size bins (mask or box area, pixels): small below 32², large above 96².
 SMALL_PX: Final = 32.0 * 32.0
@@ -45,6 +48,13 @@ SIMILAR: Final[Mapping[str, tuple[str, ...]]] = {
     "Phone": ("Laptop", "RemoteControl"),
 }
 PRESETS: Final = ("perfect", "realistic", "harsh")
+#: The search camera's focal length (px): 640×480 at a 90° horizontal field of view.
+FOCAL_PX: Final = 320.0
+#: Nearer than this the mask estimate is capped (the camera then sees the whole object anyway).
+NEAREST_M: Final = 0.5
+#: The median AI2-THOR asset box of each movable class (x, y, z in metres), from the data
+#: build's placement statistics: what the robot may know of a class's size in advance.
+SIZES_FILE: Final = "priors/ai2thor_placements.json"
 #: Options that override one parameter of a preset (``--recall-scale`` …), with their bounds.
 OVERRIDES: Final[Mapping[str, tuple[float, float]]] = {
     "recall_scale": (0.0, 1.0),
@@ -177,6 +187,27 @@ class PerceptionModel:
                 a, b = values[pair]
                 values[pair] = (float(a), float(b))
         return cls(**values)
+
+
+@cache
+def class_sizes() -> Mapping[str, tuple[float, float, float]]:
+    """Each movable class's typical box (m), from :data:`SIZES_FILE`."""
+    path = data_dir() / SIZES_FILE
+    doc = read_json(path, "the AI2-THOR placement statistics")
+    try:
+        return {c: (float(v[0]), float(v[1]), float(v[2])) for c, v in doc["sizes"].items()}
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise DataFileError(f"{path} is malformed: {exc!r}") from None
+
+
+def expected_mask_px(size: tuple[float, float, float], distance: float, depression: float) -> float:
+    """The mask (px) an object with box ``size`` shows ``distance`` metres from the camera, seen
+    ``depression`` radians from above: its side (mean width × height) and its top, each
+    foreshortened, times (f / distance)². Within a factor of about 2 of the occluding camera's
+    masks of the development homes' placements seen from their statics' viewpoints."""
+    width = (size[0] + size[1]) / 2
+    area = width * size[2] * math.cos(depression) + size[0] * size[1] * math.sin(depression)
+    return FOCAL_PX**2 * area / max(distance, NEAREST_M) ** 2
 
 
 def _log_beta_pdf(u: float, a: float, b: float) -> float:

@@ -16,8 +16,8 @@ from typing import Protocol, TypedDict, Unpack
 
 import numpy as np
 
-from objsearch.agent.belief import look_miss
-from objsearch.agent.camera_frames import pitch_towards
+from objsearch.agent.belief import ELSEWHERE_PRIOR, MISS, TYPICAL_MASK_PX
+from objsearch.agent.camera_frames import CAMERA_HEIGHT_M, pitch_towards
 from objsearch.agent.catalogue import (
     LATEST,
     STORE,
@@ -43,8 +43,13 @@ from objsearch.agent.catalogue import (
     ViewReason,
     ViewTaken,
 )
-from objsearch.agent.categories import Vocabulary
-from objsearch.agent.detector_model import PerceptionModel
+from objsearch.agent.categories import Category, Vocabulary
+from objsearch.agent.detector_model import (
+    SIMILAR,
+    PerceptionModel,
+    class_sizes,
+    expected_mask_px,
+)
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point, Pose, Vec3, heading, wrap_angle
 from objsearch.agent.navmap import NavigationMap
@@ -86,6 +91,9 @@ CONFIRM_LOOKS = 6
 CONFIRM_VIEWPOINTS = 1
 SAME_OBJECT_M = 0.5
 REJECT_BELOW = 0.05
+#: Odds that stand for certainty (a detector that makes no false reports), kept finite so that a
+#: score's likelihood ratio of 0 still says no.
+SURE_ODDS = 1e12
 #: Revisits (docs/perception.md): with a detector whose misses are independent from look to look,
 #: a search that found nothing searches the stops again, each weighted by its value times the
 #: per-look miss to the power of its inspections so far, until the mass left at the stops is below
@@ -264,6 +272,14 @@ def static_pitch(here: Point, static: MappedStatic) -> float:
     return pitch_towards((here.x, here.y), (static.loc.x, static.loc.y, z))
 
 
+def static_point(static: MappedStatic) -> tuple[float, float, float]:
+    """Where a movable thing at ``static`` is looked for: the middle of its top surface, or, for
+    a container, its centre (as :func:`static_pitch` aims)."""
+    c, size = static.box.center, static.box.size
+    z = c[2] if static.container else c[2] + size[2] / 2
+    return (static.loc.x, static.loc.y, z)
+
+
 def cover_points(static: MappedStatic) -> list[Point]:
     """The centres of a grid of stretches at most ``COVER_SPAN_M`` long over a long static's top,
     along its long side and, when it is that long too, across it (an L-shaped worktop's box is
@@ -356,6 +372,50 @@ class SearchAgent:
         #: Task ids come from the log's task ledger (objsearch.agent.state), never from a counter
         #: in the relation model: a crashed task must not hand its id to the next one.
         self._next_task_id = next_task_id
+        self._stop_miss: dict[tuple[str, str], float] = {}
+        self._movable = len(vocabulary.names(Category.SEMI_DYNAMIC))
+
+    # -- what a look says under a modelled detector ---------------------------------------------
+
+    def stop_miss(self, target: str, stop: Stop) -> float:
+        """P(one inspection of ``stop`` misses ``target`` when it is there): the belief's own
+        ``MISS`` (occlusion, range) and the detector's miss for the mask the target is expected
+        to show from the stop's viewpoint — its class's typical size
+        (:func:`~objsearch.agent.detector_model.class_sizes`) at each static's distance and
+        angle (:func:`~objsearch.agent.detector_model.expected_mask_px`), the recall averaged
+        over the stop's statics; a class of unknown size shows a typical mask."""
+        key = (target, stop.key)
+        miss = self._stop_miss.get(key)
+        if miss is None:
+            model = self.config.perception
+            size = class_sizes().get(target)
+            vp = stop.viewpoint
+            recalls = []
+            for s in stop.statics:
+                x, y, z = static_point(s)
+                across = math.hypot(x - vp.x, y - vp.y)
+                mask = TYPICAL_MASK_PX
+                if size is not None:
+                    mask = expected_mask_px(
+                        size,
+                        math.hypot(across, CAMERA_HEIGHT_M - z),
+                        max(0.0, math.atan2(CAMERA_HEIGHT_M - z, across)),
+                    )
+                recalls.append(model.recall(mask))
+            miss = self._stop_miss[key] = 1.0 - (1.0 - MISS) * math.fsum(recalls) / len(recalls)
+        return miss
+
+    def place_probabilities(self, d: str) -> tuple[dict[str, float], float]:
+        """P(d at each mapped static) and P(d elsewhere) by the relation model: values that sum
+        to at most 1 over the home's statics are a distribution (the belief, the oracles), the
+        rest of 1 is elsewhere; others (the scene graph, the memory: independent chances) are
+        normalised, leaving ``ELSEWHERE_PRIOR`` for elsewhere."""
+        values = {s.id: instance_value(self.graph, d, s.id, s.cls) for s in self.semmap.statics}
+        total = math.fsum(values.values())
+        if total <= 1.0 + 1e-9:
+            return values, max(0.0, 1.0 - total)
+        scale = (1.0 - ELSEWHERE_PRIOR) / total
+        return {k: v * scale for k, v in values.items()}, ELSEWHERE_PRIOR
 
     # -- planning -----------------------------------------------------------------------------
 
@@ -499,6 +559,9 @@ class SearchAgent:
         else:
             rooms = self.room_order(start_room, target, task_id, here=pose.point)
         room_stops = {room: self.stops(room, target) for room in rooms}
+        run.stop_of = {
+            st.id: stop for stops in room_stops.values() for stop in stops for st in stop.statics
+        }
         found = self._pass(run, result, rooms, room_stops)
         reason = f"{target} not found in any room"
         if found is None and not self.config.perception.perfect:
@@ -569,17 +632,20 @@ class SearchAgent:
         there (a modelled detector misses independently from look to look; a perfect one's
         misses are geometry, which a second look repeats, so it never comes here). Each pass is
         the first's (:meth:`_pass`), over the stops weighted by their value times
-        :func:`~objsearch.agent.belief.look_miss` to the power of their inspections in this task
-        (one per pass, whatever its views: the target may show in only one of them);
+        their per-look miss (:meth:`stop_miss`: the target's expected size there) to the power of
+        their inspections in this task (one per pass, whatever its views: the target may show in
+        only one of them);
         a stop whose weight is below ε / (number of stops) of the total is left out (together
         they hold less than ε). Returns the sighting, or None and why the search stopped."""
-        miss = look_miss(self.config.perception.params())
         every = [s for stops in room_stops.values() for s in stops]
         total = math.fsum(s.rel for s in every)
         passes = 1
         while True:
             weighted = {
-                room: [Stop(s.statics, s.rel * miss ** run.looks_at(s)) for s in stops]
+                room: [
+                    Stop(s.statics, s.rel * self.stop_miss(run.target, s) ** run.looks_at(s))
+                    for s in stops
+                ]
                 for room, stops in room_stops.items()
             }
             left = (
@@ -688,16 +754,77 @@ class _Task:
         self.unconfirmed: list[tuple[_Found, float]] = []
         #: Sightings of the target made during another's confirming looks, still to confirm.
         self.queued: list[_Found] = []
+        #: The stop (of the target's) each static belongs to, and the one being inspected.
+        self.stop_of: dict[str, Stop] = {}
+        self.current: str | None = None
+        self._places: dict[str, tuple[dict[str, float], float]] = {}
 
     def looks_at(self, stop: Stop) -> int:
         return self.inspected.get(stop.key, 0)
 
-    def prior_odds(self, position: Vec3) -> float:
-        """The odds this task's earlier looks left at ``position`` (even when none)."""
+    def prior_odds(self, position: Vec3, mask_area: float) -> float:
+        """The odds this task's earlier looks left at ``position``, or, for a first sighting
+        there, :meth:`sighting_odds`."""
         for sighting, odds in reversed(self.unconfirmed):
             if math.dist(sighting.position, position) <= SAME_OBJECT_M:
                 return odds
-        return 1.0
+        return self.sighting_odds(position, mask_area)
+
+    def places(self, d: str) -> tuple[dict[str, float], float]:
+        """:meth:`SearchAgent.place_probabilities` of ``d``, once per task (the model learns
+        when a task ends)."""
+        if d not in self._places:
+            self._places[d] = self.agent.place_probabilities(d)
+        return self._places[d]
+
+    def place_probability(self, place: str | None) -> float:
+        """P(the target is at ``place`` (a static id; None: away from every mapped static))
+        before this look: the model's, after this task's earlier inspections of the place's
+        stop that did not see it (each a miss of :meth:`SearchAgent.stop_miss`), never below
+        an even share over the home's statics of elsewhere's mass (at least ``ELSEWHERE_PRIOR``):
+        a model's zero is not certainty, and a pose error can put a sighting at a neighbour."""
+        values, elsewhere = self.places(self.target)
+        if place is None:
+            return elsewhere
+        weights: dict[str, float] = {}
+        for static_id, v in values.items():
+            stop = self.stop_of.get(static_id)
+            if stop is not None and v > 0:
+                looks = self.looks_at(stop) - (1 if stop.key == self.current else 0)
+                v *= self.agent.stop_miss(self.target, stop) ** max(looks, 0)
+            weights[static_id] = v
+        total = math.fsum(weights.values()) + elsewhere
+        p = weights.get(place, 0.0) / total if total > 0 else 0.0
+        return max(p, max(elsewhere, ELSEWHERE_PRIOR) / max(len(values), 1))
+
+    def sighting_odds(self, position: Vec3, mask_area: float) -> float:
+        """Prior odds that a first report of the target at ``position`` is the target and not a
+        false report (docs/perception.md, "The prior of a sighting"):
+        π r / ((1 − π) f), π = P(target at that place) (:meth:`place_probability`),
+        r = the detector's recall for the mask it showed, taken as occluded (the lower one),
+        f = the false reports of the target's class per view: its share of the false positives
+        (``fp_per_image`` over the movable classes), all taken to land at this place (the upper
+        bound), plus confusions of the similar classes the model expects there."""
+        agent = self.agent
+        model = agent.config.perception
+        pose = self.world.pose()
+        nearest = agent.semmap.nearest(position, agent.navmap.room_at(pose.x, pose.y))
+        place = (
+            nearest[0].id
+            if nearest is not None and nearest[1] <= agent.config.support_radius
+            else None
+        )
+        pi = self.place_probability(place)
+        recall = model.recall(mask_area, visible=0.0)
+        false = model.fp_per_image / max(agent._movable, 1)
+        for other, similar in SIMILAR.items():
+            if self.target in similar and other in agent.vocabulary.classes:
+                values, elsewhere = self.places(other)
+                there = elsewhere if place is None else values.get(place, 0.0)
+                false += model.confusion * recall * there / len(similar)
+        if false <= 0.0 or pi >= 1.0:
+            return SURE_ODDS
+        return min(SURE_ODDS, pi * recall / ((1.0 - pi) * false))
 
     def undecided(self) -> list[tuple[_Found, float]]:
         """The sightings whose odds are still above the rejection bound, likeliest first (the
@@ -716,7 +843,7 @@ class _Task:
         model = self.agent.config.perception
         if model.perfect:
             return True
-        odds = self.prior_odds(det.position) * model.likelihood_ratio(det.score)
+        odds = self.prior_odds(det.position, det.mask_area) * model.likelihood_ratio(det.score)
         return model.posterior(odds) >= model.accept_posterior
 
     def emit(self, record: Record) -> None:
@@ -811,7 +938,9 @@ class _Task:
         model = self.agent.config.perception
         nav = self.agent.navmap
         if odds is None:
-            odds = self.prior_odds(found.position) * model.likelihood_ratio(found.score)
+            odds = self.prior_odds(found.position, found.mask_area) * model.likelihood_ratio(
+                found.score
+            )
         room = nav.room_at(found.pose.x, found.pose.y)
         px, py, pz = found.position
         seen_from = math.dist((found.pose.x, found.pose.y, 1.0), (px, py, pz))
@@ -964,8 +1093,15 @@ class _Task:
     def inspect(self, stop: Stop, result: SearchResult) -> _Found | None:
         """Open each container of the stop and look in; look at the others from θ_s and ±45°.
         Each view tilts the camera at the static (:func:`static_pitch`)."""
-        room = stop.statics[0].room
         self.inspected[stop.key] = self.inspected.get(stop.key, 0) + 1
+        self.current = stop.key
+        try:
+            return self._inspect(stop, result)
+        finally:
+            self.current = None
+
+    def _inspect(self, stop: Stop, result: SearchResult) -> _Found | None:
+        room = stop.statics[0].room
         yaws_done: list[float] = []
         for s in stop.statics:
             back = self.back_to(stop.viewpoint, result)
