@@ -81,8 +81,10 @@ def test_a_detection_the_robot_ignored_is_flagged(tmp_path: Path) -> None:
             "position": [0.0, 0.0, 0.0],
             "accepted": True,
             "support": None,
+            "score": 1.0,
+            "classes": [],
         }
-        return [e, msgspec.structs.replace(e, type="detection", payload=missed)]
+        return [e, msgspec.structs.replace(e, type="detection", version=3, payload=missed)]
 
     kinds = _kinds(_edited(LOG, tmp_path / "log", inject))
     assert kinds.get("target-not-acted-on") == {task_id}

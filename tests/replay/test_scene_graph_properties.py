@@ -123,6 +123,8 @@ def _write(log_dir: Path, mode: str, seed: dict[tuple[str, str], float], steps: 
                     "position": [0.0, 0.0, 0.0],
                     "accepted": accepted,
                     "support": support,
+                    "score": 1.0,
+                    "classes": [],
                 }
                 log.append("detection", detection, time_ns=next(clock), task_id=f"t{task}")
             elif kind == "end":
