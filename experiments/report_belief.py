@@ -6,10 +6,16 @@ of the belief's forecasts, success and failures, and learning curves with CI ban
 A *run* is one (home, schedule) pair of one strategy; every interval resamples runs with
 replacement (10 000 resamples, seed 0) and is shown only with at least ``MIN_RUNS`` runs (below
 that: n and the range of the run values).
+
+The outputs read together must have been run with one simulated detector and one localisation
+(their summary.json's ``perception`` and ``localisation`` presets; :func:`run_models`), so the
+calibration of ``where`` is reported under a named model; ``--perception`` and
+``--localisation`` say which one is expected (:func:`select_models`).
 """
 
 from __future__ import annotations
 
+import json
 import math
 import random
 from collections.abc import Callable, Iterable, Sequence
@@ -17,6 +23,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.errors import ObjsearchError
 from objsearch.experiments.calibration import ece
 from objsearch.experiments.learning import first_of_day, first_of_scene, ratio
 from objsearch.experiments.metrics import spl_term
@@ -517,6 +524,50 @@ def curves_figure(rows: Sequence[Row]) -> Any:
     fig.legend(list(legend.values()), list(legend), loc="lower center", ncol=columns, frameon=False)
     fig.tight_layout(rect=(0, bottom, 1, 1))
     return fig
+
+
+def run_models(folder: Path) -> tuple[str, str]:
+    """The detector and localisation presets a ``bench homes`` output was run with (its
+    summary.json; an output written before they were recorded: ``perfect`` both)."""
+    path = folder / "summary.json"
+    summary = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
+
+    def name(key: str) -> str:
+        value = summary.get(key) or {}
+        return str(value.get("preset", "perfect")) if isinstance(value, dict) else str(value)
+
+    return name("perception"), name("localisation")
+
+
+def select_models(
+    folders: Sequence[Path], perception: str | None = None, localisation: str | None = None
+) -> tuple[str, str]:
+    """The one (perception, localisation) pair ``folders`` were run with; an
+    :class:`ObjsearchError` naming each folder's when they differ or are not the ones asked for
+    (None: any one pair)."""
+    models = {folder: run_models(folder) for folder in folders}
+    asked = (perception, localisation)
+    wrong = [
+        f"{folder} ({p}, {loc})"
+        for folder, (p, loc) in models.items()
+        if (perception is not None and p != perception)
+        or (localisation is not None and loc != localisation)
+    ]
+    if wrong:
+        want = ", ".join(
+            f"{what} {value}"
+            for what, value in zip(("perception", "localisation"), asked, strict=True)
+            if value is not None
+        )
+        raise ObjsearchError(f"not run with {want} (perception, localisation): {'; '.join(wrong)}")
+    pairs = sorted(set(models.values()))
+    if len(pairs) > 1:
+        named = "; ".join(f"{folder} ({p}, {loc})" for folder, (p, loc) in models.items())
+        raise ObjsearchError(
+            "these outputs were run with different detectors or localisations (perception, "
+            f"localisation): {named}; report each apart (--perception, --localisation)"
+        )
+    return pairs[0] if pairs else ("perfect", "perfect")
 
 
 def labelled(rows: Iterable[Row]) -> list[Row]:

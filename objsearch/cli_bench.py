@@ -140,7 +140,7 @@ def cmd_bench_table1(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_belief(args: argparse.Namespace) -> int:
-    from objsearch.experiments.report_belief import report
+    from objsearch.experiments.report_belief import report, select_models
 
     folders = [Path(d) for d in args.homes]
     missing = [str(d) for d in folders if not (d / "homes_trials.parquet").is_file()]
@@ -148,7 +148,8 @@ def cmd_bench_belief(args: argparse.Namespace) -> int:
         raise ObjsearchError(
             f"not a bench homes output (no homes_trials.parquet): {', '.join(missing)}"
         )
-    text = report(
+    perception, localisation = select_models(folders, args.perception, args.localisation)
+    text = f"perception {perception}, localisation {localisation}; " + report(
         folders,
         Path(args.out),
         progress=lambda kinds: t.progress(
@@ -326,6 +327,27 @@ def cmd_bench_dhs(args: argparse.Namespace) -> int:
         print(render(summary))
         print(f"\n{summary['elapsed_s']} s")
     return 0
+
+
+def _model_choices(p: argparse.ArgumentParser) -> None:
+    """bench belief's ``--perception`` and ``--localisation``: which simulated detector and
+    localisation the outputs it reads must have been run with."""
+    from objsearch.agent.detector_model import PRESETS as DETECTORS
+    from objsearch.sim.localisation import PRESETS as LOCALISERS
+
+    p.add_argument(
+        "--perception",
+        type=t.text,
+        choices=DETECTORS,
+        help="the simulated detector the outputs were run with (their summary.json); an output "
+        "run with another is refused (default: any one, the same for all)",
+    )
+    p.add_argument(
+        "--localisation",
+        type=t.text,
+        choices=LOCALISERS,
+        help="the simulated localisation the outputs were run with, likewise",
+    )
 
 
 def _dhs_options(p: argparse.ArgumentParser) -> None:
@@ -518,6 +540,7 @@ def register(sub: Any) -> None:
         type=t.dir_path,
         help="folder for belief.md and the curves (out/belief-report)",
     )
+    belief.defer(_model_choices)
     t.progress_option(belief)
     belief.set_defaults(func=cmd_bench_belief)
 

@@ -3,6 +3,7 @@ schedule's evaluation after day 14 and per slot of the day."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -10,6 +11,8 @@ from pathlib import Path
 import pytest
 from matplotlib.colors import to_hex
 
+from objsearch.agent.errors import ObjsearchError
+from objsearch.cli import main
 from objsearch.experiments.report_belief import (
     MOVE_SCENE,
     ROUTINE_AFTER,
@@ -18,6 +21,8 @@ from objsearch.experiments.report_belief import (
     moved_lines,
     ratio_table,
     report,
+    run_models,
+    select_models,
     slot_lines,
 )
 from objsearch.experiments.runner import Row, write_rows
@@ -176,3 +181,38 @@ def test_the_curves_legend_fits_the_figure_below_the_panels() -> None:
     assert box.x0 >= 0 and box.y0 >= 0 and box.x1 <= fig.bbox.x1
     labels = min(ax.get_tightbbox(renderer).y0 for ax in fig.axes)
     assert box.y1 <= labels  # under the x axis labels, not over them
+
+
+def _output(folder: Path, perception: str | None, localisation: str | None = None) -> Path:
+    """A bench homes output of made-up rows, run (says its summary.json) with these models."""
+    folder.mkdir()
+    write_rows(_rows(), folder, "homes_trials")
+    summary: dict[str, object] = {}
+    if perception is not None:
+        summary["perception"] = {"preset": perception}
+    if localisation is not None:
+        summary["localisation"] = {"preset": localisation}
+    (folder / "summary.json").write_text(json.dumps(summary), encoding="utf-8")
+    return folder
+
+
+def test_bench_belief_reports_under_the_detector_its_outputs_were_run_with(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    realistic = _output(tmp_path / "realistic", "realistic", "realistic")
+    harsh = _output(tmp_path / "harsh", "harsh")
+    old = _output(tmp_path / "old", None)  # written before the models were recorded
+    assert run_models(old) == ("perfect", "perfect")
+    assert select_models([realistic], "realistic", "realistic") == ("realistic", "realistic")
+    with pytest.raises(ObjsearchError, match=r"not run with perception realistic"):
+        select_models([realistic, harsh], "realistic")
+    with pytest.raises(ObjsearchError, match="different detectors"):
+        select_models([realistic, harsh])
+    out = tmp_path / "report"
+    assert main(["bench", "belief", str(harsh), "--perception", "harsh", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.startswith("perception harsh, localisation perfect; ")
+    assert "| ecost-routine |" in printed  # the calibration table, under the named detector
+    assert main(["bench", "belief", str(harsh), "--perception", "realistic"]) == 2
+    assert "objsearch: error: not run with perception realistic" in capsys.readouterr().err
+    assert main(["bench", "belief", str(realistic), str(harsh), "--out", str(out)]) == 2
