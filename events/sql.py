@@ -25,6 +25,7 @@ import pyarrow as pa
 from .arrow import ENVELOPE_COLUMNS, event_schema
 from .errors import EventStoreError
 from .lake_table import DataFile, TableLake
+from .sql_quote import quote_ident, quote_literal
 
 PARTITION_COLUMNS: Final = (("robot", "VARCHAR"), ("date", "DATE"), ("run", "VARCHAR"))
 _EXPLAIN: Final = re.compile(r"\s*EXPLAIN\s+(?:ANALY[SZ]E\s+)?", re.IGNORECASE)
@@ -32,14 +33,6 @@ _EXPLAIN: Final = re.compile(r"\s*EXPLAIN\s+(?:ANALY[SZ]E\s+)?", re.IGNORECASE)
 
 class QueryRefusedError(EventStoreError):
     """A query would do more than read the lake (write, attach, configure, load, …)."""
-
-
-def quote_ident(name: str) -> str:
-    return '"' + name.replace('"', '""') + '"'
-
-
-def quote_literal(text: str) -> str:
-    return "'" + text.replace("'", "''") + "'"
 
 
 # ``time``: the run's one clock (time_ns) as a real TIMESTAMP (UTC, microseconds). A bag run is on

@@ -36,6 +36,7 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any, Final
 
 from .errors import EventStoreError
+from .sql_quote import quote_literal
 
 if TYPE_CHECKING:  # duckdb is imported when a connection is bounded, not by the CLI's parser
     import duckdb
@@ -120,8 +121,6 @@ def check_limits(memory_limit: int, threads: int) -> None:
 def apply_limits(con: duckdb.DuckDBPyConnection, *, memory_limit: int, threads: int) -> Path:
     """Bound the connection's memory, threads and spill space, and give it a private temp
     directory (returned); call before the configuration is locked."""
-    from .sql import quote_literal
-
     check_limits(memory_limit, threads)
     temp = Path(tempfile.mkdtemp(prefix="objsearch-duckdb-"))
     _REMOVERS[con] = weakref.finalize(con, shutil.rmtree, temp, True)

@@ -54,7 +54,6 @@ from objsearch.events.sql import (
     create_fleet_views,
     fleet_source,
     lock_down,
-    quote_ident,
 )
 from objsearch.events.sql_limits import (
     DEFAULT_MEMORY_LIMIT,
@@ -64,6 +63,7 @@ from objsearch.events.sql_limits import (
     Deadline,
     apply_limits,
 )
+from objsearch.events.sql_quote import quote_ident
 
 _log = logging.getLogger(__name__)
 
