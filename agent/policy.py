@@ -799,8 +799,11 @@ class _Task:
 
     def sighting_odds(self, position: Vec3, mask_area: float) -> float:
         """Prior odds that a first report of the target at ``position`` is the target and not a
-        false report (docs/perception.md, "The prior of a sighting"):
-        π r / ((1 − π) f), π = P(target at that place) (:meth:`place_probability`),
+        false report (docs/perception.md, "The prior of a sighting"): π r / f, the chance the
+        target is there and reported against the chance of a false report there, which comes
+        whether the target is there or not (so even a place the target surely holds leaves odds
+        of r / f: a false positive beside the real object is no find);
+        π = P(target at that place) (:meth:`place_probability`),
         r = the detector's recall for the mask it showed, taken as occluded (the lower one),
         f = the false reports of the target's class per view: its share of the false positives
         (``fp_per_image`` over the movable classes), all taken to land at this place (the upper
@@ -822,9 +825,9 @@ class _Task:
                 values, elsewhere = self.places(other)
                 there = elsewhere if place is None else values.get(place, 0.0)
                 false += model.confusion * recall * there / len(similar)
-        if false <= 0.0 or pi >= 1.0:
+        if false <= 0.0:
             return SURE_ODDS
-        return min(SURE_ODDS, pi * recall / ((1.0 - pi) * false))
+        return min(SURE_ODDS, pi * recall / false)
 
     def undecided(self) -> list[tuple[_Found, float]]:
         """The sightings whose odds are still above the rejection bound, likeliest first (the

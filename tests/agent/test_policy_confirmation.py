@@ -6,11 +6,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
-from objsearch.agent.catalogue import STORE
+from objsearch.agent.catalogue import STORE, Detected, Record
 from objsearch.agent.detector_model import PerceptionModel, preset
 from objsearch.agent.geometry import Pose
 from objsearch.agent.home import Home
+from objsearch.agent.policy import Recorder, SearchAgent
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import Detection
@@ -183,3 +185,98 @@ def test_a_revisit_counts_a_small_targets_looks_as_weaker_evidence_than_a_large_
     phone = _give_up(tmp_path / "phone", "Phone", model)
     assert "< ε 0.5%" in pillow
     assert "budget of 8 passes spent" in phone
+
+
+class SureOfTheFridge:
+    """A relation model that is all but certain the Apple is in the fridge."""
+
+    tasks_folded = 0
+    last_seq = 0
+
+    def apply(self, event: object) -> None:
+        pass
+
+    def rel(self, dynamic: str, static: str) -> float:
+        return 0.0
+
+    def instance_rel(self, dynamic: str, static_id: str, static_class: str) -> float:
+        return 0.99 if (dynamic, static_id) == ("Apple", FRIDGE) else 0.0
+
+    @property
+    def state(self) -> dict[tuple[str, str], float]:
+        return {}
+
+    def as_table(self) -> dict[str, dict[str, float]]:
+        return {}
+
+
+class Records:
+    """An event sink that keeps the records (no log: the agent alone is under test)."""
+
+    def __init__(self) -> None:
+        self.records: list[Record] = []
+
+    def append_record(self, record: Record, *, time_ns: int, task_id: str | None = None) -> Any:
+        self.records.append(record)
+        return record
+
+
+class PlantedInTheFridge(NoisyDetector):
+    """Reports what the camera shows (score 1), and with the first view into the fridge a
+    false Apple beside the real one, at a low score."""
+
+    def observe(
+        self,
+        home: Home,
+        room: str,
+        pose: Pose,
+        placed: Sequence[Placement],
+        seen: Sequence[Detection],
+    ) -> tuple[Detection, ...]:
+        self.views += 1
+        if not any(d.object_class == "Apple" for d in seen) or self.scored:
+            return tuple(seen)
+        self.scored.append((0.6, False))
+        planted = Detection("Apple", "false:fridge", 4000.0, (2.2, 4.3, 0.9), 0.6)
+        # Listed first: the search confirms the sightings of a view in order.
+        return (
+            planted,
+            *(Detection(d.object_class, d.instance_id, d.mask_area, d.position, 1.0) for d in seen),
+        )
+
+
+def test_a_false_report_at_the_place_the_target_surely_is_is_no_find() -> None:
+    # A false positive can land where the target is: the chance of a false report there does
+    # not shrink as P(target there) grows. The prior was π r / ((1 − π) f): at π = 0.99 odds
+    # of about 2,000, so a false Apple at score 0.6 (likelihood ratio 0.18) beside the real one
+    # ended the search as found (procthor-00 habit-0 scene 4, Laptop: a false positive on the
+    # bed the Laptop was on). Now π r / f, about 20: it is looked at again, and the look sees
+    # the real Apple.
+    ctx = load_context("paper")
+    model = preset("realistic")
+    spec = _spec(model)
+    sink = Records()
+    agent = SearchAgent(
+        ctx.navmap,
+        ctx.semmap,
+        ctx.vocabulary,
+        SureOfTheFridge(),  # type: ignore[arg-type]
+        Recorder(sink, ()),  # type: ignore[arg-type]
+        spec.config(),
+        next_task_id=lambda: "task-1",
+    )
+    placements = base_placements(ctx.home, frozenset())
+    world = SimWorld(
+        ctx.home,
+        ctx.navmap,
+        placements,
+        ctx.home.start("kitchen-1"),
+        detector=PlantedInTheFridge(model, 0, ()),
+    )
+    result = agent.search(world, "Apple", "kitchen-1")
+    (apple,) = [p for p in placements.values() if p.cls == "Apple"]
+    assert result.success and result.found_instance == apple.instance_id
+    planted = [
+        r for r in sink.records if isinstance(r, Detected) and r.instance_id == "false:fridge"
+    ]
+    assert planted and not any(r.accepted for r in planted)
