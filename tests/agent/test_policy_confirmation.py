@@ -260,8 +260,8 @@ def test_a_false_report_at_the_place_the_target_surely_is_is_no_find() -> None:
         ctx.navmap,
         ctx.semmap,
         ctx.vocabulary,
-        SureOfTheFridge(),  # type: ignore[arg-type]
-        Recorder(sink, ()),  # type: ignore[arg-type]
+        SureOfTheFridge(),
+        Recorder(sink, ()),
         spec.config(),
         next_task_id=lambda: "task-1",
     )
