@@ -217,7 +217,16 @@ class AgentNode:
         """The live view, drawing from the hub's agent state (none without live sinks)."""
         if not self.live_sinks:
             return []
-        return [GuardedLiveView(LiveView(self.ctx, self.live_sinks, agent=agent))]
+        view = LiveView(self.ctx, self.live_sinks, agent=agent, memory=self._memory_state)
+        return [GuardedLiveView(view)]
+
+    def _memory_state(self) -> AgentState | None:
+        """The hub's where memory, for the live view's belief channels (None before it opened)."""
+        session = getattr(self, "session", None)
+        if session is None:
+            return None
+        memory = session.hub[WHERE]
+        return memory.state if isinstance(memory, LiveMemory) else None
 
     def answer_where(self, request: WhereRequest) -> dict[str, Any]:
         """The memory's answer; ``request`` is checked field by field already (:mod:`requests`)."""

@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 import logging
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any, Final, Protocol
@@ -53,6 +53,11 @@ ROBOT: Final = "/objsearch/live/robot"
 DETECTIONS: Final = "/objsearch/live/detections"
 DETECTION_MARKERS: Final = "/objsearch/live/detection_markers"
 SCENE_GRAPH: Final = "/objsearch/live/scene_graph"
+#: The same scene graph typed (objsearch_msgs/SceneGraph), and the target's belief: typed
+#: (objsearch_msgs/Belief) and drawn (each static instance coloured by its probability, labelled).
+GRAPH: Final = "/objsearch/live/graph"
+BELIEF: Final = "/objsearch/live/belief"
+BELIEF_MARKERS: Final = "/objsearch/live/belief_markers"
 EVENTS: Final = "/objsearch/live/events"
 #: Per-task metrics as numbers a Plot panel draws, one message per ended task (std_msgs/Float64).
 PATH_LENGTH: Final = "/objsearch/live/metrics/path_length"
@@ -61,6 +66,8 @@ TARGET_REL: Final = "/objsearch/live/metrics/target_rel"
 FLOAT64: Final = "std_msgs/msg/Float64"
 METRICS: Final = (PATH_LENGTH, SUCCESS, TARGET_REL)
 
+SCENE_GRAPH_MSG: Final = "objsearch_msgs/msg/SceneGraph"
+BELIEF_MSG: Final = "objsearch_msgs/msg/Belief"
 OCCUPANCY_GRID: Final = "nav_msgs/msg/OccupancyGrid"
 MARKER_ARRAY: Final = "visualization_msgs/msg/MarkerArray"
 PATH: Final = "nav_msgs/msg/Path"
@@ -81,6 +88,9 @@ CHANNELS: Final[Mapping[str, str]] = {
     DETECTIONS: m.DETECTIONS,
     DETECTION_MARKERS: MARKER_ARRAY,
     SCENE_GRAPH: m.STRING,
+    GRAPH: SCENE_GRAPH_MSG,
+    BELIEF: BELIEF_MSG,
+    BELIEF_MARKERS: MARKER_ARRAY,
     EVENTS: m.EVENT,
     PATH_LENGTH: FLOAT64,
     SUCCESS: FLOAT64,
@@ -193,6 +203,48 @@ def _marker_parts(stamp_ns: int) -> tuple[Any, Any, Any]:
 
 def marker_array(markers: Sequence[Any]) -> Any:
     return m.types()[MARKER_ARRAY](markers=list(markers))
+
+
+def probability_color(p: float) -> Any:
+    """Grey (nothing) through orange to red (certain), on a square-root scale so that the small
+    probabilities of a spread belief still differ; opaque enough to read over the statics."""
+    v = math.sqrt(min(max(p, 0.0), 1.0))
+    return _color(0.6 + 0.4 * v, 0.6 * (1.0 - v), 0.6 * (1.0 - v), 0.35 + 0.6 * v)
+
+
+def belief_markers(
+    ctx: HomeContext, stamp_ns: int, target: str, probability: Mapping[str, float]
+) -> Any:
+    """Every static instance as a box coloured by the target's probability there
+    (:func:`probability_color`), with a label ``Class p %``; statics without mass are grey."""
+    out = [marker(stamp_ns, "belief", 0, CUBE, action=DELETEALL)]
+    for i, (static_id, static) in enumerate(sorted(ctx.home.statics.items())):
+        p = probability.get(static_id, 0.0)
+        (x, y, z), (sx, sy, sz) = static.box.center, static.box.size
+        out.append(
+            marker(
+                stamp_ns,
+                "belief",
+                2 * i + 1,
+                CUBE,
+                pose=_pose(x, y, z),
+                scale=(max(sx, 0.05), max(sy, 0.05), max(sz, 0.05)),
+                color=probability_color(p),
+            )
+        )
+        out.append(
+            marker(
+                stamp_ns,
+                "belief",
+                2 * i + 2,
+                TEXT,
+                pose=_pose(x, y, z + sz / 2 + 0.15),
+                scale=(0.1, 0.1, 0.1),
+                color=_color(1.0, 1.0, 1.0),
+                text=f"{static.cls} {100 * p:.1f} %" if p > 0 else f"{static.cls} ({target}: 0)",
+            )
+        )
+    return marker_array(out)
 
 
 def occupancy_grid(ctx: HomeContext, stamp_ns: int) -> Any:
@@ -335,16 +387,27 @@ class LiveView:
         clock_offset_ns: int = 0,
         models: RelationModels = AGENT_MODELS,
         agent: AgentState | None = None,
+        memory: Callable[[], AgentState | None] | None = None,
     ) -> None:
         """``agent``: the running agent's own state, kept by its session's projection hub, which
         folds each event into it before the view draws the event; the view then reads it and
-        never folds it (None: the view folds a state of its own, with ``models``)."""
+        never folds it (None: the view folds a state of its own, with ``models``). ``memory``:
+        the agent's ``where`` memory likewise (``agent/where.py``, the belief whatever the run's
+        model), drawn as the belief channels; None: the view folds one of its own."""
         self.ctx = ctx
         self.sinks = tuple(sinks)
         self.clock_offset_ns = clock_offset_ns
         #: What the agent knew: the same fold (run spec, relation model, tasks) as everywhere.
         self.agent = agent if agent is not None else AgentState(models=models)
         self._folds = agent is None
+        self._memory_fold: AgentState | None = None
+        if memory is None:
+            from objsearch.agent.where import memory_state
+
+            fresh = memory_state(())
+            self._memory_fold = fresh
+            memory = lambda: fresh  # noqa: E731
+        self._memory = memory
         self.pose: Pose | None = None
         self.task: _LiveTask | None = None
         self.written: dict[str, int] = {}
@@ -356,12 +419,16 @@ class LiveView:
             raise ValueError("this view reads the agent's state, which its hub folds")
         for event in events:
             self.agent.apply(event)
+            if self._memory_fold is not None:
+                self._memory_fold.apply(event)
 
     def apply(self, event: EventView) -> None:
         """Draw one event (a projection: ``Session(observers=[view])``)."""
         assert isinstance(event, Event)  # the log's events; EventView is the fold's protocol
         if self._folds:
             self.agent.apply(event)
+        if self._memory_fold is not None:
+            self._memory_fold.apply(event)
         stamp = self.clock_offset_ns + event.time_ns
         if not 0 <= stamp <= MAX_STAMP_NS:
             from objsearch.agent.errors import ObjsearchError
@@ -397,6 +464,7 @@ class LiveView:
         self._send(PLAN, stamp, path([], stamp))
         self._send(DETECTION_MARKERS, stamp, self._detection_markers(stamp))
         self._send_graph(event, stamp)
+        self._send_belief(stamp)
 
     def _on_plan_computed(self, event: Event, stamp: int) -> None:
         plan = decode(event, PlanComputed)
@@ -420,6 +488,7 @@ class LiveView:
             }
         self._send(PLAN, stamp, path(stops, stamp))
         self._send_graph(event, stamp)
+        self._send_belief(stamp)
 
     def _on_moved(self, event: Event, stamp: int) -> None:
         moved = decode(event, Moved)
@@ -480,6 +549,7 @@ class LiveView:
             self.task.status = "ended"
         ended = decode(event, TaskEnded)
         self._send_graph(event, stamp, path_length=ended.path_length)
+        self._send_belief(stamp)
         self._send(PATH_LENGTH, stamp, _float64(ended.path_length))
         self._send(SUCCESS, stamp, _float64(1.0 if ended.success else 0.0))
         found_at = self._found_static()
@@ -561,6 +631,65 @@ class LiveView:
                 **extra,
             }
         self._send(SCENE_GRAPH, stamp, m.string(json.dumps(doc, sort_keys=False)))
+        self._send(GRAPH, stamp, self._graph_msg(doc, stamp))
+
+    def _graph_msg(self, doc: Mapping[str, Any], stamp: int) -> Any:
+        """The scene-graph document as ``objsearch_msgs/SceneGraph`` (every Rel > 0)."""
+        t = m.types()
+        relation = t["objsearch_msgs/msg/Relation"]
+        task = doc["task"] or {}
+        plan = task.get("plan") or {}
+        return t[SCENE_GRAPH_MSG](
+            header=m.header(stamp),
+            seq=int(doc["seq"]),
+            event=str(doc["event"]),
+            tasks_folded=int(doc["tasks_folded"]),
+            relations=[
+                relation(dynamic_class=d, static_class=s, rel=float(v))
+                for d, row in sorted(doc["relations"].items())
+                for s, v in sorted(row.items())
+                if v > 0
+            ],
+            task_id=str(task.get("task_id") or ""),
+            target=str(task.get("target") or ""),
+            status=str(task.get("status") or ""),
+            room=str(plan.get("room") or ""),
+            room_order=[str(r) for r in plan.get("room_order", [])],
+            order=[str(o) for o in plan.get("order", [])],
+            path_length=float(task.get("path_length") or 0.0),
+        )
+
+    def _send_belief(self, stamp: int) -> None:
+        """Where the agent's memory puts the task's target now (``agent/where.py``'s answer over
+        every mapped place, as ``objsearch where`` gives it), typed and drawn."""
+        from objsearch.agent.errors import ObjsearchError
+        from objsearch.agent.where import answer
+        from objsearch.runtime.agent_interfaces import places, rooms, sighting
+
+        task, memory = self.task, self._memory()
+        if task is None or memory is None or memory.run is None:
+            return
+        try:
+            got = answer(memory, task.target, self.ctx.home, top=len(self.ctx.home.statics))
+        except ObjsearchError:
+            return  # a class the memory does not know
+        likely = list(got["most_likely_now"])
+        self._send(
+            BELIEF,
+            stamp,
+            m.types()[BELIEF_MSG](
+                header=m.header(stamp),
+                target=task.target,
+                task_id=task.task_id,
+                tasks=int(got.get("tasks") or 0),
+                places=places(self.ctx.home, likely),
+                rooms=rooms(list(got.get("rooms") or [])),
+                elsewhere=float(got.get("elsewhere") or 0.0),
+                last_seen=sighting(got.get("last_seen")),
+            ),
+        )
+        probability = {str(p["static_id"]): float(p["probability"]) for p in likely}
+        self._send(BELIEF_MARKERS, stamp, belief_markers(self.ctx, stamp, task.target, probability))
 
     def _send(self, topic: str, stamp: int, msg: Any) -> None:
         msgtype = CHANNELS[topic]

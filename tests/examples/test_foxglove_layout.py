@@ -36,9 +36,10 @@ def test_the_layout_names_only_live_channels_and_plots_numbers() -> None:
     three_d = next(c for p, c in panels.items() if p.startswith("3D!"))
     assert three_d["followTf"] == "map"  # the frame every live message is stamped in
     drawn = set(three_d["topics"])
-    assert drawn == set(lv.CHANNELS) - {lv.DETECTIONS, lv.SCENE_GRAPH, lv.EVENTS, *lv.METRICS}
+    shown_raw = {lv.SCENE_GRAPH, lv.GRAPH, lv.BELIEF}  # text and typed records, not drawings
+    assert drawn == set(lv.CHANNELS) - {lv.DETECTIONS, lv.EVENTS, *shown_raw, *lv.METRICS}
     plotted = [s["value"] for p, c in panels.items() if p.startswith("Plot!") for s in c["paths"]]
     assert sorted(map(_topic, plotted)) == sorted(lv.METRICS)
     assert all(lv.CHANNELS[_topic(v)] == lv.FLOAT64 and v.endswith(".data") for v in plotted)
-    raw = next(c for p, c in panels.items() if p.startswith("RawMessages!"))
-    assert raw["topicPath"] == f"{lv.SCENE_GRAPH}.data"
+    raw = [c["topicPath"] for p, c in panels.items() if p.startswith("RawMessages!")]
+    assert raw == [f"{lv.SCENE_GRAPH}.data", f"{lv.BELIEF}.places"]
