@@ -113,7 +113,6 @@ class AgentNode:
         live: Sequence[LiveSink] = (),
         live_topics: bool = False,
         clock: Callable[[], DayClock | None] = DayClock.local,
-        perception: dict[str, Any] | None = None,
     ) -> None:
         """``live``: sinks of the live view (:mod:`objsearch.runtime.livesinks`); the node owns
         them from here on and closes them with itself. ``live_topics``: the live channels are
@@ -121,9 +120,7 @@ class AgentNode:
         local time of day a search begins, recorded in its ``task_started`` (the host's wall
         clock: a household's hour, whatever time base the robot's stamps use — the stand-in
         robot's is simulated). ``strategy``: ``NAME`` or ``NAME+cover``; None, the product's
-        default (DEFAULT_STRATEGY). ``perception``: the robot's detector as a
-        :class:`~objsearch.agent.detector_model.PerceptionModel`'s params, recorded in the run
-        and reasoned with (confirmation, misses); None: a perfect one."""
+        default (DEFAULT_STRATEGY)."""
         self.config = config
         self.clock = clock
         self.live_sinks = tuple(live)
@@ -159,10 +156,7 @@ class AgentNode:
                 alpha=alpha,
                 seed=seed,
                 update_mode=update_mode,
-                params={
-                    "transport": config.transport.backend.value,
-                    **({"perception": perception} if perception else {}),
-                },
+                params={"transport": config.transport.backend.value},
             )
             # One projection hub, restored once from one snapshot (and the log after it): the
             # agent's state and its where memory, each event folded once into each; the live
@@ -340,7 +334,7 @@ class AgentNode:
             last_seen=last,
             home=self.ctx.home,
             stamp_ns=self.world.now_ns(),
-            diagnosis=[],
+            diagnosis=self.node.diagnosis(),
         )
 
     def _serving(self) -> bool:
@@ -373,17 +367,23 @@ class AgentNode:
             )
         except RobotError as exc:
             cancelled = isinstance(exc, SearchCancelled)
+            error = str(exc)
+            # What the graph shows wrong goes into the answer (and the log), not only the log's
+            # warnings: a publisher of another type, a QoS mismatch, malformed messages.
+            diagnosis = [] if cancelled else self.node.diagnosis()
+            if diagnosis:
+                error += "; on the graph: " + "; ".join(diagnosis)
             if cancelled:
-                log.warning("%s: search for %s stopped: %s", task_id, target, exc)
+                log.warning("%s: search for %s stopped: %s", task_id, target, error)
             else:
-                log.error("%s: search for %s failed: %s", task_id, target, exc)
+                log.error("%s: search for %s failed: %s", task_id, target, error)
             open_task = self.session.state.tasks.open
             metres = 0.0
             if open_task is not None and open_task.task_id == task_id:
                 metres = open_task.metres
-                reason = f"cancelled: {exc}" if cancelled else f"robot: {exc}"
+                reason = f"cancelled: {error}" if cancelled else f"robot: {error}"
                 self._fail_task(task_id, target, reason, metres)
-            failed = {"ok": False, "target": target, "task_id": task_id, "error": str(exc)}
+            failed = {"ok": False, "target": target, "task_id": task_id, "error": error}
             if cancelled:
                 failed.update(cancelled=True, path_length=round(metres, 4))
             return failed

@@ -63,6 +63,8 @@ class Node:
         self.transport = transport
         self.malformed: deque[str] = deque(maxlen=100)  # the latest problems, for tests and logs
         self.dropped = 0
+        #: Every topic this node reads, with the type it reads (for the agent's diagnosis).
+        self.subscriptions: dict[str, str] = {}
         self._lock = threading.Lock()
 
     def publisher(self, topic: str, msgtype: str, qos: QoS) -> TypedPublisher:
@@ -91,7 +93,33 @@ class Node:
                 log.exception("%s: handler failed", topic)
                 self.report(f"{topic}: {type(exc).__name__}: {exc}")
 
+        self.subscriptions[topic] = msgtype
         self.transport.subscribe(topic, msgtype, qos, on_bytes)
+
+    def diagnosis(self) -> list[str]:
+        """What this node can tell is wrong on the graph, one sentence each: a publisher of a
+        topic it reads whose type is not the one it reads (nothing it sends arrives), a QoS
+        mismatch the middleware reported, and messages dropped as malformed. What the transport
+        cannot see (zenoh and dds show no other nodes' types) is not named."""
+        out: list[str] = []
+        types_of = getattr(self.transport, "publisher_types", None)
+        if types_of is not None:
+            for topic, msgtype in sorted(self.subscriptions.items()):
+                wrong = [(node, t) for node, t in types_of(topic) if t != msgtype]
+                out.extend(
+                    f"{topic} has a publisher of {t} (node {node}), which this agent does not "
+                    f"read: it reads {msgtype}"
+                    for node, t in wrong
+                )
+        mismatches: dict[str, str] = getattr(self.transport, "qos_mismatches", {})
+        out.extend(text for _, text in sorted(mismatches.items()))
+        with self._lock:
+            if self.dropped:
+                out.append(
+                    f"{self.dropped} messages dropped as malformed, the latest: "
+                    f"{self.malformed[-1]}"
+                )
+        return out
 
     def serve(
         self, service: str, srvtype: str, handler: Callable[[Any, Callable[[Any], None]], None]

@@ -24,6 +24,7 @@ import logging
 import os
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 from objsearch.ros.qos import Durability, QoS, Reliability
@@ -106,23 +107,25 @@ def _describe(qos: QoS) -> str:
     return f"{qos.reliability.value}, {qos.durability.value}, depth {qos.depth}"
 
 
-def _on_incompatible(side: str, topic: str, qos: QoS) -> Any:
+def _on_incompatible(
+    side: str, topic: str, qos: QoS, report: Callable[[str, str], None] | None = None
+) -> Any:
+    """``report(topic, text)``: told of each mismatch too (the agent names it in its answers)."""
     peer = "a writer offers" if side == "reader" else "a reader requests"
 
     def callback(event: Any) -> None:
         if event.total_count_change <= 0:
             return
         policy = getattr(event.last_policy_kind, "name", str(event.last_policy_kind))
-        log.warning(
-            "QoS mismatch on %s: %s QoS this %s (%s) cannot match: %s differs "
-            "(%d incompatible so far); nothing flows between them",
-            topic,
-            peer,
-            side,
-            _describe(qos),
-            policy.lower().replace("_", " "),
-            event.total_count,
+        text = (
+            f"QoS mismatch on {topic}: {peer} QoS this {side} ({_describe(qos)}) cannot match: "
+            f"{policy.removeprefix('RMW_QOS_POLICY_').lower().replace('_', ' ')} differs "
+            f"({event.total_count} incompatible so "
+            "far); nothing flows between them"
         )
+        log.warning("%s", text)
+        if report is not None:
+            report(topic, text)
 
     return callback
 
@@ -217,6 +220,8 @@ class Ros2Transport:
             ) from exc
         self._group = ReentrantCallbackGroup()
         self._closed = threading.Event()
+        #: The latest QoS mismatch on each topic (text as logged), for the agent's answers.
+        self.qos_mismatches: dict[str, str] = {}
         self._executor = MultiThreadedExecutor(num_threads=THREADS, context=self._context)
         self._executor.add_node(self.node)
         self._spinner = threading.Thread(target=self._spin, name="ros2-executor", daemon=True)
@@ -252,7 +257,7 @@ class Ros2Transport:
             topic,
             qos_profile(qos),
             event_callbacks=PublisherEventCallbacks(
-                incompatible_qos=_on_incompatible("writer", topic, qos)
+                incompatible_qos=_on_incompatible("writer", topic, qos, self._mismatch)
             ),
         )
         return _Ros2Publisher(publisher, msgtype)
@@ -269,7 +274,7 @@ class Ros2Transport:
             qos_profile(qos),
             callback_group=MutuallyExclusiveCallbackGroup(),
             event_callbacks=SubscriptionEventCallbacks(
-                incompatible_qos=_on_incompatible("reader", topic, qos)
+                incompatible_qos=_on_incompatible("reader", topic, qos, self._mismatch)
             ),
             raw=True,
         )
@@ -299,6 +304,16 @@ class Ros2Transport:
 
     def client(self, service: str, srvtype: str) -> _Ros2Client:
         return _Ros2Client(self, service, srvtype)
+
+    def _mismatch(self, topic: str, text: str) -> None:
+        self.qos_mismatches[topic] = text
+
+    def publisher_types(self, topic: str) -> list[tuple[str, str]]:
+        """``(node, type)`` of every publisher of ``topic`` the graph shows."""
+        infos = self.node.get_publishers_info_by_topic(topic)
+        return sorted(
+            {(f"{i.node_namespace.rstrip('/')}/{i.node_name}", str(i.topic_type)) for i in infos}
+        )
 
     def service_type_hashes(self, service: str) -> list[str]:
         """The RIHS01 hashes the graph shows for the servers of ``service``: the type hash each

@@ -147,7 +147,7 @@ def test_a_jazzy_server_meets_an_agent_set_to_humble_with_a_named_error(tmp_path
         stop(robot)
     jazzy = wire_hashes(NAVIGATE_TO_POSE_JAZZY)["GetResult_Response"]
     humble = wire_hashes(NAVIGATE_TO_POSE)["GetResult_Response"]
-    assert error == (
+    assert error.startswith(
         f"the /navigate_to_pose server's result type is Jazzy's ({jazzy}), not Humble's "
         f"({humble}) that [navigation] distro = 'humble' asks for: set it to 'jazzy' or 'auto'"
     )
