@@ -11,6 +11,17 @@ for every target from every start (``ecost-routine``: after two weeks of ``routi
 per target; ``ecost-routine-pooled`` the same). ``--routine-only`` times only those two and
 ``wpl``. ``--homes largest`` takes the bundled iTHOR and ProcTHOR homes
 with the most mapped statics. Medians and ratios are printed; the target is ≤ 50 ms a decision.
+
+    python benchmarks/decisions.py --perception realistic,harsh --homes paper --perception-only
+
+times the decisions of whole searches (``global-belief+cover``, ``habit-0`` scenes 1 to
+``--scenes``, every target from ``--starts`` starts, confirmation and revisits included) under
+each named detector model and under ``perfect`` in the same run. A *decision* is what the robot
+waits on: the agent's computation between the end of one simulator call (a drive, a look, an
+opening) and the start of the next, and each handling of a detection while it drives (whether
+to stop: the sighting's prior and posterior), event logging included, the simulator's own time
+excluded. Printed: median, p90 and max per decision, the median of the whole-home plans alone,
+each with its ratio to ``perfect``'s median.
 """
 
 from __future__ import annotations
@@ -20,17 +31,24 @@ import math
 import statistics
 import tempfile
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from objsearch.agent.catalogue import STORE
+from objsearch.agent.detector_model import preset
 from objsearch.agent.home import available_homes
 from objsearch.agent.policy import Recorder, SearchAgent
 from objsearch.agent.session import HomeContext, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import RunSpec
+from objsearch.agent.world import Detection, Navigation
 from objsearch.events.log_read import read_log
 from objsearch.events.projection import fold
 from objsearch.sim.longterm import TARGET_ORDER, run_schedule
+from objsearch.sim.world import SimWorld
 
 #: Scenes of routine-0 in the time-aware belief's memory when its planning is timed (two weeks).
 ROUTINE_SCENES = 56
@@ -123,6 +141,123 @@ def global_decision_times(home: str, scenes: int) -> tuple[list[float], list[flo
     return times, firsts
 
 
+@dataclass
+class DecisionClock:
+    """The agent's time between the simulator's calls, one sample per decision."""
+
+    gaps: list[float] = field(default_factory=list)
+    plans: list[float] = field(default_factory=list)
+    _since: float | None = None
+
+    def world_call(self, call: Callable[[], Any]) -> Any:
+        t0 = time.perf_counter()
+        if self._since is not None:
+            self.gaps.append(t0 - self._since)
+        try:
+            return call()
+        finally:
+            self._since = time.perf_counter()
+
+    def handler(self, handle: Callable[[Detection, Any], bool]) -> Callable[[Detection, Any], bool]:
+        def timed(det: Detection, pose: Any) -> bool:
+            t0 = time.perf_counter()
+            try:
+                return handle(det, pose)
+            finally:
+                self.gaps.append(time.perf_counter() - t0)
+
+        return timed
+
+
+@contextmanager
+def timed_decisions(clock: DecisionClock) -> Iterator[None]:
+    """Time every decision of the searches run inside (see the module doc)."""
+    navigate, look, opening = SimWorld.navigate, SimWorld.look, SimWorld.open
+    search, plan_global = SearchAgent.search, SearchAgent.plan_global
+
+    def timed_navigate(self: SimWorld, goal: Any, **kw: Any) -> Navigation:
+        handle = kw.get("on_detection")
+        if handle is not None:
+            kw["on_detection"] = clock.handler(handle)
+        result: Navigation = clock.world_call(lambda: navigate(self, goal, **kw))
+        return result
+
+    def timed_look(self: SimWorld, *a: Any) -> tuple[Detection, ...]:
+        result: tuple[Detection, ...] = clock.world_call(lambda: look(self, *a))
+        return result
+
+    def timed_open(self: SimWorld, *a: Any) -> tuple[Detection, ...]:
+        result: tuple[Detection, ...] = clock.world_call(lambda: opening(self, *a))
+        return result
+
+    def timed_search(self: SearchAgent, *a: Any, **kw: Any) -> Any:
+        clock._since = time.perf_counter()
+        try:
+            return search(self, *a, **kw)
+        finally:
+            assert clock._since is not None
+            clock.gaps.append(time.perf_counter() - clock._since)
+            clock._since = None
+
+    def timed_plan(self: SearchAgent, *a: Any) -> Any:
+        t0 = time.perf_counter()
+        try:
+            return plan_global(self, *a)
+        finally:
+            clock.plans.append(time.perf_counter() - t0)
+
+    patches: dict[tuple[type, str], Any] = {
+        (SimWorld, "navigate"): timed_navigate,
+        (SimWorld, "look"): timed_look,
+        (SimWorld, "open"): timed_open,
+        (SearchAgent, "search"): timed_search,
+        (SearchAgent, "plan_global"): timed_plan,
+    }
+    originals = {key: getattr(*key) for key in patches}
+    try:
+        for (owner, name), fn in patches.items():
+            setattr(owner, name, fn)
+        yield
+    finally:
+        for (owner, name), fn in originals.items():
+            setattr(owner, name, fn)
+
+
+def search_decisions(home: str, perception: str, scenes: int, starts: int) -> DecisionClock:
+    """Every decision of ``global-belief+cover``'s searches of ``habit-0`` scenes 1 to
+    ``scenes`` on ``home``, each target from ``starts`` starts, under ``perception``."""
+    ctx = load_context(home)
+    model = preset(perception)
+    params = {} if model.perfect else {"perception": model.params()}
+    spec = RunSpec.for_home(ctx.home, "global-belief+cover", schedule="habit-0", params=params)
+    clock = DecisionClock()
+    with tempfile.TemporaryDirectory() as tmp, timed_decisions(clock):
+        run_schedule(
+            Path(tmp),
+            spec,
+            scenes=range(1, scenes + 1),
+            starts_per_search=starts,
+            skip_absent_targets=True,
+        )
+    return clock
+
+
+def perception_report(home: str, models: list[str], scenes: int, starts: int) -> None:
+    """Decision times under each of ``models`` against ``perfect``'s, in the same run."""
+    runs = {name: search_decisions(home, name, scenes, starts) for name in ["perfect", *models]}
+    base = runs["perfect"]
+    mb, pb = statistics.median(base.gaps), statistics.median(base.plans)
+    for name, clock in runs.items():
+        m, p = statistics.median(clock.gaps), statistics.median(clock.plans)
+        p90 = statistics.quantiles(clock.gaps, n=10)[-1]
+        print(
+            f"{home}: {name:9s} median per decision {m * 1e3:7.3f} ms (ratio to perfect "
+            f"{m / mb:5.2f})   p90 {p90 * 1e3:7.3f} ms   max {max(clock.gaps) * 1e3:7.2f} ms   "
+            f"(n = {len(clock.gaps)})   whole-home plan median {p * 1e3:7.3f} ms (ratio "
+            f"{p / pb:5.2f}, n = {len(clock.plans)}); target <= 50 ms"
+        )
+
+
 def largest_homes() -> list[str]:
     """The bundled iTHOR and ProcTHOR homes with the most mapped statics."""
     best: dict[str, tuple[int, str]] = {}
@@ -144,9 +279,26 @@ def main() -> None:
         action="store_true",
         help="time only the beliefs that know the hour (and wpl, the baseline)",
     )
+    ap.add_argument(
+        "--perception",
+        default="",
+        help="detector models (realistic,harsh) whose searches' decisions are timed against "
+        "perfect's in the same run",
+    )
+    ap.add_argument(
+        "--starts", type=int, default=2, help="starts per target and scene (--perception)"
+    )
+    ap.add_argument(
+        "--perception-only", action="store_true", help="time only the --perception searches"
+    )
     args = ap.parse_args()
     homes = largest_homes() if args.homes == "largest" else args.homes.split(",")
+    models = [m for m in args.perception.split(",") if m]
     for home in homes:
+        if models:
+            perception_report(home, models, args.scenes, args.starts)
+        if args.perception_only:
+            continue
         base = plan_times(home, "wpl", args.scenes)
         mb = statistics.median(base)
         # The beliefs that know the hour, after two weeks of a routine schedule (56 scenes, one

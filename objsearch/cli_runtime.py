@@ -189,6 +189,7 @@ def cmd_agent_run(args: argparse.Namespace) -> int:
         update_mode=UpdateMode(args.update_mode),
         live=sinks,
         live_topics=args.live_topics,
+        perception=t.perception_params(args),
     )
     _stop_on_signals(node.stop)
     print(f"objsearch agent: serving searches, log {args.log}", file=sys.stderr, flush=True)
@@ -331,6 +332,7 @@ def cmd_agent_where(args: argparse.Namespace) -> int:
 
 
 def cmd_robot_sim(args: argparse.Namespace) -> int:
+    from objsearch.agent.detector_model import PerceptionModel
     from objsearch.runtime.standin import Faults, StandInRobot
 
     _logging()
@@ -350,6 +352,8 @@ def cmd_robot_sim(args: argparse.Namespace) -> int:
             args.mute_after,
             args.stall_after,
         ),
+        perception=PerceptionModel.from_params(t.perception_params(args)),
+        seed=args.seed,
     )
     _stop_on_signals(robot.stop)
     print("objsearch robot: stand-in up", file=sys.stderr, flush=True)
@@ -444,6 +448,7 @@ def register(sub: Any) -> None:
         action="store_true",
         help="write --live-mcap's chunks uncompressed (by default zstd, as ros2 bag record)",
     )
+    t.perception_option(run)
     run.set_defaults(func=cmd_agent_run)
 
     find = agent_sub.add_parser("find", help="ask the running agent to find an object")
@@ -503,6 +508,8 @@ def register(sub: Any) -> None:
         ("stall", "accept the n-th goal and never finish it"),
     ):
         sim.add_argument(f"--{fault}-after", type=fault_count, default=0, help=f"fault: {what}")
+    sim.add_argument("--seed", type=t.SEED, default=0, help="seed of the detector model (0)")
+    t.perception_option(sim)
     sim.set_defaults(func=cmd_robot_sim)
 
     view = sub.add_parser(

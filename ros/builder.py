@@ -186,14 +186,72 @@ class MessageBuilder:
         )
 
     def detections(self, stamp: int, pose: Pose, dets: Sequence[Detection]) -> Any:
-        """The search's detections: boxes from the geometric camera model (``project``)."""
+        """The search's detections: boxes from the geometric camera model (``project``), each
+        class hypothesis with its score (a perfect detector's: its class at 1)."""
         return self.detection_array(
             stamp,
             self.frames.camera,
             [
-                (d.instance_id, d.object_class, 1.0, project(self.camera, pose, d), d.position)
+                (
+                    d.instance_id,
+                    d.object_class,
+                    hypotheses(d),
+                    project(self.camera, pose, d),
+                    d.position,
+                )
                 for d in dets
             ],
+        )
+
+    def detections_3d(
+        self,
+        stamp: int,
+        t_optical_map: npt.NDArray[Any],
+        intrinsics: CameraIntrinsics,
+        dets: Sequence[Detection],
+    ) -> Any:
+        """A detector node's ``Detection3DArray`` in the camera's optical frame: each box centred
+        on the object, a cube whose image area at its centre's depth is the mask area
+        (``objsearch.ros.detections.image_area`` reads it back), every class hypothesis with
+        its score. ``t_optical_map`` maps map points into the optical frame at ``stamp``."""
+        import numpy as np
+
+        t = self.t
+        items = []
+        for d in dets:
+            x, y, z, _ = t_optical_map @ np.array([*d.position, 1.0])
+            side = (
+                math.sqrt(max(d.mask_area, 0.0))
+                * max(z, 0.0)
+                / math.sqrt(intrinsics.fx * intrinsics.fy)
+            )
+            centre = t["geometry_msgs/msg/Pose"](
+                position=t["geometry_msgs/msg/Point"](x=float(x), y=float(y), z=float(z)),
+                orientation=self._rotation((0.0, 0.0, 0.0, 1.0)),
+            )
+            items.append(
+                t["vision_msgs/msg/Detection3D"](
+                    header=self.header(stamp, self.frames.camera_optical),
+                    results=[self._hypothesis(cls, score, centre) for cls, score in hypotheses(d)],
+                    bbox=t["vision_msgs/msg/BoundingBox3D"](
+                        center=centre, size=self._vec(side, side, side)
+                    ),
+                    id=d.instance_id,
+                )
+            )
+        return t["vision_msgs/msg/Detection3DArray"](
+            header=self.header(stamp, self.frames.camera_optical), detections=items
+        )
+
+    def _hypothesis(self, cls: str, score: float, pose: Any) -> Any:
+        import numpy as np
+
+        t = self.t
+        return t["vision_msgs/msg/ObjectHypothesisWithPose"](
+            hypothesis=t["vision_msgs/msg/ObjectHypothesis"](class_id=cls, score=float(score)),
+            pose=t["geometry_msgs/msg/PoseWithCovariance"](
+                pose=pose, covariance=np.zeros(36, dtype=np.float64)
+            ),
         )
 
     def detection_array(
@@ -201,37 +259,32 @@ class MessageBuilder:
         stamp: int,
         frame: str,
         dets: Sequence[
-            tuple[str, str, float, tuple[float, float, float, float], tuple[float, float, float]]
+            tuple[
+                str,
+                str,
+                float | Sequence[tuple[str, float]],
+                tuple[float, float, float, float],
+                tuple[float, float, float],
+            ]
         ],
     ) -> Any:
-        """(instance id, class, score, box (u, v, w, h) in pixels, map-frame position) each."""
-        import numpy as np
-
+        """(instance id, class, score — or every (class, score) hypothesis —, box (u, v, w, h)
+        in pixels, map-frame position) each."""
         t = self.t
         items = []
-        for instance_id, cls, score, (u, v, w, h), position in dets:
+        for instance_id, cls, scores, (u, v, w, h), position in dets:
+            # The 3-D position is in the map frame, as the agent uses it.
+            pose = t["geometry_msgs/msg/Pose"](
+                position=t["geometry_msgs/msg/Point"](
+                    x=float(position[0]), y=float(position[1]), z=float(position[2])
+                ),
+                orientation=self._quat(0.0),
+            )
+            pairs = [(cls, scores)] if isinstance(scores, float | int) else scores
             items.append(
                 t["vision_msgs/msg/Detection2D"](
                     header=self.header(stamp, frame),
-                    results=[
-                        t["vision_msgs/msg/ObjectHypothesisWithPose"](
-                            hypothesis=t["vision_msgs/msg/ObjectHypothesis"](
-                                class_id=cls, score=score
-                            ),
-                            # The 3-D position is in the map frame, as the agent uses it.
-                            pose=t["geometry_msgs/msg/PoseWithCovariance"](
-                                pose=t["geometry_msgs/msg/Pose"](
-                                    position=t["geometry_msgs/msg/Point"](
-                                        x=float(position[0]),
-                                        y=float(position[1]),
-                                        z=float(position[2]),
-                                    ),
-                                    orientation=self._quat(0.0),
-                                ),
-                                covariance=np.zeros(36, dtype=np.float64),
-                            ),
-                        )
-                    ],
+                    results=[self._hypothesis(c, p, pose) for c, p in pairs],
                     bbox=t["vision_msgs/msg/BoundingBox2D"](
                         center=t["vision_msgs/msg/Pose2D"](
                             position=t["vision_msgs/msg/Point2D"](x=u, y=v), theta=0.0
@@ -262,6 +315,12 @@ class MessageBuilder:
             ),
             crc32=event_crc32(e),
         )
+
+
+def hypotheses(d: Detection) -> tuple[tuple[str, float], ...]:
+    """A detection's class hypotheses as a detector node sends them: its class distribution,
+    the reported class first, or its class at its score alone."""
+    return d.class_scores or ((d.object_class, d.score),)
 
 
 def _yaw_q(yaw: float) -> tuple[float, float, float, float]:

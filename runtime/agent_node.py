@@ -113,6 +113,7 @@ class AgentNode:
         live: Sequence[LiveSink] = (),
         live_topics: bool = False,
         clock: Callable[[], DayClock | None] = DayClock.local,
+        perception: dict[str, Any] | None = None,
     ) -> None:
         """``live``: sinks of the live view (:mod:`objsearch.runtime.livesinks`); the node owns
         them from here on and closes them with itself. ``live_topics``: the live channels are
@@ -120,7 +121,9 @@ class AgentNode:
         local time of day a search begins, recorded in its ``task_started`` (the host's wall
         clock: a household's hour, whatever time base the robot's stamps use — the stand-in
         robot's is simulated). ``strategy``: ``NAME`` or ``NAME+cover``; None, the product's
-        default (DEFAULT_STRATEGY)."""
+        default (DEFAULT_STRATEGY). ``perception``: the robot's detector as a
+        :class:`~objsearch.agent.detector_model.PerceptionModel`'s params, recorded in the run
+        and reasoned with (confirmation, misses); None: a perfect one."""
         self.config = config
         self.clock = clock
         self.live_sinks = tuple(live)
@@ -156,7 +159,10 @@ class AgentNode:
                 alpha=alpha,
                 seed=seed,
                 update_mode=update_mode,
-                params={"transport": config.transport.backend.value},
+                params={
+                    "transport": config.transport.backend.value,
+                    **({"perception": perception} if perception else {}),
+                },
             )
             # One projection hub, restored once from one snapshot (and the log after it): the
             # agent's state and its where memory, each event folded once into each; the live

@@ -35,6 +35,9 @@ distro = "auto"                # or "humble" / "jazzy": which Nav2's NavigateToP
 source = "odometry"            # or "tf": map → base_link from /tf and /tf_static
 map_frame = "map"
 base_frame = "base_link"
+
+[detections]
+input = "pose"                 # or "depth" (Detection2DArray + aligned depth) or "3d" (Detection3DArray)
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.ros.errors import QosError
-from objsearch.ros.qos import DEFAULT, EVENTS, REQUESTS, TF, TF_STATIC, QoS
+from objsearch.ros.qos import DEFAULT, EVENTS, REQUESTS, SENSOR_DATA, TF, TF_STATIC, QoS
 from objsearch.runtime.errors import RuntimeConfigError
 from objsearch.runtime.transport import Backend, TransportConfig
 
@@ -71,6 +74,9 @@ class Topics:
     agents: str = "/objsearch/agents"  # std_msgs/String JSON heartbeats: one agent per robot
     tf: str = "/tf"  # tf2_msgs/TFMessage, with [pose] source = "tf"
     tf_static: str = "/tf_static"
+    # With [detections] input = "depth" or "3d" (docs/runtime.md): the detector's camera
+    camera_info: str = "/camera/color/camera_info"  # sensor_msgs/CameraInfo
+    depth: str = "/camera/depth/image_raw"  # sensor_msgs/Image, aligned to the detector's image
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,6 +88,7 @@ class QosSettings:
     requests: QoS = REQUESTS  # find, where, open, reset and their results
     tf: QoS = TF
     tf_static: QoS = TF_STATIC
+    camera: QoS = SENSOR_DATA  # camera info and depth: best effort meets any camera driver
 
 
 @dataclass(frozen=True, slots=True)
@@ -136,6 +143,22 @@ class PoseSource:
 
 
 @dataclass(frozen=True, slots=True)
+class DetectionSettings:
+    """How the detector node gives positions (``objsearch.ros.detections``): ``pose`` (a
+    Detection2DArray whose hypotheses' pose is the position; the stand-in's default), ``depth``
+    (a Detection2DArray back-projected through the aligned depth image) or ``3d`` (a
+    Detection3DArray)."""
+
+    input: str = "pose"
+
+    def __post_init__(self) -> None:
+        if self.input not in {"pose", "depth", "3d"}:
+            raise RuntimeConfigError(
+                f"[detections] input must be pose, depth or 3d, not {self.input!r}"
+            )
+
+
+@dataclass(frozen=True, slots=True)
 class RuntimeConfig:
     transport: TransportConfig = field(default_factory=TransportConfig)
     home: str = "paper"
@@ -147,6 +170,7 @@ class RuntimeConfig:
     timeouts: Timeouts = Timeouts()
     navigation: NavigationSettings = NavigationSettings()
     pose: PoseSource = PoseSource()
+    detections: DetectionSettings = DetectionSettings()
 
     def check(self) -> None:
         """What no single section can tell: Jazzy's NavigateToPose travels over the ``ros2``
@@ -188,6 +212,7 @@ class RuntimeConfig:
             "timeouts",
             "navigation",
             "pose",
+            "detections",
         }
         unknown = sorted(set(doc) - known)
         if unknown:
@@ -228,6 +253,9 @@ class RuntimeConfig:
                 NavigationSettings(), doc.get("navigation", {}), source, "navigation", str
             ),
             pose=_section(PoseSource(), doc.get("pose", {}), source, "pose", str),
+            detections=_section(
+                DetectionSettings(), doc.get("detections", {}), source, "detections", str
+            ),
         )
 
 

@@ -169,20 +169,16 @@ def detections(
 
 
 def detections_of(msg: Any) -> tuple[Detection, ...]:
-    found = []
-    for d in msg.detections:
-        if not d.results:
-            raise MessageError(f"detection {d.id!r} has no hypothesis")
-        hyp = d.results[0]
-        p = hyp.pose.pose.position
-        area = float(d.bbox.size_x) * float(d.bbox.size_y)
-        values = (p.x, p.y, p.z, area)
-        if not all(math.isfinite(v) for v in values) or area < 0:
-            raise MessageError(f"detection {d.id!r} has invalid numbers {values}")
-        if not hyp.hypothesis.class_id or not d.id:
-            raise MessageError("a detection without a class or an instance id")
-        found.append(Detection(str(hyp.hypothesis.class_id), str(d.id), area, (p.x, p.y, p.z)))
-    return tuple(found)
+    """A ``Detection2DArray`` whose hypotheses' poses are map-frame positions (what
+    :func:`detections` builds), read by the one converter (``objsearch.ros.detections``)."""
+    import numpy as np
+
+    from objsearch.ros.detections import DetectionError, from_pose_2d
+
+    try:
+        return from_pose_2d(msg, np.eye(4))
+    except DetectionError as exc:
+        raise MessageError(str(exc)) from None
 
 
 def event(e: Event, ns: int) -> Any:

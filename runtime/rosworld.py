@@ -3,14 +3,21 @@
 Navigation goes waypoint by waypoint along the agent's own viewpoint graph: each waypoint is a
 ``geometry_msgs/PoseStamped`` on the goal topic (``/goal_pose``, what Nav2's BT navigator and
 RViz's 2D Goal Pose use); arrival is odometry within tolerance of it; the camera view taken there
-is the first ``vision_msgs/Detection2DArray`` stamped at or after arrival. Stopping between
-waypoints is how the detector "cancels" a goal. Each goal carries a unique stamp, so sending it
-again after a lost message is harmless: the robot answers a repeated goal without moving.
+is the first detections message received after the goal was sent, stamped at or after arrival
+*and* later than the robot's clock as the agent had heard it when it sent the goal
+(``objsearch.ros.detections.view_not_before``): a robot already at the goal arrives at once, on
+an old pose, and a view of the command before (a turn whose view nobody waited for, still in
+flight) must not pass for this one's. So each view must be stamped later than anything the robot
+sent before the goal, as a camera's frames are (the stand-in robot spends one camera frame on a
+teleport between room entries). Stopping between waypoints is how the detector "cancels" a
+goal. Each goal carries a unique stamp, so sending it again after a lost message is harmless:
+the robot answers a repeated goal without moving.
 
 With ``[navigation] interface = "navigate_to_pose"`` each waypoint is a goal of Nav2's action
 instead: arrival is the goal's SUCCEEDED result (Nav2's own tolerance decides), the view is the
-first one stamped at or after it; a goal without a result in ``arrival_s`` is cancelled
-(``cancel_goal``) and sent again as a new goal; a rejected or aborted goal fails the search.
+first one stamped at or after it, by the same rule; a goal without a result in ``arrival_s``
+is cancelled (``cancel_goal``) and sent again as a new goal; a rejected or aborted goal fails the
+search.
 The pose comes from odometry or, with ``[pose] source = "tf"``, from map → base_link in /tf.
 
 Every wait has a deadline; a robot that does not answer raises :class:`RobotError` saying what
@@ -32,11 +39,13 @@ from objsearch.agent.geometry import Point, Pose, wrap_angle
 from objsearch.agent.navigation import walk_path
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
+from objsearch.ros.detections import view_not_before
 from objsearch.ros.errors import TransformError
 from objsearch.ros.tf import TransformBuffer
 from objsearch.runtime import messages as m
 from objsearch.runtime.action import STATUS_NAMES, STATUS_SUCCEEDED, ActionClient, new_goal_id
 from objsearch.runtime.config import RuntimeConfig
+from objsearch.runtime.detections_in import DetectionInput
 from objsearch.runtime.errors import MessageError, RobotError, SearchCancelled
 from objsearch.runtime.interfaces import NAV2_DISTROS, NAVIGATE_TO_POSE, wire_hashes
 from objsearch.runtime.node import Node, Requester
@@ -82,7 +91,8 @@ class RobotLink:
             node.subscribe(t.tf_static, m.TF, q.tf_static, lambda msg: self._on_tf(msg, True))
         else:
             node.subscribe(t.odometry, m.ODOMETRY, q.odometry, self._on_odometry)
-        node.subscribe(t.detections, m.DETECTIONS, q.detections, self._on_detections)
+        # The detector's views, in the map frame (runtime/detections_in.py, [detections] input).
+        self.detections = DetectionInput(node, config, self._on_view)
 
     def nav2(self) -> ActionClient:
         """The client of Nav2's action, of the distro ``[navigation] distro`` names, or (auto)
@@ -172,9 +182,7 @@ class RobotLink:
             self.heard_at = time.monotonic()
             self._cond.notify_all()
 
-    def _on_detections(self, msg: Any) -> None:
-        dets = m.detections_of(msg)
-        ns = m.stamp_ns(msg.header)
+    def _on_view(self, ns: int, dets: tuple[Detection, ...]) -> None:
         with self._cond:
             self._views.append((next(self._received), ns, dets))
             self.clock_ns = max(self.clock_ns, ns)
@@ -306,6 +314,7 @@ class RosWorld:
         goal_stamp = time.time_ns() + next(self._goal_ids)  # unique: the goal's identity
         msg = m.pose_stamped(goal, goal_stamp)
         mark = self.link.mark()
+        issued_ns = self.link.clock_ns
         t = self.timeouts
         for _attempt in range(t.attempts):
             self.link.goal_pub.publish(msg)
@@ -317,7 +326,7 @@ class RosWorld:
             self._commanded = goal
             if not view:
                 return ()
-            view_dets = self._view_at(mark, self.link.pose_ns)
+            view_dets = self._view_at(mark, self.link.pose_ns, issued_ns)
             if view_dets is not None:
                 return view_dets
         raise RobotError(
@@ -326,14 +335,16 @@ class RosWorld:
             f"of {t.arrival_s:g} s; {self.link.silence()}"
         )
 
-    def _view_at(self, mark: int, arrival_ns: int) -> tuple[Detection, ...] | None:
-        """The first view received after ``mark`` and stamped at or after ``arrival_ns``, waiting
-        up to the detections timeout; None if none came (an empty view is a view, not None)."""
+    def _view_at(self, mark: int, arrival_ns: int, issued_ns: int) -> tuple[Detection, ...] | None:
+        """The first view received after ``mark`` and stamped at or after ``arrival_ns`` and after
+        ``issued_ns`` (the robot clock when the goal was sent), waiting up to the detections
+        timeout; None if none came (an empty view is a view, not None)."""
+        after = view_not_before(arrival_ns, issued_ns)
         if not self.link.wait(
-            lambda: self.link.view_after(mark, arrival_ns) is not None, self.timeouts.detections_s
+            lambda: self.link.view_after(mark, after) is not None, self.timeouts.detections_s
         ):
             return None
-        view_dets = self.link.view_after(mark, arrival_ns)
+        view_dets = self.link.view_after(mark, after)
         assert view_dets is not None
         return view_dets
 
@@ -342,6 +353,7 @@ class RosWorld:
         where = f"({goal.x:.2f}, {goal.y:.2f}, yaw {goal.yaw:.2f})"
         what = f"{nav.name} goal to {where}"
         mark = self.link.mark()
+        issued_ns = self.link.clock_ns
         self._arrived = False
         for attempt in range(1, t.attempts + 1):
             goal_id = new_goal_id()
@@ -378,7 +390,7 @@ class RosWorld:
             self._commanded, self._arrived = goal, True
             if not view:
                 return ()
-            view_dets = self._view_at(mark, max(accepted.stamp_ns, self.link.clock_ns))
+            view_dets = self._view_at(mark, max(accepted.stamp_ns, self.link.clock_ns), issued_ns)
             if view_dets is not None:
                 return view_dets
             raise RobotError(

@@ -3,7 +3,9 @@
 It follows goals on ``/goal_pose`` along the viewpoint graph (a goal at its own position turns it
 in place and takes a view, as the simulator's ``look``), publishes ``/odom`` (map frame, at
 ``heartbeat_s`` and after every move) and one ``Detection2DArray`` per camera view, and opens
-containers on request. Its clock is the simulator's, carried in every stamp. A goal repeated with
+containers on request. Its clock is the simulator's, carried in every stamp, plus one camera
+frame (:data:`FRAME_S`) per teleport between room entries (which the simulator does in no time),
+so every view is stamped later than what the robot sent before it. A goal repeated with
 the same stamp is answered from the last reply without moving.
 
 Its camera stays level: the robot interface has no tilt command, so the agent's tilt
@@ -30,17 +32,29 @@ from __future__ import annotations
 import logging
 import queue
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from objsearch.agent.camera_frames import CAMERA_HEIGHT_M, DEFAULT_INTRINSICS, camera_to_map
+from objsearch.agent.categories import Category
+from objsearch.agent.detector_model import PerceptionModel
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point, Pose, distance
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import DEFAULT_STRATEGY, RunSpec
+from objsearch.agent.world import Detection
+from objsearch.ros.builder import MessageBuilder
+from objsearch.ros.detections import MESSAGE_TYPES
+from objsearch.ros.topics import TopicMap
+from objsearch.ros.types import Distro
 from objsearch.runtime import messages as m
 from objsearch.runtime.action import STATUS_ABORTED, STATUS_CANCELED, STATUS_SUCCEEDED, ActionServer
 from objsearch.runtime.config import RuntimeConfig
+from objsearch.runtime.detections_in import CAMERA_INFO
 from objsearch.runtime.errors import MessageError
 from objsearch.runtime.interfaces import NAV2_DISTROS
 from objsearch.runtime.node import Node, Server
@@ -51,6 +65,7 @@ from objsearch.runtime.requests import (
     parse_reset_request,
 )
 from objsearch.runtime.transport import open_transport
+from objsearch.sim.detector_model import NoisyDetector
 from objsearch.sim.longterm import PAUSE_BETWEEN_TASKS_S
 from objsearch.sim.placements import Placements, Schedule, base_placements, table1_removals
 from objsearch.sim.schedule_names import load_schedule
@@ -60,6 +75,9 @@ log = logging.getLogger("objsearch.robot")
 
 #: Commands (goals, cancels) waiting for the main loop; more are dropped with a log line.
 INBOX_SIZE = 256
+#: One frame of a 30 Hz camera: what a teleport between room entries costs in robot time, so
+#: each view has a stamp of its own, later than any sent before it, as a camera's frames do.
+FRAME_S = 1 / 30
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,6 +91,27 @@ class Faults:
     stall_after: int = 0
 
 
+class CameraOut:
+    """What a detector node with a level RGB-D camera 1 m up would send (``[detections] input =
+    "3d"``): base_link → camera_link → camera_link_optical on /tf at each view's stamp (beside
+    map → odom → base_link: over Zenoh a latched /tf_static sent before the agent joined is not
+    received), its ``CameraInfo`` and a ``Detection3DArray`` in the optical frame."""
+
+    def __init__(self, config: RuntimeConfig) -> None:
+        self.builder = MessageBuilder(Distro.ROS2, TopicMap())
+        self.intrinsics = DEFAULT_INTRINSICS
+
+    def frames(self, ns: int) -> Any:
+        return self.builder.tf_static(ns, CAMERA_HEIGHT_M, optical=True)
+
+    def info(self, ns: int) -> Any:
+        return self.builder.camera_info(ns, self.intrinsics, self.builder.frames.camera_optical)
+
+    def detections(self, ns: int, pose: Pose, dets: Sequence[Detection]) -> Any:
+        t_optical_map = np.linalg.inv(camera_to_map(pose, height=CAMERA_HEIGHT_M))
+        return self.builder.detections_3d(ns, t_optical_map, self.intrinsics, dets)
+
+
 class StandInRobot:
     def __init__(
         self,
@@ -83,6 +122,8 @@ class StandInRobot:
         start: str | None = None,
         faults: Faults = Faults(),
         heartbeat_s: float = 0.2,
+        perception: PerceptionModel | None = None,
+        seed: int = 0,
     ) -> None:
         config.check()
         self.config = config
@@ -91,13 +132,31 @@ class StandInRobot:
         self.faults = faults
         self.heartbeat_s = heartbeat_s
         self.clock = SimClock()
+        # The modelled detector (docs/perception.md); one for the robot's life, so its views are
+        # numbered across resets and a session replays exactly. None: perfect.
+        model = perception or PerceptionModel()
+        self.detector = (
+            None
+            if model.perfect
+            else NoisyDetector(model, seed, self.ctx.vocabulary.names(Category.SEMI_DYNAMIC))
+        )
+        if config.detections.input not in ("pose", "3d"):
+            raise ObjsearchError(
+                f"the stand-in robot publishes [detections] input pose or 3d, "
+                f"not {config.detections.input!r}"
+            )
+        self.camera_out = CameraOut(config) if config.detections.input == "3d" else None
         start_name = start or next(iter(self.ctx.home.starts))
         self.world = self._world(scene, start_name)
         self.node = Node(open_transport(config.transport))
         t, q = config.topics, config.qos
         self._odom = self.node.publisher(t.odometry, m.ODOMETRY, q.odometry)
         self._tf = self.node.publisher(t.tf, m.TF, q.tf)
-        self._views = self.node.publisher(t.detections, m.DETECTIONS, q.detections)
+        self._views = self.node.publisher(
+            t.detections, MESSAGE_TYPES[config.detections.input], q.detections
+        )
+        if self.camera_out is not None:
+            self._camera_info = self.node.publisher(t.camera_info, CAMERA_INFO, q.camera)
         # Goals and cancels for the main loop; bounded, so a flood is dropped, not hoarded.
         self._inbox: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=INBOX_SIZE)
         self.action: ActionServer | None = None
@@ -134,7 +193,12 @@ class StandInRobot:
     def _world(self, scene: int | None, start: str) -> SimWorld:
         pose = self.ctx.home.start(start)
         return SimWorld(
-            self.ctx.home, self.ctx.navmap, self._placements(scene), pose, clock=self.clock
+            self.ctx.home,
+            self.ctx.navmap,
+            self._placements(scene),
+            pose,
+            clock=self.clock,
+            detector=self.detector,
         )
 
     # -- output, with dropped messages as a fault ----------------------------------------------
@@ -153,7 +217,15 @@ class StandInRobot:
 
     def _publish_views(self, views: list[Any]) -> None:
         for view in views:
-            self._send(self._views, view)
+            if self.camera_out is not None:
+                # A camera's frames and calibration at the view's stamp, then its detections.
+                ns, pose, dets = view
+                self._tf.publish(m.tf(pose, ns))
+                self._tf.publish(self.camera_out.frames(ns))
+                self._camera_info.publish(self.camera_out.info(ns))
+                self._send(self._views, self.camera_out.detections(ns, pose, dets))
+            else:
+                self._send(self._views, m.detections(*view))
 
     # -- commands ------------------------------------------------------------------------------
 
@@ -262,13 +334,17 @@ class StandInRobot:
         views: list[Any] = []
         if target == here.point:
             dets = self.world.look(goal.yaw)
-            views.append(m.detections(self.world.now_ns(), self.world.pose(), dets))
+            views.append((self.world.now_ns(), self.world.pose(), dets))
         else:
             for b in self.ctx.navmap.path(here.point, target)[1:]:
+                before = self.world.now_ns()
                 self.world.navigate(b)
-                views.append(
-                    m.detections(self.world.now_ns(), self.world.pose(), self.world.view())
-                )
+                if self.world.now_ns() == before:
+                    # A teleport between room entries takes no time; its view is still a new
+                    # camera frame, stamped after everything sent before (the agent waits for
+                    # such a view: runtime/rosworld.py).
+                    self.clock.advance(FRAME_S)
+                views.append((self.world.now_ns(), self.world.pose(), self.world.view()))
             if self.world.pose().yaw != goal.yaw:
                 self.world.navigate(target, final_yaw=goal.yaw)  # turn in place, no view
         return views
@@ -284,7 +360,7 @@ class StandInRobot:
             dets = self.world.open(request.static_id)
         except ValueError as exc:
             return {"ok": False, "error": f"open request: field 'static_id': {exc}"}
-        view = m.detections(self.world.now_ns(), self.world.pose(), dets)
+        view = (self.world.now_ns(), self.world.pose(), dets)
         self._last_views = [view]
         self._publish_pose()
         self._publish_views([view])
@@ -300,7 +376,14 @@ class StandInRobot:
         except ObjsearchError as exc:
             return {"ok": False, "error": f"reset request: field 'start': {exc}"}
         self.clock.advance(PAUSE_BETWEEN_TASKS_S)
-        self.world = SimWorld(self.ctx.home, self.ctx.navmap, placements, pose, clock=self.clock)
+        self.world = SimWorld(
+            self.ctx.home,
+            self.ctx.navmap,
+            placements,
+            pose,
+            clock=self.clock,
+            detector=self.detector,
+        )
         self._last_goal = None
         self._publish_pose()
         return {"ok": True, "stamp_ns": self.world.now_ns()}

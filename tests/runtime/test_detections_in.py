@@ -1,0 +1,134 @@
+"""Scored detections from a detector node (runtime/detections_in.py): the stand-in robot sends
+its modelled detector's ``Detection3DArray`` in the camera's optical frame, the agent reads them
+through TF and camera info, a bag recorded of that session (rosbags, MCAP) replays through the
+offline pipeline (pipeline/bags/views.py) to the same decisions."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Any
+
+import pytest
+from rosbags.rosbag2 import StoragePlugin
+
+from objsearch.agent.catalogue import STORE, RunStarted, decode
+from objsearch.events import read_log
+from objsearch.pipeline.bags.views import decisions, read_recording, replay_recording
+from objsearch.ros.mcapstore import rosbag2_writer
+from objsearch.ros.qos import QoS
+from objsearch.runtime import messages as m
+from objsearch.runtime.client import AgentClient
+from objsearch.runtime.transport import open_transport
+
+from .runtime_fixtures import Net, objsearch, stop
+from .searches import client_config, find_after_reset, robot_config
+
+THREE_D = '[detections]\ninput = "3d"\n'
+#: What a recorder takes (the topics a replay needs, plus the goals for the reader's sake).
+RECORDED = {
+    "/odom": m.ODOMETRY,
+    "/tf": m.TF,
+    "/camera/color/camera_info": "sensor_msgs/msg/CameraInfo",
+    "/objsearch/detections": "vision_msgs/msg/Detection3DArray",
+    "/objsearch/events": m.EVENT,
+}
+# Table II scene 2, kept short: two searches of the realistic detector's noise.
+TRIALS = [(2, "Cup", "kitchen-1"), (2, "Apple", "living-1")]
+
+
+class Recorder:
+    """``ros2 bag record`` of a few topics: every message's CDR bytes into a rosbag2 MCAP bag."""
+
+    def __init__(self, net: Net, path: Path) -> None:
+        self.writer = rosbag2_writer(path, StoragePlugin.MCAP)
+        self.writer.open()
+        self.lock = threading.Lock()
+        self.counts: dict[str, int] = {}
+        self.conns: dict[str, Any] = {}
+        self.transport = open_transport(client_config(net).transport)
+        for topic, msgtype in RECORDED.items():
+            self.conns[topic] = self.writer.add_connection(topic, msgtype, typestore=m.store())
+            qos = QoS.parse("reliable,volatile,1000")
+            self.transport.subscribe(topic, msgtype, qos, self._on(topic))
+
+    def _on(self, topic: str) -> Any:
+        def write(data: bytes) -> None:
+            import time
+
+            with self.lock:
+                if self.writer is None:
+                    return
+                self.writer.write(self.conns[topic], time.time_ns(), data)
+                self.counts[topic] = self.counts.get(topic, 0) + 1
+
+        return write
+
+    def close(self) -> None:
+        self.transport.close()
+        with self.lock:
+            self.writer.close()
+            self.writer = None  # type: ignore[assignment]
+
+
+@pytest.mark.slow
+def test_a_recorded_bag_of_scored_3d_detections_replays_to_the_same_decisions(
+    net: Net, tmp_path: Path
+) -> None:
+    if net.transport != "zenoh":
+        pytest.skip("one transport is enough: the bytes are the same over dds")
+    config = robot_config(tmp_path, THREE_D)
+    bag = tmp_path / "session"
+    recorder = Recorder(net, bag)
+    robot = objsearch(
+        "robot",
+        "sim",
+        *net.args,
+        *config,
+        "--perception",
+        "realistic",
+        "--seed",
+        "3",
+        log=tmp_path / "robot.txt",
+    )
+    agent = objsearch(
+        "agent",
+        "run",
+        *net.args,
+        *config,
+        "--perception",
+        "realistic",
+        "--log",
+        str(tmp_path / "log"),
+        log=tmp_path / "agent.txt",
+    )
+    results = []
+    try:
+        with AgentClient(client_config(net)) as client:
+            for scene, target, start in TRIALS:
+                r = find_after_reset(client, scene, target, start)
+                assert r["ok"], (r, (tmp_path / "agent.txt").read_text()[-3000:])
+                results.append(r)
+    finally:
+        stop(agent)
+        stop(robot)
+        recorder.close()
+    live = list(read_log(tmp_path / "log", store=STORE))
+    (run,) = [decode(e, RunStarted) for e in live if e.type == "run_started"]
+    assert run.params["perception"]["preset"] == "realistic"
+    # The noise reached the agent: scores below 1 on its detection events (v3).
+    scored = [e.payload["score"] for e in live if e.type == "detection"]
+    assert scored and min(scored) < 1.0, scored
+    assert recorder.counts["/objsearch/detections"] >= len(scored) // 10
+
+    recording = read_recording(bag, input="3d")
+    assert recording.rejected == {}
+    # The bag holds every event the agent logged, as logged.
+    assert [e.event_id for e in recording.agent] == [e.event_id for e in live]
+    replay = replay_recording(recording, "paper", tmp_path / "replayed")
+    assert replay.tasks == len(TRIALS)
+    assert decisions(replay.replayed) == decisions(live)
+    ended = [e.payload for e in replay.replayed if e.type == "task_ended"]
+    assert [round(p["path_length"], 4) for p in ended] == [
+        round(r["path_length"], 4) for r in results
+    ]
