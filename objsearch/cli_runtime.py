@@ -331,6 +331,107 @@ def cmd_agent_where(args: argparse.Namespace) -> int:
     return 0 if result.get("ok") else 2
 
 
+def cmd_agent_replay(args: argparse.Namespace) -> int:
+    """A recorded robot session (a bag of the agent's events, the robot's odometry and its
+    detector's views) replayed to a fresh agent: the same decisions, or where they part."""
+    import tempfile
+
+    from objsearch.agent.errors import ObjsearchError
+    from objsearch.pipeline.bags.views import (
+        ReplayDiverged,
+        decisions,
+        first_difference,
+        read_recording,
+        replay_recording,
+    )
+    from objsearch.runtime.config import RuntimeConfig
+
+    config = RuntimeConfig.load(Path(args.config)) if args.config else RuntimeConfig()
+    if args.home:
+        config = replace(config, home=args.home)
+    if config.pose.source != "odometry":
+        raise ObjsearchError(
+            "agent replay reads the robot's poses from odometry; [pose] source = "
+            f"{config.pose.source!r} is not replayed"
+        )
+    recording = read_recording(Path(args.bag), _bag_topics(config), input=config.detections.input)
+    recorded = decisions(recording.agent)
+    doc: dict[str, Any] = {
+        "bag": args.bag,
+        "tasks": sum(e.type == "task_started" for e in recording.agent),
+        "decisions": len(recorded),
+        "same": False,
+        "first_difference": None,
+        "diverged": None,
+        "unread_views": recording.rejected,
+    }
+    with tempfile.TemporaryDirectory(prefix="objsearch-replay-") as tmp:
+        log_dir = Path(args.log) if args.log else Path(tmp) / "log"
+        try:
+            replay = replay_recording(
+                recording,
+                config.home,
+                log_dir,
+                progress=lambda tasks: t.progress(
+                    tasks, "agent replay", " tasks", enabled=not args.no_progress
+                ),
+            )
+        except ReplayDiverged as exc:
+            doc["diverged"] = str(exc)
+        else:
+            replayed = decisions(replay.replayed)
+            i = first_difference(recorded, replayed)
+            doc["same"] = i is None
+            if i is not None:
+                doc["first_difference"] = {
+                    "index": i,
+                    "recorded": _decision(recorded, i),
+                    "replayed": _decision(replayed, i),
+                }
+    if args.format == "json":
+        print(json.dumps(doc, indent=2, default=str))
+    else:
+        for why, n in recording.rejected.items():
+            print(f"note: {n} view(s) could not be read: {why}")
+        print(f"{doc['tasks']} task(s), {doc['decisions']} decision events recorded in {args.bag}")
+        if doc["same"]:
+            print("replayed: every decision as recorded")
+        elif doc["diverged"]:
+            print(f"replayed: DIFFERENT, the replay left the recording: {doc['diverged']}")
+        else:
+            d = doc["first_difference"]
+            print(f"replayed: DIFFERENT from decision event {d['index']}")
+            print(f"    recorded {d['recorded']}")
+            print(f"    replayed {d['replayed']}")
+    return 0 if doc["same"] else 1
+
+
+def _bag_topics(config: RuntimeConfig) -> Any:
+    """The bag's topic map: the topics and frames robot.toml gave the live agent."""
+    from objsearch.ros.topics import Frames, Role, TopicMap
+
+    tp = config.topics
+    return TopicMap(
+        topics={
+            tp.odometry: Role.ODOMETRY,
+            tp.tf: Role.TF,
+            tp.tf_static: Role.TF_STATIC,
+            tp.camera_info: Role.CAMERA_INFO,
+            tp.depth: Role.DEPTH,
+            tp.detections: Role.DETECTIONS,
+            tp.events: Role.EVENTS,
+        },
+        frames=Frames(map=config.pose.map_frame, base=config.pose.base_frame),
+    )
+
+
+def _decision(events: list[Any], i: int) -> Any:
+    if i >= len(events):
+        return None
+    kind, version, task, payload = events[i]
+    return {"type": kind, "version": version, "task_id": task, "payload": payload}
+
+
 def cmd_robot_sim(args: argparse.Namespace) -> int:
     from objsearch.agent.detector_model import PerceptionModel
     from objsearch.runtime.standin import Faults, StandInRobot
@@ -481,6 +582,31 @@ def register(sub: Any) -> None:
     )
     t.format_option(where, "print the result as JSON")
     where.set_defaults(func=cmd_agent_where)
+
+    replay = agent_sub.add_parser(
+        "replay",
+        help="replay a recorded robot session (a bag) to a fresh agent: the same decisions?",
+        description="Reads the agent's events, the robot's odometry and its detector's views "
+        "from BAG (the topics and [detections] input of --config's robot.toml), searches again "
+        "for each recorded task with the recorded run's settings, each robot command answered "
+        "by the recorded pose and view the live agent would take, and compares every decision. "
+        "Exit status 0 when all are the same, 1 when any differs.",
+    )
+    replay.add_argument(
+        "bag", metavar="BAG", type=t.existing_path, help="the session's bag (ROS 2 or ROS 1)"
+    )
+    replay.add_argument(
+        "--config",
+        type=t.existing_file,
+        help="the robot.toml the agent ran with (topics, frames, [detections] input, home)",
+    )
+    replay.add_argument("--home", type=t.text, help="home in data/homes (robot.toml's, else paper)")
+    replay.add_argument(
+        "--log", type=t.dir_path, help="keep the replayed agent's event log here (a new folder)"
+    )
+    t.format_option(replay, "print the comparison as JSON")
+    t.progress_option(replay)
+    replay.set_defaults(func=cmd_agent_replay)
 
     robot = sub.add_parser("robot", help="a stand-in robot and a zenoh router for it")
     robot_sub = robot.add_subparsers(dest="robot_command", required=True, metavar="SUBCOMMAND")

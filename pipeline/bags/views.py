@@ -319,9 +319,14 @@ class Replay:
     tasks: int
 
 
-def replay_recording(recording: Recording, home: str, log_dir: Path) -> Replay:
+def replay_recording(
+    recording: Recording,
+    home: str,
+    log_dir: Path,
+    progress: Callable[[list[Event]], Iterable[Event]] = iter,
+) -> Replay:
     """A fresh agent with the recorded run's spec, on a new log at ``log_dir``, searches again
-    for each recorded task on :class:`RecordedRobot`."""
+    for each recorded task on :class:`RecordedRobot` (``progress`` wraps the tasks' starts)."""
     ctx = load_context(home)
     runs = [decode(e, RunStarted) for e in recording.agent if e.type == "run_started"]
     if len(runs) != 1:
@@ -330,7 +335,7 @@ def replay_recording(recording: Recording, home: str, log_dir: Path) -> Replay:
     session = Session.start(ctx, log_dir, spec)
     tasks = [e for e in recording.agent if e.type == "task_started"]
     try:
-        for e in tasks:
+        for e in progress(tasks):
             started = decode(e, TaskStarted)
             world = RecordedRobot(ctx.navmap, recording, e.time_ns)
             session.search(
@@ -352,3 +357,15 @@ def decisions(events: Sequence[Event]) -> list[tuple[str, int, str | None, Any]]
         for e in events
         if e.type not in skip and not e.type.startswith("log_")
     ]
+
+
+def first_difference(
+    recorded: Sequence[tuple[str, int, str | None, Any]],
+    replayed: Sequence[tuple[str, int, str | None, Any]],
+) -> int | None:
+    """The index of the first decision that differs (one list ending early differs there), or
+    None when the two are the same."""
+    for i, (a, b) in enumerate(zip(recorded, replayed, strict=False)):
+        if a != b:
+            return i
+    return None if len(recorded) == len(replayed) else min(len(recorded), len(replayed))

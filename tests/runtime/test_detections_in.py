@@ -5,6 +5,7 @@ offline pipeline (pipeline/bags/views.py) to the same decisions."""
 
 from __future__ import annotations
 
+import json
 import threading
 from pathlib import Path
 from typing import Any
@@ -13,6 +14,7 @@ import pytest
 from rosbags.rosbag2 import StoragePlugin
 
 from objsearch.agent.catalogue import STORE, RunStarted, decode
+from objsearch.cli import main
 from objsearch.events import read_log
 from objsearch.pipeline.bags.views import decisions, read_recording, replay_recording
 from objsearch.ros.mcapstore import rosbag2_writer
@@ -73,7 +75,7 @@ class Recorder:
 
 @pytest.mark.slow
 def test_a_recorded_bag_of_scored_3d_detections_replays_to_the_same_decisions(
-    net: Net, tmp_path: Path
+    net: Net, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     if net.transport != "zenoh":
         pytest.skip("one transport is enough: the bytes are the same over dds")
@@ -132,3 +134,13 @@ def test_a_recorded_bag_of_scored_3d_detections_replays_to_the_same_decisions(
     assert [round(p["path_length"], 4) for p in ended] == [
         round(r["path_length"], 4) for r in results
     ]
+    # The same from the command line, with the robot.toml the agent ran with.
+    capsys.readouterr()
+    assert main(["agent", "replay", str(bag), *config, "--format", "json", "--no-progress"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert (doc["same"], doc["tasks"], doc["decisions"]) == (True, 2, len(decisions(live)))
+    # A bag of another detector's input reads no views: a clear error, not a replay of nothing.
+    assert main(["agent", "replay", str(bag), "--no-progress"]) == 2
+    assert "no camera views could be read (vision_msgs/msg/Detection2DArray" in (
+        capsys.readouterr().err
+    )
