@@ -316,7 +316,7 @@ class Session:
         try:
             if self.snapshot_dir is not None and not self.log.closed and self.hub.last_seq:
                 try:
-                    save_snapshot(self.snapshot_dir, self.hub, log=self.log)
+                    save_snapshot(self.snapshot_dir, self.hub, log=self.log, store=self.log.store)
                 except CorruptLogError:
                     raise  # the log itself is damaged: that is the error, not a missing snapshot
                 except (ObjsearchError, OSError, ValueError) as exc:

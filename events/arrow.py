@@ -23,7 +23,7 @@ import pyarrow.compute as pc
 from .envelope import Event, _Adopted, canonical_ids
 from .errors import EventStoreError
 from .schemas import SchemaRegistry
-from .store import Store, shipped
+from .store import Store
 
 ENVELOPE_COLUMNS: Final = (
     pa.field("event_id", pa.string(), nullable=False),
@@ -97,10 +97,10 @@ def payload_schema(schema: Mapping[str, Any], where: str) -> list[pa.Field]:
     return fields
 
 
-def event_schema(event_type: str, store: Store | None = None) -> pa.Schema:
+def event_schema(event_type: str, store: Store) -> pa.Schema:
     """The Arrow schema of ``event_type``'s table (its latest version in ``store``'s catalogue),
     built once per store."""
-    return _event_schema((store or shipped()).registry, event_type)
+    return _event_schema(store.registry, event_type)
 
 
 @functools.cache  # by registry identity: one per store, which lives as long as the process
@@ -117,9 +117,8 @@ def _free_form(value: Any, kind: pa.DataType) -> Any:
     return value
 
 
-def events_to_tables(events: Iterable[Event], store: Store | None = None) -> dict[str, pa.Table]:
+def events_to_tables(events: Iterable[Event], store: Store) -> dict[str, pa.Table]:
     """One typed table per event type present, rows in seq order; events upcast to latest."""
-    store = store or shipped()
     upcast = store.upcaster.upcast
     columns: dict[str, dict[str, list[Any]]] = {}
     schemas: dict[str, pa.Schema] = {}
@@ -150,13 +149,12 @@ def events_to_tables(events: Iterable[Event], store: Store | None = None) -> dic
     return {t: pa.Table.from_pydict(cols, schema=schemas[t]) for t, cols in sorted(columns.items())}
 
 
-def tables_to_events(tables: Iterable[pa.Table], store: Store | None = None) -> list[Event]:
+def tables_to_events(tables: Iterable[pa.Table], store: Store) -> list[Event]:
     """The inverse of :func:`events_to_tables`: events (latest versions) sorted by (stream, seq).
 
     Free-form objects come back from their JSON text; numbers come back as the column's type
     (a JSON integer in a ``number`` field reads as a float, which compares equal).
     """
-    store = store or shipped()
     events: list[Event] = []
     for table in tables:
         event_type = (table.schema.metadata or {}).get(b"event_type", b"").decode()

@@ -28,7 +28,7 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Final
 
 from .catalogue import DERIVED_DIR, DerivedTable
-from .store import Store, shipped
+from .store import Store
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -96,10 +96,10 @@ LEFT JOIN modes r
 )
 
 
-def derived_tables(store: Store | None = None) -> tuple[DerivedTable, ...]:
+def derived_tables(store: Store) -> tuple[DerivedTable, ...]:
     """Every derived table in dependency order: :data:`SEARCHES`, then the store's catalogue's
     (:attr:`objsearch.events.catalogue.Catalogue.derived`; the agent's are Eq. 4's)."""
-    return (SEARCHES, *(store or shipped()).catalogue.derived)
+    return (SEARCHES, *store.catalogue.derived)
 
 
 def derive_run(
@@ -108,7 +108,7 @@ def derive_run(
     robot: str,
     date: str | dt.date,
     run: str,
-    store: Store | None = None,
+    store: Store,
 ) -> dict[str, pa.Table]:
     """Every derived table of one run from its event tables (one per type; missing types are
     empty), without the partition columns, sorted as the query orders them."""
@@ -122,7 +122,6 @@ def derive_run(
     # One thread: a parallel SUM of doubles adds in whatever order the threads finish, so the
     # same run could derive a file that differs in its last bits (seen: searches.v3.parquet one
     # byte longer on a busy machine), and the file's recorded digest would not reproduce.
-    store = store or shipped()
     con = duckdb.connect(":memory:", config={"threads": 1})
     try:
         day = date.isoformat() if isinstance(date, dt.date) else date
@@ -141,7 +140,7 @@ def derive_run(
         con.close()
 
 
-def derive_views(con: Any, store: Store | None = None) -> dict[str, pa.Table]:
+def derive_views(con: Any, store: Store) -> dict[str, pa.Table]:
     """Every derived table of ``store``'s catalogue from a DuckDB connection whose per-type
     views (with ``robot``, ``date``, ``run``) hold one run, without the partition columns."""
     out: dict[str, pa.Table] = {}

@@ -68,7 +68,7 @@ from .log_torn_tail import _cut_torn_tail
 from .record import encode_new_record
 from .scan import QUARANTINED_TYPE, _Cursor, _Scan
 from .seal import Sealer
-from .store import Store, shipped
+from .store import Store
 
 __all__ = ["EventLog"]
 
@@ -130,7 +130,7 @@ class EventLog:
         *,
         create: bool = True,
         run_id: str | None = None,
-        store: Store | None = None,
+        store: Store,
         wall_clock: Callable[[], int] = time.time_ns,
         verify: str = "all",
     ) -> EventLog:
@@ -142,8 +142,8 @@ class EventLog:
         with a :class:`TornTailWarning`, keeping its bytes in a quarantine file beside the log.
         ``run_id`` is the id a log created by this call gets (a random UUID if None; pass one
         derived from a seed for reproducible logs); an existing log keeps its own.
-        ``store`` says which event types and versions exist (:func:`~objsearch.events.store.shipped`
-        if None; the product's is :data:`objsearch.agent.catalogue.STORE`).
+        ``store`` says which event types and versions exist and encodes what is appended (the
+        product's is :data:`objsearch.agent.catalogue.STORE`).
         ``wall_clock`` stamps ``recorded_at_ns``; pass a fixed one for byte-identical logs.
         ``verify="sealed"`` (an agent's fast restart) checks every byte before the durable
         high-water mark against its seals (CRC-32 of whole ranges, no parsing) and parses every
@@ -188,7 +188,7 @@ class EventLog:
                     f"event log {log_path} was replaced while it was being opened; try again"
                 )
             return cls._open_locked(
-                directory, stream, fd, lock_fd, run_id, store or shipped(), wall_clock, verify
+                directory, stream, fd, lock_fd, run_id, store, wall_clock, verify
             )
         except BaseException:
             os.close(fd)

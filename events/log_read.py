@@ -28,7 +28,7 @@ from .log_position import check_position
 from .log_torn_tail import _report
 from .scan import _Cursor, _Scan
 from .schemas import SchemaRegistry
-from .store import Store, shipped
+from .store import Store
 
 # The logger of the log before it was split: what callers and tests filter torn-tail reports by.
 _log = logging.getLogger("objsearch.events.log")
@@ -42,7 +42,7 @@ def read_log(
     from_seq: int = 1,
     to_seq: int | None = None,
     upcast: bool = True,
-    store: Store | None = None,
+    store: Store,
 ) -> Iterator[Event]:
     """Yield the events of a log with ``from_seq <= seq <= to_seq``, in order. Never writes.
 
@@ -52,12 +52,11 @@ def read_log(
     schemas: those were checked at append. An unterminated last fragment is skipped with a
     :class:`TornTailWarning`, silently while a writer holds the lock (an append in progress).
     Events of an old schema version are upcast to their type's latest (``upcast=False`` gives
-    them exactly as stored). ``store`` knows the types, versions and upcasters
-    (:func:`~objsearch.events.store.shipped` if None). Raises :class:`LogNotFoundError` at call
-    time if there is no log.
+    them exactly as stored). ``store`` knows the types, versions and upcasters (the product's is
+    :data:`objsearch.agent.catalogue.STORE`). Raises :class:`LogNotFoundError` at call time if
+    there is no log.
     """
     directory = Path(directory)
-    store = store or shipped()
     _check_seq_range(from_seq, to_seq)
     meta = read_meta(directory)
     durable = read_durable(directory)
@@ -73,7 +72,7 @@ def follow_log(
     poll_interval: float = 0.05,
     idle_timeout: float | None = None,
     upcast: bool = True,
-    store: Store | None = None,
+    store: Store,
 ) -> Iterator[Event]:
     """Yield a log's events from ``from_seq`` on, waiting for new ones as a writer appends them.
 
@@ -83,7 +82,6 @@ def follow_log(
     ``idle_timeout`` seconds without a new event (never, if None).
     """
     directory = Path(directory)
-    store = store or shipped()
     _check_seq_range(from_seq, None)
     if poll_interval <= 0:
         raise ValueError(f"poll_interval must be > 0, got {poll_interval!r}")
@@ -177,12 +175,11 @@ def read_log_after(
     position: LogPosition,
     *,
     upcast: bool = True,
-    store: Store | None = None,
+    store: Store,
 ) -> Iterator[Event]:
     """The events after ``position`` (checked to be where it says), verified like
     :func:`read_log` from there on; the prefix is not read (a restart from a snapshot)."""
     directory = Path(directory)
-    store = store or shipped()
     meta = read_meta(directory)
     check_position(directory, meta, position)
     durable = read_durable(directory)

@@ -38,7 +38,7 @@ from .repair_plan import Plan, RepairAction, plan_repair
 from .scan import QUARANTINED_TYPE, _Scan
 from .schemas import SchemaRegistry
 from .seal import Sealer, check_seals
-from .store import Store, shipped
+from .store import Store
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,7 +87,7 @@ def _unwatched(items: Iterable[T], /) -> Iterable[T]:
 def verify_log(
     directory: Path | str,
     *,
-    store: Store | None = None,
+    store: Store,
     progress: Progress = _unwatched,
 ) -> Verification:
     """Read every record and check it, and the seals of ``durable.json``; raise
@@ -97,7 +97,7 @@ def verify_log(
     meta = read_meta(directory)
     record = read_durable_record(directory)
     durable = None if record is None else record.position
-    registry = (store or shipped()).registry
+    registry = store.registry
     scan = _Scan(directory / LOG_FILE, meta, registry=registry, durable=durable, payloads=False)
     # every record checked; none kept
     collections.deque(progress(scan), maxlen=0)
@@ -120,7 +120,7 @@ def repair_log(
     directory: Path | str,
     *,
     wall_clock: Callable[[], int] = time.time_ns,
-    store: Store | None = None,
+    store: Store,
     progress: Progress = _unwatched,
 ) -> Repair:
     """Make ``directory`` a clean log again, removing only what is damaged and keeping every
@@ -153,7 +153,7 @@ def repair_log(
                 f"event log {directory} is open for writing; stop its writer first"
             )
         try:
-            registry = (store or shipped()).registry
+            registry = store.registry
             return _repair_locked(directory, meta, wall_clock, registry, progress)
         finally:
             os.close(lock_fd)

@@ -46,7 +46,7 @@ from .log_position import check_position
 from .log_read import read_log, read_log_after
 from .projection import fold
 from .record import encode_record
-from .store import Store, shipped
+from .store import Store
 
 SNAPSHOT_FORMAT: Final = "objsearch.snapshot/1"
 #: A snapshot file larger than this is not read (the log is folded instead): a cache is never
@@ -96,7 +96,7 @@ def save_snapshot(
     projection: Snapshottable,
     *,
     log: EventLog | Path | str,
-    store: Store | None = None,
+    store: Store,
 ) -> Path:
     """Write ``projection``'s snapshot (at its ``last_seq``, > 0) of ``log`` and have the log's
     writer attest it.
@@ -159,12 +159,11 @@ def restore(
     *,
     snapshot_dir: Path | str,
     save: bool = True,
-    store: Store | None = None,
+    store: Store,
 ) -> tuple[P, Restored]:
     """The projection of the whole log: from a trusted snapshot plus the events after it, else
     rebuilt by a full fold (the log read with ``store``). With ``save``, a fresh snapshot is
     written at the end."""
-    store = store or shipped()
     fresh = factory()
     path = snapshot_path(Path(snapshot_dir), fresh.snapshot_name)
     rejected = None

@@ -8,8 +8,9 @@ and the lake — the way ``eventsourcing`` hands an application its mapper. Noth
 anywhere and no import has a side effect: two stores with different catalogues live side by side
 in one process, and each compiles its schemas, upcasters and Arrow schemas once, on first use.
 
-The product's store is :data:`objsearch.agent.catalogue.STORE`. A function called without a
-store uses :func:`shipped`: the schema files in ``objsearch.events/schema/`` alone, with no
+The product's store is :data:`objsearch.agent.catalogue.STORE`. Every reader and writer takes
+its store as a required argument: none falls back to a bare one. :func:`shipped` is the store a
+caller may name on purpose: the schema files in ``objsearch.events/schema/`` alone, with no
 upcasters (reading an old version is then an error that says so), no fast payload check (the
 JSON Schema validates every append) and no derived tables besides ``searches``.
 """
