@@ -94,12 +94,13 @@ def _ros_environment(config: RuntimeConfig) -> None:
 
 
 def _node_named(config: RuntimeConfig, name: str) -> RuntimeConfig:
-    """On ROS 2 every node is listed by name and two of one name confuse the graph tools: the
-    stand-in and the clients take their own unless robot.toml names the node."""
-    from objsearch.runtime.transport import Backend, TransportConfig
+    """Every transport puts its node on ROS 2's graph (rclpy; ros_discovery_info over dds;
+    liveliness tokens over zenoh), and two of one name confuse the graph tools: the stand-in
+    and the clients take their own unless robot.toml names the node."""
+    from objsearch.runtime.transport import TransportConfig
 
     t = config.transport
-    if t.backend is not Backend.ROS2 or t.node != TransportConfig().node:
+    if t.node != TransportConfig().node:
         return config
     return replace(config, transport=replace(t, node=name))
 

@@ -105,6 +105,11 @@ class ActionClient:
         response = self._result.call(request, timeout_s)
         return None if response is None else Outcome(int(response.status), response.result)
 
+    def why_unanswered(self) -> str | None:
+        """What the transport can tell about a send_goal nobody answered (None: nothing)."""
+        why = getattr(self._send.transport_client, "why_unanswered", None)
+        return None if why is None else why()
+
     def cancel(self, goal_id: bytes, timeout_s: float) -> int | None:
         """The CancelGoal return code, or None without an answer."""
         request = m.types()[f"{CANCEL_GOAL}_Request"](goal_info=_goal_info(goal_id, 0))

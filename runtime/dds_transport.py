@@ -43,6 +43,8 @@ BATCH = 64
 log = logging.getLogger("objsearch.runtime")
 
 #: DDS QoS policy ids (the DDS specification's numbering, Cyclone's ``dds_qos_policy_id_t``), as
+#: The RTPS vendor id eProsima's Fast DDS puts at the head of its GUIDs (OMG's vendor list).
+FAST_DDS_VENDOR = b"\x01\x0f"
 #: an incompatible-QoS status names the last policy that failed to match.
 POLICY_NAMES = {
     2: "durability",
@@ -281,6 +283,7 @@ class _DdsClient:
         from cyclonedds.sub import DataReader
 
         rq, rr = service_topics(service)
+        self.service = service
         self._req_cls = idl_type(f"{srvtype}_Request", request_header=True)
         self._guid = int.from_bytes(os.urandom(8), "little") >> 1
         self._seq = itertools.count(1)
@@ -312,6 +315,27 @@ class _DdsClient:
         )
         transport._entities += [self._writer, self._reader]
         transport._announce(readers=[self._reader], writers=[self._writer])
+
+    def why_unanswered(self) -> str | None:
+        """Why no server answered, if the graph can tell: a server whose request reader this
+        client's writer matched belongs to a Fast DDS participant (RTPS vendor id 0x010F at the
+        head of its GUID), which cannot read rmw_cyclonedds' request header (it travels in the
+        payload here; Fast DDS identifies requests in the RTPS inline QoS)."""
+        vendors = set()
+        for handle in self._writer.get_matched_subscriptions():
+            data = self._writer.get_matched_subscription_data(handle)
+            if data is not None:
+                vendors.add(data.participant_key.bytes[:2])
+        if FAST_DDS_VENDOR in vendors:
+            return (
+                f"the server of {self.service} is a Fast DDS node (rmw_fastrtps_cpp): the dds "
+                "transport's services meet rmw_cyclonedds servers only; use --transport ros2 "
+                "to call a Fast DDS robot's services (docs/runtime.md, the transport x "
+                "capability matrix)"
+            )
+        if not vendors:
+            return f"no server of {self.service} on the graph"
+        return None
 
     def call(self, request: bytes, timeout_s: float) -> bytes | None:
         deadline = time.monotonic() + timeout_s

@@ -49,6 +49,7 @@ class TypedPublisher:
 class TypedClient:
     def __init__(self, client: ServiceClient, service: str, srvtype: str) -> None:
         self._client = client
+        self.transport_client = client
         self.service = service
         self.srvtype = srvtype
 

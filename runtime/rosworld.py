@@ -363,8 +363,11 @@ class RosWorld:
             )
             accepted = nav.send_goal(goal_id, request, t.robot_s)
             if accepted is None:
+                why = nav.why_unanswered()  # a server that cannot answer this transport
                 raise RobotError(
-                    f"no answer to {what} (send_goal) within {t.robot_s:g} s; {self.link.silence()}"
+                    f"no answer to {what} (send_goal) within {t.robot_s:g} s; "
+                    + (f"{why}; " if why else "")
+                    + self.link.silence()
                 )
             if not accepted.accepted:
                 raise RobotError(f"the robot rejected the {what}")

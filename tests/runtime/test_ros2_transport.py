@@ -114,7 +114,14 @@ def test_the_agent_is_a_node_with_valid_type_hashes(caplog: pytest.LogCaptureFix
         heard: list[str] = []
         peer.create_subscription(String, "/chatter", lambda msg: heard.append(msg.data), 10)
         pub = agent.publisher("/chatter", m.STRING, DEFAULT)
-        until(lambda: peer.count_publishers("/chatter") == 1, "publisher matched")
+        # Matched, and the node it belongs to known (until then rclpy says _NODE_NAME_UNKNOWN_).
+        until(
+            lambda: (
+                [i.node_name for i in peer.get_publishers_info_by_topic("/chatter")]
+                == ["objsearch"]
+            ),
+            "publisher matched, with its node",
+        )
         publish_until(
             lambda: pub.publish(m.encode(m.string("hi"), m.STRING)), lambda: bool(heard), "heard"
         )
@@ -278,7 +285,7 @@ def test_whole_searches_over_ros2_equal_the_simulator(tmp_path: Path) -> None:
     assert heard[0] <= first_task, (heard[0], first_task)
 
 
-def test_the_dds_transport_meets_rclpy_on_topics_not_services() -> None:
+def test_the_dds_transport_meets_rclpy_on_topics_not_services(tmp_path: Path) -> None:
     """Our Cyclone DDS transport (no ROS 2 installed) and an rclpy node on Fast DDS: the agent
     is a node of the graph with valid type hashes, topics flow both ways; a service does not (rmw_cyclonedds' request header travels in the payload,
     Fast DDS's in the RTPS inline QoS), which is what ``--transport ros2`` is for. Should the
@@ -287,6 +294,7 @@ def test_the_dds_transport_meets_rclpy_on_topics_not_services() -> None:
     from std_msgs.msg import String
 
     domain = next_domain()
+    log = tmp_path / "robot.txt"
     dds = open_transport(TransportConfig(backend=Backend.DDS, domain_id=domain))
     try:
         with rclpy_node("fastdds_peer", domain) as peer:
@@ -327,5 +335,26 @@ def test_the_dds_transport_meets_rclpy_on_topics_not_services() -> None:
             client = action.ActionClient(Node(dds), "/navigate_to_pose", NAV)
             goal = m.types()[f"{NAV}_Goal"](pose=m.pose_stamped(Pose(0, 0, 0), 0), behavior_tree="")
             assert client.send_goal(action.new_goal_id(), goal, 3.0) is None  # no answer
+            # ... and the agent can say why rather than only that it timed out.
+            why = client.why_unanswered()
+            assert why is not None and why.startswith(
+                "the server of /navigate_to_pose/_action/send_goal is a Fast DDS node "
+                "(rmw_fastrtps_cpp): the dds transport's services meet rmw_cyclonedds servers "
+                "only; use --transport ros2"
+            ), why
+            # The stand-in started over dds is a node of its own name (it was a second
+            # /objsearch beside the agent).
+            robot = objsearch(
+                "robot", "sim", "--transport", "dds", "--domain-id", str(domain), log=log
+            )
+            try:
+                until(
+                    lambda: ("objsearch_robot", "/") in peer.get_node_names_and_namespaces(),
+                    "the stand-in listed as objsearch_robot",
+                )
+            finally:
+                stop(robot)
+            names = [n for n, _ in peer.get_node_names_and_namespaces()]
+            assert names.count("objsearch") == 1, names
     finally:
         dds.close()
