@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
+from devtools.killtest import tree
+from devtools.lake_battery import build_lake, run_cli
 from objsearch.events.lake_table import RUN_TYPE, TABLE_DIR, TableLake
-from objsearch.lake_battery import build_lake, run_cli
-from objsearch.testing.killtest import tree
 
 SQL = "SELECT run, count(*) AS n FROM detection GROUP BY run ORDER BY run"
 

@@ -19,9 +19,9 @@ from pathlib import Path
 import boto3
 import pytest
 
+from devtools.killtest import KillServer, table_content
 from objsearch.agent.catalogue import STORE
 from objsearch.events.lake_table import TABLE_DIR, TableLake, add_log
-from objsearch.testing.killtest import KillServer, table_content
 
 from .lake_logs import two_type_log
 

@@ -46,10 +46,10 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from objsearch.cli_battery import BatteryOutcome, run_in_process
+from devtools.cli_battery import BatteryOutcome, run_in_process
+from devtools.killtest import tree
 from objsearch.events.derived import derived_tables
 from objsearch.product import STORE
-from objsearch.testing.killtest import tree
 
 COLUMNS = ("clear error", "unchanged", "traceback", "silent change", "loss")
 #: The runs of the battery's lake: (run name, target); every search starts in kitchen-1.
@@ -95,7 +95,7 @@ def every_row_sql() -> str:
 
 
 def run_cli(argv: Sequence[str]) -> BatteryOutcome:
-    """:func:`objsearch.cli_battery.run_in_process` with the CLI's log lines (the warnings that
+    """:func:`devtools.cli_battery.run_in_process` with the CLI's log lines (the warnings that
     name damaged runs) added to the captured stderr."""
     lines = io.StringIO()
     handler = logging.StreamHandler(lines)

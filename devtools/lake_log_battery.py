@@ -2,7 +2,7 @@
 (``_run`` files) every way a careless hand or a broken sync can, then ask it everything through
 the command line and hold it to "never answer wrong, never make a loss permanent".
 
-The lake is :func:`objsearch.lake_battery.build_lake`'s (three runs, one ``objsearch lake add``
+The lake is :func:`devtools.lake_battery.build_lake`'s (three runs, one ``objsearch lake add``
 each, so one commit file a run), and a compacted copy of it (``objsearch lake compact``: its
 newest commit is the compaction's, read from a checkpoint). Each variant is a copy of one of them
 with one edit (:data:`KINDS`): an ``add``, ``txn`` or ``commitInfo`` line of a commit removed, an
@@ -47,10 +47,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from objsearch.cli_battery import BatteryOutcome
+from devtools.cli_battery import BatteryOutcome
+from devtools.killtest import tree
+from devtools.lake_battery import COLUMNS, answer_rows, build_lake, every_row_sql, run_cli
 from objsearch.events.lake_table import HEAD_FILE, RUN_TYPE, TABLE_DIR, TableLake
-from objsearch.lake_battery import COLUMNS, answer_rows, build_lake, every_row_sql, run_cli
-from objsearch.testing.killtest import tree
 
 #: The run ``lake add`` adds to each damaged copy: (run name, target).
 ADDED = ("phone", "Phone")
@@ -252,7 +252,7 @@ def judge(
     commands: dict[str, BatteryOutcome],
     changed_by_reading: bool,
 ) -> tuple[str, str]:
-    """The verdict of one variant (:data:`~objsearch.lake_battery.COLUMNS`) and why; see the
+    """The verdict of one variant (:data:`~devtools.lake_battery.COLUMNS`) and why; see the
     module's docstring. ``commands``: query, ls, verify, compact, compacted query, add, added
     query."""
     crash = _crash(list(commands.items()))

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from objsearch.cli_battery import BatteryOutcome, run_in_process
+from devtools.cli_battery import BatteryOutcome, run_in_process
 from objsearch.events import Event, read_log
 from objsearch.events.envelope import deterministic_event_id
 from objsearch.events.lake_table import TableLake, TableLakeError
