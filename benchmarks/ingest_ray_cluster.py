@@ -51,7 +51,7 @@ from typing import Any
 from ingest import record_bags
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake_table import TableLake
+from objsearch.events.lake import TableLake
 from objsearch.pipeline.bags.engines import RayEngine
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.ingest import ingest

@@ -29,7 +29,7 @@ from events import _write_log, synthetic_run
 PROBE = """
 import logging, sys
 logging.basicConfig(level=logging.WARNING)
-logging.getLogger("objsearch.events.lake_table").setLevel(logging.INFO)
+logging.getLogger("objsearch.events.lake").setLevel(logging.INFO)
 from objsearch.cli import main
 rc = main(sys.argv[1:])
 # VmHWM: this process image's peak. Not ru_maxrss: Linux carries the peak of the image before
@@ -43,7 +43,7 @@ sys.exit(rc)
 READ = """
 import sys
 import duckdb, deltalake  # the add's imports: the CLI, the fleet lake and what it reads with
-import objsearch.cli, objsearch.events.lake_table
+import objsearch.cli, objsearch.events.lake
 from objsearch.events import read_log
 from objsearch.product import STORE
 n = sum(1 for _ in read_log(sys.argv[1], store=STORE))

@@ -52,7 +52,8 @@ import pyarrow as pa
 from lake_writers import write_logs
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake_table import TableLake, TableRun, add_log, run_parts
+from objsearch.events.lake import TableLake, TableRun, add_log
+from objsearch.events.lake.schema import run_parts
 from objsearch.events.sql_limits import close
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.identity import bag_identity

@@ -40,23 +40,20 @@ from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
-# devtools/ (the harnesses, not installed) is a folder of the checkout, beside this one's.
-sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
-
-from devtools.s3server import s3_server
 from events import synthetic_run
 from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog
-from objsearch.events.lake_table import TableLake, add_log
+from objsearch.events.lake import TableLake, add_log
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query
+from objsearch.testing.s3server import s3_server
 
 WRITER = """
 import json, sys, time
 from pathlib import Path
-import objsearch.events.lake_table as lt
+import objsearch.events.lake.rewrite as lt
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake_table import TableLake, add_log
+from objsearch.events.lake import TableLake, add_log
 if int(sys.argv[2]):  # --compact-every: every writer compacts that often, none waits for another
     lt.COMPACT_AT_FILES = int(sys.argv[2])
     lt.COMPACTION_CLAIM_FRESH_S = 0.0

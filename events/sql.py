@@ -24,7 +24,7 @@ import pyarrow as pa
 
 from .arrow import ENVELOPE_COLUMNS, event_schema
 from .errors import EventStoreError
-from .lake_table import DataFile, TableLake
+from .lake import DataFile, TableLake
 from .sql_quote import quote_ident, quote_literal
 
 PARTITION_COLUMNS: Final = (("robot", "VARCHAR"), ("date", "DATE"), ("run", "VARCHAR"))
@@ -86,7 +86,7 @@ def create_fleet_views(
     files: Sequence[DataFile],
     only: Collection[str] | None = None,
 ) -> None:
-    """The per-type views and ``events`` over the fleet lake's table (:mod:`.lake_table`),
+    """The per-type views and ``events`` over the fleet lake's table (:class:`~.lake.TableLake`),
     reading ``files`` (its current data files, damaged ones left out): one ``read_parquet`` of
     a few files per type, however many runs the table holds, with the run's columns ``robot``,
     ``date``, ``run`` and every type's schema (the empty view of a type no file holds too). A remote lake's types are read through its Arrow datasets.

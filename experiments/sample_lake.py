@@ -15,8 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake_folder_v1 import check_lake_location
-from objsearch.events.lake_table import TableLake, add_log
+from objsearch.events.lake import TableLake, add_log, open_lake
 from objsearch.experiments.runner import Job, run_job
 
 HOMES = ("ithor-01", "procthor-00")
@@ -41,8 +40,7 @@ def write_sample_lake(
 ) -> TableLake:
     """Run every (home, strategy, seed) on ``stats-<seed>`` schedules and add each log to a
     fleet lake at ``out`` (new or empty); returns the lake."""
-    check_lake_location(out)
-    lake = TableLake(out, store=STORE)
+    lake = open_lake(out, store=STORE)
     with tempfile.TemporaryDirectory(prefix="objsearch-sample-") as tmp:
         for home in homes:
             for strategy in strategies:

@@ -15,7 +15,7 @@ import sys
 import uuid
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from objsearch import cli_types as t
 from objsearch.agent.errors import ObjsearchError
@@ -26,6 +26,9 @@ from objsearch.events.sql_limits import (
     MIN_MEMORY_LIMIT,
     format_size,
 )
+
+if TYPE_CHECKING:
+    from objsearch.events.lake import TableLake
 
 DEFAULT_LAKE = "out/lake"
 EXIT_USAGE = 2
@@ -345,20 +348,17 @@ def _remote(lake: str) -> bool:
     return "://" in lake
 
 
-def _existing_lake(where: str) -> None:
-    """Raise unless a fleet lake is at ``where`` (a per-run-folder lake gets the migration's
-    command); warn of old run folders beside its table."""
-    from objsearch.events.lake import LakeError
-    from objsearch.events.lake_folder_v1 import is_folder_lake, refuse_folder_lake
-    from objsearch.events.lake_table import is_table_lake
+def _existing_lake(where: str) -> TableLake:
+    """The fleet lake at ``where``, or an error (a per-run-folder lake gets the migration's
+    command: :func:`~objsearch.events.lake.open_lake`); warn of old run folders beside its
+    table."""
+    from objsearch.events.lake import open_lake
+    from objsearch.events.lake.folder_v1 import is_folder_lake, left_run_folders
+    from objsearch.product import STORE
 
-    refuse_folder_lake(where)
-    if not is_table_lake(where):
-        raise LakeError(
-            f"no lake at {where} (add runs with `objsearch lake add LOG --lake {where}`)"
-        )
-    if is_folder_lake(where):  # what `lake upgrade` left in place: said, not hidden
-        left = sorted(Path(where).glob("robot=*/date=*/run=*"))
+    lake = open_lake(where, store=STORE, existing=True)
+    if not lake.remote and is_folder_lake(where):  # what `lake upgrade` left: said, not hidden
+        left = left_run_folders(where)
         print(
             f"objsearch: warning: {where} also holds {len(left)} run folder(s) of the old "
             f"per-run-folder format that `lake upgrade` left in place (damaged, or a run the "
@@ -366,6 +366,7 @@ def _existing_lake(where: str) -> None:
             "command reads them",
             file=sys.stderr,
         )
+    return lake
 
 
 def cmd_lake_add(args: argparse.Namespace) -> int:
@@ -383,16 +384,15 @@ def cmd_lake_add(args: argparse.Namespace) -> int:
 
 
 def _lake_add(args: argparse.Namespace) -> int:
-    from objsearch.events.lake_folder_v1 import check_lake_location
-    from objsearch.events.lake_table import TableLake, add_log
+    from objsearch.events.lake import add_log, open_lake
     from objsearch.pipeline.bags.lake import refuse_a_log_a_session_holds
     from objsearch.product import STORE
 
-    check_lake_location(args.lake)
+    lake = open_lake(args.lake, store=STORE)
     refuse_a_log_a_session_holds(Path(args.log), args.lake)
     info = add_log(
         Path(args.log),
-        TableLake(args.lake, store=STORE),
+        lake,
         robot=args.robot,
         run=args.run,
         date=args.date,
@@ -423,11 +423,7 @@ def _lake_add(args: argparse.Namespace) -> int:
 
 
 def cmd_lake_compact(args: argparse.Namespace) -> int:
-    from objsearch.events.lake_table import TableLake
-    from objsearch.product import STORE
-
-    _existing_lake(args.lake)
-    done = TableLake(args.lake, store=STORE).compact(vacuum_hours=args.keep_hours)
+    done = _existing_lake(args.lake).compact(vacuum_hours=args.keep_hours)
     print(
         f"{args.lake}: {done['files_before']} data file(s) → {done['files_after']}; "
         f"{done['vacuumed']} unreferenced file(s) deleted"
@@ -440,8 +436,9 @@ def cmd_lake_upgrade(args: argparse.Namespace) -> int:
     import contextlib
     import shutil
 
-    from objsearch.events.lake_folder_v1 import check_lake_location, is_folder_lake, migrate
-    from objsearch.events.lake_table import TABLE_FORMAT, TableLake, is_table_lake
+    from objsearch.events.lake import TABLE_FORMAT, TableLake, is_table_lake, open_lake
+    from objsearch.events.lake.folder_v1 import is_folder_lake, migrate
+    from objsearch.pipeline.bags.ledger import BagLedger
     from objsearch.product import STORE
 
     source = Path(args.lake)
@@ -461,12 +458,13 @@ def cmd_lake_upgrade(args: argparse.Namespace) -> int:
             print(f"{source}: already a fleet lake ({TABLE_FORMAT}); nothing to upgrade")
             return 0
         return _fail(f"{source} holds no per-run-folder lake to upgrade")
-    if args.into is not None:
-        check_lake_location(args.into)
-    fleet = TableLake(target, store=STORE)
+    # The one command that opens a per-run-folder lake's folder as a fleet lake (it writes the
+    # table beside the old runs); --into is opened as every command opens a lake.
+    fleet = TableLake(target, store=STORE) if args.into is None else open_lake(target, store=STORE)
     done = migrate(
         source,
         fleet,
+        bags=BagLedger(fleet),
         progress=lambda runs: t.progress(
             runs, "lake upgrade", " runs", enabled=not args.no_progress
         ),
@@ -507,18 +505,14 @@ def cmd_lake_verify(args: argparse.Namespace) -> int:
     if args.lake_dir is not None and args.lake is not None and args.lake_dir != args.lake:
         return _fail(f"two lakes given ({args.lake_dir} and --lake {args.lake}); give one")
     where = args.lake_dir or args.lake or _default_lake()
-    _existing_lake(where)
-    return _verify_fleet(where, args.format == "json", not args.no_progress)
+    return _verify_fleet(_existing_lake(where), where, args.format == "json", not args.no_progress)
 
 
-def _verify_fleet(where: str, as_json: bool, progress: bool) -> int:
+def _verify_fleet(lake: TableLake, where: str, as_json: bool, progress: bool) -> int:
     import time
 
-    from objsearch.events.lake_table import TableLake
-    from objsearch.product import STORE
-
     started = time.perf_counter()
-    check = TableLake(where, store=STORE).verify(
+    check = lake.verify(
         progress=lambda files: t.progress(files, "lake verify", " files", enabled=progress)
     )
     seconds = time.perf_counter() - started
@@ -557,11 +551,7 @@ def _verify_fleet(where: str, as_json: bool, progress: bool) -> int:
 
 
 def cmd_lake_ls(args: argparse.Namespace) -> int:
-    from objsearch.events.lake_table import TableLake
-    from objsearch.product import STORE
-
-    _existing_lake(args.lake)  # as query says: listing nothing would hide a wrong path
-    fleet = TableLake(args.lake, store=STORE)
+    fleet = _existing_lake(args.lake)  # as query says: listing nothing would hide a wrong path
     # refuses a table that does not hold what its runs recorded; lists past a damaged `_run`
     # file, then says which runs it could not list
     table = fleet.table()

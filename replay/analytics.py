@@ -44,11 +44,10 @@ import duckdb
 
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.scene_graph_sql import LIMIT_SEQ, LIMIT_TIME, SCENE_GRAPH_BODY
-from objsearch.events import lake_table
 from objsearch.events.derived import derived_tables
-from objsearch.events.lake import LakeError
-from objsearch.events.lake_folder_v1 import refuse_folder_lake
-from objsearch.events.lake_table import TableLake, derived_column, derived_kind, is_table_lake
+from objsearch.events.lake import TableLake, open_lake
+from objsearch.events.lake import rewrite as lake_rewrite
+from objsearch.events.lake.schema import derived_column, derived_kind
 from objsearch.events.sql import (
     check_read_only,
     create_fleet_views,
@@ -169,7 +168,7 @@ def open_analytics(
     bounded (:mod:`~objsearch.events.sql_limits`: ``memory_limit`` bytes of buffers, ``threads``,
     spill space in a private temp directory; :func:`run_query` bounds the time).
 
-    ``lake_dir`` is a fleet lake (:mod:`objsearch.events.lake_table`): a folder or an ``s3://``
+    ``lake_dir`` is a fleet lake (:func:`objsearch.events.lake.open_lake`): a folder or an ``s3://``
     address. A per-run-folder lake is refused (``objsearch lake upgrade`` migrates it), and so
     is a place that holds no lake. The checks of the table's data files and what a damaged
     one costs the views are :func:`_open_fleet`'s.
@@ -178,14 +177,8 @@ def open_analytics(
     ``objsearch query`` does: every view made is bound, which reads its files' footers, so a
     query pays for the views it uses, not for all thirty).
     """
-    refuse_folder_lake(lake_dir)
-    remote = "://" in str(lake_dir)
-    if not is_table_lake(lake_dir):
-        raise LakeError(
-            f"no lake at {lake_dir} (add runs with `objsearch lake add LOG --lake {lake_dir}`)"
-        )
     return _open_fleet(
-        TableLake(lake_dir if remote else Path(lake_dir).absolute(), store=STORE),
+        open_lake(lake_dir, store=STORE, existing=True),
         memory_limit=memory_limit,
         threads=threads,
         for_sql=for_sql,
@@ -195,7 +188,7 @@ def open_analytics(
 def _open_fleet(
     lake: TableLake, *, memory_limit: int, threads: int, for_sql: str | None
 ) -> duckdb.DuckDBPyConnection:
-    """:func:`open_analytics` of the fleet lake (:mod:`objsearch.events.lake_table`): views over
+    """:func:`open_analytics` of the fleet lake (:class:`objsearch.events.lake.TableLake`): views over
     the table's current files, a handful per type once compacted, whatever the number of runs.
     A data file that is missing, of another size than the table's log records, or cut is left
     out with a warning naming it."""
@@ -206,14 +199,14 @@ def _open_fleet(
     # the table's log against the runs' records: an `add` removed, the newest commit deleted
     # (a damaged `_run` file is among those left out above)
     lake.check_runs(table)
-    if lake.remote and len(files) > lake_table.COMPACT_AT_FILES:
+    if lake.remote and len(files) > lake_rewrite.COMPACT_AT_FILES:
         # each file costs requests of its own: 850 small ones took 16.5 s to read, 1.5 s compacted
         _log.warning(
             "%s: %d data files (a commit adds one a type; the next `lake add` compacts past "
             "%d): queries read each; `objsearch lake compact --lake %s` makes few of them",
             lake.root,
             len(files),
-            lake_table.COMPACT_AT_FILES,
+            lake_rewrite.COMPACT_AT_FILES,
             lake.root,
         )
     by_kind = {f.kind for f in files}

@@ -4,15 +4,15 @@ refused: ``objsearch lake upgrade`` migrates it."""
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.errors import ObjsearchError
 from objsearch.events import Event, read_log
-from objsearch.events.lake_folder_v1 import refuse_folder_lake
-from objsearch.events.lake_run_read import RunReader
-from objsearch.events.lake_table import TableLake, TableRun, is_table_lake
+from objsearch.events.lake import NoLakeError, TableRun, is_table_lake, open_lake
+from objsearch.events.lake.run_read import RunReader
 
 
 def is_log(path: Path) -> bool:
@@ -60,9 +60,9 @@ def table_lake_stream(
     """The agent's events of the one run of the fleet lake at ``where`` that ``run`` / ``robot``
     select, streamed: every row of the run is read and checked against what its commit
     recorded before the first event is handed out, then read again a few thousand rows at a
-    time (:class:`~objsearch.events.lake_run_read.RunReader`), so a fold from a lake run costs
+    time (:class:`~objsearch.events.lake.run_read.RunReader`), so a fold from a lake run costs
     about the memory of a fold from its log."""
-    lake = TableLake(where, store=STORE)
+    lake = open_lake(where, store=STORE)
     table = lake.table()
     info = _one_run(lake.runs(table), where, run=run, robot=robot)
     reader = RunReader(lake, info, table)
@@ -86,5 +86,6 @@ def open_events(
         if run is not None or robot is not None:
             raise ObjsearchError(f"{path} is an event log, not a lake: --run/--robot do not apply")
         return read_log(path, store=STORE), str(path)
-    refuse_folder_lake(path)
+    with contextlib.suppress(NoLakeError):  # a per-run-folder lake is refused, naming its migration
+        open_lake(path, store=STORE, existing=True)
     raise ObjsearchError(f"{path} is neither an event log (no meta.json) nor a lake")

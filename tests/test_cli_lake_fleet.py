@@ -11,7 +11,7 @@ import pytest
 from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
 from objsearch.events import EventLog
-from objsearch.events.lake_table import is_table_lake
+from objsearch.events.lake import is_table_lake
 
 EVENTS = 4
 

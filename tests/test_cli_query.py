@@ -18,12 +18,12 @@ from pathlib import Path
 
 import pytest
 
-from devtools.killtest import tree
 from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
-from objsearch.events.lake_table import DataFile, TableLake, is_table_lake
+from objsearch.events.lake import DataFile, TableLake, is_table_lake
 from objsearch.events.sql_limits import QueryLimitError, close
 from objsearch.replay.analytics import open_analytics, run_query, stream_query
+from objsearch.testing.killtest import tree
 
 
 @pytest.fixture(scope="module")
@@ -346,7 +346,7 @@ def test_lake_add_checks_the_whole_name(
     # Refused by the option's type (control characters, empty) or by the lake's name check.
     assert err.startswith("objsearch: error: ") and "robot" in err
     assert repr(name) in err or "must not be empty" in err
-    assert not is_table_lake(tmp_path / "l") or TableLake(tmp_path / "l").runs() == []
+    assert not is_table_lake(tmp_path / "l") or TableLake(tmp_path / "l", store=STORE).runs() == []
 
 
 def test_every_event_has_its_time_as_a_timestamp(

@@ -1,4 +1,4 @@
-"""Where ingested bags go: the fleet lake (:mod:`objsearch.events.lake_table`), one run per
+"""Where ingested bags go: the fleet lake (:class:`objsearch.events.lake.TableLake`), one run per
 recording.
 
 Ingest needs three things of the lake, behind the :class:`LakeWriter` seam: which bags are in it
@@ -7,8 +7,8 @@ keep the report of a bag that made no run, and to commit a bag into its run (``c
 :class:`FleetBagLake` does them with the fleet lake's Delta table (in a folder or a bucket), so
 bags and added agent logs share one table, one set of columns and one set of DuckDB views: a
 bag's run is ``run = bag-<16 hex>`` in it, and its ingest record (the session and every piece's
-report) the run's ``_ingest.json`` attachment; a bag that makes no run is recorded in a row of
-its own.
+report) the run's ``_ingest.json`` attachment; a bag that makes no run is recorded in the bags'
+ledger (:mod:`~objsearch.pipeline.bags.ledger`), a row of its own outside any run.
 
 A run holds one recording session (:mod:`~objsearch.pipeline.bags.session`): ``bag-`` and the
 agent run id's first 16 hex digits when its events prove it, else its lowest agent event id's
@@ -44,19 +44,12 @@ import pyarrow.compute as pc
 from objsearch.agent.catalogue import STORE
 from objsearch.events import Event, EventStoreError, read_log
 from objsearch.events.envelope import deterministic_event_id
-from objsearch.events.lake import LakeError
-from objsearch.events.lake_folder_v1 import check_lake_location
-from objsearch.events.lake_table import (
-    COMMIT_TRIES,
-    STAMP_INDEX_APP,
-    TableLake,
-    TableRaceLost,
-    TableRun,
-    is_table_lake,
-)
+from objsearch.events.lake import LakeError, TableRaceLost, TableRun, is_table_lake, open_lake
+from objsearch.events.lake.transactions import COMMIT_TRIES, STAMP_INDEX_APP
 from objsearch.events.log_files import read_meta
 from objsearch.pipeline.bags.clock import clock_from_doc, fit_clock, pairs_from_doc
 from objsearch.pipeline.bags.errors import BagCommitError
+from objsearch.pipeline.bags.ledger import bag_records, record_bag
 from objsearch.pipeline.bags.session import (
     DERIVED_PREFIX,
     FirstEvent,
@@ -224,7 +217,6 @@ def open_bag_lake(root: Path | str) -> FleetBagLake:
     """The fleet lake ingest writes to at ``root`` (an object-store URI or a folder): one that
     is there, or a new one in a missing or empty folder. A per-run-folder lake is refused
     (``objsearch lake upgrade`` migrates it), and so is a folder holding anything else."""
-    check_lake_location(root)
     return FleetBagLake(root)
 
 
@@ -545,7 +537,7 @@ def bags_app(robot: str) -> str:
 
 def piece_stamps(bag_id: str, converter: str) -> list[str]:
     """The application transactions a commit recording bag ``bag_id`` (read with ``converter``)
-    stamps (:func:`~objsearch.events.lake_table.stamp_version`): the bag's, and the bag's with
+    stamps (:func:`~objsearch.events.lake.transactions.stamp_version`): the bag's, and the bag's with
     that converter. The bag is in the lake read with ``converter`` when both stamps are equal
     (the latest commit that recorded it recorded that converter)."""
     return [f"objsearch/piece/{bag_id}", f"objsearch/piece/{bag_id}@{converter}"]
@@ -556,7 +548,7 @@ def _doc_stamps(bag_id: str, doc: Mapping[str, Any]) -> list[str]:
 
 
 class FleetBagLake(_SessionLake):
-    """:class:`LakeWriter` over the fleet lake (:class:`~objsearch.events.lake_table.TableLake`,
+    """:class:`LakeWriter` over the fleet lake (:class:`~objsearch.events.lake.TableLake`,
     a folder or a bucket). A bag's run — its events, derived tables and the session's ingest
     record (``_ingest.json``: every piece's report) — and the runs merged into it are **one**
     Delta transaction, decided from one version of the table and carrying the application
@@ -572,7 +564,7 @@ class FleetBagLake(_SessionLake):
 
     def __init__(self, root: Path | str) -> None:
         self.root = root
-        self.lake = TableLake(root, store=STORE)
+        self.lake = open_lake(root, store=STORE)
         self._table: Any = None
 
     def _current(self) -> Any:
@@ -626,8 +618,12 @@ class FleetBagLake(_SessionLake):
     def _write_report(self, bag_id: str, data: bytes) -> None:
         doc = json.loads(data)
         robot = doc.get("robot")
-        self.lake.record_bag(
-            bag_id, str(robot) if robot else None, data.decode(), _doc_stamps(bag_id, doc)
+        record_bag(
+            self.lake,
+            bag_id,
+            str(robot) if robot else None,
+            data.decode(),
+            _doc_stamps(bag_id, doc),
         )
 
     def known_pieces(self) -> dict[str, str]:
@@ -641,7 +637,7 @@ class FleetBagLake(_SessionLake):
         self._table = None
         table = self._current()
         docs: dict[str, Mapping[str, Any]] = {}
-        for bag_id, text in self.lake.bag_records(table).items():
+        for bag_id, text in bag_records(self.lake, table).items():
             doc = json.loads(text)
             docs[bag_id] = doc if isinstance(doc, dict) else {}
         for s in self._sessions(self.lake.runs(table)):
@@ -670,7 +666,7 @@ class FleetBagLake(_SessionLake):
     def record_without_run(self, bag_id: str, report: dict[str, Any]) -> None:
         doc = {"bag_id": bag_id, "robot": None, "run": None, "events": 0, "report": report}
         try:
-            self.lake.record_bag(bag_id, None, _json(doc).decode(), _doc_stamps(bag_id, doc))
+            record_bag(self.lake, bag_id, None, _json(doc).decode(), _doc_stamps(bag_id, doc))
         except (OSError, EventStoreError) as exc:
             raise BagCommitError(f"writing the report of bag {bag_id[:16]} failed: {exc}") from exc
 

@@ -12,7 +12,7 @@ from objsearch.agent.session import Session, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import STRATEGIES, RunSpec
 from objsearch.events import CorruptLogError, EventLog, fold, read_log
-from objsearch.events.lake_table import TableLake, add_log
+from objsearch.events.lake import TableLake, add_log
 from objsearch.replay.analytics import open_analytics
 from objsearch.replay.audit import audit
 from objsearch.replay.decisions import replay

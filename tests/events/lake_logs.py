@@ -44,7 +44,7 @@ def check_two_compactions_at_once(root: str | Path, logs: Path) -> None:
     would be there twice); it plans again and the lake holds what a sequential run holds."""
     import pyarrow.compute as pc
 
-    from objsearch.events.lake_table import TableLake, add_log
+    from objsearch.events.lake import TableLake, add_log
 
     lake = TableLake(root, store=STORE)
     for i in range(3):
@@ -60,7 +60,7 @@ def check_two_compactions_at_once(root: str | Path, logs: Path) -> None:
             TableLake(self.root, store=STORE).compact(vacuum_hours=None)  # commits first
         real(self, table)
 
-    TableLake._optimize = planned_then_overtaken  # type: ignore[method-assign]
+    TableLake._optimize = planned_then_overtaken  # type: ignore[method-assign,assignment]
     try:
         lake.compact(vacuum_hours=None)
     finally:
@@ -82,13 +82,14 @@ def check_two_compactions_at_once(root: str | Path, logs: Path) -> None:
 COMPACTING_WRITER = """
 import sys
 from pathlib import Path
-import objsearch.events.lake_table as lt
+import objsearch.events.lake.rewrite as lr
 from objsearch.agent.catalogue import STORE
-lt.COMPACT_AT_FILES = 8  # every few commits: the writers' compactions overlap
-lt.COMPACTION_CLAIM_FRESH_S = 0.0  # and none leaves it to another
-lake = lt.TableLake(sys.argv[1], store=STORE)
+from objsearch.events.lake import TableLake, add_log
+lr.COMPACT_AT_FILES = 8  # every few commits: the writers' compactions overlap
+lr.COMPACTION_CLAIM_FRESH_S = 0.0  # and none leaves it to another
+lake = TableLake(sys.argv[1], store=STORE)
 for log in sys.argv[2:]:
-    lt.add_log(Path(log), lake, robot="r", run=Path(log).name)
+    add_log(Path(log), lake, robot="r", run=Path(log).name)
 """
 
 

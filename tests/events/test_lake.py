@@ -12,8 +12,7 @@ import pytest
 from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog, read_log
 from objsearch.events.arrow import event_schema, events_to_tables
-from objsearch.events.lake import LakeError
-from objsearch.events.lake_table import TableLake, add_log
+from objsearch.events.lake import LakeError, TableLake, add_log
 
 from .lake_logs import small_log
 from .payloads import EXAMPLES

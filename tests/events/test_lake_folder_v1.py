@@ -18,10 +18,11 @@ from typing import Any
 import pytest
 
 from objsearch.cli import main
-from objsearch.events.lake_folder_v1 import is_folder_lake
-from objsearch.events.lake_table import is_table_lake
+from objsearch.events.lake import is_table_lake
+from objsearch.events.lake.folder_v1 import is_folder_lake
 from objsearch.events.sql_limits import close
 from objsearch.pipeline.bags.lake import FleetBagLake
+from objsearch.pipeline.bags.ledger import bag_records
 from objsearch.replay.analytics import open_analytics, run_query
 
 FIXTURE = Path(__file__).parent / "fixtures" / "lake-v1"
@@ -132,7 +133,7 @@ def test_the_reports_of_bags_that_made_no_run_are_copied(
     (lake / "_bags" / f"{bag_id}.json").write_text(json.dumps(doc))
     assert main(["lake", "upgrade", "--lake", str(lake)]) == 0
     capsys.readouterr()
-    assert json.loads(FleetBagLake(lake).lake.bag_records()[bag_id]) == doc
+    assert json.loads(bag_records(FleetBagLake(lake).lake)[bag_id]) == doc
 
 
 def _refusals(lake: Path, log: Path) -> list[list[str]]:

@@ -1,4 +1,4 @@
-"""A run read back from the fleet lake: the run's digest (``events/lake_table.py``) hashes the
+"""A run read back from the fleet lake: the run's digest (``events/lake/run_digest.py``) hashes the
 rows' values, so a run whose rows read back from Parquet with other buffers than the rows built
 from its events (a null struct: ``task_started.clock``) is not refused as damaged, while any
 changed value still is; runs committed under the old digest (``sha256:``, Arrow IPC bytes) still
@@ -19,14 +19,10 @@ from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
 from objsearch.events import InvalidEventError, read_log
 from objsearch.events.arrow import tables_to_events
-from objsearch.events.lake_run_read import RunReader
-from objsearch.events.lake_table import (
-    TableLake,
-    TableLakeError,
-    add_log,
-    table_digest,
-)
-from objsearch.events.run_digest import DIGEST_PREFIX
+from objsearch.events.lake import TableLake, TableLakeError, add_log
+from objsearch.events.lake.digests import table_digest
+from objsearch.events.lake.run_digest import DIGEST_PREFIX
+from objsearch.events.lake.run_read import RunReader
 
 from .lake_logs import two_type_log
 

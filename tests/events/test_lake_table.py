@@ -21,17 +21,10 @@ from deltalake import DeltaTable
 from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog, read_log
 from objsearch.events.arrow import events_to_tables
-from objsearch.events.lake_table import (
-    IDENTITY_INDEX_APP,
-    TABLE_DIR,
-    TableLake,
-    TableLakeError,
-    add_log,
-    file_sha256,
-    is_table_lake,
-    run_parts,
-    table_schema,
-)
+from objsearch.events.lake import TableLake, TableLakeError, add_log, is_table_lake
+from objsearch.events.lake.schema import TABLE_DIR, run_parts, table_schema
+from objsearch.events.lake.storage import file_sha256
+from objsearch.events.lake.transactions import IDENTITY_INDEX_APP
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query, views_for
 
@@ -162,7 +155,7 @@ WRITER = """
 import sys
 from pathlib import Path
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake_table import TableLake, add_log
+from objsearch.events.lake import TableLake, add_log
 lake = TableLake(sys.argv[1], store=STORE)
 for log in sys.argv[2:]:
     add_log(Path(log), lake, robot="r", run=Path(log).name)
@@ -284,7 +277,7 @@ def test_a_streamed_commit_that_fails_leaves_no_file_it_wrote(
 ) -> None:
     """Files stored from memory, files spilled to their temporary name, and files closed before
     the failure: none is left behind (the next vacuum would delete them, but nothing waits)."""
-    import objsearch.events.lake_table as lt
+    import objsearch.events.lake.stream_file as lt
 
     monkeypatch.setattr(lt, "SPILL_BYTES", 8192)
     monkeypatch.setattr(lt, "ROW_GROUP_ROWS", 50)
@@ -309,16 +302,19 @@ def test_a_streamed_commit_that_fails_leaves_no_file_it_wrote(
 def test_a_streamed_commit_equals_an_in_memory_one_whatever_the_chunks(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import objsearch.events.lake_table as lt
+    import objsearch.events.lake.commit as commit
+    import objsearch.events.lake.digests as digests
+    import objsearch.events.lake.stream_file as lt
 
     log = GOLDEN / "sim-wpl-updates"
     # Small digest slices (a format constant: both paths use it), then tiny chunks and row
     # groups for the streamed commit: every seam of the streaming path is crossed.
-    monkeypatch.setattr(lt, "DIGEST_ROWS", 11)
+    monkeypatch.setattr(digests, "DIGEST_ROWS", 11)
     whole = TableLake(tmp_path / "whole", store=STORE)
     tables = events_to_tables(read_log(log, store=STORE), STORE)
     by_memory = whole.commit_tables(tables, robot="sim", run="robot", date="2026-01-01")
-    monkeypatch.setattr(lt, "CHUNK_EVENTS", 37)
+    for module in (commit, digests, lt):  # each reads its own binding of the chunk size
+        monkeypatch.setattr(module, "CHUNK_EVENTS", 37)
     monkeypatch.setattr(lt, "ROW_GROUP_ROWS", 50)
     # Files past 8 KiB spill from memory to a temporary name, the others are stored from memory.
     monkeypatch.setattr(lt, "SPILL_BYTES", 8192)
@@ -331,7 +327,7 @@ def test_a_streamed_commit_equals_an_in_memory_one_whatever_the_chunks(
 
     monkeypatch.setattr(lt._StreamFile, "_spill", counted_spill)
     # DuckDB's memory for the derived tables too small at first: it is given more until enough.
-    monkeypatch.setattr(lt, "DERIVE_MEMORY", 1 << 16)
+    monkeypatch.setattr(commit, "DERIVE_MEMORY", 1 << 16)
     spills: list[str] = []
     mkdtemp = tempfile.mkdtemp
 
@@ -485,7 +481,7 @@ def test_a_replace_committed_while_a_compaction_plans_is_not_undone(tmp_path: Pa
             )
         real(self, table)
 
-    TableLake._optimize = replaced_meanwhile  # type: ignore[method-assign]
+    TableLake._optimize = replaced_meanwhile  # type: ignore[method-assign,assignment]
     try:
         lake.compact(vacuum_hours=None)
     finally:

@@ -12,9 +12,11 @@ from pathlib import Path
 
 import pytest
 
-from devtools.killtest import tree
-from devtools.lake_battery import build_lake, run_cli
-from objsearch.events.lake_table import RUN_TYPE, TABLE_DIR, TableLake
+from objsearch.agent.catalogue import STORE
+from objsearch.events.lake import TableLake
+from objsearch.events.lake.schema import RUN_TYPE, TABLE_DIR
+from objsearch.lake_battery import build_lake, run_cli
+from objsearch.testing.killtest import tree
 
 SQL = "SELECT run, count(*) AS n FROM detection GROUP BY run ORDER BY run"
 
@@ -106,7 +108,7 @@ def test_a_compacted_lake_missing_its_newest_commit_file_refuses_an_add_clearly(
 ) -> None:
     lake = _copy(built, tmp_path / "lake")
     assert run_cli(["lake", "compact", "--lake", str(lake)]).code == 0
-    version = int(TableLake(lake).table().version())
+    version = int(TableLake(lake, store=STORE).table().version())
     intact = run_cli(["query", "--lake", str(lake), "--format", "json", SQL])
     _commit(lake, version).unlink()  # read from its checkpoint, but no commit can follow
     # was: DeltaError: Invalid table version (a traceback)
@@ -128,7 +130,7 @@ def test_a_damaged_run_file_costs_its_runs_not_the_lake(
     lake = _copy(built, tmp_path / "lake")
     (apple,) = [
         lake / TABLE_DIR / f.path
-        for f in TableLake(lake).data_files()
+        for f in TableLake(lake, store=STORE).data_files()
         if f.kind == RUN_TYPE and f.path in _commit(lake, 1).read_text()
     ]
     rel = str(apple.relative_to(lake / TABLE_DIR))
@@ -180,7 +182,7 @@ def test_a_commit_cut_to_its_commit_info_or_copied_as_a_later_version_is_refused
     _refused(["lake", "compact", "--lake", str(cut), "--keep-hours", "0"], "holds no action")
     copied = _copy(built, tmp_path / "copied")
     assert run_cli(["lake", "compact", "--lake", str(copied), "--keep-hours", "1"]).code == 0
-    latest = int(TableLake(copied).table().version())
+    latest = int(TableLake(copied, store=STORE).table().version())
     shutil.copyfile(_commit(copied, 1), _commit(copied, latest + 1))  # apple's old files again
     _refused(["query", "--lake", str(copied), SQL], "run r1/apple is recorded more than once")
     _refused(["lake", "ls", "--lake", str(copied)], "run r1/apple is recorded more than once")

@@ -1,4 +1,4 @@
-"""Kill tests of the fleet lake's commit (``events/lake_table.py``): ``lake add`` into a fleet
+"""Kill tests of the fleet lake's commit (``events/lake/commit.py``): ``lake add`` into a fleet
 lake — a folder holding the Delta table, and a bucket on moto's S3 server — is killed right after
 each of its durable steps (every data file stored under its content-addressed name, fsync'ed
 or uploaded; the Delta commit; the
@@ -19,9 +19,10 @@ from pathlib import Path
 import boto3
 import pytest
 
-from devtools.killtest import KillServer, table_content
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake_table import TABLE_DIR, TableLake, add_log
+from objsearch.events.lake import TableLake, add_log
+from objsearch.events.lake.schema import TABLE_DIR
+from objsearch.testing.killtest import KillServer, table_content
 
 from .lake_logs import two_type_log
 
@@ -112,7 +113,7 @@ def test_a_fleet_lake_add_killed_at_every_step_leaves_the_run_out_or_whole(
     before = table_content(start)
     # The add compacts: the table holds more files than this once the run is in.
     files = len(_table_files(start))
-    prelude = f"import objsearch.events.lake_table as lt; lt.COMPACT_AT_FILES = {files}"
+    prelude = f"import objsearch.events.lake.rewrite as lr; lr.COMPACT_AT_FILES = {files}"
     log = two_type_log(tmp_path / "log", stream="run-new")
     argv = ["lake", "add", str(log), "--robot", "r", "--lake"]
     with KillServer(tmp_path, prelude=prelude) as server:
@@ -155,7 +156,7 @@ def test_a_fleet_lake_add_killed_at_every_step_leaves_the_run_out_or_whole(
         _remove(probe)
         # the last step before the commit
         # (a short run's data file is one step: stored whole under its content-addressed name,
-        # fsync'ed or uploaded; a large one is streamed and renamed, events/lake_table.py)
+        # fsync'ed or uploaded; a large one is streamed and renamed, events/lake/stream_file.py)
         written = uploads
         n = 0
         while True:

@@ -18,12 +18,12 @@ import botocore.exceptions
 import pyarrow as pa
 import pytest
 
-from devtools.s3server import stalled
 from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog
-from objsearch.events.lake_table import TableLake, add_log, is_table_lake
+from objsearch.events.lake import TableLake, add_log, is_table_lake
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query
+from objsearch.testing.s3server import stalled
 
 from .lake_logs import COMPACTING_WRITER, check_two_compactions_at_once
 
@@ -63,7 +63,7 @@ WRITER = """
 import sys
 from pathlib import Path
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake_table import TableLake, add_log
+from objsearch.events.lake import TableLake, add_log
 lake = TableLake(sys.argv[1], store=STORE)
 for log in sys.argv[2:]:
     add_log(Path(log), lake, robot="r", run=Path(log).name)
@@ -120,7 +120,7 @@ def test_a_server_quiet_for_seconds_fails_no_write(bucket: str, tmp_path: Path) 
     # The writers' data files go through Arrow's S3 client, whose defaults (no byte for 3 s
     # ends a request, 3 attempts) failed a writer when a loaded machine's server stalled
     # (the concurrent writers' test, once under load ~14). A 12 s silence must cost time only.
-    from objsearch.events.lake_table import _filesystem
+    from objsearch.events.lake.storage import _filesystem
 
     lake = TableLake(bucket, store=STORE)
     fs, base = _filesystem(lake.uri)
@@ -171,7 +171,7 @@ def test_a_query_reads_the_tables_log_once(
 def test_a_query_over_an_uncompacted_bucket_says_to_compact_it(
     bucket: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
-    import objsearch.events.lake_table as lt
+    import objsearch.events.lake.rewrite as lt
 
     lake = TableLake(bucket, store=STORE)
     for name in ("a", "b"):
@@ -256,7 +256,7 @@ def test_of_writers_creating_one_key_at_once_one_wins(bucket: str) -> None:
     # writers of one version exactly one may succeed. Plain moto (5.2.5) checks the condition
     # and then stores, with no lock between: several succeeded and the last store replaced the
     # others — a commit acknowledged and gone, the run the 8 x 50 writers' benchmark lost
-    # (issue 26). devtools.s3server makes the check and the store one step.
+    # (issue 26). objsearch.testing.s3server makes the check and the store one step.
     name = bucket.removeprefix("s3://").split("/")[0]
     clients = [boto3.client("s3") for _ in range(8)]
     for k in range(12):

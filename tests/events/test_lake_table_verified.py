@@ -1,4 +1,4 @@
-"""The fleet lake's verification cache (``events/lake_table_verified.py``): a content-addressed
+"""The fleet lake's verification cache (``events/lake/verified.py``): a content-addressed
 data file is hashed once per change of its ``stat`` identity, a cache that cannot be read or
 written costs hashing again and nothing else, and nothing of it lives in the lake."""
 
@@ -10,10 +10,12 @@ from pathlib import Path
 
 import pytest
 
-import objsearch.events.lake_table_verified as verified
+import objsearch.events.lake.verified as verified
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake_table import TABLE_DIR, TableLake, add_log, file_sha256
-from objsearch.events.lake_table_verified import VerifiedFiles, cache_dir
+from objsearch.events.lake import TableLake, add_log
+from objsearch.events.lake.schema import TABLE_DIR
+from objsearch.events.lake.storage import file_sha256
+from objsearch.events.lake.verified import VerifiedFiles, cache_dir
 
 from .lake_logs import same_size_rewrite, small_log
 
@@ -22,7 +24,7 @@ from .lake_logs import same_size_rewrite, small_log
 def lake(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> TableLake:
     """A fleet lake of one run, its cache in a folder of this test's own, and every file old
     enough to be trusted once hashed (the files were written a moment ago: see
-    :data:`~objsearch.events.lake_table_verified.RACY_NS`, tested on its own below)."""
+    :data:`~objsearch.events.lake.verified.RACY_NS`, tested on its own below)."""
     monkeypatch.setenv("OBJSEARCH_CACHE", str(tmp_path / "cache"))
     monkeypatch.setattr(verified, "RACY_NS", 0)
     lake = TableLake(tmp_path / "lake", store=STORE)

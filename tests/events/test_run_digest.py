@@ -12,8 +12,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from objsearch.events.lake_table import ipc_digest
-from objsearch.events.run_digest import (
+from objsearch.events.lake.digests import ipc_digest
+from objsearch.events.lake.run_digest import (
     DIGEST_PREFIX,
     RunDigest,
     digest_version,

@@ -11,7 +11,7 @@ from objsearch.agent.catalogue import STORE, DayClock
 from objsearch.agent.scene_graph import UpdateMode
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
-from objsearch.events.lake_table import TableLake, add_log
+from objsearch.events.lake import TableLake, add_log
 from objsearch.sim.placements import Schedule
 from objsearch.sim.world import SimClock, SimWorld
 

@@ -14,7 +14,7 @@ from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.cli import main
 from objsearch.events import fold, read_log
 from objsearch.events.derived import derived_tables
-from objsearch.events.lake_table import TableLake
+from objsearch.events.lake import TableLake
 from objsearch.replay.analytics import open_analytics
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "analytics.md"

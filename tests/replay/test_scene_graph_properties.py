@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.events import EventLog, fold, read_log
-from objsearch.events.lake_table import TableLake, add_log
+from objsearch.events.lake import TableLake, add_log
 from objsearch.replay.analytics import open_analytics
 
 DYNAMICS = ("Cup", "Phone", "Apple")

@@ -13,7 +13,7 @@ import pytest
 
 from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
-from objsearch.events.lake_table import TableLake, TableLakeError, add_log
+from objsearch.events.lake import TableLake, TableLakeError, add_log
 from objsearch.replay.source import open_events
 
 RUN = "targets"

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from devtools.requestfuzz import (
+from objsearch.runtime.config import RuntimeConfig
+from objsearch.runtime.requestfuzz import (
     RECEIVER,
     CaseMaker,
     Rig,
@@ -16,7 +17,6 @@ from devtools.requestfuzz import (
     fuzz_rig,
     simulated,
 )
-from objsearch.runtime.config import RuntimeConfig
 
 pytest.importorskip("zenoh")
 

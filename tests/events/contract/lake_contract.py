@@ -1,5 +1,5 @@
 """What every backend of the lake passes: the fleet lake on a Delta table
-(:mod:`objsearch.events.lake_table`), in a folder or a bucket.
+(:class:`objsearch.events.lake.TableLake`), in a folder or a bucket.
 
 :class:`LakeContract` is the abstract test case (as ``eventsourcing`` tests its recorders: one
 case, one subclass a backend, ``tests/events/contract/test_lake_contract.py``). It drives what a

@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake_table import TableLake, TableRun, add_log
+from objsearch.events.lake import TableLake, TableRun, add_log
 
 from .lake_contract import LakeContract, damage_file
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from objsearch.agent.catalogue import STORE
 from objsearch.events import Event, read_log
-from objsearch.events.lake_table import TableLake
+from objsearch.events.lake import TableLake
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.lake import FleetBagLake
 from objsearch.pipeline.bags.record import Recording, record

@@ -14,10 +14,11 @@ from pathlib import Path
 import pytest
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake_table import BAG_TYPE, TableLake
+from objsearch.events.lake import TableLake
 from objsearch.pipeline.bags.identity import bag_identity
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import FleetBagLake
+from objsearch.pipeline.bags.ledger import BAG_TYPE, bag_records
 from objsearch.pipeline.bags.session import converter_key
 from objsearch.ros.topics import TopicMap
 
@@ -57,13 +58,13 @@ def test_a_bag_with_nothing_in_it_is_accounted_for(tmp_path: Path) -> None:
     assert result.error is None and result.committed == 0 and "nothing committed" in result.note
     table = TableLake(lake, store=STORE)
     assert table.runs() == []
-    [(bag_id, record)] = table.bag_records().items()
+    [(bag_id, record)] = bag_records(table).items()
     doc = json.loads(record)
     assert doc["run"] is None and doc["report"]["bag_id"] == bag_id
     assert {f.kind for f in table.data_files()} == {BAG_TYPE}
     [again] = ingest([empty], lake)  # read again , nothing to keep
     assert again.error is None and again.committed == 0
-    assert list(table.bag_records()) == [bag_id] and table.runs() == []
+    assert list(bag_records(table)) == [bag_id] and table.runs() == []
     assert list(FleetBagLake(lake).known_pieces()) == [bag_id]
 
 
@@ -109,7 +110,9 @@ def test_a_table_made_before_bags_were_stamped_is_asked_by_its_rows(
 ) -> None:
     from deltalake import CommitProperties, Transaction, write_deltalake
 
-    from objsearch.events.lake_table import IDENTITY_INDEX_APP, TABLE_FORMAT, table_schema
+    from objsearch.events.lake import TABLE_FORMAT
+    from objsearch.events.lake.schema import table_schema
+    from objsearch.events.lake.transactions import IDENTITY_INDEX_APP
 
     lake = TableLake(tmp_path / "fleet", store=STORE)
     write_deltalake(  # as TableLake.create made it before (no stamp index)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake_table import TableLake
+from objsearch.events.lake import TableLake
 
 from .bag_fixtures import fleet
 from .bag_lake_contract import BagLakeContract

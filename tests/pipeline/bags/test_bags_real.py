@@ -72,7 +72,7 @@ def test_a_real_bag_reaches_the_lake(
 ) -> None:
     from objsearch.agent.catalogue import STORE
     from objsearch.cli import main
-    from objsearch.events.lake_table import TableLake
+    from objsearch.events.lake import TableLake
 
     config = tmp_path / "topics.toml"
     config.write_text('[topics]\n"/base_pose_ground_truth" = "odometry"\n', encoding="utf-8")

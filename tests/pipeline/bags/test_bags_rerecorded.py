@@ -16,7 +16,7 @@ from rosbags.highlevel import AnyReader
 from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
 from objsearch.events import Event, read_log
-from objsearch.events.lake_table import TableLake, add_log
+from objsearch.events.lake import TableLake, add_log
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.read import read_bag
 

@@ -10,8 +10,7 @@ import pyarrow.compute as pc
 import pytest
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake import LakeError
-from objsearch.events.lake_table import TableLake, add_log
+from objsearch.events.lake import LakeError, TableLake, add_log
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.lake import FleetBagLake

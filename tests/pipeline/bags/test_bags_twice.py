@@ -11,7 +11,7 @@ import pyarrow as pa
 import pytest
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events.lake_table import TableLake
+from objsearch.events.lake import TableLake
 from objsearch.pipeline.bags.ingest import ingest
 
 FIXTURES = Path(__file__).parent / "fixtures" / "twice"

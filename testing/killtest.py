@@ -2,7 +2,7 @@
 
 Every fsync and rename made through :mod:`objsearch.events._fs` (the lake's commits, the ingest
 report) is a *step*; :func:`kill_after_steps` installs an observer there that SIGKILLs the
-process right after its N-th (``python -m devtools.killtest N ARGV...`` runs the
+process right after its N-th (``python -m objsearch.testing.killtest N ARGV...`` runs the
 command line so, from a fresh interpreter). A test runs a command with N = 1, 2, … until it completes without dying, so it
 is killed once at every step of its commit, not at random moments, and checks each time that a
 re-run completes and leaves what an uninterrupted run leaves.
@@ -31,20 +31,15 @@ from typing import Final
 
 from objsearch.events import _fs
 
-#: The checkout, which holds ``devtools/`` (a dev-only folder, not installed): the server finds
-#: :func:`kill_after_steps` there whatever its working directory.
-CHECKOUT: Final = str(Path(__file__).resolve().parents[1])
-
 _SERVER: Final = r"""
 import json, os, signal, sys, traceback
-sys.path.insert(1, sys.argv[2])  # the checkout (KillServer): devtools/ is not installed
 import duckdb, pyarrow.parquet
 import objsearch.cli, objsearch.cli_query, objsearch.cli_bags
-import objsearch.events.lake_table, objsearch.pipeline.bags.ingest, objsearch.pipeline.bags.read
+import objsearch.events.lake, objsearch.pipeline.bags.ingest, objsearch.pipeline.bags.read
 import objsearch.replay.analytics, rosbags.highlevel, tqdm
 import numpy.ma  # imported on first use by np.unique (a bag's pose tracks)
 import objsearch.product  # the relation models lake add folds with (the agent's strategies)
-from devtools.killtest import kill_after_steps
+from objsearch.testing.killtest import kill_after_steps
 from objsearch.agent.catalogue import STORE
 from objsearch.ros.types import Distro, typestore
 # Built here once rather than in every child (each is most of a short command's CPU): the
@@ -57,7 +52,7 @@ for distro in Distro:
 # children's fsyncs return at once (each is still a step; the steps are counted after it). On a
 # disk other jobs write to, an fsync took 4-11 ms, and an ingest makes 33 of them.
 os.fsync = lambda fd: None
-exec(sys.argv[1])  # the test's prelude (KillServer(prelude=))
+exec(sys.argv[1] if len(sys.argv) > 1 else "")  # the test's prelude (KillServer(prelude=))
 for line in sys.stdin:
     job = json.loads(line)
     pid = os.fork()
@@ -115,7 +110,7 @@ class KillServer:
         threshold lowered so a small lake reaches the step a test kills at)."""
         self._output = scratch / "killtest-output.txt"
         self._server = subprocess.Popen(
-            [sys.executable, "-c", _SERVER, prelude, CHECKOUT],
+            [sys.executable, "-c", _SERVER, prelude],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             text=True,
@@ -179,7 +174,8 @@ def table_content(root: str | Path) -> TableContent:
     import pyarrow.compute as pc
 
     from objsearch.agent.catalogue import STORE
-    from objsearch.events.lake_table import BAG_TYPE, TableLake
+    from objsearch.events.lake import TableLake
+    from objsearch.pipeline.bags.ledger import BAG_TYPE
 
     lake = TableLake(root, store=STORE)
     table = lake.table()
@@ -210,12 +206,12 @@ def table_content(root: str | Path) -> TableContent:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m devtools.killtest N ARGV...``: ``objsearch ARGV`` in this fresh
+    """``python -m objsearch.testing.killtest N ARGV...``: ``objsearch ARGV`` in this fresh
     interpreter, SIGKILLed right after its N-th durable step (the real start-up path, which
     :class:`KillServer`'s forked children skip)."""
     args = sys.argv[1:] if argv is None else argv
     if not args or not args[0].isdigit() or int(args[0]) < 1:
-        print("usage: python -m devtools.killtest N ARGV...  (N >= 1)", file=sys.stderr)
+        print("usage: python -m objsearch.testing.killtest N ARGV...  (N >= 1)", file=sys.stderr)
         return 2
     kill_after_steps(int(args[0]))
     from objsearch import cli

@@ -1,7 +1,7 @@
 """The lake-damage battery: damage a real fleet lake's files every way a disk or a careless hand
 can, then ask it questions through the command line and hold it to "never answer wrong".
 
-The lake (one Delta table, :mod:`objsearch.events.lake_table`) holds three runs made with the
+The lake (one Delta table, :class:`objsearch.events.lake.TableLake`) holds three runs made with the
 real CLI from the bundled data (``objsearch search``, then one ``objsearch lake add`` a run, so a
 data file holds one run's rows of one type, as a fleet's files are between compactions). Each
 variant is a copy of it with one kind of damage (:data:`KINDS`): a data file's bytes (bit flips
@@ -46,10 +46,10 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from devtools.cli_battery import BatteryOutcome, run_in_process
-from devtools.killtest import tree
+from objsearch.cli_battery import BatteryOutcome, run_in_process
 from objsearch.events.derived import derived_tables
 from objsearch.product import STORE
+from objsearch.testing.killtest import tree
 
 COLUMNS = ("clear error", "unchanged", "traceback", "silent change", "loss")
 #: The runs of the battery's lake: (run name, target); every search starts in kitchen-1.
@@ -95,7 +95,7 @@ def every_row_sql() -> str:
 
 
 def run_cli(argv: Sequence[str]) -> BatteryOutcome:
-    """:func:`devtools.cli_battery.run_in_process` with the CLI's log lines (the warnings that
+    """:func:`objsearch.cli_battery.run_in_process` with the CLI's log lines (the warnings that
     name damaged runs) added to the captured stderr."""
     lines = io.StringIO()
     handler = logging.StreamHandler(lines)

@@ -6,7 +6,7 @@ without an error), and even a checking reader cannot see a flip in the footer's 
 makes it skip row groups it should read. So each run's manifest records the size and SHA-256 of
 every file the commit wrote, and a copy of the manifest's own SHA-256. That was the
 per-run-folder lake's (``objsearch.lake/1``); this version reads such a lake only to migrate it,
-and :mod:`objsearch.events.lake_folder_v1` compares the digests before a run is copied.
+and :mod:`objsearch.events.lake.folder_v1` compares the digests before a run is copied.
 SHA-256 runs at ≈ 1.7 GB/s a core here (≈ 1 GB/s for BLAKE2b), and files are hashed on a few
 threads (hashlib releases the GIL).
 """
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
-from .sql_limits import DEFAULT_THREADS
+from ..sql_limits import DEFAULT_THREADS
 
 ALGORITHM: Final = "sha256"
 #: Manifest key of the files' digests: run-relative POSIX path → {"bytes": n, "digest": "sha256:…"}.

@@ -2,13 +2,13 @@
 (``_run`` files) every way a careless hand or a broken sync can, then ask it everything through
 the command line and hold it to "never answer wrong, never make a loss permanent".
 
-The lake is :func:`devtools.lake_battery.build_lake`'s (three runs, one ``objsearch lake add``
+The lake is :func:`objsearch.lake_battery.build_lake`'s (three runs, one ``objsearch lake add``
 each, so one commit file a run), and a compacted copy of it (``objsearch lake compact``: its
 newest commit is the compaction's, read from a checkpoint). Each variant is a copy of one of them
 with one edit (:data:`KINDS`): an ``add``, ``txn`` or ``commitInfo`` line of a commit removed, an
 ``add`` line duplicated, a commit file deleted, duplicated as the next version, cut at a line or
 inside one, a bit flipped; the newest commit file deleted; a ``_run`` file deleted, cut, flipped
-or replaced; the lake's record of its latest version (:data:`~objsearch.events.lake_table.HEAD_FILE`)
+or replaced; the lake's record of its latest version (:data:`~objsearch.events.lake.head.HEAD_FILE`)
 deleted or garbled. Each copy is asked, through the real CLI in-process:
 
 * ``objsearch query`` of every row of every view, ``objsearch lake ls --format json`` and
@@ -47,10 +47,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from devtools.cli_battery import BatteryOutcome
-from devtools.killtest import tree
-from devtools.lake_battery import COLUMNS, answer_rows, build_lake, every_row_sql, run_cli
-from objsearch.events.lake_table import HEAD_FILE, RUN_TYPE, TABLE_DIR, TableLake
+from objsearch.agent.catalogue import STORE
+from objsearch.cli_battery import BatteryOutcome
+from objsearch.events.lake import TableLake
+from objsearch.events.lake.head import HEAD_FILE
+from objsearch.events.lake.schema import RUN_TYPE, TABLE_DIR
+from objsearch.lake_battery import COLUMNS, answer_rows, build_lake, every_row_sql, run_cli
+from objsearch.testing.killtest import tree
 
 #: The run ``lake add`` adds to each damaged copy: (run name, target).
 ADDED = ("phone", "Phone")
@@ -145,7 +148,7 @@ def _commit_bit_flip(lake: Path, i: int, rng: random.Random) -> str:
 def _run_files(lake: Path) -> list[Path]:
     """The ``_run`` files of the table's current version (a compacted lake keeps the older
     ones on disk until a vacuum)."""
-    files = TableLake(lake).data_files()
+    files = TableLake(lake, store=STORE).data_files()
     return sorted(lake / TABLE_DIR / f.path for f in files if f.kind == RUN_TYPE)
 
 
@@ -252,7 +255,7 @@ def judge(
     commands: dict[str, BatteryOutcome],
     changed_by_reading: bool,
 ) -> tuple[str, str]:
-    """The verdict of one variant (:data:`~devtools.lake_battery.COLUMNS`) and why; see the
+    """The verdict of one variant (:data:`~objsearch.lake_battery.COLUMNS`) and why; see the
     module's docstring. ``commands``: query, ls, verify, compact, compacted query, add, added
     query."""
     crash = _crash(list(commands.items()))

@@ -10,11 +10,13 @@ Lakes written before the fleet lake became the default kept a folder a run::
     LAKE/_bags/<bag id>.json                                     each bag's report (a copy)
 
 This version writes no such lake and queries none: every command but ``objsearch lake upgrade``
-refuses one (:func:`refuse_folder_lake`), and :func:`migrate` copies its healthy runs into the
-fleet lake (:mod:`objsearch.events.lake_table`). A run whose manifest is unreadable, fails its
+refuses one (:func:`objsearch.events.lake.open_lake`, with one message naming the migration
+command), and :func:`migrate` copies its healthy runs into the fleet lake
+(:class:`~objsearch.events.lake.fleet.TableLake`). A run whose manifest is unreadable, fails its
 own digest or names another folder, or one of whose files is missing, cut, of another size or
 fails its SHA-256, is not copied: it is named and left in place. The reports of bags that made
-no run are copied into the fleet lake's bag records, so it still accounts for every bag.
+no run are copied into the bag pipeline's ledger in the fleet lake (:class:`BagLedger`), so it
+still accounts for every bag.
 """
 
 from __future__ import annotations
@@ -23,14 +25,16 @@ import json
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Final
+from typing import Final, Protocol
 
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .derived import DERIVED_DIR
-from .lake import LakeError, parquet_problem
-from .lake_digest import (
+from ..derived import DERIVED_DIR
+from .common import LakeError, parquet_problem
+from .digests import table_digest
+from .fleet import TableLake
+from .folder_digest import (
     FILES_KEY,
     SELF_KEY,
     FileDigest,
@@ -40,7 +44,8 @@ from .lake_digest import (
     mismatch,
     parse_files,
 )
-from .lake_table import TableLake, TableRun, _token, is_table_lake, run_parts, table_digest
+from .schema import TableRun, run_parts
+from .storage import _token
 
 LAKE_FORMAT: Final = "objsearch.lake/1"
 RUN_FILE: Final = "_run.json"
@@ -75,6 +80,12 @@ class RunInfo:
     files: Mapping[str, FileDigest] = field(default_factory=dict)
 
 
+def left_run_folders(root: Path | str) -> list[Path]:
+    """The run folders of the old format a fleet lake's folder still holds (what ``lake
+    upgrade`` left in place: damaged, or a run the table held already)."""
+    return sorted(Path(root).glob("robot=*/date=*/run=*"))
+
+
 def is_folder_lake(root: Path | str) -> bool:
     """Whether ``root`` is a local folder holding a per-run-folder lake (a ``robot=…`` folder,
     or the staging folder its writer left)."""
@@ -86,36 +97,18 @@ def is_folder_lake(root: Path | str) -> bool:
     return (path / STAGING).is_dir() or any(p.is_dir() for p in path.glob("robot=*"))
 
 
-def folder_lake_message(root: Path | str) -> str:
-    """What every command but the migration says of a per-run-folder lake."""
-    return (
-        f"{root} is a per-run-folder lake ({LAKE_FORMAT}), which this version reads only to "
-        f"migrate it: run objsearch lake upgrade --lake {root}"
-    )
+class BagLedger(Protocol):
+    """Where the fleet lake keeps the ingest records of bags that made no run (the bag
+    pipeline's ledger, :class:`objsearch.pipeline.bags.ledger.BagLedger`): what the migration
+    copies the folder lake's ``_bags/`` into."""
 
+    def records(self) -> Mapping[str, str]:
+        """Bag id → its latest record (JSON text)."""
+        ...
 
-def refuse_folder_lake(root: Path | str) -> None:
-    """Raise :class:`LakeError` (:func:`folder_lake_message`) if ``root`` is a folder lake and
-    not (also) a fleet lake — a folder ``lake upgrade`` migrated keeps the damaged runs it left
-    in place beside the fleet table, and is a fleet lake."""
-    if is_folder_lake(root) and not is_table_lake(root):
-        raise LakeError(folder_lake_message(root))
-
-
-def check_lake_location(root: Path | str) -> None:
-    """Raise :class:`LakeError` unless ``root`` is a fleet lake, an object-store URI, or a
-    folder a fleet lake may be created in (missing or empty): a per-run-folder lake gets
-    :func:`folder_lake_message`, a file or a folder holding anything else is not a lake."""
-    if "://" in str(root) or is_table_lake(root):
-        return
-    refuse_folder_lake(root)
-    path = Path(root)
-    if path.exists() and not path.is_dir():
-        raise LakeError(f"{root} is a file, not a lake folder")
-    if path.is_dir() and any(path.iterdir()):
-        raise LakeError(
-            f"{root} is neither a fleet lake nor empty; give a new or empty folder for a new lake"
-        )
+    def record(self, bag_id: str, robot: str | None, doc: str) -> None:
+        """Keep ``doc`` as bag ``bag_id``'s record."""
+        ...
 
 
 class FolderLake:
@@ -178,6 +171,7 @@ def migrate(
     old_root: Path | str,
     lake: TableLake,
     *,
+    bags: BagLedger,
     batch: int = 64,
     progress: Callable[[list[RunInfo]], Iterable[RunInfo]] | None = None,
 ) -> Migration:
@@ -185,7 +179,8 @@ def migrate(
     ``batch`` runs a transaction; a run whose robot and name the table holds already is not
     copied. A damaged run (see :meth:`FolderLake.scan`; also one whose pages fail their
     checksums as it is read) is not copied either. Nothing in ``old_root`` is changed.
-    ``progress`` wraps the runs as they are copied (the CLI's progress line)."""
+    ``progress`` wraps the runs as they are copied (the CLI's progress line); the records of bags
+    that made no run go to ``bags``."""
     old = FolderLake(old_root)
     healthy, damaged = old.scan()
     lake.create()
@@ -226,17 +221,17 @@ def migrate(
             lake.commit_many(pending)
             pending = []
     lake.commit_many(pending)
-    recorded = _copy_bag_records(old.root / BAG_RECORDS, lake, in_runs)
+    recorded = _copy_bag_records(old.root / BAG_RECORDS, bags, in_runs)
     return Migration(copied, already, sorted(damaged, key=lambda d: d.path), recorded)
 
 
-def _copy_bag_records(folder: Path, lake: TableLake, in_runs: set[str]) -> int:
+def _copy_bag_records(folder: Path, bags: BagLedger, in_runs: set[str]) -> int:
     """Copy the ingest records of bags no run's ``_ingest.json`` holds (a bag that made no run,
     one whose events the lake held already) into the table's bag rows, so the lake still
     accounts for every bag it was given; returns how many. Records the table has are skipped."""
     if not folder.is_dir():
         return 0
-    have = set(lake.bag_records())
+    have = set(bags.records())
     count = 0
     for path in sorted(folder.glob("*.json")):
         bag_id = path.stem
@@ -248,7 +243,7 @@ def _copy_bag_records(folder: Path, lake: TableLake, in_runs: set[str]) -> int:
         except ValueError:
             doc = {}
         robot = doc.get("robot") if isinstance(doc, dict) else None
-        lake.record_bag(bag_id, str(robot) if robot else None, text)
+        bags.record(bag_id, str(robot) if robot else None, text)
         count += 1
     return count
 
@@ -347,13 +342,12 @@ def _read_parquet(path: Path, want: FileDigest | None) -> pa.Table:
 
 __all__ = [
     "LAKE_FORMAT",
+    "BagLedger",
     "DamagedRun",
     "FolderLake",
     "Migration",
     "RunInfo",
-    "check_lake_location",
-    "folder_lake_message",
     "is_folder_lake",
+    "left_run_folders",
     "migrate",
-    "refuse_folder_lake",
 ]

@@ -31,13 +31,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from devtools.logfuzz import STREAM, Files, _base_logs, _read_files, _write_files
 from objsearch.agent.catalogue import STORE
 from objsearch.events.envelope import Event
 from objsearch.events.errors import EventStoreError, TornTailWarning
 from objsearch.events.log import EventLog
 from objsearch.events.log_files import DURABLE_FILE, LOG_FILE, META_FILE, QUARANTINE_PREFIX
 from objsearch.events.log_read import read_log
+from objsearch.testing.logfuzz import STREAM, Files, _base_logs, _read_files, _write_files
 
 #: A damage at line index ``k`` (0-based) of ``lines`` (each with its newline); ``other`` is
 #: another log's lines. Returns the damaged lines, or None where it does not apply at ``k``.

@@ -2,7 +2,7 @@
 lake, so a query hashes a file once per change of it, not once per query.
 
 A data file the fleet lake writes is named after the SHA-256 of its bytes
-(``type=<kind>/part-<token>-<sha256>.zstd.parquet``, :mod:`.lake_table`). Hashing every file
+(``type=<kind>/part-<token>-<sha256>.zstd.parquet``, :mod:`.storage`). Hashing every file
 before every query would read every byte of the lake, a cost that grows with the runs; so a
 reader hashes a file when it first sees it and remembers, per file, the ``stat`` identity it
 had then — size, ``st_mtime_ns``, ``st_ctime_ns``, ``st_ino`` — and the hash it found. Any

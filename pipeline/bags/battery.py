@@ -187,7 +187,7 @@ def _renames(bag: Path, fmt: BagFormat) -> list[Variant]:
 def ingest_cli(bag: Path, lake: Path, main: Callable[[list[str]], int]) -> Ingested:
     """``objsearch ingest BAG --lake LAKE`` in this process through the CLI's ``main`` (the
     caller's: the pipeline does not import the CLI), its output captured."""
-    from objsearch.events.lake_table import is_table_lake
+    from objsearch.events.lake import is_table_lake
     from objsearch.pipeline.bags.lake import FleetBagLake
 
     out, err = io.StringIO(), io.StringIO()

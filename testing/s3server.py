@@ -46,8 +46,7 @@ def s3_server(start_timeout_s: float = 60.0) -> Iterator[dict[str, str]]:
     """moto's S3 server on a free loopback port; yields the ``AWS_*`` variables for it."""
     port = free_port()
     proc = subprocess.Popen(
-        # by path: devtools/ is a folder of the checkout, not an installed package
-        [sys.executable, __file__, "-H", "127.0.0.1", "-p", str(port)],
+        [sys.executable, "-m", "objsearch.testing.s3server", "-H", "127.0.0.1", "-p", str(port)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
@@ -113,7 +112,7 @@ class AtomicConditionalWrites:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python devtools/s3server.py -H HOST -p PORT``: moto's S3 server (as
+    """``python -m objsearch.testing.s3server -H HOST -p PORT``: moto's S3 server (as
     ``python -m moto.server`` runs it) with :class:`AtomicConditionalWrites` in front."""
     import argparse
 
@@ -124,7 +123,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     from werkzeug.serving import run_simple
 
-    parser = argparse.ArgumentParser(prog="python devtools/s3server.py")
+    parser = argparse.ArgumentParser(prog="python -m objsearch.testing.s3server")
     parser.add_argument("-H", "--host", default="127.0.0.1")
     parser.add_argument("-p", "--port", type=int, required=True)
     args = parser.parse_args(argv)

@@ -45,10 +45,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from devtools.cli_battery import BatteryOutcome, run_in_process
+from objsearch.cli_battery import BatteryOutcome, run_in_process
 from objsearch.events import Event, read_log
 from objsearch.events.envelope import deterministic_event_id
-from objsearch.events.lake_table import TableLake, TableLakeError
+from objsearch.events.lake import TableLake, TableLakeError
 from objsearch.events.log_files import LOG_FORMAT, LogMeta, LogPosition, write_durable
 from objsearch.events.record import encode_record
 from objsearch.events.store import Store

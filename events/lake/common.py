@@ -2,9 +2,9 @@
 and dates, a table's conformance to its event type's schema, the row-group size, and the cheap
 check that a Parquet file is whole.
 
-The lake itself is the fleet lake (:mod:`objsearch.events.lake_table`, ``objsearch.lake/2``); the
+The lake itself is the fleet lake (:class:`objsearch.events.lake.TableLake`, ``objsearch.lake/2``); the
 per-run-folder lake that came before it (``objsearch.lake/1``) is read only to migrate it
-(:mod:`objsearch.events.lake_folder_v1`).
+(:mod:`objsearch.events.lake.folder_v1`).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import Final
 
 import pyarrow as pa
 
-from .arrow import event_schema
-from .errors import EventStoreError
-from .store import Store
+from ..arrow import event_schema
+from ..errors import EventStoreError
+from ..store import Store
 
 _NAME: Final = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
 #: Rows per Parquet row group: small enough that a seq range skips most of a 1 M-event run and

@@ -36,12 +36,13 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.dataset as pds
 
-from .arrow import ENVELOPE_COLUMNS, event_schema, tables_to_events
-from .envelope import Event
+from ..arrow import ENVELOPE_COLUMNS, event_schema, tables_to_events
+from ..envelope import Event
 from .run_digest import DIGEST_PREFIX, TypeDigest, combine, digest_version
+from .schema import DataFile, TableLakeError, TableRun
 
 if TYPE_CHECKING:
-    from .lake_table import DataFile, TableLake, TableRun
+    from .fleet import TableLake
 
 #: Rows a scan hands over at a time (Arrow) while the run is checked, one type at a time.
 CHECK_ROWS: Final = 1 << 12
@@ -129,16 +130,12 @@ class RunReader:
             yield pa.concat_tables(parts).sort_by("seq")
 
     def _read_error(self, exc: BaseException) -> Exception:
-        from .lake_table import TableLakeError
-
         run = self.run
         return TableLakeError(
             f"{self.lake.root}: run {run.robot}/{run.run} could not be read: {exc}"
         )
 
     def _damaged(self, rows: dict[str, int]) -> Exception:
-        from .lake_table import TableLakeError
-
         run = self.run
         return TableLakeError(
             f"{self.lake.root}: run {run.robot}/{run.run} is damaged: its rows do not read back "
@@ -232,8 +229,6 @@ class RunReader:
         except (OSError, pa.ArrowException) as exc:
             raise self._read_error(exc) from exc
         if changed:
-            from .lake_table import TableLakeError
-
             raise TableLakeError(
                 f"{self.lake.root}: run {self.run.robot}/{self.run.run} changed while it was "
                 "read (a file of it was written to between the check and the read); read it "
