@@ -52,8 +52,6 @@ Positive: TypeAlias = Annotated[float, msgspec.Meta(gt=0)]
 XY: TypeAlias = tuple[float, float]
 XYZ: TypeAlias = tuple[float, float, float]
 Box: TypeAlias = tuple[float, float, float, float]
-#: v3's methods; v4 added ``global`` (the whole-home planner).
-MethodNameV3: TypeAlias = Literal["wpl", "rvp", "sdp", "ecost"]
 MethodName: TypeAlias = Literal["wpl", "rvp", "sdp", "ecost", "global"]
 PlannerName: TypeAlias = Literal["wpl", "rvp", "sdp", "epl"]
 UpdateModeName: TypeAlias = Literal["none", "targets", "all"]
@@ -67,11 +65,6 @@ RelationModelName: TypeAlias = Literal[
     "dist-oracle",
     "slot-oracle",
 ]
-#: v4's relation models; v5 added ``routine-pooled``.
-RelationModelNameV4: TypeAlias = Literal[
-    "eq4", "beta", "memory", "belief", "routine-belief", "dist-oracle", "slot-oracle"
-]
-RelationModelNameV3: TypeAlias = Literal["eq4", "beta", "memory", "belief", "dist-oracle"]
 Weekday: TypeAlias = Annotated[int, msgspec.Meta(ge=0, le=6)]
 MinuteOfDay: TypeAlias = Annotated[int, msgspec.Meta(ge=0, le=1439)]
 ViewReason: TypeAlias = Literal["look", "inside", "on_the_way"]
@@ -169,110 +162,6 @@ class Detection2D(Part, frozen=True):
     ]
 
 
-class RelationsSpecV2(Part, frozen=True):
-    """A relation model and every parameter it uses."""
-
-    SCHEMA_NAME: ClassVar[str] = "relations"
-
-    model: Annotated[
-        Literal["eq4", "beta"],
-        doc(
-            "eq4: the paper's Eq. 4; beta: a Beta posterior per class pair with negative evidence."
-        ),
-    ]
-    prior_strength: Annotated[
-        Positive | None,
-        doc("beta: pseudo-observations of the Visual Genome prior; null for eq4."),
-    ]
-    half_life_tasks: Annotated[
-        Positive | None,
-        doc("beta: half-life of evidence in tasks; null for no decay."),
-    ]
-
-
-class RelationsSpecV3(Part, frozen=True):
-    """A relation model and every parameter it uses."""
-
-    SCHEMA_NAME: ClassVar[str] = "relations"
-
-    model: Annotated[
-        RelationModelNameV3,
-        doc(
-            "eq4: the paper's Eq. 4; beta: a Beta posterior per class pair with negative "
-            "evidence; memory: a belief per (target, static instance) from sightings, "
-            "misses, recency and frequency, the class-level Beta posterior as prior; "
-            "belief: a probability distribution per target over static instances and "
-            "elsewhere (agent/belief.py); dist-oracle: a reference that reads the "
-            "schedule's placement distribution (never a default)."
-        ),
-    ]
-    prior_strength: Annotated[
-        Positive | None,
-        doc(
-            "beta, memory: pseudo-observations of the prior; belief: the Dirichlet prior's "
-            "total weight in episodes; null otherwise."
-        ),
-    ]
-    half_life_tasks: Annotated[
-        Positive | None,
-        doc(
-            "beta: half-life of evidence in tasks, null for no decay; memory: half-life of "
-            "the recent evidence in tasks; belief: half-life of the short memory in "
-            "episodes (scenes, or tasks where the log records no scene)."
-        ),
-    ]
-    recent_weight: Annotated[
-        NonNegative | None,
-        doc(
-            "memory: weight of recent (decaying) evidence against long-run counts; null for"
-            " other models."
-        ),
-    ]
-
-
-class RelationsSpecV4(Part, frozen=True):
-    """A relation model and every parameter it uses."""
-
-    SCHEMA_NAME: ClassVar[str] = "relations"
-
-    model: Annotated[
-        RelationModelNameV4,
-        doc(
-            "eq4: the paper's Eq. 4; beta: a Beta posterior per class pair with negative "
-            "evidence; memory: a belief per (target, static instance) from sightings, "
-            "misses, recency and frequency, the class-level Beta posterior as prior; "
-            "belief: a probability distribution per target over static instances and "
-            "elsewhere (agent/belief.py); routine-belief: the belief that knows the hour, "
-            "per time-of-day slot and day type mixed with the time-blind belief "
-            "(agent/routine_belief.py); dist-oracle: a reference that reads the schedule's "
-            "placement distribution (never a default); slot-oracle: the same reference, "
-            "knowing the schedule's distribution at each time of day (routine schedules)."
-        ),
-    ]
-    prior_strength: Annotated[
-        Positive | None,
-        doc(
-            "beta, memory: pseudo-observations of the prior; belief, routine-belief: the "
-            "Dirichlet prior's total weight in episodes; null otherwise."
-        ),
-    ]
-    half_life_tasks: Annotated[
-        Positive | None,
-        doc(
-            "beta: half-life of evidence in tasks, null for no decay; memory: half-life of "
-            "the recent evidence in tasks; belief, routine-belief: half-life of the short "
-            "memory in episodes (scenes, or tasks where the log records no scene)."
-        ),
-    ]
-    recent_weight: Annotated[
-        NonNegative | None,
-        doc(
-            "memory: weight of recent (decaying) evidence against long-run counts; null for"
-            " other models."
-        ),
-    ]
-
-
 class RelationsSpec(Part, frozen=True):
     """A relation model and every parameter it uses."""
 
@@ -337,24 +226,6 @@ class ContainerOpened(Record, frozen=True):
     VERSION: ClassVar[int] = 1
     static_id: Annotated[str, doc("Container's static object id.")]
     pose: Annotated[PlanarPose, doc("Pose it was opened from.")]
-
-
-class DetectionV1(Record, frozen=True):
-    """Perception reported an object in the last view."""
-
-    TYPE: ClassVar[str] = "detection"
-    VERSION: ClassVar[int] = 1
-    object_class: Annotated[str, doc("Detected class.")]
-    instance_id: Annotated[str, doc("Instance id (simulator id, or tracker id on a robot).")]
-    mask_area: Annotated[NonNegative, doc("Segmentation mask area, pixels.")]
-    position: Annotated[XYZ, doc("Object position [x, y, z], map frame, metres.")]
-    accepted: Annotated[bool, doc("Whether the detection passed the mask-area threshold.")]
-    nearest_static_id: Annotated[str | None, doc("Nearest static object instance, or null.")]
-    nearest_static_class: Annotated[str | None, doc("Its class, or null.")]
-    at_static: Annotated[
-        bool,
-        doc("Whether the object is at that static object's viewpoint N_s (Eq. 4)."),
-    ]
 
 
 class DetectedV2(Record, frozen=True):
@@ -495,197 +366,6 @@ class PoseObserved(Record, frozen=True):
         doc("Frame the pose is in: the map frame when map → odom was known, else the odom frame."),
     ]
     topic: Annotated[str, doc("Bag topic it came from.")]
-
-
-class RunStartedV1(Record, frozen=True):
-    """A run (one experiment or one robot session) began, with everything needed to redo it."""
-
-    TYPE: ClassVar[str] = "run_started"
-    VERSION: ClassVar[int] = 1
-    home: Annotated[str, doc("Home (map) id.")]
-    home_digest: Annotated[
-        str,
-        doc("Digest of the home data, so a replay can tell whether the map changed."),
-    ]
-    method: Annotated[Literal["wpl", "rvp", "sdp", "epl"], doc("Search method.")]
-    alpha: Annotated[NonNegative, doc("Weight of relatedness in WPL (Eq. 3).")]
-    update_mode: Annotated[
-        Literal["none", "targets", "all"],
-        doc("Which scene-graph relations Eq. 4 updates after each search."),
-    ]
-    seed: Annotated[int, doc("Seed of every random choice in the run.")]
-    params: Annotated[dict[str, Any], doc("Any further parameters, free-form.")]
-
-
-class RunStartedV2(Record, frozen=True):
-    """A run (one experiment or one robot session) began, with its full spec: everything needed
-    to fold and re-plan it exactly (relation model and its parameters, planner, room order, α,
-    update mode, support radius, schedule)."""
-
-    TYPE: ClassVar[str] = "run_started"
-    VERSION: ClassVar[int] = 2
-    home: Annotated[str, doc("Home (map) id.")]
-    home_digest: Annotated[
-        str,
-        doc("Digest of the home data, so a replay can tell whether the map changed."),
-    ]
-    strategy: Annotated[
-        str,
-        doc("Name of the strategy (objsearch.agent.strategies), e.g. wpl, wpl-neg-decay, epl."),
-    ]
-    method: Annotated[
-        Literal["wpl", "rvp", "sdp"],
-        doc("Room order: wpl and rvp by summed Rel after the start room, sdp random (seeded)."),
-    ]
-    planner: Annotated[
-        Literal["wpl", "rvp", "sdp", "epl"],
-        doc(
-            "Stop planner inside a room: wpl (Eq. 3), rvp (by Rel), sdp (Eq. 3 with alpha "
-            "0), epl (expected path length)."
-        ),
-    ]
-    relations: Annotated[
-        RelationsSpecV2,
-        doc("The relation model the log is folded into, with every parameter it uses."),
-    ]
-    alpha: Annotated[NonNegative, doc("Weight of relatedness in WPL (Eq. 3).")]
-    update_mode: Annotated[
-        Literal["none", "targets", "all"],
-        doc("Which scene-graph relations Eq. 4 updates after each search."),
-    ]
-    seed: Annotated[int, doc("Seed of every random choice in the run.")]
-    support_radius: Annotated[
-        NonNegative,
-        doc("Metres: an object this close to a static object's box is at it (Eq. 4's experience)."),
-    ]
-    schedule: Annotated[
-        str | None,
-        doc(
-            "The placement schedule of a simulated run (table2, stats-<seed>, "
-            "rearr-<seed>), or null."
-        ),
-    ]
-    params: Annotated[
-        dict[str, Any],
-        doc("Any further parameters, free-form (e.g. the transport of an on-robot run)."),
-    ]
-
-
-class RunStartedV3(Record, frozen=True):
-    """A run (one experiment or one robot session) began, with its full spec: everything needed
-    to fold and re-plan it exactly (relation model and its parameters, planner, room order, α,
-    update mode, support radius, schedule)."""
-
-    TYPE: ClassVar[str] = "run_started"
-    VERSION: ClassVar[int] = 3
-    home: Annotated[str, doc("Home (map) id.")]
-    home_digest: Annotated[
-        str,
-        doc("Digest of the home data, so a replay can tell whether the map changed."),
-    ]
-    strategy: Annotated[
-        str,
-        doc("Name of the strategy (objsearch.agent.strategies), e.g. wpl, wpl-neg-decay, epl."),
-    ]
-    method: Annotated[
-        MethodNameV3,
-        doc(
-            "Room order: wpl and rvp by summed Rel after the start room, sdp random "
-            "(seeded), ecost by minimum expected cost over all room orders (an exact DP "
-            "over room subsets; the start room is not forced first)."
-        ),
-    ]
-    planner: Annotated[
-        PlannerName,
-        doc(
-            "Stop planner inside a room: wpl (Eq. 3), rvp (by Rel), sdp (Eq. 3 with alpha "
-            "0), epl (expected path length)."
-        ),
-    ]
-    relations: Annotated[
-        RelationsSpecV3,
-        doc("The relation model the log is folded into, with every parameter it uses."),
-    ]
-    alpha: Annotated[NonNegative, doc("Weight of relatedness in WPL (Eq. 3).")]
-    update_mode: Annotated[
-        UpdateModeName,
-        doc("Which scene-graph relations Eq. 4 updates after each search."),
-    ]
-    seed: Annotated[int, doc("Seed of every random choice in the run.")]
-    support_radius: Annotated[
-        NonNegative,
-        doc("Metres: an object this close to a static object's box is at it (Eq. 4's experience)."),
-    ]
-    schedule: Annotated[
-        str | None,
-        doc(
-            "The placement schedule of a simulated run (table2, stats-<seed>, rearr-<seed>,"
-            " habit-<seed>), or null."
-        ),
-    ]
-    params: Annotated[
-        dict[str, Any],
-        doc("Any further parameters, free-form (e.g. the transport of an on-robot run)."),
-    ]
-
-
-class RunStartedV4(Record, frozen=True):
-    """A run (one experiment or one robot session) began, with its full spec: everything needed
-    to fold and re-plan it exactly (relation model and its parameters, planner, room order, α,
-    update mode, support radius, schedule)."""
-
-    TYPE: ClassVar[str] = "run_started"
-    VERSION: ClassVar[int] = 4
-    home: Annotated[str, doc("Home (map) id.")]
-    home_digest: Annotated[
-        str,
-        doc("Digest of the home data, so a replay can tell whether the map changed."),
-    ]
-    strategy: Annotated[
-        str,
-        doc("Name of the strategy (objsearch.agent.strategies), e.g. wpl, wpl-neg-decay, epl."),
-    ]
-    method: Annotated[
-        MethodName,
-        doc(
-            "Room order: wpl and rvp by summed Rel after the start room, sdp random "
-            "(seeded), ecost by minimum expected cost over all room orders (an exact DP "
-            "over room subsets; the start room is not forced first), global by one plan "
-            "over every stop of the home (rooms are not searched whole; planner epl)."
-        ),
-    ]
-    planner: Annotated[
-        PlannerName,
-        doc(
-            "Stop planner inside a room: wpl (Eq. 3), rvp (by Rel), sdp (Eq. 3 with alpha "
-            "0), epl (expected path length)."
-        ),
-    ]
-    relations: Annotated[
-        RelationsSpecV4,
-        doc("The relation model the log is folded into, with every parameter it uses."),
-    ]
-    alpha: Annotated[NonNegative, doc("Weight of relatedness in WPL (Eq. 3).")]
-    update_mode: Annotated[
-        UpdateModeName,
-        doc("Which scene-graph relations Eq. 4 updates after each search."),
-    ]
-    seed: Annotated[int, doc("Seed of every random choice in the run.")]
-    support_radius: Annotated[
-        NonNegative,
-        doc("Metres: an object this close to a static object's box is at it (Eq. 4's experience)."),
-    ]
-    schedule: Annotated[
-        str | None,
-        doc(
-            "The placement schedule of a simulated run (table2, stats-<seed>, rearr-<seed>,"
-            " habit-<seed>), or null."
-        ),
-    ]
-    params: Annotated[
-        dict[str, Any],
-        doc("Any further parameters, free-form (e.g. the transport of an on-robot run)."),
-    ]
 
 
 class RunStarted(Record, frozen=True):
@@ -856,20 +536,6 @@ class TaskEnded(Record, frozen=True):
     path_length: Annotated[NonNegative, doc("Total path length of the task, metres.")]
 
 
-class TaskStartedV1(Record, frozen=True):
-    """A search for one target object began."""
-
-    TYPE: ClassVar[str] = "task_started"
-    VERSION: ClassVar[int] = 1
-    target: Annotated[str, doc("Target object class.")]
-    start: Annotated[str, doc("Room the robot starts in.")]
-    pose: Annotated[PlanarPose, doc("Start pose.")]
-    scene: Annotated[
-        int | None,
-        doc("Scene (placement schedule) index, or null for a live robot."),
-    ]
-
-
 class TaskStarted(Record, frozen=True):
     """A search for one target object began."""
 
@@ -891,16 +557,6 @@ class TaskStarted(Record, frozen=True):
     ]
 
 
-class ViewTakenV1(Record, frozen=True):
-    """The robot looked (took an observation)."""
-
-    TYPE: ClassVar[str] = "view_taken"
-    VERSION: ClassVar[int] = 1
-    pose: Annotated[PlanarPose, doc("Pose the view was taken from.")]
-    static_id: Annotated[str | None, doc("Static object being looked at, or null.")]
-    reason: Annotated[ViewReason, doc("Why the view was taken.")]
-
-
 class ViewTaken(Record, frozen=True):
     """The robot looked (took an observation)."""
 
@@ -918,22 +574,20 @@ class ViewTaken(Record, frozen=True):
     reason: Annotated[ViewReason, doc("Why the view was taken.")]
 
 
-#: Every record, old versions included, by (type, version).
+#: Every record the agent writes, by (type, version): each type's latest, and detection v2,
+#: which a perfect detector still writes. Older versions are not classes: they live on as
+#: their released schema files (``events/schema/<type>.v<N>.json``, read, never rewritten)
+#: and the upcast steps that carry them to the latest (:mod:`objsearch.agent.upcasters`).
 RECORDS: Final[Mapping[tuple[str, int], type[Record]]] = {
     (r.TYPE, r.VERSION): r
     for r in (
         ContainerOpened,
-        DetectionV1,
         DetectedV2,
         Detected,
         Moved,
         ObjectsDetected,
         PlanComputed,
         PoseObserved,
-        RunStartedV1,
-        RunStartedV2,
-        RunStartedV3,
-        RunStartedV4,
         RunStarted,
         RecordQuarantined,
         SceneGraphSeeded,
@@ -943,9 +597,7 @@ RECORDS: Final[Mapping[tuple[str, int], type[Record]]] = {
         TargetDetected,
         TaskAborted,
         TaskEnded,
-        TaskStartedV1,
         TaskStarted,
-        ViewTakenV1,
         ViewTaken,
     )
 }

@@ -1,8 +1,9 @@
 """Write the product's payload schema files from its records: ``make schemas``.
 
-The records in :mod:`objsearch.agent.catalogue` are the one definition of every payload, old
-versions included; ``events/schema/<type>.v<version>.json`` is written from them by
-:mod:`objsearch.events.schema_writer` and never edited by hand. After changing a record (or adding
+The records in :mod:`objsearch.agent.catalogue` are the one definition of every payload the
+agent writes; ``events/schema/<type>.v<version>.json`` is written from them by
+:mod:`objsearch.events.schema_writer` and never edited by hand. An older version is its released
+file, kept byte for byte (and read by an upcast step, :mod:`objsearch.agent.upcasters`). After changing a record (or adding
 a version), run::
 
     python -m objsearch.agent.schema_files          # writes the checkout's events/schema/
@@ -52,7 +53,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1 if stale else 0
     folder.mkdir(parents=True, exist_ok=True)
     changed = schema_writer.write(CATALOGUE, folder)
-    print(f"{len(changed)} of {len(CATALOGUE.records)} schema files changed in {folder}")
+    total = len(schema_writer.render(CATALOGUE))
+    print(f"{len(changed)} of {total} schema files changed in {folder}")
     for name in changed:
         print(f"  {name}")
     return 0

@@ -52,9 +52,10 @@ class Catalogue:
     """A domain's event types: schema files, upcasters, an optional fast payload check, and the
     per-run tables the lake derives from them besides ``searches`` (in dependency order).
 
-    ``records``: the payload type of each (type, version), old versions included, when the domain
-    defines its payloads as ``msgspec.Struct``s: then they are the one definition and the schema
-    files are written from them (:mod:`objsearch.events.schema_writer`)."""
+    ``records``: the payload type of each (type, version) the domain writes, when it defines its
+    payloads as ``msgspec.Struct``s: then they are the one definition and the schema files are
+    written from them (:mod:`objsearch.events.schema_writer`). An old version no record defines
+    but an upcast step starts from is a released schema file, kept as it was released."""
 
     schemas: Path | Traversable
     upcasters: Mapping[tuple[str, int], UpcastStep] = field(default_factory=dict)

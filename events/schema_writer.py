@@ -1,8 +1,9 @@
 """The payload schema files, written from the catalogue's records.
 
-A catalogue's records (``msgspec.Struct`` types, one per event type and version) are the one
-definition of its payloads; ``<type>.v<version>.json`` in its schema folder is generated from
-them, never edited. Each file is self-contained: every nested struct is copied into its own
+A catalogue's records (``msgspec.Struct`` types, one per event type and version it writes) are
+the one definition of its payloads; ``<type>.v<version>.json`` in its schema folder is generated
+from them, never edited. An old version no record defines (one an upcast step starts from) is a
+released file: kept byte for byte as it was released, the definition of that version. Each file is self-contained: every nested struct is copied into its own
 ``$defs``, so changing one file can never change the meaning of another.
 
 What a record says and what its file says:
@@ -86,27 +87,52 @@ def schema_of(record: type[msgspec.Struct], event_type: str, version: int) -> di
     return _ordered(root)
 
 
+def released(catalogue: Catalogue) -> list[tuple[str, int]]:
+    """The released old versions the catalogue keeps as files, not records: each version an
+    upcast step starts from that no record defines. Their files are the definition: read from
+    the catalogue's schema folder, never written from anything (a released version's meaning
+    never changes)."""
+    return sorted(key for key in catalogue.upcasters if key not in catalogue.records)
+
+
 def render(catalogue: Catalogue) -> dict[str, bytes]:
-    """Each schema file's name and bytes, from the catalogue's records."""
+    """Each schema file's name and bytes: written from the catalogue's records, and the released
+    old versions' files (:func:`released`) as the catalogue's schema folder holds them."""
     if not catalogue.records:
         raise SchemaWriterError("the catalogue has no records to write schemas from")
-    return {
+    files = {
         file_name(event_type, version): _dump(schema_of(record, event_type, version))
         for (event_type, version), record in sorted(catalogue.records.items())
     }
+    for event_type, version in released(catalogue):
+        name = file_name(event_type, version)
+        source = catalogue.schemas.joinpath(name)
+        if not source.is_file():
+            raise SchemaWriterError(
+                f"{name}: a released version (an upcast step starts from it) whose file is not "
+                f"in {catalogue.schemas}; restore it from version control, it is never rewritten"
+            )
+        files[name] = source.read_bytes()
+    return dict(sorted(files.items()))
 
 
 def differences(catalogue: Catalogue, directory: Path) -> list[str]:
     """The schema files in ``directory`` that are not what :func:`render` writes: changed,
-    missing, or there without a record (empty if the folder is up to date)."""
+    missing, or there without a record or a released version (empty if the folder is up to
+    date)."""
     wanted = render(catalogue)
+    kept = {file_name(*key) for key in released(catalogue)}
+
+    def source(name: str) -> str:
+        return "released file" if name in kept else "record"
+
     out = []
     for name, data in wanted.items():
         path = directory / name
         if not path.is_file():
             out.append(f"{name}: missing")
         elif path.read_bytes() != data:
-            out.append(f"{name}: differs from its record")
+            out.append(f"{name}: differs from its {source(name)}")
     out += [
         f"{path.name}: no record defines it"
         for path in sorted(directory.glob("*.json"))

@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 import re
 import subprocess
@@ -151,7 +152,23 @@ def test_the_committed_schema_files_are_written_from_the_records() -> None:
         "`make schemas` (python -m objsearch.agent.schema_files) and commit the result:\n  "
         + "\n  ".join(stale)
     )
-    assert len(list(SCHEMA_DIR.glob("*.json"))) == len(CATALOGUE.records)
+    released = schema_writer.released(CATALOGUE)
+    assert len(list(SCHEMA_DIR.glob("*.json"))) == len(CATALOGUE.records) + len(released)
+
+
+def test_released_versions_are_kept_byte_for_byte_and_never_lost(tmp_path: Path) -> None:
+    """An old version no record defines is its released file: written as the folder holds it,
+    and a catalogue whose folder lost one says which, rather than drop the version."""
+    released = schema_writer.released(CATALOGUE)
+    assert ("detection", 1) in released and ("run_started", 4) in released
+    schema_writer.write(CATALOGUE, tmp_path)
+    for event_type, version in released:
+        name = schema_writer.file_name(event_type, version)
+        assert (tmp_path / name).read_bytes() == (SCHEMA_DIR / name).read_bytes()
+    (tmp_path / "view_taken.v1.json").unlink()
+    lost = dataclasses.replace(CATALOGUE, schemas=tmp_path)
+    with pytest.raises(schema_writer.SchemaWriterError, match=r"view_taken\.v1\.json: a released"):
+        schema_writer.render(lost)
 
 
 def test_the_writer_reports_and_mends_a_stale_folder(tmp_path: Path) -> None:
