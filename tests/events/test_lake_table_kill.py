@@ -19,10 +19,10 @@ from pathlib import Path
 import boto3
 import pytest
 
+from devtools.killtest import KillServer, table_content
 from objsearch.agent.catalogue import STORE
 from objsearch.events.lake import TableLake, add_log
 from objsearch.events.lake.schema import TABLE_DIR
-from objsearch.testing.killtest import KillServer, table_content
 
 from .lake_logs import two_type_log
 
@@ -53,11 +53,12 @@ def _stored(root: str) -> set[str]:
             for p in pages.paginate(Bucket=bucket, Prefix=table)
             for o in p.get("Contents", [])
         ]
-        # not the empty "folder" markers Arrow's S3 client puts when it moves an object
+        # data files only: not the empty "folder" markers Arrow's S3 client puts when it moves
+        # an object, nor the lake's head record (_objsearch_head.json), as locally
         return {
             k.removeprefix(table)
             for k in keys
-            if "/_delta_log/" not in f"/{k}" and not k.endswith("/")
+            if "/_delta_log/" not in f"/{k}" and k.endswith(".parquet")
         }
     base = Path(root) / TABLE_DIR
     return {
