@@ -47,11 +47,13 @@ lint: $(STAMP)
 # mypy reads the package through a tree of symlinks generated from pyproject's package-dir (the
 # table setuptools builds the wheel from; nothing to keep in step by hand). Tests and benchmarks
 # are checked too, each in its own pass: benchmarks are scripts run by path, so benchmarks/events.py
-# is a module `events`, as is the test package tests/events.
+# is a module `events`, as is the test package tests/events. devtools/ (the harnesses, not in the
+# wheel) is a package of the checkout, found from here.
 TYPECHECK := $(VENV)/typecheck
 typecheck: $(STAMP)
 	$(BIN)/python tests/typecheck_tree.py $(TYPECHECK)
 	MYPYPATH=$(TYPECHECK) $(BIN)/mypy -p objsearch
+	MYPYPATH=$(TYPECHECK) $(BIN)/mypy -p devtools
 	MYPYPATH=$(TYPECHECK) $(BIN)/mypy tests
 	MYPYPATH=$(TYPECHECK) $(BIN)/mypy benchmarks
 

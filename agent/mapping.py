@@ -24,10 +24,10 @@ import math
 import statistics
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
-import torch
 
 from objsearch.agent.camera_frames import CameraIntrinsics, Float64Array, FloatArray, RGBDFrame
 from objsearch.agent.detect import Detector, MaskDetection
@@ -35,6 +35,12 @@ from objsearch.agent.geometry import Point, Pose, heading
 from objsearch.agent.home import Box
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.semmap import MappedStatic, SemanticMap
+
+if TYPE_CHECKING:
+    # Only fusing views needs torch (the ``torch`` extra): it is imported where they are fused, so
+    # the survey's poses (``record --mapping-sweep``) need none; ``objsearch map build`` checks
+    # first that it is installed (``agent/extras.py``).
+    import torch
 
 YAW_STEP = math.pi / 4  # "a view every 45 degrees" (§4.3)
 #: "container type, such as refrigerator and microwave oven" (§5.1): the classes the robot opens.
@@ -139,6 +145,8 @@ def detected(frames: Iterable[RGBDFrame], detector: Detector) -> Iterator[Masked
 
 
 def default_device() -> torch.device:
+    import torch
+
     return torch.device("cuda" if torch.cuda.is_available() else "cpu")
 
 
@@ -167,6 +175,8 @@ def backproject_labels(
     ``rays`` is (H, W, 3) with z = 1 (:meth:`CameraIntrinsics.rays`). The rotation is written out
     per component: a (N, 3) × (3, 3) product goes through BLAS, which is slow for so thin a matrix.
     """
+    import torch
+
     valid = ((depth > 0) & (labels >= 0)).view(-1)
     idx = torch.nonzero(valid).squeeze(1)
     z = depth.view(-1).index_select(0, idx)
@@ -203,6 +213,8 @@ class VoxelGrid:
     """Class votes per voxel: a flat (X·Y·Z·C) int32 tensor, added to in place."""
 
     def __init__(self, spec: GridSpec, n_classes: int, device: torch.device | None = None) -> None:
+        import torch
+
         self.spec = spec
         self.n_classes = n_classes
         self.device = device or default_device()
@@ -214,6 +226,8 @@ class VoxelGrid:
     def integrate(self, points: torch.Tensor, labels: torch.Tensor) -> int:
         """Add one vote per point to its voxel's class; points outside the grid are dropped.
         Returns the number of votes added."""
+        import torch
+
         idx = torch.floor((points - self._origin) / self.spec.voxel).to(torch.int64)
         inside = ((idx >= 0) & (idx < self._shape)).all(dim=1)
         idx, lab = idx[inside], labels[inside]
@@ -282,6 +296,8 @@ class SemanticMapBuilder:
 
     def add(self, view: MaskedDepth) -> None:
         """Fuse one view into the grid of the room the camera stands in."""
+        import torch
+
         x, y, _ = view.position
         grid = self.grid(self.navmap.room_at(x, y))
         labels = label_image(view.detections, self.classes, view.intrinsics.shape)

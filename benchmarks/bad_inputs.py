@@ -5,7 +5,7 @@
 Three parts, each printing tried / clear error / traceback / other:
 
 * **options**: every argument of every subcommand (walked from the parser, so new ones are
-  covered) with each malformed value of ``objsearch.cli_battery`` plus a few more, run in-process
+  covered) with each malformed value of ``devtools.cli_battery`` plus a few more, run in-process
   through ``objsearch.cli.main``; the cases the option's type rejects must be clear errors;
 * **processes**: one malformed value per argument again, each in its own ``python -m
   objsearch.cli`` (``--processes`` caps how many; 0 runs all), half of them on an ASCII-only
@@ -29,7 +29,10 @@ import time
 from collections.abc import Iterable
 from pathlib import Path
 
-from objsearch import cli_battery as battery
+# devtools/ (the harnesses, not installed) is a folder of the checkout, beside this one's.
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
+
+from devtools import cli_battery as battery
 from objsearch.cli import build_parser
 
 #: More malformed values for the in-process part (hex, underscores, signs, other digits, a name

@@ -5,7 +5,7 @@
 Records one simulated run per format (scene 1, targets Apple and Cup, start kitchen-1, odometry
 at 10 Hz, ROS 1 chunks of 16 KiB so a bag has several), takes the real bags of
 ``../shared/data/bags`` as they are, and for each bag makes ``--per-kind`` variants of every kind
-of damage that applies (:mod:`objsearch.pipeline.bags.battery`: cuts, bit flips, 4 KiB zeroed
+of damage that applies (:mod:`devtools.bag_battery`: cuts, bit flips, 4 KiB zeroed
 inside a chunk, and the renames: no ``metadata.yaml``, a wrong extension). Every variant is
 ingested by ``objsearch ingest`` into a fresh lake and checked against the intact bag's ingest,
 per topic. Prints, per format and in total: tried / exit 0 complete / exit 0 with the loss
@@ -23,8 +23,11 @@ import time
 from collections import Counter
 from pathlib import Path
 
+# devtools/ (the harnesses, not installed) is a folder of the checkout, beside this one's.
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
+
+from devtools.bag_battery import account, ingest_cli, variants
 from objsearch.cli import main as cli_main
-from objsearch.pipeline.bags.battery import account, ingest_cli, variants
 from objsearch.pipeline.bags.formats import BagFormat, detect
 from objsearch.pipeline.bags.record import record
 

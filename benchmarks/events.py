@@ -37,6 +37,7 @@ import random
 import re
 import shutil
 import statistics
+import sys
 import tempfile
 import time
 import warnings
@@ -45,10 +46,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Final
 
+# devtools/ (the harnesses, not installed) is a folder of the checkout, beside this one's.
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
+
 import duckdb
 import msgspec
 import pyarrow as pa
 
+from devtools.crashtest import run_crash_test
 from objsearch.agent.catalogue import (
     LATEST,
     STORE,
@@ -70,7 +75,6 @@ from objsearch.events.lake import TableLake
 from objsearch.events.log_files import read_meta
 from objsearch.events.store import Store
 from objsearch.replay.analytics import open_analytics
-from objsearch.testing.crashtest import run_crash_test
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "analytics.md"
 DYNAMIC = ("Apple", "Cup", "Bowl", "Phone", "Laptop", "Vase", "Pillow", "ToiletPaper")

@@ -4,7 +4,7 @@
 
 Builds a fleet lake of three runs with the real CLI from the bundled data (``objsearch search``
 per target, one ``objsearch lake add`` a run), then for every kind of damage of
-:mod:`objsearch.lake_battery` (bit flips in data pages, in the footer, anywhere; random bytes;
+:mod:`devtools.lake_battery` (bit flips in data pages, in the footer, anywhere; random bytes;
 cuts; zeroed ranges; garbage appended; data files deleted; valid Parquet with one value changed;
 commit files of the table's log flipped, cut or deleted) makes ``--per-kind`` copies of the lake,
 each with one damage, and asks each copy ``objsearch query`` (every row of every view) and
@@ -23,7 +23,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from objsearch.lake_battery import COLUMNS, KINDS, build_lake, run_battery
+# devtools/ (the harnesses, not installed) is a folder of the checkout, beside this one's.
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
+
+from devtools.lake_battery import COLUMNS, KINDS, build_lake, run_battery
 
 
 def main() -> int:

@@ -3,7 +3,7 @@ schema, null and absent, through ``objsearch lake add`` → read back → ``repl
 
     python benchmarks/lake_fields.py
 
-See :mod:`objsearch.lake_fields_battery` for the variants and what each verdict means. Prints,
+See :mod:`devtools.lake_fields_battery` for the variants and what each verdict means. Prints,
 per event type and kind (null / absent) and in total: tried / clear error / unchanged /
 traceback / silent change / loss, lists every variant in the last three columns, and exits 1 if
 there is any.
@@ -17,7 +17,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from objsearch.lake_fields_battery import COLUMNS, run_battery
+# devtools/ (the harnesses, not installed) is a folder of the checkout, beside this one's.
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
+
+from devtools.lake_fields_battery import COLUMNS, run_battery
 
 
 def main() -> int:

@@ -4,7 +4,7 @@ its runs' records, every answer checked.
     python benchmarks/lake_log_damage.py [--per-kind N] [--seed 21]
 
 Builds the battery's fleet lake (three runs made with the real CLI, one ``lake add`` each) and a
-compacted copy, then for every kind of :mod:`objsearch.lake_log_battery` (each ``add``, ``txn``
+compacted copy, then for every kind of :mod:`devtools.lake_log_battery` (each ``add``, ``txn``
 and ``commitInfo`` line of each commit removed, each ``add`` duplicated; each commit deleted,
 copied as the next version, cut at each kind of place, bit-flipped; the newest commit deleted;
 each ``_run`` file deleted, cut, flipped, replaced; the head record deleted or garbled) tries
@@ -24,7 +24,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from objsearch.lake_log_battery import COLUMNS, KINDS, build, run_battery
+# devtools/ (the harnesses, not installed) is a folder of the checkout, beside this one's.
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
+
+from devtools.lake_log_battery import COLUMNS, KINDS, build, run_battery
 
 
 def main() -> int:

@@ -26,15 +26,18 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+# devtools/ (the harnesses, not installed) is a folder of the checkout, beside this one's.
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
+
 import boto3
 from lake_writers import write_logs
 
+from devtools.s3server import s3_server
 from objsearch.agent.catalogue import STORE
 from objsearch.events.lake import TableLake, add_log
 from objsearch.events.lake.storage import _filesystem
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics
-from objsearch.testing.s3server import s3_server
 
 
 def median_in_turn(fns: list[Callable[[], object]], reps: int) -> list[float]:

@@ -40,13 +40,16 @@ from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
+# devtools/ (the harnesses, not installed) is a folder of the checkout, beside this one's.
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
+
+from devtools.s3server import s3_server
 from events import synthetic_run
 from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog
 from objsearch.events.lake import TableLake, add_log
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query
-from objsearch.testing.s3server import s3_server
 
 WRITER = """
 import json, sys, time

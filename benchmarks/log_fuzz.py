@@ -20,7 +20,7 @@ intact records moved out:
 - **battery**: every kind of line damage (blank, duplicated, swapped, moved, deleted, cut,
   split lines; bits flipped in a record, its checksum, tab or newline; garbage, another log's
   line, CR LF, edited values) at every line of a closed and a crashed log, and every edit of
-  ``meta.json``, through ``objsearch log repair`` (:mod:`objsearch.testing.repair_battery`):
+  ``meta.json``, through ``objsearch log repair`` (:mod:`devtools.repair_battery`):
   no intact record may be moved out (exit status 1 otherwise).
 
 The suite runs smaller versions of each (tests/events/test_logfuzz.py).
@@ -31,9 +31,13 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
-from objsearch.testing.logfuzz import run_log_fuzz, run_repair_fuzz, run_snapshot_fuzz
-from objsearch.testing.repair_battery import run_repair_battery
+# devtools/ (the harnesses, not installed) is a folder of the checkout, beside this one's.
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
+
+from devtools.logfuzz import run_log_fuzz, run_repair_fuzz, run_snapshot_fuzz
+from devtools.repair_battery import run_repair_battery
 
 HEADER = (
     f"{'battery':9} {'tried':>7} {'clear error':>12} {'unchanged':>10} {'traceback':>10} "

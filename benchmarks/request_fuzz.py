@@ -3,7 +3,7 @@ sim``, ``objsearch agent run`` over Zenoh).
 
     python benchmarks/request_fuzz.py [--cases 3000] [--seed 12]
 
-Sends ``--cases`` broken requests (find, open, reset, goal; see ``objsearch.runtime.requestfuzz``),
+Sends ``--cases`` broken requests (find, open, reset, goal; see ``devtools.requestfuzz``),
 then a valid search whose result must equal the in-process simulator's, and prints the counts:
 tried / error-answered (each error names the broken field) / dropped (each with its log line in
 the receiving process) / served / crashed (a process that died or printed a traceback) / wrong
@@ -18,7 +18,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from objsearch.runtime.requestfuzz import Rig, free_port, fuzz_rig, simulated
+# devtools/ (the harnesses, not installed) is a folder of the checkout, beside this one's.
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
+
+from devtools.requestfuzz import Rig, free_port, fuzz_rig, simulated
 
 
 def main() -> int:

@@ -1,5 +1,5 @@
 """The live view's WebSocket battery at benchmark size: hostile clients against a live view
-drawing a real log (``objsearch.runtime.wsflood``).
+drawing a real log (``devtools.wsflood``).
 
     python benchmarks/ws_flood.py [--cases 2000] [--seed 0] [--max-clients 8] [--agent-drip 300]
 
@@ -31,10 +31,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from objsearch.agent.catalogue import STORE
-from objsearch.events import read_log
-from objsearch.runtime.standin import in_process_search
-from objsearch.runtime.wsflood import (
+# devtools/ (the harnesses, not installed) is a folder of the checkout, beside this one's.
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
+
+from devtools.wsflood import (
     DEADLINE_S,
     Viewer,
     closed_by_server,
@@ -42,6 +42,9 @@ from objsearch.runtime.wsflood import (
     report,
     run_battery,
 )
+from objsearch.agent.catalogue import STORE
+from objsearch.events import read_log
+from objsearch.runtime.standin import in_process_search
 from objsearch.runtime.wsfront import DEFAULT_HANDSHAKE_TIMEOUT_S, FrontLimits
 
 

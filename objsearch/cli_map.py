@@ -123,6 +123,7 @@ def _print_statics(semmap: Any) -> None:
 
 
 def cmd_map_build(args: argparse.Namespace) -> int:
+    from objsearch.agent.extras import require_torch
     from objsearch.agent.session import load_context
     from objsearch.cli import _fail
 
@@ -133,6 +134,8 @@ def cmd_map_build(args: argparse.Namespace) -> int:
     # The home before torch and the mapping modules (seconds of imports): a name that is not a
     # home is refused at once.
     ctx = load_context(args.home)
+    # torch is an optional extra (agent/extras.py): without it, an error naming it, not a traceback.
+    require_torch("objsearch map build")
 
     import time
 

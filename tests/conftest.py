@@ -73,7 +73,7 @@ def s3_server() -> Iterator[dict[str, str]]:
     """moto's S3 server on a free loopback port, started once for the whole run (each start
     costs seconds on a loaded machine); yields the ``AWS_*`` settings that point a client at it.
     A test sets them with ``monkeypatch`` (or takes :func:`bucket`)."""
-    from objsearch.testing.s3server import s3_server as local_s3_server
+    from devtools.s3server import s3_server as local_s3_server
 
     with local_s3_server() as settings:
         yield settings

@@ -18,8 +18,8 @@ import circle between modules (none in ``events``; elsewhere only :data:`KNOWN_C
 * nothing but the CLI imports the CLI package (``objsearch.cli*`` and the rest of ``objsearch/``);
   the root ``objsearch`` itself (only ``__version__``) may be imported by any part but ``events``
   and ``agent``, and imports nothing;
-* ``testing`` (the crash, kill and fuzz harnesses) may import every part, the CLI too, and no
-  part but the CLI imports it.
+* no module of the package imports ``devtools`` (the crash, kill and fuzz harnesses and the
+  batteries: a folder of the checkout the wheel does not hold), nor ``tests``.
 
 Imports written inside string literals count too: a string that parses as Python code with
 imports in it (a script a harness hands a child interpreter) and the module named by
@@ -56,9 +56,6 @@ ALLOWED: Mapping[str, frozenset[str]] = {
     # objsearch record runs the simulator to write bags
     "pipeline": frozenset({"events", "agent", "ros", "sim", ROOT}),
     "experiments": frozenset({"events", "agent", "ros", "sim", "replay", "pipeline", ROOT}),
-    "testing": frozenset(
-        {"events", "agent", "ros", "sim", "runtime", "replay", "pipeline", "experiments", ROOT, CLI}
-    ),
     ROOT: frozenset(),
 }
 #: (module, part it may import although its part may not), each with the reason.
@@ -281,7 +278,6 @@ ORDER = (
     "replay",
     "pipeline",
     "experiments",
-    "testing",
     CLI,
     ROOT,
 )
@@ -398,12 +394,37 @@ def test_imports_inside_strings_are_seen() -> None:
     assert len(violations(found)) == 2
 
 
-def test_no_product_part_imports_the_testing_harnesses() -> None:
-    for src in set(ALLOWED) - {"testing"}:
-        assert "testing" not in ALLOWED[src], src
-    (found,) = violations([Import("objsearch.events.log", "objsearch.testing.crashtest", 1)])
-    assert found.endswith("(events may not import testing)")
-    assert violations([Import("objsearch.testing.killtest", "objsearch.cli", 1)]) == []
+#: Folders of the checkout that are not part of the product: no module of the package imports them.
+DEV_ONLY = ("devtools", "tests")
+
+
+def dev_only_imports(imports: list[Import]) -> list[str]:
+    return [
+        f"{i.module}:{i.line} imports {i.target} (the package may not import {dev})"
+        for i in imports
+        for dev in DEV_ONLY
+        if i.target == dev or i.target.startswith(dev + ".")
+    ]
+
+
+def test_no_module_of_the_package_imports_the_dev_tools() -> None:
+    found = modules()
+    known = frozenset(found)
+    imports = [
+        i
+        for name, path in sorted(found.items())
+        for i in imports_of(
+            name,
+            path.read_text(encoding="utf-8"),
+            is_package=path.name == "__init__.py",
+            known=known,
+        )
+    ]
+    assert dev_only_imports(imports) == []
+    assert not any(name.split(".")[1:2] == ["testing"] for name in found)
+    assert dev_only_imports([Import("objsearch.events.log", "devtools.crashtest", 1)]) == [
+        "objsearch.events.log:1 imports devtools.crashtest (the package may not import devtools)"
+    ]
 
 
 def loaded_by(statement: str) -> list[str]:

@@ -1,5 +1,5 @@
 """The bad-input battery: every subcommand's every option with malformed values ends in
-``objsearch: error: …`` and exit 2, never a traceback (objsearch/cli_battery.py builds the cases;
+``objsearch: error: …`` and exit 2, never a traceback (devtools/cli_battery.py builds the cases;
 benchmarks/bad_inputs.py runs a larger set and real processes)."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from objsearch import cli_battery as battery
+from devtools import cli_battery as battery
 from objsearch.cli import build_parser
 
 #: A subset of the battery's values, one of each kind, so CI stays within seconds.

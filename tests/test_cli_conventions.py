@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from objsearch import cli_battery as battery
+from devtools import cli_battery as battery
 from objsearch import cli_types as t
 from objsearch.cli import build_parser, main
 

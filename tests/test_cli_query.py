@@ -18,12 +18,12 @@ from pathlib import Path
 
 import pytest
 
+from devtools.killtest import tree
 from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
 from objsearch.events.lake import DataFile, TableLake, is_table_lake
 from objsearch.events.sql_limits import QueryLimitError, close
 from objsearch.replay.analytics import open_analytics, run_query, stream_query
-from objsearch.testing.killtest import tree
 
 
 @pytest.fixture(scope="module")

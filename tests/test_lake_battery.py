@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from objsearch.lake_battery import KINDS, build_lake, run_battery
+from devtools.lake_battery import KINDS, build_lake, run_battery
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""The optional-fields battery in CI (objsearch/lake_fields_battery.py): every optional field of
+"""The optional-fields battery in CI (devtools/lake_fields_battery.py): every optional field of
 the latest version of every schema made null, and some made absent, through ``lake add`` → read
 back → ``replay`` / ``where``. A null field must come back as the log has it (before the run
 digest hashed values, a null ``task_started.clock`` or ``detection.support`` made the lake refuse
@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from devtools.lake_fields_battery import COLUMNS, Variant, run_battery, variants
 from objsearch.agent.catalogue import STORE
-from objsearch.lake_fields_battery import COLUMNS, Variant, run_battery, variants
 
 
 def _suite(every: list[Variant]) -> Sequence[Variant]:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from objsearch.lake_log_battery import KINDS, build, run_battery
+from devtools.lake_log_battery import KINDS, build, run_battery
 
 
 @pytest.fixture(scope="module")

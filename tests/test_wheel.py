@@ -1,15 +1,20 @@
 """The package as a robot gets it: built as a wheel, installed in a fresh venv, run from elsewhere.
 
-The venv reuses the project's dependencies (a ``.pth`` line naming this interpreter's
-site-packages) and installs only the wheel, offline, so the whole module takes seconds. That
+Most tests share a venv that reuses the project's dependencies (a ``.pth`` line naming this
+interpreter's site-packages) and installs only the wheel, offline, so they take seconds. That
 ``.pth`` line adds the folder to ``sys.path`` without running the editable install's import hook,
-so ``objsearch`` can only come from the wheel.
+so ``objsearch`` can only come from the wheel. One slow test installs the wheel as the README tells
+a robot to, into an empty venv with pip resolving every dependency (pip's cache and this machine's
+pip configuration; about 2 minutes here, most of it unpacking pyarrow, polars, DuckDB, OpenCV), and
+runs a search there without torch.
 """
 
 from __future__ import annotations
 
+import ast
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -18,6 +23,7 @@ import tomllib
 import venv
 import zipfile
 from dataclasses import dataclass
+from email.parser import Parser
 from pathlib import Path
 
 import pytest
@@ -120,6 +126,58 @@ def test_the_wheel_ships_the_data_and_no_tests(installed: Installed) -> None:
     assert not [n for n in names if n.startswith("tests/") or "/golden/" in n]
 
 
+#: What only the tests and benchmarks use: the harness folder and what only the dev extra installs.
+DEV_ONLY_IMPORTS = frozenset({"devtools", "tests", "moto", "werkzeug", "pytest", "hypothesis"})
+#: The harnesses, fuzzers and batteries (devtools/), by the names they had in the package.
+HARNESS = re.compile(r"(^objsearch/testing/|battery|fuzz|flood|crashtest|killtest|s3server)")
+
+
+def test_the_wheel_holds_no_harness_fuzzer_or_battery(installed: Installed) -> None:
+    names = zipfile.ZipFile(installed.wheel).namelist()
+    assert [n for n in names if n.endswith(".py") and HARNESS.search(n)] == []
+
+
+def _imported(source: str) -> set[str]:
+    found = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            found |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            found.add(node.module.split(".")[0])
+    return found
+
+
+def test_the_wheel_imports_nothing_only_the_dev_extra_installs(installed: Installed) -> None:
+    wheel = zipfile.ZipFile(installed.wheel)
+    dev = {
+        name: sorted(_imported(wheel.read(name).decode("utf-8")) & DEV_ONLY_IMPORTS)
+        for name in wheel.namelist()
+        if name.endswith(".py")
+    }
+    assert {name: found for name, found in dev.items() if found} == {}
+
+
+def _requires(wheel: Path) -> list[str]:
+    archive = zipfile.ZipFile(wheel)
+    [meta] = [n for n in archive.namelist() if n.endswith(".dist-info/METADATA")]
+    return Parser().parsestr(archive.read(meta).decode("utf-8")).get_all("Requires-Dist") or []
+
+
+def test_torch_is_an_extra_not_a_dependency(installed: Installed) -> None:
+    """Unpinned, a plain ``pip install`` of the wheel took the newest torch and 18 nvidia
+    packages (~3 GB); only ``objsearch map build`` needs torch."""
+    requires = _requires(installed.wheel)
+    base = [r for r in requires if "extra ==" not in r]
+    assert [r for r in base if re.match(r"(torch|nvidia)", r)] == []
+    assert any(re.match(r'torch\b.*extra == "torch"', r) for r in requires), requires
+
+
+def test_the_readme_gives_the_robots_install_command(installed: Installed) -> None:
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    assert f"pip install {installed.wheel.name}\n" in readme
+    assert f"pip install '{installed.wheel.name}[torch]' --extra-index-url" in readme
+
+
 def test_the_wheel_ships_the_vendored_sources_a_data_build_reads(installed: Installed) -> None:
     # sources/ is not in the shared data folder: without it, data build from a wheel would fail.
     names = set(zipfile.ZipFile(installed.wheel).namelist())
@@ -174,3 +232,44 @@ def test_data_build_will_not_write_into_the_installed_package(installed: Install
     proc = installed.run("data", "build", "--source", source, "--out", str(shipped / "homes"))
     assert proc.returncode == 2
     assert "refusing to write into the installed package" in proc.stderr
+
+
+@pytest.mark.slow
+def test_a_robot_installs_the_wheel_with_one_command_and_searches(
+    installed: Installed, tmp_path: Path
+) -> None:
+    """``pip install WHEEL`` (README, "Install") into an empty venv: every dependency resolved by
+    pip, no torch and no CUDA; a search runs, and ``map build`` names the extra it needs."""
+    robot = tmp_path / "robot"
+    venv.create(robot, with_pip=True)
+    pip = [str(robot / "bin" / "python"), "-m", "pip", "--disable-pip-version-check"]
+    _check([*pip, "install", "--quiet", str(installed.wheel)], env=installed.env)
+    listed = subprocess.run(
+        [*pip, "list", "--format", "json"], capture_output=True, text=True, check=True
+    ).stdout
+    names = {d["name"].lower() for d in json.loads(listed)}
+    assert "objsearch" in names
+    assert sorted(n for n in names if n == "torch" or n.startswith("nvidia")) == []
+    bin_ = robot / "bin" / "objsearch"
+    search = subprocess.run(
+        [str(bin_), "search", "Apple", "--start", "kitchen-1", "--format", "json"],
+        cwd=installed.elsewhere,
+        env=installed.env,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert search.returncode == 0, search.stderr
+    assert json.loads(search.stdout)["found"].startswith("kitchen/Apple")
+    build = subprocess.run(
+        [str(bin_), "map", "build", "--home", "paper"],
+        cwd=installed.elsewhere,
+        env=installed.env,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert build.returncode == 2, build.stderr
+    assert "objsearch: error: objsearch map build needs torch" in build.stderr
+    assert "'objsearch[torch]'" in build.stderr
+    assert "Traceback" not in build.stderr

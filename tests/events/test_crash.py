@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from devtools.crashtest import CrashReport, CrashTestFailure, _check, run_crash_test
 from objsearch.agent.catalogue import STORE
 from objsearch.events import CorruptLogError, EventLog, TornTailWarning, read_log
-from objsearch.testing.crashtest import CrashReport, CrashTestFailure, _check, run_crash_test
 
 KILLS = 200
 

@@ -12,11 +12,11 @@ from pathlib import Path
 
 import pytest
 
+from devtools.killtest import tree
+from devtools.lake_battery import build_lake, run_cli
 from objsearch.agent.catalogue import STORE
 from objsearch.events.lake import TableLake
 from objsearch.events.lake.schema import RUN_TYPE, TABLE_DIR
-from objsearch.lake_battery import build_lake, run_cli
-from objsearch.testing.killtest import tree
 
 SQL = "SELECT run, count(*) AS n FROM detection GROUP BY run ORDER BY run"
 

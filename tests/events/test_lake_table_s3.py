@@ -18,12 +18,12 @@ import botocore.exceptions
 import pyarrow as pa
 import pytest
 
+from devtools.s3server import stalled
 from objsearch.agent.catalogue import STORE
 from objsearch.events import EventLog
 from objsearch.events.lake import TableLake, add_log, is_table_lake
 from objsearch.events.sql_limits import close
 from objsearch.replay.analytics import open_analytics, run_query
-from objsearch.testing.s3server import stalled
 
 from .lake_logs import COMPACTING_WRITER, check_two_compactions_at_once
 
@@ -256,7 +256,7 @@ def test_of_writers_creating_one_key_at_once_one_wins(bucket: str) -> None:
     # writers of one version exactly one may succeed. Plain moto (5.2.5) checks the condition
     # and then stores, with no lock between: several succeeded and the last store replaced the
     # others — a commit acknowledged and gone, the run the 8 x 50 writers' benchmark lost
-    # (issue 26). objsearch.testing.s3server makes the check and the store one step.
+    # (issue 26). devtools.s3server makes the check and the store one step.
     name = bucket.removeprefix("s3://").split("/")[0]
     clients = [boto3.client("s3") for _ in range(8)]
     for k in range(12):

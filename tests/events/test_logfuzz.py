@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from objsearch.testing.logfuzz import MUTATIONS, run_log_fuzz, run_repair_fuzz, run_snapshot_fuzz
+from devtools.logfuzz import MUTATIONS, run_log_fuzz, run_repair_fuzz, run_snapshot_fuzz
 
 #: Each test runs a command or a fuzzer thousands of times: tens of seconds.
 pytestmark = pytest.mark.slow

@@ -8,12 +8,12 @@ from pathlib import Path
 
 import pytest
 
+from devtools.repair_battery import LINE_DAMAGE, run_repair_battery
 from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
 from objsearch.events import CorruptLogError, EventLog, LogLockedError, read_log
 from objsearch.events.envelope import deterministic_event_id
 from objsearch.events.repair import repair_log, verify_log
-from objsearch.testing.repair_battery import LINE_DAMAGE, run_repair_battery
 
 RUN = "00000000-0000-4000-8000-0000000000bb"
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from objsearch import cli_battery as battery
+from devtools import cli_battery as battery
 from objsearch import cli_types as t
 from objsearch.agent.datapaths import data_dir
 from objsearch.cli import build_parser, main

@@ -8,8 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from objsearch.runtime.config import RuntimeConfig
-from objsearch.runtime.requestfuzz import (
+from devtools.requestfuzz import (
     RECEIVER,
     CaseMaker,
     Rig,
@@ -17,6 +16,7 @@ from objsearch.runtime.requestfuzz import (
     fuzz_rig,
     simulated,
 )
+from objsearch.runtime.config import RuntimeConfig
 
 pytest.importorskip("zenoh")
 

@@ -1,4 +1,4 @@
-"""The live view's WebSocket battery (``objsearch.runtime.wsflood``) at test size: hostile
+"""The live view's WebSocket battery (``devtools.wsflood``) at test size: hostile
 connections of every kind against a live view drawing a real log; nothing is lost, nothing
 changes silently, nothing crashes. (``benchmarks/ws_flood.py`` runs thousands.)"""
 
@@ -15,7 +15,7 @@ from objsearch.runtime.standin import in_process_search
 
 def test_hostile_clients_get_clear_errors_and_the_viewer_loses_nothing(tmp_path: Path) -> None:
     pytest.importorskip("foxglove")
-    from objsearch.runtime.wsflood import KINDS, report, run_battery
+    from devtools.wsflood import KINDS, report, run_battery
 
     in_process_search(tmp_path / "log", 1, "Apple", "kitchen-1")
     counts = run_battery(list(read_log(tmp_path / "log", store=STORE)), 120, seed=3)

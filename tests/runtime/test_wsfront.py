@@ -21,12 +21,12 @@ from typing import Any
 
 import pytest
 
+from devtools.wsflood import closed_by_server
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.session import load_context
 from objsearch.events import Event, read_log
 from objsearch.runtime import liveview as lv
 from objsearch.runtime import messages as m
-from objsearch.runtime.wsflood import closed_by_server
 from objsearch.runtime.wsfront import (
     LEGACY_SUBPROTOCOL,
     SDK_SUBPROTOCOL,

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from devtools.bag_battery import Ingested, account, ingest_cli, variants
 from objsearch.cli import main
-from objsearch.pipeline.bags.battery import Ingested, account, ingest_cli, variants
 
 from .bag_fixtures import Recorded
 

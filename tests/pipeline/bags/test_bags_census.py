@@ -6,7 +6,7 @@ import shutil
 import struct
 from pathlib import Path
 
-from objsearch.pipeline.bags.battery import ZERO_BLOCK, chunk_spans
+from devtools.bag_battery import ZERO_BLOCK, chunk_spans
 from objsearch.pipeline.bags.census import take_census
 from objsearch.pipeline.bags.formats import BagFormat, storage_files
 from objsearch.pipeline.bags.read import read_bag

@@ -10,12 +10,12 @@ from pathlib import Path
 
 import pytest
 
+from devtools.killtest import KillServer, table_content
 from objsearch.agent.catalogue import STORE
 from objsearch.events.lake import TableLake
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.ingest import ingest
 from objsearch.pipeline.bags.record import record
-from objsearch.testing.killtest import KillServer, table_content
 
 from .splitter import split_ros1
 
