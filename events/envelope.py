@@ -100,7 +100,7 @@ class Event(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tru
             version=self.version,
             task_id=self.task_id,
         )
-        _require_mapping(self.payload, self.type, self.version)
+        require_mapping(self.payload, self.type, self.version)
         copied = _json_copy(self.payload, "payload", self.type, self.version)
         msgspec.structs.force_setattr(self, "payload", MappingProxyType(copied))
 
@@ -183,25 +183,12 @@ class Event(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tru
         return _Adopted(**d)
 
     @classmethod
-    def _for_append(
-        cls, payload: Mapping[str, Any], **envelope: Any
-    ) -> tuple[Event, dict[str, Any], str]:
-        """The event an append stores, its payload (the dict behind ``event.payload``, for the
-        schema check) and that payload's JSON text (:func:`json_payload`): the checks and errors
-        of ``Event(...)``, in its order, the payload copied once."""
+    def _appended(cls, payload: Mapping[str, Any], **envelope: Any) -> Event:
+        """The event an append stores: the envelope checked as ``Event(...)`` checks it, the
+        payload the one the store checked and encoded (``Store.encode``: a read-only copy, or a
+        record's JSON decoded only when read), wrapped, not copied again."""
         check_envelope(**envelope)
-        event_type, version = envelope["type"], envelope["version"]
-        _require_mapping(payload, event_type, version)
-        copied, text = json_payload(payload, event_type, version)
-        return _Adopted(**envelope, payload=MappingProxyType(copied)), copied, text
-
-    @classmethod
-    def _for_append_json(cls, payload_json: bytes, **envelope: Any) -> Event:
-        """The event an append of a typed record stores: the envelope checked as ``Event(...)``
-        checks it, the payload the record's JSON (checked by the caller against its record),
-        decoded only if someone reads it (:class:`ReadPayload`)."""
-        check_envelope(**envelope)
-        return _Adopted(**envelope, payload=ReadPayload(payload_json))
+        return _Adopted(**envelope, payload=payload)
 
 
 class _Adopted(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):
@@ -495,7 +482,7 @@ def _is_canonical_uuid(value: str) -> bool:
     )
 
 
-def _require_mapping(payload: object, event_type: str, version: int) -> None:
+def require_mapping(payload: object, event_type: str, version: int) -> None:
     if not isinstance(payload, Mapping):
         raise InvalidEventError(
             f"invalid {event_type} v{version} event: payload: "

@@ -68,7 +68,7 @@ from .log_torn_tail import _cut_torn_tail
 from .record import encode_new_record
 from .scan import QUARANTINED_TYPE, _Cursor, _Scan
 from .seal import Sealer
-from .store import Store
+from .store import Encoded, Store
 
 __all__ = ["EventLog"]
 
@@ -345,28 +345,8 @@ class EventLog:
         like an expected version); the duplicate check comes first, so a retry still succeeds.
         """
         self._check_usable()
-        if version is None:
-            version = self._registry.latest_version(type)
-        seq, event_id, stored = self._claim(event_id, expected_last_seq)
-        if stored:
-            return self._existing(event_id, type, version, payload, time_ns, task_id)
-        # The payload copied and its JSON made once, in C where it can be (not copied, then
-        # dumped with the envelope again): most of what a batched append costs.
-        event, copied, payload_json = Event._for_append(
-            payload, **self._envelope(event_id, seq, time_ns, type, version, task_id)
-        )
-        self._check_time(event)
-        self._registry.validate(type, version, copied)
-        if type == QUARANTINED_TYPE and payload.get("chain") is not None:
-            raise InvalidEventError(
-                f"invalid {type} v{version} event: payload.chain: only `objsearch log repair` "
-                "redirects the checksum chain (it writes the record in place of a damaged one)",
-                event_type=type,
-                version=version,
-                path="payload.chain",
-                reason="not null",
-            )
-        return self._store_event(event, payload_json)
+        encoded = self._store.encode(type, payload, version)
+        return self._append(encoded, time_ns, task_id, event_id, expected_last_seq)
 
     def append_record(
         self,
@@ -379,35 +359,49 @@ class EventLog:
     ) -> Event:
         """:meth:`append` of a typed record of the store's catalogue (``Catalogue.records``):
         its type and version are the record's, and the same bytes are stored as for its payload
-        dict, without making the dict (:mod:`.record_json`). A record that does not fit its type,
-        or whose text msgspec would spell otherwise, takes :meth:`append`'s path and errors.
-        The event returned decodes its payload only when it is read."""
-        codec = self._store.record_codec(type(record))
-        payload_json = None
-        if codec.type != QUARANTINED_TYPE and self._registry.knows(codec.type, codec.version):
-            payload_json = codec.payload_json(record)
-        if payload_json is None:  # the dict path: its normalisation, and its errors worded
-            return self.append(
-                codec.type,
-                codec.payload(record),
-                time_ns=time_ns,
-                task_id=task_id,
-                version=codec.version,
-                event_id=event_id,
-                expected_last_seq=expected_last_seq,
-            )
+        dict (``Store.encode_record``). The event returned decodes its payload only when it is
+        read."""
         self._check_usable()
+        encoded = self._store.encode_record(record)
+        return self._append(encoded, time_ns, task_id, event_id, expected_last_seq)
+
+    def _append(
+        self,
+        encoded: Encoded,
+        time_ns: int,
+        task_id: str | None,
+        event_id: str | None,
+        expected_last_seq: int | None,
+    ) -> Event:
+        """The one way into the log: a payload the store encoded, framed with its envelope and
+        written (the same fact already stored under ``event_id`` is returned instead)."""
+        event_type, version = encoded.type, encoded.version
+        if event_type == QUARANTINED_TYPE and encoded.payload.get("chain") is not None:
+            raise InvalidEventError(
+                f"invalid {event_type} v{version} event: payload.chain: only `objsearch log "
+                "repair` redirects the checksum chain (it writes the record in place of a "
+                "damaged one)",
+                event_type=event_type,
+                version=version,
+                path="payload.chain",
+                reason="not null",
+            )
         seq, event_id, stored = self._claim(event_id, expected_last_seq)
         if stored:
-            return self._existing(
-                event_id, codec.type, codec.version, codec.payload(record), time_ns, task_id
-            )
-        event = Event._for_append_json(
-            payload_json,
-            **self._envelope(event_id, seq, time_ns, codec.type, codec.version, task_id),
+            return self._existing(event_id, encoded, time_ns, task_id)
+        event = Event._appended(
+            encoded.payload,
+            event_id=event_id,
+            stream=self._meta.stream,
+            seq=seq,
+            time_ns=time_ns,
+            recorded_at_ns=self._wall_clock(),
+            type=event_type,
+            version=version,
+            task_id=task_id,
         )
         self._check_time(event)
-        return self._store_event(event, payload_json.decode())
+        return self._store_event(event, encoded.text)
 
     def _claim(self, event_id: str | None, expected_last_seq: int | None) -> tuple[int, str, bool]:
         """The seq and id of the next record, and whether that id is already stored (the caller
@@ -434,27 +428,6 @@ class EventLog:
                     f"event in {self._directory} (an explicit id copied from this stream?)"
                 )
         return seq, event_id, False
-
-    def _envelope(
-        self,
-        event_id: str,
-        seq: int,
-        time_ns: int,
-        type: str,
-        version: int,
-        task_id: str | None,
-    ) -> dict[str, Any]:
-        """The envelope fields of the next record (the wall clock read now)."""
-        return {
-            "event_id": event_id,
-            "stream": self._meta.stream,
-            "seq": seq,
-            "time_ns": time_ns,
-            "recorded_at_ns": self._wall_clock(),
-            "type": type,
-            "version": version,
-            "task_id": task_id,
-        }
 
     def _check_time(self, event: Event) -> None:
         last = self._at.time_ns
@@ -502,13 +475,7 @@ class EventLog:
         return ids
 
     def _existing(
-        self,
-        event_id: str,
-        type: str,
-        version: int,
-        payload: Mapping[str, Any],
-        time_ns: int,
-        task_id: str | None,
+        self, event_id: str, encoded: Encoded, time_ns: int, task_id: str | None
     ) -> Event:
         """The stored event with ``event_id``, if the new append asks for the same fact."""
         assert self._ids is not None
@@ -523,10 +490,10 @@ class EventLog:
             seq=stored.seq,
             time_ns=time_ns,
             recorded_at_ns=stored.recorded_at_ns,
-            type=type,
-            version=version,
+            type=encoded.type,
+            version=encoded.version,
             task_id=task_id,
-            payload=payload,
+            payload=encoded.payload,
         )
         if wanted != stored:
             differ = [

@@ -19,18 +19,34 @@ from __future__ import annotations
 
 import functools
 import threading
+from collections.abc import Mapping
 from importlib import resources
-from typing import Final
+from types import MappingProxyType
+from typing import Any, Final, NamedTuple
 
 import msgspec
 
 from .catalogue import Catalogue
+from .envelope import ReadPayload, json_payload, require_mapping
 from .errors import InvalidEventError
 from .record_json import RecordCodec, record_codecs
 from .schemas import SchemaRegistry
 from .upcast import Upcaster
 
 _PACKAGE: Final = __name__.rpartition(".")[0]
+
+
+class Encoded(NamedTuple):
+    """A payload the store has checked and encoded, ready for the log to frame and write
+    (:meth:`Store.encode`, :meth:`Store.encode_record`)."""
+
+    type: str
+    version: int
+    #: The payload's JSON as a record holds it (compact, sorted keys, UTF-8 left as is).
+    text: str
+    #: The payload the appended event carries: the checked copy (read-only), or the record's
+    #: JSON decoded only when read (:class:`~objsearch.events.envelope.ReadPayload`).
+    payload: Mapping[str, Any]
 
 
 class Store:
@@ -92,6 +108,34 @@ class Store:
                 reason="not a record of the catalogue",
             )
         return codec
+
+    def encode(
+        self, event_type: str, payload: Mapping[str, Any], version: int | None = None
+    ) -> Encoded:
+        """``payload`` of ``event_type`` v``version`` (default: the type's latest) checked
+        against its schema and encoded: a deep copy in JSON types and its JSON text, made once
+        (:func:`~objsearch.events.envelope.json_payload`). Raises :class:`InvalidEventError`
+        naming what is wrong."""
+        registry = self.registry
+        if version is None:
+            version = registry.latest_version(event_type)
+        require_mapping(payload, event_type, version)
+        copied, text = json_payload(payload, event_type, version)
+        registry.validate(event_type, version, copied)
+        return Encoded(event_type, version, text, MappingProxyType(copied))
+
+    def encode_record(self, record: msgspec.Struct) -> Encoded:
+        """A typed record of the catalogue (``Catalogue.records``) encoded: its type and version
+        are the record's, and the text is what :meth:`encode` makes of its payload dict, made by
+        msgspec without the dict (:mod:`.record_json`). A record msgspec would spell otherwise,
+        or that does not fit its type, is encoded through its dict: :meth:`encode`'s
+        normalisation, and its errors worded."""
+        codec = self.record_codec(type(record))
+        if self.registry.knows(codec.type, codec.version):
+            text = codec.payload_json(record)
+            if text is not None:
+                return Encoded(codec.type, codec.version, text.decode(), ReadPayload(text))
+        return self.encode(codec.type, codec.payload(record), codec.version)
 
     def __repr__(self) -> str:
         return f"Store({self.catalogue.schemas!s})"

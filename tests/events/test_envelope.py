@@ -4,6 +4,7 @@ import enum
 import json
 import uuid
 import zlib
+from types import MappingProxyType
 from typing import Any
 
 import msgspec
@@ -13,6 +14,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from objsearch.events import EVENT_ID_NAMESPACE, Event, InvalidEventError, deterministic_event_id
+from objsearch.events.envelope import check_envelope, json_payload, require_mapping
 
 
 def make_event(**overrides: Any) -> Event:
@@ -279,6 +281,15 @@ _values = st.recursive(
 )
 
 
+def _appended(payload: Any, envelope: dict[str, Any]) -> tuple[Event, dict[str, Any], str]:
+    """An append's event, payload copy and text, as ``Store.encode`` and the log make them (the
+    schema check aside: these types have no schema)."""
+    require_mapping(payload, envelope["type"], envelope["version"])
+    copied, text = json_payload(payload, envelope["type"], envelope["version"])
+    check_envelope(**envelope)
+    return Event._appended(MappingProxyType(copied), **envelope), copied, text
+
+
 @given(
     st.dictionaries(st.text(max_size=6), _values, max_size=5),
     st.text(min_size=1, max_size=8),
@@ -288,8 +299,9 @@ _values = st.recursive(
 def test_an_appended_event_is_built_and_encoded_as_event_and_encode_record_do(
     payload: dict[str, Any], stream: str, task_id: str | None, prev: int
 ) -> None:
-    """``Event._for_append`` + ``encode_new_record`` (the append's one copy and one dump) give
-    the event, the error and the record bytes that ``Event(...)`` + ``encode_record`` give."""
+    """What an append does (``Store.encode``'s one copy and one dump, ``Event._appended``, then
+    ``encode_new_record``) gives the event, the error and the record bytes that ``Event(...)`` +
+    ``encode_record`` give."""
     from objsearch.events.record import encode_new_record, encode_record
 
     envelope: dict[str, Any] = {
@@ -306,11 +318,11 @@ def test_an_appended_event_is_built_and_encoded_as_event_and_encode_record_do(
         expected = Event(**envelope, payload=payload)
     except InvalidEventError as exc:
         with pytest.raises(InvalidEventError) as info:
-            Event._for_append(payload, **envelope)
+            _appended(payload, envelope)
         assert str(info.value) == str(exc)
         assert info.value.path == exc.path
         return
-    event, copied, text = Event._for_append(payload, **envelope)
+    event, copied, text = _appended(payload, envelope)
     assert event == expected
     assert copied == dict(expected.payload)
     assert json.dumps(copied, sort_keys=True) == json.dumps(dict(expected.payload), sort_keys=True)
@@ -321,7 +333,7 @@ def test_an_appended_payload_with_a_lone_surrogate_is_refused_as_before() -> Non
     from objsearch.events.record import encode_new_record, encode_record
 
     expected = make_event(payload={"x": "\ud800"})
-    event, _, text = Event._for_append({"x": "\ud800"}, **{
+    event, _, text = _appended({"x": "\ud800"}, {
         name: getattr(expected, name) for name in ("event_id", "stream", "seq", "time_ns",
         "recorded_at_ns", "type", "version", "task_id")
     })  # fmt: skip

@@ -50,6 +50,11 @@ def test_a_record_s_text_is_its_dict_s_text_or_none(key: tuple[str, int], data: 
     assert codec.payload(record) == json.loads(_json(codec.payload(record)))
     if text is not None:
         assert text == _json(codec.payload(record))
+    # The one append path: what the store encodes for the record is what it encodes for its dict.
+    encoded = STORE.encode_record(record)
+    from_dict = STORE.encode(key[0], codec.payload(record), key[1])
+    assert (encoded.type, encoded.version, encoded.text) == (key[0], key[1], from_dict.text)
+    assert dict(encoded.payload) == dict(from_dict.payload)
 
 
 @_SETTINGS
