@@ -29,7 +29,8 @@ from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.formats import BagFormat
 from objsearch.pipeline.bags.read import read_bag
 from objsearch.pipeline.bags.record import record_mapping_sweep, sweep_messages, write_bag
-from objsearch.pipeline.bags.rgbd import build_map_from_bag, decode_image, intrinsics_of
+from objsearch.pipeline.bags.rgbd import build_map_from_bag
+from objsearch.ros.images import decode_image, intrinsics_of
 from objsearch.ros.topics import Role, TopicMap
 from objsearch.ros.types import typestore
 from objsearch.sim.placements import base_placements, table1_removals
