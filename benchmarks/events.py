@@ -169,7 +169,7 @@ def bench_append(n_each: int, reps: int, root: Path) -> None:
 
     t_durable, _ = median_time(durable, reps)
     t_batched, log_dir = median_time(batched, reps)
-    table = events_to_tables(read_log(log_dir, store=STORE))["search_failed"]
+    table = events_to_tables(read_log(log_dir, store=STORE), STORE)["search_failed"]
 
     def ipc() -> None:
         path = Path(tempfile.mkdtemp(dir=root)) / "rows.arrow"
