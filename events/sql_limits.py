@@ -320,13 +320,14 @@ class BoundedResult:
 
     def _next_batch(self) -> pa.RecordBatch | None:
         import duckdb
+        import pyarrow as pa
 
         assert self._reader is not None
         try:
             return self._reader.read_next_batch()
         except StopIteration:
             return None
-        except Exception as exc:
+        except (duckdb.Error, pa.ArrowException, OSError) as exc:
             # DuckDB's errors reach the reader's caller through Arrow's stream (OSError, …)
             if self.deadline.expired:
                 raise self.deadline._timed_out() from exc

@@ -142,8 +142,8 @@ def take_census(path: Path, fmt_value: str) -> Census:
                 # chunk's index records are touched.
                 with f.open("rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as m:
                     take(m, census)
-        except Exception:  # a claim that does not parse is not a claim
-            pass
+        except (_Cut, KeyError, IndexError, ValueError, struct.error, sqlite3.Error, OSError):
+            pass  # a claim that does not parse (or a file that does not open) is not a claim
         files.append(census)
     return Census(tuple(files), metadata_counts(path))
 
@@ -153,9 +153,10 @@ def metadata_counts(path: Path) -> dict[str, int] | None:
     meta = path / "metadata.yaml"
     if not path.is_dir() or not meta.exists():
         return None
-    try:
-        from ruamel.yaml import YAML
+    from ruamel.yaml import YAML  # a dependency (pyproject), as rosbags' own
+    from ruamel.yaml.error import YAMLError
 
+    try:
         doc = YAML(typ="safe").load(meta.read_text(encoding="utf-8"))
         info = doc["rosbag2_bagfile_information"]
         counts: dict[str, int] = {}
@@ -163,7 +164,7 @@ def metadata_counts(path: Path) -> dict[str, int] | None:
             name, n = str(t["topic_metadata"]["name"]), int(t["message_count"])
             counts[name] = counts.get(name, 0) + n
         return counts
-    except Exception:
+    except (YAMLError, OSError, ValueError, KeyError, TypeError):  # not there, or not sound
         return None
 
 

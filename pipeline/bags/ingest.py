@@ -88,7 +88,7 @@ def convert_bag(task: BagTask) -> Converted:
             first=first_event(contents.agent),
             reingest=task.reingest,
         )
-    except Exception as exc:
+    except Exception as exc:  # the boundary of one bag's task: it fails, the other bags go on
         return Converted(path, "", None, error=str(exc) or repr(exc))
 
 
@@ -96,7 +96,7 @@ def _identity(bag: Path) -> tuple[str, int] | None:
     """The bag's identity, or None if it cannot be read (its task says why)."""
     try:
         return bag_identity(bag)
-    except Exception:
+    except OSError:  # gone, unreadable, or not a folder: the task's reader says which
         return None
 
 

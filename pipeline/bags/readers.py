@@ -97,7 +97,13 @@ def _read_anyreader(path: Path, fmt: BagFormat, conv: MessageSink, progress: boo
 
 
 def _read_salvage(path: Path, fmt: BagFormat, conv: MessageSink, progress: bool) -> list[Scan]:
-    from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
+    from rosbags.typesys import (
+        Stores,
+        TypesysError,
+        get_types_from_idl,
+        get_types_from_msg,
+        get_typestore,
+    )
 
     base = typestore(fmt.distro)
     store = get_typestore(Stores.EMPTY)
@@ -116,7 +122,7 @@ def _read_salvage(path: Path, fmt: BagFormat, conv: MessageSink, progress: bool)
             else:
                 types = get_types_from_msg(c.msgdef, c.msgtype)
             store.register(types)
-        except Exception as exc:
+        except TypesysError as exc:
             bad_defs[c.id] = f"its message definition in the bag does not parse ({exc})"
 
     def known(c: RawConnection) -> str | None:
@@ -159,7 +165,7 @@ def read_messages(
     read_whole = True
     try:
         _read_anyreader(path, fmt, sink, progress)
-    except Exception as exc:
+    except Exception as exc:  # rosbags' reader on damaged bytes raises anything: scan instead
         read_whole = False
         notes.append(
             f"AnyReader could not read it ({type(exc).__name__}: {exc}); salvaged by scanning"

@@ -355,7 +355,7 @@ def _mcap_decompress(compression: str, data: bytes, size: int) -> tuple[bytes, s
         dec = zstd.ZstdDecompressor()
         try:
             out = dec.decompress(data)
-        except Exception as exc:
+        except zstd.ZstdError as exc:
             return b"", f"zstd data damaged ({exc})"
         return out, None if dec.eof else "zstd stream cut short"
     return b"", f"unknown compression {compression!r}"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 import struct
+import tomllib
 from pathlib import Path
 
 from devtools.bag_battery import ZERO_BLOCK, chunk_spans
@@ -143,3 +144,24 @@ def test_a_ros1_bag_cut_in_its_index_section_counts_its_messages_exactly(
     assert report.claims_complete
     for t in report.topics:
         assert (t.messages, t.claimed, t.lost) == (ros1.recording.messages[t.topic],) * 2 + (0,)
+
+
+def test_a_missing_yaml_reader_is_not_taken_for_a_missing_claim(tmp_path: Path) -> None:
+    """metadata.yaml is read with ruamel.yaml, a declared dependency: without it the census says
+    so (ImportError), it does not report the claim as absent (as ``except Exception`` did)."""
+    import subprocess
+    import sys
+
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n", encoding="utf-8")
+    code = (
+        "import sys\nsys.modules['ruamel.yaml'] = None\n"
+        "from objsearch.pipeline.bags.census import metadata_counts\n"
+        f"metadata_counts(__import__('pathlib').Path({str(bag)!r}))\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 1
+    assert "ImportError" in proc.stderr or "ModuleNotFoundError" in proc.stderr
+    doc = tomllib.loads((Path(__file__).resolve().parents[3] / "pyproject.toml").read_text())
+    assert any(d.startswith("ruamel.yaml") for d in doc["project"]["dependencies"])
