@@ -62,7 +62,19 @@ ACTION = '[navigation]\ninterface = "navigate_to_pose"\n'
 TF = '[pose]\nsource = "tf"\n'
 
 
+#: ``[timeouts] claim_s`` of the agents these tests start: each runs alone on a domain (or zenoh
+#: router) of its test, so the 5 s an agent waits at start for another of its robot is waited
+#: for nothing (about 5 s per start, ~100 s over the suite). test_oneagent.py tests the claim.
+ALONE = "claim_s = 0.1\n"
+
+
 def robot_config(tmp_path: Path, text: str) -> list[str]:
+    """robot.toml with ``text``, for the agent and the stand-in robot alike (the robot has no
+    claim); the agent's claim wait is :data:`ALONE` unless ``text`` sets one."""
+    if "claim_s" not in text:
+        text = text.replace("[timeouts]\n", "[timeouts]\n" + ALONE, 1)
+        if ALONE not in text:
+            text += "[timeouts]\n" + ALONE
     path = tmp_path / "robot.toml"
     path.write_text(text)
     return ["--config", str(path)]

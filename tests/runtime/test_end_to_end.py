@@ -11,13 +11,19 @@ from objsearch.events import read_log
 from objsearch.runtime.client import AgentClient
 
 from .runtime_fixtures import STARTUP_S, Net, objsearch, stop
-from .searches import TRIALS, client_config, in_process
+from .searches import TRIALS, client_config, in_process, robot_config
 
 
 def run_over(net: Net, tmp_path: Path, trials: list[tuple[int, str, str]]) -> list[dict[str, Any]]:
     robot = objsearch("robot", "sim", *net.args, log=tmp_path / "robot.txt")
     agent = objsearch(
-        "agent", "run", *net.args, "--log", str(tmp_path / "log"), log=tmp_path / "agent.txt"
+        "agent",
+        "run",
+        *net.args,
+        *robot_config(tmp_path, ""),
+        "--log",
+        str(tmp_path / "log"),
+        log=tmp_path / "agent.txt",
     )
     out = []
     try:

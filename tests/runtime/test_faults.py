@@ -15,7 +15,10 @@ from objsearch.runtime.client import AgentClient
 from .runtime_fixtures import STARTUP_S, Net, objsearch, stop
 from .searches import client_config, in_process
 
-FAST = "[timeouts]\nrobot_s = 3.0\narrival_s = 1.5\nattempts = 3\ndetections_s = 1.5\n"
+# claim_s: one agent at a time on its router (searches.ALONE; test_oneagent.py tests the claim)
+FAST = (
+    "[timeouts]\nrobot_s = 3.0\narrival_s = 1.5\nattempts = 3\ndetections_s = 1.5\nclaim_s = 0.1\n"
+)
 
 
 # Fault handling sits above the transport seam, so one backend is enough (both run end to end in

@@ -354,13 +354,14 @@ def test_agent_run_serves_and_records_the_live_view(net: Any, tmp_path: Path) ->
     from objsearch.runtime.client import AgentClient
 
     from .runtime_fixtures import STARTUP_S, free_port, objsearch, stop
+    from .searches import robot_config
     from .ws_client import FoxgloveClient
 
     port, mcap, log = free_port(), tmp_path / "live.mcap", tmp_path / "log"
     robot = objsearch("robot", "sim", *net.args, log=tmp_path / "robot.txt")
     agent = objsearch(
-        "agent", "run", *net.args, "--log", str(log), "--live", str(port),
-        "--live-mcap", str(mcap), log=tmp_path / "agent.txt",
+        "agent", "run", *net.args, *robot_config(tmp_path, ""), "--log", str(log),
+        "--live", str(port), "--live-mcap", str(mcap), log=tmp_path / "agent.txt",
     )  # fmt: skip
     try:
         config = runtime_config(build_parser().parse_args(["agent", "find", "x", *net.args]))

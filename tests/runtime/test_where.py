@@ -17,7 +17,7 @@ from objsearch.runtime.node import Requester
 from objsearch.runtime.requests import check_where_result
 
 from .runtime_fixtures import STARTUP_S, Net, objsearch, stop
-from .searches import client_config
+from .searches import client_config, robot_config
 
 
 @pytest.mark.parametrize("net", ["zenoh"], indirect=True)
@@ -26,7 +26,10 @@ def test_the_agent_answers_where_from_its_live_memory(
 ) -> None:
     log = tmp_path / "log"
     robot = objsearch("robot", "sim", *net.args, log=tmp_path / "robot.txt")
-    agent = objsearch("agent", "run", *net.args, "--log", str(log), log=tmp_path / "agent.txt")
+    alone = robot_config(tmp_path, "")
+    agent = objsearch(
+        "agent", "run", *net.args, *alone, "--log", str(log), log=tmp_path / "agent.txt"
+    )
     try:
         config = client_config(net)
         with AgentClient(config) as client:
@@ -81,7 +84,9 @@ def test_the_agent_answers_where_from_its_live_memory(
     # A restart restores the memory from the snapshot written at shutdown (the process's one
     # projection hub's: the agent's state and its memory), and answers the same.
     assert snapshot_path(log / SNAPSHOT_DIR, "projections").is_file()
-    agent = objsearch("agent", "run", *net.args, "--log", str(log), log=tmp_path / "agent2.txt")
+    agent = objsearch(
+        "agent", "run", *net.args, *alone, "--log", str(log), log=tmp_path / "agent2.txt"
+    )
     try:
         assert (
             main(
