@@ -171,6 +171,12 @@ def cmd_agent_run(args: argparse.Namespace) -> int:
     from objsearch.agent.scene_graph import UpdateMode
     from objsearch.runtime.agent_node import AgentNode
 
+    # Ctrl-C stops the agent at every stage, also while it joins the graph and restores its
+    # state (a long log takes a while): until the node can stop itself, SIGINT raises
+    # KeyboardInterrupt (exit 130; what is open is closed on the way out; the log is append-only
+    # and the snapshot a cache, so nothing is lost), even where the agent was started with
+    # SIGINT ignored (a shell script's background job), as the handlers installed below do.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     _logging()
     config = runtime_config(args)  # bad options fail before a port is taken or a file made
     _ros_environment(config)

@@ -167,6 +167,7 @@ class AgentNode:
             # One projection hub, restored once from one snapshot (and the log after it): the
             # agent's state and its where memory, each event folded once into each; the live
             # view reads the agent's state (no fold of its own, nothing re-read on a restart).
+            log.info("restoring the agent's state from log %s", log_dir)
             self.session = Session.open(
                 self.ctx,
                 log_dir,
