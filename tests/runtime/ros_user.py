@@ -137,14 +137,21 @@ def main() -> None:
         else:
             out = where(node, sys.argv[3], int(sys.argv[4]))
     finally:
-        executor.shutdown(timeout_sec=5.0)
-        node.destroy_node()
+        # Shut the context first (it wakes the executor's wait), then wait for the spin thread:
+        # on a loaded machine a 5 s executor shutdown left it running, and a C++ thread alive at
+        # interpreter exit aborts the process ("terminate called without an active exception").
         rclpy.try_shutdown()
+        executor.shutdown(timeout_sec=60.0)
+        spinner.join(timeout=60.0)
+        node.destroy_node()
     out["objsearch_modules"] = sorted(
         n for n in sys.modules if n == "objsearch" or n.startswith("objsearch.")
     )
-    print(json.dumps(out))
+    print(json.dumps(out), flush=True)
 
 
 if __name__ == "__main__":
     main()
+    # The answer is printed and every node destroyed; skip the interpreter's teardown, where
+    # rclpy's C++ objects may still abort the process, which would fail a client that did its work.
+    os._exit(0)
