@@ -200,3 +200,22 @@ def test_rows_whose_envelope_breaks_the_rules_are_refused_as_events_are(
         )
         with pytest.raises(InvalidEventError):
             tables_to_events([bad], STORE)
+
+
+def test_the_folds_of_a_streamed_event_share_one_decode(search_lake: tuple[Path, Path]) -> None:
+    """While a reader holds an event of a lake run, every fold that decodes it gets the one record
+    (a ``where`` folds each event into four projections), as from a log; the sharing ends when
+    the next event is asked for."""
+    from objsearch.agent.catalogue import LATEST, decode
+
+    _, root = search_lake
+    lake = TableLake(root, store=STORE)
+    (run,) = lake.runs()
+    held = []
+    for event in RunReader(lake, run).events():
+        record = decode(event, LATEST[event.type])
+        assert decode(event, LATEST[event.type]) is record, event.type
+        held.append((event, record))
+    assert len(held) == run.events
+    event, record = held[0]
+    assert decode(event, LATEST[event.type]) is not record  # decoded again: shared no more
