@@ -634,6 +634,24 @@ def decode(event: _Typed, as_type: type[R] | None = None) -> Record:
     ``event.type`` gets the precise class back. Raises :class:`InvalidEventError` on a payload
     that does not fit the record (the log validated it, so this means a schema/record mismatch).
     """
+    payload = event.payload
+    if type(payload) is ReadPayload and as_type is not None:
+        # A fold's call on an event read from a log (or appended as a record): the record is
+        # decoded from the payload's JSON once, in C, and kept on the payload, so every fold of
+        # the event (the agent's state reads a detection in its model and its map evidence)
+        # shares that one decode, in a hub or not.
+        typed: Any = payload.record
+        if type(typed) is as_type:
+            return typed
+        raw = payload.unread
+        if raw is not None and event.type == as_type.TYPE:
+            try:
+                decoded: R = _JSON_DECODERS[as_type](raw)
+            except msgspec.ValidationError:
+                pass  # worded by the general path below
+            else:
+                payload.record = decoded
+                return decoded
     shared = shared_decodes(event)
     if shared is None:
         return _decode(event, as_type)

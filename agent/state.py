@@ -17,7 +17,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from objsearch.agent.catalogue import Moved, RunStarted, TaskStarted, decode
+from objsearch.agent.catalogue import Moved, RunStarted, SceneGraphSeeded, TaskStarted, decode
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.maps import MapEvidence
 from objsearch.agent.relations import RelationModel
@@ -112,7 +112,7 @@ class AgentState:
                 self.model = (self.counterfactual or self.run.relations).build(self.models)
         elif kind == "scene_graph_seeded":
             self.seeded = True
-            self.seeded_source = str(event.payload.get("source", ""))
+            self.seeded_source = decode(event, SceneGraphSeeded).source
         model = self.model
         if model is not None:
             model.apply(event)

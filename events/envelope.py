@@ -210,13 +210,17 @@ class ReadPayload(Mapping[str, Any]):
     Read-only, like every event's payload.
     """
 
-    __slots__ = ("_dict", "unread")
+    __slots__ = ("_dict", "record", "unread")
 
     def __init__(self, raw: bytes | msgspec.Raw) -> None:
         self._dict: dict[str, Any] | None = None
         #: The JSON text while the payload has not been decoded (then None): a reader that wants
         #: a typed record decodes it from here, once.
         self.unread: bytes | msgspec.Raw | None = raw
+        #: The domain's typed record of this payload, once a fold has decoded it (None before):
+        #: every other fold of the same event reads it instead of decoding the text again.
+        #: Records are immutable, so sharing one is safe.
+        self.record: Any = None
 
     def _materialize(self) -> dict[str, Any]:
         d = self._dict

@@ -101,23 +101,25 @@ def fold(events: Iterable[Event], projection: P, *, until_seq: int | None = None
         )
     if until_seq is not None and projection.last_seq == until_seq:
         return projection
+    apply = projection.apply  # once, not per event: a fold of a log is millions of calls
     for event in events:
-        if until_seq is not None and event.seq > until_seq:
+        seq = event.seq
+        if until_seq is not None and seq > until_seq:
             break
         expected = projection.last_seq + 1
-        if event.seq < expected:
+        if seq < expected:
             continue
-        if event.seq != expected:
+        if seq != expected:
             raise ProjectionError(
                 f"{type(projection).__name__} is at seq {projection.last_seq} and cannot apply "
-                f"seq {event.seq} ({event.type}): events {expected}..{event.seq - 1} are missing"
+                f"seq {seq} ({event.type}): events {expected}..{seq - 1} are missing"
             )
-        projection.apply(event)
-        if projection.last_seq != event.seq:
+        apply(event)
+        if projection.last_seq != seq:
             raise ProjectionError(
-                f"{type(projection).__name__}.apply(seq {event.seq}) left last_seq at "
+                f"{type(projection).__name__}.apply(seq {seq}) left last_seq at "
                 f"{projection.last_seq}; apply must advance last_seq to the event's seq"
             )
-        if until_seq is not None and event.seq >= until_seq:
+        if until_seq is not None and seq >= until_seq:
             break
     return projection

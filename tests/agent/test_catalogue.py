@@ -26,7 +26,7 @@ from objsearch.agent.catalogue import (
     decode,
     encode,
 )
-from objsearch.events import Event, InvalidEventError, read_log, schema_writer
+from objsearch.events import Event, EventLog, InvalidEventError, read_log, schema_writer
 
 GOLDEN = Path(__file__).parent.parent / "replay" / "golden"
 V1_LOG = Path(__file__).parent.parent / "events" / "fixtures" / "v1-log"
@@ -254,3 +254,24 @@ def test_a_local_clock_is_the_weekday_and_the_minute_after_midnight() -> None:
     assert DayClock.local(dt.datetime(2026, 12, 6, 23, 59)) == DayClock(weekday=6, minute=1439)
     now = DayClock.local()
     assert 0 <= now.weekday <= 6 and 0 <= now.minute <= 1439
+
+
+def test_an_event_read_from_a_log_is_decoded_once_for_every_fold(tmp_path: Path) -> None:
+    """The agent's state reads a detection in its relation model and in its map evidence: both
+    get the one record decoded from the payload's JSON (issue 46), in a hub or not."""
+    record = Detected(
+        object_class="Cup",
+        instance_id="Cup|1",
+        mask_area=3.0,
+        position=(1.0, 2.0, 3.0),
+        accepted=True,
+        support=Support(static_id="Table|1", static_class="Table", at=True),
+        score=0.9,
+        classes=(),
+    )
+    with EventLog.open(tmp_path, "robot", store=STORE) as log:
+        log.append_record(record, time_ns=1)
+    (event,) = read_log(tmp_path, store=STORE)
+    first = decode(event, Detected)
+    assert decode(event, Detected) is first
+    assert first == record and encode(first) == dict(event.payload)
