@@ -74,11 +74,11 @@ class Recorder:
 
 
 @pytest.mark.slow
+# One transport is enough: the recorded bytes are the same over dds.
+@pytest.mark.parametrize("net", ["zenoh"], indirect=True)
 def test_a_recorded_bag_of_scored_3d_detections_replays_to_the_same_decisions(
     net: Net, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    if net.transport != "zenoh":
-        pytest.skip("one transport is enough: the bytes are the same over dds")
     config = robot_config(tmp_path, THREE_D)
     bag = tmp_path / "session"
     recorder = Recorder(net, bag)
