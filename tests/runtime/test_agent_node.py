@@ -91,7 +91,9 @@ def test_the_robot_process_folds_each_event_once(
         assert sorted(folds) == sorted((s, end + 1) for s in states)
         assert set(folds.values()) == {1}
         assert memory.state.last_seq == node.session.state.last_seq == end + 1
-        assert set(decodes.values()) == {1}
+        # What this start appended carries the record it was appended from (b165632): at most
+        # one decode, none here.
+        assert set(decodes.values()) <= {1}
     finally:
         node.close()
     assert [e.type for e in read_log(log, store=STORE)][end:] == ["run_started"]
