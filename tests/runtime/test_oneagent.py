@@ -225,7 +225,7 @@ def test_two_agents_claiming_at_once_agree_on_one(tmp_path: Path) -> None:
     [
         "ros2",
         # Open bug (issue 43 item 9, stop 42's note): over dds a third agent started beside a
-        # serving one once failed to exit within 120 s (1 of 3 full runs, on a loaded machine);
+        # serving one once failed to exit within 120 s (1 of 5 full runs this stop, a loaded machine);
         # suspected, not measured: a serving agent that hears an earlier claim stops only after
         # a search, so an idle one never does. Kept running, not skipped, until that is fixed.
         pytest.param(
