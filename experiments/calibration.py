@@ -9,6 +9,9 @@ is left out.
 - **ECE** (expected calibration error, top-label, 10 equal-width bins): over searches, the
   |accuracy − confidence| of the most likely place, weighted by the bin's share of searches;
 - **Brier score**: Σ over places (and elsewhere) of (P(place) − [found there])², per search.
+- **ECE over every place** (docs/protocol-perception.md): the same bins over every (search,
+  place) prediction (:func:`place_pairs`), each place's probability against whether the target
+  was found there.
 """
 
 from __future__ import annotations
@@ -35,6 +38,9 @@ class Forecast:
     top_hit: bool  # the target was found there
     p_found: float  # probability the forecast gave the place it was found at
     brier: float
+    #: The probabilities it gave every other place (where the target was not found): with
+    #: ``p_found`` the (search, place) predictions of :func:`place_pairs`.
+    others: tuple[float, ...] = ()
 
 
 def forecasts(events: Iterable[EventView], belief: RelationSpec = BELIEF) -> dict[str, Forecast]:
@@ -70,7 +76,15 @@ def _score(task_id: str, dist: Mapping[str, float], found: str) -> Forecast:
     brier = math.fsum((v - (1.0 if p == found else 0.0)) ** 2 for p, v in dist.items())
     if found not in dist:
         brier += 1.0
-    return Forecast(task_id, dist[top], top == found, dist.get(found, 0.0), brier)
+    others = tuple(v for p, v in sorted(dist.items()) if p != found)
+    return Forecast(task_id, dist[top], top == found, dist.get(found, 0.0), brier, others)
+
+
+def place_pairs(p_found: float, others: Iterable[float]) -> list[tuple[float, bool]]:
+    """One search's (search, place) predictions as (probability, the target was there) pairs:
+    the protocol's reading of ECE (docs/protocol-perception.md) bins every one of them, not only
+    the top place's."""
+    return [(p_found, True), *((p, False) for p in others)]
 
 
 def ece(pairs: Sequence[tuple[float, bool]], bins: int = BINS) -> float:

@@ -21,6 +21,7 @@ from objsearch.agent.strategies import BELIEF, COVER_SUFFIX, RunSpec
 from objsearch.events.log_read import read_log
 from objsearch.experiments.calibration import Forecast, forecasts
 from objsearch.experiments.decompose import Excess, decompose
+from objsearch.experiments.failure_log import failure_causes
 from objsearch.sim.longterm import TARGET_ORDER, Trial, run_schedule, scenes_of
 from objsearch.sim.seeable import seeable_scenes
 from objsearch.sim.world import DEFAULT_CAMERA
@@ -89,6 +90,11 @@ class Row:
     #: The agent said found, on a modelled detector's false positive or confusion (then
     #: ``success`` is False).
     false_found: bool = False
+    #: The probabilities the forecast gave every other place, space-separated (CSV holds no
+    #: lists): with ``belief_p_found``, every (search, place) prediction (calibration.place_pairs).
+    belief_others: str | None = None
+    #: Why a failed search failed, from its log (experiments/failure_log.py); None otherwise.
+    failure: str | None = None
 
     def record(self) -> dict[str, object]:
         d = asdict(self)
@@ -131,10 +137,21 @@ def run_job(job: Job) -> list[Row]:
         # The run's own belief when it has one that knows the hour, else the time-blind one.
         timed = spec.relations.model in ("routine-belief", "routine-pooled")
         forecast = forecasts(read_log(log, store=STORE), spec.relations if timed else BELIEF)
-    return [_row(job, t, parts.get(t.task_id), forecast.get(t.task_id)) for t in trials]
+        failed = [t.task_id for t in trials if not t.success]
+        causes = failure_causes(read_log(log, store=STORE), scenes, failed) if failed else {}
+    return [
+        _row(job, t, parts.get(t.task_id), forecast.get(t.task_id), causes.get(t.task_id))
+        for t in trials
+    ]
 
 
-def _row(job: Job, t: Trial, excess: Excess | None, forecast: Forecast | None = None) -> Row:
+def _row(
+    job: Job,
+    t: Trial,
+    excess: Excess | None,
+    forecast: Forecast | None = None,
+    failure: str | None = None,
+) -> Row:
     return Row(
         job.experiment,
         job.home,
@@ -160,6 +177,8 @@ def _row(job: Job, t: Trial, excess: Excess | None, forecast: Forecast | None = 
         belief_p_found=None if forecast is None else round(forecast.p_found, 6),
         belief_brier=None if forecast is None else round(forecast.brier, 6),
         false_found=t.false_found,
+        belief_others=None if forecast is None else " ".join(f"{p:.4g}" for p in forecast.others),
+        failure=failure,
     )
 
 

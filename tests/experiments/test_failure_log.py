@@ -1,0 +1,52 @@
+"""Why a search failed, read from its run's log (experiments/failure_log.py), on real runs of a
+modelled detector made to fail."""
+
+from __future__ import annotations
+
+import json
+
+from objsearch.agent.detector_model import preset
+from objsearch.experiments.runner import Job, run_job
+
+
+def _search(target: str, **detector: float) -> list[str | None]:
+    perception = json.dumps(preset("realistic", **detector).params(), sort_keys=True)
+    job = Job(
+        "homes", "ithor-02", "habit-0", "global-belief", "all", 0, targets=(target,),
+        scenes=(1,), starts_per_search=1, perception=perception,
+    )  # fmt: skip
+    rows = run_job(job)
+    assert rows and not any(r.success for r in rows)
+    assert all((r.failure is not None) for r in rows)
+    return [r.failure for r in rows]
+
+
+def test_a_confusion_confirmed_is_named_with_the_class_it_was() -> None:
+    """ithor-02 habit-0 scene 1: every detection confused, a sighting confirmed at P ≥ 0.5: the
+    Cup search ends on the Bowl reported as a Cup."""
+    (cause,) = _search("Cup", confusion=1.0, fp_per_image=0.0, accept_posterior=0.5)
+    assert cause is not None
+    assert cause.startswith("false found: a Bowl reported as Cup at score ")
+    assert cause.endswith("(a confusion) confirmed")
+
+
+def test_a_target_never_reported_says_so_with_the_stopping_rule() -> None:
+    (cause,) = _search("Cup", recall_scale=0.0, fp_per_image=0.0)
+    assert cause is not None
+    assert cause.startswith("not found (Cup not found: budget of 8 passes spent")
+    assert cause.endswith("the true target was never reported")
+
+
+def test_a_successful_search_has_no_cause_and_every_place_forecast() -> None:
+    rows = run_job(
+        Job("homes", "ithor-02", "habit-0", "global-belief", "all", 0, targets=("Cup",),
+            scenes=(1, 2), starts_per_search=1)
+    )  # fmt: skip
+    assert [r.success for r in rows] == [True, True]
+    for r in rows:
+        assert r.failure is None
+        assert r.belief_others is not None and r.belief_p_found is not None
+        others = [float(p) for p in r.belief_others.split()]
+        # Every place of the forecast: the found one and the others sum to the whole belief.
+        assert len(others) > 10
+        assert abs(r.belief_p_found + sum(others) - 1.0) < 1e-3
