@@ -539,6 +539,14 @@ def run_models(folder: Path) -> tuple[str, str]:
     return name("perception"), name("localisation")
 
 
+def run_camera(folder: Path) -> str:
+    """The search camera a ``bench homes`` output was run with (its summary.json; none recorded:
+    the run predates the occluding camera, so geometric, as ``homes_command`` reads it)."""
+    path = folder / "summary.json"
+    summary = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
+    return str(summary.get("camera", "geometric"))
+
+
 def select_models(
     folders: Sequence[Path], perception: str | None = None, localisation: str | None = None
 ) -> tuple[str, str]:
@@ -594,12 +602,19 @@ def report(
     folders: Sequence[Path],
     out: Path | None = None,
     progress: Callable[[list[str]], Iterable[str]] | None = None,
+    perfect: Sequence[Path] = (),
 ) -> str:
     """The belief's figures for ``folders``, per schedule kind (``progress`` wraps the kinds as
-    they are reported: the CLI's progress line)."""
+    they are reported: the CLI's progress line); then the perception protocol's measures of their
+    ``habit`` runs (experiments/report_protocol.py), ÷ the same strategies' runs in ``perfect``
+    (outputs of ``bench homes --perception perfect``) when given."""
+    from objsearch.experiments.report_homes import failure_cause
+    from objsearch.experiments.report_protocol import protocol_lines
+
     rows = read_outputs(folders)
     if not rows:
         return "no searches in these outputs"
+    camera = run_camera(folders[0])
     homes = sorted({r.home for r in rows})
     seeds = sorted({r.seed for r in rows})
     lines = [
@@ -632,6 +647,9 @@ def report(
         lines += ["", "Calibration of the belief's forecast at the start of each search:", ""]
         lines += calibration_lines(mine)
         lines += ["", "Failures (strategy: home target ×searches):", *failure_lines(mine)]
+    measures = protocol_lines(rows, read_outputs(perfect), lambda r: failure_cause(r, camera))
+    if measures:
+        lines += ["", *measures]
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         plot_curves(rows, out / "belief_curves")
