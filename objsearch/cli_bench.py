@@ -149,12 +149,21 @@ def cmd_bench_belief(args: argparse.Namespace) -> int:
             f"not a bench homes output (no homes_trials.parquet): {', '.join(missing)}"
         )
     perception, localisation = select_models(folders, args.perception, args.localisation)
+    perfect = [Path(d) for d in args.perfect or []]
+    missing = [str(d) for d in perfect if not (d / "homes_trials.parquet").is_file()]
+    if missing:
+        raise ObjsearchError(
+            f"--perfect: not a bench homes output (no homes_trials.parquet): {', '.join(missing)}"
+        )
+    if perfect:
+        select_models(perfect, "perfect", localisation)
     text = f"perception {perception}, localisation {localisation}; " + report(
         folders,
         Path(args.out),
         progress=lambda kinds: t.progress(
             kinds, "bench belief", " schedule kinds", total=len(kinds), enabled=not args.no_progress
         ),
+        perfect=perfect,
     )
     print(text)
     (Path(args.out) / "belief.md").write_text(text + "\n", encoding="utf-8")
@@ -539,6 +548,14 @@ def register(sub: Any) -> None:
         default="out/belief-report",
         type=t.dir_path,
         help="folder for belief.md and the curves (out/belief-report)",
+    )
+    belief.add_argument(
+        "--perfect",
+        action="append",
+        type=t.existing_dir,
+        metavar="DIR",
+        help="a bench homes output of the same runs with --perception perfect (repeatable): the "
+        "protocol's headline is also given ÷ the same strategy there",
     )
     belief.defer(_model_choices)
     t.progress_option(belief)

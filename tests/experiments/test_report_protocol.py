@@ -4,8 +4,14 @@ threshold rule, and every failure with its cause."""
 
 from __future__ import annotations
 
+import json
+from collections.abc import Sequence
 from dataclasses import replace
+from pathlib import Path
 
+import pytest
+
+from objsearch.cli import main
 from objsearch.experiments.report_protocol import (
     calibration_lines,
     failure_lines,
@@ -15,7 +21,7 @@ from objsearch.experiments.report_protocol import (
     protocol_lines,
     rule_lines,
 )
-from objsearch.experiments.runner import Row
+from objsearch.experiments.runner import Row, write_rows
 
 HOMES = ("ithor-01", "ithor-03", "procthor-01", "procthor-02")
 
@@ -118,3 +124,32 @@ def test_every_failure_is_listed_with_its_cause() -> None:
     assert "never reported | camera says |" in text
     assert protocol_lines(rows)[0].startswith("### The perception protocol's measures")
     assert protocol_lines([r for r in rows if not r.strategy.startswith("dist")]) == []
+
+
+def _output(folder: Path, rows: Sequence[Row], perception: str) -> Path:
+    """A bench homes output of made-up rows, run (says its summary.json) with this detector."""
+    folder.mkdir()
+    write_rows(rows, folder, "homes_trials")
+    summary = {"perception": {"preset": perception}, "camera": "occluding"}
+    (folder / "summary.json").write_text(json.dumps(summary), encoding="utf-8")
+    return folder
+
+
+def test_bench_belief_divides_by_the_perfect_runs_it_is_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    ours = _run("global-belief+cover", dict.fromkeys(HOMES, 1.2))
+    ref = _run("dist-oracle-global+cover", dict.fromkeys(HOMES, 1.0))
+    realistic = _output(tmp_path / "realistic", ours + ref, "realistic")
+    halved = [replace(r, path_length=r.path_length / 2) for r in ours + ref]
+    perfect = _output(tmp_path / "perfect", halved, "perfect")
+    out = tmp_path / "report"
+    argv = ["bench", "belief", str(realistic), "--out", str(out), "--no-progress"]
+    assert main([*argv, "--perfect", str(perfect)]) == 0
+    printed = capsys.readouterr().out
+    line = "| global-belief+cover | pooled | 4 | 16 | 1.200 [1.200, 1.200] (**not met**) "
+    assert line + "| 2.000 [2.000, 2.000] (**not met**) |" in printed
+    assert main(argv) == 0  # without it: no ÷ perfect
+    assert line + "| – |" in capsys.readouterr().out
+    assert main([*argv, "--perfect", str(realistic)]) == 2
+    assert "objsearch: error: not run with perception perfect" in capsys.readouterr().err
