@@ -251,14 +251,16 @@ def to_frame(rows: Iterable[Row]) -> object:
     """The rows as a polars DataFrame (typed as object to keep polars out of the signatures)."""
     import polars as pl
 
-    return pl.DataFrame([r.record() for r in rows])
+    return pl.DataFrame([r.record() for r in rows], infer_schema_length=None)
 
 
 def write_rows(rows: Sequence[Row], out: Path, stem: str) -> tuple[Path, Path]:
     """Parquet and CSV of the rows (same content)."""
     import polars as pl
 
-    frame = pl.DataFrame([r.record() for r in rows])
+    # Every row read for the schema: a column empty in the first rows (``failure``: most searches
+    # succeed) would otherwise be typed null and refuse its first value.
+    frame = pl.DataFrame([r.record() for r in rows], infer_schema_length=None)
     parquet, csv = out / f"{stem}.parquet", out / f"{stem}.csv"
     frame.write_parquet(parquet)
     frame.write_csv(csv)

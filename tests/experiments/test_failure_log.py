@@ -4,9 +4,11 @@ modelled detector made to fail."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
+from pathlib import Path
 
 from objsearch.agent.detector_model import preset
-from objsearch.experiments.runner import Job, run_job
+from objsearch.experiments.runner import Job, Row, read_rows, run_job, write_rows
 
 
 def _search(target: str, **detector: float) -> list[str | None]:
@@ -50,3 +52,13 @@ def test_a_successful_search_has_no_cause_and_every_place_forecast() -> None:
         # Every place of the forecast: the found one and the others sum to the whole belief.
         assert len(others) > 10
         assert abs(r.belief_p_found + sum(others) - 1.0) < 1e-3
+
+
+def test_a_cause_after_the_first_hundred_rows_is_written_and_read_back(tmp_path: Path) -> None:
+    """polars typed the column from the first 100 rows: all None there (every search succeeded)
+    made it null, and the first cause after them failed the whole bench homes run."""
+    ok = Row("homes", "ithor-02", "habit-0", "wpl", "all", 0, 1, "Cup", "s", True, 1.0, 1.0, "t")
+    rows = [replace(ok, task_id=f"t{i:03d}") for i in range(150)]
+    rows.append(replace(ok, task_id="t150", success=False, failure="not found (budget spent)"))
+    parquet, _ = write_rows(rows, tmp_path, "homes_trials")
+    assert read_rows(parquet)[-1].failure == "not found (budget spent)"
