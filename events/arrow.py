@@ -11,16 +11,18 @@ free-form (``run_started.params``) has no columns to give, so it is kept as comp
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 from collections.abc import Iterable, Mapping
 from types import MappingProxyType
 from typing import Any, Final
 
+import msgspec
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from .envelope import Event, _Adopted, canonical_ids
+from .envelope import Event, ReadPayload, _Adopted, canonical_ids
 from .errors import EventStoreError
 from .schemas import SchemaRegistry
 from .store import Store
@@ -149,11 +151,19 @@ def events_to_tables(events: Iterable[Event], store: Store) -> dict[str, pa.Tabl
     return {t: pa.Table.from_pydict(cols, schema=schemas[t]) for t, cols in sorted(columns.items())}
 
 
-def tables_to_events(tables: Iterable[pa.Table], store: Store) -> list[Event]:
+def tables_to_events(
+    tables: Iterable[pa.Table], store: Store, *, records: bool = False
+) -> list[Event]:
     """The inverse of :func:`events_to_tables`: events (latest versions) sorted by (stream, seq).
 
     Free-form objects come back from their JSON text; numbers come back as the column's type
     (a JSON integer in a ``number`` field reads as a float, which compares equal).
+
+    ``records``: each event at its type's latest version also carries its typed record (the
+    store's catalogue's), converted with the rest of its table in one call, on its payload (a
+    :class:`ReadPayload`, as a log's event keeps the record a fold decodes), so every fold of
+    it shares that one conversion. A payload that does not convert carries none (the fold
+    that decodes it words the error, as it would have).
     """
     events: list[Event] = []
     for table in tables:
@@ -180,12 +190,23 @@ def tables_to_events(tables: Iterable[pa.Table], store: Store) -> list[Event]:
                 if isinstance(value, str):
                     payload[name] = json.loads(value)
         columns = [table.column(n).to_pylist() for n in _ENVELOPE_ORDER]
+        made = (
+            _records(store, event_type, payloads, columns[5]) if records else [None] * len(payloads)
+        )
         # The envelope checked a column at a time (the ids with one regex, as a log's scan
         # does): then each event is built unchecked; otherwise each is checked, to word the error.
         checked = _envelope_holds(table) and canonical_ids(columns[0])
-        for event_id, stream, seq, time_ns, recorded_at_ns, version, task_id, payload in zip(
-            *columns, payloads, strict=True
-        ):
+        for (
+            event_id,
+            stream,
+            seq,
+            time_ns,
+            recorded_at_ns,
+            version,
+            task_id,
+            payload,
+            record,
+        ) in zip(*columns, payloads, made, strict=True):
             if checked:
                 events.append(
                     _Adopted(
@@ -197,7 +218,9 @@ def tables_to_events(tables: Iterable[pa.Table], store: Store) -> list[Event]:
                         type=event_type,
                         version=version,
                         task_id=task_id,
-                        payload=MappingProxyType(payload),
+                        payload=ReadPayload.of(payload, record)
+                        if records
+                        else MappingProxyType(payload),
                     )
                 )
                 continue
@@ -217,6 +240,32 @@ def tables_to_events(tables: Iterable[pa.Table], store: Store) -> list[Event]:
                 )
             )
     return sorted(events, key=lambda e: (e.stream, e.seq))
+
+
+def _records(
+    store: Store, event_type: str, payloads: list[dict[str, Any]], versions: list[int]
+) -> list[Any]:
+    """The record of each payload at ``event_type``'s latest version (None for another version,
+    one that does not convert, or a type the catalogue has no record of), as the domain's
+    ``decode`` converts it (strict): the rows in one call, one at a time only if that fails."""
+    latest = store.upcaster.latest_version(event_type)
+    record_type = store.catalogue.records.get((event_type, latest or 0))
+    if record_type is None:
+        return [None] * len(payloads)
+    if all(v == latest for v in versions):
+        try:
+            made: list[Any] = msgspec.convert(payloads, list[record_type], strict=True)  # type: ignore[valid-type]
+            return made
+        except msgspec.ValidationError:
+            pass
+    out: list[Any] = []
+    for payload, version in zip(payloads, versions, strict=True):
+        record = None
+        if version == latest:
+            with contextlib.suppress(msgspec.ValidationError):
+                record = msgspec.convert(payload, record_type, strict=True)
+        out.append(record)
+    return out
 
 
 def _envelope_holds(table: pa.Table) -> bool:

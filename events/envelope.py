@@ -203,7 +203,8 @@ class _Adopted(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=
 
 class ReadPayload(Mapping[str, Any]):
     """The payload of an event read from a log (or appended as a typed record: its JSON made in
-    C), decoded only when first looked at.
+    C), decoded only when first looked at; or of an event read from a lake run, its dict made
+    from Arrow and its record converted with its slice of rows (:meth:`of`).
 
     A read that only verifies never builds it; a fold that wants the typed record decodes it
     from these JSON bytes straight into the record (:func:`payload_json`), one decode per event.
@@ -221,6 +222,17 @@ class ReadPayload(Mapping[str, Any]):
         #: every other fold of the same event reads it instead of decoding the text again.
         #: Records are immutable, so sharing one is safe.
         self.record: Any = None
+
+    @classmethod
+    def of(cls, payload: dict[str, Any], record: Any = None) -> ReadPayload:
+        """A payload whose dict is made already, owned by no one else (a lake row's, fresh from
+        Arrow), wrapped, not copied; ``record``: its typed record if the reader converted it
+        (:attr:`record`, as a fold keeps the one it decoded from a log's JSON)."""
+        made = cls.__new__(cls)
+        made._dict = payload
+        made.unread = None
+        made.record = record
+        return made
 
     def _materialize(self) -> dict[str, Any]:
         d = self._dict

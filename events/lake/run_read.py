@@ -25,11 +25,9 @@ which knows how to check it.
 
 from __future__ import annotations
 
-import contextlib
 import heapq
 import os
 from collections.abc import Collection, Iterator
-from contextvars import Token
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
@@ -40,7 +38,6 @@ import pyarrow.dataset as pds
 
 from ..arrow import ENVELOPE_COLUMNS, event_schema, tables_to_events
 from ..envelope import Event
-from ..projection import end_sharing, share_decodes
 from .run_digest import DIGEST_PREFIX, TypeDigest, combine, digest_version
 from .schema import DataFile, TableLakeError, TableRun
 
@@ -207,7 +204,7 @@ class RunReader:
         if self._whole is not None:
             for e in self._whole:
                 if streams is None or e.stream in streams:
-                    yield from _sharing(upcast(e))
+                    yield upcast(e)
             return
         every = sorted(set().union(*self.streams.values())) if self.streams else []
         wanted = [s for s in every if streams is None or s in streams]
@@ -227,12 +224,7 @@ class RunReader:
                     key=_seq,
                 )
                 for event in merged:
-                    event = upcast(event)
-                    sharing = share_decodes(event)  # see _sharing
-                    try:
-                        yield event
-                    finally:
-                        _end_sharing(sharing)
+                    yield upcast(event)
             changed = self._identities() != self._checked_files
         except (OSError, pa.ArrowException) as exc:
             raise self._read_error(exc) from exc
@@ -259,31 +251,15 @@ class RunReader:
         store = self.lake.store
         for part in self._sorted_parts(event_type, stream):
             for start in range(0, part.num_rows, EVENT_ROWS):
-                yield from tables_to_events([part.slice(start, EVENT_ROWS)], store)
+                # Each event's record converted with its slice and kept on its payload
+                # (:class:`~objsearch.events.envelope.ReadPayload`, as a log's event keeps the
+                # one a fold decodes): ``where`` folds each event into four projections, which
+                # converted a lake payload's dict 2.4 times an event.
+                yield from tables_to_events([part.slice(start, EVENT_ROWS)], store, records=True)
 
 
 def _seq(event: Event) -> int:
     return event.seq
-
-
-def _sharing(event: Event) -> Iterator[Event]:
-    """``event``, its decodes shared while the caller has it (until it asks for the next one), as
-    a projection hub shares them: a lake run's payloads are dicts (a log's are JSON text that
-    keeps the one record decoded from it), so each fold of the event (``where`` folds it into
-    the agent's state, its map, the belief and the routine) converted the dict again: 2.4
-    conversions an event. Shared, a lake ``where`` of 200 k events took 3.11 CPU-s against
-    3.35 (``replay`` 2.74 against 2.83; medians of 4, alternating in one process)."""
-    sharing = share_decodes(event)
-    try:
-        yield event
-    finally:
-        _end_sharing(sharing)
-
-
-def _end_sharing(sharing: Token[tuple[object, dict[Any, Any]] | None]) -> None:
-    # ValueError: resumed in another context, which never shared the event.
-    with contextlib.suppress(ValueError):
-        end_sharing(sharing)
 
 
 __all__ = ["CHECK_ROWS", "EVENT_ROWS", "SCAN_ROWS", "RunReader"]

@@ -203,19 +203,25 @@ def test_rows_whose_envelope_breaks_the_rules_are_refused_as_events_are(
 
 
 def test_the_folds_of_a_streamed_event_share_one_decode(search_lake: tuple[Path, Path]) -> None:
-    """While a reader holds an event of a lake run, every fold that decodes it gets the one record
-    (a ``where`` folds each event into four projections), as from a log; the sharing ends when
-    the next event is asked for."""
+    """Each event of a lake run carries its record on its payload (a ``ReadPayload``, as an event
+    read from a log keeps the record a fold decodes), so every fold that decodes it (a ``where``
+    folds each event into four projections) gets that one record, while the reader holds the
+    event or after: one mechanism for logs and lakes, no decode shared through a context."""
     from objsearch.agent.catalogue import LATEST, decode
+    from objsearch.events.envelope import ReadPayload
 
     _, root = search_lake
     lake = TableLake(root, store=STORE)
     (run,) = lake.runs()
     held = []
     for event in RunReader(lake, run).events():
+        assert type(event.payload) is ReadPayload, event.type
         record = decode(event, LATEST[event.type])
         assert decode(event, LATEST[event.type]) is record, event.type
         held.append((event, record))
     assert len(held) == run.events
-    event, record = held[0]
-    assert decode(event, LATEST[event.type]) is not record  # decoded again: shared no more
+    for event, record in held:  # the reader moved on: the record is the payload's still
+        assert decode(event, LATEST[event.type]) is record, event.type
+    # What a fold decodes is what the log's event decodes to.
+    logged = {e.seq: decode(e, LATEST[e.type]) for e in read_log(search_lake[0], store=STORE)}
+    assert all(logged[event.seq] == record for event, record in held)
