@@ -1,4 +1,4 @@
-"""Decision time of a search's planning, against the paper's WPL in the same run: the
+r"""Decision time of a search's planning, against the paper's WPL in the same run: the
 expected-cost room order on the memory (room order plus every room's stop order), and the
 whole-home planner on the belief (``global-belief``: each of a search's decisions, one per room
 segment, timed on its own).
@@ -12,7 +12,8 @@ per target; ``ecost-routine-pooled`` the same). ``--routine-only`` times only th
 ``wpl``. ``--homes largest`` takes the bundled iTHOR and ProcTHOR homes
 with the most mapped statics. Medians and ratios are printed; the target is ≤ 50 ms a decision.
 
-    python benchmarks/decisions.py --perception realistic,harsh --homes paper --perception-only
+    python benchmarks/decisions.py --perception realistic,harsh --homes development-largest \
+        --perception-only --scenes 3 --starts 2
 
 times the decisions of whole searches (``global-belief+cover``, ``habit-0`` scenes 1 to
 ``--scenes``, every target from ``--starts`` starts, confirmation and revisits included) under
@@ -20,8 +21,14 @@ each named detector model and under ``perfect`` in the same run. A *decision* is
 waits on: the agent's computation between the end of one simulator call (a drive, a look, an
 opening) and the start of the next, and each handling of a detection while it drives (whether
 to stop: the sighting's prior and posterior), event logging included, the simulator's own time
-excluded. Printed: median, p90 and max per decision, the median of the whole-home plans alone,
-each with its ratio to ``perfect``'s median.
+excluded. A search's *first decision* runs from the request to its first simulator call: what
+the robot waits before it moves. Each model's run starts from freshly loaded maps (as a robot's
+process does), and the simulator's oracle walks a map of its own, so no shortest path is built
+for the agent outside its decisions. Printed, each with its ratio to ``perfect``'s median:
+median, p95 and max of every decision, of the first decisions (and the run's first search's,
+the coldest), of the whole-home plans alone; and the run's start (``Session.start_run``, where
+the distances between the home's stops are built). ``--homes development-largest``: of the
+development homes, the one with the most statics and the one with the most viewpoints.
 """
 
 from __future__ import annotations
@@ -40,8 +47,9 @@ from typing import Any
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.detector_model import preset
 from objsearch.agent.home import available_homes
+from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.policy import Recorder, SearchAgent
-from objsearch.agent.session import HomeContext, load_context
+from objsearch.agent.session import HomeContext, Session, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import Detection, Navigation
@@ -52,6 +60,8 @@ from objsearch.sim.world import SimWorld
 
 #: Scenes of routine-0 in the time-aware belief's memory when its planning is timed (two weeks).
 ROUTINE_SCENES = 56
+#: The homes the agent was developed on (``--homes development-largest`` picks among them).
+DEVELOPMENT_HOMES = ("paper", "ithor-02", "ithor-05", "procthor-00")
 
 
 class _NoSink:
@@ -147,12 +157,20 @@ class DecisionClock:
 
     gaps: list[float] = field(default_factory=list)
     plans: list[float] = field(default_factory=list)
+    #: each search's first decision (from the request to its first simulator call), also in gaps
+    firsts: list[float] = field(default_factory=list)
+    #: each run's start (Session.start_run: run_started, the agent and its stop table)
+    run_starts: list[float] = field(default_factory=list)
     _since: float | None = None
+    _first: bool = False
 
     def world_call(self, call: Callable[[], Any]) -> Any:
         t0 = time.perf_counter()
         if self._since is not None:
             self.gaps.append(t0 - self._since)
+            if self._first:
+                self.firsts.append(t0 - self._since)
+                self._first = False
         try:
             return call()
         finally:
@@ -174,6 +192,11 @@ def timed_decisions(clock: DecisionClock) -> Iterator[None]:
     """Time every decision of the searches run inside (see the module doc)."""
     navigate, look, opening = SimWorld.navigate, SimWorld.look, SimWorld.open
     search, plan_global = SearchAgent.search, SearchAgent.plan_global
+    oracle, start_run = SimWorld.oracle_length, Session.start_run
+    # The simulator's oracle walks the robot's map from each start before the search: on the
+    # agent's own map that would build, outside the timed decisions, the shortest paths a robot
+    # builds in its first decision. It walks a map of its own.
+    oracle_maps: dict[int, NavigationMap] = {}
 
     def timed_navigate(self: SimWorld, goal: Any, **kw: Any) -> Navigation:
         handle = kw.get("on_detection")
@@ -192,12 +215,16 @@ def timed_decisions(clock: DecisionClock) -> Iterator[None]:
 
     def timed_search(self: SearchAgent, *a: Any, **kw: Any) -> Any:
         clock._since = time.perf_counter()
+        clock._first = True
         try:
             return search(self, *a, **kw)
         finally:
             assert clock._since is not None
             clock.gaps.append(time.perf_counter() - clock._since)
+            if clock._first:  # a search that never moved: its only decision is its first
+                clock.firsts.append(clock.gaps[-1])
             clock._since = None
+            clock._first = False
 
     def timed_plan(self: SearchAgent, *a: Any) -> Any:
         t0 = time.perf_counter()
@@ -206,7 +233,24 @@ def timed_decisions(clock: DecisionClock) -> Iterator[None]:
         finally:
             clock.plans.append(time.perf_counter() - t0)
 
+    def own_map_oracle(self: SimWorld, cls: str, **kw: Any) -> float:
+        agents = self.navmap
+        self.navmap = oracle_maps.setdefault(id(agents), NavigationMap.from_home(self.home))
+        try:
+            return oracle(self, cls, **kw)
+        finally:
+            self.navmap = agents
+
+    def timed_start_run(self: Session, *a: Any, **kw: Any) -> None:
+        t0 = time.perf_counter()
+        try:
+            start_run(self, *a, **kw)
+        finally:
+            clock.run_starts.append(time.perf_counter() - t0)
+
     patches: dict[tuple[type, str], Any] = {
+        (SimWorld, "oracle_length"): own_map_oracle,
+        (Session, "start_run"): timed_start_run,
         (SimWorld, "navigate"): timed_navigate,
         (SimWorld, "look"): timed_look,
         (SimWorld, "open"): timed_open,
@@ -225,7 +269,10 @@ def timed_decisions(clock: DecisionClock) -> Iterator[None]:
 
 def search_decisions(home: str, perception: str, scenes: int, starts: int) -> DecisionClock:
     """Every decision of ``global-belief+cover``'s searches of ``habit-0`` scenes 1 to
-    ``scenes`` on ``home``, each target from ``starts`` starts, under ``perception``."""
+    ``scenes`` on ``home``, each target from ``starts`` starts, under ``perception``. The run
+    starts from freshly loaded maps, as a robot's process does: no shortest path another run
+    built is in them."""
+    load_context.cache_clear()
     ctx = load_context(home)
     model = preset(perception)
     params = {} if model.perfect else {"perception": model.params()}
@@ -242,20 +289,50 @@ def search_decisions(home: str, perception: str, scenes: int, starts: int) -> De
     return clock
 
 
+def _quantile(xs: list[float], q: int) -> float:
+    """The q-th percentile of ``xs`` (statistics.quantiles' default method)."""
+    return statistics.quantiles(xs, n=100)[q - 1] if len(xs) > 1 else xs[0]
+
+
+def _spread(xs: list[float]) -> str:
+    return (
+        f"median {statistics.median(xs) * 1e3:8.3f} ms   p95 {_quantile(xs, 95) * 1e3:8.3f} ms   "
+        f"max {max(xs) * 1e3:8.2f} ms   (n = {len(xs)})"
+    )
+
+
 def perception_report(home: str, models: list[str], scenes: int, starts: int) -> None:
-    """Decision times under each of ``models`` against ``perfect``'s, in the same run."""
+    """Decision times under each of ``models`` against ``perfect``'s, in the same run: every
+    decision, and each search's first apart (the run's first search, whose caches are cold,
+    named on its own)."""
     runs = {name: search_decisions(home, name, scenes, starts) for name in ["perfect", *models]}
     base = runs["perfect"]
-    mb, pb = statistics.median(base.gaps), statistics.median(base.plans)
+    mb, pb, fb = (statistics.median(x) for x in (base.gaps, base.plans, base.firsts))
     for name, clock in runs.items():
-        m, p = statistics.median(clock.gaps), statistics.median(clock.plans)
-        p90 = statistics.quantiles(clock.gaps, n=10)[-1]
+        m, p, f = (statistics.median(x) for x in (clock.gaps, clock.plans, clock.firsts))
         print(
-            f"{home}: {name:9s} median per decision {m * 1e3:7.3f} ms (ratio to perfect "
-            f"{m / mb:5.2f})   p90 {p90 * 1e3:7.3f} ms   max {max(clock.gaps) * 1e3:7.2f} ms   "
-            f"(n = {len(clock.gaps)})   whole-home plan median {p * 1e3:7.3f} ms (ratio "
-            f"{p / pb:5.2f}, n = {len(clock.plans)}); target <= 50 ms"
+            f"{home}: {name:9s} every decision  {_spread(clock.gaps)}   ratio to perfect "
+            f"{m / mb:5.2f}; target <= 50 ms"
         )
+        print(
+            f"{home}: {name:9s} first decision  {_spread(clock.firsts)}   ratio to perfect "
+            f"{f / fb:5.2f}; the run's first search's {clock.firsts[0] * 1e3:8.2f} ms"
+        )
+        print(
+            f"{home}: {name:9s} whole-home plan {_spread(clock.plans)}   ratio to perfect "
+            f"{p / pb:5.2f}"
+        )
+        print(f"{home}: {name:9s} run start       {_spread(clock.run_starts)}")
+
+
+def development_largest() -> list[str]:
+    """Of the development homes, the one with the most mapped statics (the most stops a
+    decision plans over) and the one with the most viewpoints (the longest shortest paths), in
+    that order; one home when both are the same."""
+    contexts = {name: load_context(name) for name in DEVELOPMENT_HOMES}
+    by_statics = max(contexts, key=lambda n: (len(contexts[n].semmap.statics), n))
+    by_viewpoints = max(contexts, key=lambda n: (len(contexts[n].navmap.room_of), n))
+    return list(dict.fromkeys([by_statics, by_viewpoints]))
 
 
 def largest_homes() -> list[str]:
@@ -292,7 +369,12 @@ def main() -> None:
         "--perception-only", action="store_true", help="time only the --perception searches"
     )
     args = ap.parse_args()
-    homes = largest_homes() if args.homes == "largest" else args.homes.split(",")
+    if args.homes == "largest":
+        homes = largest_homes()
+    elif args.homes == "development-largest":
+        homes = development_largest()
+    else:
+        homes = args.homes.split(",")
     models = [m for m in args.perception.split(",") if m]
     for home in homes:
         if models:
