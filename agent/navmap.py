@@ -16,7 +16,10 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+import numpy.typing as npt
 
 from objsearch.agent.geometry import Point
 from objsearch.agent.home import Home
@@ -26,6 +29,7 @@ if TYPE_CHECKING:
 
 #: An edge's attributes, shared by both directions: ``weight`` (metres) and ``teleport``.
 Edge = dict[str, Any]
+FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass
@@ -43,8 +47,15 @@ class NavigationMap:
     #: every add_edge, in order (a networkx graph built from them has the same adjacency order)
     _added: list[tuple[Point, Point]] = field(default_factory=list, repr=False)
     _graph: nx.Graph | None = field(default=None, repr=False, compare=False)
-    _lengths: dict[Point, dict[Point, float]] = field(default_factory=dict)
-    _paths: dict[Point, dict[Point, list[Point]]] = field(default_factory=dict)
+    #: the viewpoints by index, and each one's neighbours as (index, metres) in adjacency order:
+    #: Dijkstra over ints runs several times faster than over Points (a tuple hash per visit)
+    _nodes: list[Point] = field(default_factory=list, repr=False, compare=False)
+    _index: dict[Point, int] = field(default_factory=dict, repr=False, compare=False)
+    _nbrs: list[tuple[tuple[int, float], ...]] = field(
+        default_factory=list, repr=False, compare=False
+    )
+    #: each source's shortest-path tree, built on first use and kept: it depends on the map alone
+    _trees: dict[Point, _Tree] = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
     def from_home(cls, home: Home) -> NavigationMap:
@@ -127,49 +138,97 @@ class NavigationMap:
             room = self.room_of[nearest]
         return room
 
-    def _single_source(self, src: Point) -> None:
-        if src in self._lengths:
-            return
-        # networkx's _dijkstra_multisource for one source, spelled out: the heap breaks ties by
-        # push order, neighbours are visited in insertion order, a path is its first
-        # predecessor's plus the node. The same lengths and paths, in the same dict order.
-        adj = self._adj
-        if src not in adj:
+    def _tree(self, src: Point) -> _Tree:
+        tree = self._trees.get(src)
+        if tree is not None:
+            return tree
+        if not self._nodes:
+            self._nodes = list(self._adj)
+            self._index = {p: i for i, p in enumerate(self._nodes)}
+            index = self._index
+            self._nbrs = [
+                tuple((index[q], edge["weight"]) for q, edge in self._adj[p].items())
+                for p in self._nodes
+            ]
+        s = self._index.get(src)
+        if s is None:
             raise ValueError(f"{src} is not a viewpoint of this map")
-        dist: dict[Point, float] = {}
-        seen: dict[Point, float] = {src: 0}
-        pred: dict[Point, Point] = {}
-        counter = itertools.count()
-        fringe: list[tuple[float, int, Point]] = [(0, next(counter), src)]
+        # networkx's _dijkstra_multisource for one source, spelled out over indices: the heap
+        # breaks ties by push order, neighbours are visited in insertion order, a node's
+        # predecessor is the first that reached it by the shortest length. The same lengths (the
+        # source's an int 0, as networkx has it) and paths; ``order`` is networkx's dict order.
+        nbrs = self._nbrs
+        n = len(nbrs)
+        done = bytearray(n)
+        seen: list[float] = [math.inf] * n
+        seen[s] = 0
+        pred = [-1] * n
+        order: list[int] = []
+        pushed = 0
+        fringe: list[tuple[float, int, int]] = [(0, 0, s)]
+        pop, push = heapq.heappop, heapq.heappush
         while fringe:
-            dist_v, _, v = heapq.heappop(fringe)
-            if v in dist:
+            dist_v, _, v = pop(fringe)
+            if done[v]:
                 continue
-            dist[v] = dist_v
-            for u, edge in adj[v].items():
-                vu_dist = dist_v + edge["weight"]
-                if u in dist:
+            done[v] = 1
+            order.append(v)
+            for u, weight in nbrs[v]:
+                if done[u]:
                     continue  # weights are >= 0: never shorter (networkx raises if it were)
-                if u not in seen or vu_dist < seen[u]:
+                vu_dist = dist_v + weight
+                if vu_dist < seen[u]:
                     seen[u] = vu_dist
-                    heapq.heappush(fringe, (vu_dist, next(counter), u))
+                    pushed += 1
+                    push(fringe, (vu_dist, pushed, u))
                     pred[u] = v
-        paths: dict[Point, list[Point]] = {src: [src]}
-        for v in itertools.islice(dist, 1, None):
-            paths[v] = paths[pred[v]] + [v]
-        self._lengths[src] = dist
-        self._paths[src] = paths
+        tree = self._trees[src] = _Tree(seen, np.array(seen, dtype=float), pred, order)
+        return tree
 
     def distance(self, a: Point, b: Point) -> float:
-        self._single_source(a)
-        try:
-            return self._lengths[a][b]
-        except KeyError:
-            raise ValueError(f"viewpoint {b} is not reachable from {a}") from None
+        lengths = self._tree(a).lengths
+        i = self._index.get(b)
+        if i is None or lengths[i] == math.inf:
+            raise ValueError(f"viewpoint {b} is not reachable from {a}")
+        return lengths[i]
 
     def path(self, a: Point, b: Point) -> list[Point]:
         self.distance(a, b)
-        return self._paths[a][b]
+        pred, nodes = self._trees[a].pred, self._nodes
+        i = self._index[b]
+        walk = [nodes[i]]
+        while (i := pred[i]) >= 0:
+            walk.append(nodes[i])
+        walk.reverse()
+        return walk
+
+    def shortest_paths(self, src: Point) -> tuple[dict[Point, float], dict[Point, list[Point]]]:
+        """Every reachable viewpoint's length and path from ``src``, in the order Dijkstra
+        settled them (as networkx's ``single_source_dijkstra`` returns them)."""
+        tree = self._tree(src)
+        settled = [self._nodes[i] for i in tree.order]
+        return (
+            {p: tree.lengths[i] for p, i in zip(settled, tree.order, strict=True)},
+            {p: self.path(src, p) for p in settled},
+        )
+
+    def distances(self, src: Point, targets: Sequence[Point]) -> FloatArray:
+        """Metres from ``src`` to each of ``targets`` (:meth:`distance`'s values, as an array)."""
+        tree = self._tree(src)
+        try:
+            picked = tree.array[[self._index[b] for b in targets]]
+        except KeyError as exc:
+            raise ValueError(f"viewpoint {exc.args[0]} is not reachable from {src}") from None
+        if not np.isfinite(picked).all():
+            raise ValueError(f"a viewpoint of {list(targets)} is not reachable from {src}")
+        return picked
+
+    def table(self, points: Sequence[Point]) -> FloatArray:
+        """Metres between each pair of ``points``: row i holds :meth:`distances` from point i
+        (so ``table(ps)[i, j] == distance(ps[i], ps[j])``, bit for bit)."""
+        if not points:
+            return np.zeros((0, 0))
+        return np.stack([self.distances(p, points) for p in points])
 
     def path_length(self, path: Sequence[Point]) -> float:
         return math.fsum(self._adj[u][v]["weight"] for u, v in itertools.pairwise(path))
@@ -184,6 +243,39 @@ class NavigationMap:
 
     def is_teleport(self, a: Point, b: Point) -> bool:
         return bool(self._adj[a][b]["teleport"])
+
+
+class DistanceTable:
+    """Metres between each pair of a fixed set of viewpoints (a home's stops), computed once:
+    a decision then takes its stops' distances by indexing instead of one :meth:`~NavigationMap.
+    distance` call per pair."""
+
+    def __init__(self, navmap: NavigationMap, points: Sequence[Point]) -> None:
+        self.navmap = navmap
+        self.points = tuple(dict.fromkeys(points))
+        self._index = {p: i for i, p in enumerate(self.points)}
+        self.matrix = navmap.table(self.points)
+
+    def between(self, points: Sequence[Point]) -> FloatArray:
+        """``navmap.table(points)``, taken from the table (asked directly of the map for
+        points the table does not hold)."""
+        try:
+            rows = [self._index[p] for p in points]
+        except KeyError:
+            return self.navmap.table(points)
+        return self.matrix[np.ix_(rows, rows)]
+
+
+class _Tree(NamedTuple):
+    """One source's shortest-path tree, by viewpoint index (:attr:`NavigationMap._nodes`)."""
+
+    #: metres (the source's an int 0, unreached ones inf), as a list and as an array
+    lengths: list[float]
+    array: FloatArray
+    #: each viewpoint's predecessor on its path (-1: the source, or unreached)
+    pred: list[int]
+    #: the viewpoints in the order they were settled
+    order: list[int]
 
 
 def _snap(x: float, y: float) -> Point:

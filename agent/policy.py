@@ -7,6 +7,7 @@ projections, so the scene graph the next plan uses is always the fold of what wa
 from __future__ import annotations
 
 import enum
+import functools
 import logging
 import math
 import random
@@ -52,7 +53,7 @@ from objsearch.agent.detector_model import (
 )
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point, Pose, Vec3, heading, wrap_angle
-from objsearch.agent.navmap import NavigationMap
+from objsearch.agent.navmap import DistanceTable, NavigationMap
 from objsearch.agent.planner import (
     Ordering,
     PlanProblem,
@@ -419,6 +420,13 @@ class SearchAgent:
 
     # -- planning -----------------------------------------------------------------------------
 
+    @functools.cached_property
+    def stop_table(self) -> DistanceTable:
+        """Metres between the viewpoints of every mapped static: what a plan's distances are
+        taken from. Built once per agent (a session builds one per run, so per map id;
+        :meth:`~objsearch.agent.session.Session.start_run` builds it before the first search)."""
+        return DistanceTable(self.navmap, [s.viewpoint for s in self.semmap.statics])
+
     def stops(self, room: str, target: str) -> list[Stop]:
         """Static objects related to the target (value > 0), grouped by (viewpoint, class).
 
@@ -514,12 +522,9 @@ class SearchAgent:
         flat = [(room, stop) for room in self.rooms for stop in remaining.get(room, ())]
         if not flat:
             return None
-        nav = self.navmap
-        start = np.array([nav.distance(here, s.viewpoint) for _, s in flat], dtype=float)
-        dist = np.array(
-            [[nav.distance(a.viewpoint, b.viewpoint) for _, b in flat] for _, a in flat],
-            dtype=float,
-        )
+        points = [s.viewpoint for _, s in flat]
+        start = self.navmap.distances(here, points)
+        dist = self.stop_table.between(points)
         prob = epl_probabilities(np.array([s.rel for _, s in flat], dtype=float), 0.0)
         ordering = epl_plan(start, dist, prob, None, GLOBAL_EXACT_STOPS)
         rooms: list[str] = []

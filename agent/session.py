@@ -291,6 +291,9 @@ class Session:
             spec.stop_planner(),
             next_task_id=self.state.tasks.next_task_id,
         )
+        # The distances between the home's stops, built here, once per run (a new map id is a
+        # new run), so that no search's first decision waits for them.
+        _ = self._agent.stop_table
 
     def _close_open_task(self) -> None:
         open_task = self.state.tasks.open

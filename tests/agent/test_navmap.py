@@ -9,7 +9,7 @@ import networkx as nx
 import pytest
 
 from objsearch.agent.geometry import Point
-from objsearch.agent.navmap import NavigationMap
+from objsearch.agent.navmap import DistanceTable, NavigationMap
 from objsearch.agent.session import load_context
 
 
@@ -84,9 +84,37 @@ def test_the_maps_own_dijkstra_is_networkxs_to_the_last_tie(home: str) -> None:
     navmap = load_context(home).navmap
     for src in sorted(navmap.room_of)[::37]:
         lengths, paths = nx.single_source_dijkstra(navmap.graph, src, weight="weight")
-        navmap.distance(src, src)
-        assert list(navmap._lengths[src].items()) == list(lengths.items())
-        assert list(navmap._paths[src].items()) == list(paths.items())
+        ours_lengths, ours_paths = navmap.shortest_paths(src)
+        assert list(ours_lengths.items()) == list(lengths.items())
+        assert list(ours_paths.items()) == list(paths.items())
+        # the same floats through every way of asking
+        assert all(navmap.distance(src, p) == d for p, d in lengths.items())
+        assert all(navmap.path(src, p) == walk for p, walk in paths.items())
     for a, b in itertools.islice(navmap.graph.edges, 0, None, 11):
         assert navmap.edge_weight(a, b) == navmap.graph.edges[a, b]["weight"]
         assert navmap.has_edge(a, b) and navmap.has_edge(b, a)
+
+
+@pytest.mark.parametrize("home", ["paper", "procthor-00"])
+def test_distances_and_tables_are_distance_bit_for_bit(home: str) -> None:
+    """A plan's distances taken as arrays (from one point, between many, from a table built
+    once) are the very floats :meth:`distance` gives, so no decision changes with the way."""
+    navmap = load_context(home).navmap
+    pts = sorted(navmap.room_of)[::53]
+    table = navmap.table(pts)
+    stored = DistanceTable(navmap, [*pts, pts[0]])  # a repeated point is held once
+    assert stored.points == tuple(pts)
+    picked = pts[::-2]
+    for i, a in enumerate(pts):
+        expected = [navmap.distance(a, b) for b in pts]
+        assert navmap.distances(a, pts).tolist() == expected
+        assert table[i].tolist() == expected
+    assert stored.between(picked).tolist() == [
+        [navmap.distance(a, b) for b in picked] for a in picked
+    ]
+    outside = [pts[0], next(p for p in navmap.room_of if p not in pts)]
+    assert stored.between(outside).tolist() == navmap.table(outside).tolist()
+    with pytest.raises(ValueError, match="not reachable"):
+        navmap.distances(pts[0], [Point(-100.0, -100.0)])
+    with pytest.raises(ValueError, match="not a viewpoint"):
+        navmap.distances(Point(-100.0, -100.0), pts)

@@ -9,10 +9,14 @@ import msgspec
 import pytest
 
 from objsearch.agent.catalogue import STORE
+from objsearch.agent.categories import Vocabulary
 from objsearch.agent.errors import ObjsearchError
+from objsearch.agent.home import load_home
+from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.policy import Method
 from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
-from objsearch.agent.session import Session, load_context
+from objsearch.agent.semmap import SemanticMap
+from objsearch.agent.session import HomeContext, Session, load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.events import Event, fold, read_log
 from objsearch.replay.asof import scene_graph_at
@@ -255,3 +259,29 @@ def test_a_log_continued_with_another_prior_is_refused(
     # The same prior continues the log (and is not seeded again).
     Session.start(ctx, tmp_path, RunSpec.for_home(ctx.home, "wpl", prior=first)).close()
     assert sum(e.type == "scene_graph_seeded" for e in read_log(tmp_path, store=STORE)) == 1
+
+
+def test_a_run_builds_its_stops_distances_before_the_first_search(tmp_path: Path) -> None:
+    """The shortest paths from every stop of the home are built when a run starts (so once per
+    run, and again in a new map), not in a search's first decision: that decision builds one
+    tree, from where the robot stands (issue 45: a robot asked to find something waited for
+    the whole table before it moved)."""
+    home = load_home(HOME)
+    navmap = NavigationMap.from_home(home)  # its own: no other test's trees in it
+    ctx = HomeContext(home, Vocabulary.load(), navmap, SemanticMap.from_home(home, navmap))
+    spec = RunSpec.for_home(home, "global-belief+cover")
+    session = Session.start(ctx, tmp_path, spec)
+    try:
+        viewpoints = {s.viewpoint for s in ctx.semmap.statics}
+        assert set(navmap._trees) == viewpoints
+        agent = session.agent
+        here = next(p.point for p in home.starts.values() if p.point not in viewpoints)
+        plan = agent.plan_global(here, {r: agent.stops(r, "Apple") for r in agent.rooms})
+        assert plan is not None
+        assert set(navmap._trees) == viewpoints | {here}
+        table = agent.stop_table
+        session.start_run(spec, new_map=True)
+        assert session.agent.stop_table is not table
+        assert session.agent.stop_table.matrix.tolist() == table.matrix.tolist()
+    finally:
+        session.close()
