@@ -31,6 +31,7 @@ class _Task:
         self.true_ids = frozenset(i for i, c in classes.items() if c == target)
         self.reports = 0  # detections of a true instance under its own class
         self.best_score = 0.0
+        self.best_mask = 0.0  # px: a report under its class's mask threshold is no sighting
         self.rejected_true: list[float] = []  # posteriors of rejected sightings of a true instance
         self.rejected_other = 0
         self.scores: dict[str, float] = {}  # last accepted score per instance reported as target
@@ -49,7 +50,8 @@ class _Task:
         seen = (
             "the true target was never reported"
             if self.reports == 0
-            else f"the true target was reported {self.reports}× (best score {self.best_score:.3f})"
+            else f"the true target was reported {self.reports}× (best score {self.best_score:.3f}, "
+            f"largest mask {self.best_mask:.0f} px)"
         )
         if self.rejected_true:
             seen += (
@@ -89,6 +91,7 @@ def failure_causes(
             if d.instance_id in current.true_ids:
                 current.reports += 1
                 current.best_score = max(current.best_score, d.score)
+                current.best_mask = max(current.best_mask, d.mask_area)
             if d.accepted:
                 current.scores[d.instance_id] = d.score
         elif kind == "sighting_rejected":

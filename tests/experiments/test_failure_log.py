@@ -39,6 +39,20 @@ def test_a_target_never_reported_says_so_with_the_stopping_rule() -> None:
     assert cause.endswith("the true target was never reported")
 
 
+def test_a_target_reported_only_under_its_mask_threshold_says_how_large_it_was() -> None:
+    """procthor-01 habit-3 scene 10, perfect detector: the Phone on the living room's shelf shows
+    at most 65 px (< 100 px, its class's threshold) from the views the search takes, so it is
+    reported but never a sighting; the cause gives the largest mask."""
+    job = Job(
+        "homes", "procthor-01", "habit-3", "dist-oracle-global+cover", "all", 3,
+        targets=("Phone",), scenes=(10,), starts_per_search=1,
+    )  # fmt: skip
+    (row,) = run_job(job)
+    assert not row.success and row.failure is not None
+    assert row.failure.startswith("not found (Phone not found in any room): the true target was")
+    assert row.failure.endswith("largest mask 65 px)")
+
+
 def test_a_successful_search_has_no_cause_and_every_place_forecast() -> None:
     rows = run_job(
         Job("homes", "ithor-02", "habit-0", "global-belief", "all", 0, targets=("Cup",),
