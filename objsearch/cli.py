@@ -20,6 +20,8 @@ from objsearch import cli_types as t
 from objsearch.agent.errors import ObjsearchError
 
 if TYPE_CHECKING:
+    from objsearch.agent.policy import SearchResult
+    from objsearch.agent.session import HomeContext
     from objsearch.sim.world import Placement
 
 EXIT_USAGE = 2
@@ -131,35 +133,14 @@ def cmd_search(args: argparse.Namespace) -> int:
     from objsearch.product import relation_models
     from objsearch.sim.detector_model import with_perception
     from objsearch.sim.localisation import with_localisation
-    from objsearch.sim.placements import base_placements, has_table1_scenario, table1_removals
     from objsearch.sim.world import SimClock, SimWorld, with_camera
 
     ctx = load_context(args.home)
     target = ctx.vocabulary.resolve_target(args.target).name
     pose = ctx.home.start(args.start)
-    placements: Mapping[str, Placement]
-    if args.scene is None:
-        # The Table I removals are the paper home's (and a home whose build derived its own);
-        # any other home is searched with its objects as its source scene places them.
-        removed = table1_removals(ctx.home) if has_table1_scenario(ctx.home.name) else frozenset()
-        placements = base_placements(ctx.home, removed)
-    else:
-        if args.schedule == PAPER_SCHEDULE and ctx.home.name != PAPER_HOME:
-            how = (
-                "pass --schedule stats-<seed> (drawn from AI2-THOR placement statistics), "
-                "habit-<seed> (objects with habits) or rearr-<seed> (real rearrangements, iTHOR homes "
-                "only), e.g. --schedule stats-0"
-            )
-            return _fail(_paper_schedule_only(ctx.home.name, "search --scene", how))
-        # Here, not above: the schedule kinds' generators are for a search in a scheduled scene.
-        from objsearch.sim.schedule_names import load_schedule
-
-        schedule = load_schedule(ctx.home, args.schedule)
-        if args.scene not in schedule.scenes:
-            return _fail(
-                f"schedule {args.schedule!r} has scenes {sorted(schedule.scenes)}, not {args.scene}"
-            )
-        placements = schedule.scenes[args.scene]
+    placements = _search_placements(args, ctx)
+    if isinstance(placements, int):
+        return placements
     tmp = None if args.log else tempfile.mkdtemp(prefix="objsearch-search-")
     log_dir = Path(args.log or tmp or ".")
     try:
@@ -233,6 +214,48 @@ def cmd_search(args: argparse.Namespace) -> int:
     if args.format == "json":
         print(json.dumps(summary, indent=2))
         return 0
+    return _print_search(args, target, result, real, placed, found, oracle)
+
+
+def _search_placements(args: argparse.Namespace, ctx: HomeContext) -> Mapping[str, Placement] | int:
+    """Where ``search`` places the objects: the home's own placements, or a scene of
+    ``--schedule``; an exit status (the error printed) if that scene is not to be had."""
+    from objsearch.sim.placements import base_placements, has_table1_scenario, table1_removals
+
+    if args.scene is None:
+        # The Table I removals are the paper home's (and a home whose build derived its own);
+        # any other home is searched with its objects as its source scene places them.
+        removed = table1_removals(ctx.home) if has_table1_scenario(ctx.home.name) else frozenset()
+        return base_placements(ctx.home, removed)
+    if args.schedule == PAPER_SCHEDULE and ctx.home.name != PAPER_HOME:
+        how = (
+            "pass --schedule stats-<seed> (drawn from AI2-THOR placement statistics), "
+            "habit-<seed> (objects with habits) or rearr-<seed> (real rearrangements, iTHOR homes "
+            "only), e.g. --schedule stats-0"
+        )
+        return _fail(_paper_schedule_only(ctx.home.name, "search --scene", how))
+    # Here, not above: the schedule kinds' generators are for a search in a scheduled scene.
+    from objsearch.sim.schedule_names import load_schedule
+
+    schedule = load_schedule(ctx.home, args.schedule)
+    if args.scene not in schedule.scenes:
+        return _fail(
+            f"schedule {args.schedule!r} has scenes {sorted(schedule.scenes)}, not {args.scene}"
+        )
+    placements: Mapping[str, Placement] = schedule.scenes[args.scene]
+    return placements
+
+
+def _print_search(
+    args: argparse.Namespace,
+    target: str,
+    result: SearchResult,
+    real: bool,
+    placed: Placement | None,
+    found: str | None,
+    oracle: float,
+) -> int:
+    """``search``'s text report; its exit status (1 when the target was not found)."""
     verdict = "found" if result.success and real else "NOT found"
     if result.success and not real:
         verdict += f" (the agent took {result.found_instance} for it: a false sighting)"
@@ -382,18 +405,9 @@ COMMAND_MODULES: tuple[str, ...] = (
 )
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _add_build(data_sub: Any) -> None:
     from objsearch.pipeline.findings import FINDING_KINDS
 
-    parser = t.Parser(
-        prog="objsearch",
-        description="Long-term object search with an incrementally updated scene graph.",
-    )
-    parser.add_argument("--version", action=_VersionAction)
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
-    data = sub.add_parser("data", help="derive the project's data from public sources")
-    data_sub = data.add_subparsers(dest="data_command", required=True, metavar="SUBCOMMAND")
     build = data_sub.add_parser("build", help="convert ../shared/data into data/")
     build.add_argument(
         "--source",
@@ -448,6 +462,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.progress_option(build)
     build.set_defaults(func=cmd_data_build)
 
+
+def _add_search(sub: Any) -> None:
     search = sub.add_parser("search", help="run one search in the simulated home")
     # Positional as in agent find TARGET and where TARGET (--target, its old spelling, still
     # works with a note).
@@ -493,6 +509,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.format_option(search, "print a JSON summary")
     search.set_defaults(func=cmd_search)
 
+
+def _add_demo(sub: Any) -> None:
     demo = sub.add_parser(
         "demo", help="the long-term schedule (10 scenes × 8 targets × 8 starts) with updates"
     )
@@ -520,6 +538,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.format_option(demo, "print a JSON summary (the report goes to stderr)")
     demo.set_defaults(func=cmd_demo)
 
+
+def _add_graph(sub: Any) -> None:
     graph = sub.add_parser("graph", help="print the scene graph projection of a log")
     t.input_argument(
         graph, "log", type=t.existing_dir, metavar="LOG", help="event log folder", old=("--log",)
@@ -540,6 +560,20 @@ def build_parser() -> argparse.ArgumentParser:
     t.progress_option(graph)
     graph.set_defaults(func=cmd_graph)
 
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = t.Parser(
+        prog="objsearch",
+        description="Long-term object search with an incrementally updated scene graph.",
+    )
+    parser.add_argument("--version", action=_VersionAction)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    data = sub.add_parser("data", help="derive the project's data from public sources")
+    data_sub = data.add_subparsers(dest="data_command", required=True, metavar="SUBCOMMAND")
+    _add_build(data_sub)
+    _add_search(sub)
+    _add_demo(sub)
+    _add_graph(sub)
     for module in COMMAND_MODULES:
         importlib.import_module(module).register(sub)
     return parser

@@ -252,7 +252,7 @@ def _ingest_json(result: Any, lake: str) -> dict[str, Any]:
     }
 
 
-def register(sub: Any) -> None:
+def _add_rec(sub: Any) -> None:
     rec = sub.add_parser(
         "record", help="run searches in the simulator and write them as a robot's ROS bag"
     )
@@ -330,6 +330,8 @@ def register(sub: Any) -> None:
     )
     rec.set_defaults(func=cmd_record)
 
+
+def _add_ing(sub: Any) -> None:
     ing = sub.add_parser("ingest", help="read ROS bags (ROS 1, ROS 2 sqlite3, MCAP) into the lake")
     ing.add_argument(
         "bags",
@@ -377,3 +379,8 @@ def register(sub: Any) -> None:
         ing, "print each bag's outcome and report as a line of JSON (JSON Lines), as it ends"
     )
     ing.set_defaults(func=cmd_ingest)
+
+
+def register(sub: Any) -> None:
+    _add_rec(sub)
+    _add_ing(sub)

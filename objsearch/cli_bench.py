@@ -378,31 +378,28 @@ def _dhs_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def register(sub: Any) -> None:
-    bench = sub.add_parser("bench", help="experiments: the paper's tables, held-out homes, report")
-    bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="SUBCOMMAND")
+def _common(p: argparse.ArgumentParser, out: str) -> None:
+    p.add_argument("--out", default=out, type=t.dir_path, help=f"output folder ({out})")
+    p.add_argument(
+        "--strategies",
+        type=t.name_list,
+        **t.LIST,
+        help="comma-separated names, 'paper' (sdp,rvp,wpl) or 'all' (default: all)",
+    )
+    p.add_argument(
+        "--workers",
+        type=t.int_range(0, t.MAX_WORKERS),
+        default=0,
+        help=f"processes, at most {t.MAX_WORKERS} and one per job (0, the default: min(2, cores))",
+    )
+    t.format_option(p, "print a JSON summary per strategy")
+    t.progress_option(p)
+    t.camera_option(p)
 
-    def common(p: argparse.ArgumentParser, out: str) -> None:
-        p.add_argument("--out", default=out, type=t.dir_path, help=f"output folder ({out})")
-        p.add_argument(
-            "--strategies",
-            type=t.name_list,
-            **t.LIST,
-            help="comma-separated names, 'paper' (sdp,rvp,wpl) or 'all' (default: all)",
-        )
-        p.add_argument(
-            "--workers",
-            type=t.int_range(0, t.MAX_WORKERS),
-            default=0,
-            help=f"processes, at most {t.MAX_WORKERS} and one per job "
-            "(0, the default: min(2, cores))",
-        )
-        t.format_option(p, "print a JSON summary per strategy")
-        t.progress_option(p)
-        t.camera_option(p)
 
+def _add_paper(bsub: Any) -> None:
     paper = bsub.add_parser("paper", help="Table I and the long-term experiment on the paper home")
-    common(paper, "out/bench-paper")
+    _common(paper, "out/bench-paper")
     paper.add_argument(
         "--sdp-seeds",
         type=t.int_range(1, 1000),
@@ -422,8 +419,10 @@ def register(sub: Any) -> None:
     paper.defer(_prior_option)
     paper.set_defaults(func=cmd_bench_paper)
 
+
+def _add_homes(bsub: Any) -> None:
     homes = bsub.add_parser("homes", help="every strategy on the held-out homes")
-    common(homes, "out/bench-homes")
+    _common(homes, "out/bench-homes")
     homes.add_argument(
         "--homes",
         type=t.name_list,
@@ -488,10 +487,8 @@ def register(sub: Any) -> None:
     )
     homes.set_defaults(func=cmd_bench_homes)
 
-    from objsearch.cli_sensitivity import register as register_sensitivity
 
-    register_sensitivity(bsub)
-
+def _add_table1(bsub: Any) -> None:
     table1 = bsub.add_parser(
         "table1",
         help="Table I over a seeded sample of FloorPlan sets that satisfy the paper's removal rule "
@@ -529,6 +526,8 @@ def register(sub: Any) -> None:
     t.camera_option(table1)
     table1.set_defaults(func=cmd_bench_table1)
 
+
+def _add_belief(bsub: Any) -> None:
     belief = bsub.add_parser(
         "belief",
         help="the belief's figures from bench homes outputs (docs/results-belief.md)",
@@ -561,6 +560,8 @@ def register(sub: Any) -> None:
     t.progress_option(belief)
     belief.set_defaults(func=cmd_bench_belief)
 
+
+def _add_ceiling(bsub: Any) -> None:
     ceiling = bsub.add_parser(
         "routine-ceiling",
         help="why a memory of the hour gains what it gains on routine schedules "
@@ -587,6 +588,8 @@ def register(sub: Any) -> None:
     )
     ceiling.set_defaults(func=cmd_bench_routine_ceiling)
 
+
+def _add_dhs(bsub: Any) -> None:
     dhs = bsub.add_parser(
         "dhs",
         help="our belief inside the Dynamic House Simulator's find-object task, beside its agents "
@@ -629,6 +632,8 @@ def register(sub: Any) -> None:
     dhs.add_argument("--no-progress", action="store_true", help="no line per finished run")
     dhs.set_defaults(func=cmd_bench_dhs)
 
+
+def _add_report(bsub: Any) -> None:
     report = bsub.add_parser(
         "report",
         help="write the results page (docs/results.md's generator) from bench outputs",
@@ -716,3 +721,18 @@ def register(sub: Any) -> None:
     )
     t.progress_option(report)
     report.set_defaults(func=cmd_bench_report)
+
+
+def register(sub: Any) -> None:
+    bench = sub.add_parser("bench", help="experiments: the paper's tables, held-out homes, report")
+    bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="SUBCOMMAND")
+    _add_paper(bsub)
+    _add_homes(bsub)
+    from objsearch.cli_sensitivity import register as register_sensitivity
+
+    register_sensitivity(bsub)
+    _add_table1(bsub)
+    _add_belief(bsub)
+    _add_ceiling(bsub)
+    _add_dhs(bsub)
+    _add_report(bsub)

@@ -6,9 +6,17 @@ import argparse
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from objsearch import cli_types as t
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    from objsearch.agent.mapping import BuiltMap
+    from objsearch.agent.session import HomeContext
+    from objsearch.pipeline.bags.rgbd import ViewReport
+    from objsearch.sim.world import Placement
 
 
 def register(sub: Any) -> None:
@@ -150,8 +158,7 @@ def cmd_map_build(args: argparse.Namespace) -> int:
         detected,
         survey_poses,
     )
-    from objsearch.sim.longterm import TARGET_ORDER
-    from objsearch.sim.mapeval import compare, cost_summary, search_cost
+    from objsearch.sim.mapeval import compare
     from objsearch.sim.placements import base_placements, table1_removals
     from objsearch.sim.render import SimulatedCamera, SurveyFrames
 
@@ -203,24 +210,9 @@ def cmd_map_build(args: argparse.Namespace) -> int:
         "accuracy": accuracy.summary(),
     }
     if bag_report is not None:
-        report["bag"] = {
-            "format": bag_report.format,
-            "reader": bag_report.reader,
-            "views": bag_report.views,
-            "skipped": bag_report.skipped,
-            "rejected": bag_report.rejected,
-            "losses": [str(loss) for loss in bag_report.losses],
-            "notes": list(bag_report.notes),
-        }
+        report["bag"] = _bag_summary(bag_report)
     if not args.no_search:
-        total = len(TARGET_ORDER) * len(ctx.home.starts)
-        with t.progress_bar(
-            "search cost", " pairs", total=total, enabled=not args.no_progress
-        ) as bar:
-            pairs = search_cost(
-                ctx, built.semmap, placements, TARGET_ORDER, on_pair=lambda _: bar.update()
-            )
-        report["search_cost"] = cost_summary(pairs)
+        report["search_cost"] = _search_cost(args, ctx, built, placements)
     if args.out:
         out = Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -231,6 +223,50 @@ def cmd_map_build(args: argparse.Namespace) -> int:
     if args.format == "json":
         print(json.dumps(report, indent=2))
         return 0
+    _print_map_report(args, report, built, bag_report, seconds, device)
+    return 0
+
+
+def _search_cost(
+    args: argparse.Namespace,
+    ctx: HomeContext,
+    built: BuiltMap,
+    placements: Mapping[str, Placement],
+) -> dict[str, Any]:
+    """Every target from every start searched with the true map and with the built one."""
+    from objsearch.sim.longterm import TARGET_ORDER
+    from objsearch.sim.mapeval import cost_summary, search_cost
+
+    total = len(TARGET_ORDER) * len(ctx.home.starts)
+    with t.progress_bar("search cost", " pairs", total=total, enabled=not args.no_progress) as bar:
+        pairs = search_cost(
+            ctx, built.semmap, placements, TARGET_ORDER, on_pair=lambda _: bar.update()
+        )
+    return cost_summary(pairs)
+
+
+def _bag_summary(bag_report: ViewReport) -> dict[str, Any]:
+    """What ``map build --bag`` read from the bag, for its report."""
+    return {
+        "format": bag_report.format,
+        "reader": bag_report.reader,
+        "views": bag_report.views,
+        "skipped": bag_report.skipped,
+        "rejected": bag_report.rejected,
+        "losses": [str(loss) for loss in bag_report.losses],
+        "notes": list(bag_report.notes),
+    }
+
+
+def _print_map_report(
+    args: argparse.Namespace,
+    report: dict[str, Any],
+    built: BuiltMap,
+    bag_report: ViewReport | None,
+    seconds: float,
+    device: Any,
+) -> None:
+    """``map build``'s text report."""
     if bag_report is not None:
         print(bag_report.render())
     _print_statics(built.semmap)
@@ -260,4 +296,3 @@ def cmd_map_build(args: argparse.Namespace) -> int:
         )
     if args.out:
         print(f"wrote {args.out}")
-    return 0

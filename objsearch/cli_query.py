@@ -568,7 +568,7 @@ def cmd_lake_ls(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(sub: Any) -> None:
+def _add_query(sub: Any) -> None:
     query = sub.add_parser(
         "query",
         help="run SQL (DuckDB) over the analytics lake",
@@ -618,8 +618,8 @@ def register(sub: Any) -> None:
     )
     query.set_defaults(func=cmd_query)
 
-    lake = sub.add_parser("lake", help="put event logs into the analytics lake, list what it holds")
-    lake_sub = lake.add_subparsers(dest="lake_command", required=True, metavar="SUBCOMMAND")
+
+def _add_add(lake_sub: Any) -> None:
     add = lake_sub.add_parser("add", help="compact a sealed event log into the lake as one run")
     add.add_argument(
         "log",
@@ -642,6 +642,9 @@ def register(sub: Any) -> None:
         help=f"lake folder ($OBJSEARCH_LAKE or {DEFAULT_LAKE})",
     )
     add.set_defaults(func=cmd_lake_add)
+
+
+def _add_ls(lake_sub: Any) -> None:
     ls = lake_sub.add_parser("ls", help="list the runs in the lake")
     ls.add_argument(
         "--lake",
@@ -651,6 +654,9 @@ def register(sub: Any) -> None:
     )
     t.format_option(ls, "the runs as a JSON array", choices=TABLE_FORMATS)
     ls.set_defaults(func=cmd_lake_ls)
+
+
+def _add_verify(lake_sub: Any) -> None:
     verify = lake_sub.add_parser(
         "verify",
         help="read every file of every run and check it against the digest its commit recorded; "
@@ -669,6 +675,9 @@ def register(sub: Any) -> None:
     t.format_option(verify, "print the findings as JSON")
     t.progress_option(verify)
     verify.set_defaults(func=cmd_lake_verify)
+
+
+def _add_upgrade(lake_sub: Any) -> None:
     upgrade = lake_sub.add_parser(
         "upgrade",
         help="migrate a per-run-folder lake (objsearch.lake/1, written by older versions) into "
@@ -697,6 +706,9 @@ def register(sub: Any) -> None:
     )
     t.progress_option(upgrade)
     upgrade.set_defaults(func=cmd_lake_upgrade)
+
+
+def _add_compact(lake_sub: Any) -> None:
     compact = lake_sub.add_parser(
         "compact",
         help="fleet lake: rewrite small (and unhashed) data files into few large "
@@ -716,3 +728,14 @@ def register(sub: Any) -> None:
         help="keep replaced files this long for readers that started before (1)",
     )
     compact.set_defaults(func=cmd_lake_compact)
+
+
+def register(sub: Any) -> None:
+    _add_query(sub)
+    lake = sub.add_parser("lake", help="put event logs into the analytics lake, list what it holds")
+    lake_sub = lake.add_subparsers(dest="lake_command", required=True, metavar="SUBCOMMAND")
+    _add_add(lake_sub)
+    _add_ls(lake_sub)
+    _add_verify(lake_sub)
+    _add_upgrade(lake_sub)
+    _add_compact(lake_sub)

@@ -522,9 +522,7 @@ def _strategy_option(p: argparse.ArgumentParser) -> None:
     )
 
 
-def register(sub: Any) -> None:
-    agent = sub.add_parser("agent", help="the on-robot agent over ROS 2 (zenoh or DDS)")
-    agent_sub = agent.add_subparsers(dest="agent_command", required=True, metavar="SUBCOMMAND")
+def _add_run(agent_sub: Any) -> None:
     run = agent_sub.add_parser("run", help="serve search requests, driving the robot")
     _transport_options(run)
     run.add_argument("--log", required=True, type=t.dir_path, help="the agent's event log folder")
@@ -559,6 +557,8 @@ def register(sub: Any) -> None:
     t.perception_option(run)
     run.set_defaults(func=cmd_agent_run)
 
+
+def _add_find(agent_sub: Any) -> None:
     find = agent_sub.add_parser("find", help="ask the running agent to find an object")
     find.add_argument("target", metavar="TARGET", type=t.text, help="object class, e.g. Apple")
     _transport_options(find)
@@ -573,6 +573,8 @@ def register(sub: Any) -> None:
     t.format_option(find, "print JSON")
     find.set_defaults(func=cmd_agent_find)
 
+
+def _add_where(agent_sub: Any) -> None:
     where = agent_sub.add_parser(
         "where",
         help="ask the running agent where an object was last seen, where it usually is, how sure",
@@ -590,6 +592,8 @@ def register(sub: Any) -> None:
     t.format_option(where, "print the result as JSON")
     where.set_defaults(func=cmd_agent_where)
 
+
+def _add_replay(agent_sub: Any) -> None:
     replay = agent_sub.add_parser(
         "replay",
         help="replay a recorded robot session (a bag) to a fresh agent: the same decisions?",
@@ -615,8 +619,8 @@ def register(sub: Any) -> None:
     t.progress_option(replay)
     replay.set_defaults(func=cmd_agent_replay)
 
-    robot = sub.add_parser("robot", help="a stand-in robot and a zenoh router for it")
-    robot_sub = robot.add_subparsers(dest="robot_command", required=True, metavar="SUBCOMMAND")
+
+def _add_sim(robot_sub: Any) -> None:
     sim = robot_sub.add_parser("sim", help="the simulator behind a real robot's ROS 2 topics")
     _transport_options(sim)
     fault_count = t.int_range(0, 1_000_000)
@@ -645,6 +649,8 @@ def register(sub: Any) -> None:
     t.perception_option(sim)
     sim.set_defaults(func=cmd_robot_sim)
 
+
+def _add_view(sub: Any) -> None:
     view = sub.add_parser(
         "liveview",
         help="draw a recorded log's live-view channels into an MCAP file for Foxglove",
@@ -684,6 +690,8 @@ def register(sub: Any) -> None:
     )
     view.set_defaults(func=cmd_liveview)
 
+
+def _add_router(robot_sub: Any) -> None:
     router = robot_sub.add_parser("router", help="a zenoh router (rmw_zenohd's role)")
     router.add_argument(
         "--listen",
@@ -692,3 +700,17 @@ def register(sub: Any) -> None:
         help="endpoint (tcp/127.0.0.1:7447)",
     )
     router.set_defaults(func=cmd_robot_router)
+
+
+def register(sub: Any) -> None:
+    agent = sub.add_parser("agent", help="the on-robot agent over ROS 2 (zenoh or DDS)")
+    agent_sub = agent.add_subparsers(dest="agent_command", required=True, metavar="SUBCOMMAND")
+    _add_run(agent_sub)
+    _add_find(agent_sub)
+    _add_where(agent_sub)
+    _add_replay(agent_sub)
+    robot = sub.add_parser("robot", help="a stand-in robot and a zenoh router for it")
+    robot_sub = robot.add_subparsers(dest="robot_command", required=True, metavar="SUBCOMMAND")
+    _add_sim(robot_sub)
+    _add_view(sub)
+    _add_router(robot_sub)
