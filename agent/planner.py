@@ -14,6 +14,7 @@ O(2^n · n²) time, vectorised with numpy per popcount layer.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections.abc import Sequence
@@ -210,6 +211,33 @@ def epl_enumerate(
     return Ordering(order, epl_terms(order, start, dist, prob, to_exit))
 
 
+#: Up to this many stops the DP's index arrays are kept between calls (every size up to 12:
+#: about 2 MB); beyond, each call makes its own (n = 18 would keep some 60 MB).
+CACHED_DP_STOPS = 12
+IntArray = npt.NDArray[np.int64]
+
+
+@functools.cache
+def _dp_steps(n: int) -> tuple[list[IntArray], list[tuple[int, IntArray, IntArray, IntArray]]]:
+    """What :func:`epl_exact`'s DP over ``n`` stops indexes, which depends on ``n`` alone: each
+    stop's bit of every subset, and per popcount layer (ascending) and last stop k, the subsets
+    of the layer holding k, those without k, and their row numbers."""
+    masks = np.arange(1 << n, dtype=np.int64)
+    bits = [(masks >> k) & 1 for k in range(n)]
+    popcount = np.zeros(1 << n, dtype=np.int64)
+    for bit in bits:
+        popcount += bit
+    steps = []
+    for c in range(2, n + 1):
+        layer = masks[popcount == c]
+        for k in range(n):
+            ends = layer[((layer >> k) & 1) == 1]
+            steps.append((k, ends, ends ^ (1 << k), np.arange(len(ends))))
+    for array in [*bits, *(a for step in steps for a in step[1:])]:
+        array.flags.writeable = False  # shared between calls
+    return bits, steps
+
+
 def epl_exact(
     start: FloatArray, dist: FloatArray, prob: FloatArray, to_exit: FloatArray | None = None
 ) -> Ordering:
@@ -223,27 +251,21 @@ def epl_exact(
     if n > MAX_EXACT_STOPS:
         raise ValueError(f"{n} stops exceed the exact planner's limit of {MAX_EXACT_STOPS}")
     full = (1 << n) - 1
-    masks = np.arange(1 << n, dtype=np.int64)
-    popcount = np.zeros(1 << n, dtype=np.int64)
+    bits, steps = _dp_steps(n) if n <= CACHED_DP_STOPS else _dp_steps.__wrapped__(n)
     mass = np.zeros(1 << n)
     for k in range(n):
-        bit = (masks >> k) & 1
-        popcount += bit
-        mass += bit * prob[k]
+        mass += bits[k] * prob[k]
     remaining = np.maximum(1.0 - mass, 0.0)
     cost = np.full((1 << n, n), np.inf)
     parent = np.full((1 << n, n), -1, dtype=np.int8)
     for k in range(n):
         cost[1 << k, k] = start[k]
-    for c in range(2, n + 1):
-        layer = masks[popcount == c]
-        for k in range(n):
-            ends = layer[((layer >> k) & 1) == 1]
-            prev = ends ^ (1 << k)
-            cand = cost[prev] + dist[:, k][None, :] * remaining[prev][:, None]
-            best = np.argmin(cand, axis=1)
-            cost[ends, k] = cand[np.arange(len(ends)), best]
-            parent[ends, k] = best
+    legs = [dist[:, k][None, :] for k in range(n)]
+    for k, ends, prev, rows in steps:
+        cand = cost[prev] + legs[k] * remaining[prev][:, None]
+        best = np.argmin(cand, axis=1)
+        cost[ends, k] = cand[rows, best]
+        parent[ends, k] = best
     final = cost[full].copy()
     if to_exit is not None:
         final += to_exit * remaining[full]

@@ -7,10 +7,12 @@ import math
 import numpy as np
 import pytest
 
+from objsearch.agent import planner
 from objsearch.agent.planner import (
     MAX_EXACT_STOPS,
     ExpectedPathPlanner,
     PlanProblem,
+    _dp_steps,
     epl_enumerate,
     epl_exact,
     epl_plan,
@@ -85,3 +87,29 @@ def test_epl_plan_is_exact_up_to_its_size_and_says_when_it_is_not(seed: int) -> 
     assert not bounded.exact and sorted(bounded.order) == list(range(9))
     # An approximation, never better than the optimum.
     assert bounded.value >= exact.value - 1e-9
+
+
+def _grid_instance(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Stops on a small integer grid with probabilities in tenths: many equal legs and sums, so
+    the DP meets ties at every layer."""
+    rng = np.random.default_rng(seed)
+    pts = rng.integers(0, 4, size=(n + 2, 2)).astype(float)
+    d = np.abs(pts[:, None] - pts[None]).sum(axis=2)
+    p = np.round(rng.dirichlet(np.ones(n + 1))[:n], 1)
+    return d[0, 2:], d[2:, 2:], p, d[1, 2:]
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 9, 12])
+def test_the_dp_plans_the_same_with_its_index_arrays_kept_or_made_anew(
+    n: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The DP keeps the index arrays that depend on the number of stops alone between calls (a
+    decision's first plan then does not make them); the plan, ties and terms included, is the
+    same as when each call makes its own (beyond CACHED_DP_STOPS)."""
+    problems = [f(n, seed) for seed in range(3) for f in (instance, _grid_instance)]
+    kept = [epl_exact(s, d, p, e) for s, d, p, e in problems]
+    assert _dp_steps(n) is _dp_steps(n)
+    assert not _dp_steps(n)[0][0].flags.writeable
+    monkeypatch.setattr(planner, "CACHED_DP_STOPS", 0)
+    made = [epl_exact(s, d, p, e) for s, d, p, e in problems]
+    assert [(o.order, o.terms) for o in kept] == [(o.order, o.terms) for o in made]
