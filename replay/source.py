@@ -63,7 +63,7 @@ def table_lake_stream(
     time (:class:`~objsearch.events.lake.run_read.RunReader`), so a fold from a lake run costs
     about the memory of a fold from its log."""
     lake = open_lake(where, store=STORE)
-    table = lake.table()
+    table = lake.listing()  # its log's files, without delta-rs where the log allows
     info = _one_run(lake.runs(table), where, run=run, robot=robot)
     reader = RunReader(lake, info, table)
     reader.check()
