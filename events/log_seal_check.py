@@ -8,7 +8,7 @@ damaged one, so the error is the one every reader gives.
 
 from __future__ import annotations
 
-import threading
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from .errors import CorruptLogError
@@ -25,29 +25,27 @@ class _SealCheck:
     def __init__(
         self, directory: Path, meta: LogMeta, registry: SchemaRegistry, record: DurableRecord
     ) -> None:
-        self._damage: CorruptLogError | None = None
+        self._directory = directory
         self.reported = False
-
-        def run() -> None:
-            try:
-                _check_sealed(directory, meta, registry, record)
-            except CorruptLogError as exc:
-                self._damage = exc
-            except Exception as exc:  # an unreadable file is damage too: never append on it
-                self._damage = CorruptLogError(
-                    f"corrupt event log {directory / LOG_FILE}: its seals could not be checked "
-                    f"({exc!r}); the log was not changed",
-                    path=str(directory / LOG_FILE),
-                    line=0,
-                    offset=0,
-                )
-
-        self._thread = threading.Thread(target=run, name="seal-check", daemon=True)
-        self._thread.start()
+        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="seal-check")
+        self._check = pool.submit(_check_sealed, directory, meta, registry, record)
+        pool.shutdown(wait=False)
 
     def wait(self) -> CorruptLogError | None:
-        self._thread.join()
-        return self._damage
+        """The damage found, or None; any other error of the check is raised here (a bug is never
+        appended on, nor hidden)."""
+        error = self._check.exception()
+        if error is None or isinstance(error, CorruptLogError):
+            return error
+        if isinstance(error, (OSError, ValueError)):  # an unreadable file is damage too
+            return CorruptLogError(
+                f"corrupt event log {self._directory / LOG_FILE}: its seals could not be checked "
+                f"({error!r}); the log was not changed",
+                path=str(self._directory / LOG_FILE),
+                line=0,
+                offset=0,
+            )
+        raise error
 
     def result(self) -> None:
         damage = self.wait()

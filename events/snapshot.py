@@ -177,7 +177,7 @@ def restore(
             state, seq, position = _load(whole, fresh, log_dir, store)
             try:
                 projection = from_snapshot(state, seq)
-            except Exception as exc:  # any shape the state may have: rebuilt, never a traceback
+            except Exception as exc:  # boundary: any shape of state: rebuilt, never a traceback
                 raise _Untrusted(
                     f"its state does not restore ({type(exc).__name__}: {exc})"
                 ) from None

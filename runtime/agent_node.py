@@ -74,11 +74,21 @@ class EventPublisher:
 
     def apply(self, event: EventView) -> None:
         assert isinstance(event, Event)
-        try:
-            self._pub.publish(m.event(event, event.time_ns))
+        error = _copied(lambda: self._pub.publish(m.event(event, event.time_ns)))
+        if error is None:
             self.published += 1
-        except Exception as exc:  # the log has it; the topic is a copy
-            log.warning("event %d appended but not published: %s", event.seq, exc)
+        else:  # the log has it; the topic is a copy
+            log.warning("event %d appended but not published: %s", event.seq, error)
+
+
+def _copied(step: Callable[[], None]) -> Exception | None:
+    """``step()``, which copies what the log holds (the event topic, the live view, closing
+    them); its error is returned, never raised."""
+    try:
+        step()
+    except Exception as exc:  # boundary: the log is the record; a copy must not stop a search
+        return exc
+    return None
 
 
 class GuardedLiveView:
@@ -90,9 +100,8 @@ class GuardedLiveView:
         self.failures = 0
 
     def apply(self, event: EventView) -> None:
-        try:
-            self.view.apply(event)
-        except Exception as exc:
+        exc = _copied(lambda: self.view.apply(event))
+        if exc is not None:
             self.failures += 1
             if self.failures == 1 or self.failures % 1000 == 0:
                 log.warning(
@@ -354,7 +363,7 @@ class AgentNode:
                 continue
             try:
                 result = self.answer_where(request)
-            except Exception as exc:  # a bug in answering must not leave the client waiting
+            except Exception as exc:  # boundary: a bug must not leave the client waiting
                 log.exception("where %s: %s", request.target, exc)
                 result = {"ok": False, "error": f"where request failed: {exc}"}
             self.questions.answer(request, result)
@@ -453,7 +462,6 @@ class AgentNode:
 
     def _close_live(self) -> None:
         for sink in self.live_sinks:
-            try:
-                sink.close()
-            except Exception as exc:  # the others still get closed
+            exc = _copied(sink.close)
+            if exc is not None:  # the others still get closed
                 log.error("live view: %s", exc)

@@ -30,6 +30,7 @@ from typing import Any
 from xml.sax.saxutils import quoteattr
 
 from objsearch.ros.qos import SERVICES, Durability, QoS, Reliability
+from objsearch.ros.untrusted import attempt
 from objsearch.runtime.errors import MessageError, TransportError
 from objsearch.runtime.messages import dds_type_name, store, type_hash
 from objsearch.runtime.transport import Handler, ServiceHandler, TransportConfig
@@ -269,10 +270,9 @@ class _DdsPublisher:
         self._msgtype = msgtype
 
     def publish(self, cdr: bytes) -> None:
-        try:
-            sample = self._cls.deserialize(cdr)
-        except Exception as exc:
-            raise MessageError(f"cannot publish malformed {self._msgtype}: {exc}") from None
+        sample = attempt(lambda: self._cls.deserialize(cdr))
+        if isinstance(sample, Exception):
+            raise MessageError(f"cannot publish malformed {self._msgtype}: {sample}") from None
         self._writer.write(sample)
 
 
@@ -354,6 +354,7 @@ class _DdsClient:
 class DdsTransport:
     def __init__(self, config: TransportConfig) -> None:
         try:
+            from cyclonedds.core import DDSException
             from cyclonedds.domain import Domain, DomainParticipant
         except ImportError as exc:
             raise TransportError(
@@ -365,7 +366,7 @@ class DdsTransport:
         try:
             self._domain = Domain(config.domain_id, domain_xml(config, self.address))
             self.participant: Any = DomainParticipant(config.domain_id)
-        except Exception as exc:
+        except DDSException as exc:
             raise TransportError(
                 f"cannot join DDS domain {config.domain_id} on {config.interface}: {exc}"
             ) from exc
@@ -383,7 +384,7 @@ class DdsTransport:
         self._announcer: Any = None
         try:
             self._announce()
-        except Exception as exc:
+        except DDSException as exc:
             self.close()
             raise TransportError(f"cannot announce the node on {DISCOVERY_TOPIC}: {exc}") from exc
         log.info(

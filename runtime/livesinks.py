@@ -16,7 +16,6 @@ bytes), so a channel looks the same live and in the file: encoding ``cdr``, sche
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import shutil
 import tempfile
@@ -80,7 +79,7 @@ class McapSink:
     """
 
     def __init__(self, path: Path, *, compress: bool = True) -> None:
-        from rosbags.rosbag2 import StoragePlugin
+        from rosbags.rosbag2 import StoragePlugin, WriterError
 
         from objsearch.ros.mcapstore import rosbag2_writer
 
@@ -100,7 +99,7 @@ class McapSink:
         self._writer = rosbag2_writer(self._bag, StoragePlugin.MCAP, compress=compress)
         try:
             self._writer.open()
-        except Exception as exc:
+        except (WriterError, OSError) as exc:
             shutil.rmtree(self._tmp_root, ignore_errors=True)
             raise LiveViewError(f"cannot write the MCAP file {path}: {exc}") from exc
         self._connections: dict[str, Any] = {}
@@ -136,10 +135,14 @@ class McapSink:
 
     def abort(self) -> None:
         """Drop what was written: ``path`` is not created (a replay that failed half way)."""
+        from rosbags.rosbag2 import WriterError
+
         if not self._closed:
             self._closed = True
-            with contextlib.suppress(Exception):
+            try:
                 self._writer.close()
+            except (WriterError, OSError) as exc:  # dropped all the same
+                log.warning("live view: dropping %s: %s", self.path, exc)
         shutil.rmtree(self._tmp_root, ignore_errors=True)
 
 
@@ -241,8 +244,10 @@ class FoxgloveSink:
 
     def close(self) -> None:
         self._front.close()
-        with contextlib.suppress(Exception):  # already stopped
+        try:
             self._server.stop()
+        except RuntimeError as exc:  # already stopped
+            log.debug("live view: the Foxglove server: %s", exc)
 
 
 class TopicSink:

@@ -22,6 +22,7 @@ from objsearch.events import Event
 from objsearch.ros.builder import DEFAULT_BOX_CAMERA, BoxCamera, MessageBuilder
 from objsearch.ros.topics import TopicMap
 from objsearch.ros.types import Distro, typestore
+from objsearch.ros.untrusted import attempt
 from objsearch.runtime.errors import MessageError
 
 if TYPE_CHECKING:
@@ -81,10 +82,10 @@ CDR_HEADERS = (b"\x00\x00", b"\x00\x01")
 def decode(data: bytes, msgtype: str) -> Any:
     if data[:2] not in CDR_HEADERS or len(data) < 4:
         raise MessageError(f"malformed {msgtype} ({len(data)} bytes): not plain CDR")
-    try:
-        return store().deserialize_cdr(data, msgtype)
-    except Exception as exc:  # rosbags raises assorted errors on short or garbled bytes
-        raise MessageError(f"malformed {msgtype} ({len(data)} bytes): {exc}") from None
+    message = attempt(lambda: store().deserialize_cdr(data, msgtype))
+    if isinstance(message, Exception):  # rosbags raises assorted errors on short or garbled bytes
+        raise MessageError(f"malformed {msgtype} ({len(data)} bytes): {message}") from None
+    return message
 
 
 # -- builders and readers for what the agent and the robot exchange ----------------------------

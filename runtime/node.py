@@ -83,16 +83,13 @@ class Node:
         """``handler(message)`` on a middleware thread; it raises :class:`MessageError` to have a
         message reported and dropped."""
 
+        def take(data: bytes) -> None:
+            if len(data) > max_bytes:
+                raise MessageError(f"{len(data)} bytes (at most {max_bytes} on this topic)")
+            handler(m.decode(data, msgtype))
+
         def on_bytes(data: bytes) -> None:
-            try:
-                if len(data) > max_bytes:
-                    raise MessageError(f"{len(data)} bytes (at most {max_bytes} on this topic)")
-                handler(m.decode(data, msgtype))
-            except MessageError as exc:
-                self.report(f"{topic}: {exc}")
-            except Exception as exc:  # a bug, but never one that takes the middleware down
-                log.exception("%s: handler failed", topic)
-                self.report(f"{topic}: {type(exc).__name__}: {exc}")
+            self._guarded(topic, lambda: take(data))
 
         self.subscriptions[topic] = msgtype
         self.transport.subscribe(topic, msgtype, qos, on_bytes)
@@ -127,19 +124,27 @@ class Node:
     ) -> None:
         """``handler(request, respond)``: a malformed request is reported and left unanswered."""
 
+        def take(data: bytes, respond_bytes: Callable[[bytes], None]) -> None:
+            if len(data) > MAX_MESSAGE_BYTES:
+                raise MessageError(f"{len(data)} bytes (at most {MAX_MESSAGE_BYTES})")
+            request = m.decode(data, f"{srvtype}_Request")
+            handler(request, lambda msg: respond_bytes(m.encode(msg, f"{srvtype}_Response")))
+
         def on_bytes(data: bytes, respond_bytes: Callable[[bytes], None]) -> None:
-            try:
-                if len(data) > MAX_MESSAGE_BYTES:
-                    raise MessageError(f"{len(data)} bytes (at most {MAX_MESSAGE_BYTES})")
-                request = m.decode(data, f"{srvtype}_Request")
-                handler(request, lambda msg: respond_bytes(m.encode(msg, f"{srvtype}_Response")))
-            except MessageError as exc:
-                self.report(f"{service}: {exc}")
-            except Exception as exc:
-                log.exception("%s: handler failed", service)
-                self.report(f"{service}: {type(exc).__name__}: {exc}")
+            self._guarded(service, lambda: take(data, respond_bytes))
 
         self.transport.serve(service, srvtype, on_bytes)
+
+    def _guarded(self, name: str, call: Callable[[], None]) -> None:
+        """``call()`` on a middleware thread: a :class:`MessageError` is reported (the message
+        is dropped), any other error logged with its traceback and reported."""
+        try:
+            call()
+        except MessageError as exc:
+            self.report(f"{name}: {exc}")
+        except Exception as exc:  # boundary: a handler's bug must never take the middleware down
+            log.exception("%s: handler failed", name)
+            self.report(f"{name}: {type(exc).__name__}: {exc}")
 
     def client(self, service: str, srvtype: str) -> TypedClient:
         return TypedClient(self.transport.client(service, srvtype), service, srvtype)

@@ -28,6 +28,7 @@ from collections.abc import Callable
 from typing import Any
 
 from objsearch.ros.qos import Durability, QoS, Reliability
+from objsearch.ros.untrusted import attempt
 from objsearch.runtime.errors import MessageError, TransportError
 from objsearch.runtime.transport import Handler, ServiceHandler, TransportConfig
 
@@ -165,10 +166,9 @@ class _Ros2Client:
         from rclpy.serialization import deserialize_message, serialize_message
 
         deadline = time.monotonic() + timeout_s
-        try:
-            message = deserialize_message(request, self._cls.Request)
-        except Exception as exc:
-            raise MessageError(f"cannot send a malformed request: {exc}") from None
+        message = attempt(lambda: deserialize_message(request, self._cls.Request))
+        if isinstance(message, Exception):
+            raise MessageError(f"cannot send a malformed request: {message}") from None
         if not self._client.wait_for_service(timeout_sec=max(0.0, deadline - time.monotonic())):
             return None
         future = self._client.call_async(message)
@@ -202,6 +202,7 @@ class Ros2Transport:
                 f"the ros2 transport needs rclpy ({exc}): pip install 'objsearch[ros2]'"
             ) from exc
         from rclpy.context import Context
+        from rclpy.exceptions import NameValidationException
         from rclpy.utilities import get_rmw_implementation_identifier
 
         self.config = config
@@ -214,7 +215,8 @@ class Ros2Transport:
                 context=self._context,
                 start_parameter_services=False,
             )
-        except Exception as exc:
+        # rclpy's RCLError (and its kinds) is a RuntimeError; a bad node name a NameValidationException
+        except (RuntimeError, ValueError, NameValidationException) as exc:
             raise TransportError(
                 f"cannot start a ROS 2 node in domain {config.domain_id}: {exc}"
             ) from exc
@@ -242,7 +244,7 @@ class Ros2Transport:
             self._executor.spin()
         except ExternalShutdownException:
             pass
-        except Exception:
+        except RuntimeError:  # rclpy's InvalidHandle is one
             # Closing on a loaded machine: the executor's shutdown timed out with a spin still in
             # progress, and the node it was waiting on is gone (rclpy's InvalidHandle). Nothing is
             # lost at that point; any other time it is a real error.

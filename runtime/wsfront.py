@@ -341,8 +341,7 @@ class SubprotocolFront:
                 self._expire()
                 self._throttle.flush()
                 self._stats = self._snapshot()
-        except Exception:
-            # A bug here must not take the agent down, but it must not be silent either.
+        except Exception:  # boundary: a bug here must not take the agent down (logged)
             log.exception("live view: the WebSocket front door stopped")
         finally:
             for conn in [*self._conns.values(), *self._refusing.values()]:
@@ -456,8 +455,7 @@ class SubprotocolFront:
         except OSError as exc:
             self._end(conn, f"connection of {conn.who} ended: {exc}")
             return
-        except Exception:
-            # A bug met by one connection ends that connection, not the front door.
+        except Exception:  # boundary: a bug met by one connection ends it, not the front door
             log.exception("live view: dropped %s after an unexpected error", conn.who)
             self._close(conn, reset=True)
             return

@@ -135,7 +135,7 @@ class ZenohTransport:
             conf.insert_json5(path, value)
         try:
             self.session: Any = zenoh.open(conf)
-        except Exception as exc:  # zenoh.ZError: bad endpoint, port taken, no router
+        except zenoh.ZError as exc:  # bad endpoint, port taken, no router
             raise TransportError(
                 f"cannot open a zenoh session ({config.mode}, connect {list(config.connect)}, "
                 f"listen {list(config.listen)}): {exc}"

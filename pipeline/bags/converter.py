@@ -42,6 +42,7 @@ from objsearch.pipeline.bags.salvage import Loss, RawConnection
 from objsearch.pipeline.bags.sink import Deserialize
 from objsearch.ros.topics import ACCEPTED_TYPES, CONVERTED, Role, TopicMap
 from objsearch.ros.types import Distro, typestore
+from objsearch.ros.untrusted import attempt
 
 _POSE_ROLES: Final = frozenset({Role.ODOMETRY, Role.TF, Role.TF_STATIC})
 
@@ -159,13 +160,12 @@ class Converter:
         if source is not None:
             source.add(log_ns, self.arrivals, raw, deserialize)
             return
-        try:
-            made = self._convert(state, log_ns, raw, deserialize)
-        except InvalidEventError as exc:
-            state.rejected[f"invalid event: {exc}"] += 1
+        made = attempt(lambda: self._convert(state, log_ns, raw, deserialize))
+        if isinstance(made, InvalidEventError):
+            state.rejected[f"invalid event: {made}"] += 1
             return
-        except Exception as exc:
-            state.rejected[f"{type(exc).__name__}: {exc}"[:200]] += 1
+        if isinstance(made, Exception):
+            state.rejected[f"{type(made).__name__}: {made}"[:200]] += 1
             return
         state.events += made
         self._accepted(log_ns, log_ns)

@@ -64,7 +64,7 @@ class ProcessEngine:
             for fut in as_completed(futures):
                 try:
                     yield futures[fut], fut.result()
-                except Exception as exc:  # the task raised, or its worker died (BrokenProcessPool)
+                except Exception as exc:  # boundary: the task raised, or its worker died
                     yield futures[fut], TaskFailed(f"task failed in a worker process: {exc!r}")
 
 
@@ -86,6 +86,7 @@ class RayEngine:
 
     def run(self, fn: Callable[[T], R], items: Sequence[T]) -> Iterator[tuple[int, R | TaskFailed]]:
         ray = _import_ray()
+        RayError = ray.exceptions.RayError
         started = False
         if not ray.is_initialized():
             ray.init(
@@ -104,7 +105,7 @@ class RayEngine:
                 for ref in done:
                     try:
                         yield index[ref], ray.get(ref)
-                    except Exception as exc:  # RayTaskError, WorkerCrashedError, ...
+                    except RayError as exc:  # RayTaskError (the task raised), WorkerCrashedError …
                         cause = getattr(exc, "cause", None) or exc  # a RayTaskError wraps it
                         yield (
                             index[ref],

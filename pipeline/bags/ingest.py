@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pyarrow as pa
 
+from objsearch.events.errors import ObjsearchError
 from objsearch.pipeline.bags.engines import Engine, InlineEngine, ProcessEngine, TaskFailed
 from objsearch.pipeline.bags.errors import BagError
 from objsearch.pipeline.bags.identity import bag_identity
@@ -88,7 +89,7 @@ def convert_bag(task: BagTask) -> Converted:
             first=first_event(contents.agent),
             reingest=task.reingest,
         )
-    except Exception as exc:  # the boundary of one bag's task: it fails, the other bags go on
+    except Exception as exc:  # boundary: one bag's task fails, the other bags go on
         return Converted(path, "", None, error=str(exc) or repr(exc))
 
 
@@ -113,7 +114,7 @@ def commit_converted(lake: LakeWriter, converted: Converted, robot: str) -> Inge
         # report is kept all the same: what the bag claimed and lost stays accounted for.
         try:
             lake.record_without_run(report.bag_id, dataclasses.asdict(report))
-        except Exception as exc:
+        except _lake_errors() as exc:
             return IngestResult(converted.path, None, 0, already=False, error=str(exc) or repr(exc))
         return IngestResult(
             converted.path,
@@ -135,11 +136,19 @@ def commit_converted(lake: LakeWriter, converted: Converted, robot: str) -> Inge
     )
     try:
         commit = lake.commit_piece(piece, robot=robot)
-    except Exception as exc:
+    except _lake_errors() as exc:
         return IngestResult(converted.path, None, 0, already=False, error=str(exc) or repr(exc))
     return IngestResult(
         converted.path, report, commit.events, already=not commit.new, note=commit.note
     )
+
+
+def _lake_errors() -> tuple[type[Exception], ...]:
+    """What a failed write to the lake raises: the lake's own errors (most of the rest wrapped in
+    :class:`BagCommitError`), and what the file system, Arrow and Delta raise under them."""
+    from deltalake.exceptions import DeltaError
+
+    return (ObjsearchError, OSError, pa.ArrowException, DeltaError)
 
 
 def ingest(

@@ -27,6 +27,7 @@ import math
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any, Final
 
 import numpy as np
@@ -44,6 +45,7 @@ from objsearch.pipeline.bags.fastdecode import (
     decode_batch,
 )
 from objsearch.ros.topics import Frames
+from objsearch.ros.untrusted import attempt
 
 MAX_COORD_M: Final = 1e5  # a pose or position farther than this from the origin is damage
 ROTATION_TOLERANCE: Final = 1e-3
@@ -315,27 +317,36 @@ def _reason(exc: Exception) -> str:
     return f"{type(exc).__name__}: {exc}"[:200]
 
 
+def _message_fields(
+    source: PoseStream, deserialize: Deserialize, raw: bytes
+) -> tuple[list[TransformFields], list[int]]:
+    """One message deserialised by rosbags: its transforms (one for odometry) and their stamps."""
+    msg = deserialize(raw, source.msgtype)
+    fields: list[TransformFields]
+    if source.tf:
+        fields = transform_fields(msg)
+        stamps = [stamp_ns(tr.header) for tr in msg.transforms]
+    else:
+        frame, *values = odometry_fields(msg)
+        fields = [(frame, "", *values)]  # type: ignore[list-item]
+        stamps = [stamp_ns(msg.header)]
+    return fields, stamps
+
+
 def _undecoded_rows(source: PoseStream, decoded: Decoded, rejected: dict[int, str]) -> Decoded:
     """``decoded`` plus the messages it could not read, deserialised by rosbags."""
     if not decoded.undecoded:
         return decoded
-    assert source.deserialize is not None
+    deserialize = source.deserialize
+    assert deserialize is not None
     frames = {name: i for i, name in enumerate(decoded.frames)}
     rows: list[tuple[int, int, int, int, int, float, float, float, float, float, float]] = []
     for m in decoded.undecoded:
-        try:
-            msg = source.deserialize(source.raws[m], source.msgtype)
-            fields: list[TransformFields]
-            if source.tf:
-                fields = transform_fields(msg)
-                stamps = [stamp_ns(tr.header) for tr in msg.transforms]
-            else:
-                frame, *values = odometry_fields(msg)
-                fields = [(frame, "", *values)]  # type: ignore[list-item]
-                stamps = [stamp_ns(msg.header)]
-        except Exception as exc:
-            rejected[m] = _reason(exc)
+        read = attempt(partial(_message_fields, source, deserialize, source.raws[m]))
+        if isinstance(read, Exception):
+            rejected[m] = _reason(read)
             continue
+        fields, stamps = read
         for k, (parent, child, *values) in enumerate(fields):
             p = frames.setdefault(parent, len(frames))
             c = frames.setdefault(child, len(frames)) if source.tf else -1

@@ -19,6 +19,7 @@ from objsearch.pipeline.bags.formats import BagFormat, detect
 from objsearch.pipeline.bags.salvage import Loss, RawConnection, Scan, scan_bag
 from objsearch.pipeline.bags.sink import Deserialize, MessageSink
 from objsearch.ros.types import Distro, typestore
+from objsearch.ros.untrusted import attempt
 
 PROGRESS_MIN_MESSAGES = 20_000
 
@@ -163,12 +164,11 @@ def read_messages(
     notes: list[str] = []
     sink = make_sink()
     read_whole = True
-    try:
-        _read_anyreader(path, fmt, sink, progress)
-    except Exception as exc:  # rosbags' reader on damaged bytes raises anything: scan instead
+    failed = attempt(lambda: _read_anyreader(path, fmt, sink, progress))
+    if isinstance(failed, Exception):  # rosbags' reader on damaged bytes: scan instead
         read_whole = False
         notes.append(
-            f"AnyReader could not read it ({type(exc).__name__}: {exc}); salvaged by scanning"
+            f"AnyReader could not read it ({type(failed).__name__}: {failed}); salvaged by scanning"
         )
     else:
         claimed, _ = census.per_topic()

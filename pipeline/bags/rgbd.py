@@ -46,6 +46,7 @@ from objsearch.ros.errors import TransformError
 from objsearch.ros.images import ImageError, decode_image, depth_metres, intrinsics_of
 from objsearch.ros.tf import TransformBuffer
 from objsearch.ros.topics import ACCEPTED_TYPES, Role, TopicMap
+from objsearch.ros.untrusted import attempt
 
 #: Views held while waiting for TF or a missing part; the oldest is dropped beyond this.
 MAX_PENDING: Final = 32
@@ -175,10 +176,9 @@ class ViewCollector:
             return
         conn, role = entry
         self.counts[conn.topic] += 1
-        try:
-            self._take(role, deserialize(raw, conn.msgtype))
-        except Exception as exc:
-            self.rejected[f"{conn.topic}: {type(exc).__name__}: {exc}"[:200]] += 1
+        taken = attempt(lambda: self._take(role, deserialize(raw, conn.msgtype)))
+        if isinstance(taken, Exception):
+            self.rejected[f"{conn.topic}: {type(taken).__name__}: {taken}"[:200]] += 1
             return
         self.received[role] += 1
         self._flush(final=False)

@@ -46,6 +46,7 @@ from objsearch.ros.errors import TransformError
 from objsearch.ros.images import depth_metres, intrinsics_of
 from objsearch.ros.tf import TransformBuffer
 from objsearch.ros.topics import Role, TopicMap
+from objsearch.ros.untrusted import attempt
 
 #: What the live agent takes as arrival (runtime/config.py Timeouts' defaults).
 TOLERANCE_M = 0.05
@@ -115,10 +116,10 @@ class RecordedViews:
             return
         conn, role = entry
         self.counts[conn.topic] += 1
-        try:
-            self._take(role, deserialize(raw, conn.msgtype), sum(self.counts.values()))
-        except Exception as exc:
-            self.rejected[f"{conn.topic}: {type(exc).__name__}: {exc}"[:200]] += 1
+        arrival = sum(self.counts.values())
+        taken = attempt(lambda: self._take(role, deserialize(raw, conn.msgtype), arrival))
+        if isinstance(taken, Exception):
+            self.rejected[f"{conn.topic}: {type(taken).__name__}: {taken}"[:200]] += 1
 
     def _take(self, role: Role, msg: Any, arrival: int) -> None:
         if role in (Role.TF, Role.TF_STATIC):
