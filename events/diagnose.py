@@ -23,6 +23,7 @@ from __future__ import annotations
 import functools
 import json
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Final, Literal
 
@@ -72,7 +73,7 @@ def diagnose(
     """Classify ``line`` (no newline), expected at ``seq`` after a record with chain ``prev``,
     whose stored checksum does not match its bytes (``id_key``: what the log's default event
     ids derive from)."""
-    body, sep, crc = line.rpartition(RECORD_SEPARATOR)
+    body, sep, _ = line.rpartition(RECORD_SEPARATOR)
     stored = record_checksum(line)
     if not sep:
         return Diagnosis("unproven", None, "")
@@ -84,13 +85,7 @@ def diagnose(
     computed = zlib.crc32(body, prev)
 
     def proves(value: int, *, expect: int = seq + 1) -> bool:
-        if witness.next_line is not None:
-            try:
-                event, _ = decode_record(witness.next_line, value)
-            except RecordError:
-                return False
-            return event.seq == expect and event.stream == stream
-        return witness.mark_checksum is not None and witness.mark_checksum == value
+        return _proves(witness, stream, value, expect)
 
     # Not a record of this place at all: the next line continues the chain from the previous
     # record, as if this line were not there (a duplicated or inserted line).
@@ -100,17 +95,6 @@ def diagnose(
             prev,
             "a line out of place (duplicated, inserted or moved): the next record continues "
             "the chain from the record before it",
-        )
-
-    def witness_is_ours() -> bool:
-        """The witness was written by this log's writer: the high-water mark, or a next record
-        with this log's own default id (a record spliced in from another log, with its
-        successor, has another log's ids)."""
-        if witness.next_line is None:
-            return witness.mark_checksum is not None
-        following = _event_of(witness.next_line.rpartition(RECORD_SEPARATOR)[0])
-        return following is not None and following.event_id == deterministic_event_id(
-            id_key, seq + 1
         )
 
     event = _event_of(body)
@@ -143,34 +127,15 @@ def diagnose(
         )
     if stored is None:
         return Diagnosis("unproven", None, "")
-    flipped = single_bit_error(computed ^ stored, len(body))
-    if flipped is not None:
-        index, bit = flipped
-        fixed = bytearray(body)
-        fixed[index] ^= 1 << bit
-        original = _event_of(bytes(fixed))
-        # One flipped bit that turns it back into this log's own record at this seq is proof
-        # enough: of the 2^32 syndromes, only 8 per byte name a single bit (for a 400-byte
-        # record, random damage matches one by chance ~7 times in 10^7, counted, not measured),
-        # and the result must also parse as that record; the next record's chain, when there is
-        # one, proves it again.
-        if _belongs(original, seq, stream) and (
-            proves(stored)
-            or (original is not None and original.event_id == deterministic_event_id(id_key, seq))
-        ):
-            return Diagnosis(
-                "bit",
-                stored,
-                f"one bit of it was flipped (byte {index} of the record, bit {bit}): the original "
-                "is recovered exactly, proven by its own checksum",
-                bytes(fixed) + sep + crc,
-            )
+    bit = _flipped_bit(line, computed, stored, seq=seq, stream=stream, id_key=id_key, proves=proves)
+    if bit is not None:
+        return bit
     if not proves(stored):
         return Diagnosis("unproven", None, "")
     ours = _belongs(event, seq, stream) and (
         event is not None and event.event_id == deterministic_event_id(id_key, seq)
     )
-    if not (ours or witness_is_ours()):
+    if not (ours or _witness_is_ours(witness, id_key, seq)):
         # Neither it nor its witness carries this log's ids: both may have been spliced in from
         # another log (the witness chaining from it), so nothing proves it damaged here.
         return Diagnosis("unproven", None, "")
@@ -180,6 +145,66 @@ def diagnose(
         "its bytes were damaged in more than one bit (or edited): they no longer match its "
         "checksum, which the next record proves is the one its writer wrote",
     )
+
+
+def _proves(witness: Witness, stream: str, value: int, expect: int) -> bool:
+    """Whether the witness chains from ``value``: the next record decodes with it as its
+    predecessor's checksum (and is seq ``expect`` of ``stream``), or the high-water mark is it."""
+    if witness.next_line is not None:
+        try:
+            event, _ = decode_record(witness.next_line, value)
+        except RecordError:
+            return False
+        return event.seq == expect and event.stream == stream
+    return witness.mark_checksum is not None and witness.mark_checksum == value
+
+
+def _witness_is_ours(witness: Witness, id_key: str, seq: int) -> bool:
+    """The witness was written by this log's writer: the high-water mark, or a next record
+    with this log's own default id (a record spliced in from another log, with its
+    successor, has another log's ids)."""
+    if witness.next_line is None:
+        return witness.mark_checksum is not None
+    following = _event_of(witness.next_line.rpartition(RECORD_SEPARATOR)[0])
+    return following is not None and following.event_id == deterministic_event_id(id_key, seq + 1)
+
+
+def _flipped_bit(
+    line: bytes,
+    computed: int,
+    stored: int,
+    *,
+    seq: int,
+    stream: str,
+    id_key: str,
+    proves: Callable[[int], bool],
+) -> Diagnosis | None:
+    """The "bit" diagnosis, if one flipped bit turns ``line`` back into this log's own record."""
+    body, sep, crc = line.rpartition(RECORD_SEPARATOR)
+    flipped = single_bit_error(computed ^ stored, len(body))
+    if flipped is None:
+        return None
+    index, bit = flipped
+    fixed = bytearray(body)
+    fixed[index] ^= 1 << bit
+    original = _event_of(bytes(fixed))
+    # One flipped bit that turns it back into this log's own record at this seq is proof
+    # enough: of the 2^32 syndromes, only 8 per byte name a single bit (for a 400-byte
+    # record, random damage matches one by chance ~7 times in 10^7, counted, not measured),
+    # and the result must also parse as that record; the next record's chain, when there is
+    # one, proves it again.
+    if _belongs(original, seq, stream) and (
+        proves(stored)
+        or (original is not None and original.event_id == deterministic_event_id(id_key, seq))
+    ):
+        return Diagnosis(
+            "bit",
+            stored,
+            f"one bit of it was flipped (byte {index} of the record, bit {bit}): the original "
+            "is recovered exactly, proven by its own checksum",
+            bytes(fixed) + sep + crc,
+        )
+    return None
 
 
 def chain_before(body: bytes, checksum: int) -> int | None:

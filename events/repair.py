@@ -34,7 +34,8 @@ from .log_files import (
 from .log_links import line_info, meta_mismatch
 from .log_seal_check import _check_sealed
 from .log_torn_tail import quarantine
-from .repair_plan import Plan, RepairAction, plan_repair
+from .repair_output import Plan, RepairAction
+from .repair_plan import plan_repair
 from .scan import QUARANTINED_TYPE, _Scan
 from .schemas import SchemaRegistry
 from .seal import Sealer, check_seals

@@ -199,19 +199,7 @@ def build_data(
     notes: list[str] = []
     findings: list[Finding] = []
 
-    say("vocabulary")
-    outputs["vocabulary.json"] = jsonio.dumps(vocabulary_json())
-
-    say("Visual Genome prior")
-    matrix = load_cooccurrence(source, "the Visual Genome prior (priors/visual_genome.json)")
-    vg_sha = sha256(source / VG_MATRIX)
-    outputs[PRIOR_FILES["vg-cooccurrence"]] = jsonio.dumps(vg_prior_json(matrix, vg_sha))
-    outputs[PRIOR_FILES["vg-single-name"]] = jsonio.dumps(single_name_prior_json(matrix, vg_sha))
-    say("Visual Genome prior masked by the HOZ adjacency")
-    graph = load_adjacency(source, f"the {PRIOR_FILES['vg-hoz-masked']} prior")
-    outputs[PRIOR_FILES["vg-hoz-masked"]] = jsonio.dumps(
-        hoz_masked_prior_json(matrix, graph, vg_sha, sha256(source / HOZ_ADJACENCY))
-    )
+    _vocabulary_and_priors(source, outputs, say)
 
     built: dict[str, SourceHome] = {}
     for name, scenes in wanted.ithor.items():
@@ -226,15 +214,7 @@ def build_data(
         outputs[f"homes/{name}.json"] = jsonio.dumps(home.to_json())
         notes += _room_notes(home)
 
-    for name, home in built.items():
-        if name == PAPER_HOME_NAME:
-            continue
-        try:
-            own = table1(home)
-        except BuildError as exc:
-            notes.append(f"{name}: no Table I scenario ({exc})")
-            continue
-        outputs[f"scenarios/table1-{name}.json"] = jsonio.dumps(own.to_json())
+    _own_table1_scenarios(built, outputs, notes)
 
     paper = built.get(PAPER_HOME_NAME)
     if paper is None:
@@ -272,6 +252,12 @@ def build_data(
         provenance = merge_provenance(existing.read_text(encoding="utf-8"), provenance, command)
     outputs["PROVENANCE.md"] = provenance
 
+    written = _write_outputs(out, outputs, say)
+    return BuildReport(files=tuple(written), notes=tuple(notes), findings=tuple(accepted))
+
+
+def _write_outputs(out: Path, outputs: Mapping[str, str], say: Callable[[str], None]) -> list[Path]:
+    """Each derived file written atomically under ``out`` (its folders made durably)."""
     written = []
     for rel, text in outputs.items():
         path = out / rel
@@ -279,7 +265,41 @@ def build_data(
         _fs.make_dirs(path.parent)
         _fs.write_atomic(path, text.encode("utf-8"))
         written.append(path)
-    return BuildReport(files=tuple(written), notes=tuple(notes), findings=tuple(accepted))
+    return written
+
+
+def _vocabulary_and_priors(
+    source: Path, outputs: dict[str, str], say: Callable[[str], None]
+) -> None:
+    """``vocabulary.json`` and the Visual Genome priors (plain, single-name, HOZ-masked)."""
+    say("vocabulary")
+    outputs["vocabulary.json"] = jsonio.dumps(vocabulary_json())
+
+    say("Visual Genome prior")
+    matrix = load_cooccurrence(source, "the Visual Genome prior (priors/visual_genome.json)")
+    vg_sha = sha256(source / VG_MATRIX)
+    outputs[PRIOR_FILES["vg-cooccurrence"]] = jsonio.dumps(vg_prior_json(matrix, vg_sha))
+    outputs[PRIOR_FILES["vg-single-name"]] = jsonio.dumps(single_name_prior_json(matrix, vg_sha))
+    say("Visual Genome prior masked by the HOZ adjacency")
+    graph = load_adjacency(source, f"the {PRIOR_FILES['vg-hoz-masked']} prior")
+    outputs[PRIOR_FILES["vg-hoz-masked"]] = jsonio.dumps(
+        hoz_masked_prior_json(matrix, graph, vg_sha, sha256(source / HOZ_ADJACENCY))
+    )
+
+
+def _own_table1_scenarios(
+    built: Mapping[str, SourceHome], outputs: dict[str, str], notes: list[str]
+) -> None:
+    """A Table I scenario of each iTHOR home but the paper's, where the removal rule finds one."""
+    for name, home in built.items():
+        if name == PAPER_HOME_NAME:
+            continue
+        try:
+            own = table1(home)
+        except BuildError as exc:
+            notes.append(f"{name}: no Table I scenario ({exc})")
+            continue
+        outputs[f"scenarios/table1-{name}.json"] = jsonio.dumps(own.to_json())
 
 
 def _accepted(

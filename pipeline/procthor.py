@@ -290,14 +290,7 @@ def build_procthor_home(
         raise HomeSpecError(f"{path}: room types {unknown} are not kitchen/living/bed/bathroom")
     max_xu = max(x for poly in polys.values() for x, _ in poly)
     # ROS y = -x_u + shift keeps every y >= 0 and the lattice on multiples of the grid.
-    shift = math.ceil(max_xu / GRID_M) * GRID_M
-
-    def to_ros(xu: float, zu: float) -> XY:
-        return (round(zu, 4), round(shift - xu, 4))
-
-    def to_unity(cell: Cell) -> XY:
-        return (shift - cell[1] * GRID_M, cell[0] * GRID_M)
-
+    frame = _Frame(math.ceil(max_xu / GRID_M) * GRID_M)
     obstacles = [
         o
         for o in objs
@@ -305,9 +298,93 @@ def build_procthor_home(
         and o.asset.object_type not in NOT_OBSTACLES
         and o.center_u[1] - o.asset.size[1] / 2 < FLOOR_CONTACT_M
     ]
+    room_of, covered = _viewpoints(polys, obstacles, frame)
+    edges: dict[Cell, set[Cell]] = {c: set() for c in room_of}
+    for rid in polys:
+        for c, nbs in _grid_edges({c for c, r in room_of.items() if r == rid}).items():
+            edges[c] |= nbs
+    links = _door_links(house, room_of, frame)
+    for a, b in links:
+        edges[a].add(b)
+        edges[b].add(a)
+    pieces = _components(room_of, edges)
+    if not pieces:
+        raise HomeSpecError(f"{path}: no viewpoint left in the house")
+    keep = pieces[0]
+    links = {(a, b) for a, b in links if a in keep and b in keep}
+    names = _room_names(polys, types)
+    statics, static_room, objects = _placed_objects(objs, polys, names, frame)
+    rooms_json: list[dict[str, Any]] = []
+    notes: list[str] = []
+    findings: list[Finding] = []
+    for rid in sorted(polys, key=lambda r: names[r]):
+        cells = {c for c in keep if room_of[c] == rid}
+        cut_off = sum(r == rid for r in room_of.values()) - len(cells)
+        where = f"{house_file.as_posix()}#{rid}"
+        ends = sorted({c for link in links for c in link if room_of[c] == rid})
+        why = (
+            "fewer than 2 reachable viewpoints"
+            if len(cells) < 2
+            else "no doorway reached"
+            if not ends
+            else None
+        )
+        if why is not None:
+            notes.append(f"{names[rid]} dropped: {why}")
+            findings.append(_dropped(name, names[rid], where, why, cells, covered[rid], cut_off))
+            continue
+        lost = lost_grid_points(
+            name, names[rid], where, len(cells), covered[rid], cut_off, LOST_SHARE_PROCTHOR
+        )
+        findings += [lost] if lost else []
+        room_statics = sorted(
+            (s for k, s in statics.items() if static_room[k] == rid), key=lambda s: s["id"]
+        )
+        empty = empty_room(name, names[rid], where, len(room_statics))
+        findings += [empty] if empty else []
+        for s in room_statics:
+            s["rest_points"] = sorted(s["rest_points"])
+        room = _room_json(names[rid], types[rid], where, cells, ends, room_statics, objects[rid])
+        rooms_json.append(room)
+    kept_rooms = {r["source_scene"].split("#")[1] for r in rooms_json}
+    doc = {
+        "format": "objsearch.home/1",
+        "name": name,
+        "grid": GRID_M,
+        "notes": NOTES + (" " + "; ".join(notes) if notes else ""),
+        "source": house_file.as_posix(),
+        "teleport": False,
+        "links": sorted(
+            [[a[0] * GRID_M, a[1] * GRID_M], [b[0] * GRID_M, b[1] * GRID_M]]
+            for a, b in links
+            if room_of[a] in kept_rooms and room_of[b] in kept_rooms
+        ),
+        "rooms": rooms_json,
+    }
+    return ProcthorHome(doc, tuple(findings))
+
+
+@dataclass(frozen=True, slots=True)
+class _Frame:
+    """Unity's floor coordinates (x_u, z_u) and the home's ROS frame: x = z_u, y = shift - x_u."""
+
+    shift: float
+
+    def to_ros(self, xu: float, zu: float) -> XY:
+        return (round(zu, 4), round(self.shift - xu, 4))
+
+    def to_unity(self, cell: Cell) -> XY:
+        return (self.shift - cell[1] * GRID_M, cell[0] * GRID_M)
+
+
+def _viewpoints(
+    polys: Mapping[str, list[XY]], obstacles: Sequence[_Obj], frame: _Frame
+) -> tuple[dict[Cell, str], dict[str, list[str]]]:
+    """Each grid point a viewpoint may stand on, with its room; and per room, the type of the
+    obstacle over each grid point it covers (not counting the points too near a wall, which no
+    room keeps): what the findings report as lost."""
+    shift = frame.shift
     room_of: dict[Cell, str] = {}
-    # Per room, the type of the obstacle over each grid point it covers (not counting the points
-    # too near a wall, which no room keeps): what the findings report as lost.
     covered: dict[str, list[str]] = {rid: [] for rid in polys}
     for rid in sorted(polys):
         poly = polys[rid]
@@ -317,7 +394,7 @@ def build_procthor_home(
             for j in range(
                 math.floor((shift - max(xs)) / GRID_M), math.ceil((shift - min(xs)) / GRID_M) + 1
             ):
-                xu, zu = to_unity((i, j))
+                xu, zu = frame.to_unity((i, j))
                 if not _point_in_polygon(xu, zu, poly):
                     continue
                 if any(
@@ -333,10 +410,14 @@ def build_procthor_home(
                     covered[rid].append(blocker.asset.object_type)
                     continue
                 room_of[(i, j)] = rid
-    edges: dict[Cell, set[Cell]] = {c: set() for c in room_of}
-    for rid in polys:
-        for c, nbs in _grid_edges({c for c, r in room_of.items() if r == rid}).items():
-            edges[c] |= nbs
+    return room_of, covered
+
+
+def _door_links(
+    house: Mapping[str, Any], room_of: Mapping[Cell, str], frame: _Frame
+) -> set[tuple[Cell, Cell]]:
+    """Through each doorway, each viewpoint's shortest link to one on the other side that crosses
+    the opening inside its margins."""
     links: set[tuple[Cell, Cell]] = set()
     reach = math.ceil(MAX_LINK_M / GRID_M)
     for op in _openings(house):
@@ -355,7 +436,7 @@ def build_procthor_home(
                         length = GRID_M * math.hypot(di, dj)
                         if length > MAX_LINK_M:
                             continue
-                        at = _crossing(to_unity(p), to_unity(q), op.a, op.b)
+                        at = _crossing(frame.to_unity(p), frame.to_unity(q), op.a, op.b)
                         if at is None or not (
                             op.lo + OPENING_MARGIN_M <= at <= op.hi - OPENING_MARGIN_M
                         ):
@@ -364,15 +445,11 @@ def build_procthor_home(
                             best = (length, q)
                 if best is not None:
                     links.add((min(p, best[1]), max(p, best[1])))
-    for a, b in links:
-        edges[a].add(b)
-        edges[b].add(a)
-    pieces = _components(room_of, edges)
-    if not pieces:
-        raise HomeSpecError(f"{path}: no viewpoint left in the house")
-    keep = pieces[0]
-    links = {(a, b) for a, b in links if a in keep and b in keep}
+    return links
 
+
+def _room_names(polys: Mapping[str, list[XY]], types: Mapping[str, str]) -> dict[str, str]:
+    """Each room's name: its type's, numbered from the second of a type on (``bedroom-2``)."""
     names: dict[str, str] = {}
     counts: dict[str, int] = {}
     for rid in sorted(
@@ -381,6 +458,14 @@ def build_procthor_home(
         base = ROOM_NAMES[types[rid]]
         counts[base] = counts.get(base, 0) + 1
         names[rid] = base if counts[base] == 1 else f"{base}-{counts[base]}"
+    return names
+
+
+def _placed_objects(
+    objs: Sequence[_Obj], polys: Mapping[str, list[XY]], names: Mapping[str, str], frame: _Frame
+) -> tuple[dict[str, dict[str, Any]], dict[str, str], dict[str, list[dict[str, Any]]]]:
+    """The static objects (by object id) and their rooms, and each room's semi-dynamic objects
+    with what supports them."""
 
     def room_at(xu: float, zu: float) -> str | None:
         for rid, poly in polys.items():
@@ -396,7 +481,7 @@ def build_procthor_home(
         if cls is None or in_room is None:
             continue
         rid = in_room
-        x, y = to_ros(o.center_u[0], o.center_u[2])
+        x, y = frame.to_ros(o.center_u[0], o.center_u[2])
         su = o.aabb_size_u()
         sid = f"{names[rid]}/{o.id}"
         statics[o.id] = {
@@ -413,7 +498,7 @@ def build_procthor_home(
     objects: dict[str, list[dict[str, Any]]] = {rid: [] for rid in polys}
     for o in objs:
         if o.parent in statics:
-            x, y = to_ros(o.center_u[0], o.center_u[2])
+            x, y = frame.to_ros(o.center_u[0], o.center_u[2])
             statics[o.parent]["rest_points"].append(
                 [x, y, round(o.center_u[1] - o.asset.size[1] / 2, 4)]
             )
@@ -422,7 +507,7 @@ def build_procthor_home(
         if dyn is None or in_room is None:
             continue
         rid = in_room
-        x, y = to_ros(o.center_u[0], o.center_u[2])
+        x, y = frame.to_ros(o.center_u[0], o.center_u[2])
         center = (x, y, round(o.center_u[1], 4))
         su = o.aabb_size_u()
         support, rule = None, None
@@ -447,94 +532,70 @@ def build_procthor_home(
                 "inside": inside,
             }
         )
+    return statics, static_room, objects
 
-    rooms_json: list[dict[str, Any]] = []
-    notes: list[str] = []
-    findings: list[Finding] = []
-    for rid in sorted(polys, key=lambda r: names[r]):
-        cells = {c for c in keep if room_of[c] == rid}
-        cut_off = sum(r == rid for r in room_of.values()) - len(cells)
-        where = f"{house_file.as_posix()}#{rid}"
-        ends = sorted({c for link in links for c in link if room_of[c] == rid})
-        why = (
-            "fewer than 2 reachable viewpoints"
-            if len(cells) < 2
-            else "no doorway reached"
-            if not ends
-            else None
-        )
-        if why is not None:
-            notes.append(f"{names[rid]} dropped: {why}")
-            blockers = Counter(covered[rid])
-            findings.append(
-                Finding(
-                    DROPPED_ROOMS,
-                    name,
-                    names[rid],
-                    where,
-                    f"dropped ({why}): of its {len(cells) + cut_off + len(covered[rid])} grid "
-                    f"points {len(covered[rid])} lie inside furniture"
-                    + (f" [{counts_text(blockers)}]" if blockers else "")
-                    + f", {cut_off} are cut off from the rest of the house (furniture across "
-                    f"its doorway?), {len(cells)} are reachable",
-                )
-            )
-            continue
-        lost = lost_grid_points(
-            name, names[rid], where, len(cells), covered[rid], cut_off, LOST_SHARE_PROCTHOR
-        )
-        findings += [lost] if lost else []
-        mx = statistics.median(c[0] for c in ends)
-        my = statistics.median(c[1] for c in ends)
-        door = min(ends, key=lambda c: (math.hypot(c[0] - mx, c[1] - my), c))
-        a, b, _ = farthest_pair(cells)
-        cx = statistics.fmean(c[0] for c in cells) * GRID_M
-        cy = statistics.fmean(c[1] for c in cells) * GRID_M
-        starts = [
-            {
-                "name": f"{names[rid]}-{k}",
-                "x": c[0] * GRID_M,
-                "y": c[1] * GRID_M,
-                "yaw": round(math.atan2(cy - c[1] * GRID_M, cx - c[0] * GRID_M), 4),
-            }
-            for k, c in enumerate((a, b), start=1)
-        ]
-        room_statics = sorted(
-            (s for k, s in statics.items() if static_room[k] == rid), key=lambda s: s["id"]
-        )
-        empty = empty_room(name, names[rid], where, len(room_statics))
-        findings += [empty] if empty else []
-        for s in room_statics:
-            s["rest_points"] = sorted(s["rest_points"])
-        rooms_json.append(
-            {
-                "name": names[rid],
-                "room_type": types[rid],
-                "source_scene": f"{house_file.as_posix()}#{rid}",
-                "viewpoints": [[c[0] * GRID_M, c[1] * GRID_M] for c in sorted(cells)],
-                "door": [door[0] * GRID_M, door[1] * GRID_M],
-                "starts": starts,
-                "statics": room_statics,
-                "objects": sorted(objects[rid], key=lambda o: o["id"]),
-                "alfred_poses": [],
-            }
-        )
-    kept_rooms = {r["source_scene"].split("#")[1] for r in rooms_json}
-    doc = {
-        "format": "objsearch.home/1",
+
+def _dropped(
+    home: str,
+    room: str,
+    where: str,
+    why: str,
+    cells: set[Cell],
+    covered: Sequence[str],
+    cut_off: int,
+) -> Finding:
+    """The finding of a room dropped from the home, with where its grid points went."""
+    blockers = Counter(covered)
+    return Finding(
+        DROPPED_ROOMS,
+        home,
+        room,
+        where,
+        f"dropped ({why}): of its {len(cells) + cut_off + len(covered)} grid "
+        f"points {len(covered)} lie inside furniture"
+        + (f" [{counts_text(blockers)}]" if blockers else "")
+        + f", {cut_off} are cut off from the rest of the house (furniture across "
+        f"its doorway?), {len(cells)} are reachable",
+    )
+
+
+def _room_json(
+    name: str,
+    room_type: str,
+    where: str,
+    cells: set[Cell],
+    ends: Sequence[Cell],
+    statics: list[dict[str, Any]],
+    objects: list[dict[str, Any]],
+) -> dict[str, Any]:
+    """One kept room of the home JSON: its viewpoints, door (the doorway ends' median), two
+    starts (the farthest pair of viewpoints, each facing the room's middle) and its objects."""
+    mx = statistics.median(c[0] for c in ends)
+    my = statistics.median(c[1] for c in ends)
+    door = min(ends, key=lambda c: (math.hypot(c[0] - mx, c[1] - my), c))
+    a, b, _ = farthest_pair(cells)
+    cx = statistics.fmean(c[0] for c in cells) * GRID_M
+    cy = statistics.fmean(c[1] for c in cells) * GRID_M
+    starts = [
+        {
+            "name": f"{name}-{k}",
+            "x": c[0] * GRID_M,
+            "y": c[1] * GRID_M,
+            "yaw": round(math.atan2(cy - c[1] * GRID_M, cx - c[0] * GRID_M), 4),
+        }
+        for k, c in enumerate((a, b), start=1)
+    ]
+    return {
         "name": name,
-        "grid": GRID_M,
-        "notes": NOTES + (" " + "; ".join(notes) if notes else ""),
-        "source": house_file.as_posix(),
-        "teleport": False,
-        "links": sorted(
-            [[a[0] * GRID_M, a[1] * GRID_M], [b[0] * GRID_M, b[1] * GRID_M]]
-            for a, b in links
-            if room_of[a] in kept_rooms and room_of[b] in kept_rooms
-        ),
-        "rooms": rooms_json,
+        "room_type": room_type,
+        "source_scene": where,
+        "viewpoints": [[c[0] * GRID_M, c[1] * GRID_M] for c in sorted(cells)],
+        "door": [door[0] * GRID_M, door[1] * GRID_M],
+        "starts": starts,
+        "statics": statics,
+        "objects": sorted(objects, key=lambda o: o["id"]),
+        "alfred_poses": [],
     }
-    return ProcthorHome(doc, tuple(findings))
 
 
 def _nearest_static(

@@ -139,7 +139,13 @@ def provenance_md(
     for info in (*ALL_SOURCES, *EXTRA_SOURCES):
         if files.get(info.key):
             lines += _source_section(info, files[info.key], source)
-    lines += [
+    lines += _licence_notices(files)
+    return "\n".join(lines)
+
+
+def _licence_notices(files: Mapping[str, Sequence[Path]]) -> list[str]:
+    """The "Licence notices" section: every source's licence, the optional ones when read."""
+    return [
         "## Licence notices",
         "",
         "- MIT: ALFRED navigation grids and poses (Copyright (c) 2019 ALFRED) and the VSGM "
@@ -174,7 +180,6 @@ def provenance_md(
         'object search using incremental scene graph updating".',
         "",
     ]
-    return "\n".join(lines)
 
 
 def merge_provenance(old: str, new: str, command: str) -> str:

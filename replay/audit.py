@@ -173,24 +173,7 @@ class Auditor:
     def _after(self, event: Any) -> None:
         kind = event.type
         if kind == "task_started":
-            started = decode(event, TaskStarted)
-            if self._current is not None:
-                self._current.flag("out-of-order", event.seq, "a new task started before it ended")
-                self._finish(self._current)
-            run = self.state.run
-            self._current = TaskAudit(
-                task_id=str(event.task_id),
-                target=started.target,
-                start=started.start,
-                home=run.home if run else "",
-                first_seq=event.seq,
-            )
-            pose = self.state.pose
-            if pose is not None:
-                self._current.route.append(pose.point)
-            self._current.timeline.append(
-                f"{event.seq}: task started — find {started.target} from {started.start}"
-            )
+            self._task_started(event)
             return
         task = self._current
         if task is None:
@@ -247,32 +230,7 @@ class Auditor:
                 f"{event.seq}: search failed — {decode(event, SearchFailed).reason}"
             )
         elif kind == "task_ended":
-            ended = decode(event, TaskEnded)
-            task.success = ended.success
-            task.path_length = ended.path_length
-            if abs(task._moved_metres - task.path_length) > 1e-3:
-                task.flag(
-                    "out-of-order",
-                    event.seq,
-                    f"task_ended says {task.path_length:.3f} m but its moves add up to "
-                    f"{task._moved_metres:.3f} m (a moved event is missing?)",
-                )
-            run = self.state.run
-            mode = run.update_mode.value if run else "unknown"
-            rule = "Eq. 4" if run is None or run.relations.model == "eq4" else run.relations.model
-            task.updates.append(
-                f"{rule} at seq {event.seq} (update mode {mode}): "
-                + (
-                    "; ".join(f"{d} seen at {', '.join(s)}" for d, s in task.learned.items())
-                    or "nothing seen at a static object"
-                )
-            )
-            task.timeline.append(
-                f"{event.seq}: task ended — {'found' if task.success else 'not found'}, "
-                f"{task.path_length:.2f} m"
-            )
-            self._finish(task)
-            self._current = None
+            self._task_ended(task, event)
         elif kind == "task_aborted":
             task.success = False
             aborted = decode(event, TaskAborted)
@@ -283,6 +241,54 @@ class Auditor:
             )
             self._finish(task)
             self._current = None
+
+    def _task_started(self, event: Any) -> None:
+        started = decode(event, TaskStarted)
+        if self._current is not None:
+            self._current.flag("out-of-order", event.seq, "a new task started before it ended")
+            self._finish(self._current)
+        run = self.state.run
+        self._current = TaskAudit(
+            task_id=str(event.task_id),
+            target=started.target,
+            start=started.start,
+            home=run.home if run else "",
+            first_seq=event.seq,
+        )
+        pose = self.state.pose
+        if pose is not None:
+            self._current.route.append(pose.point)
+        self._current.timeline.append(
+            f"{event.seq}: task started — find {started.target} from {started.start}"
+        )
+
+    def _task_ended(self, task: TaskAudit, event: Any) -> None:
+        ended = decode(event, TaskEnded)
+        task.success = ended.success
+        task.path_length = ended.path_length
+        if abs(task._moved_metres - task.path_length) > 1e-3:
+            task.flag(
+                "out-of-order",
+                event.seq,
+                f"task_ended says {task.path_length:.3f} m but its moves add up to "
+                f"{task._moved_metres:.3f} m (a moved event is missing?)",
+            )
+        run = self.state.run
+        mode = run.update_mode.value if run else "unknown"
+        rule = "Eq. 4" if run is None or run.relations.model == "eq4" else run.relations.model
+        task.updates.append(
+            f"{rule} at seq {event.seq} (update mode {mode}): "
+            + (
+                "; ".join(f"{d} seen at {', '.join(s)}" for d, s in task.learned.items())
+                or "nothing seen at a static object"
+            )
+        )
+        task.timeline.append(
+            f"{event.seq}: task ended — {'found' if task.success else 'not found'}, "
+            f"{task.path_length:.2f} m"
+        )
+        self._finish(task)
+        self._current = None
 
     def _finish(self, task: TaskAudit) -> None:
         self.tasks.append(task)
@@ -447,26 +453,7 @@ def _plot_route(task: TaskAudit, path: Path) -> bool:
             Rectangle((cx - sx / 2, cy - sy / 2), sx, sy, fill=False, ec=colour, lw=0.8, zorder=2)
         )
         ax.text(cx, cy, s.cls, ha="center", va="center", fontsize=6, color=colour, zorder=2)
-    # Each move is redrawn along the map's shortest path (what the robot walked, unless the
-    # map changed since); a teleport between doors starts a new line.
-    segments: list[list[Point]] = []
-    current: list[Point] = []
-    for a, b in itertools.pairwise(task.route):
-        try:
-            walk = ctx.navmap.path(a, b)
-        except (ValueError, KeyError):
-            walk = [a, b]
-        for u, v in itertools.pairwise(walk):
-            teleport = _is_teleport(ctx.navmap, u, v)
-            if teleport or (current and current[-1] != u):
-                if len(current) > 1:
-                    segments.append(current)
-                current = [v] if teleport else [u, v]
-            else:
-                current = [*current, v] if current else [u, v]
-    if len(current) > 1:
-        segments.append(current)
-    for seg in segments:
+    for seg in _route_segments(ctx.navmap, task.route):
         ax.plot([p.x for p in seg], [p.y for p in seg], c="#d62728", lw=1.5, zorder=3)
         # An arrow on every other step shows the direction of travel.
         for u, v in list(itertools.pairwise(seg))[::2]:
@@ -477,22 +464,7 @@ def _plot_route(task: TaskAudit, path: Path) -> bool:
                 arrowprops={"arrowstyle": "-|>", "color": "#d62728", "lw": 1.0},
                 zorder=3,
             )
-    # Stops (where each move ended), numbered in travel order; a stop visited twice shows both.
-    labels: dict[Point, list[str]] = {}
-    for i, p in enumerate(task.route[1:], start=1):
-        labels.setdefault(p, []).append(str(i))
-    for p, numbers in labels.items():
-        ax.scatter([p.x], [p.y], s=16, c="#d62728", zorder=4)
-        ax.annotate(
-            ",".join(numbers),
-            (p.x, p.y),
-            xytext=(4, 4),
-            textcoords="offset points",
-            fontsize=7,
-            color="#8b0000",
-            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8},
-            zorder=7,
-        )
+    _draw_stops(ax, task.route)
     start = task.route[0]
     ax.scatter([start.x], [start.y], marker="o", s=70, c="green", ec="k", zorder=5)
     if task.found_at is not None:
@@ -529,6 +501,48 @@ def _plot_route(task: TaskAudit, path: Path) -> bool:
     fig.savefig(path, bbox_inches="tight", pad_inches=0.1)
     plt.close(fig)
     return True
+
+
+def _route_segments(navmap: Any, route: Sequence[Point]) -> list[list[Point]]:
+    """Each move redrawn along the map's shortest path (what the robot walked, unless the map
+    changed since); a teleport between doors starts a new line."""
+    segments: list[list[Point]] = []
+    current: list[Point] = []
+    for a, b in itertools.pairwise(route):
+        try:
+            walk = navmap.path(a, b)
+        except (ValueError, KeyError):
+            walk = [a, b]
+        for u, v in itertools.pairwise(walk):
+            teleport = _is_teleport(navmap, u, v)
+            if teleport or (current and current[-1] != u):
+                if len(current) > 1:
+                    segments.append(current)
+                current = [v] if teleport else [u, v]
+            else:
+                current = [*current, v] if current else [u, v]
+    if len(current) > 1:
+        segments.append(current)
+    return segments
+
+
+def _draw_stops(ax: Any, route: Sequence[Point]) -> None:
+    """Stops (where each move ended), numbered in travel order; a stop visited twice shows both."""
+    labels: dict[Point, list[str]] = {}
+    for i, p in enumerate(route[1:], start=1):
+        labels.setdefault(p, []).append(str(i))
+    for p, numbers in labels.items():
+        ax.scatter([p.x], [p.y], s=16, c="#d62728", zorder=4)
+        ax.annotate(
+            ",".join(numbers),
+            (p.x, p.y),
+            xytext=(4, 4),
+            textcoords="offset points",
+            fontsize=7,
+            color="#8b0000",
+            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8},
+            zorder=7,
+        )
 
 
 def _is_teleport(navmap: Any, a: Point, b: Point) -> bool:

@@ -16,7 +16,8 @@ from typing import Any
 from objsearch.agent.categories import Category
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.geometry import Point, Pose
-from objsearch.agent.session import Session, load_context
+from objsearch.agent.policy import SearchResult
+from objsearch.agent.session import HomeContext, Session, load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.sim.detector_model import with_perception
 from objsearch.sim.localisation import with_localisation
@@ -101,23 +102,11 @@ def run_schedule(
     spec, localiser = with_localisation(spec)
     # From this scene on the robot runs in a new map (a new session: run_started with its id).
     new_map_day = spec.params.get("new_map_day")
-    if placements is None:
-        if spec.schedule is None:
-            raise DataFileError("a long-term run needs placements or a schedule in its spec")
-        placements = scenes_of(spec.home, spec.schedule)
-    placements, dropped = seeable_scenes(ctx.home, placements)
-    unseeable: dict[int, set[str]] = {n: set() for n in placements}
-    for u in dropped:
-        unseeable[u.scene].add(u.cls)
+    placements, unseeable = _seeable_placements(ctx, spec, placements, scenes)
     all_starts = ctx.home.starts
     for name in starts or ():
         ctx.home.start(name)  # an unknown start fails before anything is written
     chosen = {name: all_starts[name] for name in starts} if starts else all_starts
-    unknown_scenes = sorted(set(scenes or ()) - set(placements))
-    if unknown_scenes:
-        raise DataFileError(
-            f"schedule {spec.schedule!r} has scenes {sorted(placements)}, not {unknown_scenes}"
-        )
     trials: list[Trial] = []
     inputs = {
         "targets": list(targets),
@@ -169,26 +158,62 @@ def run_schedule(
                         clock=schedule_clock(spec.schedule, scene),
                     )
                     real = world.is_instance_of(result.found_instance, target)
-                    trial = Trial(
-                        scene,
-                        target,
-                        start_name,
-                        result.success and real,
-                        result.path_length,
-                        oracle,
-                        result.task_id,
-                        tuple(result.route) if keep_routes else (),
-                        result.path_length
-                        if result.path_to_discovery is None
-                        else result.path_to_discovery,
-                        false_found=result.success and not real,
-                    )
+                    trial = _trial(scene, target, start_name, result, real, oracle, keep_routes)
                     trials.append(trial)
                     if on_trial:
                         on_trial(trial)
     finally:
         session.close()
     return trials
+
+
+def _trial(
+    scene: int,
+    target: str,
+    start: str,
+    result: SearchResult,
+    real: bool,
+    oracle: float,
+    keep_route: bool,
+) -> Trial:
+    """One search's trial: a "found" on a false sighting (``real`` false) is a failure."""
+    return Trial(
+        scene,
+        target,
+        start,
+        result.success and real,
+        result.path_length,
+        oracle,
+        result.task_id,
+        tuple(result.route) if keep_route else (),
+        result.path_length if result.path_to_discovery is None else result.path_to_discovery,
+        false_found=result.success and not real,
+    )
+
+
+def _seeable_placements(
+    ctx: HomeContext,
+    spec: RunSpec,
+    placements: Mapping[int, Placements] | None,
+    scenes: Sequence[int] | None,
+) -> tuple[dict[int, Placements], dict[int, set[str]]]:
+    """The run's placements by scene (given, or the spec's schedule's) without those no viewpoint
+    can see, and per scene the classes left with no seeable instance; an error if ``scenes``
+    names one the schedule does not have."""
+    if placements is None:
+        if spec.schedule is None:
+            raise DataFileError("a long-term run needs placements or a schedule in its spec")
+        placements = scenes_of(spec.home, spec.schedule)
+    seeable, dropped = seeable_scenes(ctx.home, placements)
+    unseeable: dict[int, set[str]] = {n: set() for n in seeable}
+    for u in dropped:
+        unseeable[u.scene].add(u.cls)
+    unknown_scenes = sorted(set(scenes or ()) - set(seeable))
+    if unknown_scenes:
+        raise DataFileError(
+            f"schedule {spec.schedule!r} has scenes {sorted(seeable)}, not {unknown_scenes}"
+        )
+    return seeable, unseeable
 
 
 def day_starts(

@@ -284,16 +284,7 @@ class _SessionLake(ABC):
         related = self._same_recording(piece, run_id, rows, sessions)
         firsts = [f for f in [piece.first, *(s.first for s in related)] if f is not None]
         first = min(firsts, key=lambda f: (f.stream, f.seq)) if firsts else None
-        joined = ""
-        if run_id:
-            run = session_run_name(run_id)
-        elif rows.is_empty() and related:
-            # A stretch without agent events, inside that session's receive times.
-            run, run_id, joined = related[0].info.run, related[0].run_id, related[0].info.run
-        elif first is not None:
-            run = provisional_run_name(first)
-        else:
-            run = run_name(piece.bag_id)
+        run, run_id, joined = _run_of(piece, run_id, rows, related, first)
         existing = next((s for s in sessions if s.info.run == run), None)
         previous = [existing] if existing is not None else []
         previous += [s for s in related if s is not existing]
@@ -376,21 +367,7 @@ class _SessionLake(ABC):
             doc=doc,
             identity={"run_id": run_id} if run_id else {},
         )
-        note = ""
-        if joined:
-            note = (
-                f"joined run {run}: it holds no agent events and its receive times lie within "
-                f"that recording's ({len(pieces)} bags)"
-            )
-        elif len(pieces) > 1:
-            note = f"merged into run {run} ({len(pieces)} bags of one recording session)"
-        if differ:
-            said = ", ".join(f"{n} {t}" for t, n in sorted(differ.items()))
-            note += (
-                f"{'; ' if note else ''}{said} message(s) recorded differently by this bag and "
-                "the session's other recording(s) at the same header stamp: one copy is damaged "
-                "and nothing tells which, so both are kept"
-            )
+        note = _commit_note(run, joined, len(pieces), differ)
         return Commit(piece.bag_id, events - before, new=True, run=run, note=note)
 
     @staticmethod
@@ -545,6 +522,44 @@ def piece_stamps(bag_id: str, converter: str) -> list[str]:
 
 def _doc_stamps(bag_id: str, doc: Mapping[str, Any]) -> list[str]:
     return piece_stamps(bag_id, str(doc.get("converter", "")))
+
+
+def _run_of(
+    piece: Piece,
+    run_id: str | None,
+    rows: pl.DataFrame,
+    related: Sequence[_SessionRun],
+    first: FirstEvent | None,
+) -> tuple[str, str | None, str]:
+    """The run a piece goes into, its session's run id, and the run it joined ("" if none)."""
+    if run_id:
+        return session_run_name(run_id), run_id, ""
+    if rows.is_empty() and related:
+        # A stretch without agent events, inside that session's receive times.
+        return related[0].info.run, related[0].run_id, related[0].info.run
+    if first is not None:
+        return provisional_run_name(first), run_id, ""
+    return run_name(piece.bag_id), run_id, ""
+
+
+def _commit_note(run: str, joined: str, bags: int, differ: Mapping[str, int]) -> str:
+    """What a commit says of the run a piece went into."""
+    note = ""
+    if joined:
+        note = (
+            f"joined run {run}: it holds no agent events and its receive times lie within "
+            f"that recording's ({bags} bags)"
+        )
+    elif bags > 1:
+        note = f"merged into run {run} ({bags} bags of one recording session)"
+    if differ:
+        said = ", ".join(f"{n} {t}" for t, n in sorted(differ.items()))
+        note += (
+            f"{'; ' if note else ''}{said} message(s) recorded differently by this bag and "
+            "the session's other recording(s) at the same header stamp: one copy is damaged "
+            "and nothing tells which, so both are kept"
+        )
+    return note
 
 
 class FleetBagLake(_SessionLake):

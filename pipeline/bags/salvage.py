@@ -415,33 +415,12 @@ def scan_mcap_file(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int,
                     scan.delivered[(chunk, cid)] += 1
                     yield conn, log_time, rec.buf[rec.pos : rec.end]
                 elif op == 0x06 and top:
-                    rec.u64()
-                    rec.u64()
-                    size = rec.u64()
-                    crc = rec.u32()
-                    compression = rec.string()
-                    clen = rec.u64()
-                    data = rec.buf[rec.pos : min(rec.pos + clen, rec.end)]
                     cwhere = f"{path.name} chunk at byte {start}"
-                    out, why = _mcap_decompress(compression, data, size)
-                    if cut:
-                        scan.losses.append(
-                            Loss(
-                                f"{path.name} bytes {start}–{len(buf)}",
-                                "chunk cut short by the end of the file; messages after the "
-                                "cut are lost",
-                            )
-                        )
-                    elif why is not None:
-                        scan.losses.append(Loss(cwhere, f"chunk damaged: {why}"))
-                    elif crc:
-                        from zlib import crc32
-
-                        if crc32(out) != crc:
-                            scan.losses.append(
-                                Loss(cwhere, "chunk CRC mismatch: its messages are dropped")
-                            )
-                            continue
+                    out = _mcap_chunk(
+                        rec, scan, cwhere, f"{path.name} bytes {start}–{len(buf)}", cut
+                    )
+                    if out is None:
+                        continue
                     yield from records(_Reader(out), cwhere, top=False, chunk=start)
                     if cut:
                         return
@@ -473,6 +452,36 @@ def scan_mcap_file(path: Path) -> tuple[Scan, Iterator[tuple[RawConnection, int,
         yield from records(_Reader(buf, len(MCAP_MAGIC)), path.name, top=True)
 
     return scan, gen()
+
+
+def _mcap_chunk(rec: _Reader, scan: Scan, where: str, to_end: str, cut: bool) -> bytes | None:
+    """A chunk record's records, decompressed (what could be), its damage noted in ``scan``;
+    None when its CRC proves them damaged (they are dropped). ``to_end``: the bytes from it to
+    the end of the file, named for a chunk ``cut`` short."""
+    rec.u64()
+    rec.u64()
+    size = rec.u64()
+    crc = rec.u32()
+    compression = rec.string()
+    clen = rec.u64()
+    data = rec.buf[rec.pos : min(rec.pos + clen, rec.end)]
+    out, why = _mcap_decompress(compression, data, size)
+    if cut:
+        scan.losses.append(
+            Loss(
+                to_end,
+                "chunk cut short by the end of the file; messages after the cut are lost",
+            )
+        )
+    elif why is not None:
+        scan.losses.append(Loss(where, f"chunk damaged: {why}"))
+    elif crc:
+        from zlib import crc32
+
+        if crc32(out) != crc:
+            scan.losses.append(Loss(where, "chunk CRC mismatch: its messages are dropped"))
+            return None
+    return out
 
 
 # Record op codes of the MCAP spec: 0x01–0x10 at the top level (0x80 and up are for users); a
