@@ -20,13 +20,14 @@ from objsearch.agent.detector_model import (
     preset,
 )
 from objsearch.agent.geometry import Pose
-from objsearch.agent.home import Home
+from objsearch.agent.home import Box, Home
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.sightings import LastSeen
 from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import Detection
 from objsearch.events.log_read import read_log
 from objsearch.sim.detector_model import (
+    DUPLICATE_M,
     FALSE_PREFIX,
     NoisyDetector,
     reliability,
@@ -86,6 +87,43 @@ def test_false_positives_lie_on_a_surface_in_view_with_a_movable_class() -> None
     assert {round(d.position[2], 4) for d in false} <= tops
     assert {d.object_class for d in false} <= set(movable)
     assert all(0.5 <= d.score < 1.0 and 64 <= d.mask_area <= 96 * 96 for d in false)
+
+
+def test_no_false_positive_is_drawn_on_an_object_of_its_own_class() -> None:
+    # A box on an object of its class is that object's duplicate (or its detection), never a
+    # false positive: drawn there, it made a false "found" at the place the object lay.
+    home, pose, movable = _kitchen()
+    model = preset("realistic", fp_per_image=2.0)
+    lo = [min(s.box.lo[k] for s in home.room("kitchen").statics) for k in range(3)]
+    hi = [max(s.box.hi[k] for s in home.room("kitchen").statics) for k in range(3)]
+    # One Cup whose box holds every surface of the kitchen: every false Cup would lie on it.
+    cup = Placement(
+        "Cup|everywhere",
+        "Cup",
+        Box(
+            tuple((a + b) / 2 for a, b in zip(lo, hi, strict=True)),  # type: ignore[arg-type]
+            tuple(b - a for a, b in zip(lo, hi, strict=True)),  # type: ignore[arg-type]
+        ),
+        "kitchen",
+        None,
+        False,
+    )
+
+    def false(placed: Sequence[Placement]) -> list[Detection]:
+        detector = NoisyDetector(model, seed=5, movable=movable)
+        return [
+            d
+            for _ in range(300)
+            for d in detector.observe(home, "kitchen", pose, placed, ())
+            if d.instance_id.startswith(FALSE_PREFIX)
+        ]
+
+    alone, beside_cup = false(()), false((cup,))
+    assert any(d.object_class == "Cup" for d in alone)
+    assert not any(d.object_class == "Cup" for d in beside_cup)
+    # The other classes' false positives are the same draws (none shifts another view's).
+    assert beside_cup == [d for d in alone if d.object_class != "Cup"]
+    assert all(cup.box.distance_to(d.position) <= DUPLICATE_M for d in alone)
 
 
 def test_the_same_seed_gives_the_same_detections_and_another_seed_others() -> None:
