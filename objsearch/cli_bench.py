@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -36,11 +35,6 @@ def _strategies(names: list[str] | None, default: str) -> list[str]:
     return names
 
 
-def _workers(args: argparse.Namespace) -> int:
-    # run_jobs also never starts more processes than there are jobs.
-    return max(1, args.workers if args.workers else min(2, os.cpu_count() or 1))
-
-
 def _targets(args: argparse.Namespace) -> list[str]:
     """``--targets`` (default: all eight), each checked against the eight."""
     from objsearch.experiments.runner import TARGETS
@@ -64,7 +58,7 @@ def cmd_bench_paper(args: argparse.Namespace) -> int:
             out,
             strategies=_strategies(args.strategies, "all"),
             sdp_seeds=args.sdp_seeds,
-            workers=_workers(args),
+            workers=t.workers(args),
             progress=not args.no_progress and args.format != "json",
             targets=targets,
             scenes=args.scenes,
@@ -95,7 +89,7 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
             strategies=_strategies(args.strategies, "all"),
             seeds=args.seeds,
             scenes=args.scenes_per_schedule,
-            workers=_workers(args),
+            workers=t.workers(args),
             progress=not args.no_progress and args.format != "json",
             schedules=args.schedules,
             starts_per_search=args.starts_per_scene,
@@ -127,7 +121,7 @@ def cmd_bench_table1(args: argparse.Namespace) -> int:
             source=Path(args.source),
             sets=args.sets,
             seed=args.seed,
-            workers=_workers(args),
+            workers=t.workers(args),
             targets=targets,
             progress=not args.no_progress,
             prior=args.prior,
@@ -327,7 +321,7 @@ def cmd_bench_dhs(args: argparse.Namespace) -> int:
         seeds=seeds,
         steps=args.steps,
         eps_per_scene=args.eps_per_scene,
-        workers=_workers(args),
+        workers=t.workers(args),
         progress=progress,
     )
     if args.format == "json":

@@ -13,7 +13,6 @@ from objsearch.agent.outdir import claim
 
 
 def cmd_bench_sensitivity(args: argparse.Namespace) -> int:
-    from objsearch.cli_bench import _workers
     from objsearch.experiments.homes import heldout_homes
     from objsearch.experiments.sensitivity import OUTPUTS, STRATEGIES, render, run_sensitivity
 
@@ -39,7 +38,7 @@ def cmd_bench_sensitivity(args: argparse.Namespace) -> int:
             base=args.perception,
             inspection=args.inspection,
             camera=args.camera,
-            workers=_workers(args),
+            workers=t.workers(args),
             bar=not quiet,
             progress=line,
         )

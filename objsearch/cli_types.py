@@ -15,6 +15,7 @@ that every option uses one of these.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any, NoReturn, TypeVar
@@ -402,6 +403,12 @@ def is_validated(convert: object) -> bool:
     return getattr(convert, "__module__", None) in VALIDATING_MODULES
 
 
+def workers(args: argparse.Namespace) -> int:
+    """The processes ``--workers`` asks for: 0 means min(2, cores) (a runner also never starts
+    more processes than there are jobs)."""
+    return max(1, args.workers if args.workers else min(2, os.cpu_count() or 1))
+
+
 def progress_option(p: argparse.ArgumentParser) -> None:
     """``--no-progress``: the progress line :func:`progress` draws on a terminal."""
     p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
@@ -537,5 +544,6 @@ __all__ = [
     "strategy",
     "subset_of",
     "text",
+    "workers",
     "zenoh_endpoint",
 ]
