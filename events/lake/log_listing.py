@@ -120,6 +120,22 @@ def read_listing(uri: str, root: object) -> LogListing | None:
     """The table at ``uri`` (a local folder) as its log's JSON commits leave it, or None when
     only delta-rs can read it (see the module). Raises :class:`TableLakeError` for a log that
     is damaged (``root``: the lake, for the message)."""
+    try:
+        return _read_listing(uri, root)
+    except _Vanished:
+        # A commit file listed a moment ago is gone: a compaction checkpointed the log and
+        # cleaned up the commits before it since (or the log is damaged): look again, once.
+        try:
+            return _read_listing(uri, root)
+        except _Vanished as exc:
+            raise _damaged(root, str(exc)) from exc
+
+
+class _Vanished(Exception):
+    """A commit file of the listing was not there to read."""
+
+
+def _read_listing(uri: str, root: object) -> LogListing | None:
     log = Path(uri) / "_delta_log"
     try:
         names = [p.name for p in log.iterdir()]
@@ -149,6 +165,8 @@ def read_listing(uri: str, root: object) -> LogListing | None:
         name = f"{version:020d}.json"
         try:
             text = (log / name).read_text(encoding="utf-8")
+        except FileNotFoundError as exc:
+            raise _Vanished(f"{name}: {exc}") from exc
         except (OSError, UnicodeDecodeError) as exc:
             raise _damaged(root, f"{name}: {exc}") from exc
         for number, line in enumerate(text.splitlines(), 1):

@@ -155,3 +155,30 @@ def test_where_and_replay_from_a_lake_run_load_no_delta_rs(built: Path) -> None:
             check=False,
         )
         assert "DELTALAKE False 0" in done.stdout, (argv, done.stdout[-500:], done.stderr[-2000:])
+
+
+def test_a_commit_file_gone_between_listing_and_reading_is_looked_for_again(
+    built: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A compaction that checkpoints the log and cleans up the commits before it may take a
+    commit file away between the listing of the folder and its read: the log is read again once
+    (then it finds the checkpoint and leaves the table to delta-rs) before it is called damaged.
+    The race is made by failing the reads of version 1's file (as if deleted in between)."""
+    expected = _listing(built)
+    assert expected is not None
+    real = Path.read_text
+    gone = {"times": 1}
+
+    def read_text(self: Path, *args: object, **kwargs: object) -> str:
+        if self.name == f"{1:020d}.json" and gone["times"] > 0:
+            gone["times"] -= 1
+            raise FileNotFoundError(2, "No such file or directory", str(self))
+        return real(self, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Path, "read_text", read_text)
+    again = _listing(built)
+    assert again is not None
+    assert again.get_add_actions().equals(expected.get_add_actions())
+    gone["times"] = 2  # gone for good: damage
+    with pytest.raises(TableLakeError, match="is damaged and cannot be read"):
+        _listing(built)
