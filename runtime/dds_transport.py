@@ -189,9 +189,18 @@ def _incompatible(what: str, name: str, qos: QoS) -> Any:
     return {f"on_{what}_incompatible_qos": on_incompatible}
 
 
-def _qos(qos: QoS, type_hash: str | None = None) -> Any:
+def _qos(qos: QoS, type_hash: str | None = None, *, reader: bool = False) -> Any:
     """``type_hash``: announced in USER_DATA as rmw_cyclonedds and rmw_fastrtps do
-    (``typehash=RIHS01_…;``), so ROS 2's graph shows the endpoint's type hash."""
+    (``typehash=RIHS01_…;``), so ROS 2's graph shows the endpoint's type hash.
+
+    A ``reader`` never hears its own participant's writers (``IgnoreLocal``). A sample written
+    to a topic this participant also reads is delivered to our reader in the writing thread
+    (Cyclone's local delivery), which first waits until no other thread is in that reader's
+    listener; ``DataWriter.write`` keeps the GIL meanwhile (cyclonedds-python's ``ddspy_write``),
+    and a listener that a sample from another process has entered waits for that GIL: neither
+    moves again and the whole process hangs (an agent writing its heartbeat as another agent's
+    came in, issue 43 item 9). A process has one participant per domain (Cyclone refuses a
+    second), so with this no write of ours is delivered locally, and none waits on a listener."""
     from cyclonedds.core import Policy, Qos
 
     reliability = (
@@ -207,6 +216,8 @@ def _qos(qos: QoS, type_hash: str | None = None) -> Any:
     policies = [reliability, durability, Policy.History.KeepLast(qos.depth)]
     if type_hash is not None:
         policies.append(Policy.Userdata(f"typehash={type_hash};".encode()))
+    if reader:
+        policies.append(Policy.IgnoreLocal.Participant)
     return Qos(*policies)
 
 
@@ -308,7 +319,7 @@ class _DdsClient:
         self._reader = DataReader(
             transport.participant,
             transport._topic(rr, resp_cls),
-            _qos(SERVICES, type_hash(srvtype)),
+            _qos(SERVICES, type_hash(srvtype), reader=True),
             listener=Listener(  # type: ignore[no-untyped-call]
                 on_data_available=on_data, **_incompatible("requested", rr, SERVICES)
             ),
@@ -460,7 +471,7 @@ class DdsTransport:
         reader = DataReader(
             self.participant,
             self._topic(topic_name(topic), idl_type(msgtype)),
-            _qos(qos, type_hash(msgtype)),
+            _qos(qos, type_hash(msgtype), reader=True),
             listener=Listener(  # type: ignore[no-untyped-call]
                 on_data_available=on_data, **_incompatible("requested", topic, qos)
             ),
@@ -495,7 +506,7 @@ class DdsTransport:
         reader = DataReader(
             self.participant,
             self._topic(rq, req_cls),
-            _qos(SERVICES, type_hash(srvtype)),
+            _qos(SERVICES, type_hash(srvtype), reader=True),
             listener=Listener(  # type: ignore[no-untyped-call]
                 on_data_available=on_data, **_incompatible("requested", rq, SERVICES)
             ),

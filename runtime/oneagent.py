@@ -2,18 +2,26 @@
 
 Two agents on one ROS domain both hear every find request and both drive the robot. So each
 agent says who it is on a topic of its own (``/objsearch/agents``, :class:`Heartbeat` as JSON,
-several times a second) and listens there. At start-up it *claims* the robot for
-``[timeouts] claim_s`` (5 s) before it opens its log or takes a request: if it hears another
-agent of the same robot (one whose ``serves`` — its find topic and where it sends goals — shares
-a name with its own) that is serving, or that is claiming and came first (the earlier claim, then
-the smaller id: :meth:`Heartbeat.key`), it refuses with :class:`AnotherAgentError` naming that
-agent. Otherwise it serves, and keeps listening: should it meet another *serving* agent of its
-robot later (they joined the graph while apart, or discovery took longer than the claim), the
-one whose claim came later stops after the search it is in. Every agent applies the same rules to
-the same two heartbeats, so two agents started at the same moment agree on which one serves.
+several times a second) and listens there. Two agents are of the same robot when their
+``serves`` (the find topic and where goals go) share a name. Between two such agents the
+**earlier claim serves**: the earlier ``since_ns``, then the smaller id (:meth:`Heartbeat.key`),
+whatever state either is in, so every agent applies the same rule to the same two heartbeats
+and the outcome does not depend on which process got further first.
+
+At start-up an agent *claims* the robot for ``[timeouts] claim_s`` (5 s) before it opens its log
+or takes a request: hearing an agent whose claim came first (serving or still claiming), it
+refuses with :class:`AnotherAgentError` naming that agent. Hearing a *later* agent that already
+serves (the two found each other late), it lets that one stop first: its claim ends only once no
+such agent has been heard for ``claim_s``. While serving it keeps listening: an agent whose claim
+came first, heard at any time, makes it stop — at once when idle, after the search it is in
+otherwise (:attr:`OneAgent.rival`; :class:`~objsearch.runtime.agent_node.AgentNode` polls it) —
+and it keeps sending ``serving`` until it has stopped (:meth:`OneAgent.close`), so the earlier
+agent does not begin while it still drives the robot.
 
 Works on every transport (a topic like any other). Not detected: an agent that sends no
 heartbeats (before this module), and one on another domain or middleware that cannot hear ours.
+The order of claims is read from the hosts' clocks: agents on two hosts need their clocks in
+step (NTP), or the one whose clock is behind counts as the earlier.
 """
 
 from __future__ import annotations
@@ -96,6 +104,9 @@ class OneAgent:
         self._cond = threading.Condition()
         self._rival: rq.Heartbeat | None = None
         self._heard: set[str] = set()
+        #: Agents of this robot that claimed later but serve, by id: when one was last heard
+        #: (time.monotonic()). A claim ends only once none was heard for ``claim_s``.
+        self._later_serving: dict[str, float] = {}
         self._beating = threading.Event()
         self._closed = threading.Event()
         self._pub = node.publisher(config.topics.agents, m.STRING, DEFAULT)
@@ -112,10 +123,8 @@ class OneAgent:
             return self._rival
 
     def _yields_to(self, other: rq.Heartbeat) -> bool:
-        """Under the lock. Serving beats claiming; between two of a kind, the earlier key."""
-        if self.me.state == "claiming":
-            return other.state == "serving" or other.key() < self.me.key()
-        return other.state == "serving" and other.key() < self.me.key()
+        """Under the lock. The earlier claim serves, in either state: :meth:`Heartbeat.key`."""
+        return other.key() < self.me.key()
 
     def _on_heartbeat(self, msg: Any) -> None:
         other = rq.parse_heartbeat(rq.parse_document(msg.data))
@@ -128,38 +137,55 @@ class OneAgent:
                 self._rival = other
                 self._cond.notify_all()
                 return
+            if other.state == "serving":
+                self._later_serving[other.agent] = time.monotonic()
+                self._cond.notify_all()
             first = other.agent not in self._heard
             self._heard.add(other.agent)
+            serving = self.me.state == "serving"
         if first:
             log.warning(
-                "another agent of this robot is on %s: %s; it will not serve (this agent %s)",
+                "another agent of this robot is on %s: %s; it %s (this agent %s)",
                 self.where,
                 describe(other),
-                "is serving" if self.me.state == "serving" else "came first",
+                "stops serving" if other.state == "serving" else "will not serve",
+                "is serving" if serving else "came first",
             )
 
     def _beat(self) -> None:
         while not self._closed.is_set():
             with self._cond:
-                stop = self._rival is not None
+                # A claim that yields goes quiet at once; a serving agent that yields still
+                # drives its robot until it has stopped (close()): the earlier agent waits for it.
+                stop = self._rival is not None and self.me.state == "claiming"
                 doc = self.me.to_json()
-            if stop:  # a yielding agent says nothing more: others must not yield to it
+            if stop:
                 return
             try:
                 self._pub.publish(m.json_string(doc))
-            except Exception as exc:  # the transport is closing, or the network is gone
+            except Exception as exc:  # boundary: the transport is closing, or the network is gone
                 log.warning("heartbeat not sent: %s", exc)
             self._closed.wait(self.period_s)
 
     def claim(self) -> None:
-        """Heartbeats start; returns once no agent of this robot that came first was heard for
-        ``claim_s``, now serving; raises :class:`AnotherAgentError` naming the one heard."""
+        """Heartbeats start; returns, now serving, once ``claim_s`` has passed with no agent of
+        this robot heard whose claim came first, and no later one heard serving for ``claim_s``
+        (it is stopping); raises :class:`AnotherAgentError` naming the earlier one heard."""
         self._thread.start()
+        begun = time.monotonic()
+        waited_for: set[str] = set()
         with self._cond:
-            self._cond.wait_for(lambda: self._rival is not None, self.claim_s)
-            if self._rival is None:
-                self.me = dataclasses.replace(self.me, state="serving")
-                return
+            while self._rival is None:
+                quiet = max(self._later_serving.values(), default=begun)
+                ends = max(begun, quiet) + self.claim_s
+                left = ends - time.monotonic()
+                if left <= 0:
+                    self.me = dataclasses.replace(self.me, state="serving")
+                    return
+                if self._later_serving.keys() - waited_for:
+                    waited_for |= self._later_serving.keys()
+                    log.warning("this agent serves once the later one has stopped")
+                self._cond.wait(left)
         raise self.refusal()
 
     def refusal(self) -> AnotherAgentError:

@@ -119,25 +119,48 @@ def test_malformed_bytes_are_a_clear_error() -> None:
         m.decode(b"\x00\x01\x00\x00garbage", m.ODOMETRY)
 
 
+#: A best-effort publisher of ``/qos_fact`` in a process of its own: a dds transport never hears
+#: its own participant (runtime/dds_transport.py, ``_qos``).
+BEST_EFFORT_PUBLISHER = """
+import sys, time
+from objsearch.ros.qos import QoS, Reliability
+from objsearch.runtime import messages as m
+from objsearch.runtime.dds_transport import DdsTransport
+from objsearch.runtime.transport import Backend, TransportConfig
+
+t = DdsTransport(TransportConfig(Backend.DDS, domain_id=int(sys.argv[1])))
+pub = t.publisher("/qos_fact", m.STRING, QoS(Reliability.BEST_EFFORT))
+for _ in range(2400):
+    pub.publish(m.encode(m.string("x"), m.STRING))
+    time.sleep(0.05)
+"""
+
+
 def test_dds_qos_mismatch_never_matches() -> None:
     """A best-effort writer never meets a reliable reader (ROS 2's QoS compatibility rule)."""
     import os
+    import subprocess
+    import sys
 
     from objsearch.runtime.dds_transport import DdsTransport
     from objsearch.runtime.transport import Backend, TransportConfig
 
-    t = DdsTransport(TransportConfig(Backend.DDS, domain_id=201 + os.getpid() % 30))
+    domain = 201 + os.getpid() % 30
+    t = DdsTransport(TransportConfig(Backend.DDS, domain_id=domain))
+    publisher = subprocess.Popen([sys.executable, "-c", BEST_EFFORT_PUBLISHER, str(domain)])
     try:
         got: dict[str, list[bytes]] = {"reliable": [], "best_effort": []}
         t.subscribe("/qos_fact", m.STRING, DEFAULT, got["reliable"].append)
         t.subscribe("/qos_fact", m.STRING, QoS(Reliability.BEST_EFFORT), got["best_effort"].append)
-        pub = t.publisher("/qos_fact", m.STRING, QoS(Reliability.BEST_EFFORT))
-        deadline = time.monotonic() + 5
+        deadline = time.monotonic() + 120  # the publisher's interpreter starts first
         while not got["best_effort"] and time.monotonic() < deadline:
-            pub.publish(m.encode(m.string("x"), m.STRING))
+            assert publisher.poll() is None, "the publisher exited"
             time.sleep(0.05)
+        time.sleep(0.5)  # more of its samples, which the reliable reader must not get either
         assert got["best_effort"] and not got["reliable"]
     finally:
+        publisher.kill()
+        publisher.wait()
         t.close()
 
 
