@@ -65,6 +65,10 @@ PACKAGES = (
                 "ObjectHypothesisWithPose",
                 "Detection2D",
                 "Detection2DArray",
+                # A detector that gives positions in 3-D ([detections] input = "3d").
+                "BoundingBox3D",
+                "Detection3D",
+                "Detection3DArray",
             )
         ),
         ("std_msgs", "geometry_msgs"),

@@ -1,11 +1,14 @@
 """Scored detections from a detector node (runtime/detections_in.py): the stand-in robot sends
 its modelled detector's ``Detection3DArray`` in the camera's optical frame, the agent reads them
 through TF and camera info, a bag recorded of that session (rosbags, MCAP) replays through the
-offline pipeline (pipeline/bags/views.py) to the same decisions."""
+offline pipeline (pipeline/bags/views.py) to the same decisions; over ``--transport ros2`` a plain
+rclpy detector node's ``Detection3DArray`` reach the agent."""
 
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 import threading
 from pathlib import Path
 from typing import Any
@@ -23,7 +26,7 @@ from objsearch.runtime import messages as m
 from objsearch.runtime.client import AgentClient
 from objsearch.runtime.transport import open_transport
 
-from .runtime_fixtures import Net, objsearch, stop
+from .runtime_fixtures import STARTUP_S, Net, next_domain, objsearch, stop
 from .searches import client_config, find_after_reset, robot_config
 
 THREE_D = '[detections]\ninput = "3d"\n'
@@ -144,3 +147,60 @@ def test_a_recorded_bag_of_scored_3d_detections_replays_to_the_same_decisions(
     assert "no camera views could be read (vision_msgs/msg/Detection2DArray" in (
         capsys.readouterr().err
     )
+
+
+DETECTOR = Path(__file__).with_name("ros_detector.py")
+#: The stand-in robot's camera arrays go here, read only by the detector node of the test.
+RAW = "/camera/detections_raw"
+
+
+@pytest.mark.slow
+def test_a_plain_rclpy_detector_nodes_3d_detections_reach_the_agent_over_ros2(
+    tmp_path: Path,
+) -> None:
+    """``vision_msgs/Detection3DArray`` over ``--transport ros2`` (issue 45's seam; the type
+    support was not generated for rclpy before): the arrays the agent reads are published by a
+    ROS 2 node of plain rclpy (``ros_detector.py``, no objsearch module). The stand-in robot gives
+    odometry, TF, camera info and its camera's arrays, on a topic only that node reads."""
+    pytest.importorskip("rclpy")
+    domain = next_domain()
+    net = Net("ros2", ["--transport", "ros2", "--domain-id", str(domain)])
+    (tmp_path / "robot").mkdir()
+    (tmp_path / "agent").mkdir()
+    robot_toml = robot_config(tmp_path / "robot", f'{THREE_D}[topics]\ndetections = "{RAW}"\n')
+    detector = subprocess.Popen(
+        [sys.executable, str(DETECTOR), str(domain), RAW, "/objsearch/detections"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    robot = objsearch("robot", "sim", *net.args, *robot_toml, log=tmp_path / "robot.txt")
+    agent = objsearch(
+        "agent",
+        "run",
+        *net.args,
+        *robot_config(tmp_path / "agent", THREE_D),
+        "--log",
+        str(tmp_path / "log"),
+        log=tmp_path / "agent.txt",
+    )
+    results = []
+    try:
+        assert detector.stdout is not None and detector.stdout.readline() == "ready\n"
+        with AgentClient(client_config(net)) as client:
+            for scene, target, start in TRIALS:
+                r = find_after_reset(client, scene, target, start)
+                assert r["ok"], (r, (tmp_path / "agent.txt").read_text()[-3000:])
+                results.append(r)
+    finally:
+        stop(agent)
+        stop(robot)
+        out, _ = detector.communicate(timeout=STARTUP_S)
+    published = json.loads(out.strip().splitlines()[-1])
+    assert published["objsearch_modules"] == []  # the detector is a ROS user's node
+    assert published["arrays"] > 0 and published["detections"] > 0, published
+    live = list(read_log(tmp_path / "log", store=STORE))
+    detections = [e.payload for e in live if e.type == "detection"]
+    assert detections, "the agent took no detection from the detector node"
+    assert {d["object_class"] for d in detections} >= {"Cup", "Apple"}, detections
+    assert all(r["success"] for r in results), results
