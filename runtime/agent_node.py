@@ -202,6 +202,11 @@ class AgentNode:
             self.node.close()
             self._close_live()
             raise
+        self._interfaces(config)
+
+    def _interfaces(self, config: RuntimeConfig) -> None:
+        """The robot's link and world, and what the agent serves: the find and where requests,
+        the FindObject action and the Where service (none of them taken before :meth:`run`)."""
         self.link = RobotLink(self.node, config)
         self.world = RosWorld(self.link, self.ctx.navmap)
         t = config.topics

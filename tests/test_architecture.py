@@ -532,7 +532,6 @@ OVERSIZED_MODULES: Mapping[str, str] = {
 LONG_FUNCTIONS: Mapping[str, str] = {
     "objsearch.agent.policy._Task.confirm": "issue 45: the sequential confirmation test",
     "objsearch.agent.where.answer": "issue 45: where's answer under uncertainty changes this session",
-    "objsearch.runtime.agent_node.AgentNode.__init__": "issue 43: one agent per robot (oneagent)",
     "objsearch.experiments.report_rearr.render_rearr": "issue 47: the results tables change",
     "objsearch.experiments.table1_sets.run_table1_sets": "issue 47: the results tables change",
     "objsearch.experiments.route_map.plot_route_map": "issue 47: the results figures change",
