@@ -157,10 +157,19 @@ RUNNABLE_EXPERIMENTS = (
 )
 #: Its non-learned agents, by its names; its metrics module shows memorization as "Myopic",
 #: upper_bound as "Oracle" (oracle_upper_bound also knows every position at a scene's start).
-THEIR_AGENTS = ("random", "priors", "frequentist", "memorization", "bayesian", "upper_bound")
+THEIR_AGENTS = (
+    "random",
+    "priors",
+    "frequentist",
+    "memorization",
+    "bayesian",
+    "upper_bound",
+)
 ALL_THEIR_AGENTS = (*THEIR_AGENTS, "oracle_upper_bound")
 #: Our agent's name in tables.
 OURS = "belief"
+#: What our agent takes a furniture node's class to be (:class:`BeliefAgent`).
+FURNITURE_KEYS = ("category", "label")
 #: Display names (its ``memsearch.metrics.rename``).
 DISPLAY = {
     "memorization": "myopic",
@@ -321,8 +330,14 @@ class BeliefAgent:
         *,
         prior_strength: float,
         half_life_scenes: float,
+        furniture_key: str = "category",
     ) -> None:
         from memsearch.graphs import NodeType
+
+        if furniture_key not in FURNITURE_KEYS:
+            raise ValueError(f"furniture_key {furniture_key!r}: one of {', '.join(FURNITURE_KEYS)}")
+        #: What a place's class is: its ``category`` (default) or its ``label`` (before).
+        self.furniture_key = furniture_key
 
         self._node_type = NodeType
         self.priors_graph = priors_graph
@@ -336,6 +351,8 @@ class BeliefAgent:
         self.seen_target = False
         self.seeded: set[str] = set()
         self.labels: dict[str, str] = {}
+        #: Rel₀ per object label in the current scene (its place classes are fixed per scene).
+        self._rel0_of: dict[str, dict[str, float]] = {}
         self.scene: Any = None
         self.looks = 0
         #: Places looked at in the last query that ended.
@@ -348,14 +365,14 @@ class BeliefAgent:
         self.belief = PlaceBelief(
             prior_strength=self.prior_strength, half_life_scenes=self.half_life_scenes
         )
-        self.seeded, self.labels = set(), {}
+        self.seeded, self.labels, self._rel0_of = set(), {}, {}
         self.target, self.queries = None, 0
         from memsearch.scene import get_edge_to_parent_node_by_type
 
         for node in scene.scene_graph.get_nodes(self._node_type.FURNITURE):
             edge, _ = get_edge_to_parent_node_by_type(node, self._node_type.ROOM)
             self.belief.places[node.unique_id] = Place(
-                node.unique_id, node.label, edge.node1.description
+                node.unique_id, self._class(node), edge.node1.description
             )
         self._seed(scene.scene_graph.get_nodes_with_type(self._node_type.OBJECT))
 
@@ -379,7 +396,7 @@ class BeliefAgent:
         d = query.description
         best, best_p = None, 0.0
         for node in options:
-            p = self.belief.instance_rel(d, node.unique_id, node.label)
+            p = self.belief.instance_rel(d, node.unique_id, self._class(node))
             if p > best_p:
                 best, best_p = node, p
         return best if best is not None else random.choice(options)
@@ -398,7 +415,14 @@ class BeliefAgent:
                 kept.append(child)
         self._seed(kept)
         for child in kept:
-            self._add(sighting(child.description, child.unique_id, node.unique_id, node.label))
+            self._add(
+                sighting(
+                    child.description,
+                    child.unique_id,
+                    node.unique_id,
+                    self._class(node),
+                )
+            )
             if child.description == self.target:
                 self.seen_target = True
 
@@ -414,7 +438,13 @@ class BeliefAgent:
         self.queries += 1
         self.target, self.seen_target, self.looks = query.description, False, 0
         self._add(
-            TaskStarted(target=self.target, start="", pose=_ORIGIN, scene=self.queries, clock=None)
+            TaskStarted(
+                target=self.target,
+                start="",
+                pose=_ORIGIN,
+                scene=self.queries,
+                clock=None,
+            )
         )
 
     def _seed(self, objects: Sequence[Any]) -> None:
@@ -426,16 +456,48 @@ class BeliefAgent:
         for o in new:
             self.seeded.add(o.description)
             self.labels[o.description] = o.label
-        furniture_labels = {p.static_class for p in self.belief.places.values()}
         values: list[SeedValue] = []
         for d in sorted(self.seeded):
-            rel: dict[str, float] = {}
-            for edge in self.priors_graph.get_edges_to(self.labels[d], self._node_type.FURNITURE):
-                label = edge.node1.label
-                if label in furniture_labels and edge.prob > 0:
-                    rel[label] = max(rel.get(label, 0.0), min(1.0, float(edge.prob)))
+            label = self.labels[d]
+            rel = self._rel0_of.get(label)
+            if rel is None:
+                rel = self._rel0_of[label] = self._rel0(label)
             values.extend(SeedValue(dynamic=d, static=s, rel=v) for s, v in sorted(rel.items()))
         self._add(SceneGraphSeeded(source="dhs priors graph", values=tuple(values)))
+
+    def _class(self, node: Any) -> str:
+        return str(node.category if self.furniture_key == "category" else node.label)
+
+    def _rel0(self, object_label: str) -> dict[str, float]:
+        """Rel₀(object, place class) for the place classes of this scene, from its priors graph.
+
+        By category (the default), as its Bayesian agent reads it (``init_dist_for_edge``): the
+        edge from the furniture's category node (``chair-kitchen``, ``arm_chair-bedroom``) to a
+        node of the object's label, the largest where several nodes carry the label (its
+        Bayesian takes the first that has an edge: the same number in the configs measured).
+        Its evolver draws moves from these category edges. By label (before): the largest edge
+        from any furniture node of that label, which merges a label's categories (its 42
+        furniture categories carry 21 labels) and ranked the evolver's targets worse
+        (docs/results-dhs.md, "Why its Bayesian led").
+        """
+        classes = {p.static_class for p in self.belief.places.values()}
+        rel: dict[str, float] = {}
+        if self.furniture_key == "label":
+            for edge in self.priors_graph.get_edges_to(object_label, self._node_type.FURNITURE):
+                label = edge.node1.label
+                if label in classes and edge.prob > 0:
+                    rel[label] = max(rel.get(label, 0.0), min(1.0, float(edge.prob)))
+            return rel
+        objects = self.priors_graph.get_nodes_with_label(object_label)
+        for category in classes:
+            furniture = self.priors_graph.get_node_with_category(category)
+            if furniture is None:
+                continue
+            for obj in objects:
+                edge = furniture.get_edge_to(obj)
+                if edge is not None and edge.prob > 0:
+                    rel[category] = max(rel.get(category, 0.0), min(1.0, float(edge.prob)))
+        return rel
 
     def _add(self, record: Record) -> None:
         self.seq += 1
@@ -465,6 +527,9 @@ class DhsJob:
     seed: int
     steps: int | None = None
     eps_per_scene: int | None = None
+    #: Our agent's place classes (:data:`FURNITURE_KEYS`): its furniture category, or its label
+    #: (the adapter before; kept for the A/B in docs/results-dhs.md).
+    furniture_key: str = "category"
 
 
 @dataclass
@@ -478,6 +543,8 @@ class AgentRun:
     #: Its code raised: the run stops there and its queries so far count (a run whose code
     #: raised on its first query has none, and no metrics: None).
     crash: str | None = None
+    #: The process that ran it: :func:`run_dhs` gives every (agent, seed) a fresh one.
+    pid: int = 0
 
     @property
     def mean_attempts(self) -> float | None:
@@ -503,14 +570,24 @@ class AgentRun:
         )
 
 
-def _make_agent(name: str, cfg: Any, sampler: Any, evolver: Any) -> Any:
+def _make_agent(
+    name: str, cfg: Any, sampler: Any, evolver: Any, furniture_key: str = "category"
+) -> Any:
     from memsearch.agents import make_agent
     from memsearch.graphs import load_priors_graph
     from memsearch.tasks import TaskType
 
     if name != OURS:
         return make_agent(
-            cfg.agents, name, TaskType.FIND_OBJECT, None, None, sampler, evolver, False, None
+            cfg.agents,
+            name,
+            TaskType.FIND_OBJECT,
+            None,
+            None,
+            sampler,
+            evolver,
+            False,
+            None,
         )
     from objsearch.agent.strategies import BELIEF
 
@@ -523,10 +600,17 @@ def _make_agent(name: str, cfg: Any, sampler: Any, evolver: Any) -> Any:
         float(cfg.agents.observation_prob),
         prior_strength=BELIEF.prior_strength,
         half_life_scenes=BELIEF.half_life_tasks,
+        furniture_key=furniture_key,
     )
 
 
-def run_agent(job: DhsJob) -> AgentRun:
+#: Called after each query its task scored, before the scene evolves: (its task, the agent, the
+#: query's object node, the query as scored, its task's ``info``). For diagnostics
+#: (``objsearch.experiments.dhs_changes``); it must not draw from ``random``.
+Watch = Callable[[Any, Any, Any, "Query", Mapping[str, Any]], None]
+
+
+def run_agent(job: DhsJob, watch: Watch | None = None) -> AgentRun:
     """One agent on one experiment config and seed: its eval loop (``random.seed(seed)``, then
     ``run`` with the find-object task), with our agent made by us and its by ``make_agent``."""
     root = Path(job.source)
@@ -549,11 +633,17 @@ def run_agent(job: DhsJob) -> AgentRun:
         find_object = tasks_mod.TaskType.FIND_OBJECT
         random.seed(job.seed)  # its eval_agent: random.seed(0) before run()
         sampler, evolver = scene_mod.make_scene_sampler_and_evolver(cfg.scene_gen)
-        agent = _make_agent(job.agent, cfg, sampler, evolver)
+        agent = _make_agent(job.agent, cfg, sampler, evolver, job.furniture_key)
         task = tasks_mod.make_task(
             sampler, evolver, find_object, eps_per_scene=cfg.task.eps_per_scene
         )
-        out = AgentRun(job.experiment, job.agent, job.seed, int(cfg.task.max_attempts))
+        out = AgentRun(
+            job.experiment,
+            job.agent,
+            job.seed,
+            int(cfg.task.max_attempts),
+            pid=os.getpid(),
+        )
         scene_num, current_scene, query_nodes = 0, None, None
         for _ in range(int(cfg.task.num_steps)):
             try:
@@ -577,6 +667,8 @@ def run_agent(job: DhsJob) -> AgentRun:
                 agent.receive_observation(obs)
                 found = int(score) <= out.max_attempts
                 out.queries.append(Query(scene_num, int(score), found, float(info["acc_cost"])))
+                if watch is not None:
+                    watch(task, agent, query_nodes, out.queries[-1], info)
                 if done:
                     query_nodes = task.reset()
                     agent.step()
@@ -647,8 +739,55 @@ def summarise(runs: Sequence[AgentRun]) -> dict[str, Any]:
                 "elapsed_s": round(math.fsum(r.elapsed_s for r in rs), 1),
                 "crashes": [f"seed {r.seed}: {r.crash}" for r in rs if r.crash],
             }
-        experiments[experiment] = {"agents": rows, "targets": _targets(rows)}
+        experiments[experiment] = {
+            "agents": rows,
+            "targets": _targets(rows),
+            "paired": _paired(agents),
+        }
     return {"pinned_commit": PINNED_COMMIT, "experiments": experiments}
+
+
+#: Two-sided 95 % quantiles of Student's t by degrees of freedom (1-30); above 30, 1.96 would
+#: be too narrow by under 4 %, so the 30's is used.
+_T95 = (
+    12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228,
+    2.201, 2.179, 2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086,
+    2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
+)  # fmt: skip
+
+
+def paired_ci(diffs: Sequence[float]) -> tuple[float, float] | None:
+    """The 95 % t interval of the mean of paired differences (None below two pairs)."""
+    n = len(diffs)
+    if n < 2:
+        return None
+    mean = statistics.fmean(diffs)
+    half = _T95[min(n - 1, len(_T95)) - 1] * statistics.stdev(diffs) / math.sqrt(n)
+    return (mean - half, mean + half)
+
+
+def _paired(agents: Mapping[str, Sequence[AgentRun]]) -> dict[str, Any]:
+    """Per agent of its: ours − its mean attempts, seed by seed (the seeds both answered), their
+    mean and 95 % t interval. A seed is the pair: after the first query the two meet different
+    scenes (each draws from the one random stream), so queries do not pair."""
+    if OURS not in agents:
+        return {}
+    ours = {r.seed: r.mean_attempts for r in agents[OURS] if r.mean_attempts is not None}
+    out: dict[str, Any] = {}
+    for agent, rs in agents.items():
+        if agent == OURS:
+            continue
+        theirs = {r.seed: r.mean_attempts for r in rs if r.mean_attempts is not None}
+        seeds = sorted(ours.keys() & theirs.keys())
+        diffs = [ours[s] - theirs[s] for s in seeds]
+        ci = paired_ci(diffs)
+        out[agent] = {
+            "seeds": seeds,
+            "diffs": [round(d, 4) for d in diffs],
+            "mean": _rounded(statistics.fmean(diffs)) if diffs else None,
+            "ci95": None if ci is None else [round(ci[0], 4), round(ci[1], 4)],
+        }
+    return out
 
 
 def _targets(rows: Mapping[str, Mapping[str, Any]]) -> dict[str, Any] | None:
@@ -678,6 +817,26 @@ def _targets(rows: Mapping[str, Mapping[str, Any]]) -> dict[str, Any] | None:
     }
 
 
+#: ``PYTHONHASHSEED`` of the processes that run the simulator.
+HASH_SEED = "0"
+
+
+@contextlib.contextmanager
+def _environ(**values: str) -> Iterator[None]:
+    """``os.environ`` with ``values`` set while the block runs (the processes it spawns inherit
+    them), as it was afterwards."""
+    before = {name: os.environ.get(name) for name in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for name, value in before.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
 def run_dhs(
     source: Path,
     *,
@@ -689,7 +848,14 @@ def run_dhs(
     workers: int = 1,
     progress: Callable[[AgentRun], None] | None = None,
 ) -> dict[str, Any]:
-    """Every (experiment, agent, seed), ``workers`` at a time, summarised."""
+    """Every (experiment, agent, seed), ``workers`` at a time, each in a fresh process, summarised.
+
+    A fresh process per run: its nodes hash by identity and its ids come from ``uuid4``, so a
+    run in a process that ran another before it meets its sets in another order (measured: a
+    seed moved by 0.1-0.33 attempts with what ran before it). Each process is spawned with
+    ``PYTHONHASHSEED=0`` (:data:`HASH_SEED`), so its string sets iterate alike too.
+    """
+    # Seed by seed, its agents beside ours: the pairs finish together.
     jobs = [
         DhsJob(str(source), e, a, s, steps, eps_per_scene)
         for e in experiments
@@ -698,21 +864,22 @@ def run_dhs(
     ]
     runs: list[AgentRun] = []
     started = time.perf_counter()
-    if workers <= 1:
-        for job in jobs:
-            runs.append(run_agent(job))
-            if progress:
-                progress(runs[-1])
-    else:
-        import concurrent.futures as cf
-        import multiprocessing
+    import concurrent.futures as cf
+    import multiprocessing
 
-        context = multiprocessing.get_context("spawn")
-        with cf.ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-            for run in pool.map(run_agent, jobs):
-                runs.append(run)
-                if progress:
-                    progress(run)
+    context = multiprocessing.get_context("spawn")
+    with (
+        _environ(PYTHONHASHSEED=HASH_SEED),
+        cf.ProcessPoolExecutor(
+            max_workers=max(1, min(workers, len(jobs))),
+            mp_context=context,
+            max_tasks_per_child=1,
+        ) as pool,
+    ):
+        for run in pool.map(run_agent, jobs):
+            runs.append(run)
+            if progress:
+                progress(run)
     summary = summarise(runs)
     summary["elapsed_s"] = round(time.perf_counter() - started, 1)
     summary["seeds"] = list(seeds)
@@ -736,7 +903,8 @@ def render(summary: Mapping[str, Any]) -> str:
         crashes = []
         # Agents whose every run crashed at once come last, with no metrics.
         ranked = sorted(
-            rows.items(), key=lambda kv: (kv[1]["attempts"] is None, kv[1]["attempts"] or 0)
+            rows.items(),
+            key=lambda kv: (kv[1]["attempts"] is None, kv[1]["attempts"] or 0),
         )
         for agent, row in ranked:
             name = DISPLAY.get(agent, agent)
@@ -755,7 +923,31 @@ def render(summary: Mapping[str, Any]) -> str:
         targets = block["targets"]
         if targets:
             lines.append("  " + _verdict(targets))
+        lines += _paired_lines(block.get("paired", {}))
     return "\n".join(lines)
+
+
+def _paired_lines(paired: Mapping[str, Any]) -> list[str]:
+    """Ours − each of its agents, seed by seed, with the 95 % t interval and what it says."""
+    if not paired:
+        return []
+    lines = ["  paired by seed, ours − its (attempts; below 0: ours needs fewer), 95 % t CI:"]
+    for agent, p in sorted(paired.items(), key=lambda kv: (kv[1]["mean"] is None, kv[1]["mean"])):
+        name = DISPLAY.get(agent, agent)
+        if p["mean"] is None:
+            lines.append(f"    {name:<14} no seed both answered")
+            continue
+        diffs = " ".join(f"{d:+.3f}" for d in p["diffs"])
+        if p["ci95"] is None:
+            verdict, ci = "one seed: no interval", ""
+        else:
+            lo, hi = p["ci95"]
+            ci = f" [{lo:+.3f}, {hi:+.3f}]"
+            verdict = "ours ahead" if hi < 0 else "ours behind" if lo > 0 else "CI includes 0"
+        lines.append(
+            f"    {name:<14} {p['mean']:+.3f}{ci}  {verdict}  ({len(p['seeds'])} seeds: {diffs})"
+        )
+    return lines
 
 
 def _verdict(targets: Mapping[str, Any]) -> str:

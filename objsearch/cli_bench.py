@@ -590,8 +590,10 @@ def _add_dhs(bsub: Any) -> None:
         "(docs/results-dhs.md)",
         description="Runs the find-object task of the Dynamic House Simulator (Kurenkov et al., "
         "ICML 2023; a checkout of andreykurenkov/modeling_env_dynamics at the pinned commit, "
-        "checked file by file) with its non-learned agents and our belief, and prints its "
-        "metrics: attempts to find (not found within 10 counts 11), share found, travel cost.",
+        "checked file by file) with its non-learned agents and our belief, each (agent, seed) in "
+        "a fresh process, and prints its metrics: attempts to find (not found within 10 counts "
+        "11), share found, travel cost; then ours minus each of its agents seed by seed, with a "
+        "95 % t interval.",
     )
     dhs.add_argument(
         "--source",

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from objsearch.agent.belief import PlaceBelief
+from objsearch.agent.belief import Place, PlaceBelief
 from objsearch.agent.errors import ObjsearchError
 from objsearch.experiments import dhs
 
@@ -191,3 +191,103 @@ def test_a_run_whose_code_raised_on_its_first_query_is_a_crash_not_an_error() ->
     alone = dhs.summarise([_run("bayesian", 0, [], crash=raised)])
     assert alone["experiments"]["agent_ok_priors"]["targets"] is None
     assert "crashed" in dhs.render(alone)
+
+
+def test_paired_differences_are_per_seed_with_a_t_interval() -> None:
+    # Ours − its bayesian per seed: -0.2, -0.2, -0.3 (mean -0.233, sd 0.0577; t(2) 4.303).
+    runs = [
+        _run(dhs.OURS, 0, [2] * 10),
+        _run(dhs.OURS, 1, [3] * 10),
+        _run(dhs.OURS, 2, [1] * 10),
+        _run("bayesian", 0, [2] * 8 + [3] * 2),
+        _run("bayesian", 1, [3] * 8 + [4] * 2),
+        _run("bayesian", 2, [1] * 7 + [2] * 3),
+        _run("random", 0, [9, 9]),
+    ]
+    summary = dhs.summarise(runs)
+    paired = summary["experiments"]["agent_ok_priors"]["paired"]
+    bayes = paired["bayesian"]
+    assert bayes["seeds"] == [0, 1, 2]
+    assert bayes["diffs"] == pytest.approx([-0.2, -0.2, -0.3])
+    mean, half = -0.7 / 3, 4.303 * (0.01 / 3) ** 0.5 / 3**0.5
+    assert bayes["mean"] == pytest.approx(mean, abs=1e-4)
+    assert bayes["ci95"] == pytest.approx([mean - half, mean + half], abs=1e-4)
+    # One seed in common: a difference, no interval.
+    assert paired["random"]["diffs"] == pytest.approx([-7.0]) and paired["random"]["ci95"] is None
+    text = dhs.render(summary)
+    assert "paired by seed, ours − its" in text
+    line = next(x for x in text.splitlines() if x.split()[:1] == ["bayesian"] and "[" in x)
+    assert "ours ahead" in line and "3 seeds" in line
+    assert "one seed: no interval" in text
+
+
+def test_an_interval_that_straddles_zero_says_so() -> None:
+    assert dhs.paired_ci([0.1]) is None
+    lo, hi = dhs.paired_ci([0.1, -0.1, 0.05])  # type: ignore[misc]
+    assert lo < 0 < hi
+    lines = dhs._paired_lines(
+        {
+            "bayesian": {
+                "seeds": [0, 1, 2],
+                "diffs": [0.1, -0.1, 0.05],
+                "mean": 0.0167,
+                "ci95": [lo, hi],
+            }
+        }
+    )
+    assert "CI includes 0" in lines[1]
+
+
+@pytest.mark.slow
+def test_every_agent_and_seed_runs_in_a_fresh_process() -> None:
+    source = _source()
+    summary_runs: list[dhs.AgentRun] = []
+    dhs.run_dhs(
+        source,
+        experiments=["small_scenes"],
+        agents=["random", dhs.OURS],
+        seeds=[0, 1],
+        steps=3,
+        workers=1,
+        progress=summary_runs.append,
+    )
+    pids = [r.pid for r in summary_runs]
+    assert len(pids) == 4 and len(set(pids)) == 4 and os.getpid() not in pids
+
+
+def test_our_rel0_is_the_edge_its_bayesian_reads_per_furniture_category() -> None:
+    source = _source()
+    with dhs._their_code(source):
+        from memsearch.agents import BayesianAgent
+        from memsearch.graphs import NodeType, load_priors_graph
+        from memsearch.tasks import TaskType
+
+        graph = load_priors_graph("detailed")
+        for node in graph.nodes:
+            node.normalize_edges_to_me()
+        agent = dhs.BeliefAgent(graph, 0.75, prior_strength=1.0, half_life_scenes=3.0)
+        furniture = graph.get_nodes_with_type(NodeType.FURNITURE)
+        for node in furniture:
+            agent.belief.places[node.category] = Place(node.category, node.category, "room")
+        bayesian = BayesianAgent(graph, TaskType.FIND_OBJECT, 0.75, 0.05)
+        differ = 0
+        for label in ("mug", "apple", "smartphone", "book"):
+            obj = graph.get_nodes_with_label(label)[0]
+            rel = agent._rel0(label)
+            bayesian.beta_distributions = {obj.description: {}}
+            by_label: dict[str, set[float]] = {}
+            for node in furniture:
+                bayesian.init_dist_for_edge(obj, node)
+                dist = bayesian.beta_distributions[obj.description][node]
+                theirs = 0.0 if dist is None else float(dist.get_mean())
+                assert rel.get(node.category, 0.0) == pytest.approx(theirs, abs=1e-9), node.category
+                by_label.setdefault(node.label, set()).add(round(theirs, 9))
+            differ += sum(len(v) > 1 for v in by_label.values())
+        # Categories of one label carry different edges: a label-keyed prior merged them.
+        assert differ > 0
+        labelled = dhs.BeliefAgent(
+            graph, 0.75, prior_strength=1.0, half_life_scenes=3.0, furniture_key="label"
+        )
+        for node in furniture:
+            labelled.belief.places[node.label] = Place(node.label, node.label, "room")
+        assert set(labelled._rel0("mug")) <= {n.label for n in furniture}
