@@ -16,6 +16,7 @@ fresh process, the log's first and the lake's right after it: ``objsearch where 
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import statistics
 import subprocess
@@ -49,6 +50,10 @@ def measured(*argv: str) -> tuple[float, float]:
     return float(cpu), int(kb) / 1024
 
 
+def _load() -> str:
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--events", type=int, default=1_000_000)
@@ -66,6 +71,7 @@ def main() -> int:
         }
         print(f"where / replay from a lake run vs its log: {args.events} events, {args.reps} reps")
         print(f"  command: python benchmarks/lake_read_cost.py {' '.join(sys.argv[1:])}".rstrip())
+        print(f"  load average at start: {_load()}")
         ok = True
         for name, (head, tail) in commands.items():
             runs: dict[str, list[tuple[float, float]]] = {"log": [], "lake": []}
@@ -90,6 +96,7 @@ def main() -> int:
             print(f"    lake / log: CPU {cpu_ratio:.2f}x (pairs' median {cpu_pairs:.2f}x; target "
                   f"<= 1.5x), memory {mem_ratio:.2f}x (pairs' median {mem_pairs:.2f}x; target <= 2x)")  # fmt: skip
             ok = ok and cpu_ratio <= 1.5 and mem_ratio <= 2.0
+        print(f"\n  load average at end: {_load()} (the machine may be shared: compare the pairs)")
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return 0 if ok else 1
