@@ -192,7 +192,12 @@ def calibration_lines(rows: Sequence[Row]) -> list[str]:
                 )
             ]
             brier = math.fsum(float(r.belief_brier or 0.0) for r in scored) / len(scored)
-            every_cell = "– (not recorded)" if not every else f"{ece(every):.4f}"
+            unrecorded = sum(r.belief_others is None for r in scored)
+            every_cell = (
+                f"– (not recorded for {unrecorded} of {len(scored)})"
+                if unrecorded
+                else f"{ece(every):.4f}"
+            )
             lines.append(
                 f"| {s} | {name} | {len(scored)} | {every_cell} | {ece(top):.4f} | {brier:.4f} |"
             )

@@ -84,6 +84,10 @@ def test_ece_over_every_place_bins_each_places_probability() -> None:
     ]  # fmt: skip
     table = "\n".join(calibration_lines(rows))
     assert "| global-belief+cover | pooled | 4 | 0.3333 | 0.5000 | 0.3750 |" in table
+    # A run written before every place was recorded: no every-place ECE of the rest alone.
+    rows[0] = replace(rows[0], belief_others=None)
+    table = "\n".join(calibration_lines(rows))
+    assert "| global-belief+cover | pooled | 4 | – (not recorded for 1 of 4) | 0.5000 |" in table
 
 
 def test_the_default_changes_only_for_a_strategy_lower_with_a_ci_excluding_one() -> None:
