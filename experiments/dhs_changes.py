@@ -16,7 +16,9 @@ the agent searches) against where the object was when a place the agent tried la
   (its evolver adds objects in large scenes);
 - ``never in view``: there since the scene's first query, never in a place the agent tried;
 - ``replaced``: in view before, but as another object node with the same description (the one
-  seen was removed, one alike was added): the description is the identity its task asks for;
+  seen was removed and one alike added, or two alike are in the scene: its descriptions repeat,
+  and this kind is 9-11 % of small scenes' queries, where nothing is added or removed); the
+  description is the identity its task asks for;
 - ``moved``: the same node, now at another piece of furniture;
 - ``stayed``: the same node at the same furniture.
 
