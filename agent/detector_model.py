@@ -48,6 +48,11 @@ SIMILAR: Final[Mapping[str, tuple[str, ...]]] = {
     "Phone": ("Laptop", "RemoteControl"),
 }
 PRESETS: Final = ("perfect", "realistic", "harsh")
+#: How a confirming look's report or miss counts against a sighting (docs/perception.md, "The
+#: consistent confirmation model"): ``score`` (the committed rule) takes a report by its score's
+#: likelihood ratio alone and a miss by the detector's miss probability; ``consistent`` takes
+#: both against the chance ``fp_recurrence`` that a false report recurs at the same spot.
+CONFIRMATIONS: Final = ("score", "consistent")
 #: The search camera's focal length (px): 640×480 at a 90° horizontal field of view.
 FOCAL_PX: Final = 320.0
 #: Nearer than this the mask estimate is capped (the camera then sees the whole object anyway).
@@ -62,6 +67,7 @@ OVERRIDES: Final[Mapping[str, tuple[float, float]]] = {
     "confusion": (0.0, 1.0),
     "occluded_recall": (0.0, 1.0),
     "accept_posterior": (0.5, 1.0),
+    "fp_recurrence": (0.01, 0.99),
 }
 
 
@@ -90,6 +96,10 @@ class PerceptionModel:
     fp_score: tuple[float, float] = (1.5, 4.0)
     #: Posterior P(real) at which the agent takes a sighting as confirmed.
     accept_posterior: float = 0.99
+    #: The confirmation model (:data:`CONFIRMATIONS`) and, for ``consistent``, q: P(a false
+    #: report recurs at the same spot on a look again). A choice, not a published figure.
+    confirmation: str = "score"
+    fp_recurrence: float = 0.1
 
     def __post_init__(self) -> None:
         if self.preset not in PRESETS:
@@ -115,6 +125,14 @@ class PerceptionModel:
             )
         if min(*self.tp_score, *self.fp_score) <= 0:
             raise ObjsearchError("perception score shapes must be > 0")
+        if self.confirmation not in CONFIRMATIONS:
+            raise ObjsearchError(
+                f"unknown confirmation {self.confirmation!r}; choose from {', '.join(CONFIRMATIONS)}"
+            )
+        if not 0.0 < self.fp_recurrence < 1.0:
+            raise ObjsearchError(
+                f"perception fp_recurrence must be in (0, 1), not {self.fp_recurrence}"
+            )
 
     @property
     def perfect(self) -> bool:
@@ -155,6 +173,24 @@ class PerceptionModel:
             return 0.0
         return math.exp(_log_beta_pdf(u, *self.tp_score) - _log_beta_pdf(u, *self.fp_score))
 
+    def look_ratio(self, mask_px: float, score: float | None) -> float:
+        """The factor one confirming look multiplies a sighting's odds by: a report of it at
+        ``score`` (None: none), the object expected to show ``mask_px`` pixels, taken as
+        occluded (the agent cannot tell how much of it is hidden): r = :meth:`recall` there.
+
+        ``score``: a report counts by its score's likelihood ratio alone, a miss by 1 − r.
+        ``consistent``: P(what was seen | real) / P(what was seen | false) for both, a false
+        report recurring at the spot with probability q = ``fp_recurrence``: a report
+        r · p(score | true) / (q · p(score | false)), a miss (1 − r) / (1 − q)."""
+        r = self.recall(mask_px, visible=0.0)
+        if self.confirmation == "score":
+            return 1.0 - r if score is None else self.likelihood_ratio(score)
+        q = self.fp_recurrence
+        if score is None:
+            return (1.0 - r) / (1.0 - q)
+        ratio = self.likelihood_ratio(score)
+        return ratio if math.isinf(ratio) and r > 0 else r / q * ratio
+
     def posterior(self, odds: float) -> float:
         """P(real) from the odds of real against false."""
         return 1.0 if math.isinf(odds) else odds / (1.0 + odds)
@@ -166,10 +202,13 @@ class PerceptionModel:
     # -- the run spec -------------------------------------------------------------------------
 
     def params(self) -> dict[str, Any]:
-        """As the run spec records it (``params.perception``)."""
+        """As the run spec records it (``params.perception``); the ``score`` confirmation is
+        left out, so a run spec is what it was before the option."""
         doc = asdict(self)
         doc["tp_score"] = list(self.tp_score)
         doc["fp_score"] = list(self.fp_score)
+        if self.confirmation == "score":
+            del doc["confirmation"], doc["fp_recurrence"]
         return doc
 
     @classmethod
@@ -218,12 +257,13 @@ def _log_beta_pdf(u: float, a: float, b: float) -> float:
     )
 
 
-def preset(name: str, **overrides: float) -> PerceptionModel:
+def preset(name: str, confirmation: str = "score", **overrides: float) -> PerceptionModel:
     """A preset, with some parameters overridden (:data:`OVERRIDES`).
 
     ``realistic``: Mask R-CNN's COCO recall by size bin (:data:`MASK_RCNN_RECALL`), 0.1 false
     positives of the vocabulary per view, 5 % confusions, occluded objects at half recall;
-    ``harsh``: half its recall and twice its false positives and confusions."""
+    ``harsh``: half its recall and twice its false positives and confusions; ``confirmation``
+    names the confirmation model (:data:`CONFIRMATIONS`)."""
     if name not in PRESETS:
         raise ObjsearchError(
             f"unknown perception preset {name!r}; choose from {', '.join(PRESETS)}"
@@ -250,4 +290,4 @@ def preset(name: str, **overrides: float) -> PerceptionModel:
             raise ObjsearchError(f"perception {key} must be in [{low}, {high}], not {value}")
     for key, value in overrides.items():
         model = replace(model, **{key: float(value)})  # type: ignore[arg-type]
-    return model
+    return replace(model, confirmation=confirmation)

@@ -956,10 +956,10 @@ class _Task:
         Otherwise it is a sequential test: from those odds times its score's likelihood ratio,
         the robot looks at the object again, in turn from the :data:`CONFIRM_VIEWPOINTS`
         viewpoints it was seen from or nearest it, at most :data:`CONFIRM_LOOKS` looks: a
-        detection of the target there multiplies the odds by its own ratio, none by the
-        detector's miss probability for the mask the object would show from there, occluded
-        (the agent cannot tell how much of it is hidden; the unoccluded miss rejected true
-        sightings that were partly hidden). It is
+        detection of the target there or none multiplies the odds by the model's
+        :meth:`~PerceptionModel.look_ratio` for the mask the object would show from there,
+        occluded (the agent cannot tell how much of it is hidden; the unoccluded miss rejected
+        true sightings that were partly hidden). It is
         confirmed once P(real) reaches the model's ``accept_posterior``, rejected when it falls
         below :data:`REJECT_BELOW` or the looks run out; its odds stay with its place for the
         rest of the task. A sighting of the target elsewhere during the looks is queued.
@@ -1021,12 +1021,9 @@ class _Task:
                 key=lambda d: math.dist(d.position, found.position),
                 default=None,
             )
-            if again is None:
-                here = math.dist((pose.x, pose.y, 1.0), (px, py, pz))
-                expected = found.mask_area * (seen_from / max(here, 0.1)) ** 2
-                odds *= model.miss(expected, visible=0.0)
-            else:
-                odds *= model.likelihood_ratio(again.score)
+            here = math.dist((pose.x, pose.y, 1.0), (px, py, pz))
+            expected = found.mask_area * (seen_from / max(here, 0.1)) ** 2
+            odds *= model.look_ratio(expected, None if again is None else again.score)
             verdict = model.posterior(odds) >= model.accept_posterior
             for d in dets:
                 hit = self.detection(d, room, sure=verdict if d is again else None)

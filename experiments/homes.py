@@ -240,6 +240,8 @@ def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
 
     base = preset(str(perception["preset"])).params()
     changed = {k: perception[k] for k in OVERRIDES if perception.get(k) != base.get(k)}
+    if "confirmation" in perception:
+        changed["confirmation"] = perception["confirmation"]
     return {"perception": perception["preset"], **changed}
 
 

@@ -156,7 +156,7 @@ def perception_option(p: argparse.ArgumentParser) -> None:
 
 
 def _add_perception_options(p: argparse.ArgumentParser) -> None:
-    from objsearch.agent.detector_model import OVERRIDES, PRESETS
+    from objsearch.agent.detector_model import CONFIRMATIONS, OVERRIDES, PRESETS
 
     p.add_argument(
         "--perception",
@@ -173,6 +173,7 @@ def _add_perception_options(p: argparse.ArgumentParser) -> None:
         "confusion": "probability that a detection carries a similar class",
         "occluded_recall": "recall factor of an object less than half visible",
         "accept_posterior": "P(real) at which a sighting is confirmed",
+        "fp_recurrence": "with --confirmation consistent: P(a false report recurs at its spot)",
     }
     for name, (low, high) in OVERRIDES.items():
         p.add_argument(
@@ -181,6 +182,15 @@ def _add_perception_options(p: argparse.ArgumentParser) -> None:
             metavar="X",
             help=f"{helps[name]}, {low:g}-{high:g} (the preset's)",
         )
+    p.add_argument(
+        "--confirmation",
+        type=text,
+        choices=CONFIRMATIONS,
+        default=CONFIRMATIONS[0],
+        help="how a confirming look counts: score (a report by its score alone, a miss by the "
+        "miss probability) or consistent (both against the chance --fp-recurrence that a false "
+        "report recurs at its spot) (score)",
+    )
 
 
 def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
@@ -191,7 +201,11 @@ def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
     overrides = {
         name: value for name in OVERRIDES if (value := getattr(args, name, None)) is not None
     }
-    model = preset(getattr(args, "perception", "perfect"), **overrides)
+    model = preset(
+        getattr(args, "perception", "perfect"),
+        getattr(args, "confirmation", "score"),
+        **overrides,
+    )
     return None if model.perfect else model.params()
 
 

@@ -145,3 +145,30 @@ def test_long_commands_take_no_progress(command: list[str], tmp_path: Path) -> N
     argv = [c.replace("LOG", str(tmp_path)) for c in command]
     args = build_parser().parse_args([*argv, "--no-progress"])
     assert args.no_progress is True
+
+
+@pytest.mark.parametrize(
+    "command", [["bench", "homes"], ["search", "Apple", "--start", "kitchen-1"]]
+)
+def test_the_confirmation_model_is_an_option_recorded_in_the_run_spec(command: list[str]) -> None:
+    from objsearch.cli import build_parser
+
+    parse = build_parser().parse_args
+    default = t.perception_params(parse([*command, "--perception", "realistic"]))
+    assert default is not None and "confirmation" not in default
+    args = parse(
+        [
+            *command,
+            "--perception",
+            "harsh",
+            "--confirmation",
+            "consistent",
+            "--fp-recurrence",
+            "0.3",
+        ]
+    )
+    chosen = t.perception_params(args)
+    assert chosen is not None
+    assert (chosen["confirmation"], chosen["fp_recurrence"]) == ("consistent", 0.3)
+    with pytest.raises(SystemExit):
+        parse([*command, "--confirmation", "sometimes"])

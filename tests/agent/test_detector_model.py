@@ -56,3 +56,37 @@ def test_the_run_spec_round_trips_and_bad_values_are_refused() -> None:
         preset("realistic", recall_scale=1.5)
     with pytest.raises(ObjsearchError, match="unknown perception parameter"):
         PerceptionModel.from_params({"recall": 1.0})
+
+
+def test_the_consistent_confirmation_counts_a_look_against_a_recurring_false_report() -> None:
+    # A sequence of confirming looks at a small object (900 px, taken as occluded: r = 0.323 / 2)
+    # from prior odds 2: a report at 0.8, a miss, a report at 0.7. The score rule counts a report
+    # by its score alone and a miss by 1 - r; the consistent one, with q = 0.3, a report by
+    # r / q times its score's ratio and a miss by (1 - r) / (1 - q).
+    score, consistent = preset("realistic"), preset("realistic", "consistent", fp_recurrence=0.3)
+    r = MASK_RCNN_RECALL[0] * 0.5
+    looks: list[float | None] = [0.8, None, 0.7]
+    by_score = by_consistent = 2.0
+    for s in looks:
+        by_score *= score.look_ratio(900.0, s)
+        by_consistent *= consistent.look_ratio(900.0, s)
+    lr8, lr7 = score.likelihood_ratio(0.8), score.likelihood_ratio(0.7)
+    assert by_score == pytest.approx(2.0 * lr8 * (1 - r) * lr7)
+    assert by_consistent == pytest.approx(2.0 * (r / 0.3) ** 2 * lr8 * lr7 * (1 - r) / 0.7)
+    # A score of 1 stays certain; a large object's report is stronger evidence than a small one's.
+    assert consistent.look_ratio(900.0, 1.0) == math.inf
+    assert consistent.look_ratio(LARGE_PX, 0.8) > consistent.look_ratio(900.0, 0.8)
+
+
+def test_the_confirmation_is_recorded_only_when_it_is_not_the_committed_rule() -> None:
+    # Run specs of the score rule are what they were before the option (golden logs, set A).
+    assert "confirmation" not in preset("realistic").params()
+    assert "fp_recurrence" not in preset("realistic", fp_recurrence=0.5).params()
+    model = preset("harsh", "consistent", fp_recurrence=0.5)
+    doc = model.params()
+    assert doc["confirmation"] == "consistent" and doc["fp_recurrence"] == 0.5
+    assert PerceptionModel.from_params(doc) == model
+    with pytest.raises(ObjsearchError, match="unknown confirmation"):
+        preset("realistic", "sometimes")
+    with pytest.raises(ObjsearchError, match="fp_recurrence must be in"):
+        preset("realistic", "consistent", fp_recurrence=1.0)

@@ -8,6 +8,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from objsearch.agent.catalogue import STORE, Detected, Record
 from objsearch.agent.detector_model import PerceptionModel, preset
 from objsearch.agent.geometry import Pose
@@ -390,3 +392,46 @@ def test_a_false_report_at_the_place_the_target_surely_is_is_no_find() -> None:
         r for r in sink.records if isinstance(r, Detected) and r.instance_id == "false:fridge"
     ]
     assert planted and not any(r.accepted for r in planted)
+
+
+def _rejected_on_the_stove(tmp_path: Path, model: PerceptionModel) -> dict[str, Any]:
+    ctx = load_context("paper")
+    placements = base_placements(ctx.home, frozenset())
+    session = Session.start(ctx, tmp_path, _spec(model), wall_clock=lambda: FIXED_WALL_CLOCK_NS)
+    try:
+        world = SimWorld(
+            ctx.home,
+            ctx.navmap,
+            placements,
+            ctx.home.start("kitchen-1"),
+            detector=PlantedOnTheStove(model, 0, ()),
+        )
+        result = session.search(world, "Apple", "kitchen-1")
+    finally:
+        session.close()
+    assert result.success and world.is_instance_of(result.found_instance, "Apple")
+    events = list(read_log(tmp_path, store=STORE))
+    (rejected,) = [e.payload for e in events if e.type == "sighting_rejected"]
+    started = next(e for e in events if e.type == "run_started")
+    assert started.payload["params"]["perception"] == model.params()
+    return dict(rejected)
+
+
+def test_the_consistent_confirmation_counts_each_miss_against_a_recurring_false_report(
+    tmp_path: Path,
+) -> None:
+    # The false Apple on the stove (900 px, seen once) is missed at every confirming look from
+    # where it was seen. The score rule multiplies its odds by 1 - r at each; the consistent
+    # one by (1 - r) / (1 - q): the same looks leave odds (1 - q)^-looks times higher, and the
+    # run spec records the rule (so a replay runs it).
+    score = _rejected_on_the_stove(tmp_path / "score", preset("realistic"))
+    q = 0.1
+    model = preset("realistic", "consistent", fp_recurrence=q)
+    consistent = _rejected_on_the_stove(tmp_path / "consistent", model)
+    assert score["looks"] == consistent["looks"] >= 1
+
+    def odds(p: float) -> float:
+        return p / (1 - p)
+
+    expected = odds(score["posterior"]) / (1 - q) ** score["looks"]
+    assert odds(consistent["posterior"]) == pytest.approx(expected, rel=1e-4)
