@@ -475,7 +475,9 @@ class BeliefAgent:
         edge from the furniture's category node (``chair-kitchen``, ``arm_chair-bedroom``) to a
         node of the object's label, the largest where several nodes carry the label (its
         Bayesian takes the first that has an edge: the same number in the configs measured).
-        Its evolver draws moves from these category edges. By label (before): the largest edge
+        Its evolver draws moves from these category edges. Its coarse priors graph
+        (``agent_ok_priors``) has categories without the room: there the category's first part.
+        By label (before): the largest edge
         from any furniture node of that label, which merges a label's categories (its 42
         furniture categories carry 21 labels) and ranked the evolver's targets worse
         (docs/results-dhs.md, "Why its Bayesian led").
@@ -490,7 +492,11 @@ class BeliefAgent:
             return rel
         objects = self.priors_graph.get_nodes_with_label(object_label)
         for category in classes:
-            furniture = self.priors_graph.get_node_with_category(category)
+            # Its coarse priors (agent_ok_priors) name a category without its room
+            # (``arm_chair`` for ``arm_chair-bedroom``): every detailed category has one.
+            furniture = self.priors_graph.get_node_with_category(
+                category
+            ) or self.priors_graph.get_node_with_category(category.split("-")[0])
             if furniture is None:
                 continue
             for obj in objects:

@@ -291,3 +291,26 @@ def test_our_rel0_is_the_edge_its_bayesian_reads_per_furniture_category() -> Non
         for node in furniture:
             labelled.belief.places[node.label] = Place(node.label, node.label, "room")
         assert set(labelled._rel0("mug")) <= {n.label for n in furniture}
+
+
+def test_with_its_coarse_priors_our_categories_find_their_roomless_category() -> None:
+    # agent_ok_priors gives the agents its coarse graph, whose categories carry no room
+    # (arm_chair, not arm_chair-bedroom): without the fallback every Rel₀ was 0 there.
+    source = _source()
+    with dhs._their_code(source):
+        from memsearch.graphs import NodeType, load_priors_graph
+
+        detailed, coarse = load_priors_graph("detailed"), load_priors_graph("coarse")
+        for node in coarse.nodes:
+            node.normalize_edges_to_me()
+        agent = dhs.BeliefAgent(coarse, 0.75, prior_strength=1.0, half_life_scenes=3.0)
+        categories = {n.category for n in detailed.get_nodes_with_type(NodeType.FURNITURE)}
+        for category in categories:
+            agent.belief.places[category] = Place(category, category, "room")
+        rel = agent._rel0("mug")
+        assert rel and set(rel) <= categories
+        roomless = coarse.get_node_with_category("arm_chair")
+        mug = coarse.get_nodes_with_label("mug")
+        edges = [e.prob for o in mug for e in [roomless.get_edge_to(o)] if e is not None]
+        if edges and max(edges) > 0:
+            assert rel["arm_chair-bedroom"] == pytest.approx(min(1.0, max(edges)))
