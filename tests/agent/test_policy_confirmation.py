@@ -36,6 +36,24 @@ def _spec(model: PerceptionModel, strategy: str = "wpl") -> RunSpec:
     return spec
 
 
+def _search_paper_apple(
+    tmp_path: Path, model: PerceptionModel, detector: NoisyDetector
+) -> tuple[Any, SimWorld, list[Any]]:
+    """Search the paper home for its Apple from kitchen-1 with ``detector``: the result, the
+    world and the events of the run's log."""
+    ctx = load_context("paper")
+    placements = base_placements(ctx.home, frozenset())
+    session = Session.start(ctx, tmp_path, _spec(model), wall_clock=lambda: FIXED_WALL_CLOCK_NS)
+    try:
+        world = SimWorld(
+            ctx.home, ctx.navmap, placements, ctx.home.start("kitchen-1"), detector=detector
+        )
+        result = session.search(world, "Apple", "kitchen-1")
+    finally:
+        session.close()
+    return result, world, list(read_log(tmp_path, store=STORE))
+
+
 class UnsureAtFirst(NoisyDetector):
     """Reports what the camera shows at score 0.99, but the Apple at 0.6 the first time (a score
     that says little) and at 0.95 after: a sighting that needs one confirming look."""
@@ -72,20 +90,8 @@ def test_a_confirming_look_at_a_sighting_inside_a_container_opens_it(tmp_path: P
     placements = base_placements(ctx.home, frozenset())
     (apple,) = [p for p in placements.values() if p.cls == "Apple"]
     assert apple.inside and apple.support == FRIDGE
-    session = Session.start(ctx, tmp_path, _spec(model), wall_clock=lambda: FIXED_WALL_CLOCK_NS)
-    try:
-        world = SimWorld(
-            ctx.home,
-            ctx.navmap,
-            placements,
-            ctx.home.start("kitchen-1"),
-            detector=UnsureAtFirst(model),
-        )
-        result = session.search(world, "Apple", "kitchen-1")
-    finally:
-        session.close()
+    result, _, events = _search_paper_apple(tmp_path, model, UnsureAtFirst(model))
     assert result.success and result.found_instance == apple.instance_id
-    events = list(read_log(tmp_path, store=STORE))
     assert not [e for e in events if e.type == "sighting_rejected"]
     kinds = [e.type for e in events]
     first = next(
@@ -128,20 +134,8 @@ def test_a_confirming_look_takes_the_report_nearest_the_sighting(tmp_path: Path)
     model = preset("realistic")
     placements = base_placements(ctx.home, frozenset())
     (apple,) = [p for p in placements.values() if p.cls == "Apple"]
-    session = Session.start(ctx, tmp_path, _spec(model), wall_clock=lambda: FIXED_WALL_CLOCK_NS)
-    try:
-        world = SimWorld(
-            ctx.home,
-            ctx.navmap,
-            placements,
-            ctx.home.start("kitchen-1"),
-            detector=FalseBesideFirst(model),
-        )
-        result = session.search(world, "Apple", "kitchen-1")
-    finally:
-        session.close()
+    result, _, events = _search_paper_apple(tmp_path, model, FalseBesideFirst(model))
     assert result.success and result.found_instance == apple.instance_id
-    events = list(read_log(tmp_path, store=STORE))
     assert any(e.type == "detection" and e.payload["instance_id"] == "false:beside" for e in events)
 
 
@@ -191,20 +185,8 @@ def test_a_report_beside_a_sighting_with_a_very_different_mask_is_another_object
     model = preset("realistic")
     placements = base_placements(ctx.home, frozenset())
     (apple,) = [p for p in placements.values() if p.cls == "Apple"]
-    session = Session.start(ctx, tmp_path, _spec(model), wall_clock=lambda: FIXED_WALL_CLOCK_NS)
-    try:
-        world = SimWorld(
-            ctx.home,
-            ctx.navmap,
-            placements,
-            ctx.home.start("kitchen-1"),
-            detector=AnotherObjectBeside(model),
-        )
-        result = session.search(world, "Apple", "kitchen-1")
-    finally:
-        session.close()
+    result, _, events = _search_paper_apple(tmp_path, model, AnotherObjectBeside(model))
     assert result.success and result.found_instance == apple.instance_id
-    events = list(read_log(tmp_path, store=STORE))
     assert any(e.type == "detection" and e.payload["instance_id"] == "false:beside" for e in events)
 
 
@@ -237,24 +219,10 @@ def test_a_high_scoring_sighting_where_the_target_is_unlikely_is_looked_at_again
     # prior is now the model's P(Apple on a stove burner), a floor of 0.05/45, times recall over
     # the false reports of the class per view: P(real) about 0.85, so it is looked at again and,
     # not seen again, rejected; the real Apple (in the fridge) is found.
-    ctx = load_context("paper")
     model = preset("realistic")
-    placements = base_placements(ctx.home, frozenset())
-    session = Session.start(ctx, tmp_path, _spec(model), wall_clock=lambda: FIXED_WALL_CLOCK_NS)
-    try:
-        world = SimWorld(
-            ctx.home,
-            ctx.navmap,
-            placements,
-            ctx.home.start("kitchen-1"),
-            detector=PlantedOnTheStove(model, 0, ()),
-        )
-        result = session.search(world, "Apple", "kitchen-1")
-    finally:
-        session.close()
+    result, world, events = _search_paper_apple(tmp_path, model, PlantedOnTheStove(model, 0, ()))
     assert result.success and result.found_instance != "false:stove"
     assert world.is_instance_of(result.found_instance, "Apple")
-    events = list(read_log(tmp_path, store=STORE))
     rejected = [e.payload for e in events if e.type == "sighting_rejected"]
     assert [r["instance_id"] for r in rejected] == ["false:stove"]
     assert rejected[0]["looks"] >= 1
@@ -395,22 +363,8 @@ def test_a_false_report_at_the_place_the_target_surely_is_is_no_find() -> None:
 
 
 def _rejected_on_the_stove(tmp_path: Path, model: PerceptionModel) -> dict[str, Any]:
-    ctx = load_context("paper")
-    placements = base_placements(ctx.home, frozenset())
-    session = Session.start(ctx, tmp_path, _spec(model), wall_clock=lambda: FIXED_WALL_CLOCK_NS)
-    try:
-        world = SimWorld(
-            ctx.home,
-            ctx.navmap,
-            placements,
-            ctx.home.start("kitchen-1"),
-            detector=PlantedOnTheStove(model, 0, ()),
-        )
-        result = session.search(world, "Apple", "kitchen-1")
-    finally:
-        session.close()
+    result, world, events = _search_paper_apple(tmp_path, model, PlantedOnTheStove(model, 0, ()))
     assert result.success and world.is_instance_of(result.found_instance, "Apple")
-    events = list(read_log(tmp_path, store=STORE))
     (rejected,) = [e.payload for e in events if e.type == "sighting_rejected"]
     started = next(e for e in events if e.type == "run_started")
     assert started.payload["params"]["perception"] == model.params()
