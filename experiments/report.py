@@ -240,7 +240,9 @@ def write_report(
         "(`bench report --rearr`); room choice by expected cost and memory of places: "
         "[results-memory.md](results-memory.md); our belief inside a published benchmark's own "
         "task, the Dynamic House Simulator of Kurenkov et al. (ICML 2023), beside its agents: "
-        "[results-dhs.md](results-dhs.md) (`bench dhs`).\n"
+        "[results-dhs.md](results-dhs.md) (`bench dhs`); search under a modelled detector and "
+        "localiser, by the protocol fixed before its runs (docs/protocol-perception.md): "
+        "[results-perception.md](results-perception.md) (`bench belief`).\n"
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(sections), encoding="utf-8")
