@@ -280,24 +280,26 @@ def existing_path(value: str) -> str:
     return value
 
 
-def dir_path(value: str) -> str:
-    """A folder to write or append to: it may not exist yet, but it is not a file."""
+def _output_path(value: str, wrong: str, what: str) -> str:
+    """An output ``what`` (file or folder): it may not exist yet, but it is not of kind ``wrong``."""
     kind = _kind(value)
-    if kind == "file":
-        raise argparse.ArgumentTypeError(f"{value} is a file, not a folder")
+    if kind == wrong:
+        raise argparse.ArgumentTypeError(
+            f"{value} is a {'file' if wrong == 'file' else 'folder'}, not a {what}"
+        )
     if kind == "missing":
         _not_under_a_file(value)
     return value
+
+
+def dir_path(value: str) -> str:
+    """A folder to write or append to: it may not exist yet, but it is not a file."""
+    return _output_path(value, "file", "folder")
 
 
 def file_path(value: str) -> str:
     """A file to write: it may not exist yet, but it is not a folder."""
-    kind = _kind(value)
-    if kind == "dir":
-        raise argparse.ArgumentTypeError(f"{value} is a folder, not a file")
-    if kind == "missing":
-        _not_under_a_file(value)
-    return value
+    return _output_path(value, "dir", "file")
 
 
 def new_path(value: str) -> str:
