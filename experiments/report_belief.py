@@ -603,15 +603,20 @@ def report(
     out: Path | None = None,
     progress: Callable[[list[str]], Iterable[str]] | None = None,
     perfect: Sequence[Path] = (),
+    baseline: tuple[str, Sequence[Path]] | None = None,
 ) -> str:
     """The belief's figures for ``folders``, per schedule kind (``progress`` wraps the kinds as
     they are reported: the CLI's progress line); then the perception protocol's measures of their
     ``habit`` runs (experiments/report_protocol.py), ÷ the same strategies' runs in ``perfect``
-    (outputs of ``bench homes --perception perfect``) when given."""
+    (outputs of ``bench homes --perception perfect``) and in ``baseline`` (label, outputs of runs
+    that differ in one factor) when given; and, for the outputs run with ``--new-map-day``, the
+    first search in the new map against ecost's (experiments/report_newmap.py), per day."""
     from objsearch.experiments.report_homes import failure_cause
+    from objsearch.experiments.report_newmap import new_map_day, new_map_lines
     from objsearch.experiments.report_protocol import protocol_lines
 
-    rows = read_outputs(folders)
+    per_folder = {folder: read_outputs([folder]) for folder in folders}
+    rows = [r for rs in per_folder.values() for r in rs]
     if not rows:
         return "no searches in these outputs"
     camera = run_camera(folders[0])
@@ -647,9 +652,21 @@ def report(
         lines += ["", "Calibration of the belief's forecast at the start of each search:", ""]
         lines += calibration_lines(mine)
         lines += ["", "Failures (strategy: home target ×searches):", *failure_lines(mine)]
-    measures = protocol_lines(rows, read_outputs(perfect), lambda r: failure_cause(r, camera))
+    measures = protocol_lines(
+        rows,
+        read_outputs(perfect),
+        lambda r: failure_cause(r, camera),
+        baseline=(baseline[0], read_outputs(baseline[1])) if baseline else None,
+    )
     if measures:
         lines += ["", *measures]
+    days: dict[int, list[Row]] = {}
+    for folder, rs in per_folder.items():
+        day = new_map_day(folder)
+        if day is not None:
+            days.setdefault(day, []).extend(rs)
+    for day, rs in sorted(days.items()):
+        lines += ["", *new_map_lines(rs, day)]
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         plot_curves(rows, out / "belief_curves")

@@ -2,7 +2,9 @@
 ``bench belief`` prints them: the headline (the first search of each day after day 10, path ÷
 the reference's on the same (home, seed, scene, target, start), the ratio of sums with a 95 %
 bootstrap CI over homes, the same homes resampled for both: paired), per family and pooled; the
-same ÷ the same strategy's run with the ``perfect`` detector (``bench belief --perfect DIR``);
+same ÷ the same strategy's run with the ``perfect`` detector (``bench belief --perfect DIR``),
+and ÷ the same strategy's in runs that differ in another factor (``--baseline DIR
+--baseline-label LABEL``: localisation ``perfect`` against ``realistic``, say);
 success, false found and every failure with its cause; the calibration of ``where`` (ECE over the
 top place and over every (search, place) prediction, Brier); and the protocol's rule for the
 default strategy and the confirmation threshold.
@@ -62,14 +64,25 @@ def paired_ratio(
     over homes (homes drawn with replacement, both sums over the same draw); with the homes and
     searches it rests on."""
     shared = [k for k in num if k in den]
+    value, low, high, homes = ratio_over_homes(
+        [(k[0], num[k].path_length, den[k].path_length) for k in shared], seed
+    )
+    return value, low, high, homes, len(shared)
+
+
+def ratio_over_homes(
+    pairs: Sequence[tuple[str, float, float]], seed: int = 0
+) -> tuple[float, float, float, int]:
+    """Σ a ÷ Σ b over ``pairs`` (home, a, b), and its 95 % bootstrap CI over homes (homes drawn
+    with replacement, both sums over the same draw); with the number of homes."""
     per: dict[str, list[float]] = {}
-    for k in shared:
-        sums = per.setdefault(k[0], [0.0, 0.0])
-        sums[0] += num[k].path_length
-        sums[1] += den[k].path_length
+    for home, a, b in pairs:
+        sums = per.setdefault(home, [0.0, 0.0])
+        sums[0] += a
+        sums[1] += b
     homes = sorted(per)
     if not homes:
-        return math.nan, math.nan, math.nan, 0, 0
+        return math.nan, math.nan, math.nan, 0
 
     def stat(hs: Sequence[str]) -> float:
         d = math.fsum(per[h][1] for h in hs)
@@ -77,13 +90,7 @@ def paired_ratio(
 
     rng = random.Random(seed)
     boot = sorted(stat([rng.choice(homes) for _ in homes]) for _ in range(RESAMPLES))
-    return (
-        stat(homes),
-        boot[int(0.025 * RESAMPLES)],
-        boot[int(0.975 * RESAMPLES) - 1],
-        len(homes),
-        len(shared),
-    )
+    return stat(homes), boot[int(0.025 * RESAMPLES)], boot[int(0.975 * RESAMPLES) - 1], len(homes)
 
 
 def _cell(value: tuple[float, float, float, int, int], target: float | None = None) -> str:
@@ -111,19 +118,27 @@ def reference_of(strategy: str) -> str:
 
 
 def headline_lines(
-    rows: Sequence[Row], perfect: Sequence[Row] = (), after: int = AFTER
+    rows: Sequence[Row],
+    perfect: Sequence[Row] = (),
+    after: int = AFTER,
+    baseline: tuple[str, Sequence[Row]] | None = None,
 ) -> list[str]:
     """Per strategy and family: path ÷ the reference's (same detector and confirmation rule),
-    and ÷ the same strategy's under ``perfect`` (when given), first search after day ``after``."""
+    and ÷ the same strategy's under ``perfect`` (when given), first search after day ``after``;
+    with ``baseline`` (label, rows: runs that differ in one factor, such as localisation), also
+    ÷ the same strategy's there, in a column named by the label (no target: the protocol sets
+    none for a factor but perception)."""
     mine, theirs = headline_rows(rows, after), headline_rows(perfect, after)
+    base = headline_rows(baseline[1], after) if baseline else {}
+    extra = f" ÷ same strategy, {baseline[0]} |" if baseline else ""
     lines = [
         f"Headline: first search of each day after day {after}, path ÷ the reference's on the "
         "same (home, seed, scene, target, start); ratio of sums, 95 % bootstrap CI over homes "
         "(paired):",
         "",
         f"| strategy | family | homes | searches | ÷ reference (≤ {TARGET_VS_REFERENCE}) "
-        f"| ÷ same strategy, perfect (≤ {TARGET_VS_PERFECT}) |",
-        "|---|---|---|---|---|---|",
+        f"| ÷ same strategy, perfect (≤ {TARGET_VS_PERFECT}) |{extra}",
+        "|---|---|---|---|---|---|" + ("---|" if baseline else ""),
     ]
     for s, by_key in mine.items():
         ref = mine.get(reference_of(s), {})
@@ -137,10 +152,19 @@ def headline_lines(
             vs_perfect = (
                 _cell(paired_ratio(ours, theirs[s]), TARGET_VS_PERFECT) if s in theirs else "–"
             )
+            vs_base = (
+                " " + (_cell(paired_ratio(ours, base[s])) if s in base else "–") + " |"
+                if baseline
+                else ""
+            )
             homes = len({k[0] for k in ours})
-            lines.append(f"| {s} | {name} | {homes} | {len(ours)} | {vs_ref} | {vs_perfect} |")
+            lines.append(
+                f"| {s} | {name} | {homes} | {len(ours)} | {vs_ref} | {vs_perfect} |{vs_base}"
+            )
     if perfect and not theirs:
         lines += ["", f"(the perfect outputs hold no search after day {after})"]
+    if baseline and not base:
+        lines += ["", f"(the {baseline[0]} outputs hold no search after day {after})"]
     return lines
 
 
@@ -302,15 +326,25 @@ def protocol_lines(
     rows: Sequence[Row],
     perfect: Sequence[Row] = (),
     camera_cause: Callable[[Row], str] | None = None,
+    baseline: tuple[str, Sequence[Row]] | None = None,
 ) -> list[str]:
-    """The protocol's measures of ``habit`` runs (empty without its reference)."""
+    """The protocol's measures of ``habit`` runs (empty without its reference); the headline
+    also ÷ ``perfect`` and ``baseline`` (label, rows) when given."""
     habit = [r for r in rows if r.placements.startswith("habit-")]
     if not any(r.strategy.startswith(REFERENCE) for r in habit):
         return []
+
+    def habit_of(rs: Sequence[Row]) -> list[Row]:
+        return [r for r in rs if r.placements.startswith("habit-")]
+
     return [
         "### The perception protocol's measures (docs/protocol-perception.md)",
         "",
-        *headline_lines(habit, [r for r in perfect if r.placements.startswith("habit-")]),
+        *headline_lines(
+            habit,
+            habit_of(perfect),
+            baseline=(baseline[0], habit_of(baseline[1])) if baseline else None,
+        ),
         "",
         "Success over every search:",
         "",

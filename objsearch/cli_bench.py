@@ -151,6 +151,7 @@ def cmd_bench_belief(args: argparse.Namespace) -> int:
         )
     if perfect:
         select_models(perfect, "perfect", localisation)
+    baseline = _baseline(args, folders, (perception, localisation))
     text = f"perception {perception}, localisation {localisation}; " + report(
         folders,
         Path(args.out),
@@ -158,11 +159,54 @@ def cmd_bench_belief(args: argparse.Namespace) -> int:
             kinds, "bench belief", " schedule kinds", total=len(kinds), enabled=not args.no_progress
         ),
         perfect=perfect,
+        baseline=baseline,
     )
     print(text)
     (Path(args.out) / "belief.md").write_text(text + "\n", encoding="utf-8")
     print(f"\nwrote {Path(args.out) / 'belief.md'}")
     return 0
+
+
+def _baseline(
+    args: argparse.Namespace, folders: list[Path], models: tuple[str, str]
+) -> tuple[str, list[Path]] | None:
+    """bench belief's ``--baseline DIR`` and its ``--baseline-label``: the label (by default
+    what the baseline's summary.json says differs: perception, localisation or the new-map day)
+    and the folders; None without ``--baseline``."""
+    from objsearch.experiments.report_belief import select_models
+    from objsearch.experiments.report_newmap import new_map_day
+
+    baseline = [Path(d) for d in args.baseline or []]
+    if not baseline:
+        if args.baseline_label is not None:
+            raise ObjsearchError("--baseline-label names the --baseline runs: give --baseline DIR")
+        return None
+    missing = [str(d) for d in baseline if not (d / "homes_trials.parquet").is_file()]
+    if missing:
+        raise ObjsearchError(
+            f"--baseline: not a bench homes output (no homes_trials.parquet): {', '.join(missing)}"
+        )
+    try:
+        theirs = select_models(baseline)
+    except ObjsearchError as e:
+        raise ObjsearchError(f"--baseline: {e}") from None
+    if args.baseline_label is not None:
+        return args.baseline_label, baseline
+    differs = [
+        f"{what} {value}"
+        for what, ours, value in zip(("perception", "localisation"), models, theirs, strict=True)
+        if ours != value
+    ]
+    days = {new_map_day(d) for d in folders}, {new_map_day(d) for d in baseline}
+    if days[0] != days[1] and len(days[1]) == 1:
+        (day,) = days[1]
+        differs.append("no new map" if day is None else f"new map on day {day}")
+    if not differs:
+        raise ObjsearchError(
+            "--baseline: its runs have the same perception, localisation and new-map day as the "
+            "runs reported; name what differs with --baseline-label"
+        )
+    return ", ".join(differs), baseline
 
 
 def cmd_bench_routine_ceiling(args: argparse.Namespace) -> int:
@@ -549,6 +593,22 @@ def _add_belief(bsub: Any) -> None:
         metavar="DIR",
         help="a bench homes output of the same runs with --perception perfect (repeatable): the "
         "protocol's headline is also given ÷ the same strategy there",
+    )
+    belief.add_argument(
+        "--baseline",
+        action="append",
+        type=t.existing_dir,
+        metavar="DIR",
+        help="a bench homes output of the same runs but for one factor, such as --localisation "
+        "perfect (repeatable): the protocol's headline is also given ÷ the same strategy there, "
+        "in a column named by --baseline-label",
+    )
+    belief.add_argument(
+        "--baseline-label",
+        type=t.text,
+        metavar="LABEL",
+        help="what the --baseline runs differ in, the column's name (default: the perception, "
+        "localisation or new-map day their summary.json says differs)",
     )
     belief.defer(_model_choices)
     t.progress_option(belief)

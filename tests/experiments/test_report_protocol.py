@@ -130,11 +130,18 @@ def test_every_failure_is_listed_with_its_cause() -> None:
     assert protocol_lines([r for r in rows if not r.strategy.startswith("dist")]) == []
 
 
-def _output(folder: Path, rows: Sequence[Row], perception: str) -> Path:
-    """A bench homes output of made-up rows, run (says its summary.json) with this detector."""
+def _output(
+    folder: Path, rows: Sequence[Row], perception: str, localisation: str = "perfect"
+) -> Path:
+    """A bench homes output of made-up rows, run (says its summary.json) with this detector and
+    localisation."""
     folder.mkdir()
     write_rows(rows, folder, "homes_trials")
-    summary = {"perception": {"preset": perception}, "camera": "occluding"}
+    summary = {
+        "perception": {"preset": perception},
+        "localisation": {"preset": localisation},
+        "camera": "occluding",
+    }
     (folder / "summary.json").write_text(json.dumps(summary), encoding="utf-8")
     return folder
 
@@ -157,3 +164,45 @@ def test_bench_belief_divides_by_the_perfect_runs_it_is_given(
     assert line + "| – |" in capsys.readouterr().out
     assert main([*argv, "--perfect", str(realistic)]) == 2
     assert "objsearch: error: not run with perception perfect" in capsys.readouterr().err
+
+
+def test_the_headline_divides_by_a_baseline_in_a_column_of_its_label() -> None:
+    ref = _run("dist-oracle-global+cover", dict.fromkeys(HOMES, 1.0))
+    ours = _run("global-belief+cover", dict.fromkeys(HOMES, 1.2))
+    shorter = [replace(r, path_length=r.path_length / 1.5) for r in ours]
+    table = headline_lines(ours + ref, baseline=("localisation perfect", shorter))
+    assert table[2].endswith("| ÷ same strategy, perfect (≤ 1.25) | ÷ same strategy, localisation perfect |")  # fmt: skip
+    assert table[3] == "|---|---|---|---|---|---|---|"
+    # 1.2 ÷ 1.2/1.5 = 1.5, no target; the reference has no baseline run: –.
+    assert "| global-belief+cover | pooled | 4 | 16 | 1.200 [1.200, 1.200] (**not met**) | – | 1.500 [1.500, 1.500] |" in table  # fmt: skip
+    assert "| dist-oracle-global+cover | pooled | 4 | 16 | – | – | – |" in table
+    # Without one the table is as before: six columns.
+    assert headline_lines(ours + ref)[3] == "|---|---|---|---|---|---|"
+
+
+def test_bench_belief_divides_by_a_baseline_that_differs_in_one_factor(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    ours = _run("global-belief+cover", dict.fromkeys(HOMES, 1.2))
+    ref = _run("dist-oracle-global+cover", dict.fromkeys(HOMES, 1.0))
+    realistic = _output(tmp_path / "realistic", ours + ref, "realistic", "realistic")
+    shorter = [replace(r, path_length=r.path_length / 1.5) for r in ours + ref]
+    located = _output(tmp_path / "located", shorter, "realistic", "perfect")
+    out = tmp_path / "report"
+    argv = ["bench", "belief", str(realistic), "--out", str(out), "--no-progress"]
+    assert main([*argv, "--baseline", str(located)]) == 0
+    printed = capsys.readouterr().out
+    # The label, by default, is what the baseline's summary.json says differs.
+    assert "| ÷ same strategy, localisation perfect |" in printed
+    line = "| global-belief+cover | pooled | 4 | 16 | 1.200 [1.200, 1.200] (**not met**) | – "
+    assert line + "| 1.500 [1.500, 1.500] |" in printed
+    assert main([*argv, "--baseline", str(located), "--baseline-label", "localiser on"]) == 0
+    assert "| ÷ same strategy, localiser on |" in capsys.readouterr().out
+    # A label with no baseline, a baseline the same in every recorded factor with no label, and
+    # a folder that is no bench homes output are refused.
+    assert main([*argv, "--baseline-label", "localiser on"]) == 2
+    assert "objsearch: error: --baseline-label names the --baseline runs" in capsys.readouterr().err
+    assert main([*argv, "--baseline", str(realistic)]) == 2
+    assert "name what differs with --baseline-label" in capsys.readouterr().err
+    assert main([*argv, "--baseline", str(tmp_path)]) == 2
+    assert "objsearch: error: --baseline: not a bench homes output" in capsys.readouterr().err
