@@ -22,8 +22,10 @@ from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.maps import DEFAULT_MAP, next_map
 from objsearch.agent.navmap import NavigationMap
-from objsearch.agent.policy import Recorder, SearchAgent, SearchOptions, SearchResult
+from objsearch.agent.policy import SearchAgent, SearchOptions
+from objsearch.agent.recorder import Recorder
 from objsearch.agent.relations import RelationModel
+from objsearch.agent.results import SearchResult
 from objsearch.agent.scene_graph import seed_relations
 from objsearch.agent.semmap import SemanticMap
 from objsearch.agent.state import AgentState

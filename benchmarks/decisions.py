@@ -48,7 +48,8 @@ from objsearch.agent.catalogue import STORE
 from objsearch.agent.detector_model import preset
 from objsearch.agent.home import available_homes
 from objsearch.agent.navmap import NavigationMap
-from objsearch.agent.policy import Recorder, SearchAgent
+from objsearch.agent.policy import SearchAgent
+from objsearch.agent.recorder import Recorder
 from objsearch.agent.session import HomeContext, Session, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import RunSpec

@@ -22,8 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.geometry import Pose, heading
-from objsearch.agent.policy import cover_views, static_pitch, stop_statics
 from objsearch.agent.session import load_context
+from objsearch.agent.stops import cover_views, static_pitch, stop_statics
 from objsearch.experiments.homes import family, schedule_kind
 from objsearch.experiments.learning import (
     excess_breakdown,

@@ -20,7 +20,7 @@ from objsearch import cli_types as t
 from objsearch.agent.errors import ObjsearchError
 
 if TYPE_CHECKING:
-    from objsearch.agent.policy import SearchResult
+    from objsearch.agent.results import SearchResult
     from objsearch.agent.session import HomeContext
     from objsearch.sim.world import Placement
 

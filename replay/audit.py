@@ -35,10 +35,10 @@ from objsearch.agent.catalogue import (
 )
 from objsearch.agent.geometry import Point
 from objsearch.agent.outdir import claim
-from objsearch.agent.policy import stop_statics, stop_value
 from objsearch.agent.relations import instance_value, per_instance
 from objsearch.agent.session import load_context
 from objsearch.agent.state import AgentState
+from objsearch.agent.stops import stop_statics, stop_value
 from objsearch.agent.strategies import AGENT_MODELS, RelationModels
 from objsearch.replay.state import ReplayState
 

@@ -20,9 +20,11 @@ from objsearch.agent.catalogue import PlanComputed, decode
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point
 from objsearch.agent.planner import wpl_terms
-from objsearch.agent.policy import Method, Recorder, SearchAgent, SearchConfig, Stop
+from objsearch.agent.policy import Method, SearchAgent, SearchConfig
+from objsearch.agent.recorder import Recorder
 from objsearch.agent.session import HomeContext, load_context
 from objsearch.agent.state import AgentState
+from objsearch.agent.stops import Stop
 from objsearch.agent.strategies import (
     AGENT_MODELS,
     RelationModels,

@@ -16,7 +16,7 @@ from typing import Any
 from objsearch.agent.categories import Category
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.geometry import Point, Pose
-from objsearch.agent.policy import SearchResult
+from objsearch.agent.results import SearchResult
 from objsearch.agent.session import HomeContext, Session, load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.sim.detector_model import with_perception

@@ -12,9 +12,11 @@ import pytest
 
 from objsearch.agent.catalogue import STORE, PlanComputed, decode
 from objsearch.agent.planner import epl_terms
-from objsearch.agent.policy import GLOBAL_EXACT_STOPS, Recorder, SearchAgent, SearchConfig, Stop
+from objsearch.agent.policy import GLOBAL_EXACT_STOPS, SearchAgent, SearchConfig
+from objsearch.agent.recorder import Recorder
 from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.agent.session import load_context
+from objsearch.agent.stops import Stop
 from objsearch.agent.strategies import RunSpec
 from objsearch.events import read_log
 from objsearch.sim.longterm import run_schedule

@@ -14,7 +14,8 @@ from objsearch.agent.catalogue import STORE, Detected, Record
 from objsearch.agent.detector_model import PerceptionModel, preset
 from objsearch.agent.geometry import Pose
 from objsearch.agent.home import Home
-from objsearch.agent.policy import Recorder, SearchAgent
+from objsearch.agent.policy import SearchAgent
+from objsearch.agent.recorder import Recorder
 from objsearch.agent.session import Session, load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import Detection

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from objsearch.agent.policy import COVER_SPAN_M, cover_points
 from objsearch.agent.session import load_context
+from objsearch.agent.stops import COVER_SPAN_M, cover_points
 
 
 def test_a_worktop_long_both_ways_is_covered_by_a_grid_and_a_short_static_not_at_all() -> None:

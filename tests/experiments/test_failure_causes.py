@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from objsearch.agent.policy import cover_views
 from objsearch.agent.session import load_context
+from objsearch.agent.stops import cover_views
 from objsearch.experiments.report_homes import failure_cause
 from objsearch.experiments.runner import Row
 from objsearch.sim.longterm import scenes_of
