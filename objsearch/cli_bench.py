@@ -376,6 +376,43 @@ def cmd_bench_dhs(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_stot(args: argparse.Namespace) -> int:
+    from objsearch.experiments.stot import (
+        METHODS,
+        format_text,
+        run_household,
+        summary,
+        verify_source,
+    )
+
+    households = sorted(set(args.households or [3, 4]))
+    checkout = verify_source(args.source, args.dataset, households)
+    out = sys.stderr if args.format == "json" else sys.stdout
+
+    def log(line: str) -> None:
+        if not args.no_progress:  # on stderr with --format json, so stdout stays JSON
+            print(f"  {line}", file=out, flush=True)
+
+    results = []
+    for h in households:
+        results.extend(
+            run_household(
+                checkout,
+                args.dataset,
+                h,
+                args.methods or list(METHODS),
+                max_test_days=args.days,
+                log=log,
+            )
+        )
+    s = summary(results, checkout.missing)
+    if args.format == "json":
+        print(json.dumps(s, indent=2))
+    else:
+        print(format_text(s))
+    return 0
+
+
 def _model_choices(p: argparse.ArgumentParser) -> None:
     """bench belief's ``--perception`` and ``--localisation``: which simulated detector and
     localisation the outputs it reads must have been run with."""
@@ -413,6 +450,24 @@ def _dhs_options(p: argparse.ArgumentParser) -> None:
         **t.LIST,
         help=f"comma-separated agents: its {', '.join(ALL_THEIR_AGENTS)} and ours, {OURS} "
         "(default: all but oracle_upper_bound)",
+    )
+
+
+def _stot_options(p: argparse.ArgumentParser) -> None:
+    from objsearch.experiments.stot import DATASETS, METHODS
+
+    p.add_argument(
+        "--dataset",
+        type=t.text,
+        choices=DATASETS,
+        default="householdsDifferent",
+        help="its folder of processed HOMER households (householdsDifferent)",
+    )
+    p.add_argument(
+        "--methods",
+        type=t.subset_of(METHODS),
+        **t.LIST,
+        help=f"comma-separated methods: ours and its baselines (default: {','.join(METHODS)})",
     )
 
 
@@ -689,6 +744,40 @@ def _add_dhs(bsub: Any) -> None:
     dhs.set_defaults(func=cmd_bench_dhs)
 
 
+def _add_stot(bsub: Any) -> None:
+    stot = bsub.add_parser(
+        "stot",
+        help="our belief at SpatioTemporalObjectTracking's object-movement prediction on HOMER "
+        "households, beside its baselines (docs/results-stot.md)",
+        description="Runs the evaluation of SpatioTemporalObjectTracking (Patel & Chernova, CoRL "
+        "2022; a checkout of Maithili/SpatioTemporalObjectTracking at the pinned commit, checked "
+        "file by file) on its processed HOMER households with its baselines and our belief, and "
+        "prints its counts as shares of the moved objects (correct, wrong, missed), false "
+        "positives, precision and F1 at the next step and within its 12-step lookahead; then "
+        "ours minus each baseline, paired over test days, with a 95 % bootstrap interval.",
+    )
+    stot.add_argument(
+        "--source",
+        type=t.existing_dir,
+        help="its checkout (default: $OBJSEARCH_STOT_SOURCE)",
+    )
+    stot.defer(_stot_options)
+    stot.add_argument(
+        "--households",
+        type=t.int_list(0, 4),
+        **t.LIST,
+        help="comma-separated households 0-4 (default: 3,4)",
+    )
+    stot.add_argument(
+        "--days",
+        type=t.int_range(1, 1000),
+        help="at most N test days per household, 1-1000 (default: all in the checkout)",
+    )
+    t.format_option(stot, "print the summary as JSON")
+    stot.add_argument("--no-progress", action="store_true", help="no line per finished method")
+    stot.set_defaults(func=cmd_bench_stot)
+
+
 def _add_report(bsub: Any) -> None:
     report = bsub.add_parser(
         "report",
@@ -791,4 +880,5 @@ def register(sub: Any) -> None:
     _add_belief(bsub)
     _add_ceiling(bsub)
     _add_dhs(bsub)
+    _add_stot(bsub)
     _add_report(bsub)

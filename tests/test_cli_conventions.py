@@ -36,6 +36,7 @@ LONG_COMMANDS = {
     "bench sensitivity",
     "bench table1",
     "bench dhs",
+    "bench stot",
     "bench report",
     "bench belief",
     "map build",

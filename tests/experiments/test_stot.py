@@ -1,0 +1,208 @@
+"""The SpatioTemporalObjectTracking harness (objsearch.experiments.stot).
+
+Its code and data are not part of objsearch: the test that runs its evaluation needs a checkout
+of the pinned commit in ``$OBJSEARCH_STOT_SOURCE`` and is skipped without one. The pinning, our
+method at its seam on a tiny synthetic household, the scoring and the CLI's errors are tested
+everywhere.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+
+from objsearch.agent.errors import ObjsearchError
+from objsearch.experiments import stot
+
+#: A tiny household: two pieces of furniture and a room (static), a mug that is on the table in
+#: the morning and on the desk in the evening, every day.
+NODES = ["kitchen", "table", "desk", "mug"]
+MUG, TABLE, DESK, KITCHEN = 3, 1, 2, 0
+MASK = [[0.0] * 4, [0.0] * 4, [0.0] * 4, [1.0, 1.0, 1.0, 0.0]]
+DAY = 1440
+
+
+def _graph(mug_at: int) -> torch.Tensor:
+    edges = torch.zeros((4, 4))
+    edges[TABLE, KITCHEN] = edges[DESK, KITCHEN] = 1.0
+    edges[MUG, mug_at] = 1.0
+    return edges
+
+
+def _mug_at(minute: int) -> int:
+    return TABLE if minute % DAY < 17 * 60 else DESK
+
+
+def _trained(model: str, days: int = 14) -> stot.BeliefMethod:
+    method = stot.BeliefMethod(model, NODES, MASK, dt=60)
+    for day in range(days):
+        for hour in range(6, 24):
+            minute = day * DAY + hour * 60
+            method.observe_graph(minute, _graph(_mug_at(minute)))
+    return method
+
+
+def _batch(edges: torch.Tensor, minute: int, gt: int) -> dict[str, torch.Tensor]:
+    return {
+        "edges": edges.unsqueeze(0),
+        "nodes": torch.eye(4).unsqueeze(0),
+        "y_edges": _graph(gt).unsqueeze(0),
+        "dynamic_edges_mask": torch.tensor(MASK).unsqueeze(0),
+        "time": torch.tensor([minute]),
+    }
+
+
+def test_the_belief_that_knows_the_hour_forecasts_the_evening_move() -> None:
+    ours = _trained("routine-belief")
+    morning, evening = 14 * DAY + 9 * 60, 14 * DAY + 19 * 60
+    at_morning = ours.forecast("3:mug", morning)
+    at_evening = ours.forecast("3:mug", evening)
+    assert max(at_morning, key=at_morning.__getitem__) == str(TABLE)
+    assert max(at_evening, key=at_evening.__getitem__) == str(DESK)
+
+
+def test_the_time_blind_belief_has_one_forecast_for_every_hour() -> None:
+    ours = _trained("belief")
+    assert ours.forecast("3:mug", 14 * DAY + 9 * 60) == ours.forecast("3:mug", 14 * DAY + 19 * 60)
+
+
+def test_a_step_folds_its_real_input_once_and_not_its_own_fed_back_output() -> None:
+    ours = _trained("routine-belief")
+    before = ours.episodes
+    t = 14 * DAY + 17 * 60  # the input is the graph at 16:00 (mug on the table)
+    _, details, _ = ours.step(_batch(_graph(TABLE), t, gt=DESK))
+    assert ours.episodes == before + 1
+    assert int(details["output"]["location"][0, MUG]) == DESK
+    assert int(details["input"]["location"][0, MUG]) == TABLE
+    probs = details["output_probs"]["location"]
+    assert torch.allclose(probs[0, MUG].sum(), torch.tensor(1.0), atol=1e-5)
+    assert float(probs[0, MUG, MUG]) == 0.0  # never its own parent (the mask)
+    # Its loop feeds our output back as the next lookahead step's input: not an observation.
+    fed = _batch(probs[0], t + 60, gt=DESK)
+    fed["edges"] = probs
+    ours.step(fed)
+    assert ours.episodes == before + 1
+    # The next step's real input is.
+    ours.step(_batch(_graph(DESK), t + 60, gt=DESK))
+    assert ours.episodes == before + 2
+
+
+def test_an_unknown_model_is_refused() -> None:
+    with pytest.raises(ValueError, match="routine-belief"):
+        stot.BeliefMethod("wpl", NODES, MASK, dt=60)
+
+
+def _day(method: str, day: str, correct: int, wrong: int, missed: int, fp: int) -> stot.DayResult:
+    counts = stot.Counts(correct, wrong, missed, fp, 100)
+    return stot.DayResult(3, day, method, [counts] * stot.LOOKAHEAD)
+
+
+def test_scores_are_its_counts_as_shares_of_the_moved_objects() -> None:
+    s = stot.scores(stot.Counts(correct=3, wrong=1, missed=6, fp=2, tn=50))
+    assert s["correct"] == pytest.approx(0.3)
+    assert s["wrong"] == pytest.approx(0.1)
+    assert s["missed"] == pytest.approx(0.6)
+    assert s["precision"] == pytest.approx(0.5)
+    assert s["f1"] == pytest.approx(2 * 0.5 * 0.3 / 0.8)
+    assert math.isnan(stot.scores(stot.Counts(0, 0, 0, 0, 9))["f1"])
+
+
+def test_the_paired_interval_is_over_days_and_excludes_zero_only_when_every_day_agrees() -> None:
+    results = [
+        _day("routine-belief", "000.pt", 4, 1, 5, 1),
+        _day("routine-belief", "001.pt", 6, 1, 3, 1),
+        _day("LastSeen", "000.pt", 0, 0, 10, 0),
+        _day("LastSeen", "001.pt", 0, 0, 10, 0),
+    ]
+    diff, lo, hi, days = stot.paired_ci(results, "routine-belief", "LastSeen", 11, "correct")
+    assert days == 2 and diff == pytest.approx(0.5)
+    assert 0.4 - 1e-9 <= lo <= diff <= hi <= 0.6 + 1e-9
+    same = stot.paired_ci(results, "LastSeen", "LastSeen", 11, "correct")
+    assert same[:3] == (0.0, 0.0, 0.0)
+
+
+def test_a_checkout_that_differs_from_the_pinned_commit_is_refused(tmp_path: Path) -> None:
+    (tmp_path / "helpers").mkdir()
+    (tmp_path / "helpers" / "reader.py").write_text("# not theirs\n")
+    with pytest.raises(ObjsearchError, match=r"is not f4ce4141d3210ba2c18879c64450db6906e534ff"):
+        stot.verify_source(tmp_path, "householdsDifferent", [3])
+    try:
+        stot.verify_source(tmp_path, "householdsDifferent", [3])
+    except ObjsearchError as error:
+        assert "differs: helpers/reader.py" in str(error)
+        assert "missing baselines/baselines.py" in str(error)
+
+
+def test_without_a_checkout_the_error_says_where_to_put_it(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.delenv(stot.SOURCE_ENV, raising=False)
+    with pytest.raises(ObjsearchError, match=r"--source DIR or set \$OBJSEARCH_STOT_SOURCE"):
+        stot.verify_source(None, "householdsDifferent", [3])
+    with pytest.raises(ObjsearchError, match="no such folder"):
+        stot.verify_source(tmp_path / "absent", "householdsDifferent", [3])
+
+
+def test_the_blob_id_is_gits() -> None:
+    assert stot.git_blob_id(b"") == "e69de29bb2d1d6434b8b29ae775ad8c2e48c5391"
+    assert stot.git_blob_id(b"hello\n") == "ce013625030ba8dba906f756967f9e9ca394464a"
+
+
+def _cli(*argv: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "objsearch.cli", "bench", "stot", *argv],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=120,
+    )
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--households", "5"], "--households"),
+        (["--methods", "LastSeen,Oracle"], "--methods"),
+        (["--days", "0"], "--days"),
+        (["--dataset", "householdsSame"], "--dataset"),
+    ],
+)
+def test_the_cli_validates_its_options(argv: list[str], message: str, tmp_path: Path) -> None:
+    done = _cli("--source", str(tmp_path), *argv)
+    assert done.returncode == 2
+    assert "objsearch: error:" in done.stderr and message in done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def test_the_cli_refuses_an_unpinned_checkout_with_a_clear_error(tmp_path: Path) -> None:
+    done = _cli("--source", str(tmp_path))
+    assert done.returncode == 2
+    assert "objsearch: error:" in done.stderr and "Traceback" not in done.stderr
+    assert "missing baselines/baselines.py" in done.stderr
+
+
+SOURCE = os.environ.get(stot.SOURCE_ENV, "")
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(
+    not SOURCE, reason=f"needs a checkout of the pinned commit in ${stot.SOURCE_ENV}"
+)
+def test_its_evaluation_scores_lastseen_with_no_move_and_ours_with_some() -> None:
+    checkout = stot.verify_source(SOURCE, "householdsDifferent", [4])
+    results = stot.run_household(
+        checkout, "householdsDifferent", 4, ["routine-belief", "LastSeen"], max_test_days=1
+    )
+    last = stot.total(results, "LastSeen", stot.LOOKAHEAD - 1)
+    ours = stot.total(results, "routine-belief", stot.LOOKAHEAD - 1)
+    # LastSeen never predicts a move: every move is missed, nothing is a false positive.
+    assert last.correct == last.wrong == last.fp == 0 and last.missed > 0
+    # The same day's moves for both (its ground truth does not depend on the method).
+    assert ours.moved == last.moved
+    assert ours.correct + ours.wrong + ours.fp > 0
