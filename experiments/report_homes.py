@@ -41,7 +41,8 @@ from objsearch.experiments.runner import Row, inspection_suffix
 from objsearch.experiments.stats import CI, MIN_RUNS, method_note, spread
 from objsearch.experiments.strategies import COVER_SUFFIX
 from objsearch.sim.longterm import scenes_of
-from objsearch.sim.world import DEFAULT_CAMERA, Placement, first_sighting, search_camera
+from objsearch.sim.placements import Placement
+from objsearch.sim.world import DEFAULT_CAMERA, first_sighting, search_camera
 
 #: "After scene 10": the issue's targets are read on the searches of later scenes.
 AFTER = 10

@@ -22,7 +22,7 @@ from objsearch.agent.errors import ObjsearchError
 if TYPE_CHECKING:
     from objsearch.agent.results import SearchResult
     from objsearch.agent.session import HomeContext
-    from objsearch.sim.world import Placement
+    from objsearch.sim.placements import Placement
 
 EXIT_USAGE = 2
 #: Each room type has 25 iTHOR scenes, one of them the paper's: at most 24 held-out homes.

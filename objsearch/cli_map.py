@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from objsearch.agent.mapping import BuiltMap
     from objsearch.agent.session import HomeContext
     from objsearch.pipeline.bags.rgbd import ViewReport
-    from objsearch.sim.world import Placement
+    from objsearch.sim.placements import Placement
 
 
 def register(sub: Any) -> None:

@@ -20,10 +20,10 @@ from objsearch.agent.geometry import Pose
 from objsearch.agent.home import Home
 from objsearch.agent.world import Detection
 from objsearch.sim.perception import Camera
+from objsearch.sim.placements import Placement
 
 if TYPE_CHECKING:
     from objsearch.agent.strategies import RunSpec
-    from objsearch.sim.world import Placement
 
 #: Mask area of a false positive: log-uniform over this range (px), from just under the smallest
 #: class threshold (100 px) to the top of COCO's medium bin.

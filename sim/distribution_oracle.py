@@ -63,6 +63,7 @@ from objsearch.sim.habit_schedule import (
     stats_distribution,
 )
 from objsearch.sim.homer_schedule import homer_scene, homer_slot_distribution, homer_table
+from objsearch.sim.placements import Placement
 from objsearch.sim.routine_schedule import (
     SCENES_PER_DAY,
     WEEKEND,
@@ -74,7 +75,6 @@ from objsearch.sim.routine_schedule import (
 from objsearch.sim.schedule_names import ROUTINE_KINDS, parse_seeded
 from objsearch.sim.seeable import seeable
 from objsearch.sim.stats_schedule import PlacementStats, _receptacle_type, _rest_points
-from objsearch.sim.world import Placement
 
 #: (home name, class) → :func:`seeable_shares`: a slot oracle reads one distribution per slot.
 _SHARES: dict[tuple[str, str], dict[str, float]] = {}

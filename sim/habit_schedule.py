@@ -34,14 +34,13 @@ from dataclasses import dataclass
 from functools import partial
 
 from objsearch.agent.home import Home, StaticObject
-from objsearch.sim.placements import Placements, Schedule
+from objsearch.sim.placements import Placement, Placements, Schedule
 from objsearch.sim.stats_schedule import (
     PlacementStats,
     _draw_static,
     _receptacle_type,
     place_seeable,
 )
-from objsearch.sim.world import Placement
 
 #: Scenes of a habit schedule: long enough to learn from.
 HABIT_SCENES = 30

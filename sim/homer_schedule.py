@@ -45,10 +45,9 @@ from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.home import Home
 from objsearch.sim.habit_schedule import place_in_scene, sorted_statics
-from objsearch.sim.placements import Placements, Schedule
+from objsearch.sim.placements import Placement, Placements, Schedule
 from objsearch.sim.routine_schedule import ROUTINE_DAYS, SCENES_PER_DAY, SLOT_MINUTES
 from objsearch.sim.stats_schedule import PlacementStats, _draw_static, _receptacle_type
-from objsearch.sim.world import Placement
 
 ROUTINES_FILE = "priors/homer_routines.json"
 HOMER_SCENES = ROUTINE_DAYS * SCENES_PER_DAY

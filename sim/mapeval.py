@@ -19,7 +19,8 @@ from objsearch.agent.semmap import MappedStatic, SemanticMap
 from objsearch.agent.session import HomeContext, Session
 from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
-from objsearch.sim.world import REACH_M, Placement, SimClock, SimWorld, with_camera
+from objsearch.sim.placements import Placement
+from objsearch.sim.world import REACH_M, SimClock, SimWorld, with_camera
 
 MATCH_RADIUS_M = 0.5
 

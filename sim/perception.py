@@ -15,14 +15,11 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from objsearch.agent.geometry import Pose, wrap_angle
 from objsearch.agent.home import Box, Home
 from objsearch.agent.world import Detection
-
-if TYPE_CHECKING:
-    from objsearch.sim.world import Placement
+from objsearch.sim.placements import Placement
 
 IMAGE_WIDTH = 640
 IMAGE_HEIGHT = 480

@@ -11,7 +11,19 @@ from objsearch.agent.categories import read_json
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.home import Box, Home
-from objsearch.sim.world import Placement
+
+
+@dataclass(frozen=True, slots=True)
+class Placement:
+    """Where one semi-dynamic object is for one task."""
+
+    instance_id: str
+    cls: str
+    box: Box
+    room: str
+    support: str | None
+    inside: bool
+
 
 Placements = Mapping[str, Placement]
 

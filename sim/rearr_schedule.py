@@ -36,9 +36,8 @@ from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.geometry import Vec3
 from objsearch.agent.home import Box, Home, load_home
-from objsearch.sim.placements import Placements, Schedule
+from objsearch.sim.placements import Placement, Placements, Schedule
 from objsearch.sim.stats_schedule import SCENES, stats_schedule
-from objsearch.sim.world import Placement
 
 REARRANGEMENT_DIR = "rearrangement"
 FORMAT = "objsearch.rearrangement/1"

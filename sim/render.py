@@ -13,7 +13,6 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Collection, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -30,9 +29,7 @@ from objsearch.agent.camera_frames import (
 )
 from objsearch.agent.geometry import Pose
 from objsearch.agent.home import Box, Home, Room
-
-if TYPE_CHECKING:  # sim.world imports the search cameras, which render
-    from objsearch.sim.world import Placement
+from objsearch.sim.placements import Placement
 
 WALL_HEIGHT_M = 2.5
 MAX_RANGE_M = 10.0  # beyond this the simulated sensor reports no return (depth 0)

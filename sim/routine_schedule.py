@@ -48,9 +48,8 @@ from objsearch.sim.habit_schedule import (
     sorted_statics,
     stats_distribution,
 )
-from objsearch.sim.placements import Placements, Schedule
+from objsearch.sim.placements import Placement, Placements, Schedule
 from objsearch.sim.stats_schedule import PlacementStats, _draw_static
-from objsearch.sim.world import Placement
 
 #: The scenes' times of day (minutes after midnight), one per slot: morning, afternoon,
 #: evening, night. Every seeded schedule's scene n is slot (n − 1) mod 4 of day (n − 1) // 4.

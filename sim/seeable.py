@@ -23,9 +23,9 @@ from functools import cache
 from objsearch.agent.categories import Vocabulary
 from objsearch.agent.home import Box, Home
 from objsearch.agent.navmap import NavigationMap
-from objsearch.sim.placements import Placements
+from objsearch.sim.placements import Placement, Placements
 from objsearch.sim.visibility import OccludingCamera, VisibilityCache
-from objsearch.sim.world import CAMERAS, Placement, SearchCamera, first_sighting, search_camera
+from objsearch.sim.world import CAMERAS, SearchCamera, first_sighting, search_camera
 
 
 def _checking_camera(name: str) -> SearchCamera:

@@ -33,9 +33,8 @@ from objsearch.agent.categories import read_json
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.home import Box, Home, StaticObject, home_path
-from objsearch.sim.placements import Placements, Schedule
+from objsearch.sim.placements import Placement, Placements, Schedule
 from objsearch.sim.seeable import seeable
-from objsearch.sim.world import Placement
 
 SCENES = 10
 #: Draws of one placement before the object stays where it was (see the module doc).

@@ -21,7 +21,6 @@ from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cache
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,6 +35,7 @@ from objsearch.agent.camera_frames import (
 from objsearch.agent.geometry import Pose
 from objsearch.agent.home import Box, Home
 from objsearch.agent.world import Detection
+from objsearch.sim.placements import Placement
 from objsearch.sim.render import (
     MAX_RANGE_M,
     Scene,
@@ -48,9 +48,6 @@ from objsearch.sim.render import (
     slab,
     support_cutouts,
 )
-
-if TYPE_CHECKING:
-    from objsearch.sim.world import Placement
 
 #: Float32 rays meet a box a few µm off its true depth: a box is skipped as an occluder only when
 #: its nearest corner is this much farther than the candidate's farthest.

@@ -11,11 +11,12 @@ from typing import TYPE_CHECKING, Protocol
 from objsearch.agent.camera_frames import pitch_towards
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Point, Pose, distance, heading
-from objsearch.agent.home import Box, Home
+from objsearch.agent.home import Home
 from objsearch.agent.navigation import walk_path
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.world import Detection, DetectionHandler, Navigation
 from objsearch.sim.perception import Camera
+from objsearch.sim.placements import Placement
 from objsearch.sim.visibility import OccludingCamera
 
 if TYPE_CHECKING:
@@ -27,18 +28,6 @@ SPEED_M_PER_S = 0.5
 LOOK_S = 1.0
 OPEN_S = 3.0
 REACH_M = 1.5  # a container can be opened from this close
-
-
-@dataclass(frozen=True, slots=True)
-class Placement:
-    """Where one semi-dynamic object is for one task."""
-
-    instance_id: str
-    cls: str
-    box: Box
-    room: str
-    support: str | None
-    inside: bool
 
 
 class SearchCamera(Protocol):

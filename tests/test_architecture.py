@@ -264,13 +264,6 @@ KNOWN_CIRCLES: tuple[tuple[str, ...], ...] = (
         "objsearch.runtime.transport",
         "objsearch.runtime.zenoh_transport",
     ),
-    (
-        "objsearch.sim.detector_model",
-        "objsearch.sim.perception",
-        "objsearch.sim.render",
-        "objsearch.sim.visibility",
-        "objsearch.sim.world",
-    ),
 )
 
 

@@ -25,7 +25,7 @@ from objsearch.events.snapshot import restore
 from objsearch.experiments.decompose import decompose
 from objsearch.sim.longterm import Trial, run_schedule
 from objsearch.sim.models import SIM_MODELS
-from objsearch.sim.world import Placement
+from objsearch.sim.placements import Placement
 
 HOME = "ithor-01"
 

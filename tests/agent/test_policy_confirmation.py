@@ -21,8 +21,8 @@ from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import Detection
 from objsearch.events.log_read import read_log
 from objsearch.sim.detector_model import NoisyDetector, with_perception
-from objsearch.sim.placements import base_placements
-from objsearch.sim.world import Placement, SimWorld
+from objsearch.sim.placements import Placement, base_placements
+from objsearch.sim.world import SimWorld
 
 FIXED_WALL_CLOCK_NS = 1_767_225_600_000_000_000
 FRIDGE = "kitchen/Fridge|-01.76|+00.00|00.00"

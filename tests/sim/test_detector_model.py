@@ -34,8 +34,8 @@ from objsearch.sim.detector_model import (
     with_perception,
 )
 from objsearch.sim.longterm import run_schedule, scenes_of
-from objsearch.sim.placements import base_placements
-from objsearch.sim.world import Placement, SimWorld
+from objsearch.sim.placements import Placement, base_placements
+from objsearch.sim.world import SimWorld
 
 FIXED_WALL_CLOCK_NS = 1_767_225_600_000_000_000
 VIEWS = 4000

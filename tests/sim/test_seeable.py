@@ -12,9 +12,10 @@ from objsearch.agent.strategies import RunSpec
 from objsearch.experiments.runner import Job, unseeable
 from objsearch.sim.habit_schedule import habit_schedule
 from objsearch.sim.longterm import run_schedule, scenes_of
+from objsearch.sim.placements import Placement
 from objsearch.sim.seeable import seeable, seeable_scenes, visibility
 from objsearch.sim.stats_schedule import PlacementStats, stats_schedule
-from objsearch.sim.world import Placement, first_sighting, search_camera
+from objsearch.sim.world import first_sighting, search_camera
 
 #: Issue 14's phones, as the schedules drew them before they were checked (stats-1 scene 2 of
 #: procthor-01, habit-0 scene 23 of procthor-08): flat on a bed 0.27 m below the camera, and

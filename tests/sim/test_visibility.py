@@ -11,10 +11,10 @@ import pytest
 from objsearch.agent.camera_frames import DEFAULT_INTRINSICS, MAX_PITCH, camera_to_map, project
 from objsearch.agent.geometry import Pose
 from objsearch.agent.session import load_context
-from objsearch.sim.placements import base_placements
+from objsearch.sim.placements import Placement, base_placements
 from objsearch.sim.render import render, room_scene
 from objsearch.sim.visibility import OccludingCamera, VisibilityCache, mask_areas
-from objsearch.sim.world import Placement, facing_view, search_camera
+from objsearch.sim.world import facing_view, search_camera
 
 HOMES = ("paper", "ithor-02", "procthor-02")
 POSES_PER_HOME = 100

@@ -11,12 +11,11 @@ from objsearch.agent.home import Box
 from objsearch.agent.session import load_context
 from objsearch.sim.longterm import scenes_of
 from objsearch.sim.perception import Camera
-from objsearch.sim.placements import Schedule, base_placements
+from objsearch.sim.placements import Placement, Schedule, base_placements
 from objsearch.sim.world import (
     OPEN_S,
     SPEED_M_PER_S,
     FirstSighting,
-    Placement,
     SimClock,
     SimWorld,
     first_sighting,
