@@ -53,6 +53,10 @@ outside its files (nothing of it is edited): ``evaluations.py`` imports ``wandb`
 it (a stand-in module is registered when ``wandb`` is not installed), and it calls
 ``matplotlib.cm.get_cmap``, which matplotlib 3.9 removed (put back as
 ``matplotlib.colormaps[name].resampled(lut)`` when missing); its figures are drawn and dropped.
+With torch 2.x, numpy's ``bitwise_and/or/not`` of its bool masks come back as ``uint8`` tensors,
+which its figure code cannot index with (RuntimeError); its evaluation module is handed a numpy
+whose three bitwise functions apply torch's own to torch tensors (bool in, bool out: the masks
+its code meant), everything else numpy's.
 Its reader loads a day's whole file for every sample it reads (about 0.17 s a file here; some
 3,000 reads per household for its FreMEn and co-occurrence priors), so while a household runs
 ``torch.load`` is memoised by path (:func:`loads_once`): the same tensors, each file read once.
@@ -222,7 +226,33 @@ def load_upstream(root: Path) -> Upstream:
         reader = importlib.import_module("reader")
         evaluations = importlib.import_module("evaluations")
         baselines = importlib.import_module("baselines.baselines")
+    evaluations.__dict__["np"] = _bool_mask_numpy()
     return Upstream(reader, evaluations, baselines)
+
+
+def _bool_mask_numpy() -> types.ModuleType:
+    """numpy as its evaluation module sees it, except that ``bitwise_and/or/not`` of torch
+    tensors stay torch tensors of their dtype (bool for its masks): with torch 2.x numpy hands
+    back ``uint8`` tensors, which index as masks only with a deprecation warning and which its
+    figure code's ``img[mask] *= -0.5`` refuses (RuntimeError, masked_fill_ needs bool)."""
+    import numpy
+    import torch
+
+    proxy = types.ModuleType("numpy")
+    proxy.__dict__.update(numpy.__dict__)
+
+    def wrap(np_op: Callable[..., Any], torch_op: Callable[..., Any]) -> Callable[..., Any]:
+        def op(*args: Any) -> Any:
+            if all(isinstance(a, torch.Tensor) for a in args):
+                return torch_op(*args)
+            return np_op(*args)
+
+        return op
+
+    proxy.bitwise_and = wrap(numpy.bitwise_and, torch.bitwise_and)  # type: ignore[attr-defined]
+    proxy.bitwise_or = wrap(numpy.bitwise_or, torch.bitwise_or)  # type: ignore[attr-defined]
+    proxy.bitwise_not = wrap(numpy.bitwise_not, torch.bitwise_not)  # type: ignore[attr-defined]
+    return proxy
 
 
 @contextlib.contextmanager

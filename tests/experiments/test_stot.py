@@ -149,6 +149,21 @@ def test_without_a_checkout_the_error_says_where_to_put_it(
         stot.verify_source(tmp_path / "absent", "householdsDifferent", [3])
 
 
+def test_its_masks_stay_bool_tensors_and_other_arrays_stay_numpys() -> None:
+    # With torch 2.x numpy's bitwise_and of two bool tensors is a uint8 tensor, which its figure
+    # code's ``img[mask] *= -0.5`` refuses (RuntimeError).
+    np = stot._bool_mask_numpy()
+    a, b = torch.tensor([True, False, True]), torch.tensor([True, True, False])
+    both = np.bitwise_and(a, b)
+    assert both.dtype == torch.bool and both.tolist() == [True, False, False]
+    assert np.bitwise_or(a, b).tolist() == [True, True, True]
+    assert np.bitwise_not(a).tolist() == [False, True, False]
+    img = torch.ones(3)
+    img[np.bitwise_and(a, b)] *= -0.5
+    assert img.tolist() == [-0.5, 1.0, 1.0]
+    assert np.bitwise_and(3, 5) == 1 and np.arange(2).tolist() == [0, 1]
+
+
 def test_the_blob_id_is_gits() -> None:
     assert stot.git_blob_id(b"") == "e69de29bb2d1d6434b8b29ae775ad8c2e48c5391"
     assert stot.git_blob_id(b"hello\n") == "ce013625030ba8dba906f756967f9e9ca394464a"
