@@ -18,7 +18,9 @@ becomes Python objects, converts them a slice at a time, and checks the deadline
 slices until it is closed, so the time limit covers the fetch and what the caller does with
 the rows too. Not bounded: what DuckDB itself allocates to compute one vector of values (a
 scalar function's result such as ``repeat``'s is not counted by its ``memory_limit``, and a
-vector cannot be interrupted halfway), and one Arrow copy of that vector.
+vector cannot be interrupted halfway), and one Arrow copy of that vector. ``objsearch query``
+bounds those too: it runs the query in a process of its own whose memory is capped and which is
+killed at the time limit (:mod:`objsearch.replay.query_process`).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import shutil
 import tempfile
 import threading
 import weakref
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
@@ -215,9 +217,7 @@ class Deadline:
             raise self._timed_out()
 
     def _timed_out(self) -> QueryLimitError:
-        return QueryLimitError(
-            f"query exceeded its {self.timeout_s:g} s time limit (raise it with --timeout)"
-        )
+        return timed_out(self.timeout_s)
 
     def check(self) -> None:
         """Raise :class:`QueryLimitError` if the time is up."""
@@ -247,8 +247,6 @@ class BoundedResult:
         holds_all: bool = False,
         batch_rows: int = RESULT_BATCH_ROWS,
     ) -> None:
-        import duckdb
-
         self.deadline = deadline
         self.holds_all = holds_all
         self.limit = memory_limit_of(con)
@@ -262,14 +260,7 @@ class BoundedResult:
                 self.names: list[str] = [] if relation is None else list(relation.columns)
                 if relation is not None:
                     self._reader = relation.to_arrow_reader(batch_rows)
-            self._convert = duckdb.connect(":memory:")
-            for setting in (
-                "threads = 1",
-                "enable_external_access = false",
-                "autoload_known_extensions = false",
-                "lock_configuration = true",
-            ):
-                self._convert.execute(f"SET {setting}")
+            self._convert = converter()
         except BaseException:
             self.close()
             raise
@@ -306,17 +297,22 @@ class BoundedResult:
             self._convert.close()
             self._convert = None
 
-    def _batches(self) -> Iterator[list[tuple[Any, ...]]]:
+    def arrow_batches(self) -> Iterator[pa.RecordBatch]:
+        """The result as Arrow batches, each counted against the memory limit (and the deadline
+        checked) before it is yielded: what :mod:`objsearch.replay.query_process` sends from the
+        query's process to the caller's, which makes them Python (:func:`python_rows`)."""
         while self._reader is not None and (batch := self._next_batch()) is not None:
             self._count(batch)
-            step = max(1, batch.num_rows * _SLICE_BYTES // max(1, batch.nbytes))
-            for start in range(0, batch.num_rows, step):
-                self.deadline.check()
-                assert self._convert is not None
-                yield self._convert.from_arrow(batch.slice(start, step)).fetchall()
+            self.deadline.check()
+            yield batch
             if not self.holds_all:
                 self.held = 0
         self.deadline.check()
+
+    def _batches(self) -> Iterator[list[tuple[Any, ...]]]:
+        for batch in self.arrow_batches():
+            assert self._convert is not None
+            yield from python_rows(self._convert, batch, self.deadline.check)
 
     def _next_batch(self) -> pa.RecordBatch | None:
         import duckdb
@@ -354,6 +350,40 @@ class BoundedResult:
             f"query exceeded its {self._limit_text} memory limit (raise it with "
             f"--memory-limit): the result needs more than that in objsearch: {what}"
         )
+
+
+def timed_out(timeout_s: float | None) -> QueryLimitError:
+    """The error of a query stopped at its time limit."""
+    return QueryLimitError(
+        f"query exceeded its {timeout_s:g} s time limit (raise it with --timeout)"
+    )
+
+
+def converter() -> duckdb.DuckDBPyConnection:
+    """A private in-memory DuckDB that turns Arrow batches into DuckDB's own Python values
+    (:func:`python_rows`): it reads nothing but the batch it is given."""
+    import duckdb
+
+    con = duckdb.connect(":memory:")
+    for setting in (
+        "threads = 1",
+        "enable_external_access = false",
+        "autoload_known_extensions = false",
+        "lock_configuration = true",
+    ):
+        con.execute(f"SET {setting}")
+    return con
+
+
+def python_rows(
+    convert: duckdb.DuckDBPyConnection, batch: pa.RecordBatch, check: Callable[[], None]
+) -> Iterator[list[tuple[Any, ...]]]:
+    """``batch`` as Python tuples through ``convert`` (:func:`converter`), a slice of about
+    4 MiB at a time, calling ``check`` (the deadline) before each slice."""
+    step = max(1, batch.num_rows * _SLICE_BYTES // max(1, batch.nbytes))
+    for start in range(0, batch.num_rows, step):
+        check()
+        yield convert.from_arrow(batch.slice(start, step)).fetchall()
 
 
 def _memory_limit(con: duckdb.DuckDBPyConnection) -> str:

@@ -47,8 +47,8 @@ def _fail(message: str) -> int:
 def cmd_query(args: argparse.Namespace) -> int:
     import duckdb
 
-    from objsearch.events.sql_limits import QueryLimitError, close
-    from objsearch.replay.analytics import open_analytics, stream_query
+    from objsearch.events.sql_limits import QueryLimitError
+    from objsearch.replay.query_process import QueryProcess, QueryRequest
 
     lake = Path(args.lake)
     remote = _remote(args.lake)
@@ -68,21 +68,23 @@ def cmd_query(args: argparse.Namespace) -> int:
         return _fail("--force replaces the file --out names; there is no --out")
     if not args.sql.strip():
         return _fail('no SQL given (e.g. "SELECT count(*) FROM events")')
-    con = None
-    try:
-        con = open_analytics(
-            args.lake if remote else lake, memory_limit=args.memory_limit, for_sql=args.sql
-        )
+    # DuckDB's work and the fetch of its rows run in a process capped in memory and killed at
+    # the time limit (replay/query_process.py); the rows are written here
+    request = QueryRequest(
+        lake=args.lake if remote else str(lake),
+        sql=args.sql,
+        memory_limit=args.memory_limit,
+        timeout_s=args.timeout,
         # a table is laid out from every row: they count against the memory limit together
-        names, result = stream_query(
-            con, args.sql, timeout_s=args.timeout, holds_all=args.format == "table"
-        )
-        with result:
+        holds_all=args.format == "table",
+    )
+    try:
+        with QueryProcess(request) as result:
             if out is None:
-                write_batches(names, result, args.format, sys.stdout, check=result.check)
+                write_batches(result.names, result, args.format, sys.stdout, check=result.check)
                 return 0
             rows = _write_file(
-                out, names, result, args.format, force=args.force, check=result.check
+                out, result.names, result, args.format, force=args.force, check=result.check
             )
     except QueryLimitError as exc:
         return _fail(str(exc))
@@ -94,9 +96,6 @@ def cmd_query(args: argparse.Namespace) -> int:
         if out is None or exc.filename is None:
             raise
         return _fail(f"cannot write --out {args.out}: {exc.strerror or exc}")
-    finally:
-        if con is not None:
-            close(con)
     print(f"wrote {rows} row{'s' if rows != 1 else ''} to {out}", file=sys.stderr)
     return 0
 

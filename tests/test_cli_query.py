@@ -409,8 +409,9 @@ def test_a_query_past_its_memory_limit_stops_with_a_clear_error(
     assert "(raise it with --memory-limit)" in err and "Traceback" not in err
 
 
-# One value of 64 MB: DuckDB computes it outside its memory limit (a scalar's result), so only
-# objsearch's count of the result's bytes can stop it before it becomes Python objects.
+# One value of 64 MB: DuckDB computes it outside its memory limit (a scalar's result). The
+# query's process may not hold it (its data segment is capped, replay/query_process.py), and
+# in-process objsearch's count of the result's bytes stops it before it becomes Python objects.
 BIG_VALUE = "SELECT repeat('x', 64000000) AS x"
 
 
@@ -423,10 +424,82 @@ def test_a_result_past_the_memory_limit_stops_before_it_reaches_python(
     argv = _query(lake, BIG_VALUE, "--memory-limit", "32MiB", "--format", fmt, *extra)
     assert main(argv) == 2
     captured = capsys.readouterr()
-    assert captured.err.startswith("objsearch: error: query exceeded its 32.0 MiB memory limit ")
-    assert "the result needs more than that in objsearch: " in captured.err
+    assert captured.err.startswith(
+        "objsearch: error: query exceeded its 32.0 MiB memory limit (raise it with --memory-limit)"
+    )
     # stdout may have had csv's header or json's "[" before the first batch: never a value
     assert len(captured.out) < 10 and list(tmp_path.iterdir()) == []
+
+
+def test_in_process_a_result_past_the_memory_limit_stops_before_it_reaches_python(
+    lake: Path,
+) -> None:
+    con = open_analytics(lake, memory_limit=32 << 20)
+    try:
+        _, result = stream_query(con, BIG_VALUE)
+        with result, pytest.raises(QueryLimitError) as raised:
+            next(result)
+        assert "the result needs more than that in objsearch: one batch of 1 row(s)" in str(
+            raised.value
+        )
+    finally:
+        close(con)
+
+
+# A gigabyte DuckDB allocates outside its buffers: in-process it reached 2.1 GB under 256MB.
+GIGABYTE_VALUE = "SELECT repeat('x', 1000000000) AS x"
+
+
+def test_a_query_past_its_memory_limit_never_holds_more_than_the_limit_and_the_overhead(
+    lake: Path, tmp_path: Path
+) -> None:
+    """The whole command's peak resident size (the CLI and the query's process it waits for,
+    ``wait4``'s rusage) stays under the limit plus the cap's headroom plus 512 MiB for the
+    interpreter, DuckDB and the lake's views: well under the 1 GB the value needs."""
+    from objsearch.replay.query_process import HEADROOM
+
+    limit = 64 << 20
+    argv = _query(lake, GIGABYTE_VALUE, "--memory-limit", "64MiB", "--format", "csv")
+    out, err = tmp_path / "out", tmp_path / "err"
+    with out.open("wb") as stdout, err.open("wb") as stderr:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "objsearch.cli", *argv], stdout=stdout, stderr=stderr
+        )
+    _, status, usage = os.wait4(proc.pid, 0)  # this command's own rusage, its children's in it
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    assert proc.returncode == 2, err.read_text()
+    assert err.read_text().startswith(
+        "objsearch: error: query exceeded its 64.0 MiB memory limit (raise it with --memory-limit)"
+    )
+    assert out.read_bytes() in (b"", b"x\n")  # csv's header at most
+    peak = usage.ru_maxrss * 1024  # Linux: KiB
+    assert peak < limit + HEADROOM + (512 << 20) < 10**9, peak
+
+
+def test_a_query_that_ignores_interrupts_stops_at_its_time_limit(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A FIFO in the lake's folder, which a query may read: DuckDB blocks opening it, where its
+    interrupt is never looked at (in-process the query hung for good); the query's process is
+    killed at the limit."""
+    import tempfile
+
+    copy, spill = tmp_path / "lake", tmp_path / "tmp"
+    shutil.copytree(lake, copy)
+    os.mkfifo(copy / "stuck.csv")
+    spill.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(spill))  # where the query's private folder goes
+    started = time.monotonic()
+    assert main(_query(copy, f"SELECT * FROM read_csv('{copy}/stuck.csv')", "--timeout", "3")) == 2
+    # the limit starts once the lake's views are made, so how fast a process starts is not in
+    # it; 30 s only guards against a query that is never stopped
+    assert time.monotonic() - started < 30
+    captured = capsys.readouterr()
+    assert captured.err == (
+        "objsearch: error: query exceeded its 3 s time limit (raise it with --timeout)\n"
+    )
+    assert captured.out == ""
+    assert list(spill.iterdir()) == []  # the killed query's spill folder is gone
 
 
 def test_a_table_counts_every_row_it_holds_csv_streams_them(
