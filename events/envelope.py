@@ -183,12 +183,45 @@ class Event(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tru
         return _Adopted(**d)
 
     @classmethod
-    def _appended(cls, payload: Mapping[str, Any], **envelope: Any) -> Event:
+    def _appended(
+        cls,
+        payload: Mapping[str, Any],
+        *,
+        event_id: str,
+        stream: str,
+        seq: int,
+        time_ns: int,
+        recorded_at_ns: int,
+        type: str,
+        version: int,
+        task_id: str | None,
+    ) -> Event:
         """The event an append stores: the envelope checked as ``Event(...)`` checks it, the
         payload the one the store checked and encoded (``Store.encode``: a read-only copy, or a
-        record's JSON decoded only when read), wrapped, not copied again."""
-        check_envelope(**envelope)
-        return _Adopted(**envelope, payload=payload)
+        record's JSON decoded only when read), wrapped, not copied again. The fields are named,
+        not gathered into a dict and spread again: this runs once per append."""
+        if not _plausible(event_id, stream, seq, time_ns, recorded_at_ns, type, version, task_id):
+            check_envelope(  # words what is wrong (or lets an int subclass through, as Event does)
+                event_id=event_id,
+                stream=stream,
+                seq=seq,
+                time_ns=time_ns,
+                recorded_at_ns=recorded_at_ns,
+                type=type,
+                version=version,
+                task_id=task_id,
+            )
+        return _Adopted(
+            event_id=event_id,
+            stream=stream,
+            seq=seq,
+            time_ns=time_ns,
+            recorded_at_ns=recorded_at_ns,
+            type=type,
+            version=version,
+            task_id=task_id,
+            payload=payload,
+        )
 
 
 class _Adopted(Event, frozen=True, kw_only=True, forbid_unknown_fields=True, gc=False):

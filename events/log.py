@@ -65,7 +65,7 @@ from .log_files import (
 from .log_position import check_position
 from .log_seal_check import _check_sealed, _SealCheck
 from .log_torn_tail import _cut_torn_tail
-from .record import encode_new_record
+from .record import frame_new_record
 from .scan import QUARANTINED_TYPE, _Cursor, _Scan
 from .seal import Sealer
 from .store import Encoded, Store
@@ -101,6 +101,10 @@ class EventLog:
         # Private: only open() knows how to reach a consistent state (lock, meta, recovery).
         self._directory = directory
         self._meta = meta
+        # What every append reads of the meta, read once (the meta never changes while open).
+        self._stream = meta.stream
+        self._id_key = meta.id_key()
+        self._chained = meta.chained
         self._fd = fd
         self._lock_fd = lock_fd
         self._at = at
@@ -344,7 +348,8 @@ class EventLog:
         :class:`WrongExpectedSeqError` unless the log ends at that seq (optimistic concurrency,
         like an expected version); the duplicate check comes first, so a retry still succeeds.
         """
-        self._check_usable()
+        if self._closed or self._seal_check is not None or self._broken is not None:
+            self._check_usable()  # raises (or waits for the seal check): not per append
         encoded = self._store.encode(type, payload, version)
         return self._append(encoded, time_ns, task_id, event_id, expected_last_seq)
 
@@ -361,7 +366,8 @@ class EventLog:
         its type and version are the record's, and the same bytes are stored as for its payload
         dict (``Store.encode_record``). The event returned decodes its payload only when it is
         read."""
-        self._check_usable()
+        if self._closed or self._seal_check is not None or self._broken is not None:
+            self._check_usable()  # raises (or waits for the seal check): not per append
         encoded = self._store.encode_record(record)
         return self._append(encoded, time_ns, task_id, event_id, expected_last_seq)
 
@@ -392,7 +398,7 @@ class EventLog:
         event = Event._appended(
             encoded.payload,
             event_id=event_id,
-            stream=self._meta.stream,
+            stream=self._stream,
             seq=seq,
             time_ns=time_ns,
             recorded_at_ns=self._wall_clock(),
@@ -400,7 +406,8 @@ class EventLog:
             version=version,
             task_id=task_id,
         )
-        self._check_time(event)
+        if time_ns < self._at.time_ns:
+            self._check_time(event)  # raises
         return self._store_event(event, encoded.text)
 
     def _claim(self, event_id: str | None, expected_last_seq: int | None) -> tuple[int, str, bool]:
@@ -419,7 +426,7 @@ class EventLog:
                 f"not at the expected seq {expected_last_seq}; nothing was written"
             )
         if event_id is None:
-            event_id = deterministic_event_id(self._meta.id_key(), seq)
+            event_id = deterministic_event_id(self._id_key, seq)
             # After a fast open the prefix is not indexed; a default id is new by construction
             # unless an explicit id copied it, which indexing on that explicit append catches.
             if ids is not None and event_id in ids:
@@ -445,7 +452,9 @@ class EventLog:
         """Write the checked ``event`` (its payload's JSON text made) and, outside a batch,
         fsync it."""
         at = self._at
-        record = encode_new_record(event, payload_json, at.checksum if self._meta.chained else 0)
+        record, checksum = frame_new_record(
+            event, payload_json, at.checksum if self._chained else 0
+        )
         offset = at.offset
         self._write(record)
         self._sealer.add(record)
@@ -455,7 +464,7 @@ class EventLog:
         at.offset += len(record)
         at.line += 1
         at.seq = event.seq
-        at.checksum = int(record[-9:-1], 16)
+        at.checksum = checksum
         at.time_ns = event.time_ns
         if self._batch_depth:
             self._unsynced = True
@@ -573,7 +582,10 @@ class EventLog:
 
     def _write(self, data: bytes) -> None:
         try:
-            _fs.write_all(self._fd, data)
+            # One record is one write, all but always whole; a short one writes on the rest.
+            written = os.write(self._fd, data)
+            if written != len(data):
+                _fs.write_all(self._fd, data[written:])
         except BaseException as exc:
             # A partial line left in place would turn the next append into mid-file corruption.
             try:

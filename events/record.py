@@ -78,6 +78,12 @@ def encode_new_record(event: Event, payload_json: str, prev: int = 0) -> bytes:
     """:func:`encode_record` of an event being appended whose payload's JSON text
     (:func:`~objsearch.events.envelope.json_payload`) is already made: the envelope is written
     around it, not dumped again. ``InvalidEventError`` if it cannot be stored as UTF-8."""
+    return frame_new_record(event, payload_json, prev)[0]
+
+
+def frame_new_record(event: Event, payload_json: str, prev: int = 0) -> tuple[bytes, int]:
+    """:func:`encode_new_record`'s line and its checksum (the next record's ``prev`` in a
+    chained log), which the writer keeps rather than read back from the line's hex digits."""
     task_id = event.task_id
     text = _BODY % (
         event.event_id,  # canonical (checked): hex digits and dashes, nothing to escape
@@ -94,7 +100,8 @@ def encode_new_record(event: Event, payload_json: str, prev: int = 0) -> bytes:
         body = text.encode("utf-8")
     except ValueError as exc:  # a lone surrogate
         raise _unstorable(event, exc) from exc
-    return body + b"\t%08x\n" % zlib.crc32(body, prev)
+    checksum = zlib.crc32(body, prev)
+    return body + b"\t%08x\n" % checksum, checksum
 
 
 def encode_record(event: Event, prev: int = 0) -> bytes:

@@ -56,7 +56,7 @@ class Store:
     and safe to share between threads.
     """
 
-    __slots__ = ("_codecs", "_lock", "_registry", "_upcaster", "catalogue")
+    __slots__ = ("_codecs", "_lock", "_registry", "_upcaster", "_writable", "catalogue")
 
     def __init__(self, catalogue: Catalogue) -> None:
         self.catalogue: Final = catalogue
@@ -64,6 +64,9 @@ class Store:
         self._registry: SchemaRegistry | None = None
         self._upcaster: Upcaster | None = None
         self._codecs: dict[type[msgspec.Struct], RecordCodec] | None = None
+        #: The codecs of records whose type and version the registry knows, as appends meet
+        #: them (:meth:`encode_record`; a dict's item is set atomically, so threads may share it).
+        self._writable: dict[type[msgspec.Struct], RecordCodec] = {}
 
     @property
     def registry(self) -> SchemaRegistry:
@@ -130,11 +133,15 @@ class Store:
         msgspec without the dict (:mod:`.record_json`). A record msgspec would spell otherwise,
         or that does not fit its type, is encoded through its dict: :meth:`encode`'s
         normalisation, and its errors worded."""
-        codec = self.record_codec(type(record))
-        if self.registry.knows(codec.type, codec.version):
-            text = codec.payload_json(record)
-            if text is not None:
-                return Encoded(codec.type, codec.version, text.decode(), ReadPayload(text))
+        codec = self._writable.get(type(record))  # once per append: no method calls to find it
+        if codec is None:
+            codec = self.record_codec(type(record))
+            if not self.registry.knows(codec.type, codec.version):
+                return self.encode(codec.type, codec.payload(record), codec.version)
+            self._writable[type(record)] = codec
+        text = codec.payload_json(record)
+        if text is not None:
+            return Encoded(codec.type, codec.version, text.decode(), ReadPayload(text))
         return self.encode(codec.type, codec.payload(record), codec.version)
 
     def __repr__(self) -> str:

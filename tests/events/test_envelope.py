@@ -302,7 +302,7 @@ def test_an_appended_event_is_built_and_encoded_as_event_and_encode_record_do(
     """What an append does (``Store.encode``'s one copy and one dump, ``Event._appended``, then
     ``encode_new_record``) gives the event, the error and the record bytes that ``Event(...)`` +
     ``encode_record`` give."""
-    from objsearch.events.record import encode_new_record, encode_record
+    from objsearch.events.record import encode_new_record, encode_record, frame_new_record
 
     envelope: dict[str, Any] = {
         "event_id": deterministic_event_id(stream, 1),
@@ -327,6 +327,10 @@ def test_an_appended_event_is_built_and_encoded_as_event_and_encode_record_do(
     assert copied == dict(expected.payload)
     assert json.dumps(copied, sort_keys=True) == json.dumps(dict(expected.payload), sort_keys=True)
     assert encode_new_record(event, text, prev) == encode_record(expected, prev)
+    # The checksum the writer keeps is the one the line carries (not read back from its digits).
+    line, checksum = frame_new_record(event, text, prev)
+    assert line == encode_record(expected, prev)
+    assert checksum == int(line[-9:-1], 16)
 
 
 def test_an_appended_payload_with_a_lone_surrogate_is_refused_as_before() -> None:

@@ -509,6 +509,29 @@ def test_failed_write_is_undone(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
     assert [e.seq for e in read_log(tmp_path, store=STORE)] == [1, 2]
 
 
+def test_a_short_write_writes_the_rest(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A record is written with one ``os.write``; if the kernel takes only part of it (a signal,
+    a full pipe of a FUSE mount), the rest follows, and the log reads back whole."""
+    write_events(tmp_path, 1)
+    real_write = os.write
+    calls: list[int] = []
+
+    def short_once(fd: int, data: Any) -> int:
+        calls.append(len(data))
+        if len(calls) == 1:
+            return real_write(fd, bytes(data)[:10])
+        return real_write(fd, data)
+
+    with open_log(tmp_path) as log:
+        monkeypatch.setattr(os, "write", short_once)
+        log.append("search_failed", {"reason": "in two writes"}, time_ns=1)
+        monkeypatch.setattr(os, "write", real_write)
+        log.append("search_failed", {"reason": "in one"}, time_ns=2)
+    assert len(calls) == 2 and calls[1] == calls[0] - 10
+    reasons = [e.payload["reason"] for e in read_log(tmp_path, store=STORE)]
+    assert reasons[1:] == ["in two writes", "in one"]
+
+
 def test_failed_fsync_stops_the_writer(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     log = open_log(tmp_path)
 
