@@ -58,7 +58,7 @@ which its figure code cannot index with (RuntimeError); its evaluation module is
 whose three bitwise functions apply torch's own to torch tensors (bool in, bool out: the masks
 its code meant), everything else numpy's.
 Its reader loads a day's whole file for every sample it reads (about 0.17 s a file here; some
-3,000 reads per household for its FreMEn and co-occurrence priors), so while a household runs
+2,900 reads for each of its FreMEn and co-occurrence priors on household 3), so while a household runs
 ``torch.load`` is memoised by path (:func:`loads_once`): the same tensors, each file read once.
 """
 
