@@ -15,7 +15,9 @@ interpreter (``python -m objsearch.replay.query_process``) that
   which would count as held);
 * is killed (SIGKILL) if it has not answered :data:`KILL_GRACE_S` after the time limit (its own
   timer interrupts DuckDB at the limit, which a long expression does not notice);
-* spills into a private folder the parent makes and removes, killed or not.
+* spills into a private folder the parent makes and removes, killed or not;
+* dies with the process that started it (Linux: ``PR_SET_PDEATHSIG``, :func:`die_with_parent`),
+  so a query never outlives the command that asked it, even one killed with SIGKILL.
 
 The rows come back as Arrow IPC over a pipe, one batch at a time (each counted against the
 memory limit in the child before it is sent, :class:`~objsearch.events.sql_limits.BoundedResult`),
@@ -67,6 +69,10 @@ KILL_GRACE_S: Final = 1.0
 #: A frame: its kind (one byte) and the length of what follows.
 _FRAME: Final = struct.Struct("<cQ")
 _READY, _NAMES, _BATCH, _DONE, _ERROR, _LOG = b"R", b"N", b"B", b"D", b"E", b"L"
+#: The environment variable that gives the query's process the pid of the process it answers.
+_PARENT: Final = "OBJSEARCH_QUERY_PARENT"
+#: Linux's prctl option: the signal a process gets when the thread that started it ends.
+_PR_SET_PDEATHSIG: Final = 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,7 +95,8 @@ class QueryProcess:
     would (:class:`~objsearch.events.sql_limits.QueryLimitError`, DuckDB's own error class,
     :class:`~objsearch.events.sql.QueryRefusedError`, the lake's
     :class:`~objsearch.events.errors.ObjsearchError`, ``OSError``). Close it (or ``with`` it):
-    that kills the process if it still runs and removes its spill folder."""
+    that kills the process if it still runs and removes its spill folder. Make it in a thread that
+    outlives it: on Linux the process is killed when the thread that started it ends."""
 
     def __init__(self, request: QueryRequest) -> None:
         from objsearch.events.sql_limits import converter
@@ -103,7 +110,11 @@ class QueryProcess:
         self._done = False
         self._private = Path(tempfile.mkdtemp(prefix="objsearch-query-"))
         self._convert: duckdb.DuckDBPyConnection | None = None
-        env = os.environ | {"TMPDIR": str(self._private), "ARROW_DEFAULT_MEMORY_POOL": "system"}
+        env = os.environ | {
+            "TMPDIR": str(self._private),
+            "ARROW_DEFAULT_MEMORY_POOL": "system",
+            _PARENT: str(os.getpid()),
+        }
         # -P: a module in the working folder never shadows the package or DuckDB
         self._proc = subprocess.Popen(
             [sys.executable, "-P", "-m", __name__],
@@ -381,9 +392,26 @@ def _report(exc: BaseException) -> dict[str, Any] | None:
     return None
 
 
+def die_with_parent() -> None:
+    """Be killed (SIGKILL) when the process that started this one ends, even by SIGKILL, so a
+    query never outlives the command that asked it (Linux: ``PR_SET_PDEATHSIG``; elsewhere the
+    query's own timer and its broken pipe end it). Exits now if that process is already gone."""
+    import ctypes
+
+    parent = int(os.environ.get(_PARENT, "0"))
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        prctl = libc.prctl
+    except (OSError, AttributeError):  # not Linux
+        return
+    if prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0 and os.getppid() != parent:
+        os._exit(1)
+
+
 def main() -> int:
     import duckdb
 
+    die_with_parent()
     channel = _Channel()
     logging.basicConfig(handlers=[_Forward(channel)], level=logging.WARNING, force=True)
     request = QueryRequest(**json.loads(sys.stdin.buffer.read()))
