@@ -535,50 +535,12 @@ def _run_household(
         )
     days = data.test_routines
     n_days = len(days) if max_test_days is None else min(len(days), max_test_days)
-    built: dict[str, Any] = {}
-    their = [m for m in methods if m in THEIR_METHODS]
-    if their:
-        t0 = time.monotonic()
-        with contextlib.redirect_stdout(io.StringIO()):
-            cf = data.get_cooccurence_frequency()
-            spec = data.get_spectral_components(periods_mins=[float("inf"), 60 * 24, 60 * 24 / 2])
-        bl = up.baselines
-        make = {
-            "LastSeen": lambda: bl.LastSeen(),
-            "StaticSemantic": lambda: bl.StaticSemantic(cf),
-            "LastSeenAndStaticSemantic": lambda: bl.LastSeenAndStaticSemantic(cf),
-            "Fremen": lambda: bl.Fremen(spec),
-            "FremenStateConditioned": lambda: bl.FremenStateConditioned(spec, data.params["dt"]),
-        }
-        for m in their:
-            built[m] = make[m]()
-        log(
-            f"household {household}: its priors from {n_train} training days in {time.monotonic() - t0:.0f} s"
-        )
-    mask = data.active_edges.tolist()
+    built: dict[str, Any] = _their_methods(
+        up, data, [m for m in methods if m in THEIR_METHODS], household, n_train, log
+    )
     for m in methods:
         if m in OUR_METHODS:
-            t0 = time.monotonic()
-            train = [data.train_routines[r][0] for r in range(len(data.train_routines))]
-            held = sorted(
-                {
-                    int(p)
-                    for samples in train
-                    for s in samples
-                    for p in s[0].argmax(-1)[(s[0].sum(-1) > 0) & (data.active_edges.sum(-1) > 0)]
-                }
-            )
-            ours = BeliefMethod(
-                m, list(data.node_classes), mask, int(data.params["dt"]), places=held
-            )
-            for samples in train:
-                for s in samples:
-                    ours.observe_graph(int(s[6]) - ours.dt, s[0])
-                ours.observe_graph(int(samples[-1][6]), samples[-1][3])
-            built[m] = ours
-            log(
-                f"household {household}: {m} folded {ours.episodes} training steps in {time.monotonic() - t0:.0f} s"
-            )
+            built[m] = _our_method(m, data, household, log)
     results: list[DayResult] = []
     for m in methods:
         t0 = time.monotonic()
@@ -607,6 +569,61 @@ def _run_household(
             results.append(DayResult(household, days.files[idx], m, by_step))
         log(f"household {household}: {m} on {n_days} test days in {time.monotonic() - t0:.0f} s")
     return results
+
+
+def _their_methods(
+    up: Any,
+    data: Any,
+    their: Sequence[str],
+    household: int,
+    n_train: int,
+    log: Callable[[str], None],
+) -> dict[str, Any]:
+    """Its baselines, built as its run.py builds them (their priors from the training days)."""
+    if not their:
+        return {}
+    t0 = time.monotonic()
+    with contextlib.redirect_stdout(io.StringIO()):
+        cf = data.get_cooccurence_frequency()
+        spec = data.get_spectral_components(periods_mins=[float("inf"), 60 * 24, 60 * 24 / 2])
+    bl = up.baselines
+    make = {
+        "LastSeen": lambda: bl.LastSeen(),
+        "StaticSemantic": lambda: bl.StaticSemantic(cf),
+        "LastSeenAndStaticSemantic": lambda: bl.LastSeenAndStaticSemantic(cf),
+        "Fremen": lambda: bl.Fremen(spec),
+        "FremenStateConditioned": lambda: bl.FremenStateConditioned(spec, data.params["dt"]),
+    }
+    built = {m: make[m]() for m in their}
+    log(
+        f"household {household}: its priors from {n_train} training days in {time.monotonic() - t0:.0f} s"
+    )
+    return built
+
+
+def _our_method(m: str, data: Any, household: int, log: Callable[[str], None]) -> BeliefMethod:
+    """Our belief, its places the nodes that held an object in the training days, folded from
+    every training step."""
+    t0 = time.monotonic()
+    mask = data.active_edges.tolist()
+    train = [data.train_routines[r][0] for r in range(len(data.train_routines))]
+    held = sorted(
+        {
+            int(p)
+            for samples in train
+            for s in samples
+            for p in s[0].argmax(-1)[(s[0].sum(-1) > 0) & (data.active_edges.sum(-1) > 0)]
+        }
+    )
+    ours = BeliefMethod(m, list(data.node_classes), mask, int(data.params["dt"]), places=held)
+    for samples in train:
+        for s in samples:
+            ours.observe_graph(int(s[6]) - ours.dt, s[0])
+        ours.observe_graph(int(samples[-1][6]), samples[-1][3])
+    log(
+        f"household {household}: {m} folded {ours.episodes} training steps in {time.monotonic() - t0:.0f} s"
+    )
+    return ours
 
 
 # -- the summary ------------------------------------------------------------------------------

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -337,82 +336,6 @@ def _prior_option(p: argparse.ArgumentParser) -> None:
     )
 
 
-def cmd_bench_dhs(args: argparse.Namespace) -> int:
-    from objsearch.experiments.dhs import (
-        EXPERIMENTS,
-        OURS,
-        THEIR_AGENTS,
-        render,
-        run_dhs,
-        verify_source,
-    )
-
-    source = verify_source(args.source)
-    seeds = list(range(args.seeds))
-
-    def progress(run: Any) -> None:
-        if not args.no_progress:  # on stderr with --format json, so stdout stays JSON
-            print(
-                f"  {run.line()}",
-                file=sys.stderr if args.format == "json" else sys.stdout,
-                flush=True,
-            )
-
-    summary = run_dhs(
-        source,
-        experiments=args.experiments or list(EXPERIMENTS),
-        agents=args.agents or [*THEIR_AGENTS, OURS],
-        seeds=seeds,
-        steps=args.steps,
-        eps_per_scene=args.eps_per_scene,
-        workers=t.workers(args),
-        progress=progress,
-    )
-    if args.format == "json":
-        print(json.dumps(summary, indent=2))
-    else:
-        print(render(summary))
-        print(f"\n{summary['elapsed_s']} s")
-    return 0
-
-
-def cmd_bench_stot(args: argparse.Namespace) -> int:
-    from objsearch.experiments.stot import (
-        METHODS,
-        format_text,
-        run_household,
-        summary,
-        verify_source,
-    )
-
-    households = sorted(set(args.households or [3, 4]))
-    checkout = verify_source(args.source, args.dataset, households)
-    out = sys.stderr if args.format == "json" else sys.stdout
-
-    def log(line: str) -> None:
-        if not args.no_progress:  # on stderr with --format json, so stdout stays JSON
-            print(f"  {line}", file=out, flush=True)
-
-    results = []
-    for h in households:
-        results.extend(
-            run_household(
-                checkout,
-                args.dataset,
-                h,
-                args.methods or list(METHODS),
-                max_test_days=args.days,
-                log=log,
-            )
-        )
-    s = summary(results, checkout.missing)
-    if args.format == "json":
-        print(json.dumps(s, indent=2))
-    else:
-        print(format_text(s))
-    return 0
-
-
 def _model_choices(p: argparse.ArgumentParser) -> None:
     """bench belief's ``--perception`` and ``--localisation``: which simulated detector and
     localisation the outputs it reads must have been run with."""
@@ -431,43 +354,6 @@ def _model_choices(p: argparse.ArgumentParser) -> None:
         type=t.text,
         choices=LOCALISERS,
         help="the simulated localisation the outputs were run with, likewise",
-    )
-
-
-def _dhs_options(p: argparse.ArgumentParser) -> None:
-    from objsearch.experiments.dhs import ALL_THEIR_AGENTS, EXPERIMENTS, OURS, RUNNABLE_EXPERIMENTS
-
-    p.add_argument(
-        "--experiments",
-        type=t.subset_of(RUNNABLE_EXPERIMENTS),
-        **t.LIST,
-        help="comma-separated experiment configs of the simulator whose scenes to run "
-        f"(default: {','.join(EXPERIMENTS)})",
-    )
-    p.add_argument(
-        "--agents",
-        type=t.subset_of((*ALL_THEIR_AGENTS, OURS)),
-        **t.LIST,
-        help=f"comma-separated agents: its {', '.join(ALL_THEIR_AGENTS)} and ours, {OURS} "
-        "(default: all but oracle_upper_bound)",
-    )
-
-
-def _stot_options(p: argparse.ArgumentParser) -> None:
-    from objsearch.experiments.stot import DATASETS, METHODS
-
-    p.add_argument(
-        "--dataset",
-        type=t.text,
-        choices=DATASETS,
-        default="householdsDifferent",
-        help="its folder of processed HOMER households (householdsDifferent)",
-    )
-    p.add_argument(
-        "--methods",
-        type=t.subset_of(METHODS),
-        **t.LIST,
-        help=f"comma-separated methods: ours and its baselines (default: {','.join(METHODS)})",
     )
 
 
@@ -698,86 +584,6 @@ def _add_ceiling(bsub: Any) -> None:
     ceiling.set_defaults(func=cmd_bench_routine_ceiling)
 
 
-def _add_dhs(bsub: Any) -> None:
-    dhs = bsub.add_parser(
-        "dhs",
-        help="our belief inside the Dynamic House Simulator's find-object task, beside its agents "
-        "(docs/results-dhs.md)",
-        description="Runs the find-object task of the Dynamic House Simulator (Kurenkov et al., "
-        "ICML 2023; a checkout of andreykurenkov/modeling_env_dynamics at the pinned commit, "
-        "checked file by file) with its non-learned agents and our belief, each (agent, seed) in "
-        "a fresh process, and prints its metrics: attempts to find (not found within 10 counts "
-        "11), share found, travel cost; then ours minus each of its agents seed by seed, with a "
-        "95 % t interval.",
-    )
-    dhs.add_argument(
-        "--source",
-        type=t.existing_dir,
-        help="the simulator's checkout (default: $OBJSEARCH_DHS_SOURCE)",
-    )
-    dhs.defer(_dhs_options)
-    dhs.add_argument(
-        "--seeds",
-        type=t.int_range(1, 1000),
-        default=1,
-        help="seeds 0..N-1 of random.seed before each agent's run, N 1-1000 (1: its published "
-        "seed 0)",
-    )
-    dhs.add_argument(
-        "--steps",
-        type=t.int_range(1, 1_000_000),
-        help="queries per agent and seed, 1-1000000 (default: its find_object task's 11000)",
-    )
-    dhs.add_argument(
-        "--eps-per-scene",
-        type=t.int_range(1, 1_000_000),
-        help="queries per sampled scene, 1-1000000 (default: its task's 110)",
-    )
-    dhs.add_argument(
-        "--workers",
-        type=t.int_range(0, t.MAX_WORKERS),
-        default=0,
-        help=f"processes, at most {t.MAX_WORKERS} (0, the default: min(2, cores))",
-    )
-    t.format_option(dhs, "print the summary as JSON")
-    dhs.add_argument("--no-progress", action="store_true", help="no line per finished run")
-    dhs.set_defaults(func=cmd_bench_dhs)
-
-
-def _add_stot(bsub: Any) -> None:
-    stot = bsub.add_parser(
-        "stot",
-        help="our belief at SpatioTemporalObjectTracking's object-movement prediction on HOMER "
-        "households, beside its baselines (docs/results-stot.md)",
-        description="Runs the evaluation of SpatioTemporalObjectTracking (Patel & Chernova, CoRL "
-        "2022; a checkout of Maithili/SpatioTemporalObjectTracking at the pinned commit, checked "
-        "file by file) on its processed HOMER households with its baselines and our belief, and "
-        "prints its counts as shares of the moved objects (correct, wrong, missed), false "
-        "positives, precision and F1 at the next step and within its 12-step lookahead; then "
-        "ours minus each baseline, paired over test days, with a 95 % bootstrap interval.",
-    )
-    stot.add_argument(
-        "--source",
-        type=t.existing_dir,
-        help="its checkout (default: $OBJSEARCH_STOT_SOURCE)",
-    )
-    stot.defer(_stot_options)
-    stot.add_argument(
-        "--households",
-        type=t.int_list(0, 4),
-        **t.LIST,
-        help="comma-separated households 0-4 (default: 3,4)",
-    )
-    stot.add_argument(
-        "--days",
-        type=t.int_range(1, 1000),
-        help="at most N test days per household, 1-1000 (default: all in the checkout)",
-    )
-    t.format_option(stot, "print the summary as JSON")
-    stot.add_argument("--no-progress", action="store_true", help="no line per finished method")
-    stot.set_defaults(func=cmd_bench_stot)
-
-
 def _add_report(bsub: Any) -> None:
     report = bsub.add_parser(
         "report",
@@ -879,6 +685,8 @@ def register(sub: Any) -> None:
     _add_table1(bsub)
     _add_belief(bsub)
     _add_ceiling(bsub)
-    _add_dhs(bsub)
-    _add_stot(bsub)
+    from objsearch.cli_bench_external import add_dhs, add_stot
+
+    add_dhs(bsub)
+    add_stot(bsub)
     _add_report(bsub)
