@@ -65,9 +65,10 @@ def view_not_before(arrival_ns: int, issued_ns: int) -> int:
     """The earliest stamp of the camera view that answers a robot command: at or after the
     command's arrival (``arrival_ns``, the stamp of the pose that showed the robot at its goal)
     and later than ``issued_ns``, the robot's clock — the newest stamp heard from it — when the
-    command was sent. The second bound matters when the robot is at the goal already: it arrives
-    at once, on a pose stamped before the command, and a view of the command before (a turn whose
-    view nobody waited for, still in flight) would otherwise be taken for this one's. It asks of
+    command was sent. The second bound matters when arrival can be stamped at that clock
+    (Nav2's action result, taken at the newest stamp heard; a goal's arrival on odometry is a
+    pose stamped after the clock, issue 45): a view of the command before (a turn whose view
+    nobody waited for, still in flight) would otherwise be taken for this one's. It asks of
     the robot that each view be stamped later than anything it sent before the command, as a
     camera's frames are. The live agent (``runtime/rosworld.py``) and a bag's replay
     (``pipeline/bags/views.py``) pick views by this one rule."""

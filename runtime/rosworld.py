@@ -5,10 +5,15 @@ Navigation goes waypoint by waypoint along the agent's own viewpoint graph: each
 RViz's 2D Goal Pose use); arrival is odometry within tolerance of it; the camera view taken there
 is the first detections message received after the goal was sent, stamped at or after arrival
 *and* later than the robot's clock as the agent had heard it when it sent the goal
-(``objsearch.ros.detections.view_not_before``): a robot already at the goal arrives at once, on
-an old pose, and a view of the command before (a turn whose view nobody waited for, still in
-flight) must not pass for this one's. So each view must be stamped later than anything the robot
-sent before the goal, as a camera's frames are (the stand-in robot spends one camera frame on a
+(``objsearch.ros.detections.view_not_before``). Arrival is a pose at the goal stamped *after*
+that clock, even when the robot is at the goal already: its answer to this goal, not an old pose.
+So a command returns only once the robot's answer to it has been heard, and the clock the next
+command is sent at does not depend on how fast that answer travelled (a turn already within
+tolerance that returned on the old pose let the next look take the turn's own view or not,
+depending on timing, and a bag's replay could not tell which: issue 45); a view of the command
+before (a turn whose view nobody waited for, still in flight) never passes for this one's. So
+each pose and view must be stamped later than anything the robot sent before the goal, as a
+camera's frames and a robot's odometry are (the stand-in robot spends one camera frame on a
 teleport between room entries). Stopping between waypoints is how the detector "cancels" a
 goal. Each goal carries a unique stamp, so sending it again after a lost message is harmless:
 the robot answers a repeated goal without moving.
@@ -318,8 +323,13 @@ class RosWorld:
         t = self.timeouts
         for _attempt in range(t.attempts):
             self.link.goal_pub.publish(msg)
+            # Arrival is a pose at the goal stamped after the clock at sending: the robot's answer
+            # to this goal, never a pose it sent before (issue 45: a turn already within tolerance
+            # must not return before the robot's answer to it is heard, or the next command's
+            # clock would depend on whether that answer had come in yet).
             arrived = self.link.wait(
-                lambda: self._at(goal) and (self.link.pose_ns or -1), t.arrival_s
+                lambda: self._at(goal) and self.link.pose_ns > issued_ns and self.link.pose_ns,
+                t.arrival_s,
             )
             if not arrived:
                 continue

@@ -6,9 +6,9 @@ bag's ``/objsearch/events`` by :func:`~objsearch.pipeline.bags.read.read_bag`).
 
 Which view answers which robot command is the live agent's rule (``runtime/rosworld.py``), the
 one function :func:`~objsearch.ros.detections.view_not_before`: the command's arrival is the
-first recorded pose within tolerance of its goal stamped at or after the robot's clock when it
-was given (the newest stamp the agent had heard); its view is the first recorded view stamped at
-or after arrival and after that clock. An open request's view is the first stamped after the
+first recorded pose within tolerance of its goal stamped after the robot's clock when it was
+given (the newest stamp the agent had heard: the arrival or view of the command before); its
+view is the first recorded view stamped at or after arrival and after that clock. An open request's view is the first stamped after the
 clock. A replay that asks for a pose the robot never reached, or a view that was never recorded,
 has diverged from the recording: :class:`ReplayDiverged` says at which command.
 """
@@ -249,7 +249,9 @@ class RecordedRobot:
 
     def _arrive(self, goal: Pose) -> int:
         self.commands += 1
-        i = bisect.bisect_left(self._pose_stamps, self.clock)
+        # Stamped after the clock, as live (runtime/rosworld.py): the robot's answer to this
+        # command, never a pose sent before it.
+        i = bisect.bisect_right(self._pose_stamps, self.clock)
         for stamp, p in self.poses[i:]:
             if (
                 math.hypot(p.x - goal.x, p.y - goal.y) <= TOLERANCE_M
@@ -258,7 +260,7 @@ class RecordedRobot:
                 return stamp
         raise ReplayDiverged(
             f"command {self.commands}: the recorded robot never reached ({goal.x:.2f}, "
-            f"{goal.y:.2f}, yaw {goal.yaw:.2f}) after stamp {self.clock}"
+            f"{goal.y:.2f}, yaw {goal.yaw:.2f}) stamped after {self.clock}"
         )
 
     def _view(self, at: int, what: str) -> tuple[Detection, ...]:
