@@ -141,6 +141,17 @@ def cmd_search(args: argparse.Namespace) -> int:
     placements = _search_placements(args, ctx)
     if isinstance(placements, int):
         return placements
+    if not any(p.cls == target for p in placements.values()):
+        where = (
+            f"scene {args.scene} of {args.schedule}"
+            if args.scene is not None
+            else "its own placements"
+        )
+        placed = sorted({p.cls for p in placements.values()})
+        raise ObjsearchError(
+            f"no {target} is placed in {args.home} ({where}), so the simulated search has "
+            f"nothing to find; placed: {', '.join(placed) or 'nothing'}"
+        )
     tmp = None if args.log else tempfile.mkdtemp(prefix="objsearch-search-")
     log_dir = Path(args.log or tmp or ".")
     try:

@@ -112,6 +112,11 @@ def test_search_records_its_camera_and_the_camera_tilt(
             ["Apple", "--start", "kitchen-1", "--home", "ithor-01", "--scene", "2"],
             "is the paper home's only; pass --schedule stats-<seed>",
         ),
+        # A class the home does not place: nothing to find (was a ValueError traceback).
+        (
+            ["Cup", "--start", "kitchen-1", "--home", "procthor-00"],
+            "no Cup is placed in procthor-00 (its own placements)",
+        ),
     ],
 )
 def test_bad_search_input_is_a_clear_error_and_writes_nothing(
