@@ -233,16 +233,23 @@ def homes_command(summary: dict[str, Any], folder: Path) -> str:
 
 def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
     """The bench homes options that name a perception model (none for a perfect one): the
-    preset, and each parameter the preset does not give."""
+    preset, each parameter the preset does not give, and the confirmation model when it is not
+    the preset's (a run spec that names none confirmed by ``score``, the runs before the option)."""
     if not perception:
         return {}
-    from objsearch.agent.detector_model import OVERRIDES, preset
+    from objsearch.agent.detector_model import OVERRIDES, PerceptionModel, preset
 
-    base = preset(str(perception["preset"])).params()
-    changed = {k: perception[k] for k in OVERRIDES if perception.get(k) != base.get(k)}
-    if "confirmation" in perception:
-        changed["confirmation"] = perception["confirmation"]
-    return {"perception": perception["preset"], **changed}
+    run = PerceptionModel.from_params(perception)
+    base = preset(run.preset)
+    changed: dict[str, object] = {
+        k: getattr(run, k)
+        for k in OVERRIDES
+        if getattr(run, k) != getattr(base, k)
+        and not (k == "fp_recurrence" and run.confirmation == "score")
+    }
+    if run.confirmation != base.confirmation:
+        changed["confirmation"] = run.confirmation
+    return {"perception": run.preset, **changed}
 
 
 def _search_key(r: Row) -> tuple[str, str, int, int, str, str]:

@@ -186,10 +186,10 @@ def _add_perception_options(p: argparse.ArgumentParser) -> None:
         "--confirmation",
         type=text,
         choices=CONFIRMATIONS,
-        default=CONFIRMATIONS[0],
+        default=None,
         help="how a confirming look counts: score (a report by its score alone, a miss by the "
         "miss probability) or consistent (both against the chance --fp-recurrence that a false "
-        "report recurs at its spot) (score)",
+        "report recurs at its spot) (the preset's: consistent for realistic, score for harsh)",
     )
 
 
@@ -203,7 +203,7 @@ def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
     }
     model = preset(
         getattr(args, "perception", "perfect"),
-        getattr(args, "confirmation", "score"),
+        getattr(args, "confirmation", None),
         **overrides,
     )
     return None if model.perfect else model.params()

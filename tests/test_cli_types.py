@@ -154,8 +154,16 @@ def test_the_confirmation_model_is_an_option_recorded_in_the_run_spec(command: l
     from objsearch.cli import build_parser
 
     parse = build_parser().parse_args
+    # Each preset's own model by default: realistic consistent (q 0.1), harsh score (not recorded).
     default = t.perception_params(parse([*command, "--perception", "realistic"]))
-    assert default is not None and "confirmation" not in default
+    assert default is not None
+    assert (default["confirmation"], default["fp_recurrence"]) == ("consistent", 0.1)
+    harsh = t.perception_params(parse([*command, "--perception", "harsh"]))
+    assert harsh is not None and "confirmation" not in harsh
+    score = t.perception_params(
+        parse([*command, "--perception", "realistic", "--confirmation", "score"])
+    )
+    assert score is not None and "confirmation" not in score
     args = parse(
         [
             *command,

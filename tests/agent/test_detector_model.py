@@ -63,7 +63,10 @@ def test_the_consistent_confirmation_counts_a_look_against_a_recurring_false_rep
     # from prior odds 2: a report at 0.8, a miss, a report at 0.7. The score rule counts a report
     # by its score alone and a miss by 1 - r; the consistent one, with q = 0.3, a report by
     # r / q times its score's ratio and a miss by (1 - r) / (1 - q).
-    score, consistent = preset("realistic"), preset("realistic", "consistent", fp_recurrence=0.3)
+    score, consistent = (
+        preset("realistic", "score"),
+        preset("realistic", "consistent", fp_recurrence=0.3),
+    )
     r = MASK_RCNN_RECALL[0] * 0.5
     looks: list[float | None] = [0.8, None, 0.7]
     by_score = by_consistent = 2.0
@@ -80,13 +83,26 @@ def test_the_consistent_confirmation_counts_a_look_against_a_recurring_false_rep
 
 def test_the_confirmation_is_recorded_only_when_it_is_not_the_committed_rule() -> None:
     # Run specs of the score rule are what they were before the option (golden logs, set A).
-    assert "confirmation" not in preset("realistic").params()
-    assert "fp_recurrence" not in preset("realistic", fp_recurrence=0.5).params()
+    assert "confirmation" not in preset("realistic", "score").params()
+    assert "fp_recurrence" not in preset("realistic", "score", fp_recurrence=0.5).params()
     model = preset("harsh", "consistent", fp_recurrence=0.5)
     doc = model.params()
     assert doc["confirmation"] == "consistent" and doc["fp_recurrence"] == 0.5
     assert PerceptionModel.from_params(doc) == model
     with pytest.raises(ObjsearchError, match="unknown confirmation"):
         preset("realistic", "sometimes")
+
+
+def test_each_preset_confirms_by_its_own_model_and_old_run_specs_stay_score() -> None:
+    # realistic confirms by consistent, q = 0.1 (chosen by the protocol's rule on evaluation A);
+    # harsh and perfect by score. A run spec without a confirmation (every run before the
+    # option) is the score rule, whatever the preset's default is now: replays stay exact.
+    assert preset("realistic").confirmation == "consistent"
+    assert preset("realistic").fp_recurrence == 0.1
+    assert preset("harsh").confirmation == preset("perfect").confirmation == "score"
+    doc = preset("realistic").params()
+    assert doc["confirmation"] == "consistent" and doc["fp_recurrence"] == 0.1
+    old = preset("realistic", "score").params()
+    assert PerceptionModel.from_params(old).confirmation == "score"
     with pytest.raises(ObjsearchError, match="fp_recurrence must be in"):
         preset("realistic", "consistent", fp_recurrence=1.0)

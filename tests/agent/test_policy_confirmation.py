@@ -87,7 +87,7 @@ def test_a_confirming_look_at_a_sighting_inside_a_container_opens_it(tmp_path: P
     # confirming looks did not open it, so each was a miss and the true sighting was rejected
     # (ithor-05 habit-0 scene 8 under realistic: 8 passes, 532 m).
     ctx = load_context("paper")
-    model = preset("realistic")
+    model = preset("realistic", "score")
     placements = base_placements(ctx.home, frozenset())
     (apple,) = [p for p in placements.values() if p.cls == "Apple"]
     assert apple.inside and apple.support == FRIDGE
@@ -132,7 +132,7 @@ def test_a_confirming_look_takes_the_report_nearest_the_sighting(tmp_path: Path)
     # one beside the real object ended the search as "found" (harsh procthor-00 habit-0 scene 1,
     # a Pillow: a false Pillow 0.35 m off, while the Pillow itself was seen in the same view).
     ctx = load_context("paper")
-    model = preset("realistic")
+    model = preset("realistic", "score")
     placements = base_placements(ctx.home, frozenset())
     (apple,) = [p for p in placements.values() if p.cls == "Apple"]
     result, _, events = _search_paper_apple(tmp_path, model, FalseBesideFirst(model))
@@ -183,7 +183,7 @@ def test_a_report_beside_a_sighting_with_a_very_different_mask_is_another_object
     # Phone with 22 times the Phone's mask; realistic ithor-02 habit-3 scene 3: a false Bowl
     # 0.18 m from the Bowl with 1/26 of its mask). Such a report is another object now.
     ctx = load_context("paper")
-    model = preset("realistic")
+    model = preset("realistic", "score")
     placements = base_placements(ctx.home, frozenset())
     (apple,) = [p for p in placements.values() if p.cls == "Apple"]
     result, _, events = _search_paper_apple(tmp_path, model, AnotherObjectBeside(model))
@@ -220,7 +220,7 @@ def test_a_high_scoring_sighting_where_the_target_is_unlikely_is_looked_at_again
     # prior is now the model's P(Apple on a stove burner), a floor of 0.05/45, times recall over
     # the false reports of the class per view: P(real) about 0.85, so it is looked at again and,
     # not seen again, rejected; the real Apple (in the fridge) is found.
-    model = preset("realistic")
+    model = preset("realistic", "score")
     result, world, events = _search_paper_apple(tmp_path, model, PlantedOnTheStove(model, 0, ()))
     assert result.success and result.found_instance != "false:stove"
     assert world.is_instance_of(result.found_instance, "Apple")
@@ -334,7 +334,7 @@ def test_a_false_report_at_the_place_the_target_surely_is_is_no_find() -> None:
     # bed the Laptop was on). Now π r / f, about 20: it is looked at again, and the look sees
     # the real Apple.
     ctx = load_context("paper")
-    model = preset("realistic")
+    model = preset("realistic", "score")
     spec = _spec(model)
     sink = Records()
     agent = SearchAgent(
@@ -379,7 +379,7 @@ def test_the_consistent_confirmation_counts_each_miss_against_a_recurring_false_
     # where it was seen. The score rule multiplies its odds by 1 - r at each; the consistent
     # one by (1 - r) / (1 - q): the same looks leave odds (1 - q)^-looks times higher, and the
     # run spec records the rule (so a replay runs it).
-    score = _rejected_on_the_stove(tmp_path / "score", preset("realistic"))
+    score = _rejected_on_the_stove(tmp_path / "score", preset("realistic", "score"))
     q = 0.1
     model = preset("realistic", "consistent", fp_recurrence=q)
     consistent = _rejected_on_the_stove(tmp_path / "consistent", model)

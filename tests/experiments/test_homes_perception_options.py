@@ -1,0 +1,32 @@
+"""experiments/homes.perception_options: the bench homes options that reproduce a run's detector."""
+
+from __future__ import annotations
+
+from objsearch.agent.detector_model import preset
+from objsearch.experiments.homes import perception_options
+
+
+def test_a_preset_run_needs_only_the_preset() -> None:
+    assert perception_options(None) == {}
+    assert perception_options(preset("realistic").params()) == {"perception": "realistic"}
+    assert perception_options(preset("harsh").params()) == {"perception": "harsh"}
+
+
+def test_a_run_with_another_confirmation_than_its_presets_names_it() -> None:
+    # A realistic run spec without a confirmation is a score run (every run before the preset
+    # confirmed by consistent): reproducing it needs --confirmation score, and no q.
+    old = preset("realistic", "score").params()
+    assert "confirmation" not in old
+    assert perception_options(old) == {"perception": "realistic", "confirmation": "score"}
+    harsh = preset("harsh", "consistent", fp_recurrence=0.3).params()
+    assert perception_options(harsh) == {
+        "perception": "harsh",
+        "fp_recurrence": 0.3,
+        "confirmation": "consistent",
+    }
+    overridden = preset("realistic", fp_per_image=0.5, fp_recurrence=0.3).params()
+    assert perception_options(overridden) == {
+        "perception": "realistic",
+        "fp_per_image": 0.5,
+        "fp_recurrence": 0.3,
+    }
