@@ -147,10 +147,10 @@ def cmd_search(args: argparse.Namespace) -> int:
             if args.scene is not None
             else "its own placements"
         )
-        placed = sorted({p.cls for p in placements.values()})
+        classes = sorted({p.cls for p in placements.values()})
         raise ObjsearchError(
             f"no {target} is placed in {args.home} ({where}), so the simulated search has "
-            f"nothing to find; placed: {', '.join(placed) or 'nothing'}"
+            f"nothing to find; placed: {', '.join(classes) or 'nothing'}"
         )
     tmp = None if args.log else tempfile.mkdtemp(prefix="objsearch-search-")
     log_dir = Path(args.log or tmp or ".")
