@@ -212,7 +212,15 @@ class QueryProcess:
                 if self.request.timeout_s is not None:
                     self._deadline = time.monotonic() + self.request.timeout_s
             elif kind == _ERROR:
-                raise _error(json.loads(payload))
+                doc = json.loads(payload)
+                if doc["kind"] == "duckdb" and "Out of Memory Error" in doc["message"]:
+                    # Wherever DuckDB ran out (its buffer manager's refusal, or an allocation
+                    # failing under the process's cap: "Allocation failure"), the limit was hit.
+                    raise QueryLimitError(
+                        f"query exceeded its {self._limit_text} memory limit (raise it with "
+                        f"--memory-limit): {doc['message'].splitlines()[0]}"
+                    )
+                raise _error(doc)
             else:
                 return kind, payload
 

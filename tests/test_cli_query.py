@@ -448,18 +448,21 @@ def test_in_process_a_result_past_the_memory_limit_stops_before_it_reaches_pytho
 
 # A gigabyte DuckDB allocates outside its buffers: in-process it reached 2.1 GB under 256MB.
 GIGABYTE_VALUE = "SELECT repeat('x', 1000000000) AS x"
+#: Three times that: the bound below must sit far under what the value needs.
+THREE_GIGABYTE_VALUE = "SELECT repeat('x', 3000000000) AS x"
 
 
 def test_a_query_past_its_memory_limit_never_holds_more_than_the_limit_and_the_overhead(
     lake: Path, tmp_path: Path
 ) -> None:
     """The whole command's peak resident size (the CLI and the query's process it waits for,
-    ``wait4``'s rusage) stays under the limit plus the cap's headroom plus 512 MiB for the
-    interpreter, DuckDB and the lake's views: well under the 1 GB the value needs."""
+    ``wait4``'s rusage) stays under the limit plus the cap's headroom plus 768 MiB for the
+    interpreter, DuckDB and the lake's views (902 MB was seen in CI): well under the 3 GB the
+    value needs (before the query's own process: 3.18 GB for a 1 GB value)."""
     from objsearch.replay.query_process import HEADROOM
 
     limit = 64 << 20
-    argv = _query(lake, GIGABYTE_VALUE, "--memory-limit", "64MiB", "--format", "csv")
+    argv = _query(lake, THREE_GIGABYTE_VALUE, "--memory-limit", "64MiB", "--format", "csv")
     out, err = tmp_path / "out", tmp_path / "err"
     with out.open("wb") as stdout, err.open("wb") as stderr:
         proc = subprocess.Popen(
@@ -473,7 +476,7 @@ def test_a_query_past_its_memory_limit_never_holds_more_than_the_limit_and_the_o
     )
     assert out.read_bytes() in (b"", b"x\n")  # csv's header at most
     peak = usage.ru_maxrss * 1024  # Linux: KiB
-    assert peak < limit + HEADROOM + (512 << 20) < 10**9, peak
+    assert peak < limit + HEADROOM + (768 << 20) < 3 * 10**9 // 2, peak
 
 
 def test_a_query_that_ignores_interrupts_stops_at_its_time_limit(
