@@ -35,7 +35,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Any, Final, Self
 
 from .errors import EventStoreError
 from .sql_quote import quote_literal
@@ -225,7 +225,35 @@ class Deadline:
             raise self._timed_out()
 
 
-class BoundedResult:
+class RowStream:
+    """A query's rows in batches of Python tuples, closed on leaving a ``with`` block: what
+    :class:`BoundedResult` (in process) and the query's own process
+    (``objsearch.replay.query_process.QueryProcess``) share."""
+
+    _rows: Iterator[list[tuple[Any, ...]]]
+
+    def __iter__(self) -> Self:
+        return self
+
+    def __next__(self) -> list[tuple[Any, ...]]:
+        return next(self._rows)
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+
+class BoundedResult(RowStream):
     """The rows of ``sql`` on ``con``, in batches of Python tuples (the values DuckDB's own fetch
     gives), bounded by the connection's memory limit (:func:`memory_limit_of`) and by
     ``deadline`` until :meth:`close`.
@@ -265,23 +293,6 @@ class BoundedResult:
             self.close()
             raise
         self._rows = self._batches()
-
-    def __iter__(self) -> BoundedResult:
-        return self
-
-    def __next__(self) -> list[tuple[Any, ...]]:
-        return next(self._rows)
-
-    def __enter__(self) -> BoundedResult:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     def check(self) -> None:
         """Raise :class:`QueryLimitError` if the time is up (for a caller writing the rows)."""

@@ -46,13 +46,13 @@ import time
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from types import TracebackType
 from typing import IO, TYPE_CHECKING, Any, Final
 
 from objsearch.events.errors import ObjsearchError
 from objsearch.events.sql_limits import (
     DEFAULT_THREADS,
     QueryLimitError,
+    RowStream,
     format_size,
     timed_out,
 )
@@ -89,7 +89,7 @@ class QueryRequest:
     threads: int = DEFAULT_THREADS
 
 
-class QueryProcess:
+class QueryProcess(RowStream):
     """The rows of a :class:`QueryRequest`, in batches of Python tuples, from a child process
     bounded as the module says; :attr:`names` are the columns. Raises what the in-process query
     would (:class:`~objsearch.events.sql_limits.QueryLimitError`, DuckDB's own error class,
@@ -137,23 +137,6 @@ class QueryProcess:
             self.close()
             raise
         self._rows = self._batches()
-
-    def __iter__(self) -> QueryProcess:
-        return self
-
-    def __next__(self) -> list[tuple[Any, ...]]:
-        return next(self._rows)
-
-    def __enter__(self) -> QueryProcess:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     def check(self) -> None:
         """Raise :class:`QueryLimitError` if the time is up (for a caller writing the rows)."""
