@@ -270,7 +270,12 @@ TABLE_DIGITS = 6
 def _rounded(value: Any) -> Any:
     """A float for a person to read: ``TABLE_DIGITS`` significant digits, but every digit of its
     whole part (17.909299999999998 → 17.9093, 1234567.891 → 1234568.0, 1.23456789e-07 stays
-    small: 1.23457e-07)."""
+    small: 1.23457e-07); the floats in a list, map or struct too (a plan's candidates, its
+    terms). A DECIMAL is exact and keeps the digits of its type."""
+    if isinstance(value, dict):
+        return {k: _rounded(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_rounded(v) for v in value]
     if not isinstance(value, float) or not math.isfinite(value) or value == 0:
         return value
     whole = math.floor(math.log10(abs(value))) + 1

@@ -283,6 +283,28 @@ def test_a_table_rounds_its_floats_and_csv_and_json_keep_every_digit(
     assert json.loads(capsys.readouterr().out)[0]["third"] == 53.7279 / 3
 
 
+def test_a_table_rounds_the_floats_inside_lists_maps_and_structs(
+    lake: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # A plan's candidates and terms are nested: their floats printed every digit (issue 47).
+    sql = (
+        "SELECT [0.1::DOUBLE + 0.2] AS l, {'k': 1.0 / 3, 'n': [2.0 / 3]} AS s, "
+        "map([1], [1.0 / 7]) AS m"
+    )
+    assert main(_query(lake, sql)) == 0
+    table = capsys.readouterr().out
+    assert '[0.3]  {"k": 0.333333, "n": [0.666667]}  {"1": 0.142857}' in table
+    assert "0.30000000000000004" not in table
+    assert main(_query(lake, sql, "--format", "json")) == 0
+    assert json.loads(capsys.readouterr().out)[0]["l"] == [0.1 + 0.2]  # json: every digit
+    assert main(_query(lake, "SELECT candidates FROM plan_computed", "--format", "json")) == 0
+    rels = [c["rel"] for row in json.loads(capsys.readouterr().out) for c in row["candidates"]]
+    long = next(r for r in rels if r != float(f"{r:.6g}"))  # the lake has one to round
+    assert main(_query(lake, "SELECT candidates FROM plan_computed")) == 0
+    table = capsys.readouterr().out
+    assert repr(long) not in table and f"{long:.6g}" in table
+
+
 def test_a_misspelt_view_is_guessed_from_the_lakes_views(
     lake: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
