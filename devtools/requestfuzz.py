@@ -449,8 +449,8 @@ def fuzz_rig(
 
     ``crashed`` counts processes that died or printed a traceback; a drop whose log line never
     appeared (within ``settle_s``) is a ``wrong`` case."""
+    from objsearch.runtime.backends import open_transport
     from objsearch.runtime.client import AgentClient
-    from objsearch.runtime.transport import open_transport
 
     counts = FuzzCounts()
     config = rig.config()

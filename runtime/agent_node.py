@@ -37,6 +37,7 @@ from objsearch.runtime.action import (
     ActionServer,
 )
 from objsearch.runtime.agent_interfaces import FindFeedback, find_result, where_response
+from objsearch.runtime.backends import open_transport
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.errors import RobotError, SearchCancelled
 from objsearch.runtime.interfaces import FIND_OBJECT
@@ -52,7 +53,6 @@ from objsearch.runtime.requests import (
     parse_where_request,
 )
 from objsearch.runtime.rosworld import RobotLink, RosWorld
-from objsearch.runtime.transport import open_transport
 
 log = logging.getLogger("objsearch.agent")
 

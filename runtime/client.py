@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from objsearch.runtime.backends import open_transport
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.node import Node, Requester
 from objsearch.runtime.requests import (
@@ -13,7 +14,6 @@ from objsearch.runtime.requests import (
     check_reset_result,
     check_where_result,
 )
-from objsearch.runtime.transport import open_transport
 
 
 class AgentClient:

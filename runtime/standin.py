@@ -53,6 +53,7 @@ from objsearch.ros.topics import TopicMap
 from objsearch.ros.types import Distro
 from objsearch.runtime import messages as m
 from objsearch.runtime.action import STATUS_ABORTED, STATUS_CANCELED, STATUS_SUCCEEDED, ActionServer
+from objsearch.runtime.backends import open_transport
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.detections_in import CAMERA_INFO
 from objsearch.runtime.errors import MessageError
@@ -64,7 +65,6 @@ from objsearch.runtime.requests import (
     parse_open_request,
     parse_reset_request,
 )
-from objsearch.runtime.transport import open_transport
 from objsearch.sim.detector_model import NoisyDetector
 from objsearch.sim.longterm import PAUSE_BETWEEN_TASKS_S
 from objsearch.sim.placements import Placements, Schedule, base_placements, table1_removals

@@ -7,6 +7,9 @@ real rclpy node on whatever middleware the robot's ROS 2 runs. The
 agent's own requests and results (search requests, container openings) are topic pairs with a
 correlation id in the JSON body, so they work the same over both; ROS 2 services (Nav2's action)
 are request/reply the way each RMW does them.
+
+This module is the seam alone (the types every backend implements and the config); the backends
+import it, and :func:`objsearch.runtime.backends.open_transport` picks one, so no import runs back.
 """
 
 from __future__ import annotations
@@ -90,17 +93,3 @@ class TransportConfig:
             raise RuntimeConfigError(
                 f"zenoh mode must be peer, client or router, not {self.mode!r}"
             )
-
-
-def open_transport(config: TransportConfig) -> Transport:
-    if config.backend is Backend.ZENOH:
-        from objsearch.runtime.zenoh_transport import ZenohTransport
-
-        return ZenohTransport(config)
-    if config.backend is Backend.ROS2:  # rclpy is imported only here
-        from objsearch.runtime.ros2_transport import Ros2Transport
-
-        return Ros2Transport(config)
-    from objsearch.runtime.dds_transport import DdsTransport
-
-    return DdsTransport(config)

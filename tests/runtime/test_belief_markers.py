@@ -19,8 +19,9 @@ from objsearch.agent.session import load_context
 from objsearch.agent.where import where
 from objsearch.events import read_log
 from objsearch.runtime import liveview as lv
+from objsearch.runtime.backends import open_transport
 from objsearch.runtime.livesinks import TopicSink
-from objsearch.runtime.transport import Backend, TransportConfig, open_transport
+from objsearch.runtime.transport import Backend, TransportConfig
 
 from .runtime_fixtures import STARTUP_S, next_domain
 from .searches import TRIALS, in_process

@@ -17,7 +17,8 @@ pytest.importorskip("cyclonedds")
 
 from objsearch.ros.qos import EVENTS, SENSOR_DATA, QoS
 from objsearch.runtime import messages as m
-from objsearch.runtime.transport import Backend, TransportConfig, open_transport
+from objsearch.runtime.backends import open_transport
+from objsearch.runtime.transport import Backend, TransportConfig
 
 from .runtime_fixtures import STARTUP_S, next_domain
 
@@ -28,7 +29,8 @@ PEER = """
 import sys, threading, time
 from objsearch.ros.qos import QoS
 from objsearch.runtime import messages as m
-from objsearch.runtime.transport import Backend, TransportConfig, open_transport
+from objsearch.runtime.transport import Backend, TransportConfig
+from objsearch.runtime.backends import open_transport
 name, domain, count, qos = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), QoS.parse(sys.argv[4])
 transport = open_transport(TransportConfig(backend=Backend.DDS, domain_id=domain))
 pub = transport.publisher("/chatter", m.STRING, qos)

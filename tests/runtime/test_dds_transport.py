@@ -17,10 +17,11 @@ pytest.importorskip("cyclonedds")
 
 from objsearch.ros.qos import DEFAULT
 from objsearch.runtime import messages as m
+from objsearch.runtime.backends import open_transport
 from objsearch.runtime.dds_transport import domain_xml
 from objsearch.runtime.errors import TransportError
 from objsearch.runtime.node import Node
-from objsearch.runtime.transport import Backend, TransportConfig, open_transport
+from objsearch.runtime.transport import Backend, TransportConfig
 from objsearch.runtime.udpfilter import attached, program, udp_sockets
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
@@ -69,7 +70,8 @@ import sys, threading
 from objsearch.ros.qos import DEFAULT
 from objsearch.runtime import messages as m
 from objsearch.runtime.node import Node
-from objsearch.runtime.transport import Backend, TransportConfig, open_transport
+from objsearch.runtime.transport import Backend, TransportConfig
+from objsearch.runtime.backends import open_transport
 
 config = TransportConfig(backend=Backend.DDS, domain_id=int(sys.argv[1]), node="agent")
 node = Node(open_transport(config))

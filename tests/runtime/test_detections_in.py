@@ -26,8 +26,8 @@ from objsearch.pipeline.bags.views import decisions, read_recording, replay_reco
 from objsearch.ros.mcapstore import rosbag2_writer
 from objsearch.ros.qos import QoS
 from objsearch.runtime import messages as m
+from objsearch.runtime.backends import open_transport
 from objsearch.runtime.client import AgentClient
-from objsearch.runtime.transport import open_transport
 
 from .runtime_fixtures import STARTUP_S, Net, next_domain, objsearch, stop
 from .searches import client_config, find_after_reset, robot_config

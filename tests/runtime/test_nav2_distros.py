@@ -14,13 +14,14 @@ import pytest
 from objsearch.ros.qos import DEFAULT
 from objsearch.runtime.action import topics
 from objsearch.runtime.agent_node import AgentNode
+from objsearch.runtime.backends import open_transport
 from objsearch.runtime.client import AgentClient
 from objsearch.runtime.config import NavigationSettings, RuntimeConfig, Timeouts
 from objsearch.runtime.errors import RuntimeConfigError
 from objsearch.runtime.interfaces import NAVIGATE_TO_POSE, NAVIGATE_TO_POSE_JAZZY, wire_hashes
 from objsearch.runtime.node import Node
 from objsearch.runtime.requests import FindRequest
-from objsearch.runtime.transport import Backend, TransportConfig, open_transport
+from objsearch.runtime.transport import Backend, TransportConfig
 
 from .runtime_fixtures import Net, next_domain, objsearch, stop
 from .searches import client_config, decisions, find_after_reset, in_process, robot_config

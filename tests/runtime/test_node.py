@@ -15,10 +15,11 @@ pytest.importorskip("zenoh")
 
 from objsearch.ros.qos import DEFAULT
 from objsearch.runtime import messages as m
+from objsearch.runtime.backends import open_transport
 from objsearch.runtime.errors import RobotError
 from objsearch.runtime.node import Node, Requester, Server
 from objsearch.runtime.requests import parse_find_request, parse_open_result
-from objsearch.runtime.transport import TransportConfig, open_transport
+from objsearch.runtime.transport import TransportConfig
 
 
 @pytest.fixture

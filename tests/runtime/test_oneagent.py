@@ -23,13 +23,14 @@ pytest.importorskip("rclpy")
 
 from objsearch.ros.qos import DEFAULT
 from objsearch.runtime import messages as m
+from objsearch.runtime.backends import open_transport
 from objsearch.runtime.client import AgentClient
 from objsearch.runtime.config import RuntimeConfig, Timeouts
 from objsearch.runtime.errors import AnotherAgentError
 from objsearch.runtime.node import Node
 from objsearch.runtime.oneagent import OneAgent, serves
 from objsearch.runtime.requests import Heartbeat
-from objsearch.runtime.transport import Backend, TransportConfig, open_transport
+from objsearch.runtime.transport import Backend, TransportConfig
 
 from .runtime_fixtures import STARTUP_S, Net, next_domain, objsearch, stop
 from .searches import client_config

@@ -21,10 +21,11 @@ import pytest
 pytest.importorskip("rclpy")
 
 from objsearch.runtime import messages as m
+from objsearch.runtime.backends import open_transport
 from objsearch.runtime.config import RuntimeConfig
 from objsearch.runtime.node import Node, Server
 from objsearch.runtime.requests import WhereRequest, parse_where_request
-from objsearch.runtime.transport import Backend, TransportConfig, open_transport
+from objsearch.runtime.transport import Backend, TransportConfig
 
 from .runtime_fixtures import STARTUP_S, next_domain
 

@@ -25,9 +25,10 @@ from objsearch.events import read_log
 from objsearch.ros.qos import DEFAULT, SENSOR_DATA
 from objsearch.runtime import action
 from objsearch.runtime import messages as m
+from objsearch.runtime.backends import open_transport
 from objsearch.runtime.client import AgentClient
 from objsearch.runtime.node import Node
-from objsearch.runtime.transport import Backend, Transport, TransportConfig, open_transport
+from objsearch.runtime.transport import Backend, Transport, TransportConfig
 
 from .runtime_fixtures import STARTUP_S, Net, next_domain, objsearch, stop
 from .searches import (

@@ -19,10 +19,11 @@ from objsearch.agent.geometry import Pose
 from objsearch.agent.session import load_context
 from objsearch.agent.world import Detection
 from objsearch.runtime import messages as m
+from objsearch.runtime.backends import open_transport
 from objsearch.runtime.config import RuntimeConfig, Timeouts
 from objsearch.runtime.node import Node
 from objsearch.runtime.rosworld import RobotLink, RosWorld
-from objsearch.runtime.transport import TransportConfig, open_transport
+from objsearch.runtime.transport import TransportConfig
 
 S = 10**9
 #: How long the scripted camera lags the odometry (unless the next goal comes first).
