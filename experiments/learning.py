@@ -98,8 +98,9 @@ def learning_summary(rows: Sequence[Row], *, after: int = 10) -> dict[str, Any]:
                 "excess": excess_breakdown(rs),
                 "all_ratio": ratio(rs),
                 "first_ratio": ratio(first_of_day(rs)),
-                "all_ratio_after": ratio(late) if late else math.nan,
-                "first_ratio_after": ratio(first_of_day(late)) if late else math.nan,
+                # None (null in summary.json, "–" in the table) when no scene is after ``after``.
+                "all_ratio_after": ratio(late) if late else None,
+                "first_ratio_after": ratio(first_of_day(late)) if late else None,
                 "curve": curve(rs),
             }
         out[kind] = per
@@ -186,9 +187,16 @@ def render_learning(summary: dict[str, Any], *, after: int = 10) -> str:
                 f"  {k:22}{e['path']:7.2f}{e['oracle']:8.2f}{e['excess']:8.2f}"
                 f"{e['wrong_rooms']:9.2f}{e['start_room']:9.2f}{e['right_room']:9.2f}"
                 f"{e['approach']:9.2f}{s['all_ratio']:7.2f}{s['first_ratio']:8.2f}"
-                f"{s['all_ratio_after']:9.2f}{s['first_ratio_after']:9.2f}"
+                f"{_or_dash(s['all_ratio_after'], 9)}{_or_dash(s['first_ratio_after'], 9)}"
             )
     return "\n".join(lines)
+
+
+def _or_dash(value: float | None, width: int) -> str:
+    """A ratio to 2 decimals, or "–" where there is none (no scene after the cut; was "nan")."""
+    return (
+        f"{value:{width}.2f}" if value is not None and math.isfinite(value) else f"{'–':>{width}}"
+    )
 
 
 def run_curves(rows: Sequence[Row]) -> dict[str, dict[int, list[float]]]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import pytest
 
@@ -13,6 +14,7 @@ from objsearch.experiments.learning import (
     learning_summary,
     paired_differences,
     paired_json,
+    render_learning,
     run_curves,
 )
 from objsearch.experiments.runner import Row
@@ -75,6 +77,19 @@ def test_curve_and_summary() -> None:
     assert s["first_ratio_after"] == 2.0
     # One run: each scene's per-run value is the run's own ratio.
     assert run_curves(ROWS) == {"all": {1: [3.5], 2: [1.5]}, "first": {1: [5.0], 2: [2.0]}}
+
+
+def test_a_run_of_no_scene_after_the_cut_prints_a_dash_not_nan() -> None:
+    # A short run (3 scenes) has no ratio after scene 10: the table printed "nan", summary.json
+    # NaN (no JSON at all).
+    summary = learning_summary(ROWS)
+    s = summary["habit"]["wpl"]
+    assert s["all_ratio_after"] is None and s["first_ratio_after"] is None
+    json.dumps(summary, allow_nan=False)
+    (line,) = (x for x in render_learning(summary).splitlines() if x.startswith("  wpl "))
+    assert "nan" not in line and line.split()[-2:] == ["–", "–"]
+    line = render_learning(learning_summary(ROWS, after=1)).splitlines()[-1]
+    assert line.split()[-1] == "2.00"
 
 
 def _shifted(rows: list[Row], strategy: str, by: float) -> list[Row]:
