@@ -156,6 +156,12 @@ def ratio_table(rows: Sequence[Row], after: int = AFTER) -> list[str]:
             f"| {s} | {ratio(mine):.3f} | {cell} | {vs} | {success:.2%} | {len(mine)} "
             f"| {late_success:.2%} | {_spl(evaluated):.3f} |"
         )
+    if not late:  # a header with no row said nothing
+        last = max((r.scene for r in rows), default=0)
+        return [
+            f"(no search after scene {after} to tabulate: these runs end at scene {last}; "
+            "bench homes --scenes-per-schedule sets a run's length)"
+        ]
     return lines
 
 
@@ -192,6 +198,15 @@ def paired_lines(
             else f"n={len(diffs)}: range [{min(diffs):.2f}, {max(diffs):.2f}]"
         )
         lines.append(f"| {a} − {b} | {len(diffs)} | {mean:.2f} | {ci} |")
+    if len(lines) == 2:  # a header with no row said nothing
+        names = {r.strategy for r in rows}
+        near = [(a, b) for a, b in pairs if a in names or b in names] or list(pairs)
+        held = ", ".join(sorted(names))
+        compared = ", ".join(f"{a} − {b}" for a, b in near)
+        return [
+            f"(no pair to compare after day {after}: a − b needs both in the same runs, "
+            f"for {compared}; these outputs hold {held})"
+        ]
     return lines
 
 

@@ -19,6 +19,7 @@ from objsearch.experiments.report_belief import (
     curves_figure,
     first_of_scene_lines,
     moved_lines,
+    paired_lines,
     ratio_table,
     report,
     run_models,
@@ -129,6 +130,26 @@ def test_the_no_update_twin_is_a_row_of_its_own_in_every_table(tmp_path: Path) -
     assert wpl.split("|")[2].strip() == "1.250" and twin.split("|")[2].strip() == "2.500"
     # Each run's searches counted once per row: 15 days of one target.
     assert wpl.split("|")[6].strip() == "15" and twin.split("|")[6].strip() == "15"
+
+
+def test_a_table_with_no_row_says_why_instead_of_a_bare_header() -> None:
+    # A 3-scene habit run of wpl and global-belief: the ratio table and the paired table were a
+    # header with no row and no word of why.
+    short = [_row(s, "habit-0", n, 4.0) for s in ("wpl", "global-belief") for n in (1, 2, 3)]
+    assert ratio_table(short) == [
+        "(no search after scene 10 to tabulate: these runs end at scene 3; "
+        "bench homes --scenes-per-schedule sets a run's length)"
+    ]
+    long = [_row(s, "habit-0", n, 4.0) for s in ("wpl", "global-belief") for n in range(1, 13)]
+    assert len(ratio_table(long)) == 4  # header, rule, two rows
+    (line,) = paired_lines(long, [("global-belief", "ecost-belief"), ("ecost", "ecost-memory")])
+    assert line == (
+        "(no pair to compare after day 10: a − b needs both in the same runs, for "
+        "global-belief − ecost-belief; these outputs hold global-belief, wpl)"
+    )
+    both = long + [_row("ecost-belief", "habit-0", n, 3.0) for n in range(1, 13)]
+    table = paired_lines(both, [("global-belief", "ecost-belief")])
+    assert table[2].startswith("| global-belief − ecost-belief | 1 | 1.00 |")
 
 
 def _moved_rows(strategies: Sequence[str]) -> list[Row]:
