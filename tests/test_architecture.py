@@ -527,8 +527,6 @@ LONG_FUNCTIONS: Mapping[str, str] = {
 }
 #: ``except Exception`` (or ``suppress(Exception)``) without its boundary comment, by module.
 UNMARKED_CATCHES: Mapping[str, str] = {
-    "objsearch.events.lake.table": "issue 43: the lake's read cost (events/lake changes)",
-    "objsearch.events.lake.stream_file": "issue 43: the lake's read cost (events/lake changes)",
     "objsearch.experiments.dhs": "issue 47: bench dhs changes this session",
 }
 

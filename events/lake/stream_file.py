@@ -164,9 +164,9 @@ def abandon(lake: LakeBase, files: Iterable[_StreamFile]) -> None:
     """Close and delete files a failed commit of ``lake`` was writing."""
     files = list(files)
     for f in files:
-        with suppress(Exception):
+        with suppress(Exception):  # boundary: a failed commit's files; its own error is raised
             f.writer.close()
         if f.out is not None:
-            with suppress(Exception):
+            with suppress(Exception):  # boundary: as above (the file is deleted below anyway)
                 lake._close(f.rel, f.out)
     lake._delete_files([_Named(f.rel) for f in files if f.on_storage])

@@ -100,6 +100,7 @@ class LakeBase:
         if not self.remote:
             _fs.make_dirs(Path(self.uri).parent)
         from deltalake import CommitProperties, Transaction
+        from deltalake.exceptions import DeltaError
 
         empty = table_schema(self.store).empty_table()
         try:
@@ -119,7 +120,9 @@ class LakeBase:
                 ),
             )
             _fs.durable_step()
-        except Exception:
+        except (DeltaError, OSError):
+            # Another writer created it first (delta-rs refuses a second version 0); anything
+            # else is no lost race and propagates even once the table exists.
             if not self.exists():
                 raise
 

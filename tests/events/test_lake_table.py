@@ -19,7 +19,7 @@ import pytest
 from deltalake import DeltaTable
 
 from objsearch.agent.catalogue import STORE
-from objsearch.events import EventLog, read_log
+from objsearch.events import EventLog, _fs, read_log
 from objsearch.events.arrow import events_to_tables
 from objsearch.events.lake import TableLake, TableLakeError, add_log, is_table_lake
 from objsearch.events.lake.schema import TABLE_DIR, run_parts, table_schema
@@ -183,6 +183,27 @@ def test_concurrent_writers_lose_and_duplicate_nothing(tmp_path: Path) -> None:
     ]
     assert table_counts(concurrent) == table_counts(sequential)
     assert len(table_counts(concurrent)) == len(logs)
+
+
+def test_a_failure_once_the_table_is_created_is_not_taken_for_a_lost_race(tmp_path: Path) -> None:
+    # create() lets a writer that lost the race to create the table go on (delta-rs refuses its
+    # version 0); it caught any exception then, so a failure after the table was written (here:
+    # at the commit's durable step, through the kill tests' hook) vanished because the table
+    # existed by then.
+    lake = TableLake(tmp_path / "lake", store=STORE)
+
+    def fail_once_created() -> None:
+        if lake.exists():
+            raise RuntimeError("after the commit")
+
+    _fs.observe_durable_steps(fail_once_created)
+    try:
+        with pytest.raises(RuntimeError, match="after the commit"):
+            lake.create()
+    finally:
+        _fs.observe_durable_steps(None)
+    assert lake.exists()
+    lake.create()  # and a second create of an existing table is still no error
 
 
 @pytest.mark.slow  # three processes committing and compacting: 30-60 s on a shared machine
