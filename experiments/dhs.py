@@ -87,6 +87,8 @@ from objsearch.agent.catalogue import (
     encode,
 )
 from objsearch.agent.errors import ObjsearchError
+from objsearch.experiments.dhs_bound import BOUND as BOUND
+from objsearch.experiments.dhs_bound import BoundAgent
 
 #: The commit of ``andreykurenkov/modeling_env_dynamics`` the numbers are for (its last, 2023-05-30).
 PINNED_COMMIT = "74e5f9d722469f2d1148fe131aa85dfb049da7cb"
@@ -583,6 +585,8 @@ def _make_agent(
     from memsearch.graphs import load_priors_graph
     from memsearch.tasks import TaskType
 
+    if name == BOUND:
+        return BoundAgent(sampler, evolver, float(cfg.agents.observation_prob))
     if name != OURS:
         return make_agent(
             cfg.agents,

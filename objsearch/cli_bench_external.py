@@ -89,7 +89,13 @@ def cmd_bench_stot(args: argparse.Namespace) -> int:
 
 
 def _dhs_options(p: argparse.ArgumentParser) -> None:
-    from objsearch.experiments.dhs import ALL_THEIR_AGENTS, EXPERIMENTS, OURS, RUNNABLE_EXPERIMENTS
+    from objsearch.experiments.dhs import (
+        ALL_THEIR_AGENTS,
+        BOUND,
+        EXPERIMENTS,
+        OURS,
+        RUNNABLE_EXPERIMENTS,
+    )
 
     p.add_argument(
         "--experiments",
@@ -100,10 +106,11 @@ def _dhs_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--agents",
-        type=t.subset_of((*ALL_THEIR_AGENTS, OURS)),
+        type=t.subset_of((*ALL_THEIR_AGENTS, OURS, BOUND)),
         **t.LIST,
-        help=f"comma-separated agents: its {', '.join(ALL_THEIR_AGENTS)} and ours, {OURS} "
-        "(default: all but oracle_upper_bound)",
+        help=f"comma-separated agents: its {', '.join(ALL_THEIR_AGENTS)}, ours, {OURS}, and "
+        f"{BOUND}, a reference that knows its generative model (default: all but "
+        f"oracle_upper_bound and {BOUND})",
     )
 
 
