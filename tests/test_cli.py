@@ -83,6 +83,28 @@ def test_the_readme_explains_its_first_example_with_what_it_prints(
     assert f"opens the fridge third: {lengths['wpl']:.2f} m" in why
 
 
+def test_the_readme_first_examples_other_figures_are_what_the_commands_print(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """From kitchen-2, and the same command again with the first search's log."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    why = readme.split("**Why `objsearch search Apple --start kitchen-1` walks ", 1)[1]
+    why = " ".join(why.split("\n\n", 1)[0].split())
+    lengths = {}
+    for strategy in ("global-belief+cover", "wpl"):
+        argv = ["search", "Apple", "--start", "kitchen-2", "--strategy", strategy]
+        assert main([*argv, "--format", "json"]) == 0
+        lengths[strategy] = json.loads(capsys.readouterr().out)["path_to_discovery_m"]
+    k2 = f"From `kitchen-2` it is {lengths['global-belief+cover']:.2f} m against wpl's"
+    assert f"{k2} {lengths['wpl']:.2f} m" in why
+    log = tmp_path / "log"
+    for _ in range(2):
+        argv = ["search", "Apple", "--start", "kitchen-1", "--log", str(log), "--format", "json"]
+        assert main(argv) == 0
+        second = json.loads(capsys.readouterr().out)["path_to_discovery_m"]
+    assert f"finds the Apple after {second:.2f} m" in why
+
+
 @pytest.mark.parametrize("camera", ["occluding", "geometric"])
 def test_search_records_its_camera_and_the_camera_tilt(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], camera: str
