@@ -53,7 +53,9 @@ def cmd_query(args: argparse.Namespace) -> int:
     lake = Path(args.lake)
     remote = _remote(args.lake)
     if not remote and not lake.is_dir():
-        return _fail(f"no lake at {lake} (add runs with `objsearch lake add LOG --lake {lake}`)")
+        return _fail(
+            f"no lake at {lake} (add runs with `objsearch lake add LOG --robot NAME --lake {lake}`)"
+        )
     out = Path(args.out) if args.out is not None else None
     if out is not None:
         if not args.out.strip():

@@ -305,6 +305,23 @@ def test_a_table_rounds_the_floats_inside_lists_maps_and_structs(
     assert repr(long) not in table and f"{long:.6g}" in table
 
 
+def test_the_missing_lake_error_names_a_command_that_makes_it(
+    lake: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # It named `objsearch lake add LOG --lake DIR`, which fails: lake add requires --robot.
+    missing = tmp_path / "new-lake"
+    assert main(["query", "--lake", str(missing), "SELECT 1"]) == 2
+    err = capsys.readouterr().err
+    command = err.split("`")[1].split()
+    assert command[:3] == ["objsearch", "lake", "add"]
+    log = lake.parent / "log-apple"
+    argv = [str(log) if a == "LOG" else "r1" if a == "NAME" else a for a in command[1:]]
+    assert main(argv) == 0
+    capsys.readouterr()
+    assert main(["query", "--lake", str(missing), "SELECT count(*) AS n FROM searches"]) == 0
+    assert capsys.readouterr().out.splitlines()[2].strip() == "1"
+
+
 def test_a_misspelt_view_is_guessed_from_the_lakes_views(
     lake: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
