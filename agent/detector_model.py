@@ -59,6 +59,14 @@ CONFIRMATIONS: Final = ("score", "consistent")
 #: success 99.74 %, false found 0.12 % (docs/results-perception.md). ``harsh`` keeps ``score``:
 #: on the development homes q = 0.1 under ``harsh`` cost false founds (docs/perception.md).
 PRESET_CONFIRMATION: Final = {"perfect": "score", "realistic": "consistent", "harsh": "score"}
+#: How the simulated detector's random draws are keyed (sim/detector_model.py; docs/perception.md,
+#: "Draws keyed by place"): ``view``, by the view's index in the run (every run before
+#: 2026-12-07, and any run spec that names none), or ``place``, by the search and what is seen
+#: from where (the object, the viewpoint it is seen from, and how often it was looked at from
+#: there in this search), so that strategies run on the same schedule and seed meet the same
+#: luck at the same place (common random numbers). Each draw is uniform either way: a
+#: strategy's outcomes have the same distribution, only the pairing between strategies differs.
+DRAWS: Final = ("view", "place")
 #: The search camera's focal length (px): 640×480 at a 90° horizontal field of view.
 FOCAL_PX: Final = 320.0
 #: Nearer than this the mask estimate is capped (the camera then sees the whole object anyway).
@@ -106,6 +114,9 @@ class PerceptionModel:
     #: report recurs at the same spot on a look again). A choice, not a published figure.
     confirmation: str = "score"
     fp_recurrence: float = 0.1
+    #: How the simulator keys this detector's random draws (:data:`DRAWS`); the agent never
+    #: reads it.
+    draws: str = "view"
 
     def __post_init__(self) -> None:
         if self.preset not in PRESETS:
@@ -139,6 +150,8 @@ class PerceptionModel:
             raise ObjsearchError(
                 f"perception fp_recurrence must be in (0, 1), not {self.fp_recurrence}"
             )
+        if self.draws not in DRAWS:
+            raise ObjsearchError(f"unknown draws {self.draws!r}; choose from {', '.join(DRAWS)}")
 
     @property
     def perfect(self) -> bool:
@@ -208,13 +221,15 @@ class PerceptionModel:
     # -- the run spec -------------------------------------------------------------------------
 
     def params(self) -> dict[str, Any]:
-        """As the run spec records it (``params.perception``); the ``score`` confirmation is
-        left out, so a run spec is what it was before the option."""
+        """As the run spec records it (``params.perception``); the ``score`` confirmation and
+        ``view`` draws are left out, so a run spec is what it was before each option."""
         doc = asdict(self)
         doc["tp_score"] = list(self.tp_score)
         doc["fp_score"] = list(self.fp_score)
         if self.confirmation == "score":
             del doc["confirmation"], doc["fp_recurrence"]
+        if self.draws == "view":
+            del doc["draws"]
         return doc
 
     @classmethod
@@ -263,14 +278,17 @@ def _log_beta_pdf(u: float, a: float, b: float) -> float:
     )
 
 
-def preset(name: str, confirmation: str | None = None, **overrides: float) -> PerceptionModel:
+def preset(
+    name: str, confirmation: str | None = None, draws: str | None = None, **overrides: float
+) -> PerceptionModel:
     """A preset, with some parameters overridden (:data:`OVERRIDES`).
 
     ``realistic``: Mask R-CNN's COCO recall by size bin (:data:`MASK_RCNN_RECALL`), 0.1 false
     positives of the vocabulary per view, 5 % confusions, occluded objects at half recall;
     ``harsh``: half its recall and twice its false positives and confusions; ``confirmation``
     names the confirmation model (:data:`CONFIRMATIONS`; None: the preset's own,
-    :data:`PRESET_CONFIRMATION`)."""
+    :data:`PRESET_CONFIRMATION`), ``draws`` how the simulator keys its draws (:data:`DRAWS`;
+    None: ``place``)."""
     if name not in PRESETS:
         raise ObjsearchError(
             f"unknown perception preset {name!r}; choose from {', '.join(PRESETS)}"
@@ -297,4 +315,6 @@ def preset(name: str, confirmation: str | None = None, **overrides: float) -> Pe
             raise ObjsearchError(f"perception {key} must be in [{low}, {high}], not {value}")
     for key, value in overrides.items():
         model = replace(model, **{key: float(value)})  # type: ignore[arg-type]
-    return replace(model, confirmation=confirmation or PRESET_CONFIRMATION[name])
+    return replace(
+        model, confirmation=confirmation or PRESET_CONFIRMATION[name], draws=draws or "place"
+    )

@@ -32,6 +32,7 @@ from objsearch.experiments.runner import (
     Job,
     Row,
     command_line,
+    inspection_suffix,
     run_jobs,
     unseeable,
     write_rows,
@@ -234,7 +235,8 @@ def homes_command(summary: dict[str, Any], folder: Path) -> str:
 def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
     """The bench homes options that name a perception model (none for a perfect one): the
     preset, each parameter the preset does not give, and the confirmation model when it is not
-    the preset's (a run spec that names none confirmed by ``score``, the runs before the option)."""
+    the preset's (a run spec that names none confirmed by ``score``, the runs before the option),
+    and the draws when they are not ``place`` (a run spec that names none drew by view)."""
     if not perception:
         return {}
     from objsearch.agent.detector_model import OVERRIDES, PerceptionModel, preset
@@ -249,6 +251,8 @@ def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
     }
     if run.confirmation != base.confirmation:
         changed["confirmation"] = run.confirmation
+    if run.draws != base.draws:
+        changed["draws"] = run.draws
     return {"perception": run.preset, **changed}
 
 
@@ -294,16 +298,18 @@ def homes_summary(rows: Sequence[Row]) -> dict[str, Any]:
             )
         for home in sorted({r.home for r in mine}):
             out["by_home"].setdefault(home, {})[k] = summarise(r for r in mine if r.home == home)
-    # Wins: in how many (home, schedule) runs each strategy beats the paper's WPL.
+    # Wins: in how many (home, schedule) runs each strategy beats the paper's WPL, inspecting as
+    # it does (wpl+cover for a cover run: --inspection cover names every strategy so).
     lengths: dict[tuple[str, str, str], list[float]] = {}
     for r in rows:
         lengths.setdefault((_key(r), r.home, r.placements), []).append(r.path_length)
     run_mean = {key: statistics.fmean(v) for key, v in lengths.items()}
     for k in keys:
+        wpl = "wpl" + inspection_suffix(k.partition("/")[0])
         for kind in [None, *out["by_schedule"]]:
             wins = total = 0
             for (key, home, spec), base in run_mean.items():
-                if key != "wpl" or (kind and schedule_kind(spec) != kind):
+                if key != wpl or (kind and schedule_kind(spec) != kind):
                     continue
                 own = run_mean.get((k, home, spec))
                 if own is not None:
@@ -466,7 +472,7 @@ def run_homes(
     summary["strategies"] = {k: {m: s[m] for m in keys} for k, s in summary["overall"].items()}
     learning = learning_summary(rows)
     summary["learning"] = learning
-    paired = paired_differences(rows) if "wpl" in strategies else {}
+    paired = paired_differences(rows)  # empty without a wpl of a strategy's own inspection
     summary["paired_vs_wpl"] = paired_json(paired)
     summary["plots"] = [p.name for p in plot_curves(rows, out)]
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")

@@ -156,7 +156,7 @@ def perception_option(p: argparse.ArgumentParser) -> None:
 
 
 def _add_perception_options(p: argparse.ArgumentParser) -> None:
-    from objsearch.agent.detector_model import CONFIRMATIONS, OVERRIDES, PRESETS
+    from objsearch.agent.detector_model import CONFIRMATIONS, DRAWS, OVERRIDES, PRESETS
 
     p.add_argument(
         "--perception",
@@ -191,6 +191,16 @@ def _add_perception_options(p: argparse.ArgumentParser) -> None:
         "miss probability) or consistent (both against the chance --fp-recurrence that a false "
         "report recurs at its spot) (the preset's: consistent for realistic, score for harsh)",
     )
+    p.add_argument(
+        "--draws",
+        type=text,
+        choices=DRAWS,
+        default=None,
+        help="how the simulated detector's random draws are keyed: place (by the search, the "
+        "object and the viewpoint it is seen from: strategies on the same schedule and seed meet "
+        "the same luck at the same place) or view (by the view's index in the run, as runs before "
+        "2026-12-07 did) (place)",
+    )
 
 
 def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
@@ -204,6 +214,7 @@ def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
     model = preset(
         getattr(args, "perception", "perfect"),
         getattr(args, "confirmation", None),
+        getattr(args, "draws", None),
         **overrides,
     )
     return None if model.perfect else model.params()

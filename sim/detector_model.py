@@ -2,13 +2,19 @@
 a real detector (:class:`~objsearch.agent.detector_model.PerceptionModel`): misses, false
 positives on surfaces, confusions between similar classes and scores.
 
-Each view draws from its own generator, seeded from the run's seed and the view's index in the
-run (never a global one), so a run replays exactly. docs/perception.md gives the numbers.
+Its draws come from generators seeded from the run's seed (never a global one), so a run replays
+exactly: under the model's ``draws`` = ``view`` one per view, keyed by the view's index in the run
+(the runs before 2026-12-07); under ``place`` one per object seen and one per view's false positives,
+keyed by the search (:meth:`NoisyDetector.begin`), the viewpoint cell it is seen from and how often
+it was seen from there in the search, so strategies run on the same schedule and seed meet the
+same luck at the same place (common random numbers; each draw is still uniform).
+docs/perception.md gives the numbers.
 """
 
 from __future__ import annotations
 
 import math
+import zlib
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -24,6 +30,19 @@ from objsearch.sim.placements import Placement
 
 if TYPE_CHECKING:
     from objsearch.agent.strategies import RunSpec
+
+#: The grid a ``place`` draw's viewpoint is read on (m): the navigation map's 0.25 m viewpoints.
+DRAW_CELL_M = 0.25
+#: Headings a ``place`` draw's false positives are keyed by: eight 45° sectors.
+DRAW_HEADINGS = 8
+#: A ``place`` draw's stream for a view's false positives (an object's is its id's CRC).
+_FALSE_STREAM = 1 << 32
+
+
+def _natural(v: int) -> int:
+    """An integer as a non-negative one (a generator's seed words must be), one to one."""
+    return 2 * v if v >= 0 else -2 * v - 1
+
 
 #: Mask area of a false positive: log-uniform over this range (px), from just under the smallest
 #: class threshold (100 px) to the top of COCO's medium bin.
@@ -49,9 +68,27 @@ class NoisyDetector:
         self.seed = seed
         self.movable = tuple(sorted(movable))
         self.views = 0
+        #: ``place`` draws: the running search's key words, and each (stream, cell[, heading])'s
+        #: looks so far in it.
+        self._search: tuple[int, ...] = ()
+        self._looks: dict[tuple[int, ...], int] = {}
         #: (score, true) of every detection reported: true when the object is there with the
         #: reported class (what :func:`reliability` measures).
         self.scored: list[tuple[float, bool]] = []
+
+    def begin(self, *key: object) -> None:
+        """A search starts (its scene, target and start, say): under ``place`` draws its looks'
+        draws are keyed by it and counted afresh; under ``view`` draws nothing changes."""
+        self._search = tuple(zlib.crc32(repr(k).encode()) for k in key)
+        self._looks = {}
+
+    def _place_rng(self, stream: int, *where: int) -> np.random.Generator:
+        """The generator of the next look at ``stream`` (an object, or the false positives) from
+        ``where`` in this search."""
+        key = (stream, *where)
+        k = self._looks.get(key, 0)
+        self._looks[key] = k + 1
+        return np.random.default_rng([self.seed, *self._search, *key, k])
 
     def observe(
         self,
@@ -66,6 +103,8 @@ class NoisyDetector:
         rng = np.random.default_rng([self.seed, self.views])
         self.views += 1
         model = self.model
+        by_place = model.draws == "place"
+        cell = (_natural(round(pose.x / DRAW_CELL_M)), _natural(round(pose.y / DRAW_CELL_M)))
         boxes = {p.instance_id: p.box for p in placed}
         out: list[Detection] = []
         for det in seen:
@@ -73,7 +112,8 @@ class NoisyDetector:
             full = _UNOCCLUDED.mask_area(pose, box) if box is not None else det.mask_area
             visible = min(1.0, det.mask_area / full) if full > 0 else 1.0
             # Every draw is made whatever the outcome, so one view's draws never depend on another.
-            detected, confused, pick, u = rng.random(4)
+            draw = self._place_rng(zlib.crc32(det.instance_id.encode()), *cell) if by_place else rng
+            detected, confused, pick, u = draw.random(4)
             if detected >= model.recall(det.mask_area, visible):
                 continue
             cls, real = det.object_class, True
@@ -94,6 +134,9 @@ class NoisyDetector:
                     self._distribution(cls, score),
                 )
             )
+        if by_place:
+            heading = round(pose.yaw / (2 * math.pi / DRAW_HEADINGS)) % DRAW_HEADINGS
+            rng = self._place_rng(_FALSE_STREAM, *cell, heading)
         out.extend(self._false_positives(rng, home, room, pose, placed))
         return tuple(out)
 

@@ -136,6 +136,8 @@ def run_schedule(
                 )
                 for start_name, pose in todays.items():
                     clock.advance(PAUSE_BETWEEN_TASKS_S)
+                    if detector is not None:
+                        detector.begin(scene, target, start_name)
                     world = SimWorld(
                         ctx.home,
                         ctx.navmap,

@@ -12,7 +12,10 @@ from objsearch.experiments.runner import Job, Row, read_rows, run_job, write_row
 
 
 def _search(target: str, **detector: float) -> list[str | None]:
-    perception = json.dumps(preset("realistic", "score", **detector).params(), sort_keys=True)
+    # Draws by view: the scenarios below were found under them (each names its search).
+    perception = json.dumps(
+        preset("realistic", "score", "view", **detector).params(), sort_keys=True
+    )
     job = Job(
         "homes", "ithor-02", "habit-0", "global-belief", "all", 0, targets=(target,),
         scenes=(1,), starts_per_search=1, perception=perception,

@@ -19,6 +19,7 @@ from objsearch.agent.detector_model import (
     PerceptionModel,
     preset,
 )
+from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.geometry import Pose
 from objsearch.agent.home import Box, Home
 from objsearch.agent.session import Session, load_context
@@ -136,6 +137,66 @@ def test_the_same_seed_gives_the_same_detections_and_another_seed_others() -> No
 
     assert run(3) == run(3)
     assert run(3) != run(4)
+
+
+def _true(out: Sequence[Detection]) -> list[Detection]:
+    return [d for d in out if not d.instance_id.startswith(FALSE_PREFIX)]
+
+
+def test_place_draws_give_a_look_the_same_outcome_whatever_was_looked_at_before() -> None:
+    """Common random numbers: two strategies' searches that reach the same viewpoint meet the
+    same luck there, whatever each looked at on the way (``view`` draws, keyed by the view's
+    index in the run, do not)."""
+    home, pose, movable = _kitchen()
+    elsewhere = Pose(pose.x + 1.0, pose.y, pose.yaw)
+    for draws, same in (("place", True), ("view", False)):
+        model = preset("realistic", draws=draws, fp_per_image=1.0)
+        direct, detour = NoisyDetector(model, 3, movable), NoisyDetector(model, 3, movable)
+        direct.begin(4, "Cup", "kitchen-1")
+        detour.begin(4, "Cup", "kitchen-1")
+        for _ in range(7):
+            detour.observe(home, "kitchen", elsewhere, (), _seen(2000.0))
+        looks = [
+            (
+                direct.observe(home, "kitchen", pose, (), _seen(2000.0, n=20)),
+                detour.observe(home, "kitchen", pose, (), _seen(2000.0, n=20)),
+            )
+            for _ in range(3)
+        ]
+        assert all((_true(a) == _true(b)) is same for a, b in looks)
+        # A look again from the same place is a fresh draw, and so is another search's.
+        assert _true(looks[0][0]) != _true(looks[1][0])
+        if same:
+            fresh = NoisyDetector(model, 3, movable)
+            fresh.begin(5, "Cup", "kitchen-1")
+            again = fresh.observe(home, "kitchen", pose, (), _seen(2000.0, n=20))
+            assert _true(again) != _true(looks[0][0])
+            false = [(d.object_class, d.score) for d in looks[0][0] if d not in _true(looks[0][0])]
+            assert false == [
+                (d.object_class, d.score) for d in looks[0][1] if d not in _true(looks[0][1])
+            ]
+
+
+def test_place_draws_keep_the_recall_of_each_size() -> None:
+    home, pose, movable = _kitchen()
+    model = preset("realistic", draws="place")
+    detector = NoisyDetector(model, seed=11, movable=movable)
+    for mask_px in (SMALL_PX / 2, 2 * LARGE_PX):
+        reported = 0
+        for search in range(VIEWS):
+            detector.begin(search, mask_px)
+            reported += len(_true(detector.observe(home, "kitchen", pose, (), _seen(mask_px))))
+        assert reported / (5 * VIEWS) == pytest.approx(model.recall(mask_px), abs=0.021)
+
+
+def test_a_run_spec_that_names_no_draws_drew_by_view_and_new_runs_draw_by_place() -> None:
+    old = preset("realistic", draws="view").params()
+    assert "draws" not in old  # the run specs written before the option, unchanged
+    assert PerceptionModel.from_params(old).draws == "view"
+    assert preset("realistic").params()["draws"] == "place"
+    assert PerceptionModel.from_params(preset("harsh").params()).draws == "place"
+    with pytest.raises(ObjsearchError, match="unknown draws 'dice'"):
+        PerceptionModel(draws="dice")
 
 
 def _events(log: Path) -> list[dict[str, object]]:
