@@ -7,6 +7,7 @@ import json
 import multiprocessing
 import sys
 import tempfile
+import time
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -222,9 +223,13 @@ def run_jobs(
     progress: bool = True,
     label: str = "searches",
 ) -> list[Row]:
-    """Run jobs (in ``workers`` processes); rows come back in job order whatever finishes first."""
+    """Run jobs (in ``workers`` processes); rows come back in job order whatever finishes first.
+    ``progress``: a bar on a terminal; where stderr is none (a pipe, a log) a line at each tenth
+    of the searches, ``bench homes: 330 of 3300 searches (41 s)``, so an hour's run is not silent
+    there (DEVELOPERS.md, "Progress")."""
     total = sum(_count(j) for j in jobs)
     done: dict[int, list[Row]] = {}
+    lines = _PipeLines(label, total) if progress and not sys.stderr.isatty() else None
     # disable=None: drawn on a terminal only, never into a pipe or log (DEVELOPERS.md).
     off = None if progress else True
     with tqdm(total=total, disable=off, file=sys.stderr, unit="search", desc=label) as bar:
@@ -232,6 +237,8 @@ def run_jobs(
             for i, job in enumerate(jobs):
                 done[i] = run_job(job)
                 bar.update(len(done[i]))
+                if lines:
+                    lines.add(len(done[i]))
         else:
             ctx = multiprocessing.get_context("fork" if sys.platform == "linux" else "spawn")
             with ctx.Pool(min(workers, len(jobs))) as pool:
@@ -240,7 +247,31 @@ def run_jobs(
                 for i, rows in pool.imap_unordered(_run_indexed, [(i, jobs[i]) for i in order]):
                     done[i] = rows
                     bar.update(len(rows))
+                    if lines:
+                        lines.add(len(rows))
     return [row for i in range(len(jobs)) for row in done[i]]
+
+
+class _PipeLines:
+    """A line on stderr each time the searches done pass another tenth of ``total``."""
+
+    STEPS = 10
+
+    def __init__(self, label: str, total: int) -> None:
+        self.label, self.total, self.done, self.step = label, total, 0, 0
+        self.started = time.monotonic()
+
+    def add(self, searches: int) -> None:
+        self.done += searches
+        step = self.done * self.STEPS // max(self.total, 1)
+        if step > self.step:
+            self.step = step
+            elapsed = time.monotonic() - self.started
+            print(
+                f"{self.label}: {self.done} of {self.total} searches ({elapsed:.0f} s)",
+                file=sys.stderr,
+                flush=True,
+            )
 
 
 def _run_indexed(item: tuple[int, Job]) -> tuple[int, list[Row]]:

@@ -39,7 +39,7 @@ def cmd_bench_sensitivity(args: argparse.Namespace) -> int:
             inspection=args.inspection,
             camera=args.camera,
             workers=t.workers(args),
-            bar=not quiet,
+            bar=not quiet and sys.stderr.isatty(),  # in a pipe its cell lines are enough
             progress=line,
         )
     if args.format == "json":

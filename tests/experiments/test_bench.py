@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import polars as pl
@@ -70,6 +71,24 @@ def test_tiny_bench_paper_writes_outputs_and_json(
 
     assert all(f == round(f, 4) for f in floats(headline))
     assert any(f != round(f, 4) for f in floats(summary["strategies"]))  # summary.json: all
+
+
+def test_a_bench_in_a_pipe_prints_a_line_per_tenth_of_its_searches(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Where no bar is drawn (stderr a pipe, as under capsys) a bench run said nothing until it
+    ended: an hour for the README's bench paper without --strategies (issue 47)."""
+    argv = ["bench", "paper", "--out", str(tmp_path / "p"), "--strategies", "wpl"]
+    argv += ["--targets", "Apple,Cup", "--scenes", "1,2", "--workers", "1"]
+    assert main(argv) == 0
+    lines = capsys.readouterr().err.splitlines()
+    assert lines and "\r" not in "".join(lines)
+    pattern = re.compile(r"bench paper: (\d+) of 112 searches \(\d+ s\)")  # 16 + 3 x 32
+    done = [int(m[1]) for m in map(pattern.fullmatch, lines) if m]
+    assert len(done) == len(lines) <= 10, lines
+    assert done == sorted(done) and done[-1] == 112
+    assert main([*argv, "--no-progress"]) == 0
+    assert capsys.readouterr().err == ""
 
 
 def test_same_seed_same_results(tmp_path: Path) -> None:
