@@ -34,6 +34,7 @@ from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.routine_belief import RoutineBelief, buckets_of
+from objsearch.agent.sightings import Sighting
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import ROUTINE_BELIEF
 from objsearch.events.envelope import Event
@@ -74,19 +75,7 @@ def answer(
             f"unknown object class {target!r} in this run's scene graph; known: {', '.join(known)}"
         )
     statics = home.statics
-    time_of_day = None
-    if isinstance(belief, RoutineBelief):
-        dist = belief.distribution_at(target, at)
-        when = at or belief.clock
-        if belief.knows_hours and when is not None:
-            time_of_day = {
-                "weekday": when.weekday,
-                "minute": when.minute,
-                "slot": buckets_of(when)[1],
-                "weights": {c: round(w, 4) for c, w in belief.component_weights(target).items()},
-            }
-    else:  # a snapshot from before the belief knew the hour
-        dist = belief.distribution(target)
+    dist, time_of_day = _distribution(belief, target, at)
     places = sorted((p for p in dist if p in statics), key=lambda p: (-dist[p], p))
     rooms: dict[str, float] = {}
     for p in places:
@@ -96,13 +85,7 @@ def answer(
     if counts is not None and counts.at:
         usual = max(sorted(counts.at), key=counts.at.__getitem__)
     last = belief.sightings.last.get(target)
-    last_room = None
-    if last is not None:
-        if last.static_id in statics:
-            last_room = statics[last.static_id].room
-        elif last.position is not None:
-            # Rare (a sighting away from every static): the map is built only then (~12 ms).
-            last_room = NavigationMap.from_home(home).room_at(last.position[0], last.position[1])
+    last_room = None if last is None else _room_of(last, home)
     elsewhere = dist.get(ELSEWHERE, 0.0)
     # The belief's elsewhere has no room; the latest sighting, when it was away from every mapped
     # place, says where the mass it put there is (a sighting in the kitchen gave the kitchen 0.0 %).
@@ -111,9 +94,6 @@ def answer(
         rooms[elsewhere_room] = rooms.get(elsewhere_room, 0.0) + elsewhere
     weights = belief.weights.get(target, (1 / 3, 1 / 3, 1 / 3))
     maps = map_answer(state, target)
-    last_map = (
-        None if last is None else state.maps.map_of_sighting(target, last.task_id, last.time_ns)
-    )
     last_outcome = belief.last_outcome.get(target)
     return {
         "target": target,
@@ -124,24 +104,7 @@ def answer(
         "tasks": belief.tasks_folded,
         # The time of day answered for; null when the log records none (the time-blind answer).
         "time_of_day": time_of_day,
-        "last_seen": None
-        if last is None
-        else {
-            # at: it stood at static_id's viewpoint (a mapped place, what the belief counts);
-            # otherwise static_id is only the nearest static of its room (or null).
-            "static_id": last.static_id,
-            "static_class": last.static_class,
-            "at": last.at,
-            "position": None if last.position is None else [round(v, 3) for v in last.position],
-            "room": last_room,
-            "task_id": last.task_id,
-            "time_ns": last.time_ns,
-            "scene": last.scene,
-            # Seconds from the sighting to the log's latest event, and the map it was made in.
-            "age_s": _age_s(state, last.time_ns),
-            "map": last_map,
-            "map_left": last_map is not None and last_map != state.maps.current,
-        },
+        "last_seen": None if last is None else _last_seen(state, target, last, last_room),
         "map": maps,
         # Every mapped place the belief gives mass, over which (with elsewhere) it sums to one.
         "belief_over_places": len(places),
@@ -182,6 +145,57 @@ def answer(
             }
             for p in places[:top]
         ],
+    }
+
+
+def _distribution(
+    belief: PlaceBelief, target: str, at: DayClock | None
+) -> tuple[dict[str, float], dict[str, Any] | None]:
+    """``target``'s distribution over places at the time of day ``at`` (None: the belief's own
+    clock), and the time of day answered for (None when the belief knows no hours)."""
+    if not isinstance(belief, RoutineBelief):  # a snapshot from before the belief knew the hour
+        return belief.distribution(target), None
+    dist = belief.distribution_at(target, at)
+    when = at or belief.clock
+    if not belief.knows_hours or when is None:
+        return dist, None
+    return dist, {
+        "weekday": when.weekday,
+        "minute": when.minute,
+        "slot": buckets_of(when)[1],
+        "weights": {c: round(w, 4) for c, w in belief.component_weights(target).items()},
+    }
+
+
+def _room_of(last: Sighting, home: Home) -> str | None:
+    """The room of a sighting: its static's, else the map's room at its position (or None)."""
+    statics = home.statics
+    if last.static_id in statics:
+        return statics[last.static_id].room
+    if last.position is not None:
+        # Rare (a sighting away from every static): the map is built only then (~12 ms).
+        return NavigationMap.from_home(home).room_at(last.position[0], last.position[1])
+    return None
+
+
+def _last_seen(state: AgentState, target: str, last: Sighting, room: str | None) -> dict[str, Any]:
+    """The answer's ``last_seen``: ``target``'s latest sighting, in ``room``."""
+    last_map = state.maps.map_of_sighting(target, last.task_id, last.time_ns)
+    return {
+        # at: it stood at static_id's viewpoint (a mapped place, what the belief counts);
+        # otherwise static_id is only the nearest static of its room (or null).
+        "static_id": last.static_id,
+        "static_class": last.static_class,
+        "at": last.at,
+        "position": None if last.position is None else [round(v, 3) for v in last.position],
+        "room": room,
+        "task_id": last.task_id,
+        "time_ns": last.time_ns,
+        "scene": last.scene,
+        # Seconds from the sighting to the log's latest event, and the map it was made in.
+        "age_s": _age_s(state, last.time_ns),
+        "map": last_map,
+        "map_left": last_map is not None and last_map != state.maps.current,
     }
 
 

@@ -45,6 +45,37 @@ def walked(navmap: Any, stops: Sequence[Point]) -> list[Point]:
     return out
 
 
+def _stretches(navmap: Any, route: Sequence[Point]) -> list[tuple[str, list[Point]]]:
+    """The route as one line per stretch walked inside one room, each with its room (a teleport
+    between doors starts a new one)."""
+    runs: list[tuple[str, list[Point]]] = []
+    for a, b in itertools.pairwise(route):
+        room = navmap.room_at(b.x, b.y)
+        jump = math.hypot(b.x - a.x, b.y - a.y) > JUMP_M
+        if runs and runs[-1][0] == room and not jump and runs[-1][1][-1] == a:
+            runs[-1][1].append(b)
+        else:
+            runs.append((room, [b] if jump else [a, b]))
+    return runs
+
+
+def _legend_handles(start_label: str, target: str) -> list[Any]:
+    """The legend's entries: the route, room changes, the start, the target, statics, containers."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    return [
+        Line2D([], [], color="C0", lw=1.8, label="route, coloured by room"),
+        Line2D([], [], color="w", marker="D", mec="k", mfc="0.7", ms=6,
+               label="room change n (travel order)"),
+        Line2D([], [], color="w", marker="s", mec="k", mfc="white", ms=7,
+               label=f"start ({start_label})"),
+        Line2D([], [], color="w", marker="*", mec="k", mfc="gold", ms=11, label=target),
+        Patch(fill=False, ec="#7a7a7a", label="static object"),
+        Patch(fill=False, ec="#1f4e79", label="container"),
+    ]  # fmt: skip
+
+
 def plot_route_map(
     ctx: Any,
     route: Sequence[Point],
@@ -58,8 +89,7 @@ def plot_route_map(
     """Draw ``route`` (dense: every point walked) over ``ctx``'s map into ``path`` (PNG, with SVG
     and PDF beside it); ``targets_at``: where the target objects are (stars)."""
     plt = pyplot()
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import Patch, Rectangle
+    from matplotlib.patches import Rectangle
 
     navmap, semmap = ctx.navmap, ctx.semmap
     entered = rooms_in_order(navmap, route)
@@ -102,16 +132,7 @@ def plot_route_map(
         cx = sum(p.x for p in room.viewpoints) / len(room.viewpoints)
         ax.text(cx, y1 - 0.15, room.name, ha="center", va="top", fontsize=9,
                 weight="bold", color=colours[room.name], zorder=6)  # fmt: skip
-    # The route, one line per stretch walked inside one room (a teleport starts a new one).
-    runs: list[tuple[str, list[Point]]] = []
-    for a, b in itertools.pairwise(route):
-        room = navmap.room_at(b.x, b.y)
-        jump = math.hypot(b.x - a.x, b.y - a.y) > JUMP_M
-        if runs and runs[-1][0] == room and not jump and runs[-1][1][-1] == a:
-            runs[-1][1].append(b)
-        else:
-            runs.append((room, [b] if jump else [a, b]))
-    for room, pts in runs:
+    for room, pts in _stretches(navmap, route):
         ax.plot([p.x for p in pts], [p.y for p in pts], c=colours.get(room, "k"), lw=1.8, zorder=3)
     # Room changes: numbered in travel order where the robot entered each room.
     for n, (room, i) in enumerate(entered[1:], start=1):
@@ -128,17 +149,12 @@ def plot_route_map(
         ax.scatter([x for x, _ in stars], [y for _, y in stars], marker="*", s=170, c="gold",
                    ec="k", zorder=5)  # fmt: skip
     order = " → ".join(r for r, _ in entered)
-    handles = [
-        Line2D([], [], color="C0", lw=1.8, label="route, coloured by room"),
-        Line2D([], [], color="w", marker="D", mec="k", mfc="0.7", ms=6,
-               label="room change n (travel order)"),
-        Line2D([], [], color="w", marker="s", mec="k", mfc="white", ms=7,
-               label=f"start ({start_label})"),
-        Line2D([], [], color="w", marker="*", mec="k", mfc="gold", ms=11, label=target),
-        Patch(fill=False, ec="#7a7a7a", label="static object"),
-        Patch(fill=False, ec="#1f4e79", label="container"),
-    ]  # fmt: skip
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    ax.legend(
+        handles=_legend_handles(start_label, target),
+        loc="upper left",
+        bbox_to_anchor=(1.01, 1.0),
+        frameon=False,
+    )
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
     ax.set_aspect("equal")

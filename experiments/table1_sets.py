@@ -19,7 +19,7 @@ import statistics
 import sys
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -317,6 +317,58 @@ def render(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _set_records(
+    homes: Mapping[str, FloorPlanSet],
+    rows: Sequence[Row],
+    sample: Sequence[FloorPlanSet],
+    paper_name: str,
+) -> list[dict[str, Any]]:
+    """One record per home of the run (a FloorPlan set): its scenes, whether it was sampled or
+    is the paper's set, its per-strategy means and their ordering (``table1_sets.csv``)."""
+    records = []
+    for name, scenes in homes.items():
+        means = per_set(rows, name)
+        records.append(
+            {
+                "home": name,
+                "kitchen": scenes[0],
+                "living": scenes[1],
+                "bedroom": scenes[2],
+                "bathroom": scenes[3],
+                "sampled": name in {set_name(s) for s in sample},
+                "paper_set": name == paper_name,
+                **{k: round(v, 4) for k, v in means.items()},
+                "ordering": ordering(means),
+                "paper_order": paper_order_holds(means),
+            }
+        )
+    return records
+
+
+def _command(
+    out: Path,
+    source: Path,
+    sets: int,
+    seed: int,
+    workers: int,
+    targets: Sequence[str],
+    prior: str,
+    camera: str,
+) -> str:
+    """The ``bench table1`` command that reproduces a run (options at their default left out)."""
+    command = (
+        f"objsearch bench table1 --sets {sets} --seed {seed} --source {source} --out {out} "
+        f"--workers {workers}"
+    )
+    if tuple(targets) != TARGETS:
+        command += f" --targets {','.join(targets)}"
+    if prior != DEFAULT_PRIOR:
+        command += f" --prior {prior}"
+    if camera != DEFAULT_CAMERA:
+        command += f" --camera {camera}"
+    return command
+
+
 def run_table1_sets(
     out: Path,
     *,
@@ -362,40 +414,14 @@ def run_table1_sets(
         left_out = unseeable(jobs)
     search_s = time.perf_counter() - started
     write_rows(rows, out, "table1_trials")
-    records = []
-    for name, scenes in homes.items():
-        means = per_set(rows, name)
-        records.append(
-            {
-                "home": name,
-                "kitchen": scenes[0],
-                "living": scenes[1],
-                "bedroom": scenes[2],
-                "bathroom": scenes[3],
-                "sampled": name in {set_name(s) for s in sample},
-                "paper_set": name == paper_name,
-                **{k: round(v, 4) for k, v in means.items()},
-                "ordering": ordering(means),
-                "paper_order": paper_order_holds(means),
-            }
-        )
+    records = _set_records(homes, rows, sample, paper_name)
     import polars as pl
 
     pl.DataFrame(records).write_csv(out / "table1_sets.csv")
     sampled = [r for r in records if r["sampled"]]
     paper_rec = next((r for r in records if r["paper_set"]), None)
-    command = (
-        f"objsearch bench table1 --sets {sets} --seed {seed} --source {source} --out {out} "
-        f"--workers {workers}"
-    )
-    if tuple(targets) != TARGETS:
-        command += f" --targets {','.join(targets)}"
-    if prior != DEFAULT_PRIOR:
-        command += f" --prior {prior}"
-    if camera != DEFAULT_CAMERA:
-        command += f" --camera {camera}"
     summary: dict[str, Any] = {
-        "command": command,
+        "command": _command(out, source, sets, seed, workers, targets, prior, camera),
         "seed": seed,
         "sets": sets,
         "workers": workers,
