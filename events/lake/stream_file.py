@@ -163,10 +163,12 @@ class _Named(NamedTuple):
 def abandon(lake: LakeBase, files: Iterable[_StreamFile]) -> None:
     """Close and delete files a failed commit of ``lake`` was writing."""
     files = list(files)
+    # What closing a half-written file raises (Arrow's errors, the storage's OSError) must not
+    # replace the failed commit's own error; the files are deleted below anyway.
     for f in files:
-        with suppress(Exception):  # boundary: a failed commit's files; its own error is raised
+        with suppress(OSError, pa.ArrowException):
             f.writer.close()
         if f.out is not None:
-            with suppress(Exception):  # boundary: as above (the file is deleted below anyway)
+            with suppress(OSError, pa.ArrowException):
                 lake._close(f.rel, f.out)
     lake._delete_files([_Named(f.rel) for f in files if f.on_storage])
