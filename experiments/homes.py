@@ -76,6 +76,7 @@ def homes_jobs(
     camera: str = DEFAULT_CAMERA,
     inspection: str = "single",
     perception: str | None = None,
+    prior: str = DEFAULT_PRIOR,
 ) -> list[Job]:
     known = set(available_homes())
     unknown = [h for h in homes if h not in known]
@@ -126,6 +127,7 @@ def homes_jobs(
                             starts_per_search=starts_per_search,
                             camera=camera,
                             perception=perception,
+                            prior=prior,
                         )
                     )
                 for wpl in (n for n in strategies if split_strategy(n)[0].name == "wpl"):
@@ -142,6 +144,7 @@ def homes_jobs(
                             starts_per_search=starts_per_search,
                             camera=camera,
                             perception=perception,
+                            prior=prior,
                         )
                     )
     return jobs
@@ -402,6 +405,7 @@ def run_homes(
     perception: dict[str, Any] | None = None,
     localisation: dict[str, Any] | None = None,
     new_map_day: int | None = None,
+    prior: str = DEFAULT_PRIOR,
 ) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     homes = list(homes) if homes else list(heldout_homes())
@@ -416,6 +420,7 @@ def run_homes(
         camera=camera,
         inspection=inspection,
         perception=json.dumps(perception, sort_keys=True) if perception else None,
+        prior=prior,
     )
     if localisation or new_map_day is not None:
         # The robot's pose error and its change of map (sim/localisation.py, agent/maps.py).
@@ -441,6 +446,7 @@ def run_homes(
             **perception_options(perception),
             "localisation": localisation["preset"] if localisation else None,
             "new_map_day": new_map_day,
+            "prior": None if prior == DEFAULT_PRIOR else prior,
             "workers": workers,
         },
     )
@@ -453,9 +459,9 @@ def run_homes(
         "localisation": localisation or {"preset": "perfect"},
         "new_map_day": new_map_day,
         "inspection": inspection,
-        # Every search of this bench starts from this prior; dist-oracle alone also reads the
-        # schedule's own distribution (a reference, never a default).
-        "prior": DEFAULT_PRIOR,
+        # Every search of this bench starts from this prior (``--prior``); dist-oracle alone
+        # also reads the schedule's own distribution (a reference, never a default).
+        "prior": prior,
         "homes": homes,
         "seeds": list(range(seeds)),
         "schedules": list(schedules),

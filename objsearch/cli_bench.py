@@ -97,6 +97,7 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
             perception=t.perception_params(args),
             localisation=t.localisation_params(args),
             new_map_day=args.new_map_day,
+            prior=args.prior,
         )
     if args.format == "json":
         print(json.dumps(_headline(summary), indent=2))
@@ -464,6 +465,7 @@ def _add_homes(bsub: Any) -> None:
         help="from scene N on the robot runs in a new map (a new session with the next map id; "
         "where flags answers resting on the old map) (never)",
     )
+    homes.defer(_prior_option)
     homes.set_defaults(func=cmd_bench_homes)
 
 

@@ -136,3 +136,22 @@ def test_spl_and_oracle_ratio_by_hand() -> None:
     s = summarise(rows)
     assert s["spl"] == pytest.approx(0.5) and s["success_rate"] == pytest.approx(2 / 3)
     assert s["oracle_ratio"] == pytest.approx(10.0 / 3.0)
+
+
+def test_bench_homes_runs_every_search_from_the_prior_it_is_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from objsearch.agent.session import DEFAULT_PRIOR
+    from objsearch.experiments.homes import homes_jobs
+
+    argv = ["bench", "homes", "--out", str(tmp_path), "--homes", "procthor-00"]
+    argv += ["--scenes-per-schedule", "1", "--starts-per-scene", "1", "--strategies"]
+    argv += ["global-belief", "--workers", "1", "--format", "json", "--prior", "vg-hoz-masked"]
+    assert main(argv) == 0
+    capsys.readouterr()
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["prior"] == "vg-hoz-masked" and "--prior vg-hoz-masked" in summary["command"]
+    # Every job, the no-update wpl twin too, carries it to its run spec (runner.run_job).
+    jobs = homes_jobs(["procthor-00"], ["global-belief", "wpl"], 1, prior="vg-hoz-masked")
+    assert len(jobs) == 3 and {j.prior for j in jobs} == {"vg-hoz-masked"}
+    assert {j.prior for j in homes_jobs(["procthor-00"], ["wpl"], 1)} == {DEFAULT_PRIOR}
