@@ -6,6 +6,7 @@ import csv
 import math
 import statistics
 import sys
+import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -62,6 +63,22 @@ def _run(
     spec = RunSpec.of(home, ctx.home.digest, strategy, seed=0, schedule="table2", params=params)
     results: dict[UpdateMode, list[Trial]] = {}
     total = SCENES * len(TARGET_ORDER) * STARTS * len(modes)
+    done = [0]
+    started = time.monotonic()
+    in_pipe = progress and not sys.stderr.isatty()
+
+    def searched(bar: Any) -> None:
+        bar.update()
+        done[0] += 1
+        # Where no bar is drawn (a pipe, a log), a line at each tenth (DEVELOPERS.md, "Progress").
+        if in_pipe and done[0] * 10 // total > (done[0] - 1) * 10 // total:
+            elapsed = time.monotonic() - started
+            print(
+                f"demo: {done[0]} of {total} searches ({elapsed:.0f} s)",
+                file=sys.stderr,
+                flush=True,
+            )
+
     # disable=None: drawn on a terminal only, never into a pipe or log (DEVELOPERS.md).
     with tqdm(
         total=total, disable=None if progress else True, file=sys.stderr, unit="search"
@@ -71,7 +88,7 @@ def _run(
             results[mode] = run_schedule(
                 out / f"log-{mode.value}",
                 spec.with_changes(update_mode=mode),
-                on_trial=lambda _t: bar.update(),
+                on_trial=lambda _t: searched(bar),
             )
     write_csv(out / "path_lengths.csv", results)
     plot(out / "path_length_per_scene.png", results)
