@@ -19,7 +19,7 @@ import pytest
 
 from objsearch.agent.belief import Place, PlaceBelief
 from objsearch.agent.errors import ObjsearchError
-from objsearch.experiments import dhs
+from objsearch.experiments import dhs, dhs_adapter, dhs_report
 
 
 def test_a_checkout_that_differs_from_the_pinned_commit_is_refused(tmp_path: Path) -> None:
@@ -60,7 +60,7 @@ def test_the_cli_refuses_an_unpinned_checkout_with_a_clear_error(tmp_path: Path)
 def test_the_py38_draw_picks_the_last_option_of_all_zero_weights_and_costs_one_random() -> None:
     options = ["a", "b", "c"]
     random.seed(5)
-    picked = dhs._choices_py38(options, weights=[0.0, 0.0, 0.0])
+    picked = dhs_adapter._choices_py38(options, weights=[0.0, 0.0, 0.0])
     after = random.random()
     random.seed(5)
     random.random()
@@ -70,7 +70,7 @@ def test_the_py38_draw_picks_the_last_option_of_all_zero_weights_and_costs_one_r
 def test_the_py38_draw_is_pythons_own_when_the_weights_sum_above_zero() -> None:
     options, weights = ["a", "b", "c"], [0.2, 0.0, 0.8]
     random.seed(11)
-    ours = [dhs._choices_py38(options, weights=weights)[0] for _ in range(50)]
+    ours = [dhs_adapter._choices_py38(options, weights=weights)[0] for _ in range(50)]
     random.seed(11)
     theirs = [random.choices(options, weights=weights)[0] for _ in range(50)]
     assert ours == theirs
@@ -137,17 +137,17 @@ def test_the_targets_read_the_gap_from_the_better_baseline_to_the_better_oracle(
     def rows(**attempts: float) -> dict[str, dict[str, float]]:
         return {agent: {"attempts": value} for agent, value in attempts.items()}
 
-    half = dhs._targets(
+    half = dhs_report._targets(
         rows(belief=2.0, frequentist=3.0, memorization=4.0, upper_bound=1.0, oracle_upper_bound=2.5)
     )
     assert half is not None
     assert half["better_baseline"] == "frequentist" and half["oracle"] == "upper_bound"
     assert half["gap_closed"] == pytest.approx(0.5) and half["half_gap_closed"]
     # An oracle no better than the better baseline leaves no gap: said so, not a ratio.
-    none = dhs._targets(rows(belief=2.0, frequentist=2.4, memorization=3.0, upper_bound=3.5))
+    none = dhs_report._targets(rows(belief=2.0, frequentist=2.4, memorization=3.0, upper_bound=3.5))
     assert none is not None and none["gap_closed"] is None and none["beats_oracle"]
-    assert "no gap to close" in dhs._verdict(none)
-    assert dhs._targets(rows(belief=2.0, frequentist=2.4)) is None  # no oracle ran
+    assert "no gap to close" in dhs_report._verdict(none)
+    assert dhs_report._targets(rows(belief=2.0, frequentist=2.4)) is None  # no oracle ran
 
 
 def _run(agent: str, seed: int, attempts: list[int], crash: str | None = None) -> dhs.AgentRun:
@@ -225,7 +225,7 @@ def test_an_interval_that_straddles_zero_says_so() -> None:
     assert dhs.paired_ci([0.1]) is None
     lo, hi = dhs.paired_ci([0.1, -0.1, 0.05])  # type: ignore[misc]
     assert lo < 0 < hi
-    lines = dhs._paired_lines(
+    lines = dhs_report._paired_lines(
         {
             "bayesian": {
                 "seeds": [0, 1, 2],
@@ -257,7 +257,7 @@ def test_every_agent_and_seed_runs_in_a_fresh_process() -> None:
 
 def test_our_rel0_is_the_edge_its_bayesian_reads_per_furniture_category() -> None:
     source = _source()
-    with dhs._their_code(source):
+    with dhs_adapter._their_code(source):
         from memsearch.agents import BayesianAgent
         from memsearch.graphs import NodeType, load_priors_graph
         from memsearch.tasks import TaskType
@@ -297,7 +297,7 @@ def test_with_its_coarse_priors_our_categories_find_their_roomless_category() ->
     # agent_ok_priors gives the agents its coarse graph, whose categories carry no room
     # (arm_chair, not arm_chair-bedroom): without the fallback every Rel₀ was 0 there.
     source = _source()
-    with dhs._their_code(source):
+    with dhs_adapter._their_code(source):
         from memsearch.graphs import NodeType, load_priors_graph
 
         detailed, coarse = load_priors_graph("detailed"), load_priors_graph("coarse")
