@@ -83,6 +83,16 @@ def test_the_bench_paper_block_is_what_its_command_prints() -> None:
     assert _strategies(args.strategies, "all") == shown, path
     assert FIGURES["bench-paper"].keep == (r"^",)
     assert re.search(r"^\d+ searches; results in out/bench-paper$", body, re.MULTILINE)
+    # The prose above the block: how many strategies the command runs without --strategies, and
+    # that the block leaves out only the run time (its one substitution).
+    from objsearch.experiments.strategies import STRATEGIES
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
+    above = readme.split("<!-- figures:bench-paper -->", 1)[0].rstrip()
+    prose = " ".join(above.split("\n\n")[-1].split())
+    assert f"(`all`, {len(STRATEGIES)} of them)" in prose
+    assert FIGURES["bench-paper"].subs == ((r" in [0-9.]+ s;", ";"),)
+    assert "whole output but its run time" in prose
 
 
 def test_a_stale_block_is_named_and_a_rewrite_fixes_it(
