@@ -17,9 +17,10 @@ from __future__ import annotations
 
 import bisect
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from functools import partial
+from typing import Any, Final, NamedTuple
 
 from objsearch.agent.catalogue import Detected, RunStarted, decode
 from objsearch.events.projection import EventView
@@ -51,6 +52,11 @@ class MapSightings(NamedTuple):
     latest_task: str | None
 
 
+#: ``MapSightings(...)`` made in C (the named tuple's own ``__new__`` is Python: 0.5 against
+#: 0.2 µs, once per accepted detection a fold reads from records).
+_sightings: Final = partial(tuple.__new__, MapSightings)
+
+
 @dataclass
 class MapEvidence:
     """The map each session ran in, and each class's sightings per map (a fold of the log)."""
@@ -79,6 +85,25 @@ class MapEvidence:
             per[self.current] = MapSightings(
                 count, int(getattr(event, "time_ns", 0)), getattr(event, "task_id", None)
             )
+
+    def record_handlers(self) -> dict[str, Callable[[Any], None]]:
+        """:meth:`apply`'s detections, from a log's records (``run_started`` changes the map and
+        is folded as an event)."""
+        by_class = self.by_class
+
+        def detection(r: Any) -> None:
+            current = self.current
+            if current is None:
+                return
+            detected = r.payload
+            if not detected.accepted:
+                return
+            per = by_class.setdefault(detected.object_class, {})
+            before = per.get(current)
+            count = 1 if before is None else before.sightings + 1
+            per[current] = _sightings((count, r.time_ns, r.task_id))
+
+        return {"detection": detection}
 
     def map_at(self, time_ns: int) -> str | None:
         """The map the robot was in at ``time_ns`` (None: before any run)."""

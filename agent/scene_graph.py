@@ -10,7 +10,7 @@ operations in the same order.
 from __future__ import annotations
 
 import enum
-from collections.abc import Container, Iterable, Mapping
+from collections.abc import Callable, Container, Iterable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, ClassVar
@@ -116,12 +116,9 @@ class SceneGraphProjection:
         # Only the types this fold reads are decoded: the rest pass on their ``type`` alone.
         kind = event.type
         if kind == "run_started":
-            self.update_mode = UpdateMode(decode(event, RunStarted).update_mode)
+            self._run_started(decode(event, RunStarted))
         elif kind == "scene_graph_seeded":
-            self.relations = {
-                (v.dynamic, v.static): v.rel for v in decode(event, SceneGraphSeeded).values
-            }
-            self._pairs_of = _pairs_by_dynamic(self.relations)
+            self._seeded(decode(event, SceneGraphSeeded))
         elif kind == "task_started":
             self._task.start(decode(event, TaskStarted).target)
         elif kind == "detection":
@@ -132,6 +129,29 @@ class SceneGraphProjection:
         elif kind == "task_aborted":
             self._task.clear()  # a search cut short by a crash folds nothing
         self.last_seq = event.seq
+
+    def record_handlers(self) -> dict[str, Callable[[Any], None]]:
+        """What :meth:`apply` does per type, from a log's records (``events.fold_read``): each
+        handler is given the record's envelope with its payload decoded as the type's record."""
+        task = self._task
+        return {
+            "run_started": lambda r: self._run_started(r.payload),
+            "scene_graph_seeded": lambda r: self._seeded(r.payload),
+            "task_started": lambda r: task.start(r.payload.target),
+            "detection": task.record_handler(),
+            "task_ended": lambda r: self._end_task(),
+            "task_aborted": lambda r: task.clear(),
+        }
+
+    def folded_to(self, seq: int, time_ns: int) -> None:
+        self.last_seq = seq
+
+    def _run_started(self, run: RunStarted) -> None:
+        self.update_mode = UpdateMode(run.update_mode)
+
+    def _seeded(self, seeded: SceneGraphSeeded) -> None:
+        self.relations = {(v.dynamic, v.static): v.rel for v in seeded.values}
+        self._pairs_of = _pairs_by_dynamic(self.relations)
 
     def _end_task(self) -> None:
         task = self._task

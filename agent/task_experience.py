@@ -11,7 +11,7 @@ A task starts at ``task_started`` and is over at ``task_ended`` (the model folds
 from __future__ import annotations
 
 import enum
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -62,6 +62,23 @@ class TaskExperience:
                 statics.add(support.static_class)
         elif at and support is not None:
             self.seen_at.setdefault(detection.object_class, set()).add(support.static_id)
+
+    def record_handler(self) -> Callable[[Any], None]:
+        """:meth:`detected` of a record's envelope (``events.fold_read``: its ``payload`` the
+        detection), in one call: a fold reads every detection of a log."""
+        if self.seen_by is not SeenBy.CLASS:
+            return lambda r: self.detected(r.payload)
+
+        def detected(r: Any) -> None:
+            detection = r.payload
+            if not detection.accepted:
+                return
+            support = detection.support
+            statics = self.seen_at.setdefault(detection.object_class, set())
+            if support is not None and support.at:
+                statics.add(support.static_class)
+
+        return detected
 
     def missed(self) -> set[str]:
         """The statics looked at in this task where the target was not seen."""

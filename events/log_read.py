@@ -10,17 +10,19 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from . import _fs
 from .envelope import Event
+from .fold_read import RecordFold, fold_records
 from .log_files import (
     LOCK_FILE,
     LOG_FILE,
     Durable,
     LogMeta,
     LogPosition,
+    TornTail,
     read_durable,
     read_meta,
 )
@@ -33,7 +35,7 @@ from .store import Store
 # The logger of the log before it was split: what callers and tests filter torn-tail reports by.
 _log = logging.getLogger("objsearch.events.log")
 
-__all__ = ["follow_log", "is_being_written", "read_log", "read_log_after"]
+__all__ = ["LogEvents", "follow_log", "is_being_written", "read_log", "read_log_after"]
 
 
 def read_log(
@@ -60,9 +62,74 @@ def read_log(
     _check_seq_range(from_seq, to_seq)
     meta = read_meta(directory)
     durable = read_durable(directory)
-    return _read(
-        directory, meta, durable, from_seq, to_seq, store.registry, store if upcast else None
-    )
+    return LogEvents(directory, meta, durable, from_seq, to_seq, store, upcast)
+
+
+class LogEvents(Iterator[Event]):
+    """What :func:`read_log` returns: an iterator of the log's events; or, handed whole to
+    :func:`~.projection.fold` before its first event is taken, a fold from the log's records
+    (:mod:`.fold_read`: the same checks, no event built per record) when the projection can
+    take them."""
+
+    def __init__(
+        self,
+        directory: Path,
+        meta: LogMeta,
+        durable: Durable | None,
+        from_seq: int,
+        to_seq: int | None,
+        store: Store,
+        upcast: bool,
+    ) -> None:
+        self._args = (directory, meta, durable, from_seq, to_seq, store, upcast)
+        self._events: Iterator[Event] | None = None
+
+    def _started(self) -> Iterator[Event]:
+        events = self._events
+        if events is None:
+            directory, meta, durable, from_seq, to_seq, store, upcast = self._args
+            events = self._events = _read(
+                directory, meta, durable, from_seq, to_seq, store.registry,
+                store if upcast else None,
+            )  # fmt: skip
+        return events
+
+    def __next__(self) -> Event:
+        return next(self._started())
+
+    def __iter__(self) -> LogEvents:
+        return self
+
+    def close(self) -> None:
+        """Stop reading (as a generator's ``close``)."""
+        close = getattr(self._events, "close", None)
+        if close is not None:
+            close()
+
+    def fold_into(
+        self,
+        projection: object,
+        until_seq: int | None,
+        apply_event: Callable[[Event], None],
+    ) -> bool:
+        """Fold the whole log into ``projection`` from its records, if it can take them
+        (:class:`~.fold_read.RecordFold`) and no event was taken yet; False: fold events."""
+        directory, meta, durable, from_seq, to_seq, store, upcast = self._args
+        if (
+            self._events is not None
+            or from_seq != 1
+            or to_seq is not None
+            or not upcast
+            or not isinstance(projection, RecordFold)
+        ):
+            return False
+        self._events = iter(())
+        tail = fold_records(
+            directory / LOG_FILE, meta, durable, store, projection, until_seq, apply_event
+        )
+        if tail is not None:
+            _report_tail(directory, tail, stacklevel=5)  # fold's caller
+        return True
 
 
 def follow_log(
@@ -152,15 +219,18 @@ def _read(
                 # Most events are at their type's latest version: no call for those.
                 yield event if event.version >= latest.get(event.type, 0) else upcast(event)
     tail = scan.torn_tail
-    if tail is None:
-        return
+    if tail is not None:
+        _report_tail(directory, tail, stacklevel=6)  # the reader's caller
+
+
+def _report_tail(directory: Path, tail: TornTail, *, stacklevel: int) -> None:
     if is_being_written(directory):
         _log.debug("%s: unterminated last line while a writer is active; not yet written", tail)
         return
     _report(
         f"torn tail in {tail.path}: skipping {tail.length} byte(s) at byte offset {tail.offset} "
         f"(line {tail.line}; {tail.reason}); the file was not changed",
-        stacklevel=4,
+        stacklevel=stacklevel,
     )
 
 

@@ -102,6 +102,26 @@ def fold(events: Iterable[Event], projection: P, *, until_seq: int | None = None
     if until_seq is not None and projection.last_seq == until_seq:
         return projection
     apply = projection.apply  # once, not per event: a fold of a log is millions of calls
+
+    def checked(event: Event) -> None:
+        seq = event.seq
+        if seq != projection.last_seq + 1:
+            raise ProjectionError(
+                f"{type(projection).__name__} is at seq {projection.last_seq} and cannot apply "
+                f"seq {seq} ({event.type}): events {projection.last_seq + 1}..{seq - 1} are "
+                "missing"
+            )
+        apply(event)
+        if projection.last_seq != seq:
+            raise ProjectionError(
+                f"{type(projection).__name__}.apply(seq {seq}) left last_seq at "
+                f"{projection.last_seq}; apply must advance last_seq to the event's seq"
+            )
+
+    # A whole log from read_log, to a projection that folds records: no event per record.
+    fold_into = getattr(events, "fold_into", None)
+    if fold_into is not None and fold_into(projection, until_seq, checked):
+        return projection
     for event in events:
         seq = event.seq
         if until_seq is not None and seq > until_seq:
