@@ -9,6 +9,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from objsearch.experiments.dhs_adapter import PINNED_COMMIT
+from objsearch.experiments.dhs_bound import BOUND
 from objsearch.experiments.dhs_records import DISPLAY, OURS, AgentRun
 
 
@@ -59,6 +60,8 @@ def summarise(runs: Sequence[AgentRun]) -> dict[str, Any]:
             "targets": _targets(rows),
             "paired": _paired(agents),
         }
+        if BOUND in rows:
+            experiments[experiment]["from_bound"] = from_bound(rows)
     return {"pinned_commit": PINNED_COMMIT, "experiments": experiments}
 
 
@@ -90,7 +93,7 @@ def _paired(agents: Mapping[str, Sequence[AgentRun]]) -> dict[str, Any]:
     ours = {r.seed: r.mean_attempts for r in agents[OURS] if r.mean_attempts is not None}
     out: dict[str, Any] = {}
     for agent, rs in agents.items():
-        if agent == OURS:
+        if agent in (OURS, BOUND):  # the bound is no agent of its: from_bound
             continue
         theirs = {r.seed: r.mean_attempts for r in rs if r.mean_attempts is not None}
         seeds = sorted(ours.keys() & theirs.keys())
@@ -103,6 +106,36 @@ def _paired(agents: Mapping[str, Sequence[AgentRun]]) -> dict[str, Any]:
             "ci95": None if ci is None else [round(ci[0], 4), round(ci[1], 4)],
         }
     return out
+
+
+def from_bound(rows: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+    """Per agent: its mean attempts − the bound's, seed by seed (the seeds both answered), their
+    mean and 95 % t interval: how many more attempts it needs than the reference that knows the
+    simulator's model (:mod:`objsearch.experiments.dhs_bound`)."""
+    bound = _per_seed(rows[BOUND])
+    out: dict[str, Any] = {}
+    for agent, row in rows.items():
+        if agent == BOUND:
+            continue
+        mine = _per_seed(row)
+        seeds = sorted(mine.keys() & bound.keys())
+        diffs = [mine[s] - bound[s] for s in seeds]
+        ci = paired_ci(diffs)
+        out[agent] = {
+            "seeds": seeds,
+            "diffs": [round(d, 4) for d in diffs],
+            "mean": _rounded(statistics.fmean(diffs)) if diffs else None,
+            "ci95": None if ci is None else [round(ci[0], 4), round(ci[1], 4)],
+        }
+    return out
+
+
+def _per_seed(row: Mapping[str, Any]) -> dict[int, float]:
+    return {
+        int(s): float(v)
+        for s, v in zip(row["seeds"], row["attempts_per_seed"], strict=True)
+        if v is not None
+    }
 
 
 def _targets(rows: Mapping[str, Mapping[str, Any]]) -> dict[str, Any] | None:
@@ -168,7 +201,24 @@ def render(summary: Mapping[str, Any]) -> str:
         if targets:
             lines.append("  " + _verdict(targets))
         lines += _paired_lines(block.get("paired", {}))
+        lines += _from_bound_lines(block.get("from_bound", {}))
     return "\n".join(lines)
+
+
+def _from_bound_lines(gaps: Mapping[str, Any]) -> list[str]:
+    """Each agent − the bound, seed by seed, with the 95 % t interval."""
+    if not gaps:
+        return []
+    lines = ["  from the bound, each − bound (attempts it needs more), 95 % t CI:"]
+    for agent, p in sorted(gaps.items(), key=lambda kv: (kv[1]["mean"] is None, kv[1]["mean"])):
+        name = DISPLAY.get(agent, agent)
+        if p["mean"] is None:
+            lines.append(f"    {name:<14} no seed both answered")
+            continue
+        diffs = " ".join(f"{d:+.3f}" for d in p["diffs"])
+        ci = "" if p["ci95"] is None else f" [{p['ci95'][0]:+.3f}, {p['ci95'][1]:+.3f}]"
+        lines.append(f"    {name:<14} {p['mean']:+.3f}{ci}  ({len(p['seeds'])} seeds: {diffs})")
+    return lines
 
 
 def _paired_lines(paired: Mapping[str, Any]) -> list[str]:

@@ -47,6 +47,32 @@ def test_a_full_target_takes_no_move_and_then_its_draw_from_zero_weights_takes_t
     assert out == pytest.approx([0.0, 0.5, 0.0, 0.5])
 
 
+def _run(agent: str, seed: int, attempts: list[int]) -> dhs.AgentRun:
+    run = dhs.AgentRun("small_scenes", agent, seed, max_attempts=10)
+    run.queries = [dhs.Query(1, a, a <= 10, 2.0 * a) for a in attempts]
+    return run
+
+
+def test_the_table_says_how_far_each_agent_is_from_the_bound() -> None:
+    runs = [
+        _run(dhs.BOUND, 0, [1, 1]),
+        _run(dhs.BOUND, 1, [1, 2]),
+        _run(dhs.OURS, 0, [2, 2]),
+        _run(dhs.OURS, 1, [2, 3]),
+        _run("bayesian", 0, [3, 3]),
+        _run("bayesian", 1, [3, 4]),
+    ]
+    block = dhs.summarise(runs)["experiments"]["small_scenes"]
+    gaps = block["from_bound"]
+    assert gaps[dhs.OURS]["diffs"] == [1.0, 1.0] and gaps["bayesian"]["mean"] == 2.0
+    assert dhs.BOUND not in gaps
+    # The bound is no agent of its: ours is paired with its bayesian, not with the bound.
+    assert set(block["paired"]) == {"bayesian"}
+    text = dhs.render(dhs.summarise(runs))
+    assert "from the bound, each − bound" in text
+    assert "    belief         +1.000 [+1.000, +1.000]  (2 seeds: +1.000 +1.000)" in text
+
+
 @pytest.mark.slow
 def test_the_bound_runs_by_its_rules_and_needs_fewer_attempts_than_its_agents_and_ours() -> None:
     source = os.environ.get(dhs.SOURCE_ENV)
