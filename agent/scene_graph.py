@@ -108,6 +108,11 @@ class SceneGraphProjection:
     tasks_folded: int = 0
     _task: TaskExperience = field(default_factory=TaskExperience)
     _pairs_of: dict[str, tuple[Pair, ...]] = field(default_factory=dict, repr=False)
+    #: :meth:`record_handlers`' answer and the id of the projection it was made for (a copy's
+    #: handlers would change the original: it makes its own).
+    _handlers: tuple[int, dict[str, Callable[[Any], None]]] | None = field(
+        default=None, init=False, repr=False, compare=False
+    )
 
     def __post_init__(self) -> None:
         self._pairs_of = _pairs_by_dynamic(self.relations)
@@ -132,9 +137,13 @@ class SceneGraphProjection:
 
     def record_handlers(self) -> dict[str, Callable[[Any], None]]:
         """What :meth:`apply` does per type, from a log's records (``events.fold_read``): each
-        handler is given the record's envelope with its payload decoded as the type's record."""
+        handler is given the record's envelope with its payload decoded as the type's record
+        (made once: they read the projection's fields when called)."""
+        made = self._handlers
+        if made is not None and made[0] == id(self):
+            return made[1]
         task = self._task
-        return {
+        handlers: dict[str, Callable[[Any], None]] = {
             "run_started": lambda r: self._run_started(r.payload),
             "scene_graph_seeded": lambda r: self._seeded(r.payload),
             "task_started": lambda r: task.start(r.payload.target),
@@ -142,6 +151,8 @@ class SceneGraphProjection:
             "task_ended": lambda r: self._end_task(),
             "task_aborted": lambda r: task.clear(),
         }
+        self._handlers = (id(self), handlers)
+        return handlers
 
     def folded_to(self, seq: int, time_ns: int) -> None:
         self.last_seq = seq

@@ -166,6 +166,11 @@ class AgentState:
     maps: MapEvidence = field(default_factory=MapEvidence)
     last_seq: int = 0
     last_time_ns: int = 0
+    #: :meth:`record_handlers`' last answer and the parts it was made of (made again if the
+    #: model, the map evidence or the ledger is another object).
+    _handlers: tuple[object, object, object, dict[str, Callable[[Any], None] | None] | None] = (
+        field(default=(None, None, None, None), init=False, repr=False, compare=False)
+    )
 
     snapshot_name: ClassVar[str] = "agent_state"
     # 2: sightings with position and ``at``; 3: oracle's today; 4: maps and their evidence
@@ -199,7 +204,10 @@ class AgentState:
         """What :meth:`apply` does per type, from a log's records (``events.fold_read``), while
         the relation model can fold records too (None: fold events). ``run_started`` and
         ``scene_graph_seeded`` are folded as events (they build the model and happen once)."""
-        model = self.model
+        model, maps, tasks = self.model, self.maps, self.tasks
+        made = self._handlers
+        if made[0] is model and made[1] is maps and made[2] is tasks and made[3] is not None:
+            return made[3]
         if model is None:
             model_handlers: dict[str, Callable[[Any], None]] = {}
         else:
@@ -216,6 +224,7 @@ class AgentState:
             handlers.setdefault(kind, []).append(handler)
         out: dict[str, Callable[[Any], None] | None] = {k: _all(h) for k, h in handlers.items()}
         out["run_started"] = out["scene_graph_seeded"] = None
+        self._handlers = (model, maps, tasks, out)
         return out
 
     def folded_to(self, seq: int, time_ns: int) -> None:

@@ -49,7 +49,8 @@ class RecordFold(Protocol):
         block): a handler, given the record's ``seq``, ``time_ns``, ``task_id`` and ``payload``
         (the type's latest record); ``None``: the type must reach :meth:`apply` as an event; a
         type not named is not read (its record is still checked as the scan checks it). None:
-        fold the next block event by event."""
+        fold the next block event by event. The same mapping, while the handlers are the same
+        (its decoder is then made once)."""
         ...
 
     def folded_to(self, seq: int, time_ns: int) -> None:
@@ -198,6 +199,9 @@ def fold_records(
     except FileNotFoundError:
         by_events(None)
         return tail
+    made_for: Mapping[str, RecordHandler | None] | None = None
+    decode: Callable[[bytes], Any] = _no_decoder
+    by_struct: dict[type, RecordHandler] = {}
     with f:
         rest = b""
         while True:
@@ -213,8 +217,14 @@ def fold_records(
             rest = chunk[cut:]
             lines = chunk[:cut].split(b"\n")
             lines.pop()
-            folded = _fold_block(lines, cut, at, chained, stream, mark_seq, durable, store,
-                                 projection, until_seq, crc32)  # fmt: skip
+            handlers = projection.record_handlers()
+            folded = False
+            if handlers is not None:
+                if handlers is not made_for:  # the same handlers: the same decoder
+                    decode, by_struct = _block_decoder(store, stream, handlers)
+                    made_for = handlers
+                folded = _fold_block(lines, cut, at, chained, mark_seq, durable, decode,
+                                     by_struct, projection, until_seq, crc32)  # fmt: skip
             if not folded and by_events(len(lines)):
                 return None
             if until_seq is not None and at.seq >= until_seq:
@@ -223,26 +233,27 @@ def fold_records(
     return tail
 
 
+def _no_decoder(body: bytes) -> Any:
+    raise AssertionError("no handlers yet")
+
+
 def _fold_block(
     lines: list[bytes],
     size: int,
     at: _Cursor,
     chained: bool,
-    stream: str,
     mark_seq: int,
     durable: Durable | None,
-    store: Store,
+    decode: Callable[[bytes], Any],
+    by_struct: dict[type, RecordHandler],
     projection: RecordFold,
     until_seq: int | None,
     crc32: Callable[[bytes, int], int],
 ) -> bool:
     """Check ``lines`` (a block of complete records, ``size`` bytes with their newlines) as the
-    scan would and fold them; False, having changed nothing, if any check fails or a record must
-    be read as an event (the caller reads the block with the scan)."""
-    handlers = projection.record_handlers()
-    if handlers is None:
-        return False
-    decode, by_struct = _block_decoder(store, stream, handlers)
+    scan would and fold them with the handlers of ``by_struct`` (``decode``'s structs); False,
+    having changed nothing, if any check fails or a record must be read as an event (the caller
+    reads the block with the scan)."""
     # A record is its JSON, a tab, its checksum in 8 hex digits: the last tab (where the scan
     # splits the line) is the 9th byte from the end iff the line ends as ``expected`` says.
     bodies = [line[:-9] for line in lines]

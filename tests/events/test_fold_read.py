@@ -4,6 +4,7 @@ for good logs, old record versions, damaged records, torn tails and cut-offs."""
 
 from __future__ import annotations
 
+import copy
 import json
 import random
 import warnings
@@ -268,3 +269,16 @@ def test_the_durable_mark_on_another_record_folds_alike(tmp_path: Path) -> None:
     durable["offset"] -= 1
     (tmp_path / "durable.json").write_text(json.dumps(durable))
     _both(tmp_path)
+
+
+def test_a_copy_folds_into_itself_not_into_its_original(tmp_path: Path) -> None:
+    """The scene graph keeps its handlers (made once): a deep copy makes its own. (The agent's
+    state cannot be deep-copied: its models are a read-only mapping.)"""
+    _write(tmp_path)
+    original = fold(read_log(tmp_path, store=STORE), SceneGraphProjection(), until_seq=400)
+    before = json.dumps(original.to_snapshot(), sort_keys=True)
+    copied = fold(read_log(tmp_path, store=STORE), copy.deepcopy(original))
+    assert json.dumps(original.to_snapshot(), sort_keys=True) == before
+    assert original.last_seq == 400
+    whole = fold(_one_by_one(tmp_path), SceneGraphProjection())
+    assert copied.to_snapshot() == whole.to_snapshot() and copied.last_seq == whole.last_seq
