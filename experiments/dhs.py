@@ -78,7 +78,7 @@ from objsearch.experiments.dhs_adapter import (
     sighting,
     verify_source,
 )
-from objsearch.experiments.dhs_bound import BOUND, BoundAgent
+from objsearch.experiments.dhs_bound import BOUND, BOUND_AGENTS, BoundAgent, bound_agent
 from objsearch.experiments.dhs_records import (
     ALL_THEIR_AGENTS,
     DISPLAY,
@@ -97,6 +97,7 @@ from objsearch.experiments.dhs_report import paired_ci, render, summarise
 __all__ = [
     "ALL_THEIR_AGENTS",
     "BOUND",
+    "BOUND_AGENTS",
     "DISPLAY",
     "EXPERIMENTS",
     "FURNITURE_KEYS",
@@ -132,8 +133,8 @@ def _make_agent(
     from memsearch.agents import make_agent
     from memsearch.tasks import TaskType
 
-    if name == BOUND:
-        return BoundAgent(sampler, evolver, float(cfg.agents.observation_prob))
+    if name in BOUND_AGENTS:
+        return bound_agent(name, sampler, evolver, float(cfg.agents.observation_prob))
     if name != OURS:
         return make_agent(
             cfg.agents,

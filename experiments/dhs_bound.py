@@ -38,6 +38,13 @@ import numpy.typing as npt
 
 #: The agent's name in ``bench dhs --agents`` and in tables.
 BOUND = "bound"
+#: What the bound can be run without, one piece at a time (``bound-no-<piece>``), to measure
+#: what each is worth: the query rule (its move step then ignores which object was asked for),
+#: the objects' own move rates (every object alike), the capacity rule (every piece of furniture
+#: taken to have room).
+ABLATIONS = ("query", "rates", "capacity")
+#: The bound and its ablations, by name.
+BOUND_AGENTS = (BOUND, *(f"{BOUND}-no-{piece}" for piece in ABLATIONS))
 #: Half the queries ask for an object moved in the step just taken (``Task.pick_query``).
 _PCT_QUERY_MOVED = 0.5
 
@@ -59,8 +66,15 @@ class BoundAgent:
     the one asked for. Approximations: see the module doc.
     """
 
-    def __init__(self, sampler: Any, evolver: Any, observation_prob: float) -> None:
+    def __init__(
+        self, sampler: Any, evolver: Any, observation_prob: float, *, without: str | None = None
+    ) -> None:
         from memsearch.graphs import NodeType
+
+        if without is not None and without not in ABLATIONS:
+            raise ValueError(f"without {without!r}: one of {', '.join(ABLATIONS)}")
+        #: The piece of knowledge it runs without (:data:`ABLATIONS`), if any.
+        self.without = without
 
         self._node_type = NodeType
         self.sampler = sampler
@@ -167,22 +181,30 @@ class BoundAgent:
         self._track(objects, added=True)
         # Its query draws by move_freq over every object; its moves, over those that can move.
         movable = [o for o in objects if self._fallback[self.rows[o.unique_id]].any()]
-        asked = sum(float(o.move_freq) for o in objects) or 1.0
-        total = sum(float(o.move_freq) for o in movable) or 1.0
-        free = self._free([self.rows[o.unique_id] for o in objects])
+        rate = {
+            o.unique_id: 1.0 if self.without == "rates" else float(o.move_freq) for o in objects
+        }
+        asked = sum(rate.values()) or 1.0
+        total = sum(rate[o.unique_id] for o in movable) or 1.0
+        if self.without == "capacity":
+            free = np.ones(len(self.furniture))
+        else:
+            free = self._free([self.rows[o.unique_id] for o in objects])
         for o in movable:
             row = self.rows[o.unique_id]
-            w = float(o.move_freq) / total
+            w = rate[o.unique_id] / total
             moved = 1.0 - (1.0 - w) ** moves if moves > 0 else 0.0
             if moved <= 0.0:
                 continue
             # The query's likelihood if the object moved (k ≥ 1 of the m moves: E[k | k ≥ 1]
             # ≈ 1 + (m − 1) w) and if not.
-            a = float(o.move_freq) / asked
+            a = rate[o.unique_id] / asked
             if_moved = (1 - _PCT_QUERY_MOVED) * a + _PCT_QUERY_MOVED * (1 + (moves - 1) * w) / moves
             if_stayed = (1 - _PCT_QUERY_MOVED) * a
             if o.unique_id != queried:
                 if_moved, if_stayed = 1.0 - if_moved, 1.0 - if_stayed
+            if self.without == "query":
+                if_moved = if_stayed = 1.0
             p = moved * if_moved / (moved * if_moved + (1.0 - moved) * if_stayed)
             b = self._belief[row]
             after = _moved(b, self._targets[row], self._fallback[row], free)
@@ -274,6 +296,14 @@ class BoundAgent:
         sums = self._belief.sum(axis=1, keepdims=True)
         uniform = 1.0 / max(1, self._belief.shape[1])
         self._belief = np.where(sums > 0, self._belief / np.where(sums > 0, sums, 1.0), uniform)
+
+
+def bound_agent(name: str, sampler: Any, evolver: Any, observation_prob: float) -> BoundAgent:
+    """The bound or one of its ablations by its name (:data:`BOUND_AGENTS`)."""
+    if name not in BOUND_AGENTS:
+        raise ValueError(f"{name!r}: one of {', '.join(BOUND_AGENTS)}")
+    without = None if name == BOUND else name.removeprefix(f"{BOUND}-no-")
+    return BoundAgent(sampler, evolver, observation_prob, without=without)
 
 
 def _unit(v: Vector) -> Vector:

@@ -9,7 +9,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from objsearch.experiments.dhs_adapter import PINNED_COMMIT
-from objsearch.experiments.dhs_bound import BOUND
+from objsearch.experiments.dhs_bound import BOUND, BOUND_AGENTS
 from objsearch.experiments.dhs_records import DISPLAY, OURS, AgentRun
 
 
@@ -93,7 +93,7 @@ def _paired(agents: Mapping[str, Sequence[AgentRun]]) -> dict[str, Any]:
     ours = {r.seed: r.mean_attempts for r in agents[OURS] if r.mean_attempts is not None}
     out: dict[str, Any] = {}
     for agent, rs in agents.items():
-        if agent in (OURS, BOUND):  # the bound is no agent of its: from_bound
+        if agent == OURS or agent in BOUND_AGENTS:  # no agents of its: from_bound
             continue
         theirs = {r.seed: r.mean_attempts for r in rs if r.mean_attempts is not None}
         seeds = sorted(ours.keys() & theirs.keys())

@@ -92,6 +92,7 @@ def _dhs_options(p: argparse.ArgumentParser) -> None:
     from objsearch.experiments.dhs import (
         ALL_THEIR_AGENTS,
         BOUND,
+        BOUND_AGENTS,
         EXPERIMENTS,
         OURS,
         RUNNABLE_EXPERIMENTS,
@@ -106,11 +107,12 @@ def _dhs_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--agents",
-        type=t.subset_of((*ALL_THEIR_AGENTS, OURS, BOUND)),
+        type=t.subset_of((*ALL_THEIR_AGENTS, OURS, *BOUND_AGENTS)),
         **t.LIST,
         help=f"comma-separated agents: its {', '.join(ALL_THEIR_AGENTS)}, ours, {OURS}, and "
-        f"{BOUND}, a reference that knows its generative model (default: all but "
-        f"oracle_upper_bound and {BOUND})",
+        f"{BOUND}, a reference that knows its generative model, or it without one piece of "
+        f"that ({', '.join(BOUND_AGENTS[1:])}) (default: all but oracle_upper_bound and "
+        "the bounds)",
     )
 
 
