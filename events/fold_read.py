@@ -110,7 +110,10 @@ def _decoder(
     return msgspec.json.Decoder(union).decode, structs
 
 
+#: The decoders made, by stream, store and the handlers' types (a few per process, each a
+#: union of some twenty structs: made in about 3 ms, so a bound, not an LRU).
 _DECODERS: dict[tuple[str, int, tuple[tuple[str, bool], ...]], Any] = {}
+_MAX_DECODERS: Final = 32
 
 
 def _block_decoder(
@@ -136,6 +139,8 @@ def _block_decoder(
                 wanted[event_type] = (version, record)
             else:
                 wanted[event_type] = (version, None)
+        if len(_DECODERS) >= _MAX_DECODERS:
+            _DECODERS.clear()  # a process that folds the logs of many streams: keep few
         cached = _DECODERS[key] = (_decoder(stream, wanted), store)  # keep the store alive
     (decode, structs), _ = cached
     by_struct = {s: handlers[t] for s, t in structs.items() if handlers.get(t) is not None}
