@@ -26,7 +26,7 @@ from typing import Annotated, Any, Final, Literal, Protocol, Union, runtime_chec
 
 import msgspec
 
-from .envelope import Event, canonical_ids
+from .envelope import Event, canonical_ids, decode_event
 from .log_files import Durable, LogMeta, TornTail
 from .scan import QUARANTINED_TYPE, _Cursor, _Scan
 from .store import Store
@@ -229,13 +229,67 @@ def fold_records(
                     decode, by_struct = _block_decoder(store, stream, handlers)
                     made_for = handlers
                 folded = _fold_block(lines, cut, at, chained, mark_seq, durable, decode,
-                                     by_struct, projection, until_seq, crc32)  # fmt: skip
+                                     by_struct, projection, until_seq, crc32, stream, store,
+                                     apply_event, handlers)  # fmt: skip
             if not folded and by_events(len(lines)):
                 return None
             if until_seq is not None and at.seq >= until_seq:
                 return None
     by_events(None)  # a torn tail, the durable mark at the end: the scan's
     return tail
+
+
+def _as_events(
+    bodies: list[bytes],
+    decode: Callable[[bytes], Any],
+    stream: str,
+    known: frozenset[tuple[str, int]],
+) -> list[Any] | None:
+    """Each of ``bodies`` as a record, or, if the union does not take it, as the scan's event
+    (:data:`~.envelope.decode_event`: its envelope and id checked, its payload an object) of
+    this stream and a known type and version; None if one is neither (the block is the
+    scan's)."""
+    out: list[Any] = []
+    keep = out.append
+    for body in bodies:
+        try:
+            keep(decode(body))
+            continue
+        except msgspec.MsgspecError:
+            pass
+        try:
+            event = decode_event(body)
+        except msgspec.MsgspecError:
+            return None
+        if (
+            event.stream != stream
+            or (event.type, event.version) not in known
+            or event.type == QUARANTINED_TYPE
+        ):
+            return None
+        keep(event)
+    return out
+
+
+def _checksums(
+    lines: list[bytes],
+    bodies: list[bytes],
+    chain: int | None,
+    crc32: Callable[[bytes, int], int],
+) -> list[int] | None:
+    """Each line's checksum, chained from ``chain`` (None: not chained), if every line ends in
+    a tab and it in 8 hex digits (None otherwise)."""
+    values: list[int] = []
+    if chain is not None:
+        keep = values.append
+        for body in bodies:
+            chain = crc32(body, chain)
+            keep(chain)
+    else:
+        values = [crc32(body, 0) for body in bodies]
+    if [line[-9:] for line in lines] != [b"\t%08x" % v for v in values]:
+        return None
+    return values
 
 
 def _no_decoder(body: bytes) -> Any:
@@ -254,29 +308,33 @@ def _fold_block(
     projection: RecordFold,
     until_seq: int | None,
     crc32: Callable[[bytes, int], int],
+    stream: str,
+    store: Store,
+    apply_event: Callable[[Event], None],
+    handlers: Mapping[str, RecordHandler | None],
 ) -> bool:
     """Check ``lines`` (a block of complete records, ``size`` bytes with their newlines) as the
     scan would and fold them with the handlers of ``by_struct`` (``decode``'s structs); False,
     having changed nothing, if any check fails or a record must be read as an event (the caller
     reads the block with the scan)."""
+    known = store.registry.known
+    latest = store.upcaster.latest_versions
+    upcast = store.upcaster.upcast
     # A record is its JSON, a tab, its checksum in 8 hex digits: the last tab (where the scan
-    # splits the line) is the 9th byte from the end iff the line ends as ``expected`` says.
+    # splits the line) is the 9th byte from the end iff the line ends as ``_checksums`` says.
     bodies = [line[:-9] for line in lines]
-    chain = at.checksum
-    values: list[int] = []
-    keep = values.append
-    if chained:
-        for body in bodies:
-            chain = crc32(body, chain)
-            keep(chain)
-    else:
-        values = [crc32(body, 0) for body in bodies]
-    if [line[-9:] for line in lines] != [b"\t%08x" % v for v in values]:
+    values = _checksums(lines, bodies, at.checksum if chained else None, crc32)
+    if values is None:
         return False
     try:
-        records = [decode(body) for body in bodies]
+        records: list[Any] = [decode(body) for body in bodies]
     except msgspec.MsgspecError:
-        return False
+        # A record the union does not take (an old version, a type folded as an event, or a
+        # bad one): those read as the scan reads them, into events, the rest as records.
+        events = _as_events(bodies, decode, stream, known)
+        if events is None:
+            return False
+        records = events
     first = at.seq + 1
     seqs = list(map(_seqs, records))
     if seqs != list(range(first, first + len(seqs))):
@@ -303,6 +361,23 @@ def _fold_block(
             handler = get(type(record))
             if handler is not None:
                 handler(record)
+            elif isinstance(record, Event):
+                # Folded as read_log hands it out (upcast first), once the records before it
+                # are folded to their place.
+                if handled > begin:
+                    projection.folded_to(seqs[handled - 1], times[handled - 1])
+                apply_event(record if record.version >= latest.get(record.type, 0)
+                            else upcast(record))  # fmt: skip
+                if projection.record_handlers() is not handlers:
+                    # The event changed what the fold reads (the agent's first run_started
+                    # builds its model): the rest of the block is folded as events.
+                    handled += 1
+                    for body in bodies[handled:stop]:
+                        event = decode_event(body)  # checked above: it reads
+                        apply_event(event if event.version >= latest.get(event.type, 0)
+                                    else upcast(event))  # fmt: skip
+                        handled += 1
+                    break
             handled += 1
     finally:
         if handled > begin:

@@ -16,12 +16,15 @@ from typing import Any
 import pytest
 
 from objsearch.agent.catalogue import STORE
-from objsearch.agent.scene_graph import SceneGraphProjection
+from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
+from objsearch.agent.session import Session, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import RunSpec
 from objsearch.events import Event, EventLog, fold, read_log
 from objsearch.events.log_files import read_meta
 from objsearch.sim.models import SIM_MODELS
+from objsearch.sim.placements import Schedule
+from objsearch.sim.world import SimClock, SimWorld
 
 GOLDEN = Path(__file__).resolve().parents[1] / "replay" / "golden"
 DYNAMIC = ("Apple", "Cup", "Bowl", "Phone")
@@ -282,3 +285,27 @@ def test_a_copy_folds_into_itself_not_into_its_original(tmp_path: Path) -> None:
     assert original.last_seq == 400
     whole = fold(_one_by_one(tmp_path), SceneGraphProjection())
     assert copied.to_snapshot() == whole.to_snapshot() and copied.last_seq == whole.last_seq
+
+
+def test_a_fresh_simulated_run_folds_alike_from_its_records(tmp_path: Path) -> None:
+    """A log the agent writes today (the golden logs are of old versions, so every block of
+    theirs is read as events): searches of the paper's home, recorded by a real session."""
+    ctx = load_context("paper")
+    schedule = Schedule.load(ctx.home, "table2")
+    starts = list(ctx.home.starts.items())
+    spec = RunSpec.for_home(ctx.home, "wpl", seed=1, update_mode=UpdateMode.ALL)
+    session = Session.start(ctx, tmp_path, spec, stream="fresh", wall_clock=lambda: 1)
+    try:
+        clock = SimClock(session.resume_time_ns)
+        for target, (start_name, pose) in zip(("Phone", "Cup", "Vase"), starts, strict=False):
+            clock.advance(60.0)
+            world = SimWorld(ctx.home, ctx.navmap, schedule.scenes[3], pose, clock=clock)
+            session.search(world, target, start_name, scene=3)
+    finally:
+        session.close()
+    records = len((tmp_path / "events.log").read_bytes().splitlines())
+    counted = fold(read_log(tmp_path, store=STORE), _Counting())
+    assert counted.applied < records // 2
+    _both(tmp_path)
+    for until_seq in (records // 3, records // 2):
+        _both(tmp_path, until_seq)
