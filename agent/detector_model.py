@@ -288,7 +288,7 @@ def preset(
     ``harsh``: half its recall and twice its false positives and confusions; ``confirmation``
     names the confirmation model (:data:`CONFIRMATIONS`; None: the preset's own,
     :data:`PRESET_CONFIRMATION`), ``draws`` how the simulator keys its draws (:data:`DRAWS`;
-    None: ``place``)."""
+    None: ``place``, but ``view`` for ``perfect``, which draws nothing)."""
     if name not in PRESETS:
         raise ObjsearchError(
             f"unknown perception preset {name!r}; choose from {', '.join(PRESETS)}"
@@ -316,5 +316,8 @@ def preset(
     for key, value in overrides.items():
         model = replace(model, **{key: float(value)})  # type: ignore[arg-type]
     return replace(
-        model, confirmation=confirmation or PRESET_CONFIRMATION[name], draws=draws or "place"
+        model,
+        confirmation=confirmation or PRESET_CONFIRMATION[name],
+        # A perfect detector draws nothing: it stays the default model.
+        draws=draws or ("view" if name == "perfect" else "place"),
     )
