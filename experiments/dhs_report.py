@@ -173,8 +173,10 @@ def render(summary: Mapping[str, Any]) -> str:
         rows = block["agents"]
         seeds = next(iter(rows.values()))["seeds"]
         lines.append(f"{experiment} (seeds {','.join(map(str, seeds))})")
+        # Names longer than the column (the bound's ablations) widen it.
+        width = max(14, *(len(DISPLAY.get(agent, agent)) for agent in rows))
         lines.append(
-            f"  {'agent':<14} {'attempts':>9} {'found':>7} {'cost':>7} {'queries':>8}  "
+            f"  {'agent':<{width}} {'attempts':>9} {'found':>7} {'cost':>7} {'queries':>8}  "
             "attempts per seed"
         )
         crashes = []
@@ -192,7 +194,7 @@ def render(summary: Mapping[str, Any]) -> str:
                 metrics = f"{'crashed':>9} {'-':>7} {'-':>7}"
             else:
                 metrics = f"{row['attempts']:>9.3f} {row['found']:>7.1%} {row['cost']:>7.2f}"
-            lines.append(f"  {name:<14} {metrics} {row['queries']:>8}  {per_seed}")
+            lines.append(f"  {name:<{width}} {metrics} {row['queries']:>8}  {per_seed}")
             crashes += [f"  {name} {crash}" for crash in row["crashes"]]
         if crashes:
             lines.append("  runs its code ended by raising (their queries so far count):")
@@ -201,11 +203,11 @@ def render(summary: Mapping[str, Any]) -> str:
         if targets:
             lines.append("  " + _verdict(targets))
         lines += _paired_lines(block.get("paired", {}))
-        lines += _from_bound_lines(block.get("from_bound", {}))
+        lines += _from_bound_lines(block.get("from_bound", {}), width)
     return "\n".join(lines)
 
 
-def _from_bound_lines(gaps: Mapping[str, Any]) -> list[str]:
+def _from_bound_lines(gaps: Mapping[str, Any], width: int = 14) -> list[str]:
     """Each agent − the bound, seed by seed, with the 95 % t interval."""
     if not gaps:
         return []
@@ -213,11 +215,13 @@ def _from_bound_lines(gaps: Mapping[str, Any]) -> list[str]:
     for agent, p in sorted(gaps.items(), key=lambda kv: (kv[1]["mean"] is None, kv[1]["mean"])):
         name = DISPLAY.get(agent, agent)
         if p["mean"] is None:
-            lines.append(f"    {name:<14} no seed both answered")
+            lines.append(f"    {name:<{width}} no seed both answered")
             continue
         diffs = " ".join(f"{d:+.3f}" for d in p["diffs"])
         ci = "" if p["ci95"] is None else f" [{p['ci95'][0]:+.3f}, {p['ci95'][1]:+.3f}]"
-        lines.append(f"    {name:<14} {p['mean']:+.3f}{ci}  ({len(p['seeds'])} seeds: {diffs})")
+        lines.append(
+            f"    {name:<{width}} {p['mean']:+.3f}{ci}  ({len(p['seeds'])} seeds: {diffs})"
+        )
     return lines
 
 

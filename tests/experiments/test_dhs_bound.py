@@ -79,6 +79,18 @@ def test_the_table_says_how_far_each_agent_is_from_the_bound() -> None:
     assert "    belief         +1.000 [+1.000, +1.000]  (2 seeds: +1.000 +1.000)" in text
 
 
+def test_a_name_longer_than_the_agent_column_widens_it() -> None:
+    runs = [_run(dhs.BOUND, 0, [1, 1]), _run("bound-no-capacity", 0, [2, 2])]
+    lines = dhs.render(dhs.summarise(runs)).splitlines()
+    header = next(line for line in lines if line.startswith("  agent"))
+    row = next(line for line in lines if line.startswith("  bound-no-capacity"))
+    bound = next(line for line in lines if line.startswith("  bound "))
+    # The attempts column ends at the same place in the header and in every row.
+    end = header.index("attempts") + len("attempts")
+    assert row[end - 5 : end] == "2.000" and bound[end - 5 : end] == "1.000"
+    assert "    bound-no-capacity +1.000" in lines[-1]
+
+
 @pytest.mark.slow
 def test_the_bound_runs_by_its_rules_and_needs_fewer_attempts_than_its_agents_and_ours() -> None:
     source = os.environ.get(dhs.SOURCE_ENV)
