@@ -287,9 +287,9 @@ def test_a_copy_folds_into_itself_not_into_its_original(tmp_path: Path) -> None:
     assert copied.to_snapshot() == whole.to_snapshot() and copied.last_seq == whole.last_seq
 
 
-def test_a_fresh_simulated_run_folds_alike_from_its_records(tmp_path: Path) -> None:
-    """A log the agent writes today (the golden logs are of old versions, so every block of
-    theirs is read as events): searches of the paper's home, recorded by a real session."""
+def test_a_fresh_simulated_run_folds_alike(tmp_path: Path) -> None:
+    """A log the agent writes today: searches of the paper's home, recorded by a real session
+    (its perfect detector writes detections v2, so its blocks are the scan's)."""
     ctx = load_context("paper")
     schedule = Schedule.load(ctx.home, "table2")
     starts = list(ctx.home.starts.items())
@@ -304,8 +304,17 @@ def test_a_fresh_simulated_run_folds_alike_from_its_records(tmp_path: Path) -> N
     finally:
         session.close()
     records = len((tmp_path / "events.log").read_bytes().splitlines())
-    counted = fold(read_log(tmp_path, store=STORE), _Counting())
-    assert counted.applied < records // 2
     _both(tmp_path)
     for until_seq in (records // 3, records // 2):
         _both(tmp_path, until_seq)
+
+
+def test_a_log_upgraded_half_way_is_read_from_records_again(tmp_path: Path) -> None:
+    """Detections v2 in the first fifth (blocks the scan reads), v3 after: the fold goes back to
+    the records once the old blocks are behind it, and ends as the events' fold."""
+    _write(tmp_path, tasks=180)
+    records = len((tmp_path / "events.log").read_bytes().splitlines())
+    _rewrite(tmp_path, {n: _as_v2 for n in range(1, records // 5)})
+    counted = fold(read_log(tmp_path, store=STORE), _Counting())
+    assert records // 5 <= counted.applied < records // 2
+    _both(tmp_path)
