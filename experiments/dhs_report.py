@@ -98,13 +98,7 @@ def _paired(agents: Mapping[str, Sequence[AgentRun]]) -> dict[str, Any]:
         theirs = {r.seed: r.mean_attempts for r in rs if r.mean_attempts is not None}
         seeds = sorted(ours.keys() & theirs.keys())
         diffs = [ours[s] - theirs[s] for s in seeds]
-        ci = paired_ci(diffs)
-        out[agent] = {
-            "seeds": seeds,
-            "diffs": [round(d, 4) for d in diffs],
-            "mean": _rounded(statistics.fmean(diffs)) if diffs else None,
-            "ci95": None if ci is None else [round(ci[0], 4), round(ci[1], 4)],
-        }
+        out[agent] = _differences(seeds, diffs)
     return out
 
 
@@ -120,14 +114,19 @@ def from_bound(rows: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
         mine = _per_seed(row)
         seeds = sorted(mine.keys() & bound.keys())
         diffs = [mine[s] - bound[s] for s in seeds]
-        ci = paired_ci(diffs)
-        out[agent] = {
-            "seeds": seeds,
-            "diffs": [round(d, 4) for d in diffs],
-            "mean": _rounded(statistics.fmean(diffs)) if diffs else None,
-            "ci95": None if ci is None else [round(ci[0], 4), round(ci[1], 4)],
-        }
+        out[agent] = _differences(seeds, diffs)
     return out
+
+
+def _differences(seeds: list[int], diffs: list[float]) -> dict[str, Any]:
+    """Per-seed differences as the tables print them: each, their mean and 95 % t interval."""
+    ci = paired_ci(diffs)
+    return {
+        "seeds": seeds,
+        "diffs": [round(d, 4) for d in diffs],
+        "mean": _rounded(statistics.fmean(diffs)) if diffs else None,
+        "ci95": None if ci is None else [round(ci[0], 4), round(ci[1], 4)],
+    }
 
 
 def _per_seed(row: Mapping[str, Any]) -> dict[int, float]:
