@@ -33,6 +33,8 @@ def test_realistic_is_mask_rcnn_by_size_and_harsh_halves_it_with_twice_the_false
     assert harsh.recall(LARGE_PX) == pytest.approx(large / 2)
     assert harsh.fp_per_image == 2 * realistic.fp_per_image
     assert not realistic.perfect and not harsh.perfect
+    # Each preset's confirmation threshold, as the protocol's rule chose it (0.999 for harsh).
+    assert (realistic.accept_posterior, harsh.accept_posterior) == (0.99, 0.999)
 
 
 def test_a_score_is_evidence_by_its_likelihood_ratio() -> None:
