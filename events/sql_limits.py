@@ -31,6 +31,7 @@ import shutil
 import tempfile
 import threading
 import weakref
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -225,7 +226,7 @@ class Deadline:
             raise self._timed_out()
 
 
-class RowStream:
+class RowStream(ABC):
     """A query's rows in batches of Python tuples, closed on leaving a ``with`` block: what
     :class:`BoundedResult` (in process) and the query's own process
     (``objsearch.replay.query_process.QueryProcess``) share."""
@@ -249,8 +250,9 @@ class RowStream:
     ) -> None:
         self.close()
 
+    @abstractmethod
     def close(self) -> None:
-        raise NotImplementedError
+        """Stop the query and release what it holds (each kind of stream its own way)."""
 
 
 class BoundedResult(RowStream):
