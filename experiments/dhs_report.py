@@ -208,41 +208,39 @@ def render(summary: Mapping[str, Any]) -> str:
 
 def _from_bound_lines(gaps: Mapping[str, Any], width: int = 14) -> list[str]:
     """Each agent − the bound, seed by seed, with the 95 % t interval."""
-    if not gaps:
+    header = "  from the bound, each − bound (attempts it needs more), 95 % t CI:"
+    return _difference_lines(gaps, header, width, judged=False)
+
+
+def _paired_lines(paired: Mapping[str, Any]) -> list[str]:
+    """Ours − each of its agents, seed by seed, with the 95 % t interval and what it says."""
+    header = "  paired by seed, ours − its (attempts; below 0: ours needs fewer), 95 % t CI:"
+    return _difference_lines(paired, header, 14, judged=True)
+
+
+def _difference_lines(
+    differences: Mapping[str, Any], header: str, width: int, *, judged: bool
+) -> list[str]:
+    """One line per agent of :func:`_differences`' summaries, smallest mean first; ``judged``
+    adds what the interval says of ours against it."""
+    if not differences:
         return []
-    lines = ["  from the bound, each − bound (attempts it needs more), 95 % t CI:"]
-    for agent, p in sorted(gaps.items(), key=lambda kv: (kv[1]["mean"] is None, kv[1]["mean"])):
+    lines = [header]
+    ordered = sorted(differences.items(), key=lambda kv: (kv[1]["mean"] is None, kv[1]["mean"]))
+    for agent, p in ordered:
         name = DISPLAY.get(agent, agent)
         if p["mean"] is None:
             lines.append(f"    {name:<{width}} no seed both answered")
             continue
         diffs = " ".join(f"{d:+.3f}" for d in p["diffs"])
-        ci = "" if p["ci95"] is None else f" [{p['ci95'][0]:+.3f}, {p['ci95'][1]:+.3f}]"
-        lines.append(
-            f"    {name:<{width}} {p['mean']:+.3f}{ci}  ({len(p['seeds'])} seeds: {diffs})"
-        )
-    return lines
-
-
-def _paired_lines(paired: Mapping[str, Any]) -> list[str]:
-    """Ours − each of its agents, seed by seed, with the 95 % t interval and what it says."""
-    if not paired:
-        return []
-    lines = ["  paired by seed, ours − its (attempts; below 0: ours needs fewer), 95 % t CI:"]
-    for agent, p in sorted(paired.items(), key=lambda kv: (kv[1]["mean"] is None, kv[1]["mean"])):
-        name = DISPLAY.get(agent, agent)
-        if p["mean"] is None:
-            lines.append(f"    {name:<14} no seed both answered")
-            continue
-        diffs = " ".join(f"{d:+.3f}" for d in p["diffs"])
-        if p["ci95"] is None:
-            verdict, ci = "one seed: no interval", ""
-        else:
+        ci, verdict = "", "one seed: no interval"
+        if p["ci95"] is not None:
             lo, hi = p["ci95"]
             ci = f" [{lo:+.3f}, {hi:+.3f}]"
             verdict = "ours ahead" if hi < 0 else "ours behind" if lo > 0 else "CI includes 0"
+        said = f"  {verdict}" if judged else ""
         lines.append(
-            f"    {name:<14} {p['mean']:+.3f}{ci}  {verdict}  ({len(p['seeds'])} seeds: {diffs})"
+            f"    {name:<{width}} {p['mean']:+.3f}{ci}{said}  ({len(p['seeds'])} seeds: {diffs})"
         )
     return lines
 

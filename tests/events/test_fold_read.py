@@ -8,7 +8,6 @@ import copy
 import json
 import random
 import warnings
-import zlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -21,10 +20,11 @@ from objsearch.agent.session import Session, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import RunSpec
 from objsearch.events import Event, EventLog, fold, read_log
-from objsearch.events.log_files import read_meta
 from objsearch.sim.models import SIM_MODELS
 from objsearch.sim.placements import Schedule
 from objsearch.sim.world import SimClock, SimWorld
+
+from .rechain import rechain
 
 GOLDEN = Path(__file__).resolve().parents[1] / "replay" / "golden"
 DYNAMIC = ("Apple", "Cup", "Bowl", "Phone")
@@ -76,22 +76,10 @@ def _write(directory: Path, tasks: int = 90, seed: int = 0) -> None:
 
 
 def _rewrite(directory: Path, edits: dict[int, Callable[[dict[str, Any]], None]]) -> None:
-    """Change the JSON of the records at ``edits``' line numbers and chain every checksum again:
-    the damage is in what was written, the chain intact."""
-    chain = read_meta(directory).genesis
-    out = []
-    for number, line in enumerate((directory / "events.log").read_bytes().splitlines(), 1):
-        body = line.rpartition(b"\t")[0]
-        if number in edits:
-            record = json.loads(body)
-            edits[number](record)
-            body = json.dumps(
-                record, sort_keys=True, separators=(",", ":"), ensure_ascii=False
-            ).encode()
-        chain = zlib.crc32(body, chain)
-        out.append(body + b"\t%08x\n" % chain)
-    (directory / "events.log").write_bytes(b"".join(out))
-    (directory / "durable.json").unlink()  # no seals: the records alone decide
+    """Change the JSON of the records at ``edits``' line numbers, the chain intact
+    (:func:`rechain`), with no seals: the records alone decide."""
+    rechain(directory, edits)
+    (directory / "durable.json").unlink()
 
 
 class _Counting(SceneGraphProjection):

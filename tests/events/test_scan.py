@@ -3,9 +3,6 @@ record is still the one named, and named as a reading scan names it."""
 
 from __future__ import annotations
 
-import json
-import zlib
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -13,40 +10,20 @@ import pytest
 
 from objsearch.agent.catalogue import STORE
 from objsearch.events import CorruptLogError, EventLog, read_log
-from objsearch.events.log_files import read_meta
 from objsearch.events.repair import verify_log
 from objsearch.events.scan import _ID_BATCH
+
+from .rechain import rechain
 
 EVENTS = _ID_BATCH + 600  # two batches
 
 
-def _log(directory: Path) -> list[bytes]:
+def _log(directory: Path) -> None:
     with EventLog.open(directory, "s", store=STORE) as log, log.batch():
         for i in range(EVENTS):
             log.append("search_failed", {"reason": f"r{i}"}, time_ns=i)
     # No seals for the verifier to check first: the records alone decide.
     (directory / "durable.json").unlink()
-    return (directory / "events.log").read_bytes().splitlines(keepends=True)
-
-
-def _rewrite(
-    directory: Path, lines: list[bytes], edits: dict[int, Callable[[dict[str, Any]], None]]
-) -> None:
-    """Apply ``edits`` (line number from 1 → a change to its JSON) and chain every checksum
-    again: the damage is in what was written, the chain intact."""
-    chain = read_meta(directory).genesis
-    out = []
-    for number, line in enumerate(lines, 1):
-        body = line.rpartition(b"\t")[0]
-        if number in edits:
-            record = json.loads(body)
-            edits[number](record)
-            body = json.dumps(
-                record, sort_keys=True, separators=(",", ":"), ensure_ascii=False
-            ).encode()
-        chain = zlib.crc32(body, chain)
-        out.append(body + b"\t%08x\n" % chain)
-    (directory / "events.log").write_bytes(b"".join(out))
 
 
 def _upper_id(record: dict[str, Any]) -> None:
@@ -63,7 +40,8 @@ def _both_errors(directory: Path) -> tuple[CorruptLogError, CorruptLogError]:
 
 @pytest.mark.parametrize("bad", [1, 700, _ID_BATCH, _ID_BATCH + 1, EVENTS])
 def test_a_non_canonical_id_is_named_at_its_line(tmp_path: Path, bad: int) -> None:
-    _rewrite(tmp_path, _log(tmp_path), {bad: _upper_id})
+    _log(tmp_path)
+    rechain(tmp_path, {bad: _upper_id})
     verified, read = _both_errors(tmp_path)
     assert verified.line == read.line == bad
     assert str(verified) == str(read)
@@ -74,7 +52,8 @@ def test_a_bad_id_before_another_fault_in_its_batch_is_the_one_named(tmp_path: P
     def gap(record: dict[str, Any]) -> None:
         record["seq"] += 1
 
-    _rewrite(tmp_path, _log(tmp_path), {300: _upper_id, 305: gap})
+    _log(tmp_path)
+    rechain(tmp_path, {300: _upper_id, 305: gap})
     verified, read = _both_errors(tmp_path)
     assert verified.line == read.line == 300
     assert str(verified) == str(read)
@@ -97,7 +76,8 @@ def test_a_bad_id_after_a_record_the_slow_path_read_is_named_at_its_line(tmp_pat
     # Past the first _ID_BATCH lines: read again from where the scan began, the batch would not
     # reach it.
     bad = _ID_BATCH + 100
-    _rewrite(tmp_path, _log(tmp_path), {200: quarantined, bad: _upper_id})
+    _log(tmp_path)
+    rechain(tmp_path, {200: quarantined, bad: _upper_id})
     verified, read = _both_errors(tmp_path)
     assert verified.line == read.line == bad
     assert str(verified) == str(read)
@@ -107,7 +87,8 @@ def test_a_payload_that_is_not_an_object_is_named_at_its_line(tmp_path: Path) ->
     def scalar(record: dict[str, Any]) -> None:
         record["payload"] = 5
 
-    _rewrite(tmp_path, _log(tmp_path), {900: scalar})
+    _log(tmp_path)
+    rechain(tmp_path, {900: scalar})
     verified, read = _both_errors(tmp_path)
     assert verified.line == read.line == 900
     assert str(verified) == str(read)
@@ -115,5 +96,6 @@ def test_a_payload_that_is_not_an_object_is_named_at_its_line(tmp_path: Path) ->
 
 
 def test_an_intact_log_of_two_batches_verifies(tmp_path: Path) -> None:
-    _rewrite(tmp_path, _log(tmp_path), {})
+    _log(tmp_path)
+    rechain(tmp_path, {})
     assert verify_log(tmp_path, store=STORE).events == EVENTS
