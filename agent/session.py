@@ -20,6 +20,7 @@ from objsearch.agent.categories import Vocabulary, read_json
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
+from objsearch.agent.map_frames import InFrame, Registration, ReportsStatics, register
 from objsearch.agent.maps import DEFAULT_MAP, next_map
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.policy import SearchAgent, SearchOptions
@@ -145,6 +146,8 @@ class Session:
         self.snapshot_dir = snapshot_dir
         self.recorder = Recorder(log, [hub, *observers], time_floor_ns=log.last_time_ns)
         self._agent: SearchAgent | None = None
+        #: Each map registered to the working frame this session (agent/map_frames.py).
+        self.registrations: dict[str, Registration] = {}
 
     @classmethod
     def open(
@@ -313,9 +316,25 @@ class Session:
         self, world: World, target: str, start: str, **options: Unpack[SearchOptions]
     ) -> SearchResult:
         """One task; its events become durable together when it ends (one fsync per task).
-        ``options``: what its ``task_started`` records (:class:`SearchOptions`)."""
+        ``options``: what its ``task_started`` records (:class:`SearchOptions`).
+
+        A world that says where its map puts the statics (a new map with a frame of its own,
+        :class:`~objsearch.agent.map_frames.ReportsStatics`) is registered to the working frame
+        once per map and read through that registration: its coordinates are re-anchored to the
+        frame of the agent's maps and memory before the agent sees them."""
+        if isinstance(world, ReportsStatics):
+            world = self._registered(world)
         with self.log.batch():
             return self.agent.search(world, target, start, **options)
+
+    def _registered(self, world: ReportsStatics) -> World:
+        current = self.state.maps.current or DEFAULT_MAP
+        registration = self.registrations.get(current)
+        if registration is None:
+            registration = register(self.ctx.semmap, world.mapped_statics())
+            self.registrations[current] = registration
+            _log.info("%s registered to the working frame: %s", current, registration.params())
+        return InFrame(world, registration.to_working, outer=self.ctx.navmap)
 
     def close(self) -> None:
         try:

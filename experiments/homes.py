@@ -405,8 +405,11 @@ def run_homes(
     perception: dict[str, Any] | None = None,
     localisation: dict[str, Any] | None = None,
     new_map_day: int | None = None,
+    new_map_frame: str = "same",
     prior: str = DEFAULT_PRIOR,
 ) -> dict[str, Any]:
+    if new_map_frame != "same" and new_map_day is None:
+        raise ObjsearchError("a new map's frame moves only with a new map: give its day")
     out.mkdir(parents=True, exist_ok=True)
     homes = list(homes) if homes else list(heldout_homes())
     strategies = list(strategies) if strategies else list(STRATEGIES)
@@ -425,7 +428,10 @@ def run_homes(
     if localisation or new_map_day is not None:
         # The robot's pose error and its change of map (sim/localisation.py, agent/maps.py).
         loc = json.dumps(localisation, sort_keys=True) if localisation else None
-        jobs = [replace(j, localisation=loc, new_map_day=new_map_day) for j in jobs]
+        jobs = [
+            replace(j, localisation=loc, new_map_day=new_map_day, new_map_frame=new_map_frame)
+            for j in jobs
+        ]
     started = time.perf_counter()
     rows = run_jobs(jobs, workers=workers, progress=progress, label="bench homes")
     elapsed = time.perf_counter() - started
@@ -446,6 +452,7 @@ def run_homes(
             **perception_options(perception),
             "localisation": localisation["preset"] if localisation else None,
             "new_map_day": new_map_day,
+            "new_map_frame": None if new_map_frame == "same" else new_map_frame,
             "prior": None if prior == DEFAULT_PRIOR else prior,
             "workers": workers,
         },
@@ -458,6 +465,8 @@ def run_homes(
         "perception": perception or {"preset": "perfect"},
         "localisation": localisation or {"preset": "perfect"},
         "new_map_day": new_map_day,
+        # Absent: the new map keeps the old frame (every output before frames could move).
+        **({"new_map_frame": new_map_frame} if new_map_frame != "same" else {}),
         "inspection": inspection,
         # Every search of this bench starts from this prior (``--prior``); dist-oracle alone
         # also reads the schedule's own distribution (a reference, never a default).

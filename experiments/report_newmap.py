@@ -34,6 +34,14 @@ def new_map_day(folder: Path) -> int | None:
     return None if day is None else int(day)
 
 
+def new_map_frame(folder: Path) -> str:
+    """Whether a ``bench homes`` output's new map kept the old frame (``same``: its
+    summary.json names none) or had one of its own (``moved``)."""
+    path = folder / "summary.json"
+    summary = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
+    return str(summary.get("new_map_frame") or "same")
+
+
 def first_in_new_map(rows: Sequence[Row], day: int) -> dict[str, dict[Run, Row]]:
     """Per strategy, per run (home, schedule): its first search of ``day`` (lowest task id)."""
     out: dict[str, dict[Run, Row]] = {}

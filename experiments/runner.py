@@ -56,6 +56,8 @@ class Job:
     localisation: str | None = None
     #: From this scene on the robot runs in a new map (``params.new_map_day``); None: never.
     new_map_day: int | None = None
+    #: The new map's frame: the old one's (``same``) or moved (``params.new_map_frame``).
+    new_map_frame: str = "same"
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,7 @@ def run_job(job: Job) -> list[Row]:
             **({"perception": json.loads(job.perception)} if job.perception else {}),
             **({"localisation": json.loads(job.localisation)} if job.localisation else {}),
             **({"new_map_day": job.new_map_day} if job.new_map_day is not None else {}),
+            **({"new_map_frame": job.new_map_frame} if job.new_map_frame != "same" else {}),
         },
     )
     scenes = scenes_of(job.home, job.placements, upto=_last_scene(job))

@@ -97,6 +97,7 @@ def cmd_bench_homes(args: argparse.Namespace) -> int:
             perception=t.perception_params(args),
             localisation=t.localisation_params(args),
             new_map_day=args.new_map_day,
+            new_map_frame=args.new_map_frame,
             prior=args.prior,
         )
     if args.format == "json":
@@ -171,10 +172,11 @@ def _baseline(
     args: argparse.Namespace, folders: list[Path], models: tuple[str, str]
 ) -> tuple[str, list[Path]] | None:
     """bench belief's ``--baseline DIR`` and its ``--baseline-label``: the label (by default
-    what the baseline's summary.json says differs: perception, localisation or the new-map day)
+    what the baseline's summary.json says differs: perception, localisation, the new-map day or
+    its frame)
     and the folders; None without ``--baseline``."""
     from objsearch.experiments.report_belief import select_models
-    from objsearch.experiments.report_newmap import new_map_day
+    from objsearch.experiments.report_newmap import new_map_day, new_map_frame
 
     baseline = [Path(d) for d in args.baseline or []]
     if not baseline:
@@ -201,10 +203,14 @@ def _baseline(
     if days[0] != days[1] and len(days[1]) == 1:
         (day,) = days[1]
         differs.append("no new map" if day is None else f"new map on day {day}")
+    frames = {new_map_frame(d) for d in folders}, {new_map_frame(d) for d in baseline}
+    if frames[0] != frames[1] and len(frames[1]) == 1:
+        (frame,) = frames[1]
+        differs.append(f"new map's frame {frame}")
     if not differs:
         raise ObjsearchError(
-            "--baseline: its runs have the same perception, localisation and new-map day as the "
-            "runs reported; name what differs with --baseline-label"
+            "--baseline: its runs have the same perception, localisation, new-map day and frame "
+            "as the runs reported; name what differs with --baseline-label"
         )
     return ", ".join(differs), baseline
 
@@ -464,6 +470,14 @@ def _add_homes(bsub: Any) -> None:
         metavar="N",
         help="from scene N on the robot runs in a new map (a new session with the next map id; "
         "where flags answers resting on the old map) (never)",
+    )
+    homes.add_argument(
+        "--new-map-frame",
+        type=t.text,
+        choices=("same", "moved"),
+        default="same",
+        help="the new map's frame: the old map's, or moved by a rigid transform drawn from the "
+        "seed, as a fresh SLAM map's (the agent registers it by its statics) (same)",
     )
     homes.defer(_prior_option)
     homes.set_defaults(func=cmd_bench_homes)

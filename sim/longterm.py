@@ -16,11 +16,14 @@ from typing import Any
 from objsearch.agent.categories import Category
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.geometry import Point, Pose
+from objsearch.agent.map_frames import Rigid2D
+from objsearch.agent.maps import DEFAULT_MAP, next_map
 from objsearch.agent.results import SearchResult
 from objsearch.agent.session import HomeContext, Session, load_context
 from objsearch.agent.strategies import RunSpec
 from objsearch.sim.detector_model import with_perception
 from objsearch.sim.localisation import with_localisation
+from objsearch.sim.map_frame import MovedMapWorld, draw_frame, frame_mode, recorded_frame
 from objsearch.sim.models import SIM_MODELS
 from objsearch.sim.placements import Placements, base_placements, table1_removals
 from objsearch.sim.schedule_names import load_schedule, schedule_clock
@@ -102,6 +105,9 @@ def run_schedule(
     spec, localiser = with_localisation(spec)
     # From this scene on the robot runs in a new map (a new session: run_started with its id).
     new_map_day = spec.params.get("new_map_day")
+    # ... in a frame of its own (sim/map_frame.py), or the old map's (absent: as before).
+    moved = frame_mode(spec.params) == "moved"
+    frame: Rigid2D | None = None
     placements, unseeable = _seeable_placements(ctx, spec, placements, scenes)
     all_starts = ctx.home.starts
     for name in starts or ():
@@ -122,7 +128,14 @@ def run_schedule(
         clock = SimClock(session.resume_time_ns)
         for scene in scenes or sorted(placements):
             if new_map_day is not None and scene >= int(new_map_day):
-                session.start_run(spec, new_map=True)
+                if moved:
+                    frame = recorded_frame(spec.params) or draw_frame(
+                        spec.seed, next_map(session.state.maps.current or DEFAULT_MAP)
+                    )
+                    framed = {**spec.params, "map_frame": frame.params()}
+                    session.start_run(spec.with_changes(params=framed), new_map=True)
+                else:
+                    session.start_run(spec, new_map=True)
                 new_map_day = None
             scene_placements = placements[scene]
             present = {p.cls for p in scene_placements.values()}
@@ -153,7 +166,7 @@ def run_schedule(
                         target, min_mask_px=ctx.vocabulary.classes[target].min_mask_area_px
                     )
                     result = session.search(
-                        world,
+                        world if frame is None else MovedMapWorld(world, frame),
                         target,
                         start_name,
                         scene=scene,
