@@ -180,3 +180,23 @@ def test_an_unknown_preset_is_a_usage_error(capsys: pytest.CaptureFixture[str]) 
         assert main([*command, "--localisation", "psychic"]) == 2
         err = capsys.readouterr().err
         assert "objsearch: error:" in err and "--localisation" in err
+
+
+@pytest.mark.parametrize(
+    "command",
+    [["search", "Apple", "--start", "kitchen-1"], ["demo"], ["bench", "homes", "--homes", "paper"]],
+)
+def test_harsh_localisation_is_an_option_recorded_in_the_run_spec(command: list[str]) -> None:
+    from objsearch import cli_types as t
+    from objsearch.cli import build_parser
+
+    parse = build_parser().parse_args
+    harsh = t.localisation_params(parse([*command, "--localisation", "harsh"]))
+    realistic = preset("realistic")
+    # The rule: twice realistic's drift and localiser error, five times its jumps, larger ones.
+    assert harsh == preset("harsh").params()
+    assert harsh["odom_xy_per_sqrt_m"] == 2 * realistic.odom_xy_per_sqrt_m
+    assert harsh["rms_yaw"] == 2 * realistic.rms_yaw
+    assert harsh["jumps_per_m"] == 5 * realistic.jumps_per_m
+    assert harsh["jump_xy"] > realistic.jump_xy and harsh["jump_yaw"] > realistic.jump_yaw
+    assert t.localisation_params(parse(command)) is None  # perfect: nothing recorded
