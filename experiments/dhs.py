@@ -5,7 +5,9 @@ Graph Memory" (ICML 2023), is the public repository ``andreykurenkov/modeling_en
 is GPL-3.0 and is not part of objsearch: the user checks it out at :data:`PINNED_COMMIT` and
 passes the folder (``--source`` or ``$OBJSEARCH_DHS_SOURCE``). :func:`verify_source` refuses a
 checkout whose files differ from that commit's (:data:`PINNED_FILES`, SHA-256), so its dynamics,
-task and agents are the published ones, unmodified. Nothing here patches or subclasses its code.
+task and agents are the published ones, unmodified. Nothing here patches or subclasses its code
+(its learned agents run on the CPU with a re-uploaded text model lent while they run:
+:mod:`objsearch.experiments.dhs_sgm`).
 
 The loop of :func:`run_agent` is the find-object path of its ``memsearch.running.run`` (the
 loop its ``scripts/eval.py`` runs per agent after ``random.seed(0)``), without what does not
@@ -84,9 +86,9 @@ from objsearch.experiments.dhs_records import (
     DISPLAY,
     EXPERIMENTS,
     FURNITURE_KEYS,
-    NOT_RUNNABLE,
     OURS,
     RUNNABLE_EXPERIMENTS,
+    SGM_AGENTS,
     THEIR_AGENTS,
     AgentRun,
     DhsJob,
@@ -102,11 +104,11 @@ __all__ = [
     "EXPERIMENTS",
     "FURNITURE_KEYS",
     "HASH_SEED",
-    "NOT_RUNNABLE",
     "OURS",
     "PINNED_COMMIT",
     "PINNED_FILES",
     "RUNNABLE_EXPERIMENTS",
+    "SGM_AGENTS",
     "SOURCE_ENV",
     "THEIR_AGENTS",
     "AgentRun",
@@ -135,6 +137,10 @@ def _make_agent(
 
     if name in BOUND_AGENTS:
         return bound_agent(name, sampler, evolver, float(cfg.agents.observation_prob))
+    if name in SGM_AGENTS:
+        from objsearch.experiments.dhs_sgm import make_sgm_agent
+
+        return make_sgm_agent(cfg, name, sampler, evolver)
     if name != OURS:
         return make_agent(
             cfg.agents,
@@ -160,14 +166,20 @@ def run_agent(job: DhsJob, watch: Watch | None = None) -> AgentRun:
     """One agent on one experiment config and seed: its eval loop (``random.seed(seed)``, then
     ``run`` with the find-object task), with our agent made by us and its by ``make_agent``."""
     root = Path(job.source)
+    # Its config keeps its task's num_steps (its learned agents' featurizers scale by it, as in
+    # their training); a shorter run only stops its loop sooner.
     overrides = []
-    if job.steps is not None:
-        overrides.append(f"task.num_steps={job.steps}")
     if job.eps_per_scene is not None:
         overrides.append(f"task.eps_per_scene={job.eps_per_scene}")
+    learned: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
+    if job.agent in SGM_AGENTS:
+        from objsearch.experiments.dhs_sgm import cpu_and_text_model, sgm_overrides
+
+        overrides.extend(sgm_overrides(job.agent, job.sgm_outputs))
+        learned = cpu_and_text_model()
     cfg = load_config(root, job.experiment, overrides)
     started = time.perf_counter()
-    with _their_code(root):
+    with _their_code(root), learned:
         try:
             # gym 0.26 prints a notice that it is unmaintained when imported.
             with contextlib.redirect_stderr(io.StringIO()):
@@ -191,7 +203,7 @@ def run_agent(job: DhsJob, watch: Watch | None = None) -> AgentRun:
             pid=os.getpid(),
         )
         scene_num, current_scene, query_nodes = 0, None, None
-        for _ in range(int(cfg.task.num_steps)):
+        for _ in range(job.steps if job.steps is not None else int(cfg.task.num_steps)):
             try:
                 if task.scene is None or current_scene != task.scene:
                     if current_scene is None:
@@ -273,6 +285,7 @@ def run_dhs(
     eps_per_scene: int | None = None,
     workers: int = 1,
     progress: Callable[[AgentRun], None] | None = None,
+    sgm_outputs: Path | None = None,
 ) -> dict[str, Any]:
     """Every (experiment, agent, seed), ``workers`` at a time, each in a fresh process, summarised.
 
@@ -283,7 +296,15 @@ def run_dhs(
     """
     # Seed by seed, its agents beside ours: the pairs finish together.
     jobs = [
-        DhsJob(str(source), e, a, s, steps, eps_per_scene)
+        DhsJob(
+            str(source),
+            e,
+            a,
+            s,
+            steps,
+            eps_per_scene,
+            sgm_outputs=str(sgm_outputs) if sgm_outputs and a in SGM_AGENTS else None,
+        )
         for e in experiments
         for s in seeds
         for a in agents

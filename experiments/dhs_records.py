@@ -41,9 +41,10 @@ DISPLAY = {
     "upper_bound": "oracle",
     "oracle_upper_bound": "oracle+start",
 }
-#: Its learned agents (SGM/NES with a GNN): they need a model trained on data whose featurizer
-#: loads a text model from a hub, and the repository ships no weights.
-NOT_RUNNABLE = ("sgm_mlp", "sgm_gcn", "sgm_heat", "sgm_hgt", "sgm_han")
+#: Its learned agents (SGM with its "NEP" GNNs), each ``sgm_<model>`` with its model config
+#: ``configs/model/<model>.yaml``. The repository ships no weights: they run from a model trained
+#: here (:mod:`objsearch.experiments.dhs_sgm`), on a CPU.
+SGM_AGENTS = ("sgm_mlp", "sgm_gcn", "sgm_heat", "sgm_hgt", "sgm_han")
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,6 +70,9 @@ class DhsJob:
     #: Our agent's place classes (:data:`FURNITURE_KEYS`): its furniture category, or its label
     #: (the adapter before; kept for the A/B in docs/results-dhs.md).
     furniture_key: str = "category"
+    #: Its learned agents only: its ``log_path`` where ``dhs_sgm train`` saved their weights
+    #: (``<sgm_outputs>/<experiment>/models/<model>.pt``).
+    sgm_outputs: str | None = None
 
 
 @dataclass

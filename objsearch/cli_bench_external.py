@@ -7,23 +7,40 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 from objsearch import cli_types as t
 
 
 def cmd_bench_dhs(args: argparse.Namespace) -> int:
+    from objsearch.agent.errors import ObjsearchError
     from objsearch.experiments.dhs import (
         EXPERIMENTS,
         OURS,
+        SGM_AGENTS,
         THEIR_AGENTS,
         render,
         run_dhs,
         verify_source,
     )
 
-    source = verify_source(args.source)
     seeds = list(range(args.seeds))
+    experiments = args.experiments or list(EXPERIMENTS)
+    agents = args.agents or [*THEIR_AGENTS, OURS]
+    if any(a in SGM_AGENTS for a in agents):
+        from objsearch.experiments.dhs_sgm import check_weights, sgm_overrides
+
+        for a in agents:
+            if a in SGM_AGENTS:
+                sgm_overrides(a, args.sgm_outputs)
+        check_weights(Path(args.sgm_outputs), experiments, agents)
+    elif args.sgm_outputs is not None:
+        raise ObjsearchError(
+            f"--sgm-outputs is for its learned agents ({', '.join(SGM_AGENTS)}), none of which "
+            "--agents names"
+        )
+    source = verify_source(args.source)
 
     def progress(run: Any) -> None:
         if not args.no_progress:  # on stderr with --format json, so stdout stays JSON
@@ -35,13 +52,14 @@ def cmd_bench_dhs(args: argparse.Namespace) -> int:
 
     summary = run_dhs(
         source,
-        experiments=args.experiments or list(EXPERIMENTS),
-        agents=args.agents or [*THEIR_AGENTS, OURS],
+        experiments=experiments,
+        agents=agents,
         seeds=seeds,
         steps=args.steps,
         eps_per_scene=args.eps_per_scene,
         workers=t.workers(args),
         progress=progress,
+        sgm_outputs=Path(args.sgm_outputs) if args.sgm_outputs else None,
     )
     if args.format == "json":
         print(json.dumps(summary, indent=2))
@@ -96,6 +114,7 @@ def _dhs_options(p: argparse.ArgumentParser) -> None:
         EXPERIMENTS,
         OURS,
         RUNNABLE_EXPERIMENTS,
+        SGM_AGENTS,
     )
 
     p.add_argument(
@@ -107,12 +126,13 @@ def _dhs_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--agents",
-        type=t.subset_of((*ALL_THEIR_AGENTS, OURS, *BOUND_AGENTS)),
+        type=t.subset_of((*ALL_THEIR_AGENTS, *SGM_AGENTS, OURS, *BOUND_AGENTS)),
         **t.LIST,
-        help=f"comma-separated agents: its {', '.join(ALL_THEIR_AGENTS)}, ours, {OURS}, and "
+        help=f"comma-separated agents: its {', '.join(ALL_THEIR_AGENTS)}, its learned "
+        f"{', '.join(SGM_AGENTS)} (a model trained here: --sgm-outputs), ours, {OURS}, and "
         f"{BOUND}, a reference that knows its generative model, or it without one piece of "
-        f"that ({', '.join(BOUND_AGENTS[1:])}) (default: all but oracle_upper_bound and "
-        "the bounds)",
+        f"that ({', '.join(BOUND_AGENTS[1:])}) (default: all but oracle_upper_bound, the "
+        "learned ones and the bounds)",
     )
 
 
@@ -152,6 +172,13 @@ def add_dhs(bsub: Any) -> None:
         help="the simulator's checkout (default: $OBJSEARCH_DHS_SOURCE)",
     )
     dhs.defer(_dhs_options)
+    dhs.add_argument(
+        "--sgm-outputs",
+        type=t.existing_dir,
+        help="for its learned agents (--agents sgm_gcn, …): the folder their weights were "
+        "trained into, E/models/<model>.pt for each experiment E (`python -m "
+        "objsearch.experiments.dhs_sgm train --workdir W`: W/outputs)",
+    )
     dhs.add_argument(
         "--seeds",
         type=t.int_range(1, 1000),
