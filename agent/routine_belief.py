@@ -237,6 +237,27 @@ class RoutineBelief(PlaceBelief):
     def _base(self, d: str) -> dict[str, float]:
         return self._base_at(d, self.clock)
 
+    def habit_at(self, d: str, clock: DayClock) -> dict[str, float]:
+        """Where class d usually is at ``clock``: each component's long memory (its Dirichlet
+        over every episode it was fed, without the short memory or the last episode), mixed by
+        the class's weights. Nothing the search agent decides reads it; ``bench stot`` forecasts
+        its lookahead steps beyond the next with it (docs/results-stot.md)."""
+        slot_name, slot_day_name = buckets_of(clock)
+        blind = self._dirichlet(self._prior_weights(d), self.long.get(d))
+        slot_bucket = self.buckets.get(slot_name)
+        slot = (
+            blind
+            if slot_bucket is None
+            else slot_bucket._dirichlet(slot_bucket._prior_weights(d), slot_bucket.long.get(d))
+        )
+        day_bucket = self.buckets.get(slot_day_name)
+        slot_day = (
+            slot
+            if day_bucket is None
+            else day_bucket._dirichlet(day_bucket._prior_weights(d), day_bucket.long.get(d))
+        )
+        return mixture(self.mix.get(d, START_MIX), (blind, slot, slot_day))
+
     def component_weights(self, d: str) -> dict[str, float]:
         """Class d's weight on each component of the mix (what ``where`` shows)."""
         return dict(zip(COMPONENTS, self.mix.get(d, START_MIX), strict=True))

@@ -65,6 +65,7 @@ Its reader loads a day's whole file for every sample it reads (about 0.17 s a fi
 from __future__ import annotations
 
 import contextlib
+import copy
 import hashlib
 import importlib
 import io
@@ -113,8 +114,10 @@ THEIR_METHODS = (
     "Fremen",
     "FremenStateConditioned",
 )
-#: Ours: the belief that knows the hour, and the time-blind belief.
-OUR_METHODS = ("routine-belief", "belief")
+#: Ours: the belief that knows the hour; the same belief forecasting the lookahead's steps beyond
+#: the next from its habit at that hour (:meth:`BeliefMethod.forecast`); the time-blind belief.
+OUR_METHODS = ("routine-belief", "routine-habit", "belief")
+ROUTINE_METHODS = ("routine-belief", "routine-habit")
 METHODS = (*OUR_METHODS, *THEIR_METHODS)
 #: Its evaluation's lookahead (steps of dt) and its config's confidence threshold.
 LOOKAHEAD = 12
@@ -325,13 +328,15 @@ class BeliefMethod:
     seq: int = 0
     episodes: int = 0
     targets: dict[int, str] = field(default_factory=dict)
+    #: Its time (minutes) of the last real input folded, None before the first.
+    observed_at: int | None = None
     _last_output: Any = None
     _cache: dict[tuple[int, ...], Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.model not in OUR_METHODS:
             raise ValueError(f"model {self.model!r}: one of {', '.join(OUR_METHODS)}")
-        cls = RoutineBelief if self.model == "routine-belief" else PlaceBelief
+        cls = PlaceBelief if self.model == "belief" else RoutineBelief
         self.belief = cls(
             prior_strength=BELIEF_PRIOR_STRENGTH, half_life_scenes=BELIEF_HALF_LIFE_SCENES
         )
@@ -352,6 +357,20 @@ class BeliefMethod:
             values.extend(SeedValue(dynamic=d, static=c, rel=1.0) for c in sorted(parents))
         self._add(SceneGraphSeeded(source="stot dynamic-edges mask", values=tuple(values)))
 
+    def as_model(self, model: str) -> BeliefMethod:
+        """A copy that forecasts as ``model`` (a belief of the same class: the routine belief's
+        two forecasts share one fold), folding on by itself from here."""
+        if (model == "belief") != (self.model == "belief"):
+            raise ValueError(f"{self.model} folds a different belief from {model}")
+        twin = copy.deepcopy(self)
+        twin.model = model
+        twin._cache = {}
+        if isinstance(twin.belief, RoutineBelief):
+            # A slot-and-day-type belief's prior is a closure over its belief: re-link the copy's.
+            for name, bucket in twin.belief.buckets.items():
+                twin.belief._link(name, bucket)
+        return twin
+
     def _add(self, record: Record) -> None:
         self.seq += 1
         self.belief.apply(RecordEvent(self.seq, record.TYPE, encode(record)))
@@ -360,6 +379,7 @@ class BeliefMethod:
         """One step's graph (movable node -> parent node index) as one episode."""
         self._cache = {}
         self.episodes += 1
+        self.observed_at = minutes
         seen = [(i, p) for i, p in sorted(parents.items()) if i in self.targets]
         if not seen:
             return
@@ -372,11 +392,30 @@ class BeliefMethod:
         self._add(TaskEnded(target=target, success=True, path_length=0.0))
 
     def forecast(self, d: str, minutes: int) -> dict[str, float]:
-        """P(place) of d for a new episode at that time, given every episode folded."""
+        """P(place) of d at that time, given every episode folded: the belief's prediction for a
+        new episode at that time; for ``routine-habit``, beyond the step after the last
+        observation, the hour's habit (:meth:`RoutineBelief.habit_at`) instead. The belief's
+        mix of its memories (the last episode, the short and the long one) is learned from
+        one-episode-ahead outcomes, and an episode here is one step (10 minutes): it forecasts
+        the next step, where the last look is nearly always right. Further ahead the question is
+        whether and where the object moves, and what the belief knows of that time is where the
+        object usually is at that hour."""
         b = self.belief
-        if isinstance(b, RoutineBelief):
-            return b._base_at(d, clock_of(minutes) if b.knows_hours else None)
-        return b._base(d)
+        if not isinstance(b, RoutineBelief):
+            return b._base(d)
+        if not b.knows_hours:
+            return b._base_at(d, None)
+        clock = clock_of(minutes)
+        if self._beyond_next_step(minutes):
+            return b.habit_at(d, clock)
+        return b._base_at(d, clock)
+
+    def _beyond_next_step(self, minutes: int) -> bool:
+        return (
+            self.model == "routine-habit"
+            and self.observed_at is not None
+            and minutes - self.observed_at > self.dt
+        )
 
     def observe_graph(self, minutes: int, edges: Any) -> None:
         """A graph given as its edges tensor [nodes, nodes] (row i: i's parent, one-hot)."""
@@ -421,12 +460,12 @@ class BeliefMethod:
     def _slot_key(self, minutes: int) -> tuple[int, ...]:
         """Times whose forecasts are equal (the belief's slot and day type; the time-blind one
         has one forecast)."""
-        if self.model != "routine-belief":
+        if self.model == "belief":
             return (0,)
         from objsearch.agent.routine_belief import buckets_of
 
         slot, slot_day = buckets_of(clock_of(minutes))
-        return (hash(slot), hash(slot_day))
+        return (hash(slot), hash(slot_day), int(self._beyond_next_step(minutes)))
 
     def _probabilities(self, minutes: int, dynamic: Any) -> Any:
         import torch
@@ -540,7 +579,11 @@ def _run_household(
     )
     for m in methods:
         if m in OUR_METHODS:
-            built[m] = _our_method(m, data, household, log)
+            twin = next((built[o] for o in built if o in ROUTINE_METHODS), None)
+            if m in ROUTINE_METHODS and twin is not None:
+                built[m] = twin.as_model(m)
+            else:
+                built[m] = _our_method(m, data, household, log)
     results: list[DayResult] = []
     for m in methods:
         t0 = time.monotonic()

@@ -148,3 +148,20 @@ def test_with_no_routine_the_mix_goes_to_the_time_blind_belief() -> None:
     assert routine.mix["Cup"][0] > 0.85
     last = ("counter-a", "table", "shelf", "counter-b")[(40 // 3) % 4]
     assert routine.distribution("Cup")[last] > blind.distribution("Cup")[last] - 0.05
+
+
+def test_the_habit_at_an_hour_is_the_long_memory_not_the_last_episode() -> None:
+    # Ten days of the routine, then three mornings the Cup stays on the table: the forecast for
+    # the next morning follows the last episodes, the habit of the morning is still counter-a.
+    log = _mug_routine(10)
+    for day in range(10, 13):
+        log.search("Cup", 2 * day + 1, found="table", clock=MORNING)
+        log.search("Cup", 2 * day + 2, found="table", clock=EVENING)
+    belief = _routine(log)
+    forecast = belief.distribution_at("Cup", MORNING)
+    habit = belief.habit_at("Cup", MORNING)
+    assert max(forecast, key=forecast.__getitem__) == "table"
+    assert max(habit, key=habit.__getitem__) == "counter-a"
+    assert math.fsum(habit.values()) == pytest.approx(1.0)
+    evening = belief.habit_at("Cup", EVENING)
+    assert max(evening, key=evening.__getitem__) == "table"

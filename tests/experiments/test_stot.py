@@ -93,6 +93,58 @@ def test_a_step_folds_its_real_input_once_and_not_its_own_fed_back_output() -> N
     assert ours.episodes == before + 2
 
 
+def _changed_mornings(model: str) -> stot.BeliefMethod:
+    """Fourteen days of the routine, then three days the mug stays on the desk all day."""
+    method = _trained(model)
+    for day in range(14, 17):
+        for hour in range(6, 24):
+            method.observe_graph(day * DAY + hour * 60, _graph(DESK))
+    return method
+
+
+def _top(dist: dict[str, float]) -> str:
+    return max(dist, key=dist.__getitem__)
+
+
+def test_beyond_the_next_step_routine_habit_forecasts_the_hours_habit() -> None:
+    memory, habit = _changed_mornings("routine-belief"), _changed_mornings("routine-habit")
+    seen = 17 * DAY + 8 * 60
+    for method in (memory, habit):
+        method.observe_graph(seen, _graph(DESK))
+    # The next step (one dt after the look): both forecast as the belief does, from the look.
+    assert habit.forecast("3:mug", seen + 60) == memory.forecast("3:mug", seen + 60)
+    assert _top(memory.forecast("3:mug", seen + 60)) == str(DESK)
+    # Two steps on the belief still says the desk; the mornings' habit is the table.
+    assert _top(memory.forecast("3:mug", seen + 120)) == str(DESK)
+    assert _top(habit.forecast("3:mug", seen + 120)) == str(TABLE)
+    # Its lookahead loop: the fed-back step two after the look predicts the move to the table.
+    t = seen + 60
+    _, first, _ = habit.step(_batch(_graph(DESK), t, gt=DESK))
+    assert int(first["output"]["location"][0, MUG]) == DESK
+    fed = _batch(first["output_probs"]["location"][0], t + 60, gt=DESK)
+    fed["edges"] = first["output_probs"]["location"]
+    _, second, _ = habit.step(fed)
+    assert int(second["output"]["location"][0, MUG]) == TABLE
+
+
+def test_a_copy_for_the_other_forecast_folds_alike_and_on_its_own() -> None:
+    fresh = _changed_mornings("routine-habit")
+    copied = _changed_mornings("routine-belief").as_model("routine-habit")
+    for minute in (17 * DAY + 9 * 60, 17 * DAY + 19 * 60):
+        fresh.observe_graph(minute, _graph(TABLE))
+        copied.observe_graph(minute, _graph(TABLE))
+        for later in (minute + 60, minute + 180):
+            assert copied.forecast("3:mug", later) == fresh.forecast("3:mug", later)
+    original = _trained("routine-belief")
+    twin = original.as_model("routine-habit")
+    before = twin.forecast("3:mug", 14 * DAY + 9 * 60)
+    for day in range(14, 20):
+        original.observe_graph(day * DAY + 9 * 60, _graph(DESK))
+    assert twin.forecast("3:mug", 14 * DAY + 9 * 60) == before
+    with pytest.raises(ValueError, match="folds a different belief"):
+        original.as_model("belief")
+
+
 def test_an_unknown_model_is_refused() -> None:
     with pytest.raises(ValueError, match="routine-belief"):
         stot.BeliefMethod("wpl", NODES, MASK, dt=60)
