@@ -10,7 +10,8 @@ trusted silently: :class:`MapEvidence` (part of :class:`~objsearch.agent.state.A
 for each object class, how many accepted sightings each map gave and when the latest was, and
 ``where`` flags an answer that rests on another map's evidence. What carries over is what is
 anchored to a static object by its id (the belief counts places by static id): re-anchored when
-the new map names the same statics; a position alone is not.
+the new map names the same statics. A new map with a frame of its own is registered to the
+agent's working frame by its statics (agent/map_frames.py), so positions are re-anchored too.
 """
 
 from __future__ import annotations
