@@ -206,3 +206,19 @@ def test_bench_belief_divides_by_a_baseline_that_differs_in_one_factor(
     assert "name what differs with --baseline-label" in capsys.readouterr().err
     assert main([*argv, "--baseline", str(tmp_path)]) == 2
     assert "objsearch: error: --baseline: not a bench homes output" in capsys.readouterr().err
+
+
+def test_bench_belief_labels_a_baseline_whose_new_map_kept_the_frame(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    ours = _run("global-belief+cover", dict.fromkeys(HOMES, 1.2))
+    ours += _run("dist-oracle-global+cover", dict.fromkeys(HOMES, 1.0))
+    moved = _output(tmp_path / "moved", ours, "realistic")
+    same = _output(tmp_path / "same", ours, "realistic")
+    for folder, frame in ((moved, {"new_map_frame": "moved"}), (same, {})):
+        summary = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
+        summary.update({"new_map_day": 2, **frame})
+        (folder / "summary.json").write_text(json.dumps(summary), encoding="utf-8")
+    argv = ["bench", "belief", str(moved), "--out", str(tmp_path / "r"), "--no-progress"]
+    assert main([*argv, "--baseline", str(same)]) == 0
+    assert "| ÷ same strategy, new map's frame same |" in capsys.readouterr().out
