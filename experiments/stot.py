@@ -753,7 +753,11 @@ def summary(results: Sequence[DayResult], checkout_missing: Sequence[str]) -> di
     }
     comparisons = {}
     for ours in (m for m in methods if m in OUR_METHODS):
-        for theirs in (m for m in methods if m in THEIR_METHODS):
+        # routine-habit is also paired with routine-belief, the forecast it changes.
+        others = [m for m in methods if m in THEIR_METHODS]
+        if ours == "routine-habit" and "routine-belief" in methods:
+            others.insert(0, "routine-belief")
+        for theirs in others:
             for step in (0, LOOKAHEAD - 1):
                 for metric in ("f1", "correct", "wrong"):
                     d, lo, hi, n = paired_ci(results, ours, theirs, step, metric)

@@ -273,3 +273,15 @@ def test_its_evaluation_scores_lastseen_with_no_move_and_ours_with_some() -> Non
     # The same day's moves for both (its ground truth does not depend on the method).
     assert ours.moved == last.moved
     assert ours.correct + ours.wrong + ours.fp > 0
+
+
+def test_the_summary_pairs_routine_habit_with_routine_belief_too() -> None:
+    results = [
+        _day("routine-habit", "000.pt", 5, 1, 4, 2),
+        _day("routine-belief", "000.pt", 2, 0, 8, 1),
+        _day("Fremen", "000.pt", 3, 2, 5, 9),
+    ]
+    paired = stot.summary(results, [])["paired"]
+    assert paired["routine-habit - routine-belief correct @12"]["diff"] == pytest.approx(0.3)
+    assert "routine-habit - Fremen f1 @12" in paired
+    assert "routine-belief - routine-habit f1 @12" not in paired
