@@ -18,6 +18,7 @@ same-class objects). Two matched statics fix a rigid transform in the plane; mor
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -122,8 +123,9 @@ def register(working: SemanticMap, new: Mapping[str, tuple[str, Point]]) -> Regi
 class InFrame:
     """``world`` as seen in another frame: every pose, route and detection it reports is mapped
     by ``transform``, every goal and heading the caller gives is mapped back. A point that lands
-    on a viewpoint of ``outer`` (the caller's navigation map) to 0.1 mm is that viewpoint, and a
-    goal mapped back is snapped onto ``inner`` (the world's), so the graphs' points stay exact."""
+    on a viewpoint of ``outer`` (the caller's navigation map) to a micrometre is that viewpoint,
+    and a goal mapped back is snapped onto ``inner`` (the world's): the graphs' points stay
+    exact."""
 
     def __init__(
         self,
@@ -192,12 +194,12 @@ class InFrame:
 
 
 def _moved(d: Detection, position: Vec3) -> Detection:
-    return Detection(d.object_class, d.instance_id, d.mask_area, position, d.score, d.class_scores)
+    return dataclasses.replace(d, position=position)
 
 
 def _on(navmap: NavigationMap | None, x: float, y: float) -> Point:
-    """(x, y), or the viewpoint of ``navmap`` it stands on to 0.1 mm (viewpoints are stored
-    rounded to 4 decimals)."""
+    """(x, y), or the viewpoint of ``navmap`` it stands on to a micrometre (viewpoints are
+    stored rounded to 4 decimals)."""
     if navmap is not None:
         snapped = Point(round(x, 4), round(y, 4))
         if snapped in navmap.room_of and math.hypot(snapped.x - x, snapped.y - y) < 1e-6:
