@@ -22,8 +22,10 @@ are built from the training days as its ``run.py`` builds them.
 **Ours** enters at its method seam (``step(batch)`` returning its ``details``), not by
 subclassing: :class:`BeliefMethod` folds our own events into the project's belief,
 :class:`~objsearch.agent.routine_belief.RoutineBelief` (``routine-belief``, the belief that knows
-the hour; ``belief``, the time-blind :class:`~objsearch.agent.belief.PlaceBelief`, as a second
-row), with the constants of the strategies that use it (k, h). What maps to what:
+the hour; ``routine-habit``, the same fold forecasting the lookahead's steps beyond the next from
+the hour's habit, :meth:`BeliefMethod.forecast`; ``belief``, the time-blind
+:class:`~objsearch.agent.belief.PlaceBelief`, as a further row), with the constants of the
+strategies that use it (k, h). What maps to what:
 
 ========================================  ==================================================
 STOT                                      objsearch
