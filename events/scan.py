@@ -164,18 +164,9 @@ class _Scan:
                     or event.type == QUARANTINED_TYPE
                     or (framed and bytes(event.payload)[:1] != b"{")  # type: ignore[arg-type]
                 ):
-                    self._check_ids(pending, batch)  # an earlier record's id is reported first
-                    batch = _Cursor(offset, line_no, seq, checksum, time_ns)
-                    at.move_to(offset, line_no, seq, checksum, time_ns)
-                    try:
-                        event, value = check_record(line[:-1], at, meta, registry)
-                    except BadRecord as exc:
-                        reason = exc.reason
-                        if exc.record_error is not None:
-                            reason = self._explain(line[:-1], exc.record_error, f)
-                        if start == 0:
-                            reason = self._meta_reason() or reason
-                        self._corrupt(line_no + 1, start, reason)
+                    here = _Cursor(offset, line_no, seq, checksum, time_ns)
+                    event, value = self._check_slowly(line, f, pending, batch, here)
+                    batch = here
                 offset = start + len(line)
                 line_no += 1
                 seq = event.seq
@@ -207,6 +198,27 @@ class _Scan:
             self._check_ids(pending, batch)
         finally:
             at.move_to(offset, line_no, seq, checksum, time_ns)
+
+    def _check_slowly(
+        self, line: bytes, f: IO[bytes], pending: list[str], batch: _Cursor, here: _Cursor
+    ) -> tuple[Event, int]:
+        """The slow path of :meth:`_lines`, for a record its fast path did not take: ``line``
+        (with its newline) checked after ``here`` by :func:`check_record`, which says why a
+        record fails. The ids read since ``batch`` are checked first, so an earlier record's
+        bad id is reported before this record's fault; the cursor moves to ``here`` before
+        anything reads it."""
+        self._check_ids(pending, batch)
+        at = self.at
+        at.move_to(here.offset, here.line, here.seq, here.checksum, here.time_ns)
+        try:
+            return check_record(line[:-1], at, self.meta, self.registry)
+        except BadRecord as exc:
+            reason = exc.reason
+            if exc.record_error is not None:
+                reason = self._explain(line[:-1], exc.record_error, f)
+            if here.offset == 0:
+                reason = self._meta_reason() or reason
+            self._corrupt(here.line + 1, here.offset, reason)
 
     def _check_ids(self, ids: list[str], batch: _Cursor) -> None:
         """Check the ids of the records read since ``batch`` (and forget them); if one is not

@@ -513,10 +513,11 @@ BOUNDARY = "# boundary:"
 #: What may be over a limit today: code other engineers change this session (not split under
 #: them), each with the issue it waits on. Take an entry out once it is within its limit.
 OVERSIZED_MODULES: Mapping[str, str] = {}
+#: Functions allowed over :data:`MAX_FUNCTION_LINES`, with the reason (empty: none is).
 LONG_FUNCTIONS: Mapping[str, str] = {
-    # Kept whole on purpose: the log scan's per-line loop, where a call per line costs (the read
-    # path whose speed issue 46 measures).
-    "objsearch.events.scan._Scan._lines": "issue 46: the read cost target (a faster scan)",
+    # Made long by 0f4427c (issue 45, the moved map frame) while another engineer works on them.
+    "objsearch.sim.longterm.run_schedule": "issue 45: split once the moved-frame work settles",
+    "objsearch.experiments.homes.run_homes": "issue 45: split once the moved-frame work settles",
 }
 #: ``except Exception`` (or ``suppress(Exception)``) without its boundary comment, by module.
 UNMARKED_CATCHES: Mapping[str, str] = {}
