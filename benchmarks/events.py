@@ -40,6 +40,7 @@ import statistics
 import sys
 import tempfile
 import time
+import uuid
 import warnings
 import zlib
 from collections.abc import Callable
@@ -71,6 +72,7 @@ from objsearch.agent.strategies import RunSpec
 from objsearch.events import Event, EventLog, fold, read_log
 from objsearch.events.arrow import events_to_tables
 from objsearch.events.catalogue import Catalogue
+from objsearch.events.envelope import deterministic_event_id
 from objsearch.events.lake import TableLake
 from objsearch.events.log_files import read_meta
 from objsearch.events.store import Store
@@ -622,6 +624,37 @@ def bench_read_path(n: int, reps: int, root: Path) -> None:
             os.fsync(f.fileno())
         shutil.rmtree(d)
 
+    checking = {t: msgspec.json.Decoder(r, strict=True).decode for t, r in LATEST.items()}
+    run_key = f"bench/{uuid.uuid4()}"
+
+    def minimal_kept() -> None:
+        """The minimal msgspec writer plus what the log keeps and it does not (issue 46's floor
+        of an append that keeps the log's promises): one ``write`` per record (readers see an
+        append at once), the payload decoded back into its record (what a read would refuse is
+        refused), the default id (uuid5 of the run and seq). No envelope check, no seal, no
+        event returned."""
+        d = Path(tempfile.mkdtemp(dir=root))
+        prev = 0
+        fd = os.open(d / "events.log", os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+        try:
+            for seq, (record, time_ns, task_id) in enumerate(records, 1):
+                payload = encode_sorted(record)
+                checking[record.TYPE](payload)
+                body = encode_sorted(
+                    {"event_id": deterministic_event_id(run_key, seq), "stream": "bench",
+                     "seq": seq, "time_ns": time_ns, "recorded_at_ns": 1,
+                     "type": record.TYPE, "version": record.VERSION, "task_id": task_id,
+                     "payload": msgspec.Raw(payload)}
+                )  # fmt: skip
+                prev = zlib.crc32(body, prev)
+                os.write(fd, body + b"\t%08x\n" % prev)
+                if seq % batch == 0:
+                    os.fsync(fd)
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        shutil.rmtree(d)
+
     k = len(items)
     print(f"{'batched append (' + str(batch) + '/fsync)':40} {'µs/event':>8} {'ratio':>10}")
     for base_name, base_fn in (
@@ -636,6 +669,11 @@ def bench_read_path(n: int, reps: int, root: Path) -> None:
         ):
             t, ratio = paired(fn, base_fn, reps)
             print(f"{name:40} {1e6 * t / k:8.1f} {ratio:10.2f}")
+    # What the log's promises cost alone, against the same baseline, and append_record against it.
+    t, ratio = paired(minimal_kept, minimal_msgspec, reps)
+    print(f"{'minimal + one write, check, id':40} {1e6 * t / k:8.1f} {ratio:10.2f}")
+    t, ratio = paired(ours_records, minimal_kept, reps)
+    print(f"{'append_record ÷ the row above':40} {1e6 * t / k:8.1f} {ratio:10.2f}")
     print("(targets: ≤ 1.5 × the json.dumps writer (issue 22); append_record ≤ 2 × msgspec's)")
 
 

@@ -38,7 +38,7 @@ from typing import Any
 import msgspec
 
 from . import _fs
-from .envelope import Event, deterministic_event_id
+from .envelope import Event, _Adopted, deterministic_event_id
 from .errors import (
     DuplicateEventError,
     InvalidEventError,
@@ -65,7 +65,7 @@ from .log_files import (
 from .log_position import check_position
 from .log_seal_check import _check_sealed, _SealCheck
 from .log_torn_tail import _cut_torn_tail
-from .record import frame_new_record
+from .record import Framer
 from .scan import QUARANTINED_TYPE, _Cursor, _Scan
 from .seal import Sealer
 from .store import Encoded, Store
@@ -105,6 +105,7 @@ class EventLog:
         self._stream = meta.stream
         self._id_key = meta.id_key()
         self._chained = meta.chained
+        self._framer = Framer(meta.stream)
         self._fd = fd
         self._lock_fd = lock_fd
         self._at = at
@@ -381,8 +382,8 @@ class EventLog:
     ) -> Event:
         """The one way into the log: a payload the store encoded, framed with its envelope and
         written (the same fact already stored under ``event_id`` is returned instead)."""
-        event_type, version = encoded.type, encoded.version
-        if event_type == QUARANTINED_TYPE and encoded.payload.get("chain") is not None:
+        event_type, version, payload_json, payload = encoded
+        if event_type == QUARANTINED_TYPE and payload.get("chain") is not None:
             raise InvalidEventError(
                 f"invalid {event_type} v{version} event: payload.chain: only `objsearch log "
                 "repair` redirects the checksum chain (it writes the record in place of a "
@@ -392,23 +393,55 @@ class EventLog:
                 path="payload.chain",
                 reason="not null",
             )
+        made_id = event_id is None
         seq, event_id, stored = self._claim(event_id, expected_last_seq)
         if stored:
             return self._existing(event_id, encoded, time_ns, task_id)
-        event = Event._appended(
-            encoded.payload,
-            event_id=event_id,
-            stream=self._stream,
-            seq=seq,
-            time_ns=time_ns,
-            recorded_at_ns=self._wall_clock(),
-            type=event_type,
-            version=version,
-            task_id=task_id,
-        )
-        if time_ns < self._at.time_ns:
-            self._check_time(event)  # raises
-        return self._store_event(event, encoded.text)
+        recorded_at_ns = self._wall_clock()
+        last_time_ns = self._at.time_ns
+        event: Event
+        if (
+            # What the writer made is valid by construction: the default id (canonical), the
+            # log's stream (checked at open), the next seq. What the caller or the store gave is
+            # checked here by the envelope's rules (_plausible's, exact types); any doubt goes to
+            # Event._appended, which checks every field and words the error.
+            made_id
+            and type(time_ns) is int
+            and time_ns >= last_time_ns  # so >= 0: the last was
+            and type(recorded_at_ns) is int
+            and recorded_at_ns >= 0
+            and (task_id is None or (type(task_id) is str and task_id != ""))
+            and type(event_type) is str
+            and event_type != ""
+            and type(version) is int
+            and version >= 1
+        ):
+            event = _Adopted(
+                event_id=event_id,
+                stream=self._stream,
+                seq=seq,
+                time_ns=time_ns,
+                recorded_at_ns=recorded_at_ns,
+                type=event_type,
+                version=version,
+                task_id=task_id,
+                payload=payload,
+            )
+        else:
+            event = Event._appended(
+                payload,
+                event_id=event_id,
+                stream=self._stream,
+                seq=seq,
+                time_ns=time_ns,
+                recorded_at_ns=recorded_at_ns,
+                type=event_type,
+                version=version,
+                task_id=task_id,
+            )
+            if time_ns < last_time_ns:
+                self._check_time(event)  # raises
+        return self._store_event(event, payload_json)
 
     def _claim(self, event_id: str | None, expected_last_seq: int | None) -> tuple[int, str, bool]:
         """The seq and id of the next record, and whether that id is already stored (the caller
@@ -452,7 +485,7 @@ class EventLog:
         """Write the checked ``event`` (its payload's JSON text made) and, outside a batch,
         fsync it."""
         at = self._at
-        record, checksum = frame_new_record(
+        record, checksum = self._framer.frame(
             event, payload_json, at.checksum if self._chained else 0
         )
         offset = at.offset

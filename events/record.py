@@ -84,24 +84,48 @@ def encode_new_record(event: Event, payload_json: str, prev: int = 0) -> bytes:
 def frame_new_record(event: Event, payload_json: str, prev: int = 0) -> tuple[bytes, int]:
     """:func:`encode_new_record`'s line and its checksum (the next record's ``prev`` in a
     chained log), which the writer keeps rather than read back from the line's hex digits."""
-    task_id = event.task_id
-    text = _BODY % (
-        event.event_id,  # canonical (checked): hex digits and dashes, nothing to escape
-        payload_json,
-        event.recorded_at_ns,
-        event.seq,
-        _string(event.stream),
-        "null" if task_id is None else _string(task_id),
-        event.time_ns,
-        _string(event.type),
-        event.version,
-    )
-    try:
-        body = text.encode("utf-8")
-    except ValueError as exc:  # a lone surrogate
-        raise _unstorable(event, exc) from exc
-    checksum = zlib.crc32(body, prev)
-    return body + b"\t%08x\n" % checksum, checksum
+    return Framer(event.stream).frame(event, payload_json, prev)
+
+
+class Framer:
+    """:func:`frame_new_record` for the records of one stream: the stream's name, each event
+    type and the last task id are escaped once, not once per record (a writer's appends)."""
+
+    __slots__ = ("_stream", "_task", "_task_json", "_types")
+
+    def __init__(self, stream: str) -> None:
+        self._stream = _string(stream)
+        self._types: dict[str, str] = {}
+        self._task: str | None = None
+        self._task_json = "null"
+
+    def frame(self, event: Event, payload_json: str, prev: int) -> tuple[bytes, int]:
+        """``event``'s line (``payload_json`` its payload's JSON text) and its checksum."""
+        task_id = event.task_id
+        if task_id != self._task:
+            self._task_json = "null" if task_id is None else _string(task_id)
+            self._task = task_id
+        event_type = event.type
+        type_json = self._types.get(event_type)
+        if type_json is None:
+            type_json = self._types[event_type] = _string(event_type)
+        text = _BODY % (
+            event.event_id,  # canonical (checked): hex digits and dashes, nothing to escape
+            payload_json,
+            event.recorded_at_ns,
+            event.seq,
+            self._stream,
+            self._task_json,
+            event.time_ns,
+            type_json,
+            event.version,
+        )
+        try:
+            body = text.encode("utf-8")
+        except ValueError as exc:  # a lone surrogate
+            raise _unstorable(event, exc) from exc
+        checksum = zlib.crc32(body, prev)
+        return body + b"\t%08x\n" % checksum, checksum
 
 
 def encode_record(event: Event, prev: int = 0) -> bytes:

@@ -49,6 +49,11 @@ class Encoded(NamedTuple):
     payload: Mapping[str, Any]
 
 
+#: An :class:`Encoded` made from its four fields without ``NamedTuple.__new__``'s Python call
+#: (once per append of a record).
+_encoded: Final = functools.partial(tuple.__new__, Encoded)
+
+
 class Store:
     """A catalogue and its compiled parts: the schema registry and the upcaster.
 
@@ -141,7 +146,7 @@ class Store:
             self._writable[type(record)] = codec
         text = codec.payload_json(record)
         if text is not None:
-            return Encoded(codec.type, codec.version, text.decode(), ReadPayload(text))
+            return _encoded((codec.type, codec.version, text.decode(), ReadPayload(text)))
         return self.encode(codec.type, codec.payload(record), codec.version)
 
     def __repr__(self) -> str:

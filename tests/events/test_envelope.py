@@ -333,6 +333,45 @@ def test_an_appended_event_is_built_and_encoded_as_event_and_encode_record_do(
     assert checksum == int(line[-9:-1], 16)
 
 
+@given(
+    st.text(min_size=1, max_size=6),
+    st.lists(
+        st.tuples(
+            st.sampled_from(["a_type", 'a "quoted" type', "t\u00e9\n"]),
+            st.one_of(st.none(), st.sampled_from(["task-1", "task-2", 'q"\\', "\u2028"])),
+        ),
+        min_size=1,
+        max_size=8,
+    ),
+)
+def test_a_writers_framer_frames_each_record_as_encode_record_does(
+    stream: str, envelopes: list[tuple[str, str | None]]
+) -> None:
+    """One writer's :class:`Framer` escapes its stream, each type and the last task id once and
+    reuses them: every line it frames, task ids changing, repeating and going back to None, is
+    the line ``encode_record`` writes for the same event, and its checksum chains."""
+    from objsearch.events.record import Framer, encode_record
+
+    framer = Framer(stream)
+    prev = 0
+    for seq, (event_type, task_id) in enumerate(envelopes, 1):
+        event = Event(
+            event_id=deterministic_event_id(stream, seq),
+            stream=stream,
+            seq=seq,
+            time_ns=seq,
+            recorded_at_ns=7,
+            type=event_type,
+            version=1,
+            task_id=task_id,
+            payload={"n": seq},
+        )
+        line, checksum = framer.frame(event, f'{{"n":{seq}}}', prev)
+        assert line == encode_record(event, prev)
+        assert checksum == int(line[-9:-1], 16)
+        prev = checksum
+
+
 def test_an_appended_payload_with_a_lone_surrogate_is_refused_as_before() -> None:
     from objsearch.events.record import encode_new_record, encode_record
 

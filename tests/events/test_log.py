@@ -171,6 +171,11 @@ def test_a_new_log_is_empty(tmp_path: Path) -> None:
         ("search_failed", {"reason": "x"}, {"event_id": "nope"}, "event_id: 'nope'"),
         ("search_failed", {"reason": "x"}, {"time_ns": -5}, "time_ns: -5"),
         ("search_failed", {"reason": "x"}, {"task_id": ""}, "task_id: ''"),
+        # Caller-given fields the writer's own check (issue 46) passes to the envelope's words.
+        ("search_failed", {"reason": "x"}, {"time_ns": True}, "time_ns: True is not an integer"),
+        ("search_failed", {"reason": "x"}, {"time_ns": 7.0}, "time_ns: 7.0 is not an integer"),
+        ("search_failed", {"reason": "x"}, {"task_id": 5}, "task_id: 5 is neither null nor"),
+        ("search_failed", {"reason": "x"}, {"version": True}, "version: True is not an integer"),
     ],
 )
 def test_invalid_events_are_refused_and_nothing_is_written(
@@ -185,6 +190,17 @@ def test_invalid_events_are_refused_and_nothing_is_written(
         assert (tmp_path / "events.log").read_bytes() == before
         assert log.last_seq == 2
         assert log.append("search_failed", {"reason": "ok"}, time_ns=8).seq == 3
+
+
+@pytest.mark.parametrize("clock", [-1, 1.5, True])
+def test_a_wall_clock_reading_that_is_no_time_is_refused_and_nothing_is_written(
+    tmp_path: Path, clock: Any
+) -> None:
+    with EventLog.open(tmp_path, STREAM, wall_clock=lambda: clock, store=STORE) as log:
+        with pytest.raises(InvalidEventError, match=re.escape(f"recorded_at_ns: {clock!r} is not")):
+            log.append("search_failed", {"reason": "x"}, time_ns=1)
+        assert log.last_seq == 0
+    assert (tmp_path / "events.log").read_bytes() == b""
 
 
 # --- torn tails --------------------------------------------------------------------------------
