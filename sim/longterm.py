@@ -103,11 +103,9 @@ def run_schedule(
     spec, camera = with_camera(spec)
     spec, detector = with_perception(spec, movable=ctx.vocabulary.names(Category.SEMI_DYNAMIC))
     spec, localiser = with_localisation(spec)
-    # From this scene on the robot runs in a new map (a new session: run_started with its id).
-    new_map_day = spec.params.get("new_map_day")
-    # ... in a frame of its own (sim/map_frame.py), or the old map's (absent: as before).
-    moved = frame_mode(spec.params) == "moved"
-    frame: Rigid2D | None = None
+    # From this scene on the robot runs in a new map (a new session: run_started with its id),
+    # in the old map's frame or one of its own (an unknown mode fails before anything is written).
+    new_map_day, frame = spec.params.get("new_map_day"), _no_frame(spec.params)
     placements, unseeable = _seeable_placements(ctx, spec, placements, scenes)
     all_starts = ctx.home.starts
     for name in starts or ():
@@ -128,15 +126,7 @@ def run_schedule(
         clock = SimClock(session.resume_time_ns)
         for scene in scenes or sorted(placements):
             if new_map_day is not None and scene >= int(new_map_day):
-                if moved:
-                    frame = recorded_frame(spec.params) or draw_frame(
-                        spec.seed, next_map(session.state.maps.current or DEFAULT_MAP)
-                    )
-                    framed = {**spec.params, "map_frame": frame.params()}
-                    session.start_run(spec.with_changes(params=framed), new_map=True)
-                else:
-                    session.start_run(spec, new_map=True)
-                new_map_day = None
+                frame, new_map_day = _start_new_map(session, spec), None
             scene_placements = placements[scene]
             present = {p.cls for p in scene_placements.values()}
             for target in targets:
@@ -180,6 +170,27 @@ def run_schedule(
     finally:
         session.close()
     return trials
+
+
+def _no_frame(params: Mapping[str, Any]) -> Rigid2D | None:
+    """No frame yet: the robot starts in its first map (``new_map_frame`` validated now)."""
+    frame_mode(params)
+    return None
+
+
+def _start_new_map(session: Session, spec: RunSpec) -> Rigid2D | None:
+    """Start the session's next map, in the old map's frame (None) or, with ``new_map_frame``
+    ``moved``, in a frame of its own (sim/map_frame.py): drawn from the seed and the map's id
+    unless the spec records one, recorded in its ``run_started``, and returned."""
+    if frame_mode(spec.params) != "moved":
+        session.start_run(spec, new_map=True)
+        return None
+    new_map = next_map(session.state.maps.current or DEFAULT_MAP)
+    frame = recorded_frame(spec.params) or draw_frame(spec.seed, new_map)
+    session.start_run(
+        spec.with_changes(params={**spec.params, "map_frame": frame.params()}), new_map=True
+    )
+    return frame
 
 
 def _trial(

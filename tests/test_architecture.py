@@ -515,8 +515,8 @@ BOUNDARY = "# boundary:"
 OVERSIZED_MODULES: Mapping[str, str] = {}
 #: Functions allowed over :data:`MAX_FUNCTION_LINES`, with the reason (empty: none is).
 LONG_FUNCTIONS: Mapping[str, str] = {
-    # Made long by 0f4427c (issue 45, the moved map frame) while another engineer works on them.
-    "objsearch.sim.longterm.run_schedule": "issue 45: split once the moved-frame work settles",
+    # Made long by 0f4427c (issue 45, the moved map frame); experiments/homes.py holds another
+    # engineer's uncommitted edits, so it is split when theirs are in.
     "objsearch.experiments.homes.run_homes": "issue 45: split once the moved-frame work settles",
 }
 #: ``except Exception`` (or ``suppress(Exception)``) without its boundary comment, by module.
