@@ -26,6 +26,9 @@ The model, per target class d (docs/paper-readings.md, "The belief"):
 - **Today**: what the robot saw earlier in the same episode. A sighting of d at s makes s almost
   certain (1 − ``MOVED_TODAY``); a look at s that did not see d multiplies P(s) by the detector's
   miss probability ``MISS``. This is where "a Cup passed while looking for the Apple" counts.
+  Under a modelled detector whose ``reports`` are ``evidence``, a report of d at s that is no
+  sighting (its score or its mask too low to take) is not such a miss: it multiplies P(s) by its
+  likelihood ratio (:meth:`~objsearch.agent.detector_model.PerceptionModel.look_ratio`).
 
 The constants below were fixed before any run (docs/results.md, "The belief's protocol") and are
 not tuned; k and h are recorded in the run spec.
@@ -68,6 +71,9 @@ STEP = 0.1
 YESTERDAY_SMOOTHING = 0.05
 #: Belief values below this are reported as 0 (a place is then no candidate).
 FLOOR = 1e-9
+#: The most a day's reports that were no sighting can multiply a place's odds by: finite, as a
+#: score of 1 has an infinite likelihood ratio (such a report under its class's mask threshold).
+REPORTS_CAP = 1e6
 
 
 @dataclass(frozen=True, slots=True)
@@ -122,6 +128,13 @@ class Today:
     #: detector; with a modelled one (the run's ``params.perception``) also its own miss
     #: probability at a medium-sized mask (:func:`look_miss`).
     miss: float = MISS
+    #: The run's detector when its reports that are no sighting count as evidence (``reports``
+    #: ``evidence``), else None: every view of a place that took no sighting of d is a miss.
+    reports_model: PerceptionModel | None = None
+    #: The running task's reports that were no sighting: class -> place -> scores.
+    reported: dict[str, dict[str, list[float]]] = field(default_factory=dict)
+    #: This episode's product of those reports' likelihood ratios: class -> place -> factor.
+    support: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def starts(self, event: EventView, started: TaskStarted) -> bool:
         """A task starts; True if it opens a new episode (the caller closes the old one first)."""
@@ -132,11 +145,14 @@ class Today:
         self.key = ("scene", started.scene) if started.scene is not None else ("task", event.seq)
         self.seen, self.sighted, self.looked, self.missed = {}, {}, {}, {}
         self.searched = set()
+        self.reported, self.support = {}, {}
 
     def apply(self, event: EventView) -> None:
         kind = event.type
         if kind == "run_started":
-            self.miss = look_miss(decode(event, RunStarted).params.get("perception"))
+            perception = decode(event, RunStarted).params.get("perception")
+            self.miss = look_miss(perception)
+            self.reports_model = reports_model(perception)
         elif kind == "task_started":
             self.target = decode(event, TaskStarted).target
             self.searched.add(self.target)
@@ -146,12 +162,15 @@ class Today:
                 self.looked[static_id] = self.looked.get(static_id, 0) + 1
         elif kind == "detection":
             detected = decode(event, Detected)
+            support = detected.support
+            at = support is not None and support.at
             if detected.accepted:
-                support = detected.support
-                at = support is not None and support.at
                 self.sighted[detected.object_class] = (
                     support.static_id if support is not None and at else ELSEWHERE
                 )
+            elif self.reports_model is not None and support is not None and at:
+                scores = self.reported.setdefault(detected.object_class, {})
+                scores.setdefault(support.static_id, []).append(detected.score)
         elif kind in ("task_ended", "task_aborted"):
             # What a search saw happened, whether it ended or was cut short. A look that did not
             # see a class is a miss for it today: every class the detector reports, not only the
@@ -159,17 +178,38 @@ class Today:
             self.seen.update(self.sighted)
             for place, looks in self.looked.items():
                 for d in self.classes:
-                    if self.sighted.get(d) != place:
+                    # A view whose report of d there was no sighting is no miss of d there.
+                    misses = looks - len(self.reported.get(d, {}).get(place, ()))
+                    if self.sighted.get(d) != place and misses > 0:
                         per = self.missed.setdefault(d, {})
-                        per[place] = per.get(place, 0) + looks
-            self.sighted, self.looked = {}, {}
+                        per[place] = per.get(place, 0) + misses
+            self._count_reports()
+            self.sighted, self.looked, self.reported = {}, {}, {}
             self.target = None
+
+    def _count_reports(self) -> None:
+        """The running task's reports that were no sighting, each by its likelihood ratio (a
+        report of the class where it was also sighted adds nothing to the sighting)."""
+        model = self.reports_model
+        if model is None:
+            return
+        for d, places in sorted(self.reported.items()):
+            for place, scores in sorted(places.items()):
+                if self.sighted.get(d) == place:
+                    continue
+                factor = self.support.setdefault(d, {}).get(place, 1.0)
+                for score in scores:
+                    factor *= model.look_ratio(TYPICAL_MASK_PX, score)
+                self.support[d][place] = min(factor, REPORTS_CAP)
 
     def condition(self, d: str, base: Mapping[str, float]) -> dict[str, float]:
         """``base`` conditioned on this episode's looks and sightings (sums to 1 if base does)."""
         missed = self.missed.get(d, {})
+        support = self.support.get(d, {})
         seen = self.seen.get(d)
         today = {p: v * self.miss ** missed.get(p, 0) for p, v in base.items()}
+        if support:
+            today = {p: v * support.get(p, 1.0) for p, v in today.items()}
         total = math.fsum(today.values())
         today = {p: v / total for p, v in today.items()} if total > 0 else dict(base)
         if seen is not None:
@@ -189,6 +229,21 @@ class Today:
             "searched": sorted(self.searched),
             # Only when a modelled detector set it: perfect runs' snapshots stay as they were.
             **({"miss": self.miss} if self.miss != MISS else {}),
+            # Only when reports count as evidence: other runs' snapshots stay as they were.
+            **(
+                {
+                    "reports_model": self.reports_model.params(),
+                    "reported": {
+                        d: {p: list(v) for p, v in sorted(m.items())}
+                        for d, m in sorted(self.reported.items())
+                    },
+                    "support": {
+                        d: dict(sorted(m.items())) for d, m in sorted(self.support.items())
+                    },
+                }
+                if self.reports_model is not None
+                else {}
+            ),
         }
 
     @classmethod
@@ -204,12 +259,30 @@ class Today:
             missed={d: {p: int(n) for p, n in m.items()} for d, m in state["missed"].items()},
             searched=set(state["searched"]),
             miss=float(state.get("miss", MISS)),
+            reports_model=reports_model(state.get("reports_model")),
+            reported={
+                d: {p: [float(x) for x in v] for p, v in m.items()}
+                for d, m in state.get("reported", {}).items()
+            },
+            support={
+                d: {p: float(x) for p, x in m.items()} for d, m in state.get("support", {}).items()
+            },
         )
 
 
 #: The mask a target shows from a stop's viewpoint, for the detector's miss probability there: the
 #: middle of COCO's medium bin (a cup at about 1.5 m). A per-view size is not modelled yet.
 TYPICAL_MASK_PX = 48.0 * 48.0
+
+
+def reports_model(perception: object) -> PerceptionModel | None:
+    """The run's detector (``params.perception``) if its reports that are no sighting count as
+    evidence (``reports`` ``evidence``), else None (a perfect detector, or a run spec that names
+    no ``reports``: recorded before the option, folded as it ran)."""
+    if not isinstance(perception, Mapping):
+        return None
+    model = PerceptionModel.from_params(perception)
+    return None if model.perfect or model.reports != "evidence" else model
 
 
 def look_miss(perception: object, mask_px: float = TYPICAL_MASK_PX) -> float:

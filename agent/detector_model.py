@@ -72,6 +72,13 @@ HARSH_ACCEPT_POSTERIOR: Final = 0.999
 #: luck at the same place (common random numbers). Each draw is uniform either way: a
 #: strategy's outcomes have the same distribution, only the pairing between strategies differs.
 DRAWS: Final = ("view", "place")
+#: What the agent's memory of the day (``Today``, agent/belief.py) makes of a report that is no
+#: sighting (its score or its mask too low to take): ``misses``, a miss like a view that reported
+#: nothing (every run before 2026-12-07's second amendment, and any run spec that names none), or
+#: ``evidence``, its likelihood ratio (:meth:`PerceptionModel.look_ratio`): a report at a place
+#: says the class is likelier there, not less likely (docs/perception.md, "Reports that are no
+#: sighting").
+REPORTS: Final = ("misses", "evidence")
 #: The search camera's focal length (px): 640×480 at a 90° horizontal field of view.
 FOCAL_PX: Final = 320.0
 #: Nearer than this the mask estimate is capped (the camera then sees the whole object anyway).
@@ -122,6 +129,8 @@ class PerceptionModel:
     #: How the simulator keys this detector's random draws (:data:`DRAWS`); the agent never
     #: reads it.
     draws: str = "view"
+    #: What a report that is no sighting tells the agent's memory of the day (:data:`REPORTS`).
+    reports: str = "misses"
 
     def __post_init__(self) -> None:
         if self.preset not in PRESETS:
@@ -157,6 +166,10 @@ class PerceptionModel:
             )
         if self.draws not in DRAWS:
             raise ObjsearchError(f"unknown draws {self.draws!r}; choose from {', '.join(DRAWS)}")
+        if self.reports not in REPORTS:
+            raise ObjsearchError(
+                f"unknown reports {self.reports!r}; choose from {', '.join(REPORTS)}"
+            )
 
     @property
     def perfect(self) -> bool:
@@ -226,8 +239,9 @@ class PerceptionModel:
     # -- the run spec -------------------------------------------------------------------------
 
     def params(self) -> dict[str, Any]:
-        """As the run spec records it (``params.perception``); the ``score`` confirmation and
-        ``view`` draws are left out, so a run spec is what it was before each option."""
+        """As the run spec records it (``params.perception``); the ``score`` confirmation,
+        ``view`` draws and ``misses`` reports are left out, so a run spec is what it was before
+        each option."""
         doc = asdict(self)
         doc["tp_score"] = list(self.tp_score)
         doc["fp_score"] = list(self.fp_score)
@@ -235,6 +249,8 @@ class PerceptionModel:
             del doc["confirmation"], doc["fp_recurrence"]
         if self.draws == "view":
             del doc["draws"]
+        if self.reports == "misses":
+            del doc["reports"]
         return doc
 
     @classmethod
@@ -284,7 +300,11 @@ def _log_beta_pdf(u: float, a: float, b: float) -> float:
 
 
 def preset(
-    name: str, confirmation: str | None = None, draws: str | None = None, **overrides: float
+    name: str,
+    confirmation: str | None = None,
+    draws: str | None = None,
+    reports: str | None = None,
+    **overrides: float,
 ) -> PerceptionModel:
     """A preset, with some parameters overridden (:data:`OVERRIDES`).
 
@@ -294,7 +314,9 @@ def preset(
     :data:`HARSH_ACCEPT_POSTERIOR`; ``confirmation``
     names the confirmation model (:data:`CONFIRMATIONS`; None: the preset's own,
     :data:`PRESET_CONFIRMATION`), ``draws`` how the simulator keys its draws (:data:`DRAWS`;
-    None: ``place``, but ``view`` for ``perfect``, which draws nothing)."""
+    None: ``place``, but ``view`` for ``perfect``, which draws nothing), ``reports`` what a
+    report that is no sighting tells the day's memory (:data:`REPORTS`; None: ``evidence``, but
+    ``misses`` for ``perfect``, whose reports are all sightings but for their masks, as before)."""
     if name not in PRESETS:
         raise ObjsearchError(
             f"unknown perception preset {name!r}; choose from {', '.join(PRESETS)}"
@@ -332,4 +354,5 @@ def preset(
         confirmation=confirmation or PRESET_CONFIRMATION[name],
         # A perfect detector draws nothing: it stays the default model.
         draws=draws or ("view" if name == "perfect" else "place"),
+        reports=reports or ("misses" if name == "perfect" else "evidence"),
     )

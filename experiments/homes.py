@@ -239,7 +239,8 @@ def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
     """The bench homes options that name a perception model (none for a perfect one): the
     preset, each parameter the preset does not give, and the confirmation model when it is not
     the preset's (a run spec that names none confirmed by ``score``, the runs before the option),
-    and the draws when they are not ``place`` (a run spec that names none drew by view)."""
+    the draws when they are not ``place`` (a run spec that names none drew by view), and the
+    reports when they are not ``evidence`` (a run spec that names none counted them as misses)."""
     if not perception:
         return {}
     from objsearch.agent.detector_model import OVERRIDES, PerceptionModel, preset
@@ -256,6 +257,8 @@ def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
         changed["confirmation"] = run.confirmation
     if run.draws != base.draws:
         changed["draws"] = run.draws
+    if run.reports != base.reports:
+        changed["reports"] = run.reports
     return {"perception": run.preset, **changed}
 
 

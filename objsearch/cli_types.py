@@ -156,7 +156,7 @@ def perception_option(p: argparse.ArgumentParser) -> None:
 
 
 def _add_perception_options(p: argparse.ArgumentParser) -> None:
-    from objsearch.agent.detector_model import CONFIRMATIONS, DRAWS, OVERRIDES, PRESETS
+    from objsearch.agent.detector_model import CONFIRMATIONS, DRAWS, OVERRIDES, PRESETS, REPORTS
 
     p.add_argument(
         "--perception",
@@ -201,6 +201,15 @@ def _add_perception_options(p: argparse.ArgumentParser) -> None:
         "the same luck at the same place) or view (by the view's index in the run, as runs before "
         "2026-12-07 did) (place)",
     )
+    p.add_argument(
+        "--reports",
+        type=text,
+        choices=REPORTS,
+        default=None,
+        help="what a report that is no sighting (score or mask too low) tells the agent's memory "
+        "of the day: evidence (its likelihood ratio: the class is likelier there) or misses (a "
+        "miss, as runs before 2026-12-07's second amendment counted it) (evidence)",
+    )
 
 
 def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
@@ -215,6 +224,7 @@ def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
         getattr(args, "perception", "perfect"),
         getattr(args, "confirmation", None),
         getattr(args, "draws", None),
+        getattr(args, "reports", None),
         **overrides,
     )
     return None if model.perfect else model.params()

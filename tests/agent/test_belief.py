@@ -8,8 +8,23 @@ import math
 
 import pytest
 
-from objsearch.agent.belief import ELSEWHERE, MISS, MOVED_TODAY, PlaceBelief
-from objsearch.agent.catalogue import TaskEnded
+from objsearch.agent.belief import (
+    ELSEWHERE,
+    MISS,
+    MOVED_TODAY,
+    TYPICAL_MASK_PX,
+    PlaceBelief,
+    reports_model,
+)
+from objsearch.agent.catalogue import (
+    Detected,
+    PlanarPose,
+    Support,
+    TaskEnded,
+    TaskStarted,
+    ViewTaken,
+)
+from objsearch.agent.detector_model import preset
 
 from .belief_logs import Log, fold_into
 
@@ -119,3 +134,62 @@ def test_a_snapshot_restores_the_same_belief_and_folds_on_the_same() -> None:
     for event in more.events[len(log.events) :]:
         again.apply(event)
     assert again.distribution("Cup") == _belief(more).distribution("Cup")
+
+
+def _search_with_a_report(log: Log, scene: int, reported: str, score: float) -> None:
+    """A Cup search that looks at counter-b twice; the detector reports ``reported`` there once,
+    too unsure to take (not accepted)."""
+    log.tasks += 1
+    task = f"t{log.tasks}"
+    pose = PlanarPose(x=0.0, y=0.0, yaw=0.0)
+    log.add(TaskStarted(target="Cup", start="s", pose=pose, scene=scene, clock=None), task)
+    for _ in range(2):
+        log.add(ViewTaken(pose=pose, pitch=0.5, static_id="counter-b", reason="look"), task)
+    log.add(
+        Detected(
+            object_class=reported,
+            instance_id=f"{reported}|1",
+            mask_area=2000.0,
+            position=(0.0, 0.0, 0.9),
+            accepted=False,
+            support=Support(static_id="counter-b", static_class="CounterTop", at=True),
+            score=score,
+            classes=(),
+        ),
+        task,
+    )
+    log.add(TaskEnded(target="Cup", success=False, path_length=1.0), task)
+
+
+@pytest.mark.parametrize("reports", ["misses", "evidence"])
+def test_a_report_that_was_no_sighting_counts_for_its_place_with_reports_evidence(
+    reports: str,
+) -> None:
+    log = Log()
+    log.search("Cup", 1, found="counter-a")
+    _search_with_a_report(log, 2, "Apple", 0.9)
+    belief = PlaceBelief(prior_strength=1.0, half_life_scenes=3.0)
+    model = preset("realistic", reports=reports)
+    # What run_started sets from the run's params.perception (the log here has none).
+    belief.today.reports_model = reports_model(model.params())
+    dist = fold_into(belief, log).distribution("Apple")
+    ratio = dist["counter-b"] / dist["counter-a"]  # equal before scene 2 (both CounterTop)
+    if reports == "misses":
+        assert ratio == pytest.approx(MISS**2)  # two views without a sighting: two misses
+    else:
+        # One view a miss, the other the report's likelihood ratio: more likely than before.
+        assert ratio == pytest.approx(MISS * model.look_ratio(TYPICAL_MASK_PX, 0.9))
+        assert ratio > 1.0
+        again = PlaceBelief.from_snapshot(json.loads(json.dumps(belief.to_snapshot())), 0)
+        assert again.distribution("Apple") == dist
+    # The Cup (not reported) is missed twice at counter-b either way.
+    cup = belief.today.condition("Cup", {"counter-a": 0.5, "counter-b": 0.5})
+    assert cup["counter-b"] / cup["counter-a"] == pytest.approx(MISS**2)
+
+
+def test_a_run_spec_that_names_no_reports_folds_reports_as_misses() -> None:
+    old = preset("realistic", reports="misses").params()
+    assert "reports" not in old  # a run spec from before the option
+    assert reports_model(old) is None
+    assert reports_model(preset("realistic").params()) is not None  # the preset's default
+    assert reports_model(None) is None  # perfect
