@@ -116,8 +116,7 @@ THEIR_METHODS = (
     "Fremen",
     "FremenStateConditioned",
 )
-#: Ours: the belief that knows the hour; the same belief forecasting the lookahead's steps beyond
-#: the next from its habit at that hour (:meth:`BeliefMethod.forecast`); the time-blind belief.
+#: Ours: the belief that knows the hour, it with the hour's habit beyond the next step, time-blind.
 OUR_METHODS = ("routine-belief", "routine-habit", "belief")
 ROUTINE_METHODS = ("routine-belief", "routine-habit")
 METHODS = (*OUR_METHODS, *THEIR_METHODS)
@@ -360,8 +359,7 @@ class BeliefMethod:
         self._add(SceneGraphSeeded(source="stot dynamic-edges mask", values=tuple(values)))
 
     def as_model(self, model: str) -> BeliefMethod:
-        """A copy that forecasts as ``model`` (a belief of the same class: the routine belief's
-        two forecasts share one fold), folding on by itself from here."""
+        """A copy forecasting as ``model`` (the same belief class), folding on by itself."""
         if (model == "belief") != (self.model == "belief"):
             raise ValueError(f"{self.model} folds a different belief from {model}")
         twin = copy.deepcopy(self)
@@ -394,30 +392,19 @@ class BeliefMethod:
         self._add(TaskEnded(target=target, success=True, path_length=0.0))
 
     def forecast(self, d: str, minutes: int) -> dict[str, float]:
-        """P(place) of d at that time, given every episode folded: the belief's prediction for a
-        new episode at that time; for ``routine-habit``, beyond the step after the last
-        observation, the hour's habit (:meth:`RoutineBelief.habit_at`) instead. The belief's
-        mix of its memories (the last episode, the short and the long one) is learned from
-        one-episode-ahead outcomes, and an episode here is one step (10 minutes): it forecasts
-        the next step, where the last look is nearly always right. Further ahead the question is
-        whether and where the object moves, and what the belief knows of that time is where the
-        object usually is at that hour."""
+        """P(place) of d at that time: the belief's prediction for a new episode then (its mix is
+        learned one episode, here one step, ahead); for ``routine-habit`` beyond the step after
+        the last observation, the hour's habit (:meth:`RoutineBelief.habit_at`)."""
         b = self.belief
         if not isinstance(b, RoutineBelief):
             return b._base(d)
-        if not b.knows_hours:
-            return b._base_at(d, None)
-        clock = clock_of(minutes)
-        if self._beyond_next_step(minutes):
-            return b.habit_at(d, clock)
-        return b._base_at(d, clock)
+        if not b.knows_hours or not self._beyond_next_step(minutes):
+            return b._base_at(d, clock_of(minutes) if b.knows_hours else None)
+        return b.habit_at(d, clock_of(minutes))
 
     def _beyond_next_step(self, minutes: int) -> bool:
-        return (
-            self.model == "routine-habit"
-            and self.observed_at is not None
-            and minutes - self.observed_at > self.dt
-        )
+        seen = self.observed_at
+        return self.model == "routine-habit" and seen is not None and minutes - seen > self.dt
 
     def observe_graph(self, minutes: int, edges: Any) -> None:
         """A graph given as its edges tensor [nodes, nodes] (row i: i's parent, one-hot)."""
@@ -755,7 +742,6 @@ def summary(results: Sequence[DayResult], checkout_missing: Sequence[str]) -> di
     }
     comparisons = {}
     for ours in (m for m in methods if m in OUR_METHODS):
-        # routine-habit is also paired with routine-belief, the forecast it changes.
         others = [m for m in methods if m in THEIR_METHODS]
         if ours == "routine-habit" and "routine-belief" in methods:
             others.insert(0, "routine-belief")
