@@ -32,6 +32,7 @@ import contextlib
 import hashlib
 import importlib
 import json
+import logging
 import os
 import runpy
 import sys
@@ -195,6 +196,9 @@ def _run_script(root: Path, workdir: Path, script: str, overrides: Sequence[str]
         priors.symlink_to((root / "priors").resolve())
     argv = sys.argv
     with _their_code(root), contextlib.chdir(workdir), cpu_and_text_model():
+        # _their_code silences its evolver's warnings; its training reports its train and test
+        # accuracy through logging.
+        logging.disable(logging.NOTSET)
         sys.argv = [str(root / "scripts" / script), *overrides]
         try:
             runpy.run_path(str(root / "scripts" / script), run_name="__main__")
@@ -219,8 +223,6 @@ def _collect(root: Path, workdir: Path, overrides: Sequence[str], split: str, st
     if not priors.exists():
         priors.symlink_to((root / "priors").resolve())
     with _their_code(root), contextlib.chdir(workdir), cpu_and_text_model():
-        import logging
-
         from hydra import compose, initialize_config_dir
         from memsearch.dataset import SGMDataset, make_featurizers
         from memsearch.models import make_model
