@@ -486,6 +486,13 @@ def run_homes(
         **homes_summary(rows),
         "files": {"parquet": parquet.name, "csv": csv.name},
     }
+    _finish(summary, rows, out)
+    return summary
+
+
+def _finish(summary: dict[str, Any], rows: Sequence[Row], out: Path) -> None:
+    """Add the strategies' means, the learning curves, the pairs against wpl and the plots to
+    ``summary``, and write it (summary.json) and its tables (tables.txt) to ``out``."""
     keys = ("mean_path_length", "success_rate", "spl", "oracle_ratio")
     summary["strategies"] = {k: {m: s[m] for m in keys} for k, s in summary["overall"].items()}
     learning = learning_summary(rows)
@@ -497,4 +504,3 @@ def run_homes(
     tables = render(summary) + "\n" + render_learning(learning)
     tables += "\n" + render_paired(paired) + "\n"
     (out / "tables.txt").write_text(tables, encoding="utf-8")
-    return summary
