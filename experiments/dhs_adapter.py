@@ -11,7 +11,6 @@ import contextlib
 import hashlib
 import itertools
 import logging
-import os
 import random
 import sys
 from collections.abc import Iterable, Iterator, Mapping, Sequence
@@ -33,6 +32,7 @@ from objsearch.agent.catalogue import (
     encode,
 )
 from objsearch.agent.errors import ObjsearchError
+from objsearch.experiments.checkout import checkout_root
 from objsearch.experiments.dhs_records import FURNITURE_KEYS
 
 #: The commit of ``andreykurenkov/modeling_env_dynamics`` the numbers are for (its last, 2023-05-30).
@@ -91,16 +91,14 @@ PINNED_FILES: Mapping[str, str] = {
 
 def verify_source(source: Path | str | None) -> Path:
     """The checkout, after checking every pinned file; raises :class:`ObjsearchError`."""
-    if source is None or str(source) == "":
-        source = os.environ.get(SOURCE_ENV, "")
-        if not source:
-            raise ObjsearchError(
-                "bench dhs needs a checkout of andreykurenkov/modeling_env_dynamics at commit "
-                f"{PINNED_COMMIT}: pass --source DIR or set ${SOURCE_ENV} (docs/results-dhs.md)"
-            )
-    root = Path(source)
-    if not root.is_dir():
-        raise ObjsearchError(f"--source {root}: no such folder")
+    root = checkout_root(
+        source,
+        SOURCE_ENV,
+        command="bench dhs",
+        repo="andreykurenkov/modeling_env_dynamics",
+        commit=PINNED_COMMIT,
+        doc="docs/results-dhs.md",
+    )
     missing, changed = [], []
     for name, digest in PINNED_FILES.items():
         path = root / name

@@ -99,6 +99,7 @@ from objsearch.agent.catalogue import (
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.routine_belief import RoutineBelief
 from objsearch.agent.strategies import BELIEF_HALF_LIFE_SCENES, BELIEF_PRIOR_STRENGTH
+from objsearch.experiments.checkout import checkout_root
 from objsearch.experiments.stot_pins import CODE, DATA
 
 #: The commit of ``Maithili/SpatioTemporalObjectTracking`` the numbers are for (its last, 2023-01-22).
@@ -144,16 +145,14 @@ def household_dir(dataset: str, household: int) -> str:
 
 def verify_source(source: Path | str | None, dataset: str, households: Sequence[int]) -> Checkout:
     """The checkout, after checking every file used against the pinned blob ids."""
-    if source is None or str(source) == "":
-        source = os.environ.get(SOURCE_ENV, "")
-        if not source:
-            raise ObjsearchError(
-                "bench stot needs a checkout of Maithili/SpatioTemporalObjectTracking at commit "
-                f"{PINNED_COMMIT}: pass --source DIR or set ${SOURCE_ENV} (docs/results-stot.md)"
-            )
-    root = Path(source)
-    if not root.is_dir():
-        raise ObjsearchError(f"--source {root}: no such folder")
+    root = checkout_root(
+        source,
+        SOURCE_ENV,
+        command="bench stot",
+        repo="Maithili/SpatioTemporalObjectTracking",
+        commit=PINNED_COMMIT,
+        doc="docs/results-stot.md",
+    )
     changed: list[str] = []
     missing_code: list[str] = []
     for name, blob in CODE.items():
