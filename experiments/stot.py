@@ -22,8 +22,9 @@ are built from the training days as its ``run.py`` builds them.
 **Ours** enters at its method seam (``step(batch)`` returning its ``details``), not by
 subclassing: :class:`BeliefMethod` folds our own events into the project's belief,
 :class:`~objsearch.agent.routine_belief.RoutineBelief` (``routine-belief``, the belief that knows
-the hour; ``routine-habit``, the same fold forecasting the lookahead's steps beyond the next from
-the hour's habit, :meth:`BeliefMethod.forecast`; ``belief``, the time-blind
+the hour; ``routine-habit`` and ``routine-hour``, the same fold forecasting the lookahead's steps
+beyond the next from the slot's habit or the hour's histogram, :meth:`BeliefMethod.forecast`;
+``belief``, the time-blind
 :class:`~objsearch.agent.belief.PlaceBelief`, as a further row), with the constants of the
 strategies that use it (k, h). What maps to what:
 
@@ -50,18 +51,13 @@ each lookahead time from what it has seen. Test days are folded as they are obse
 of each step), so the belief keeps learning during the test days, as it does on a robot; its
 LastSeen and state-conditioned baselines also read every step's input.
 
-Two things of its code do not run as pinned on this project's environment, and are bridged from
-outside its files (nothing of it is edited): ``evaluations.py`` imports ``wandb`` and never uses
-it (a stand-in module is registered when ``wandb`` is not installed), and it calls
-``matplotlib.cm.get_cmap``, which matplotlib 3.9 removed (put back as
-``matplotlib.colormaps[name].resampled(lut)`` when missing); its figures are drawn and dropped.
-With torch 2.x, numpy's ``bitwise_and/or/not`` of its bool masks come back as ``uint8`` tensors,
-which its figure code cannot index with (RuntimeError); its evaluation module is handed a numpy
-whose three bitwise functions apply torch's own to torch tensors (bool in, bool out: the masks
-its code meant), everything else numpy's.
-Its reader loads a day's whole file for every sample it reads (about 0.17 s a file here; some
-2,900 reads for each of its FreMEn and co-occurrence priors on household 3), so while a household runs
-``torch.load`` is memoised by path (:func:`loads_once`): the same tensors, each file read once.
+Its files run unedited, with four bridges from outside them: a stand-in ``wandb`` (imported by
+``evaluations.py``, never used); ``matplotlib.cm.get_cmap`` (removed in matplotlib 3.9) put back
+as ``matplotlib.colormaps[name].resampled(lut)``; its evaluation module's numpy applies torch's
+own ``bitwise_and/or/not`` to torch tensors (numpy's give ``uint8`` tensors under torch 2.x, which
+its figure code cannot index with; its figures are drawn and dropped); and ``torch.load``
+memoised by path while a household runs (:func:`loads_once`: its reader loads a day's whole file
+for every sample, some 2,900 reads for each prior on household 3, about 0.17 s each).
 """
 
 from __future__ import annotations
@@ -100,6 +96,7 @@ from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.routine_belief import RoutineBelief
 from objsearch.agent.strategies import BELIEF_HALF_LIFE_SCENES, BELIEF_PRIOR_STRENGTH
 from objsearch.experiments.checkout import checkout_root
+from objsearch.experiments.stot_hour import HourHistogram, hour_of
 from objsearch.experiments.stot_pins import CODE, DATA
 
 #: The commit of ``Maithili/SpatioTemporalObjectTracking`` the numbers are for (its last, 2023-01-22).
@@ -117,9 +114,11 @@ THEIR_METHODS = (
     "Fremen",
     "FremenStateConditioned",
 )
-#: Ours: the belief that knows the hour, it with the hour's habit beyond the next step, time-blind.
-OUR_METHODS = ("routine-belief", "routine-habit", "belief")
-ROUTINE_METHODS = ("routine-belief", "routine-habit")
+#: Ours: routine-belief, it with the slot's habit or the hour's histogram beyond one step, belief.
+OUR_METHODS = ("routine-belief", "routine-habit", "routine-hour", "belief")
+ROUTINE_METHODS = ("routine-belief", "routine-habit", "routine-hour")
+#: A variant of ours is also paired with the method it changes.
+PAIRED_WITH = {"routine-habit": "routine-belief", "routine-hour": "routine-habit"}
 METHODS = (*OUR_METHODS, *THEIR_METHODS)
 #: Its evaluation's lookahead (steps of dt) and its config's confidence threshold.
 LOOKAHEAD = 12
@@ -205,8 +204,7 @@ class Upstream:
 
 
 def load_upstream(root: Path) -> Upstream:
-    """Import its reader, evaluation and baselines from the checkout (see the module doc for the
-    two bridges)."""
+    """Import its reader, evaluation and baselines from the checkout (bridged: see the module doc)."""
     os.environ.setdefault("MPLBACKEND", "Agg")
     import matplotlib
     from matplotlib import cm
@@ -330,6 +328,7 @@ class BeliefMethod:
     targets: dict[int, str] = field(default_factory=dict)
     #: Its time (minutes) of the last real input folded, None before the first.
     observed_at: int | None = None
+    hours: HourHistogram = field(default_factory=HourHistogram)
     _last_output: Any = None
     _cache: dict[tuple[int, ...], Any] = field(default_factory=dict)
 
@@ -380,6 +379,7 @@ class BeliefMethod:
         self.episodes += 1
         self.observed_at = minutes
         seen = [(i, p) for i, p in sorted(parents.items()) if i in self.targets]
+        self.hours.observe(minutes, {self.targets[i]: str(p) for i, p in seen})
         if not seen:
             return
         target = self.targets[seen[0][0]]
@@ -392,18 +392,21 @@ class BeliefMethod:
 
     def forecast(self, d: str, minutes: int) -> dict[str, float]:
         """P(place) of d at that time: the belief's prediction for a new episode then (its mix is
-        learned one episode, here one step, ahead); for ``routine-habit`` beyond the step after
-        the last observation, the hour's habit (:meth:`RoutineBelief.habit_at`)."""
+        learned one episode, here one step, ahead); beyond the step after the last observation,
+        ``routine-habit``'s slot habit (:meth:`RoutineBelief.habit_at`), ``routine-hour``'s
+        hour histogram (:class:`~objsearch.experiments.stot_hour.HourHistogram`)."""
         b = self.belief
         if not isinstance(b, RoutineBelief):
             return b._base(d)
         if not b.knows_hours or not self._beyond_next_step(minutes):
             return b._base_at(d, clock_of(minutes) if b.knows_hours else None)
+        if self.model == "routine-hour":
+            return self.hours.forecast(d, minutes)
         return b.habit_at(d, clock_of(minutes))
 
     def _beyond_next_step(self, minutes: int) -> bool:
         seen = self.observed_at
-        return self.model == "routine-habit" and seen is not None and minutes - seen > self.dt
+        return self.model != "routine-belief" and seen is not None and minutes - seen > self.dt
 
     def observe_graph(self, minutes: int, edges: Any) -> None:
         """A graph given as its edges tensor [nodes, nodes] (row i: i's parent, one-hot)."""
@@ -446,14 +449,14 @@ class BeliefMethod:
         return None, details, None
 
     def _slot_key(self, minutes: int) -> tuple[int, ...]:
-        """Times whose forecasts are equal (the belief's slot and day type; the time-blind one
-        has one forecast)."""
+        """Times whose forecasts are equal: slot, day type, beyond one step, routine-hour's hour."""
         if self.model == "belief":
             return (0,)
         from objsearch.agent.routine_belief import buckets_of
 
         slot, slot_day = buckets_of(clock_of(minutes))
-        return (hash(slot), hash(slot_day), int(self._beyond_next_step(minutes)))
+        hour = hour_of(minutes) if self.model == "routine-hour" else -1
+        return (hash(slot), hash(slot_day), int(self._beyond_next_step(minutes)), hour)
 
     def _probabilities(self, minutes: int, dynamic: Any) -> Any:
         import torch
@@ -633,8 +636,7 @@ def _their_methods(
 
 
 def _our_method(m: str, data: Any, household: int, log: Callable[[str], None]) -> BeliefMethod:
-    """Our belief, its places the nodes that held an object in the training days, folded from
-    every training step."""
+    """Our belief over the nodes that held an object in the training days, folded from each step."""
     t0 = time.monotonic()
     mask = data.active_edges.tolist()
     train = [data.train_routines[r][0] for r in range(len(data.train_routines))]
@@ -742,8 +744,8 @@ def summary(results: Sequence[DayResult], checkout_missing: Sequence[str]) -> di
     comparisons = {}
     for ours in (m for m in methods if m in OUR_METHODS):
         others = [m for m in methods if m in THEIR_METHODS]
-        if ours == "routine-habit" and "routine-belief" in methods:
-            others.insert(0, "routine-belief")
+        if PAIRED_WITH.get(ours) in methods:
+            others.insert(0, PAIRED_WITH[ours])
         for theirs in others:
             for step in (0, LOOKAHEAD - 1):
                 for metric in ("f1", "correct", "wrong"):

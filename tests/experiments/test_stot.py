@@ -285,3 +285,63 @@ def test_the_summary_pairs_routine_habit_with_routine_belief_too() -> None:
     assert paired["routine-habit - routine-belief correct @12"]["diff"] == pytest.approx(0.3)
     assert "routine-habit - Fremen f1 @12" in paired
     assert "routine-belief - routine-habit f1 @12" not in paired
+
+
+def test_beyond_the_next_step_routine_hour_forecasts_the_hours_share_of_parents() -> None:
+    memory, hour = _changed_mornings("routine-belief"), _changed_mornings("routine-hour")
+    seen = 17 * DAY + 8 * 60
+    for method in (memory, hour):
+        method.observe_graph(seen, _graph(DESK))
+    # The next step: as the belief forecasts it, from the look.
+    assert hour.forecast("3:mug", seen + 60) == memory.forecast("3:mug", seen + 60)
+    # Two steps on: 10:00's observed steps, 14 days on the table and 3 on the desk.
+    assert hour.forecast("3:mug", seen + 120) == pytest.approx(
+        {str(TABLE): 14 / 17, str(DESK): 3 / 17}
+    )
+    # 19:00: on the desk all 17 days.
+    assert hour.forecast("3:mug", seen + 11 * 60) == {str(DESK): 1.0}
+    # Its lookahead loop: the fed-back step two after the look predicts the move to the table.
+    t = seen + 60
+    _, first, _ = hour.step(_batch(_graph(DESK), t, gt=DESK))
+    assert int(first["output"]["location"][0, MUG]) == DESK
+    fed = _batch(first["output_probs"]["location"][0], t + 60, gt=DESK)
+    fed["edges"] = first["output_probs"]["location"]
+    _, second, _ = hour.step(fed)
+    assert int(second["output"]["location"][0, MUG]) == TABLE
+
+
+def test_routine_hour_tells_the_hours_of_one_slot_apart() -> None:
+    # Every morning the mug is on the table until 10:00 and on the desk from 10:00 (one slot).
+    method = stot.BeliefMethod("routine-hour", NODES, MASK, dt=60)
+    for day in range(14):
+        for hour in range(6, 24):
+            at = TABLE if hour < 10 else DESK
+            method.observe_graph(day * DAY + hour * 60, _graph(at))
+    seen = 14 * DAY + 6 * 60
+    method.observe_graph(seen, _graph(TABLE))
+    assert _top(method.forecast("3:mug", seen + 2 * 60)) == str(TABLE)  # 08:00
+    assert _top(method.forecast("3:mug", seen + 5 * 60)) == str(DESK)  # 11:00, the same slot
+    # A copy for another forecast keeps the same histogram.
+    habit = method.as_model("routine-habit")
+    assert habit.hours.counts == method.hours.counts
+    assert method.as_model("routine-belief").as_model("routine-hour").forecast(
+        "3:mug", seen + 5 * 60
+    ) == method.forecast("3:mug", seen + 5 * 60)
+
+
+def test_the_summary_pairs_routine_hour_with_routine_habit() -> None:
+    results = [
+        _day("routine-hour", "000.pt", 6, 1, 3, 2),
+        _day("routine-habit", "000.pt", 5, 1, 4, 2),
+        _day("Fremen", "000.pt", 3, 2, 5, 9),
+    ]
+    paired = stot.summary(results, [])["paired"]
+    assert paired["routine-hour - routine-habit correct @12"]["diff"] == pytest.approx(0.1)
+    assert "routine-hour - Fremen f1 @12" in paired
+
+
+def test_the_cli_accepts_routine_hour_among_the_methods(tmp_path: Path) -> None:
+    done = _cli("--source", str(tmp_path), "--methods", "routine-hour,Fremen")
+    assert done.returncode == 2
+    assert "--methods" not in done.stderr  # past the options, to the checkout's check
+    assert "missing baselines/baselines.py" in done.stderr
