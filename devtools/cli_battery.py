@@ -13,13 +13,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
-import os
 import subprocess
-import sys
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from devtools.cli_process import run_cli
 from objsearch import cli_types
 
 #: Tried on every option: empty, blank, non-numeric, negative, NaN, infinities, huge, fractional.
@@ -211,15 +210,7 @@ def run_subprocess(
 ) -> BatteryOutcome:
     """``python -m objsearch.cli ARGV`` in its own process (a timeout counts as ``other``)."""
     try:
-        proc = subprocess.run(
-            [sys.executable, "-m", "objsearch.cli", *argv],
-            capture_output=True,
-            text=True,
-            cwd=cwd,
-            env={**os.environ, **(env or {})},
-            timeout=timeout,
-            check=False,
-        )
+        proc = run_cli(*argv, env=env, cwd=cwd, timeout=timeout)
     except subprocess.TimeoutExpired:
         return BatteryOutcome(-1, "", f"timed out after {timeout} s")
     return BatteryOutcome(proc.returncode, proc.stdout, proc.stderr)

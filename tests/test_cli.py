@@ -6,26 +6,15 @@ import json
 import logging
 import os
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from devtools.cli_process import run_cli
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.datapaths import data_dir
 from objsearch.cli import main
 from objsearch.events import read_log
-
-
-def _run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "objsearch.cli", *args],
-        capture_output=True,
-        text=True,
-        env=env,
-        check=False,
-    )
 
 
 def test_search_prints_the_route_and_writes_the_log(
@@ -185,7 +174,7 @@ def _data_copy(tmp_path: Path, *, drop: str) -> dict[str, str]:
 def test_a_missing_data_file_is_named_and_nothing_is_written(tmp_path: Path, missing: str) -> None:
     env = _data_copy(tmp_path, drop=missing)
     log = tmp_path / "log"
-    proc = _run("search", "Apple", "--start", "kitchen-1", "--log", str(log), env=env)
+    proc = run_cli("search", "Apple", "--start", "kitchen-1", "--log", str(log), env=env)
     assert proc.returncode == 2
     assert proc.stderr.startswith("objsearch: error: ")
     assert Path(missing).stem in proc.stderr
@@ -261,6 +250,6 @@ def test_graph_of_a_missing_log_is_a_clear_error(
 
 def test_help_works_everywhere() -> None:
     for args in (["--help"], ["search", "--help"], ["demo", "--help"], ["graph", "--help"]):
-        proc = _run(*args)
+        proc = run_cli(*args)
         assert proc.returncode == 0, proc.stderr
         assert "usage: objsearch" in proc.stdout

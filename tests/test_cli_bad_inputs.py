@@ -5,14 +5,12 @@ benchmarks/bad_inputs.py runs a larger set and real processes)."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from devtools import cli_battery as battery
+from devtools.cli_process import run_cli
 from objsearch.cli import build_parser
 
 #: A subset of the battery's values, one of each kind, so CI stays within seconds.
@@ -67,17 +65,6 @@ def test_the_battery_reports_a_traceback_as_such() -> None:
     assert battery.BatteryOutcome(0, "ok", "").verdict == "other"
 
 
-def _run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "objsearch.cli", *args],
-        capture_output=True,
-        text=True,
-        env={**os.environ, **(env or {})},
-        check=False,
-        timeout=120,
-    )
-
-
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -90,14 +77,7 @@ def _run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedP
     ],
 )
 def test_bad_inputs_in_a_real_process(tmp_path: Path, args: list[str], message: str) -> None:
-    proc = subprocess.run(
-        [sys.executable, "-m", "objsearch.cli", *args],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-        check=False,
-        timeout=120,
-    )
+    proc = run_cli(*args, cwd=tmp_path)
     assert proc.returncode == 2
     assert "objsearch: error: " in proc.stderr and message in proc.stderr
     assert "Traceback" not in proc.stderr
@@ -106,19 +86,19 @@ def test_bad_inputs_in_a_real_process(tmp_path: Path, args: list[str], message: 
 
 @pytest.mark.parametrize("args", [["--help"], ["demo", "--help"], ["map", "show"]])
 def test_an_ascii_only_terminal_gets_escapes_not_a_crash(args: list[str]) -> None:
-    proc = _run(*args, env={"PYTHONIOENCODING": "ascii"})
+    proc = run_cli(*args, env={"PYTHONIOENCODING": "ascii"})
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
     proc.stdout.encode("ascii")  # what reached the terminal is ASCII
 
 
 def test_an_ascii_only_terminal_gets_error_messages(tmp_path: Path) -> None:
-    proc = _run("graph", str(tmp_path / "ŝtrange"), env={"PYTHONIOENCODING": "ascii"})
+    proc = run_cli("graph", str(tmp_path / "ŝtrange"), env={"PYTHONIOENCODING": "ascii"})
     assert proc.returncode == 2
     assert "objsearch: error: " in proc.stderr and "Traceback" not in proc.stderr
 
 
 def test_map_show_json_still_parses_on_an_ascii_terminal() -> None:
-    proc = _run("map", "show", "--format", "json", env={"PYTHONIOENCODING": "ascii"})
+    proc = run_cli("map", "show", "--format", "json", env={"PYTHONIOENCODING": "ascii"})
     assert proc.returncode == 0
     assert json.loads(proc.stdout)["statics"]

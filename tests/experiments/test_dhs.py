@@ -11,12 +11,11 @@ from __future__ import annotations
 import importlib.util
 import os
 import random
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from devtools.cli_process import run_cli
 from objsearch.agent.belief import Place, PlaceBelief
 from objsearch.agent.errors import ObjsearchError
 from objsearch.experiments import dhs, dhs_adapter, dhs_report
@@ -45,13 +44,7 @@ def test_without_a_checkout_the_error_says_where_to_put_it(
 
 
 def test_the_cli_refuses_an_unpinned_checkout_with_a_clear_error(tmp_path: Path) -> None:
-    done = subprocess.run(
-        [sys.executable, "-m", "objsearch.cli", "bench", "dhs", "--source", str(tmp_path)],
-        capture_output=True,
-        text=True,
-        check=False,
-        timeout=120,
-    )
+    done = run_cli("bench", "dhs", "--source", str(tmp_path))
     assert done.returncode == 2
     assert "objsearch: error:" in done.stderr and "Traceback" not in done.stderr
     assert "missing memsearch/" in done.stderr or "missing configs/" in done.stderr

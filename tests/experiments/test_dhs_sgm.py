@@ -10,36 +10,32 @@ from __future__ import annotations
 
 import importlib.util
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from devtools.cli_process import run_cli
 from objsearch.agent.errors import ObjsearchError
 from objsearch.experiments import dhs, dhs_sgm
 
 
-def _bench_dhs(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "objsearch.cli", "bench", "dhs", *args],
-        capture_output=True,
-        text=True,
-        check=False,
-        timeout=120,
-    )
-
-
 def test_a_learned_agent_without_its_trained_model_is_a_clear_error(tmp_path: Path) -> None:
-    done = _bench_dhs("--source", str(tmp_path), "--agents", "sgm_gcn")
+    done = run_cli("bench", "dhs", "--source", str(tmp_path), "--agents", "sgm_gcn")
     assert done.returncode == 2, done.stderr
     assert "objsearch: error:" in done.stderr and "Traceback" not in done.stderr
     assert "--agents sgm_gcn needs its trained model: pass --sgm-outputs DIR" in done.stderr
 
     outputs = tmp_path / "outputs"
     outputs.mkdir()
-    done = _bench_dhs(
-        "--source", str(tmp_path), "--agents", "sgm_gcn,belief", "--sgm-outputs", str(outputs)
+    done = run_cli(
+        "bench",
+        "dhs",
+        "--source",
+        str(tmp_path),
+        "--agents",
+        "sgm_gcn,belief",
+        "--sgm-outputs",
+        str(outputs),
     )
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr
@@ -48,8 +44,15 @@ def test_a_learned_agent_without_its_trained_model_is_a_clear_error(tmp_path: Pa
 
 
 def test_sgm_outputs_without_a_learned_agent_is_refused(tmp_path: Path) -> None:
-    done = _bench_dhs(
-        "--source", str(tmp_path), "--agents", "belief", "--sgm-outputs", str(tmp_path)
+    done = run_cli(
+        "bench",
+        "dhs",
+        "--source",
+        str(tmp_path),
+        "--agents",
+        "belief",
+        "--sgm-outputs",
+        str(tmp_path),
     )
     assert done.returncode == 2, done.stderr
     assert "--sgm-outputs is for its learned agents" in done.stderr

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from devtools.cli_process import run_cli
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.semmap import SemanticMap
 from objsearch.agent.session import load_context
@@ -57,15 +56,9 @@ def test_semantic_map_file_errors() -> None:
         SemanticMap.from_json({"format": "objsearch.semmap/1", "statics": [{"id": 1}]})
 
 
-def run(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "objsearch.cli", *args], capture_output=True, text=True, check=False
-    )
-
-
 def test_map_build_cli(tmp_path: Path) -> None:
     out = tmp_path / "map.json"
-    res = run(
+    res = run_cli(
         "map",
         "build",
         "--points-per-room",
@@ -92,11 +85,11 @@ def test_map_build_cli(tmp_path: Path) -> None:
     ],
 )
 def test_map_cli_bad_input(args: tuple[str, ...], message: str) -> None:
-    res = run(*args)
+    res = run_cli(*args)
     assert res.returncode == 2 and message in res.stderr, res.stderr
 
 
 def test_map_show_json() -> None:
-    res = run("map", "show", "--format", "json")
+    res = run_cli("map", "show", "--format", "json")
     assert res.returncode == 0
     assert len(json.loads(res.stdout)["statics"]) == 45
