@@ -50,6 +50,25 @@ def deterministic_event_id(run: str, seq: int) -> str:
     return f"{h[:8]}-{h[8:12]}-5{h[13:16]}-{_VARIANT_DIGIT[h[16]]}{h[17:20]}-{h[20:32]}"
 
 
+def event_ids(run: str) -> Callable[[int], str]:
+    """:func:`deterministic_event_id` of ``run`` as a function of the seq alone (a writer's
+    default ids): the namespace and ``f"{run}/"`` are hashed once, and each id copies that
+    state and hashes only the seq's digits. The same strings (``tests/events/test_envelope.py``
+    holds them to ``uuid.uuid5`` over many seqs)."""
+    prefix = _NAMESPACE_SHA1.copy()
+    prefix.update(f"{run}/".encode())
+    copy = prefix.copy
+    variant = _VARIANT_DIGIT
+
+    def event_id(seq: int) -> str:
+        sha1 = copy()
+        sha1.update(b"%d" % seq)
+        h = sha1.hexdigest()
+        return f"{h[:8]}-{h[8:12]}-5{h[13:16]}-{variant[h[16]]}{h[17:20]}-{h[20:32]}"
+
+    return event_id
+
+
 _NAMESPACE_SHA1: Final = hashlib.sha1(EVENT_ID_NAMESPACE.bytes)
 _VARIANT_DIGIT: Final = {f"{n:x}": f"{(n & 0x3) | 0x8:x}" for n in range(16)}
 

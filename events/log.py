@@ -38,7 +38,7 @@ from typing import Any
 import msgspec
 
 from . import _fs
-from .envelope import Event, _Adopted, deterministic_event_id
+from .envelope import Event, _Adopted, event_ids
 from .errors import (
     DuplicateEventError,
     InvalidEventError,
@@ -72,6 +72,9 @@ from .store import Encoded, Store
 
 __all__ = ["EventLog"]
 
+#: At most this many written records wait to be added to the seals (:meth:`EventLog._seal`).
+_SEAL_EVERY = 256
+
 
 class EventLog:
     """The single writer of one stream's log. Use :meth:`open`; close it (or use ``with``).
@@ -104,6 +107,7 @@ class EventLog:
         # What every append reads of the meta, read once (the meta never changes while open).
         self._stream = meta.stream
         self._id_key = meta.id_key()
+        self._next_id = event_ids(self._id_key)  # seq → the default id (deterministic_event_id)
         self._chained = meta.chained
         self._framer = Framer(meta.stream)
         self._fd = fd
@@ -118,6 +122,9 @@ class EventLog:
         # open (verify="sealed") until the first explicit id asks for it.
         self._ids = ids
         self._sealer = sealer
+        # Records written and not yet added to the seals: added together (one CRC over them) at
+        # the next fsync or every _SEAL_EVERY records, not one call per append.
+        self._unsealed: list[bytes] = []
         self._sealed_in_mark = sealer.closed_count  # closed seals already in durable.json
         self._attested = attested
         self._attest_pending = False
@@ -380,8 +387,10 @@ class EventLog:
         event_id: str | None,
         expected_last_seq: int | None,
     ) -> Event:
-        """The one way into the log: a payload the store encoded, framed with its envelope and
-        written (the same fact already stored under ``event_id`` is returned instead)."""
+        """The one way into the log: a payload the store encoded, framed with its envelope,
+        written with one ``write`` and, outside a batch, fsync'ed (the same fact already stored
+        under ``event_id`` is returned instead). One function, not a call per step: it runs
+        once per append, and each call between the steps was a measurable part of it."""
         event_type, version, payload_json, payload = encoded
         if event_type == QUARANTINED_TYPE and payload.get("chain") is not None:
             raise InvalidEventError(
@@ -393,12 +402,19 @@ class EventLog:
                 path="payload.chain",
                 reason="not null",
             )
+        at = self._at
         made_id = event_id is None
-        seq, event_id, stored = self._claim(event_id, expected_last_seq)
-        if stored:
-            return self._existing(event_id, encoded, time_ns, task_id)
+        if made_id and expected_last_seq is None:
+            seq = at.seq + 1  # :meth:`_claim`'s default case, inline
+            event_id = self._next_id(seq)
+            if self._ids is not None and event_id in self._ids:
+                raise self._default_id_used(event_id, seq)
+        else:
+            seq, event_id, stored = self._claim(event_id, expected_last_seq)
+            if stored:
+                return self._existing(event_id, encoded, time_ns, task_id)
         recorded_at_ns = self._wall_clock()
-        last_time_ns = self._at.time_ns
+        last_time_ns = at.time_ns
         event: Event
         if (
             # What the writer made is valid by construction: the default id (canonical), the
@@ -441,7 +457,33 @@ class EventLog:
             )
             if time_ns < last_time_ns:
                 self._check_time(event)  # raises
-        return self._store_event(event, payload_json)
+        record, checksum = self._framer.frame(
+            event, payload_json, at.checksum if self._chained else 0
+        )
+        try:
+            # One record is one write (readers see it at once), all but always whole.
+            written = os.write(self._fd, record)
+        except BaseException as exc:
+            self._undo_write(exc)
+            raise
+        if written != len(record):
+            self._write(record[written:])  # a short write: the rest follows
+        unsealed = self._unsealed
+        unsealed.append(record)
+        if len(unsealed) >= _SEAL_EVERY:
+            self._seal()
+        if self._ids is not None:
+            self._ids[event_id] = at.offset
+        at.offset += len(record)
+        at.line += 1
+        at.seq = seq
+        at.checksum = checksum
+        at.time_ns = event.time_ns
+        if self._batch_depth:
+            self._unsynced = True
+        else:
+            self._sync()
+        return event
 
     def _claim(self, event_id: str | None, expected_last_seq: int | None) -> tuple[int, str, bool]:
         """The seq and id of the next record, and whether that id is already stored (the caller
@@ -459,15 +501,18 @@ class EventLog:
                 f"not at the expected seq {expected_last_seq}; nothing was written"
             )
         if event_id is None:
-            event_id = deterministic_event_id(self._id_key, seq)
+            event_id = self._next_id(seq)
             # After a fast open the prefix is not indexed; a default id is new by construction
             # unless an explicit id copied it, which indexing on that explicit append catches.
             if ids is not None and event_id in ids:
-                raise DuplicateEventError(
-                    f"the default id {event_id} of seq {seq} is already used by an earlier "
-                    f"event in {self._directory} (an explicit id copied from this stream?)"
-                )
+                raise self._default_id_used(event_id, seq)
         return seq, event_id, False
+
+    def _default_id_used(self, event_id: str, seq: int) -> DuplicateEventError:
+        return DuplicateEventError(
+            f"the default id {event_id} of seq {seq} is already used by an earlier "
+            f"event in {self._directory} (an explicit id copied from this stream?)"
+        )
 
     def _check_time(self, event: Event) -> None:
         last = self._at.time_ns
@@ -480,30 +525,6 @@ class EventLog:
                 path="time_ns",
                 reason="earlier than the previous event",
             )
-
-    def _store_event(self, event: Event, payload_json: str) -> Event:
-        """Write the checked ``event`` (its payload's JSON text made) and, outside a batch,
-        fsync it."""
-        at = self._at
-        record, checksum = self._framer.frame(
-            event, payload_json, at.checksum if self._chained else 0
-        )
-        offset = at.offset
-        self._write(record)
-        self._sealer.add(record)
-        ids = self._ids
-        if ids is not None:
-            ids[event.event_id] = offset
-        at.offset += len(record)
-        at.line += 1
-        at.seq = event.seq
-        at.checksum = checksum
-        at.time_ns = event.time_ns
-        if self._batch_depth:
-            self._unsynced = True
-        else:
-            self._sync()
-        return event
 
     def _index_ids(self) -> dict[str, int]:
         ids: dict[str, int] = {}
@@ -614,20 +635,28 @@ class EventLog:
             )
 
     def _write(self, data: bytes) -> None:
+        """The rest of a record after a short write."""
         try:
-            # One record is one write, all but always whole; a short one writes on the rest.
-            written = os.write(self._fd, data)
-            if written != len(data):
-                _fs.write_all(self._fd, data[written:])
+            _fs.write_all(self._fd, data)
         except BaseException as exc:
-            # A partial line left in place would turn the next append into mid-file corruption.
-            try:
-                os.ftruncate(self._fd, self._at.offset)
-            except OSError as cut_exc:
-                self._broken = f"write failed ({exc!r}) and undoing it failed ({cut_exc!r})"
+            self._undo_write(exc)
             raise
 
+    def _undo_write(self, exc: BaseException) -> None:
+        # A partial line left in place would turn the next append into mid-file corruption.
+        try:
+            os.ftruncate(self._fd, self._at.offset)
+        except OSError as cut_exc:
+            self._broken = f"write failed ({exc!r}) and undoing it failed ({cut_exc!r})"
+
+    def _seal(self) -> None:
+        """Add the records written since the last call to the seals."""
+        if self._unsealed:
+            self._sealer.add_all(self._unsealed)
+            self._unsealed = []
+
     def _sync(self) -> None:
+        self._seal()
         try:
             os.fsync(self._fd)
             if os.fstat(self._fd).st_nlink == 0:
@@ -650,6 +679,7 @@ class EventLog:
         mark = self.position
         if at.seq == 0 or (mark == self._durable and not self._attest_pending):
             return
+        self._seal()
         write_durable(self._directory, mark, self._sealer.seals(), self._attested)
         self._durable = mark
         self._sealed_in_mark = self._sealer.closed_count

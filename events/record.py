@@ -74,41 +74,77 @@ _BODY: Final = (
 _string: Final[Callable[[str], str]] = json.encoder.encode_basestring
 
 
-def encode_new_record(event: Event, payload_json: str, prev: int = 0) -> bytes:
+def encode_new_record(event: Event, payload_json: str | bytes, prev: int = 0) -> bytes:
     """:func:`encode_record` of an event being appended whose payload's JSON text
     (:func:`~objsearch.events.envelope.json_payload`) is already made: the envelope is written
     around it, not dumped again. ``InvalidEventError`` if it cannot be stored as UTF-8."""
     return frame_new_record(event, payload_json, prev)[0]
 
 
-def frame_new_record(event: Event, payload_json: str, prev: int = 0) -> tuple[bytes, int]:
+def frame_new_record(event: Event, payload_json: str | bytes, prev: int = 0) -> tuple[bytes, int]:
     """:func:`encode_new_record`'s line and its checksum (the next record's ``prev`` in a
     chained log), which the writer keeps rather than read back from the line's hex digits."""
     return Framer(event.stream).frame(event, payload_json, prev)
+
+
+#: :data:`_BODY` for a payload's JSON made as UTF-8 bytes (a typed record's, by msgspec): the
+#: line is made as bytes, the payload's text never decoded into a str and encoded again.
+_BODY_BYTES: Final = _BODY.encode()
+
+
+def _utf8(text: str) -> bytes | None:
+    """``text`` as UTF-8, or None if it cannot be (a lone surrogate: the str path words it)."""
+    try:
+        return text.encode("utf-8")
+    except UnicodeEncodeError:
+        return None
 
 
 class Framer:
     """:func:`frame_new_record` for the records of one stream: the stream's name, each event
     type and the last task id are escaped once, not once per record (a writer's appends)."""
 
-    __slots__ = ("_stream", "_task", "_task_json", "_types")
+    __slots__ = ("_stream", "_stream_bytes", "_task", "_task_bytes", "_task_json", "_types")
 
     def __init__(self, stream: str) -> None:
         self._stream = _string(stream)
-        self._types: dict[str, str] = {}
+        self._stream_bytes = _utf8(self._stream)
+        #: each event type's JSON string, as str and as UTF-8 (None: it has a lone surrogate)
+        self._types: dict[str, tuple[str, bytes | None]] = {}
         self._task: str | None = None
         self._task_json = "null"
+        self._task_bytes: bytes | None = b"null"
 
-    def frame(self, event: Event, payload_json: str, prev: int) -> tuple[bytes, int]:
-        """``event``'s line (``payload_json`` its payload's JSON text) and its checksum."""
+    def frame(self, event: Event, payload_json: str | bytes, prev: int) -> tuple[bytes, int]:
+        """``event``'s line (``payload_json`` its payload's JSON text, or that text as UTF-8
+        bytes) and its checksum."""
         task_id = event.task_id
         if task_id != self._task:
             self._task_json = "null" if task_id is None else _string(task_id)
+            self._task_bytes = _utf8(self._task_json)
             self._task = task_id
         event_type = event.type
         type_json = self._types.get(event_type)
         if type_json is None:
-            type_json = self._types[event_type] = _string(event_type)
+            escaped = _string(event_type)
+            type_json = self._types[event_type] = (escaped, _utf8(escaped))
+        if type(payload_json) is bytes:
+            stream, task, kind = self._stream_bytes, self._task_bytes, type_json[1]
+            if stream is not None and task is not None and kind is not None:
+                body = _BODY_BYTES % (
+                    event.event_id.encode(),  # canonical (checked): ASCII, nothing to escape
+                    payload_json,
+                    event.recorded_at_ns,
+                    event.seq,
+                    stream,
+                    task,
+                    event.time_ns,
+                    kind,
+                    event.version,
+                )
+                checksum = zlib.crc32(body, prev)
+                return body + b"\t%08x\n" % checksum, checksum
+            payload_json = payload_json.decode()  # below, to word the lone surrogate's error
         text = _BODY % (
             event.event_id,  # canonical (checked): hex digits and dashes, nothing to escape
             payload_json,
@@ -117,7 +153,7 @@ class Framer:
             self._stream,
             self._task_json,
             event.time_ns,
-            type_json,
+            type_json[0],
             event.version,
         )
         try:

@@ -98,6 +98,17 @@ class Sealer:
             self._closed.append(Seal(self._start, self._end, self._crc))
             self._start, self._crc = self._end, 0
 
+    def add_all(self, records: Sequence[bytes]) -> None:
+        """:meth:`add` of each of ``records`` (appended one after another at :attr:`end`) in
+        turn, with the same seals: one CRC over them all unless a range closes among them."""
+        size = sum(map(len, records))
+        if self._end - self._start + size < SEAL_BYTES:
+            self._crc = zlib.crc32(b"".join(records), self._crc)
+            self._end += size
+            return
+        for data in records:
+            self.add(data)
+
     def seals(self) -> tuple[Seal, ...]:
         """Every range up to :attr:`end`, the open one included (if not empty)."""
         if self._end == self._start:

@@ -42,8 +42,9 @@ class Encoded(NamedTuple):
 
     type: str
     version: int
-    #: The payload's JSON as a record holds it (compact, sorted keys, UTF-8 left as is).
-    text: str
+    #: The payload's JSON as a record holds it (compact, sorted keys, UTF-8 left as is): a str
+    #: from a dict, UTF-8 bytes from a typed record (msgspec's, framed as bytes: never decoded).
+    text: str | bytes
     #: The payload the appended event carries: the checked copy (read-only), or the record's
     #: JSON decoded only when read (:class:`~objsearch.events.envelope.ReadPayload`).
     payload: Mapping[str, Any]
@@ -146,7 +147,7 @@ class Store:
             self._writable[type(record)] = codec
         text = codec.payload_json(record)
         if text is not None:
-            return _encoded((codec.type, codec.version, text.decode(), ReadPayload(text)))
+            return _encoded((codec.type, codec.version, text, ReadPayload(text)))
         return self.encode(codec.type, codec.payload(record), codec.version)
 
     def __repr__(self) -> str:

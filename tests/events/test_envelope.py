@@ -14,7 +14,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from objsearch.events import EVENT_ID_NAMESPACE, Event, InvalidEventError, deterministic_event_id
-from objsearch.events.envelope import check_envelope, json_payload, require_mapping
+from objsearch.events.envelope import check_envelope, event_ids, json_payload, require_mapping
 
 
 def make_event(**overrides: Any) -> Event:
@@ -184,6 +184,17 @@ def test_equal_events_hash_equal() -> None:
 def test_deterministic_ids_are_uuid5_of_stream_and_seq(stream: str, seq: int) -> None:
     expected = str(uuid.uuid5(EVENT_ID_NAMESPACE, f"{stream}/{seq}"))
     assert deterministic_event_id(stream, seq) == expected
+
+
+@pytest.mark.parametrize("run", ["7a0c1a0e-7d1c-4c55-9a8f-2f1d3c4b5a69", "run-1", "h\u00e9/\u2028"])
+def test_a_writers_default_ids_are_deterministic_event_id_over_many_seqs(run: str) -> None:
+    """``event_ids(run)`` (the prefix hashed once, each id formatted from the digest) gives the
+    very strings ``uuid.uuid5`` gives, for every seq of a long log and for huge ones."""
+    event_id = event_ids(run)
+    seqs = [*range(1, 20_001), 10**6, 2**31, 2**63 - 1, 10**30]
+    for seq in seqs:
+        expected = str(uuid.uuid5(EVENT_ID_NAMESPACE, f"{run}/{seq}"))
+        assert event_id(seq) == expected == deterministic_event_id(run, seq)
 
 
 # --- the canonical-id check --------------------------------------------------------------------
@@ -369,7 +380,35 @@ def test_a_writers_framer_frames_each_record_as_encode_record_does(
         line, checksum = framer.frame(event, f'{{"n":{seq}}}', prev)
         assert line == encode_record(event, prev)
         assert checksum == int(line[-9:-1], 16)
+        # A typed record's payload comes as UTF-8 bytes: framed as bytes, the same line.
+        assert framer.frame(event, f'{{"n":{seq}}}'.encode(), prev) == (line, checksum)
         prev = checksum
+
+
+@pytest.mark.parametrize("where", ["task_id", "type", "stream"])
+def test_a_lone_surrogate_around_a_records_bytes_is_refused_as_the_str_path_refuses_it(
+    where: str,
+) -> None:
+    """A payload made as bytes framed in an envelope that cannot be UTF-8 (a lone surrogate in
+    the task id, the type or the stream) is refused with the words of the str path."""
+    from objsearch.events.record import Framer
+
+    fields = {"stream": "s", "type": "a_type", "task_id": "task-1", where: "x\udc80"}
+    event = Event(
+        event_id=deterministic_event_id("s", 1),
+        seq=1,
+        time_ns=1,
+        recorded_at_ns=7,
+        version=1,
+        payload={"n": 1},
+        **fields,
+    )
+    with pytest.raises(InvalidEventError) as from_str:
+        Framer(fields["stream"]).frame(event, '{"n":1}', 0)
+    with pytest.raises(InvalidEventError) as from_bytes:
+        Framer(fields["stream"]).frame(event, b'{"n":1}', 0)
+    assert str(from_bytes.value) == str(from_str.value)
+    assert "surrogates not allowed" in str(from_bytes.value)
 
 
 def test_an_appended_payload_with_a_lone_surrogate_is_refused_as_before() -> None:
