@@ -95,12 +95,6 @@ def bucket(
     return f"s3://{name}/lake"
 
 
-#: Under pytest-xdist (``make test``: ``-n 2 --dist loadscope``) the tests of one scope run in one
-#: worker, in turn. Every test of tests/runtime is one scope: the transports' DDS domain ids and
-#: ports are chosen per process, so two workers would share domains and see each other's nodes.
-TRANSPORT_SCOPE = "tests/runtime/"
-
-
 @pytest.hookimpl(tryfirst=True)
 def pytest_configure(config: pytest.Config) -> None:
     """rclpy needs the ROS 2 wheels' libraries on LD_LIBRARY_PATH from its process's start
@@ -121,16 +115,10 @@ def pytest_configure(config: pytest.Config) -> None:
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
-    """xdist's scope scheduling with a scope a test module (its module fixtures are built once),
-    and all of tests/runtime one scope. (Its ``loadgroup`` marks would say the same, but with
-    pytest 9.2 they have no effect: xdist 3.8 renames ``item._nodeid``, which pytest no longer
-    reads.) Scopes are handed out most tests first, a worker taking the next when done."""
-    from xdist.scheduler import LoadScopeScheduling
+    """Under pytest-xdist (``make test``: ``-n 2 --dist loadscope``) the tests of one scope run
+    in one worker, in turn: a scope is a test module, and all of tests/runtime is one (DDS
+    domains and ports are chosen per process). Scopes are handed out longest expected first
+    (devtools/xdist_scopes.py)."""
+    from devtools.xdist_scopes import LongestFirst
 
-    class ModuleScopes(LoadScopeScheduling):  # type: ignore[misc]
-        def _split_scope(self, nodeid: str) -> str:
-            if nodeid.startswith(TRANSPORT_SCOPE):
-                return TRANSPORT_SCOPE
-            return nodeid.split("::", 1)[0]
-
-    return ModuleScopes(config, log)
+    return LongestFirst(config, log)
