@@ -20,13 +20,15 @@ from __future__ import annotations
 
 import zlib
 from collections.abc import Callable, Mapping
-from operator import attrgetter
+from itertools import repeat
+from operator import attrgetter, length_hint
 from pathlib import Path
+from struct import unpack
 from typing import Annotated, Any, Final, Literal, Protocol, Union, runtime_checkable
 
 import msgspec
 
-from .envelope import Event, canonical_ids, decode_event
+from .envelope import Event, decode_event
 from .log_files import Durable, LogMeta, TornTail
 from .scan import QUARANTINED_TYPE, _Cursor, _Scan
 from .store import Store
@@ -214,15 +216,14 @@ def fold_records(
             chunk = f.read(_BLOCK)
             if not chunk:
                 break
-            if rest:
-                chunk = rest + chunk
-            cut = chunk.rfind(b"\n") + 1
-            if cut == 0:
-                rest = chunk
-                continue
-            rest = chunk[cut:]
-            lines = chunk[:cut].split(b"\n")
-            lines.pop()
+            lines = chunk.split(b"\n")
+            before = len(rest)
+            if before:
+                lines[0] = rest + lines[0]  # the line the last block cut (not the block copied)
+            rest = lines.pop()  # what follows the last newline
+            if not lines:
+                continue  # no newline yet: all of it is ``rest``
+            cut = before + len(chunk) - len(rest)  # the block's complete lines, in bytes
             handlers = projection.record_handlers()
             folded = False
             if skip:
@@ -291,18 +292,60 @@ def _checksums(
     crc32: Callable[[bytes, int], int],
 ) -> list[int] | None:
     """Each line's checksum, chained from ``chain`` (None: not chained), if every line ends in
-    a tab and it in 8 hex digits (None otherwise)."""
-    values: list[int] = []
-    if chain is not None:
-        keep = values.append
-        for body in bodies:
-            chain = crc32(body, chain)
-            keep(chain)
-    else:
-        values = [crc32(body, 0) for body in bodies]
-    if [line[-9:] for line in lines] != [b"\t%08x" % v for v in values]:
+    a tab and 8 lowercase hex digits, those of its checksum (None otherwise).
+
+    The scan's test, in a few calls in C: the lines' last 9 bytes joined are a tab and 8 digits
+    per line (each slice is at most 9 bytes long, so 9 per line in all means 9 in each), read
+    as numbers and written back to the same text (so no upper case, no blank); then each line's
+    checksum is taken from the one the line before it claims. Every claim matching the checksum
+    taken from the claim before it is every claim matching the chain from ``chain`` (by
+    induction from the first line), which is what the scan checks line by line."""
+    n = len(lines)
+    tails = b"".join([line[-9:] for line in lines])
+    if len(tails) != 9 * n or tails[::9] != b"\t" * n:
         return None
-    return values
+    digits = tails.replace(b"\t", b"").decode("latin-1")
+    if len(digits) != 8 * n:
+        return None
+    try:
+        raw = bytes.fromhex(digits)
+    except ValueError:
+        return None
+    if raw.hex() != digits:
+        return None
+    claimed: tuple[int, ...] = unpack(f">{n}I", raw)  # the format is cached by struct
+    if chain is None:
+        taken = tuple(map(crc32, bodies, repeat(0, n)))
+    else:
+        taken = tuple(map(crc32, bodies, (chain, *claimed[:-1])))
+    if taken != claimed:
+        return None
+    return list(claimed)
+
+
+_DASHES: Final = tuple(range(8, 24, 5))  # where a canonical id has its four dashes
+
+
+def _canonical_ids(ids: list[str]) -> bool:
+    """:func:`~.envelope.canonical_ids` (every id of ``ids``, each 36 characters long as the
+    decoder has them, a canonical UUID string: lower-case hex digits, dashes after the 8th,
+    12th, 16th and 20th), in fewer steps: the dashes found at those places of every id of the
+    joined text, the rest read as hex digits and written back to the same text (so no upper
+    case, no blank, no other dash); ``tests/events/test_fold_read.py`` checks that the two
+    agree."""
+    n = len(ids)
+    text = "".join(ids)
+    dashes = "-" * n
+    for at in _DASHES:
+        if text[at::36] != dashes:
+            return False
+    digits = text.replace("-", "")
+    if len(digits) != 32 * n:
+        return False
+    try:
+        return bytes.fromhex(digits).hex() == digits
+    except ValueError:
+        return False
 
 
 def _no_decoder(body: bytes) -> Any:
@@ -339,9 +382,11 @@ def _fold_block(
     values = _checksums(lines, bodies, at.checksum if chained else None, crc32)
     if values is None:
         return False
+    every_one_a_record = True
     try:
         records: list[Any] = [decode(body) for body in bodies]
     except msgspec.MsgspecError:
+        every_one_a_record = False
         # A record the union does not take (an old version, a type folded as an event, or a
         # bad one): those read as the scan reads them, into events, the rest as records.
         events = _as_events(bodies, decode, stream, known, latest)
@@ -355,7 +400,7 @@ def _fold_block(
     times = list(map(_times, records))
     if times[0] < at.time_ns or times != sorted(times):
         return False
-    if not canonical_ids(list(map(_ids, records))):
+    if not _canonical_ids(list(map(_ids, records))):
         return False
     last = seqs[-1]
     if first <= mark_seq <= last:
@@ -367,34 +412,37 @@ def _fold_block(
     # Every record is good: fold those after the projection's place, up to ``until_seq``.
     begin = max(0, projection.last_seq + 1 - first)
     stop = len(records) if until_seq is None else max(0, min(len(records), until_seq - first + 1))
-    handled = begin
-    get = by_struct.get
-    try:
-        for record in records[begin:stop]:
-            handler = get(type(record))
-            if handler is not None:
-                handler(record)
-            elif isinstance(record, Event):
-                # Folded as read_log hands it out (upcast first), once the records before it
-                # are folded to their place.
-                if handled > begin:
-                    projection.folded_to(seqs[handled - 1], times[handled - 1])
-                apply_event(record if record.version >= latest.get(record.type, 0)
-                            else upcast(record))  # fmt: skip
-                if projection.record_handlers() is not handlers:
-                    # The event changed what the fold reads (the agent's first run_started
-                    # builds its model): the rest of the block is folded as events.
-                    handled += 1
-                    for body in bodies[handled:stop]:
-                        event = decode_event(body)  # checked above: it reads
-                        apply_event(event if event.version >= latest.get(event.type, 0)
-                                    else upcast(event))  # fmt: skip
+    if every_one_a_record:
+        _handle_records(records[begin:stop], begin, by_struct, projection, seqs, times)
+    else:
+        handled = begin
+        get = by_struct.get
+        try:
+            for record in records[begin:stop]:
+                handler = get(type(record))
+                if handler is not None:
+                    handler(record)
+                elif isinstance(record, Event):
+                    # Folded as read_log hands it out (upcast first), once the records before
+                    # it are folded to their place.
+                    if handled > begin:
+                        projection.folded_to(seqs[handled - 1], times[handled - 1])
+                    apply_event(record if record.version >= latest.get(record.type, 0)
+                                else upcast(record))  # fmt: skip
+                    if projection.record_handlers() is not handlers:
+                        # The event changed what the fold reads (the agent's first run_started
+                        # builds its model): the rest of the block is folded as events.
                         handled += 1
-                    break
-            handled += 1
-    finally:
-        if handled > begin:
-            projection.folded_to(seqs[handled - 1], times[handled - 1])
+                        for body in bodies[handled:stop]:
+                            event = decode_event(body)  # checked above: it reads
+                            apply_event(event if event.version >= latest.get(event.type, 0)
+                                        else upcast(event))  # fmt: skip
+                            handled += 1
+                        break
+                handled += 1
+        finally:
+            if handled > begin:
+                projection.folded_to(seqs[handled - 1], times[handled - 1])
     if stop < len(records):
         # Stopped at ``until_seq``: the cursor stays on the last record folded.
         offset = at.offset + sum(map(len, lines[:stop])) + stop
@@ -402,3 +450,30 @@ def _fold_block(
         return True
     at.move_to(at.offset + size, at.line + len(lines), last, values[-1], times[-1])
     return True
+
+
+def _handle_records(
+    records: list[Any],
+    begin: int,
+    by_struct: dict[type, RecordHandler],
+    projection: RecordFold,
+    seqs: list[int],
+    times: list[int],
+) -> None:
+    """``records`` (the block's from index ``begin``, none an event) each to its type's handler,
+    the handlers found in C; then the projection advanced to the last, or, if a handler raises,
+    to the one before the record it raised on (as the loop over a mixed block leaves it)."""
+    left = iter(records)
+    try:
+        for handler, record in zip(map(by_struct.get, map(type, records)), left, strict=True):
+            if handler is not None:
+                handler(record)
+    except BaseException:
+        # zip took the record that raised from ``left`` (after its handler from the map).
+        handled = begin + len(records) - length_hint(left) - 1
+        if handled > begin:
+            projection.folded_to(seqs[handled - 1], times[handled - 1])
+        raise
+    if records:
+        end = begin + len(records)
+        projection.folded_to(seqs[end - 1], times[end - 1])

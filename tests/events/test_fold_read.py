@@ -8,11 +8,14 @@ import copy
 import json
 import random
 import warnings
+import zlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from objsearch.agent.catalogue import STORE
 from objsearch.agent.scene_graph import SceneGraphProjection, UpdateMode
@@ -20,6 +23,8 @@ from objsearch.agent.session import Session, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import RunSpec
 from objsearch.events import Event, EventLog, fold, read_log
+from objsearch.events.envelope import canonical_ids
+from objsearch.events.fold_read import _canonical_ids, _checksums
 from objsearch.sim.models import SIM_MODELS
 from objsearch.sim.placements import Schedule
 from objsearch.sim.world import SimClock, SimWorld
@@ -254,6 +259,123 @@ def test_damaged_framing_folds_alike(tmp_path: Path, where: str) -> None:
     _both(tmp_path)
 
 
+@pytest.mark.parametrize("where", ["upper case", "blank", "no tab", "short line", "inner tab"])
+def test_a_checksum_written_otherwise_folds_alike(tmp_path: Path, where: str) -> None:
+    """A checksum the scan would not read as the chain's (upper case, a blank for a digit, no
+    tab before it, a line too short to hold one), mid-log: the same error at the same place;
+    and a tab inside a record's JSON (blank space to JSON), which both read."""
+    _write(tmp_path)
+    path = tmp_path / "events.log"
+    lines = path.read_bytes().splitlines()
+    n = len(lines) // 2
+    line = lines[n]
+    if where == "upper case":
+        line = line[:-9] + line[-9:].upper()
+        assert line != lines[n]  # a digit of this log's checksum there is a letter
+    elif where == "blank":
+        line = line[:-4] + b" " + line[-3:]
+    elif where == "no tab":
+        line = line[:-9] + b" " + line[-8:]
+    elif where == "short line":
+        line = b"\t0"
+    else:  # blank space JSON allows, chained as a writer would chain it
+        line = line[:-9].replace(b'"seq":', b'"seq":\t', 1) + b"\t00000000"
+    lines[n] = line
+    if where == "inner tab":
+        lines = _chain_of(tmp_path, lines)
+        (tmp_path / "durable.json").unlink()
+    path.write_bytes(b"".join(line + b"\n" for line in lines))
+    if where == "inner tab":
+        assert fold(read_log(tmp_path, store=STORE), _agent()).last_seq == len(lines)
+    _both(tmp_path)
+
+
+def _chain_of(directory: Path, lines: list[bytes]) -> list[bytes]:
+    """``lines`` with every checksum chained again (each line's body: up to its last tab)."""
+    from objsearch.events.log_files import read_meta
+
+    chain = read_meta(directory).genesis
+    out = []
+    for line in lines:
+        body = line.rpartition(b"\t")[0]
+        chain = zlib.crc32(body, chain)
+        out.append(body + b"\t%08x" % chain)
+    return out
+
+
+def _checked_line_by_line(lines: list[bytes], chain: int | None) -> list[int] | None:
+    """What the scan checks, one line at a time: each line a body, a tab and the 8 lower-case
+    hex digits of its checksum (chained from ``chain``, or of the body alone if None)."""
+    values = []
+    for line in lines:
+        value = zlib.crc32(line[:-9], 0 if chain is None else chain)
+        if chain is not None:
+            chain = value
+        if line[-9:] != b"\t%08x" % value:
+            return None
+        values.append(value)
+    return values
+
+
+_TAIL_BYTES = b"0123456789abcdefABCDEF \t\x0b\xe9x-+"
+
+
+@st.composite
+def _framed_lines(draw: st.DrawFn) -> tuple[list[bytes], int | None]:
+    """Lines chained as a log writes them, then perhaps a byte or two of their last nine
+    changed, a line cut short, or a checksum written in upper case."""
+    chain = draw(st.one_of(st.none(), st.integers(0, 2**32 - 1)))
+    bodies = draw(st.lists(st.binary(max_size=40).filter(lambda b: b"\n" not in b), min_size=1,
+                           max_size=6))  # fmt: skip
+    lines, running = [], chain
+    for body in bodies:
+        value = zlib.crc32(body, 0 if running is None else running)
+        if running is not None:
+            running = value
+        lines.append(body + b"\t%08x" % value)
+    for _ in range(draw(st.integers(0, 2))):
+        k = draw(st.integers(0, len(lines) - 1))
+        line = bytearray(lines[k])
+        how = draw(st.sampled_from(["byte", "cut", "upper"]))
+        if how == "byte":
+            at = len(line) - 1 - draw(st.integers(0, min(8, len(line) - 1)))
+            line[at] = draw(st.sampled_from(_TAIL_BYTES))
+        elif how == "cut":
+            del line[draw(st.integers(0, len(line) - 1)) :]
+        else:  # the same number, in upper case
+            line[-8:] = line[-8:].upper()
+        lines[k] = bytes(line)
+    return lines, chain
+
+
+@given(_framed_lines())
+def test_the_block_checksum_check_is_the_scans(framed: tuple[list[bytes], int | None]) -> None:
+    lines, chain = framed
+    bodies = [line[:-9] for line in lines]
+    assert _checksums(lines, bodies, chain, zlib.crc32) == _checked_line_by_line(lines, chain)
+
+
+_ID_ALPHABET = "0123456789abcdefABCDEF-g{}_ 0\u0660\uff10\u00e9\n\t"
+
+
+@st.composite
+def _ids_of_36(draw: st.DrawFn) -> list[str]:
+    """Canonical ids, some with a character or two changed (each 36 characters, as the
+    decoder hands them on)."""
+    ids = []
+    for _ in range(draw(st.integers(1, 5))):
+        chars = list(str(draw(st.uuids())))
+        for _ in range(draw(st.integers(0, 2))):
+            chars[draw(st.integers(0, 35))] = draw(st.sampled_from(_ID_ALPHABET))
+        ids.append("".join(chars))
+    return ids
+
+
+@given(_ids_of_36())
+def test_the_block_id_check_is_the_envelopes(ids: list[str]) -> None:
+    assert _canonical_ids(ids) == canonical_ids(ids)
+
+
 def test_the_durable_mark_on_another_record_folds_alike(tmp_path: Path) -> None:
     _write(tmp_path)
     durable = json.loads((tmp_path / "durable.json").read_text())
@@ -306,3 +428,53 @@ def test_a_log_upgraded_half_way_is_read_from_records_again(tmp_path: Path) -> N
     counted = fold(read_log(tmp_path, store=STORE), _Counting())
     assert records // 5 <= counted.applied < records // 2
     _both(tmp_path)
+
+
+class _FailingAt(SceneGraphProjection):
+    """The scene graph, failing on the detection at ``fail_at`` (as an event or a record)."""
+
+    fail_at = 0
+    made: dict[str, Any] | None = None
+
+    def apply(self, event: Any) -> None:
+        if event.seq == self.fail_at:
+            raise RuntimeError(f"failed at {event.seq}")
+        super().apply(event)
+
+    def record_handlers(self, sightings: Any = None) -> dict[str, Any]:
+        if self.made is None:
+            handlers = dict(super().record_handlers())
+            detection = handlers["detection"]
+
+            def failing(r: Any) -> None:
+                if r.seq == self.fail_at:
+                    raise RuntimeError(f"failed at {r.seq}")
+                detection(r)
+
+            handlers["detection"] = failing
+            self.made = handlers
+        return self.made
+
+
+@pytest.mark.parametrize("line", [3, 300, 301])
+def test_a_fold_that_fails_mid_block_stops_where_the_events_fold_stops(
+    tmp_path: Path, line: int
+) -> None:
+    """A handler that raises: the fold stands on the record before it, as the events' fold
+    does (and as the loop over a block with events in it does)."""
+    _write(tmp_path)
+    lines = (tmp_path / "events.log").read_bytes().splitlines()
+    at = next(n for n in range(line, len(lines)) if b'"type":"detection"' in lines[n - 1])
+    ends = []
+    readers: list[Callable[[], Iterator[Event]]] = [
+        lambda: read_log(tmp_path, store=STORE),
+        lambda: _one_by_one(tmp_path),
+    ]
+    for events in readers:
+        projection = _FailingAt()
+        projection.fail_at = at
+        with pytest.raises(RuntimeError, match=f"failed at {at}"):
+            fold(events(), projection)
+        ends.append((projection.last_seq, projection.to_snapshot()))
+    assert ends[0] == ends[1]
+    assert ends[0][0] == at - 1
