@@ -336,6 +336,8 @@ def _framed_lines(draw: st.DrawFn) -> tuple[list[bytes], int | None]:
     for _ in range(draw(st.integers(0, 2))):
         k = draw(st.integers(0, len(lines) - 1))
         line = bytearray(lines[k])
+        if not line:
+            continue  # cut to nothing already
         how = draw(st.sampled_from(["byte", "cut", "upper"]))
         if how == "byte":
             at = len(line) - 1 - draw(st.integers(0, min(8, len(line) - 1)))
