@@ -24,6 +24,7 @@ from functools import partial
 from typing import Any, Final, NamedTuple
 
 from objsearch.agent.catalogue import Detected, RunStarted, decode
+from objsearch.agent.task_experience import SeenBy, TaskExperience
 from objsearch.events.projection import EventView
 
 #: The map of a run that records none.
@@ -87,10 +88,18 @@ class MapEvidence:
                 count, int(getattr(event, "time_ns", 0)), getattr(event, "task_id", None)
             )
 
-    def record_handlers(self) -> dict[str, Callable[[Any], None]]:
+    def record_handlers(
+        self, experience: TaskExperience | None = None
+    ) -> dict[str, Callable[[Any], None]]:
         """:meth:`apply`'s detections, from a log's records (``run_started`` changes the map and
-        is folded as an event)."""
+        is folded as an event). With ``experience`` (the task in progress of the relation model
+        beside this evidence, counting sightings by class), each detection is folded into it
+        too, as :meth:`TaskExperience.record_handler <.task_experience.TaskExperience.record_handler>`
+        folds it, in the same call: the agent's state reads every detection of a log in both,
+        and one call in place of three (the two and the call of both) was 4 % of its fold."""
         by_class = self.by_class
+        if experience is not None and experience.seen_by is SeenBy.CLASS:
+            return {"detection": self._detection_and_experience(experience)}
 
         def detection(r: Any) -> None:
             current = self.current
@@ -105,6 +114,30 @@ class MapEvidence:
             per[current] = _sightings((count, r.time_ns, r.task_id))
 
         return {"detection": detection}
+
+    def _detection_and_experience(self, experience: TaskExperience) -> Callable[[Any], None]:
+        """One handler: the detection into ``experience`` (by class), then into this evidence
+        (the order of :meth:`AgentState.apply <objsearch.agent.state.AgentState.apply>`)."""
+        by_class = self.by_class
+
+        def detection(r: Any) -> None:
+            detected = r.payload
+            if not detected.accepted:
+                return
+            cls = detected.object_class
+            support = detected.support
+            statics = experience.seen_at.setdefault(cls, set())
+            if support is not None and support.at:
+                statics.add(support.static_class)
+            current = self.current
+            if current is None:
+                return
+            per = by_class.setdefault(cls, {})
+            before = per.get(current)
+            count = 1 if before is None else before.sightings + 1
+            per[current] = _sightings((count, r.time_ns, r.task_id))
+
+        return detection
 
     def map_at(self, time_ns: int) -> str | None:
         """The map the robot was in at ``time_ns`` (None: before any run)."""

@@ -17,6 +17,7 @@ from typing import Any, ClassVar
 
 from objsearch.agent.catalogue import Detected, RunStarted, SceneGraphSeeded, TaskStarted, decode
 from objsearch.agent.categories import Category, Vocabulary
+from objsearch.agent.maps import MapEvidence
 from objsearch.agent.task_experience import TaskExperience
 from objsearch.events.projection import EventView
 
@@ -108,9 +109,9 @@ class SceneGraphProjection:
     tasks_folded: int = 0
     _task: TaskExperience = field(default_factory=TaskExperience)
     _pairs_of: dict[str, tuple[Pair, ...]] = field(default_factory=dict, repr=False)
-    #: :meth:`record_handlers`' answer and the id of the projection it was made for (a copy's
-    #: handlers would change the original: it makes its own).
-    _handlers: tuple[int, dict[str, Callable[[Any], None]]] | None = field(
+    #: :meth:`record_handlers`' answer, the id of the projection it was made for (a copy's
+    #: handlers would change the original: it makes its own) and the sightings it counts in.
+    _handlers: tuple[int, MapEvidence | None, dict[str, Callable[[Any], None]]] | None = field(
         default=None, init=False, repr=False, compare=False
     )
 
@@ -135,23 +136,29 @@ class SceneGraphProjection:
             self._task.clear()  # a search cut short by a crash folds nothing
         self.last_seq = event.seq
 
-    def record_handlers(self) -> dict[str, Callable[[Any], None]]:
+    def record_handlers(
+        self, sightings: MapEvidence | None = None
+    ) -> dict[str, Callable[[Any], None]]:
         """What :meth:`apply` does per type, from a log's records (``events.fold_read``): each
         handler is given the record's envelope with its payload decoded as the type's record
-        (made once: they read the projection's fields when called)."""
+        (made once: they read the projection's fields when called). With ``sightings`` (the
+        agent's map evidence), the detection handler also counts each sighting there, in the
+        same call (:meth:`MapEvidence.record_handlers`)."""
         made = self._handlers
-        if made is not None and made[0] == id(self):
-            return made[1]
+        if made is not None and made[0] == id(self) and made[1] is sightings:
+            return made[2]
         task = self._task
         handlers: dict[str, Callable[[Any], None]] = {
             "run_started": lambda r: self._run_started(r.payload),
             "scene_graph_seeded": lambda r: self._seeded(r.payload),
             "task_started": lambda r: task.start(r.payload.target),
-            "detection": task.record_handler(),
+            "detection": task.record_handler()
+            if sightings is None
+            else sightings.record_handlers(task)["detection"],
             "task_ended": lambda r: self._end_task(),
             "task_aborted": lambda r: task.clear(),
         }
-        self._handlers = (id(self), handlers)
+        self._handlers = (id(self), sightings, handlers)
         return handlers
 
     def folded_to(self, seq: int, time_ns: int) -> None:

@@ -22,6 +22,7 @@ from objsearch.agent.catalogue import Moved, RunStarted, SceneGraphSeeded, TaskS
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.maps import MapEvidence
 from objsearch.agent.relations import RelationModel
+from objsearch.agent.scene_graph import SceneGraphProjection
 from objsearch.agent.strategies import AGENT_MODELS, RelationModels, RelationSpec, RunSpec
 from objsearch.events.projection import EventView
 
@@ -208,8 +209,14 @@ class AgentState:
         made = self._handlers
         if made[0] is model and made[1] is maps and made[2] is tasks and made[3] is not None:
             return made[3]
+        map_handlers = maps.record_handlers()
         if model is None:
             model_handlers: dict[str, Callable[[Any], None]] = {}
+        elif isinstance(model, SceneGraphProjection):
+            # Eq. 4's model counts the detections' sightings in the map evidence too, in the
+            # same call (the two in the order apply has them).
+            model_handlers = model.record_handlers(sightings=maps)
+            map_handlers = {k: h for k, h in map_handlers.items() if k != "detection"}
         else:
             handlers_of = getattr(model, "record_handlers", None)
             if handlers_of is None:
@@ -218,7 +225,7 @@ class AgentState:
         handlers: dict[str, list[Callable[[Any], None]]] = {}
         for kind, handler in model_handlers.items():
             handlers.setdefault(kind, []).append(handler)
-        for kind, handler in self.maps.record_handlers().items():
+        for kind, handler in map_handlers.items():
             handlers.setdefault(kind, []).append(handler)
         for kind, handler in self.tasks.record_handlers().items():
             handlers.setdefault(kind, []).append(handler)

@@ -121,3 +121,47 @@ def test_a_schedule_changes_map_on_its_day(tmp_path: Path) -> None:
     assert started[1].seq < first_of_day_2.seq
     maps = _answer(tmp_path / "log", "Apple")["map"]
     assert isinstance(maps, dict) and maps["flagged"]
+
+
+def test_one_detection_handler_folds_the_experience_and_the_evidence_as_the_two_do() -> None:
+    """The agent's state folds a detection record into its Eq. 4 experience and its map
+    evidence in one call: the same as the two handlers one after the other, before any map
+    (nothing counted in the evidence), for rejected and accepted detections, at a static or
+    not, with and without one."""
+    from types import SimpleNamespace
+
+    from objsearch.agent.maps import MapEvidence
+    from objsearch.agent.task_experience import TaskExperience
+
+    def record(seq: int, cls: str, accepted: bool, support: object) -> SimpleNamespace:
+        payload = SimpleNamespace(object_class=cls, accepted=accepted, support=support)
+        return SimpleNamespace(seq=seq, time_ns=seq * 10, task_id=f"task-{seq:05d}",
+                               payload=payload)  # fmt: skip
+
+    at_sink = SimpleNamespace(static_id="Sink|1", static_class="Sink", at=True)
+    near_bed = SimpleNamespace(static_id="Bed|1", static_class="Bed", at=False)
+    records = [
+        record(1, "Cup", True, at_sink),  # before any map: experience only
+        record(2, "Cup", True, near_bed),
+        record(3, "Apple", False, at_sink),
+        record(4, "Apple", True, None),
+        record(5, "Cup", True, at_sink),
+        record(6, "Vase", True, near_bed),
+    ]
+    ends = []
+    for fused in (True, False):
+        maps, task = MapEvidence(), TaskExperience()
+        task.start("Cup")
+        if fused:
+            handlers = [maps.record_handlers(task)["detection"]]
+        else:
+            handlers = [task.record_handler(), maps.record_handlers()["detection"]]
+        for r in records:
+            if r.seq == 2:
+                maps.current = DEFAULT_MAP
+            for handler in handlers:
+                handler(r)
+        ends.append((maps.to_snapshot(), task.seen_at_rows()))
+    assert ends[0] == ends[1]
+    assert ends[0][1] == {"Apple": [], "Cup": ["Sink"], "Vase": []}
+    assert ends[0][0]["by_class"]["Cup"] == {DEFAULT_MAP: [2, 50, "task-00005"]}
