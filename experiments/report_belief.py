@@ -27,6 +27,7 @@ from objsearch.agent.errors import ObjsearchError
 from objsearch.experiments.calibration import ece
 from objsearch.experiments.learning import first_of_day, first_of_scene, ratio
 from objsearch.experiments.metrics import spl_term
+from objsearch.experiments.report_data import HomeFolders, home_folders, reading
 from objsearch.experiments.runner import Row, inspection_suffix, read_output
 from objsearch.experiments.strategies import COVER_SUFFIX
 from objsearch.sim.schedule_names import ROUTINE_KINDS
@@ -255,10 +256,13 @@ def first_of_scene_lines(rows: Sequence[Row], after: int = ROUTINE_AFTER) -> lis
     ]
 
 
-def usual_place_lines(rows: Sequence[Row], after: int = AFTER) -> list[str]:
+def usual_place_lines(
+    rows: Sequence[Row], after: int = AFTER, data: HomeFolders | None = None
+) -> list[str]:
     """``habit`` schedules: the first search of the day after ``after`` on the days the target
     was at its usual place (the schedule drawn again from its seed), per strategy: oracle× and its
-    ratio to the reference's on the same searches."""
+    ratio to the reference's on the same searches. ``data``: the data folder of each home
+    (experiments/report_data.py; None: the process's)."""
     from objsearch.agent.home import load_home
     from objsearch.sim.habit_schedule import habit_schedule, habits
 
@@ -266,10 +270,12 @@ def usual_place_lines(rows: Sequence[Row], after: int = AFTER) -> list[str]:
     usual_days: set[tuple[str, str, int, str]] = set()
     for home, placements in sorted({(r.home, r.placements) for r in late}):
         seed = int(placements.partition("-")[2])
-        house = load_home(home)
-        table = habits(house, seed)
         last = max(r.scene for r in late if (r.home, r.placements) == (home, placements))
-        for scene, placed in habit_schedule(house, seed, scenes=last).scenes.items():
+        with reading(data.get(home) if data else None):
+            house = load_home(home)
+            table = habits(house, seed)
+            schedule = habit_schedule(house, seed, scenes=last)
+        for scene, placed in schedule.scenes.items():
             for p in placed.values():
                 if p.cls in table and p.support == table[p.cls].usual:
                     usual_days.add((home, placements, scene, p.cls))
@@ -619,13 +625,16 @@ def report(
     progress: Callable[[list[str]], Iterable[str]] | None = None,
     perfect: Sequence[Path] = (),
     baseline: tuple[str, Sequence[Path]] | None = None,
+    data: Sequence[Path] = (),
 ) -> str:
     """The belief's figures for ``folders``, per schedule kind (``progress`` wraps the kinds as
     they are reported: the CLI's progress line); then the perception protocol's measures of their
     ``habit`` runs (experiments/report_protocol.py), ÷ the same strategies' runs in ``perfect``
     (outputs of ``bench homes --perception perfect``) and in ``baseline`` (label, outputs of runs
     that differ in one factor) when given; and, for the outputs run with ``--new-map-day``, the
-    first search in the new map against ecost's (experiments/report_newmap.py), per day."""
+    first search in the new map against ecost's (experiments/report_newmap.py), per day. Each
+    output's homes are read from the data folder it was run on, else one of ``data``, else the
+    process's (experiments/report_data.py)."""
     from objsearch.experiments.report_homes import failure_cause
     from objsearch.experiments.report_newmap import new_map_day, new_map_lines
     from objsearch.experiments.report_protocol import protocol_lines
@@ -634,6 +643,16 @@ def report(
     rows = [r for rs in per_folder.values() for r in rs]
     if not rows:
         return "no searches in these outputs"
+    theirs = {f: read_outputs([f]) for f in [*perfect, *(baseline[1] if baseline else ())]}
+    home_data = home_folders(
+        {f: sorted({r.home for r in rs}) for f, rs in [*per_folder.items(), *theirs.items()]},
+        data,
+    )
+
+    def cause(r: Row) -> str:
+        with reading(home_data[r.home]):
+            return failure_cause(r, camera)
+
     camera = run_camera(folders[0])
     homes = sorted({r.home for r in rows})
     seeds = sorted({r.seed for r in rows})
@@ -661,7 +680,7 @@ def report(
         if k == "moved":
             lines += ["", *moved_lines(mine)]
         if k == "habit":
-            lines += ["", *usual_place_lines(mine)]
+            lines += ["", *usual_place_lines(mine, data=home_data)]
         if k in ("habit", "stats"):
             lines += ["", *trend_lines(mine)]
         lines += ["", "Calibration of the belief's forecast at the start of each search:", ""]
@@ -669,9 +688,9 @@ def report(
         lines += ["", "Failures (strategy: home target ×searches):", *failure_lines(mine)]
     measures = protocol_lines(
         rows,
-        read_outputs(perfect),
-        lambda r: failure_cause(r, camera),
-        baseline=(baseline[0], read_outputs(baseline[1])) if baseline else None,
+        [r for f in perfect for r in theirs[f]],
+        cause,
+        baseline=(baseline[0], [r for f in baseline[1] for r in theirs[f]]) if baseline else None,
     )
     if measures:
         lines += ["", *measures]

@@ -136,8 +136,11 @@ def cmd_bench_table1(args: argparse.Namespace) -> int:
 
 def cmd_bench_belief(args: argparse.Namespace) -> int:
     from objsearch.experiments.report_belief import report, select_models
+    from objsearch.experiments.report_data import check_data_folders
 
     folders = [Path(d) for d in args.homes]
+    data = [Path(d) for d in args.data or []]
+    check_data_folders(data)
     missing = [str(d) for d in folders if not (d / "homes_trials.parquet").is_file()]
     if missing:
         raise ObjsearchError(
@@ -161,6 +164,7 @@ def cmd_bench_belief(args: argparse.Namespace) -> int:
         ),
         perfect=perfect,
         baseline=baseline,
+        data=data,
     )
     print(text)
     (Path(args.out) / "belief.md").write_text(text + "\n", encoding="utf-8")
@@ -566,6 +570,16 @@ def _add_belief(bsub: Any) -> None:
         metavar="LABEL",
         help="what the --baseline runs differ in, the column's name (default: the perception, "
         "localisation or new-map day their summary.json says differs)",
+    )
+    belief.add_argument(
+        "--data",
+        action="append",
+        type=t.existing_dir,
+        metavar="DIR",
+        help="a data folder to read the outputs' homes from (repeatable), for an output whose "
+        "summary.json names no folder holding them; each output's homes are read from the "
+        "folder it records, else the first --data folder holding them, else $OBJSEARCH_DATA or "
+        "the bundled data",
     )
     belief.defer(_model_choices)
     t.progress_option(belief)
