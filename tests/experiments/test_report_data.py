@@ -7,6 +7,8 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -14,6 +16,8 @@ import pytest
 from objsearch.agent.datapaths import DATA_ENV, data_dir
 from objsearch.cli import main
 from objsearch.experiments.report_data import recorded_data_folder
+
+MAIN = "import sys; from objsearch.cli import main; sys.exit(main(sys.argv[1:]))"
 
 #: A tiny habit run: 12 scenes, so the usual-place table (after day 10) reads the home itself.
 RUN = [
@@ -81,6 +85,19 @@ def test_outputs_run_on_two_data_folders_are_pooled(
     # The usual-place table drew alt-01's schedule from the home in its own data folder.
     assert "On days the target was at its usual place" in out
     assert DATA_ENV not in os.environ  # the folder is not left set
+    # In a process of its own, as a user runs it: nothing of the bench homes runs above is
+    # cached (the schedule's redraws read the home's file again, by its id).
+    env = {k: v for k, v in os.environ.items() if k != DATA_ENV}
+    argv = ["bench", "belief", str(runs["bundled"]), str(runs["other"]), "--no-progress"]
+    alone = subprocess.run(
+        [sys.executable, "-c", MAIN, *argv, "--out", str(tmp_path / "alone")],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert alone.returncode == 0, alone.stderr
+    assert alone.stdout == out.replace(str(tmp_path / "r"), str(tmp_path / "alone"))
 
 
 def test_an_outputs_data_folder_is_the_one_its_summary_records(
