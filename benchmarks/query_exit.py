@@ -39,8 +39,6 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=20)
     args = parser.parse_args()
 
-    import objsearch.replay.query_process as query_process
-
     popen = subprocess.Popen
     arm = {"code": ""}
 
@@ -49,7 +47,8 @@ def main() -> None:
             argv = [*argv[:-2], "-c", arm["code"]]
         return popen(argv, *rest, **kwargs)
 
-    query_process.subprocess.Popen = start  # type: ignore[assignment,misc]
+    # the query's process is started through subprocess.Popen (replay/query_process.py)
+    setattr(subprocess, "Popen", start)  # noqa: B010
     with tempfile.TemporaryDirectory() as tmp:
         lake = build_lake(Path(tmp))
         argv = ["query", "--lake", str(lake), "--format", "json", every_row_sql()]
