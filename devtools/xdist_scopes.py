@@ -1,8 +1,9 @@
 """How ``make test``'s workers share the suite (``pytest -n 2 --dist loadscope``, pytest-xdist):
 ``tests/conftest.py``'s ``pytest_xdist_make_scheduler`` returns :class:`LongestFirst`.
 
-A scope is a test module (its module fixtures are built once), and all of ``tests/runtime`` is
-one (:data:`TRANSPORT_SCOPE`). xdist hands scopes out most tests first, a worker taking the next
+A scope is a test module (its module fixtures are built once), all of ``tests/runtime`` is one
+(:data:`TRANSPORT_SCOPE`), and so are the modules that share a dear session fixture
+(:data:`SHARED_FIXTURE_SCOPES`: built in one worker, not in both). xdist hands scopes out most tests first, a worker taking the next
 when it is nearly done, and never moves a scope once handed out. So a module of one test and a
 hundred seconds (``tests/test_lake_log_battery.py``) went out among the last, and the other
 worker sat idle while it ran: the last scopes decide when the run ends. :class:`LongestFirst`
@@ -23,6 +24,17 @@ from xdist.scheduler import LoadScopeScheduling
 #: Every test of tests/runtime is one scope: the transports' DDS domain ids and ports are chosen
 #: per process, so two workers would share domains and see each other's nodes.
 TRANSPORT_SCOPE = "tests/runtime/"
+
+#: Modules that share a session fixture too dear to build in both workers are one scope, named
+#: after the fixture: tests/pipeline/conftest.py's ``built`` is the whole data build (its setup
+#: took 17 s and 9 s in two of these modules in the durations run below, one in each worker).
+DATA_BUILD_SCOPE = "tests/pipeline/conftest.py::built"
+SHARED_FIXTURE_SCOPES: Mapping[str, str] = {
+    "tests/pipeline/test_pipeline_build.py": DATA_BUILD_SCOPE,
+    "tests/pipeline/test_pipeline_findings.py": DATA_BUILD_SCOPE,
+    "tests/pipeline/test_pipeline_home.py": DATA_BUILD_SCOPE,
+    "tests/pipeline/test_pipeline_tables.py": DATA_BUILD_SCOPE,
+}
 
 #: Seconds per scope: its tests' setup, call and teardown in the 120 slowest of a ``pytest -n 2
 #: --durations=120`` run at 861ae3a on a loaded machine (1.5-2x idle), plus
@@ -51,16 +63,15 @@ SCOPE_SECONDS: Mapping[str, float] = {
     "tests/experiments/test_bench.py": 35,
     "tests/pipeline/bags/test_bags_engines.py": 31,
     "tests/test_lake_battery.py": 30,
+    # test_pipeline_build 23, findings 18, home 20, tables 2 (0.35 s a test), less one data build
+    DATA_BUILD_SCOPE: 50,
     "tests/pipeline/bags/test_bags_fleet.py": 29,
     "tests/sim/test_demo.py": 27,
     "tests/replay/test_source.py": 26,
-    "tests/pipeline/test_pipeline_build.py": 23,
     "tests/sim/test_world.py": 21,
-    "tests/pipeline/test_pipeline_home.py": 20,
     "tests/events/test_lake_table.py": 19,
     "tests/experiments/test_table1_sets.py": 19,
     "tests/examples/test_notebooks.py": 19,
-    "tests/pipeline/test_pipeline_findings.py": 18,
     "tests/agent/test_mapping.py": 17,
     "tests/sim/test_mapeval.py": 16,
     "tests/test_lake_fields_battery.py": 16,
@@ -74,10 +85,12 @@ PER_TEST_SECONDS = 0.35
 
 
 def scope_of(nodeid: str) -> str:
-    """The scope of a test: its module, or :data:`TRANSPORT_SCOPE` for all of tests/runtime."""
+    """The scope of a test: its module, :data:`TRANSPORT_SCOPE` for all of tests/runtime, or
+    the group :data:`SHARED_FIXTURE_SCOPES` puts its module in."""
     if nodeid.startswith(TRANSPORT_SCOPE):
         return TRANSPORT_SCOPE
-    return nodeid.split("::", 1)[0]
+    module = nodeid.split("::", 1)[0]
+    return SHARED_FIXTURE_SCOPES.get(module, module)
 
 
 def expected_seconds(scope: str, tests: int) -> float:
@@ -92,10 +105,10 @@ def longest(workqueue: Mapping[str, Sized]) -> str:
 
 
 class LongestFirst(LoadScopeScheduling):  # type: ignore[misc]
-    """xdist's scope scheduling with a scope a module (all of tests/runtime one), each handed
-    out longest expected first. (xdist's ``loadgroup`` marks would say the same scopes, but with
-    pytest 9.2 they have no effect: xdist 3.8 renames ``item._nodeid``, which pytest no longer
-    reads.)"""
+    """xdist's scope scheduling with a scope a module (all of tests/runtime one, and the modules
+    of :data:`SHARED_FIXTURE_SCOPES` one a fixture), each handed out longest expected first.
+    (xdist's ``loadgroup`` marks would say the same scopes, but with pytest 9.2 they have no
+    effect: xdist 3.8 renames ``item._nodeid``, which pytest no longer reads.)"""
 
     def _split_scope(self, nodeid: str) -> str:
         return scope_of(nodeid)
@@ -108,8 +121,10 @@ class LongestFirst(LoadScopeScheduling):  # type: ignore[misc]
 
 
 __all__ = [
+    "DATA_BUILD_SCOPE",
     "PER_TEST_SECONDS",
     "SCOPE_SECONDS",
+    "SHARED_FIXTURE_SCOPES",
     "TRANSPORT_SCOPE",
     "LongestFirst",
     "expected_seconds",

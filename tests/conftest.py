@@ -116,8 +116,9 @@ def pytest_configure(config: pytest.Config) -> None:
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     """Under pytest-xdist (``make test``: ``-n 2 --dist loadscope``) the tests of one scope run
-    in one worker, in turn: a scope is a test module, and all of tests/runtime is one (DDS
-    domains and ports are chosen per process). Scopes are handed out longest expected first
+    in one worker, in turn: a scope is a test module, all of tests/runtime is one (DDS domains
+    and ports are chosen per process), and so are the modules that share the data build
+    (tests/pipeline/conftest.py's ``built``). Scopes are handed out longest expected first
     (devtools/xdist_scopes.py)."""
     from devtools.xdist_scopes import LongestFirst
 

@@ -8,8 +8,10 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from devtools.xdist_scopes import (
+    DATA_BUILD_SCOPE,
     PER_TEST_SECONDS,
     SCOPE_SECONDS,
+    SHARED_FIXTURE_SCOPES,
     TRANSPORT_SCOPE,
     LongestFirst,
     expected_seconds,
@@ -46,6 +48,8 @@ COLLECTION = [
     *(f"tests/sim/test_unlisted.py::test_{i}" for i in range(3)),
     "tests/test_lake_log_battery.py::test_battery",
     *(f"tests/test_wheel.py::test_{i}" for i in range(11)),
+    "tests/pipeline/test_pipeline_build.py::test_build",
+    "tests/pipeline/test_pipeline_home.py::test_home",
 ]
 
 
@@ -82,6 +86,7 @@ def test_scopes_are_handed_out_longest_expected_first() -> None:
         "tests/test_lake_log_battery.py",  # one test: most-tests-first handed it out last
         "tests/test_wheel.py",
         "tests/agent/test_planner.py",  # not listed: 157 x PER_TEST_SECONDS
+        DATA_BUILD_SCOPE,
         "tests/sim/test_unlisted.py",
     ]
 
@@ -93,6 +98,14 @@ def test_a_module_and_all_of_tests_runtime_each_run_in_one_worker() -> None:
     assert all(len(workers) == 1 for workers in ran_in.values())
 
 
+def test_the_modules_sharing_the_data_build_run_in_one_worker() -> None:
+    """tests/pipeline/conftest.py's session fixture ``built`` (the whole data build) is made
+    once per worker that asks for it: its modules are one scope, so it is made once."""
+    modules = list(SHARED_FIXTURE_SCOPES)  # alone, each its own scope, one would go to each worker
+    _, ran_in = _run([f"{module}::test_{i}" for module in modules for i in range(30)])
+    assert len(set().union(*(ran_in[module] for module in modules))) == 1
+
+
 def test_a_scope_the_table_does_not_list_is_expected_to_take_its_tests_times_the_average() -> None:
     assert expected_seconds("tests/sim/test_unlisted.py", 20) == 20 * PER_TEST_SECONDS
     assert (
@@ -101,7 +114,8 @@ def test_a_scope_the_table_does_not_list_is_expected_to_take_its_tests_times_the
     )
 
 
-def test_every_scope_the_table_lists_is_a_test_module_or_tests_runtime() -> None:
-    """A renamed module would drop out of the order silently."""
-    missing = [scope for scope in SCOPE_SECONDS if not (REPO / scope).exists()]
+def test_every_scope_the_tables_list_is_a_test_module_or_folder_or_a_conftest() -> None:
+    """A renamed module would drop out of the order (or its group) silently."""
+    listed = [*SCOPE_SECONDS, *SHARED_FIXTURE_SCOPES]
+    missing = [scope for scope in listed if not (REPO / scope.split("::")[0]).exists()]
     assert missing == []
