@@ -70,6 +70,21 @@ from .scan import QUARANTINED_TYPE, _Cursor, _Scan
 from .seal import Sealer
 from .store import Encoded, Store
 
+
+def _chain_redirected(event_type: str, version: int) -> InvalidEventError:
+    """The error for an append of a quarantine record that redirects the checksum chain: only
+    the repair writes one, in place of a damaged record."""
+    return InvalidEventError(
+        f"invalid {event_type} v{version} event: payload.chain: only `objsearch log "
+        "repair` redirects the checksum chain (it writes the record in place of a "
+        "damaged one)",
+        event_type=event_type,
+        version=version,
+        path="payload.chain",
+        reason="not null",
+    )
+
+
 __all__ = ["EventLog"]
 
 #: At most this many written records wait to be added to the seals (:meth:`EventLog._seal`).
@@ -393,15 +408,7 @@ class EventLog:
         once per append, and each call between the steps was a measurable part of it."""
         event_type, version, payload_json, payload = encoded
         if event_type == QUARANTINED_TYPE and payload.get("chain") is not None:
-            raise InvalidEventError(
-                f"invalid {event_type} v{version} event: payload.chain: only `objsearch log "
-                "repair` redirects the checksum chain (it writes the record in place of a "
-                "damaged one)",
-                event_type=event_type,
-                version=version,
-                path="payload.chain",
-                reason="not null",
-            )
+            raise _chain_redirected(event_type, version)
         at = self._at
         made_id = event_id is None
         if made_id and expected_last_seq is None:

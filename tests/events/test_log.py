@@ -176,6 +176,13 @@ def test_a_new_log_is_empty(tmp_path: Path) -> None:
         ("search_failed", {"reason": "x"}, {"time_ns": 7.0}, "time_ns: 7.0 is not an integer"),
         ("search_failed", {"reason": "x"}, {"task_id": 5}, "task_id: 5 is neither null nor"),
         ("search_failed", {"reason": "x"}, {"version": True}, "version: True is not an integer"),
+        # Only the repair writes a quarantine record that redirects the checksum chain.
+        (
+            "record_quarantined",
+            dict(EXAMPLES["record_quarantined"], chain="0badc0de"),
+            {},
+            "payload.chain: only `objsearch log repair` redirects the checksum chain",
+        ),
     ],
 )
 def test_invalid_events_are_refused_and_nothing_is_written(
