@@ -10,13 +10,12 @@ from __future__ import annotations
 
 import math
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import torch
 
+from devtools.cli_process import run_cli
 from objsearch.agent.errors import ObjsearchError
 from objsearch.experiments import stot
 
@@ -221,16 +220,6 @@ def test_the_blob_id_is_gits() -> None:
     assert stot.git_blob_id(b"hello\n") == "ce013625030ba8dba906f756967f9e9ca394464a"
 
 
-def _cli(*argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "objsearch.cli", "bench", "stot", *argv],
-        capture_output=True,
-        text=True,
-        check=False,
-        timeout=120,
-    )
-
-
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
@@ -241,14 +230,14 @@ def _cli(*argv: str) -> subprocess.CompletedProcess[str]:
     ],
 )
 def test_the_cli_validates_its_options(argv: list[str], message: str, tmp_path: Path) -> None:
-    done = _cli("--source", str(tmp_path), *argv)
+    done = run_cli("bench", "stot", "--source", str(tmp_path), *argv)
     assert done.returncode == 2
     assert "objsearch: error:" in done.stderr and message in done.stderr
     assert "Traceback" not in done.stderr
 
 
 def test_the_cli_refuses_an_unpinned_checkout_with_a_clear_error(tmp_path: Path) -> None:
-    done = _cli("--source", str(tmp_path))
+    done = run_cli("bench", "stot", "--source", str(tmp_path))
     assert done.returncode == 2
     assert "objsearch: error:" in done.stderr and "Traceback" not in done.stderr
     assert "missing baselines/baselines.py" in done.stderr
@@ -341,7 +330,7 @@ def test_the_summary_pairs_routine_hour_with_routine_habit() -> None:
 
 
 def test_the_cli_accepts_routine_hour_among_the_methods(tmp_path: Path) -> None:
-    done = _cli("--source", str(tmp_path), "--methods", "routine-hour,Fremen")
+    done = run_cli("bench", "stot", "--source", str(tmp_path), "--methods", "routine-hour,Fremen")
     assert done.returncode == 2
     assert "--methods" not in done.stderr  # past the options, to the checkout's check
     assert "missing baselines/baselines.py" in done.stderr
