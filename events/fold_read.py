@@ -28,7 +28,7 @@ from typing import Annotated, Any, Final, Literal, Protocol, Union, runtime_chec
 
 import msgspec
 
-from .envelope import Event, decode_event
+from .envelope import Event, canonical_ids, decode_event
 from .log_files import Durable, LogMeta, TornTail
 from .scan import QUARANTINED_TYPE, _Cursor, _Scan
 from .store import Store
@@ -323,31 +323,6 @@ def _checksums(
     return list(claimed)
 
 
-_DASHES: Final = tuple(range(8, 24, 5))  # where a canonical id has its four dashes
-
-
-def _canonical_ids(ids: list[str]) -> bool:
-    """:func:`~.envelope.canonical_ids` (every id of ``ids``, each 36 characters long as the
-    decoder has them, a canonical UUID string: lower-case hex digits, dashes after the 8th,
-    12th, 16th and 20th), in fewer steps: the dashes found at those places of every id of the
-    joined text, the rest read as hex digits and written back to the same text (so no upper
-    case, no blank, no other dash); ``tests/events/test_fold_read.py`` checks that the two
-    agree."""
-    n = len(ids)
-    text = "".join(ids)
-    dashes = "-" * n
-    for at in _DASHES:
-        if text[at::36] != dashes:
-            return False
-    digits = text.replace("-", "")
-    if len(digits) != 32 * n:
-        return False
-    try:
-        return bytes.fromhex(digits).hex() == digits
-    except ValueError:
-        return False
-
-
 def _no_decoder(body: bytes) -> Any:
     raise AssertionError("no handlers yet")
 
@@ -400,7 +375,7 @@ def _fold_block(
     times = list(map(_times, records))
     if times[0] < at.time_ns or times != sorted(times):
         return False
-    if not _canonical_ids(list(map(_ids, records))):
+    if not canonical_ids(list(map(_ids, records))):
         return False
     last = seqs[-1]
     if first <= mark_seq <= last:
