@@ -53,8 +53,10 @@ class Vocabulary:
         return cls(classes)
 
     @classmethod
-    def load(cls, path: Path | None = None) -> Vocabulary:
-        path = path or data_dir() / "vocabulary.json"
+    def load(cls, path: Path | None = None, data: Path | None = None) -> Vocabulary:
+        """The vocabulary at ``path``, else that of the data folder ``data`` (None:
+        ``datapaths.data_dir()``)."""
+        path = path or data_dir(data) / "vocabulary.json"
         return cls.from_dict(read_json(path, "the object vocabulary"))
 
     def _lookup(self) -> dict[str, str]:

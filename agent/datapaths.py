@@ -2,9 +2,12 @@
 
 One setting decides it: ``$OBJSEARCH_DATA``, when set, names the data folder. Unset, the data is the
 package's own ``objsearch.data``: the repository's ``data/`` folder, which an editable install maps
-in place and a wheel ships as package data (``[tool.setuptools.package-data]``). Nothing here knows
-where a checkout is, except :func:`build_output_dir`, which must not write into an installed
-package.
+in place and a wheel ships as package data (``[tool.setuptools.package-data]``). A reader that
+reads a named folder instead (``bench belief``: each output's homes from the folder it was run
+on) passes it as ``data`` down to where the files are read, never setting the variable around
+the call; the caches of what is read are keyed by the resolved folder (:func:`data_key`) and
+the id, never by the id alone. Nothing here knows where a checkout is, except
+:func:`build_output_dir`, which must not write into an installed package.
 """
 
 from __future__ import annotations
@@ -25,10 +28,21 @@ class DataLocationError(ObjsearchError):
     """The data folder cannot be found, or a build would write where it must not."""
 
 
-def data_dir() -> Path:
-    """The derived-data folder: ``$OBJSEARCH_DATA`` if set, else the packaged ``objsearch.data``."""
+def data_dir(data: Path | None = None) -> Path:
+    """The derived-data folder: ``data`` when given (a caller that reads a named folder, as
+    ``bench belief`` does each output's), else ``$OBJSEARCH_DATA`` if set, else the packaged
+    ``objsearch.data``."""
+    if data is not None:
+        return data
     env = os.environ.get(DATA_ENV)
     return Path(env) if env else packaged_data_dir()
+
+
+def data_key(data: Path | None = None) -> Path:
+    """:func:`data_dir` resolved: what a cache of anything read from the data folder is keyed by,
+    with the home id or file (a home id names one home per folder only, and two spellings of one
+    folder are one key)."""
+    return data_dir(data).resolve()
 
 
 def packaged_data_dir() -> Path:

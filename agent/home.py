@@ -185,24 +185,26 @@ def _room(doc: Mapping[str, Any]) -> Room:
     )
 
 
-def home_path(name: str) -> Path:
-    return data_dir() / "homes" / f"{name}.json"
+def home_path(name: str, data: Path | None = None) -> Path:
+    """The file of home ``name`` in the data folder ``data`` (None: ``datapaths.data_dir()``)."""
+    return data_dir(data) / "homes" / f"{name}.json"
 
 
-def available_homes() -> tuple[str, ...]:
-    folder = data_dir() / "homes"
+def available_homes(data: Path | None = None) -> tuple[str, ...]:
+    folder = data_dir(data) / "homes"
     return tuple(sorted(p.stem for p in folder.glob("*.json"))) if folder.is_dir() else ()
 
 
-def load_home(name_or_path: str | Path) -> Home:
-    """Load a home by name (``data/homes/<name>.json``) or by path."""
+def load_home(name_or_path: str | Path, data: Path | None = None) -> Home:
+    """Load a home by name (``homes/<name>.json`` of the data folder ``data``; None:
+    ``datapaths.data_dir()``) or by path."""
     path = Path(name_or_path)
     if path.suffix != ".json":
-        path = home_path(str(name_or_path))
+        path = home_path(str(name_or_path), data)
         if not path.exists():
             raise DataFileError(
                 f"no home {str(name_or_path)!r} in {path.parent} (available: "
-                f"{', '.join(available_homes()) or 'none'}); run `objsearch data build`"
+                f"{', '.join(available_homes(data)) or 'none'}); run `objsearch data build`"
             )
     doc = read_json(path, "a home")
     try:

@@ -17,7 +17,7 @@ import msgspec
 
 from objsearch.agent.catalogue import STORE, SceneGraphSeeded, SeedValue, TaskAborted
 from objsearch.agent.categories import Vocabulary, read_json
-from objsearch.agent.datapaths import data_dir
+from objsearch.agent.datapaths import data_dir, data_key
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home, load_home
 from objsearch.agent.map_frames import InFrame, Registration, ReportsStatics, register
@@ -63,11 +63,23 @@ class HomeContext:
     semmap: SemanticMap
 
 
+def load_context(home_name: str, data: Path | None = None) -> HomeContext:
+    """Home ``home_name`` of the data folder ``data`` (None: ``datapaths.data_dir()``), its maps
+    and the folder's vocabulary; made once per (resolved folder, home) in a process."""
+    return _context(home_name, data_key(data))
+
+
+def clear_contexts() -> None:
+    """Forget every home context made (a benchmark's cold start: no path of an earlier run)."""
+    _context.cache_clear()
+
+
 @cache
-def load_context(home_name: str) -> HomeContext:
-    home = load_home(home_name)
+def _context(home_name: str, folder: Path) -> HomeContext:
+    home = load_home(home_name, folder)
     navmap = NavigationMap.from_home(home)
-    return HomeContext(home, Vocabulary.load(), navmap, SemanticMap.from_home(home, navmap))
+    vocabulary = Vocabulary.load(data=folder)
+    return HomeContext(home, vocabulary, navmap, SemanticMap.from_home(home, navmap))
 
 
 def prior_file(name: str) -> str:

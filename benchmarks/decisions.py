@@ -50,7 +50,7 @@ from objsearch.agent.home import available_homes
 from objsearch.agent.navmap import NavigationMap
 from objsearch.agent.policy import SearchAgent
 from objsearch.agent.recorder import Recorder
-from objsearch.agent.session import HomeContext, Session, load_context
+from objsearch.agent.session import HomeContext, Session, clear_contexts, load_context
 from objsearch.agent.state import AgentState
 from objsearch.agent.strategies import RunSpec
 from objsearch.agent.world import Detection, Navigation
@@ -273,7 +273,7 @@ def search_decisions(home: str, perception: str, scenes: int, starts: int) -> De
     ``scenes`` on ``home``, each target from ``starts`` starts, under ``perception``. The run
     starts from freshly loaded maps, as a robot's process does: no shortest path another run
     built is in them."""
-    load_context.cache_clear()
+    clear_contexts()
     ctx = load_context(home)
     model = preset(perception)
     params = {} if model.perfect else {"perception": model.params()}

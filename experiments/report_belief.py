@@ -27,7 +27,7 @@ from objsearch.agent.errors import ObjsearchError
 from objsearch.experiments.calibration import ece
 from objsearch.experiments.learning import first_of_day, first_of_scene, ratio
 from objsearch.experiments.metrics import spl_term
-from objsearch.experiments.report_data import HomeFolders, home_folders, reading
+from objsearch.experiments.report_data import HomeFolders, home_folders
 from objsearch.experiments.runner import Row, inspection_suffix, read_output
 from objsearch.experiments.strategies import COVER_SUFFIX
 from objsearch.sim.schedule_names import ROUTINE_KINDS
@@ -271,10 +271,10 @@ def usual_place_lines(
     for home, placements in sorted({(r.home, r.placements) for r in late}):
         seed = int(placements.partition("-")[2])
         last = max(r.scene for r in late if (r.home, r.placements) == (home, placements))
-        with reading(data.get(home) if data else None):
-            house = load_home(home)
-            table = habits(house, seed)
-            schedule = habit_schedule(house, seed, scenes=last)
+        folder = data.get(home) if data else None
+        house = load_home(home, folder)
+        table = habits(house, seed, folder)
+        schedule = habit_schedule(house, seed, scenes=last, data=folder)
         for scene, placed in schedule.scenes.items():
             for p in placed.values():
                 if p.cls in table and p.support == table[p.cls].usual:
@@ -650,8 +650,7 @@ def report(
     )
 
     def cause(r: Row) -> str:
-        with reading(home_data[r.home]):
-            return failure_cause(r, camera)
+        return failure_cause(r, camera, home_data[r.home])
 
     camera = run_camera(folders[0])
     homes = sorted({r.home for r in rows})

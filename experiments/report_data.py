@@ -15,17 +15,18 @@ was run on. For each output, in order, the first of these folders that holds ``h
 
 No output records its homes' content (``bench homes`` keeps no logs), so a home file is checked
 against the other outputs only: two outputs that name the same home id read from files that
-differ byte for byte are refused, never pooled. The data folders' shared files (the vocabulary)
-are read once, from the first folder used; all of ours hold the same one.
+differ byte for byte are refused, never pooled. The folder is handed to the readers as their
+``data`` argument (``load_home``, ``habit_schedule``, ``report_homes.failure_cause``), which read
+everything of that home from it, the folder's vocabulary and placement statistics too; the
+environment is never set, and the readers' caches are keyed by (resolved folder, home id), so a
+process that reports on several folders gets each folder's home.
 """
 
 from __future__ import annotations
 
 import json
-import os
 import shlex
-from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from objsearch.agent.datapaths import DATA_ENV, data_dir
@@ -105,21 +106,3 @@ def home_folders(homes: Mapping[Path, Sequence[str]], extra: Sequence[Path] = ()
                     "refusing to pool them"
                 )
     return {home: folder for home, (folder, _, _) in found.items()}
-
-
-@contextmanager
-def reading(folder: Path | None) -> Iterator[None]:
-    """Within the block, the data folder is ``folder`` (None: left as it is). The run-time code
-    finds its data through ``$OBJSEARCH_DATA`` alone (``datapaths.data_dir``)."""
-    if folder is None:
-        yield
-        return
-    before = os.environ.get(DATA_ENV)
-    os.environ[DATA_ENV] = str(folder)
-    try:
-        yield
-    finally:
-        if before is None:
-            del os.environ[DATA_ENV]
-        else:
-            os.environ[DATA_ENV] = before

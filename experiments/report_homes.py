@@ -21,6 +21,7 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+from objsearch.agent.datapaths import data_key
 from objsearch.agent.geometry import Pose, heading
 from objsearch.agent.session import load_context
 from objsearch.agent.stops import cover_views, static_pitch, stop_statics
@@ -156,28 +157,38 @@ class Failure:
 
 
 @cache
-def _scene_placements(home: str, spec: str, upto: int) -> dict[int, dict[str, Placement]]:
-    return {s: dict(p) for s, p in scenes_of(home, spec, upto=upto).items()}
+def _scene_placements(
+    home: str, spec: str, upto: int, folder: Path
+) -> dict[int, dict[str, Placement]]:
+    return {s: dict(p) for s, p in scenes_of(home, spec, upto=upto, data=folder).items()}
 
 
-def failure_cause(row: Row, camera: str = DEFAULT_CAMERA) -> str:
+def failure_cause(row: Row, camera: str = DEFAULT_CAMERA, data: Path | None = None) -> str:
     """Why a search failed, from what can be told without its log (``bench homes`` keeps none):
     where the target was that scene and what the run's ``camera`` shows of it, with everything
     placed in its room in the way — from any viewpoint of the room and from the one viewpoint
-    the agent inspects its static from (N_s, paper §4)."""
+    the agent inspects its static from (N_s, paper §4). The home is read from the data folder
+    ``data`` (the one the row was run on; None: ``datapaths.data_dir()``)."""
     cover = inspection_suffix(row.strategy) == COVER_SUFFIX
-    return _cause(row.home, row.placements, row.scene, row.target, camera, cover)
+    folder = data_key(data)
+    return _cause(row.home, row.placements, row.scene, row.target, camera, cover, folder)
 
 
 @cache
 def _cause(
-    home: str, placements: str, scene: int, target: str, camera_name: str, cover: bool
+    home: str,
+    placements: str,
+    scene: int,
+    target: str,
+    camera_name: str,
+    cover: bool,
+    folder: Path,
 ) -> str:
-    everything = _scene_placements(home, placements, scene)[scene]
+    everything = _scene_placements(home, placements, scene, folder)[scene]
     placed = [p for p in everything.values() if p.cls == target]
     if not placed:
         return "not placed in this scene"
-    ctx = load_context(home)
+    ctx = load_context(home, folder)
     camera = search_camera(camera_name)
     oc = ctx.vocabulary.classes.get(target)
     threshold = oc.min_mask_area_px if oc is not None else math.inf

@@ -29,7 +29,7 @@ import numpy as np
 
 from objsearch.agent.datapaths import DATA_ENV
 from objsearch.agent.errors import ObjsearchError
-from objsearch.agent.session import DEFAULT_PRIOR, load_context
+from objsearch.agent.session import DEFAULT_PRIOR, clear_contexts
 from objsearch.experiments.paper import PAPER_TABLE1, discovery, table1_job
 from objsearch.experiments.runner import TARGETS, Job, Row, run_jobs, unseeable, write_rows
 from objsearch.pipeline.build import PAPER_HOME, build_data
@@ -143,10 +143,11 @@ def sample_order(eligible: Sequence[FloorPlanSet], seed: int) -> list[FloorPlanS
 
 @contextmanager
 def _data_folder(path: Path) -> Iterator[None]:
-    """Searches read ``path`` (forked workers inherit it); home contexts are cached by name."""
+    """Searches read ``path`` (forked workers inherit it); the home contexts made are forgotten
+    before and after (the build may have written other homes into the same folder)."""
     before = os.environ.get(DATA_ENV)
     os.environ[DATA_ENV] = str(path)
-    load_context.cache_clear()
+    clear_contexts()
     try:
         yield
     finally:
@@ -154,7 +155,7 @@ def _data_folder(path: Path) -> Iterator[None]:
             os.environ.pop(DATA_ENV, None)
         else:
             os.environ[DATA_ENV] = before
-        load_context.cache_clear()
+        clear_contexts()
 
 
 def table1_jobs(

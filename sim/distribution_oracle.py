@@ -47,11 +47,13 @@ import random
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import partial
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any, ClassVar
 
 from objsearch.agent.belief import Today
 from objsearch.agent.catalogue import RunStarted, SceneGraphSeeded, TaskStarted, decode
+from objsearch.agent.datapaths import data_key
 from objsearch.agent.home import Box, Home, load_home
 from objsearch.agent.scene_graph import Pair
 from objsearch.events.projection import EventView
@@ -74,16 +76,17 @@ from objsearch.sim.routine_schedule import (
 )
 from objsearch.sim.schedule_names import ROUTINE_KINDS, parse_seeded
 from objsearch.sim.seeable import seeable
-from objsearch.sim.stats_schedule import PlacementStats, _receptacle_type, _rest_points
+from objsearch.sim.stats_schedule import PlacementStats, _receptacle_type, rest_points
 
-#: (home name, class) → :func:`seeable_shares`: a slot oracle reads one distribution per slot.
-_SHARES: dict[tuple[str, str], dict[str, float]] = {}
+#: (resolved data folder, home name, class) → :func:`seeable_shares`: a slot oracle reads one
+#: distribution per slot.
+_SHARES: dict[tuple[Path, str, str], dict[str, float]] = {}
 
 
 def seeable_shares(home: Home, cls: str) -> dict[str, float]:
     """Static id → the share of its rest points at which a ``cls`` object is seeable (1 for a
     container: the object lies at its centre), for the statics the class can be drawn onto."""
-    key = (home.name, cls)
+    key = (data_key(), home.name, cls)
     if key not in _SHARES:
         _SHARES[key] = _seeable_shares(home, cls)
     return dict(_SHARES[key])
@@ -99,7 +102,7 @@ def _seeable_shares(home: Home, cls: str) -> dict[str, float]:
         if s.container:
             centres = [s.box.center]
         else:
-            rests = _rest_points(home.name).get(s.id) or (
+            rests = rest_points(home.name).get(s.id) or (
                 (s.box.center[0], s.box.center[1], s.box.top),
             )
             centres = [(x, y, z + size[2] / 2) for x, y, z in rests]
@@ -183,7 +186,8 @@ def redrawn(home: Home, drawn: Mapping[str, Mapping[str, float]]) -> dict[str, d
 #: Scenes per (slot, day type, week) that :func:`time_of_day_distribution` draws: its error is
 #: at most 0.016 sd a place.
 REFERENCE_SCENES = 1000
-_LANDED: dict[tuple[str, str, int, int, bool, int], dict[str, dict[str, float]]] = {}
+#: Keyed by (resolved data folder, home name, kind, seed, week, weekend, slot).
+_LANDED: dict[tuple[Path, str, str, int, int, bool, int], dict[str, dict[str, float]]] = {}
 
 
 def time_of_day_distribution(
@@ -196,7 +200,7 @@ def time_of_day_distribution(
     form). HOMER's days are all alike: ``week`` and ``weekend`` are ignored."""
     if kind == "homer":
         week, weekend = 0, False
-    key = (home.name, kind, seed, week, weekend, slot)
+    key = (data_key(), home.name, kind, seed, week, weekend, slot)
     if key not in _LANDED:
         rng = random.Random(f"{kind}-reference:{home.name}:{seed}:{week}:{weekend}:{slot}")
         if kind == "homer":

@@ -32,6 +32,7 @@ import random
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import partial
+from pathlib import Path
 
 from objsearch.agent.home import Home, StaticObject
 from objsearch.sim.placements import Placement, Placements, Schedule
@@ -117,20 +118,23 @@ def place_in_scene(
     statics: Sequence[StaticObject],
     where: StaticObject,
     placed: dict[str, Placement],
+    data: Path | None = None,
 ) -> int:
     """Put ``cls`` on ``where`` in a scene's ``placed`` objects, drawn anew from the stats
-    distribution while no viewpoint sees it (``place_seeable``); how many draws were refused."""
+    distribution while no viewpoint sees it (``place_seeable``; ``data``: the data folder
+    ``home`` was read from); how many draws were refused."""
     anywhere = partial(_draw_static, rng, stats.counts[cls], statics, None)
     taken = list(placed.values())
-    p, refused = place_seeable(rng, home, cls, stats.sizes[cls], where, anywhere, taken)
+    p, refused = place_seeable(rng, home, cls, stats.sizes[cls], where, anywhere, taken, data)
     if p is not None:
         placed[p.instance_id] = p
     return refused
 
 
-def habits(home: Home, seed: int) -> dict[str, Habit]:
-    """Each placeable class's usual place and alternates for (home, seed)."""
-    stats = PlacementStats.load()
+def habits(home: Home, seed: int, data: Path | None = None) -> dict[str, Habit]:
+    """Each placeable class's usual place and alternates for (home, seed), from the placement
+    statistics of the data folder ``data`` (None: ``datapaths.data_dir()``)."""
+    stats = PlacementStats.load(data)
     rng = random.Random(f"habit-schedule:habits:{home.name}:{seed}")
     statics = sorted_statics(home)
     out: dict[str, Habit] = {}
@@ -143,15 +147,15 @@ def habits(home: Home, seed: int) -> dict[str, Habit]:
     return out
 
 
-def moved_habits(home: Home, seed: int) -> dict[str, Habit]:
+def moved_habits(home: Home, seed: int, data: Path | None = None) -> dict[str, Habit]:
     """The habits of ``moved-<seed>`` from ``MOVE_SCENE`` on: each class's usual place drawn
     among the statics of the rooms other than its old usual place's (kept if there is none),
-    alternates drawn as before among the rest."""
-    stats = PlacementStats.load()
+    alternates drawn as before among the rest (``data``: as :func:`habits`)."""
+    stats = PlacementStats.load(data)
     rng = random.Random(f"moved-schedule:habits:{home.name}:{seed}")
     statics = sorted_statics(home)
     out: dict[str, Habit] = {}
-    for cls, old in habits(home, seed).items():
+    for cls, old in habits(home, seed, data).items():
         old_room = home.statics[old.usual].room
         elsewhere = [s for s in statics if s.room != old_room]
         usual = _draw_static(rng, stats.counts[cls], elsewhere, None)
@@ -197,16 +201,22 @@ def habit_distribution(
 
 
 def habit_schedule(
-    home: Home, seed: int, *, scenes: int = HABIT_SCENES, moved: bool = False
+    home: Home,
+    seed: int,
+    *,
+    scenes: int = HABIT_SCENES,
+    moved: bool = False,
+    data: Path | None = None,
 ) -> Schedule:
     """A schedule for ``home`` where objects keep habits; with ``moved``, new habits from
-    ``MOVE_SCENE`` on (see the module doc)."""
-    stats = PlacementStats.load()
+    ``MOVE_SCENE`` on (see the module doc). ``data``: the data folder ``home`` was read from,
+    whose statistics and rest points it is drawn with (None: ``datapaths.data_dir()``)."""
+    stats = PlacementStats.load(data)
     rng = random.Random(f"habit-schedule:scenes:{home.name}:{seed}")
     statics = sorted_statics(home)
     by_id = home.statics
-    before = habits(home, seed)
-    after = moved_habits(home, seed) if moved else before
+    before = habits(home, seed, data)
+    after = moved_habits(home, seed, data) if moved else before
     out: dict[int, Placements] = {}
     redrawn = 0
     for scene in range(1, scenes + 1):
@@ -218,7 +228,7 @@ def habit_schedule(
             usual = ((P_USUAL, habit.usual),)
             where = draw_place(rng, usual, P_ALTERNATE, habit.alternates, anywhere, by_id)
             assert where is not None  # the usual place was drawn from the same statics
-            redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed)
+            redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed, data)
         out[scene] = placed
     name = f"{'moved' if moved else 'habit'}-{seed}"
     return Schedule(name=name, home=home.name, scenes=out, redrawn=redrawn)

@@ -38,10 +38,11 @@ import random
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cache
+from pathlib import Path
 from typing import Any
 
 from objsearch.agent.categories import read_json
-from objsearch.agent.datapaths import data_dir
+from objsearch.agent.datapaths import data_key
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.home import Home
 from objsearch.sim.habit_schedule import place_in_scene, sorted_statics
@@ -71,9 +72,14 @@ class HomerRoutines:
     target_objects: Mapping[str, tuple[str, ...]]
 
     @classmethod
-    @cache
-    def load(cls) -> HomerRoutines:
-        path = data_dir() / ROUTINES_FILE
+    def load(cls, data: Path | None = None) -> HomerRoutines:
+        """The routines of the data folder ``data`` (None: ``datapaths.data_dir()``), read once
+        per resolved folder in a process."""
+        return _homer_routines(data_key(data))
+
+    @classmethod
+    def read(cls, folder: Path) -> HomerRoutines:
+        path = folder / ROUTINES_FILE
         doc: Any = read_json(path, "the HOMER routines")
         try:
             if tuple(doc["slot_minutes"]) != SLOT_MINUTES:
@@ -106,6 +112,11 @@ class HomerRoutines:
         return mine or self.routines
 
 
+@cache
+def _homer_routines(folder: Path) -> HomerRoutines:
+    return HomerRoutines.read(folder)
+
+
 #: class → per slot, static id → P(there).
 SlotTable = dict[str, tuple[dict[str, float], ...]]
 
@@ -118,10 +129,11 @@ class LaidRoutine:
     statics: Mapping[str, str]
 
 
-def laid_routines(home: Home, seed: int) -> dict[str, LaidRoutine]:
-    """Each placeable class's HOMER routine and its places in ``home``, for (home, seed)."""
-    stats = PlacementStats.load()
-    homer = HomerRoutines.load()
+def laid_routines(home: Home, seed: int, data: Path | None = None) -> dict[str, LaidRoutine]:
+    """Each placeable class's HOMER routine and its places in ``home``, for (home, seed), from
+    the routines and statistics of the data folder ``data`` (None: ``datapaths.data_dir()``)."""
+    stats = PlacementStats.load(data)
+    homer = HomerRoutines.load(data)
     rng = random.Random(f"homer-schedule:routines:{home.name}:{seed}")
     statics = sorted_statics(home)
     out: dict[str, LaidRoutine] = {}
@@ -150,10 +162,11 @@ def laid_routines(home: Home, seed: int) -> dict[str, LaidRoutine]:
     return out
 
 
-def homer_table(home: Home, seed: int) -> SlotTable:
-    """class → per slot, static id → P(the object is there in one scene of that slot)."""
+def homer_table(home: Home, seed: int, data: Path | None = None) -> SlotTable:
+    """class → per slot, static id → P(the object is there in one scene of that slot)
+    (``data``: as :func:`laid_routines`)."""
     out: SlotTable = {}
-    for cls, laid in laid_routines(home, seed).items():
+    for cls, laid in laid_routines(home, seed, data).items():
         per_slot = []
         for counts in laid.routine.slots:
             days = sum(n for _, n in counts)
@@ -171,26 +184,30 @@ def homer_slot_distribution(home: Home, seed: int, slot: int) -> dict[str, dict[
     return {cls: dict(per_slot[slot]) for cls, per_slot in homer_table(home, seed).items()}
 
 
-def homer_schedule(home: Home, seed: int, *, scenes: int | None = None) -> Schedule:
-    """A schedule for ``home`` whose objects keep HOMER households' routines (module doc)."""
+def homer_schedule(
+    home: Home, seed: int, *, scenes: int | None = None, data: Path | None = None
+) -> Schedule:
+    """A schedule for ``home`` whose objects keep HOMER households' routines (module doc);
+    ``data``: the data folder ``home`` was read from (None: ``datapaths.data_dir()``)."""
     scenes = scenes or HOMER_SCENES
-    table = homer_table(home, seed)
+    table = homer_table(home, seed, data)
     rng = random.Random(f"homer-schedule:scenes:{home.name}:{seed}")
     out: dict[int, Placements] = {}
     redrawn = 0
     for scene in range(1, scenes + 1):
-        out[scene], refused = homer_scene(rng, home, table, (scene - 1) % SCENES_PER_DAY)
+        out[scene], refused = homer_scene(rng, home, table, (scene - 1) % SCENES_PER_DAY, data)
         redrawn += refused
     return Schedule(name=f"homer-{seed}", home=home.name, scenes=out, redrawn=redrawn)
 
 
 def homer_scene(
-    rng: random.Random, home: Home, table: SlotTable, slot: int
+    rng: random.Random, home: Home, table: SlotTable, slot: int, data: Path | None = None
 ) -> tuple[Placements, int]:
     """One scene of ``slot``: each class, in class order, drawn from the slot's counts and put
     there, or drawn again while it cannot be seen or its rest points are taken
-    (``place_in_scene``); and how many draws were refused."""
-    stats = PlacementStats.load()
+    (``place_in_scene``; ``data``: the data folder ``home`` was read from); and how many draws
+    were refused."""
+    stats = PlacementStats.load(data)
     statics = sorted_statics(home)
     placed: dict[str, Placement] = {}
     redrawn = 0
@@ -198,5 +215,5 @@ def homer_scene(
         dist = table[cls][slot]
         places = sorted(dist)
         where = home.statics[rng.choices(places, weights=[dist[p] for p in places])[0]]
-        redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed)
+        redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed, data)
     return placed, redrawn

@@ -58,16 +58,19 @@ class Trial:
     false_found: bool = False
 
 
-def scenes_of(home_name: str, source: str, *, upto: int | None = None) -> dict[int, Placements]:
+def scenes_of(
+    home_name: str, source: str, *, upto: int | None = None, data: Path | None = None
+) -> dict[int, Placements]:
     """Scene number → placements for a placement source: ``table1`` (the paper's Table I scene,
     as scene 0), or any schedule ``sim/schedule_names.py`` knows (``table2``, ``stats-<seed>``,
     ``rearr-<seed>``, ``habit-<seed>``). A seeded schedule is drawn with ``upto`` scenes (default:
     its kind's own length); the draw is sequential, so its first scenes are the same whatever
-    the length."""
-    ctx = load_context(home_name)
+    the length. The home and the schedule's data are those of the data folder ``data`` (None:
+    ``datapaths.data_dir()``)."""
+    ctx = load_context(home_name, data)
     if source == "table1":
-        return {0: base_placements(ctx.home, table1_removals(ctx.home))}
-    return dict(load_schedule(ctx.home, source, scenes=upto).scenes)
+        return {0: base_placements(ctx.home, table1_removals(ctx.home, data=data))}
+    return dict(load_schedule(ctx.home, source, scenes=upto, data=data).scenes)
 
 
 def run_schedule(

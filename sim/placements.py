@@ -37,11 +37,12 @@ def base_placements(home: Home, removed: frozenset[str] = frozenset()) -> dict[s
     }
 
 
-def table1_scenario_path(home_name: str) -> Path:
+def table1_scenario_path(home_name: str, data: Path | None = None) -> Path:
     """``scenarios/table1-<home>.json`` when the build derived one for that home (any home that
-    satisfies the paper's removal rule), else the paper home's ``scenarios/table1.json``."""
-    own = data_dir() / "scenarios" / f"table1-{home_name}.json"
-    return own if own.is_file() else data_dir() / "scenarios" / "table1.json"
+    satisfies the paper's removal rule), else the paper home's ``scenarios/table1.json``; of the
+    data folder ``data`` (None: ``datapaths.data_dir()``)."""
+    own = data_dir(data) / "scenarios" / f"table1-{home_name}.json"
+    return own if own.is_file() else data_dir(data) / "scenarios" / "table1.json"
 
 
 def has_table1_scenario(home_name: str) -> bool:
@@ -51,9 +52,12 @@ def has_table1_scenario(home_name: str) -> bool:
     return own.name != "table1.json" or home_name == "paper"
 
 
-def table1_removals(home: Home, path: Path | None = None) -> frozenset[str]:
-    """The paper's Table I removals (one instance per target), checked against the home."""
-    path = path or table1_scenario_path(home.name)
+def table1_removals(
+    home: Home, path: Path | None = None, data: Path | None = None
+) -> frozenset[str]:
+    """The paper's Table I removals (one instance per target), checked against the home; from
+    ``path``, else the scenario of the data folder ``data`` (None: ``datapaths.data_dir()``)."""
+    path = path or table1_scenario_path(home.name, data)
     doc = read_json(path, "the Table I scenario")
     removed = frozenset(doc["removed"])
     unknown = removed - set(home.objects)
@@ -77,12 +81,16 @@ class Schedule:
     redrawn: int = 0
 
     @classmethod
-    def load(cls, home: Home, name: str = "table2", path: Path | None = None) -> Schedule:
-        path = path or data_dir() / "schedules" / f"{name}.json"
+    def load(
+        cls, home: Home, name: str = "table2", path: Path | None = None, data: Path | None = None
+    ) -> Schedule:
+        """The schedule at ``path``, else ``schedules/<name>.json`` of the data folder ``data``
+        (None: ``datapaths.data_dir()``), for ``home``."""
+        path = path or data_dir(data) / "schedules" / f"{name}.json"
         doc = read_json(path, f"the placement schedule {name!r}")
         if doc["home"] != home.name:
             raise DataFileError(f"{path} is a schedule for home {doc['home']!r}, not {home.name!r}")
-        base = base_placements(home, table1_removals(home))
+        base = base_placements(home, table1_removals(home, data=data))
         instance_of = {p.cls: p for p in base.values()}
         statics = home.statics
         scenes: dict[int, Placements] = {}

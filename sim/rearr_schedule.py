@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from objsearch.agent.categories import read_json
-from objsearch.agent.datapaths import data_dir
+from objsearch.agent.datapaths import data_dir, data_key
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.geometry import Vec3
 from objsearch.agent.home import Box, Home, load_home
@@ -86,12 +86,14 @@ class RearrangementData:
     rooms: tuple[RoomEpisodes, ...]
 
     @classmethod
-    def load(cls, home_name: str) -> RearrangementData:
-        return _load(home_name, str(data_dir()))
+    def load(cls, home_name: str, data: Path | None = None) -> RearrangementData:
+        """Home ``home_name``'s episodes in the data folder ``data`` (None:
+        ``datapaths.data_dir()``), read once per (resolved folder, home)."""
+        return _load(home_name, data_key(data))
 
 
-def homes_with_rearrangement() -> tuple[str, ...]:
-    folder = data_dir() / REARRANGEMENT_DIR
+def homes_with_rearrangement(data: Path | None = None) -> tuple[str, ...]:
+    folder = data_dir(data) / REARRANGEMENT_DIR
     return tuple(sorted(p.stem for p in folder.glob("*.json")))
 
 
@@ -113,13 +115,13 @@ def why_no_rearrangement(home: Home) -> str:
 
 
 @cache
-def _load(home_name: str, data_root: str) -> RearrangementData:
-    path = Path(data_root) / REARRANGEMENT_DIR / f"{home_name}.json"
+def _load(home_name: str, folder: Path) -> RearrangementData:
+    path = folder / REARRANGEMENT_DIR / f"{home_name}.json"
     if not path.is_file():
-        have = ", ".join(homes_with_rearrangement()) or "none"
+        have = ", ".join(homes_with_rearrangement(folder)) or "none"
         raise DataFileError(
             f"home {home_name!r} has no rearrangement data: "
-            f"{why_no_rearrangement(load_home(home_name))} (homes with data: {have}); "
+            f"{why_no_rearrangement(load_home(home_name, folder))} (homes with data: {have}); "
             "use a stats-<seed> schedule for this home"
         )
     return read_rearrangement(path, home_name)
@@ -189,18 +191,21 @@ def _follow(
     return followed, shared
 
 
-def rearr_schedule(home: Home, seed: int, *, scenes: int = SCENES) -> Schedule:
-    """A schedule for ``home`` from its rearrangement episodes (see the module doc)."""
-    data = RearrangementData.load(home.name)
+def rearr_schedule(
+    home: Home, seed: int, *, scenes: int = SCENES, data: Path | None = None
+) -> Schedule:
+    """A schedule for ``home`` from its rearrangement episodes (see the module doc) in the data
+    folder ``data`` (None: ``datapaths.data_dir()``), which ``home`` was read from."""
+    rearrangement = RearrangementData.load(home.name, data)
     rng = random.Random(f"rearr-schedule:{home.name}:{seed}")
-    followed, shared = _follow(rng, data)
+    followed, shared = _follow(rng, rearrangement)
     order = {}
     for name, episodes in sorted(shared.items()):
         ids = sorted(episodes)
         rng.shuffle(ids)
         order[name] = ids
-    by_index = {r.name: {e.index: e for e in r.episodes} for r in data.rooms}
-    stats = stats_schedule(home, seed, scenes=scenes)
+    by_index = {r.name: {e.index: e for e in r.episodes} for r in rearrangement.rooms}
+    stats = stats_schedule(home, seed, scenes=scenes, data=data)
     fallback = sorted({p.cls for s in stats.scenes.values() for p in s.values()} - set(followed))
     statics = home.statics
     out: dict[int, Placements] = {}

@@ -38,6 +38,7 @@ import random
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from functools import partial
+from pathlib import Path
 
 from objsearch.agent.catalogue import DayClock
 from objsearch.agent.home import Home
@@ -94,9 +95,10 @@ class Routine:
         return (self.weekend if weekend else self.weekday)[slot]
 
 
-def routines(home: Home, seed: int) -> dict[str, Routine]:
-    """Each placeable class's routine on day 0, for (home, seed)."""
-    stats = PlacementStats.load()
+def routines(home: Home, seed: int, data: Path | None = None) -> dict[str, Routine]:
+    """Each placeable class's routine on day 0, for (home, seed), from the placement statistics
+    of the data folder ``data`` (None: ``datapaths.data_dir()``)."""
+    stats = PlacementStats.load(data)
     rng = random.Random(f"routine-schedule:routines:{home.name}:{seed}")
     statics = sorted_statics(home)
     out: dict[str, Routine] = {}
@@ -121,12 +123,15 @@ def routines(home: Home, seed: int) -> dict[str, Routine]:
     return out
 
 
-def routines_by_week(home: Home, seed: int, weeks: int) -> list[dict[str, Routine]]:
-    """The routines in force in each week (``weeks`` of them): week 0's, then each drifted."""
-    stats = PlacementStats.load()
+def routines_by_week(
+    home: Home, seed: int, weeks: int, data: Path | None = None
+) -> list[dict[str, Routine]]:
+    """The routines in force in each week (``weeks`` of them): week 0's, then each drifted
+    (``data``: as :func:`routines`)."""
+    stats = PlacementStats.load(data)
     rng = random.Random(f"routine-schedule:drift:{home.name}:{seed}")
     statics = sorted_statics(home)
-    table = routines(home, seed)
+    table = routines(home, seed, data)
     out = [table]
     for _ in range(1, weeks):
         table = dict(table)
@@ -164,28 +169,38 @@ def routine_distribution(
     return out
 
 
-def routine_schedule(home: Home, seed: int, *, scenes: int | None = None) -> Schedule:
-    """A schedule for ``home`` where objects keep routines (see the module doc)."""
+def routine_schedule(
+    home: Home, seed: int, *, scenes: int | None = None, data: Path | None = None
+) -> Schedule:
+    """A schedule for ``home`` where objects keep routines (see the module doc); ``data``: the
+    data folder ``home`` was read from (None: ``datapaths.data_dir()``)."""
     scenes = scenes or ROUTINE_DAYS * SCENES_PER_DAY
     rng = random.Random(f"routine-schedule:scenes:{home.name}:{seed}")
-    weekly = routines_by_week(home, seed, scene_day(scenes) // 7 + 1)
+    weekly = routines_by_week(home, seed, scene_day(scenes) // 7 + 1, data)
     out: dict[int, Placements] = {}
     redrawn = 0
     for scene in range(1, scenes + 1):
         day = scene_day(scene)
         slot = (scene - 1) % SCENES_PER_DAY
-        out[scene], refused = routine_scene(rng, home, weekly[day // 7], day % 7 in WEEKEND, slot)
+        table, weekend = weekly[day // 7], day % 7 in WEEKEND
+        out[scene], refused = routine_scene(rng, home, table, weekend, slot, data)
         redrawn += refused
     return Schedule(name=f"routine-{seed}", home=home.name, scenes=out, redrawn=redrawn)
 
 
 def routine_scene(
-    rng: random.Random, home: Home, table: Mapping[str, Routine], weekend: bool, slot: int
+    rng: random.Random,
+    home: Home,
+    table: Mapping[str, Routine],
+    weekend: bool,
+    slot: int,
+    data: Path | None = None,
 ) -> tuple[Placements, int]:
     """One scene of ``slot`` on a weekday or weekend day under ``table``'s routines: each class,
     in class order, drawn as the module doc says and put there (``place_in_scene``: drawn again
-    while it cannot be seen or its rest points are taken); and how many draws were refused."""
-    stats = PlacementStats.load()
+    while it cannot be seen or its rest points are taken); and how many draws were refused.
+    ``data``: the data folder ``home`` was read from (None: ``datapaths.data_dir()``)."""
+    stats = PlacementStats.load(data)
     statics = sorted_statics(home)
     placed: dict[str, Placement] = {}
     redrawn = 0
@@ -198,5 +213,5 @@ def routine_scene(
         )
         where = draw_place(rng, usual, P_ALTERNATE, routine.alternates, anywhere, home.statics)
         assert where is not None  # the usual places were drawn from the same statics
-        redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed)
+        redrawn += place_in_scene(rng, home, cls, stats, statics, where, placed, data)
     return placed, redrawn

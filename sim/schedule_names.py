@@ -16,6 +16,8 @@ and each search records its scene's (``task_started.clock``); a file schedule's 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from objsearch.agent.catalogue import DayClock
 from objsearch.agent.datapaths import data_dir
 from objsearch.agent.errors import ObjsearchError
@@ -37,12 +39,12 @@ class UnknownScheduleError(ObjsearchError, ValueError):
     """A schedule name that is no file schedule and no ``<kind>-<seed>``."""
 
 
-def file_schedules() -> tuple[str, ...]:
-    return tuple(sorted(p.stem for p in (data_dir() / "schedules").glob("*.json")))
+def file_schedules(data: Path | None = None) -> tuple[str, ...]:
+    return tuple(sorted(p.stem for p in (data_dir(data) / "schedules").glob("*.json")))
 
 
-def _expected() -> str:
-    return ", ".join([*file_schedules(), *(f"{k}-<seed>" for k in SEEDED_KINDS)])
+def _expected(data: Path | None = None) -> str:
+    return ", ".join([*file_schedules(data), *(f"{k}-<seed>" for k in SEEDED_KINDS)])
 
 
 def parse_seeded(name: str) -> tuple[str, int] | None:
@@ -61,25 +63,29 @@ def parse_seeded(name: str) -> tuple[str, int] | None:
     return kind, value
 
 
-def load_schedule(home: Home, name: str, *, scenes: int | None = None) -> Schedule:
+def load_schedule(
+    home: Home, name: str, *, scenes: int | None = None, data: Path | None = None
+) -> Schedule:
     """The schedule ``name`` for ``home`` (``scenes`` applies to the seeded kinds only; default:
-    the kind's own length, 10 scenes, 30 for ``habit``, 84 for ``routine`` and ``homer``)."""
+    the kind's own length, 10 scenes, 30 for ``habit``, 84 for ``routine`` and ``homer``), from
+    the data folder ``data`` ``home`` was read from (None: ``datapaths.data_dir()``)."""
     seeded = parse_seeded(name)
     if seeded is not None:
         kind, seed = seeded
         if kind in ("habit", "moved"):
-            return habit_schedule(home, seed, scenes=scenes or HABIT_SCENES, moved=kind == "moved")
+            n, moved = scenes or HABIT_SCENES, kind == "moved"
+            return habit_schedule(home, seed, scenes=n, moved=moved, data=data)
         if kind == "routine":
-            return routine_schedule(home, seed, scenes=scenes)
+            return routine_schedule(home, seed, scenes=scenes, data=data)
         if kind == "homer":
-            return homer_schedule(home, seed, scenes=scenes)
+            return homer_schedule(home, seed, scenes=scenes, data=data)
         scenes = scenes or SCENES
         if kind == "stats":
-            return stats_schedule(home, seed, scenes=scenes)
-        return rearr_schedule(home, seed, scenes=scenes)
-    if name not in file_schedules():
-        raise UnknownScheduleError(f"unknown schedule {name!r}; expected one of: {_expected()}")
-    return Schedule.load(home, name)
+            return stats_schedule(home, seed, scenes=scenes, data=data)
+        return rearr_schedule(home, seed, scenes=scenes, data=data)
+    if name not in file_schedules(data):
+        raise UnknownScheduleError(f"unknown schedule {name!r}; expected one of: {_expected(data)}")
+    return Schedule.load(home, name, data=data)
 
 
 def schedule_clock(name: str | None, scene: int | None) -> DayClock | None:

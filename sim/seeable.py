@@ -11,7 +11,8 @@ placement; schedules of fixed data (Table I, Table II, rearr) keep their data, a
 unseeable placement out of its scene (:func:`seeable_scenes`), which the bench reports.
 
 The answer for one placement box is computed once per process (viewpoints nearest the object
-first, stopping at the first that detects it) and kept by (home digest, room, box, support).
+first, stopping at the first that detects it) and kept by (home digest, room, box, support,
+threshold); the vocabulary the threshold comes from is read once per data folder.
 """
 
 from __future__ import annotations
@@ -19,8 +20,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cache
+from pathlib import Path
 
 from objsearch.agent.categories import Vocabulary
+from objsearch.agent.datapaths import data_key
 from objsearch.agent.home import Box, Home
 from objsearch.agent.navmap import NavigationMap
 from objsearch.sim.placements import Placement, Placements
@@ -69,14 +72,15 @@ def _navmap(home: Home) -> NavigationMap:
 
 
 @cache
-def _vocabulary() -> Vocabulary:
-    return Vocabulary.load()
+def _vocabulary(folder: Path) -> Vocabulary:
+    return Vocabulary.load(data=folder)
 
 
-def visibility(home: Home, placement: Placement) -> Visibility:
+def visibility(home: Home, placement: Placement, data: Path | None = None) -> Visibility:
     """Whether, for every search camera, some viewpoint of the placement's room detects it (see the
-    module doc)."""
-    threshold = _vocabulary().classes[placement.cls].min_mask_area_px
+    module doc), at the mask threshold of the vocabulary of the data folder ``data`` (None:
+    ``datapaths.data_dir()``)."""
+    threshold = _vocabulary(data_key(data)).classes[placement.cls].min_mask_area_px
     p = placement
     key = (home.digest, p.room, p.box, p.support, p.inside, threshold)
     if key not in _ANSWERS:
@@ -101,20 +105,21 @@ def _visibility(
     return Visibility(True, mask)
 
 
-def seeable(home: Home, placement: Placement) -> bool:
-    return visibility(home, placement).seeable
+def seeable(home: Home, placement: Placement, data: Path | None = None) -> bool:
+    return visibility(home, placement, data).seeable
 
 
 def seeable_scenes(
-    home: Home, scenes: Mapping[int, Placements]
+    home: Home, scenes: Mapping[int, Placements], data: Path | None = None
 ) -> tuple[dict[int, Placements], tuple[Unseeable, ...]]:
-    """The scenes without their unseeable placements, and those placements."""
+    """The scenes without their unseeable placements, and those placements (thresholds of the
+    data folder ``data``'s vocabulary; None: ``datapaths.data_dir()``)."""
     kept: dict[int, Placements] = {}
     dropped: list[Unseeable] = []
     for n, placements in sorted(scenes.items()):
         keep: dict[str, Placement] = {}
         for key, p in sorted(placements.items()):
-            v = visibility(home, p)
+            v = visibility(home, p, data)
             if v.seeable:
                 keep[key] = p
             else:

@@ -27,10 +27,11 @@ import random
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache, partial
+from pathlib import Path
 from typing import Any
 
 from objsearch.agent.categories import read_json
-from objsearch.agent.datapaths import data_dir
+from objsearch.agent.datapaths import data_key
 from objsearch.agent.errors import DataFileError
 from objsearch.agent.home import Box, Home, StaticObject, home_path
 from objsearch.sim.placements import Placement, Placements, Schedule
@@ -51,23 +52,37 @@ class PlacementStats:
     move_rate: float
 
     @classmethod
-    @cache
-    def load(cls) -> PlacementStats:
-        path = data_dir() / PLACEMENTS_FILE
-        doc = read_json(path, "the AI2-THOR placement statistics")
-        try:
-            return cls(
-                counts={c: dict(v) for c, v in doc["counts"].items()},
-                sizes={c: (float(s[0]), float(s[1]), float(s[2])) for c, s in doc["sizes"].items()},
-                move_rate=float(doc["move_rate"]),
-            )
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
-            raise DataFileError(f"{path} is malformed: {exc!r}") from None
+    def load(cls, data: Path | None = None) -> PlacementStats:
+        """The statistics of the data folder ``data`` (None: ``datapaths.data_dir()``), read once
+        per resolved folder in a process."""
+        return _placement_stats(data_key(data))
 
 
 @cache
-def _rest_points(home_name: str) -> dict[str, tuple[tuple[float, float, float], ...]]:
-    doc: Any = read_json(home_path(home_name), "a home")
+def _placement_stats(folder: Path) -> PlacementStats:
+    path = folder / PLACEMENTS_FILE
+    doc = read_json(path, "the AI2-THOR placement statistics")
+    try:
+        return PlacementStats(
+            counts={c: dict(v) for c, v in doc["counts"].items()},
+            sizes={c: (float(s[0]), float(s[1]), float(s[2])) for c, s in doc["sizes"].items()},
+            move_rate=float(doc["move_rate"]),
+        )
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise DataFileError(f"{path} is malformed: {exc!r}") from None
+
+
+def rest_points(
+    home_name: str, data: Path | None = None
+) -> dict[str, tuple[tuple[float, float, float], ...]]:
+    """Static id → where AI2-THOR put objects on it, from home ``home_name``'s file in the data
+    folder ``data`` (None: ``datapaths.data_dir()``); read once per (resolved folder, home)."""
+    return _rest_points(home_name, data_key(data))
+
+
+@cache
+def _rest_points(home_name: str, folder: Path) -> dict[str, tuple[tuple[float, float, float], ...]]:
+    doc: Any = read_json(home_path(home_name, folder), "a home")
     return {
         s["id"]: tuple((float(p[0]), float(p[1]), float(p[2])) for p in s.get("rest_points", ()))
         for r in doc["rooms"]
@@ -119,14 +134,15 @@ def _place(
     size: tuple[float, float, float],
     s: StaticObject,
     taken: Sequence[Placement] = (),
+    data: Path | None = None,
 ) -> Placement | None:
-    """An object of ``cls`` on (or in) ``s`` at a free rest point; None when every rest point
-    of ``s`` is under another object."""
+    """An object of ``cls`` on (or in) ``s`` at a free rest point (of ``home``'s file in the data
+    folder ``data``); None when every rest point of ``s`` is under another object."""
     if s.container:
         center = s.box.center
     else:
         # A static without recorded rest points has one: the middle of its top.
-        rests = _rest_points(home.name).get(s.id) or (
+        rests = rest_points(home.name, data).get(s.id) or (
             (s.box.center[0], s.box.center[1], s.box.top),
         )
         free = [r for r in rests if _free(r, size, taken, s)]
@@ -145,24 +161,29 @@ def place_seeable(
     first: StaticObject | None,
     redraw: Callable[[], StaticObject | None],
     taken: Sequence[Placement] = (),
+    data: Path | None = None,
 ) -> tuple[Placement | None, int]:
     """A placement on ``first`` or, while the one drawn is unseeable or has no free rest point,
     on ``redraw()``; and how many draws were refused. None when nothing could be drawn or every draw was refused.
-    ``taken``: the objects already placed in the scene, whose rest points are not drawn again."""
+    ``taken``: the objects already placed in the scene, whose rest points are not drawn again;
+    ``data``: the data folder ``home`` was read from (None: ``datapaths.data_dir()``)."""
     s = first
     for refused in range(MAX_DRAWS):
         if s is None:
             return None, refused
-        p = _place(rng, home, cls, size, s, taken)
-        if p is not None and seeable(home, p):
+        p = _place(rng, home, cls, size, s, taken, data)
+        if p is not None and seeable(home, p, data):
             return p, refused
         s = redraw()
     return None, MAX_DRAWS
 
 
-def stats_schedule(home: Home, seed: int, *, scenes: int = SCENES) -> Schedule:
-    """A schedule for ``home`` drawn from the placement statistics (see the module doc)."""
-    stats = PlacementStats.load()
+def stats_schedule(
+    home: Home, seed: int, *, scenes: int = SCENES, data: Path | None = None
+) -> Schedule:
+    """A schedule for ``home`` drawn from the placement statistics (see the module doc) of the
+    data folder ``data`` (None: ``datapaths.data_dir()``), which ``home`` was read from."""
+    stats = PlacementStats.load(data)
     rng = random.Random(f"stats-schedule:{home.name}:{seed}")
     statics = sorted(home.statics.values(), key=lambda s: s.id)
     current: dict[str, Placement] = {}
@@ -177,7 +198,8 @@ def stats_schedule(home: Home, seed: int, *, scenes: int = SCENES) -> Schedule:
                 _draw_static, rng, stats.counts[cls], statics, old.support if old else None
             )
             others = [p for c, p in current.items() if c != cls]
-            p, refused = place_seeable(rng, home, cls, stats.sizes[cls], draw(), draw, others)
+            size = stats.sizes[cls]
+            p, refused = place_seeable(rng, home, cls, size, draw(), draw, others, data)
             redrawn += refused
             if p is not None:
                 current[cls] = p

@@ -1,9 +1,15 @@
-"""Where the data is found, and where ``objsearch data build`` may write, from a checkout."""
+"""Where the data is found, and where ``objsearch data build`` may write, from a checkout; and
+that what is read of a home comes from the data folder named or set, in one process too."""
 
 from __future__ import annotations
 
+import json
+import math
+import shutil
 import sysconfig
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -15,6 +21,12 @@ from objsearch.agent.datapaths import (
     data_dir,
     packaged_data_dir,
 )
+from objsearch.agent.home import load_home
+from objsearch.agent.session import load_context
+from objsearch.experiments.report_homes import failure_cause
+from objsearch.experiments.runner import Row
+from objsearch.sim.habit_schedule import habit_schedule
+from objsearch.sim.placements import Schedule
 
 REPO_DATA = Path(__file__).resolve().parents[2] / "data"
 
@@ -47,3 +59,98 @@ def test_build_refuses_site_packages(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(DATA_ENV, str(inside))  # a setting cannot smuggle it in either
     with pytest.raises(DataLocationError, match="refusing"):
         build_output_dir(None)
+
+
+# One home id in two data folders, in one process: what is read of it comes from the folder
+# named (``data``) or set (``$OBJSEARCH_DATA``). The caches of home contexts, rest points and
+# failure causes were keyed by the home id alone and handed back the first folder's.
+
+SHIFT_M = 0.013
+
+
+def _changed_data(path: Path, file: str, change: Callable[[Any], Any]) -> Path:
+    """A copy of the bundled data whose ``file`` is the bundled one's JSON passed through
+    ``change``, written with another indentation (its bytes differ even if nothing else does)."""
+    shutil.copytree(packaged_data_dir(), path, ignore=shutil.ignore_patterns("__pycache__"))
+    doc = change(json.loads((path / file).read_text(encoding="utf-8")))
+    (path / file).write_text(json.dumps(doc, indent=3), encoding="utf-8")
+    return path
+
+
+def test_a_home_context_is_each_data_folders(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv(DATA_ENV, raising=False)
+    other = _changed_data(tmp_path / "other", "homes/paper.json", lambda doc: doc)
+    bundled_digest = load_home(REPO_DATA / "homes" / "paper.json").digest
+    other_digest = load_home(other / "homes" / "paper.json").digest
+    assert bundled_digest != other_digest
+    assert load_context("paper").home.digest == bundled_digest
+    assert load_home("paper", other).digest == other_digest
+    assert load_context("paper", other).home.digest == other_digest
+    assert load_context("paper").home.digest == bundled_digest
+    (tmp_path / "link").symlink_to(other)  # two spellings of one folder: one entry
+    assert load_context("paper", tmp_path / "link") is load_context("paper", other)
+    monkeypatch.setenv(DATA_ENV, str(other))
+    assert load_context("paper").home.digest == other_digest
+
+
+def _shifted_rest_points(doc: Any) -> Any:
+    for room in doc["rooms"]:
+        for s in room["statics"]:
+            s["rest_points"] = [[p[0] + SHIFT_M, p[1], p[2]] for p in s.get("rest_points", ())]
+    return doc
+
+
+def _on_rest_points_of(folder: Path, schedule: Schedule) -> bool:
+    """Whether every placement on a static with rest points lies on one of them in ``folder``'s
+    file of the home."""
+    doc = json.loads((folder / "homes" / f"{schedule.home}.json").read_text(encoding="utf-8"))
+    rests = {s["id"]: s.get("rest_points", []) for r in doc["rooms"] for s in r["statics"]}
+    placed = [p for scene in schedule.scenes.values() for p in scene.values()]
+    checked = [p for p in placed if not p.inside and p.support is not None and rests[p.support]]
+    assert checked
+    return all(
+        any(
+            math.isclose(p.box.center[0], x, abs_tol=1e-9)
+            and math.isclose(p.box.center[1], y, abs_tol=1e-9)
+            for x, y, _ in rests[p.support]
+        )
+        for p in checked
+    )
+
+
+def test_a_habit_schedule_is_drawn_on_each_data_folders_rest_points(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv(DATA_ENV, raising=False)
+    other = _changed_data(tmp_path / "other", "homes/ithor-01.json", _shifted_rest_points)
+    bundled = habit_schedule(load_home("ithor-01"), 0, scenes=2)
+    assert _on_rest_points_of(REPO_DATA, bundled)
+    named = habit_schedule(load_home("ithor-01", other), 0, scenes=2, data=other)
+    assert _on_rest_points_of(other, named)
+    assert not _on_rest_points_of(REPO_DATA, named)
+    monkeypatch.setenv(DATA_ENV, str(other))
+    assert _on_rest_points_of(other, habit_schedule(load_home("ithor-01"), 0, scenes=2))
+
+
+def test_a_failure_cause_is_each_data_folders(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The paper home's Table I scene: the other folder's scenario removes the Cup too."""
+    monkeypatch.delenv(DATA_ENV, raising=False)
+    cup = "kitchen/Cup|+00.90|+01.67|-01.61"
+
+    def without_cup(doc: Any) -> Any:
+        return {**doc, "removed": sorted([*doc["removed"], cup])}
+
+    other = _changed_data(tmp_path / "other", "scenarios/table1.json", without_cup)
+    failed = Row(
+        "homes", "paper", "table1", "wpl", "all", 1, 0, "Cup", "x", False, 0.0, 0.0, "task-1"
+    )
+    bundled = failure_cause(failed, "geometric")
+    assert bundled != "not placed in this scene"
+    assert failure_cause(failed, "geometric", other) == "not placed in this scene"
+    assert failure_cause(failed, "geometric") == bundled
+    monkeypatch.setenv(DATA_ENV, str(other))
+    assert failure_cause(failed, "geometric") == "not placed in this scene"
