@@ -58,7 +58,7 @@ def main() -> None:
             for name in names:
                 arm["code"] = ARMS[name]
                 began = time.perf_counter()
-                outcome = run_cli(argv)
+                outcome = run_cli(argv, fork_queries=False)
                 if outcome.code != 0:
                     raise SystemExit(f"the query failed: {outcome.stderr}")
                 if r:  # the first round warms the caches

@@ -17,5 +17,6 @@ it (``tests/test_architecture.py``). The test suite finds it through pytest's ``
 - the command line: ``cli_battery`` (every option of every subcommand with malformed values);
 - the runtime: ``requestfuzz`` (broken requests against real agents) and ``wsflood`` (hostile
   WebSocket clients against the live view).
-- the suite itself: ``xdist_scopes`` (how ``make test``'s workers share the test modules).
+- the suite itself: ``xdist_scopes`` (how ``make test``'s workers share the test modules) and
+  ``query_server`` (``objsearch query``'s process forked from a warm one, for the lake batteries).
 """

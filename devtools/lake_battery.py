@@ -9,7 +9,8 @@ inside data pages, in the footer or anywhere, a burst of bytes, a cut, a zeroed 
 appended), a data file deleted or rewritten as valid Parquet with one value changed, or the
 table's log (a commit file's bit flipped, cut or deleted). Then:
 
-* ``objsearch query`` of every row of every view (each row hashed), and
+* ``objsearch query`` of every row of every view (each row hashed; its process forked from a
+  warm one, :mod:`devtools.query_server`), and
 * ``objsearch lake verify --format json``.
 
 Each variant gets one verdict, the worst of:
@@ -32,6 +33,7 @@ so a clear error may answer with a run's other types still in (docs/analytics.md
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import io
 import json
@@ -50,6 +52,7 @@ import pyarrow.parquet as pq
 
 from devtools.cli_battery import BatteryOutcome, run_in_process
 from devtools.killtest import tree
+from devtools.query_server import forked_queries
 from objsearch.events.derived import derived_tables
 from objsearch.product import STORE
 
@@ -106,9 +109,11 @@ def _parser() -> argparse.ArgumentParser:
     return build_parser()
 
 
-def run_cli(argv: Sequence[str]) -> BatteryOutcome:
+def run_cli(argv: Sequence[str], *, fork_queries: bool = True) -> BatteryOutcome:
     """:func:`devtools.cli_battery.run_in_process` with the CLI's log lines (the warnings that
-    name damaged runs) added to the captured stderr."""
+    name damaged runs) added to the captured stderr. ``objsearch query``'s process is forked from
+    a warm one (:func:`devtools.query_server.forked_queries`: its start-up was most of the
+    batteries' time) unless ``fork_queries`` is false (a fresh interpreter, as shipped)."""
     lines = io.StringIO()
     handler = logging.StreamHandler(lines)
     handler.setFormatter(logging.Formatter("objsearch: %(levelname)s: %(message)s"))
@@ -116,7 +121,8 @@ def run_cli(argv: Sequence[str]) -> BatteryOutcome:
     root = logging.getLogger()
     root.addHandler(handler)
     try:
-        outcome = run_in_process(argv, parser=_parser())
+        with forked_queries() if fork_queries else contextlib.nullcontext():
+            outcome = run_in_process(argv, parser=_parser())
     finally:
         root.removeHandler(handler)
     return BatteryOutcome(outcome.code, outcome.stdout, outcome.stderr + lines.getvalue())

@@ -9,7 +9,9 @@ with one edit (:data:`KINDS`): an ``add``, ``txn`` or ``commitInfo`` line of a c
 ``add`` line duplicated, a commit file deleted, duplicated as the next version, cut at a line or
 inside one, a bit flipped; the newest commit file deleted; a ``_run`` file deleted, cut, flipped
 or replaced; the lake's record of its latest version (:data:`~objsearch.events.lake.head.HEAD_FILE`)
-deleted or garbled. Each copy is asked, through the real CLI in-process:
+deleted or garbled. Each copy is asked, through the real CLI in-process (the query's process
+forked from a warm one, :mod:`devtools.query_server`, as :func:`devtools.lake_battery.run_cli`
+runs every command):
 
 * ``objsearch query`` of every row of every view, ``objsearch lake ls --format json`` and
   ``objsearch lake verify --format json`` (none of them may change a file of the lake);
