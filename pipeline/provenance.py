@@ -5,11 +5,19 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Mapping, Sequence
+from fnmatch import fnmatchcase
 from pathlib import Path
 
 from .room_objects import OPENABLE_NOT_CONTAINER, PREFERRED_PART, SUPPORT_RADIUS_M
 from .rooms import FLOOR_CONTACT_M, NOT_OBSTACLES
-from .sourceinfo import ALL_SOURCES, EXTRA_SOURCES, HOMER, REARRANGEMENT, SourceInfo
+from .sourceinfo import (
+    ALL_SOURCES,
+    EXTRA_SOURCES,
+    HOMER,
+    PROCTHOR_HOUSES,
+    REARRANGEMENT,
+    SourceInfo,
+)
 from .sources import HOZ_ADJACENCY, VG_MATRIX, layout_path, openable_path, scene_path
 
 
@@ -47,16 +55,44 @@ def build_command(
     return cmd
 
 
+#: The house files the shared data folder holds (its PROVENANCE.md: zhiyuan-gao/procthor's
+#: ``houses_20``, ``klbr`` and ``house_100``; allenai/ai2thor's ``procthor_train_1``), relative to
+#: ``procthor_houses/``. A ``--procthor`` house anywhere else came from somewhere this build
+#: cannot know, so it is listed apart, with no repository or licence claimed for it.
+SHARED_HOUSES = ("houses_20/house_*.json", "klbr/house_*.json", "house_100.json",
+                 "procthor_train_1.json")  # fmt: skip
+
+
+def is_shared_house(file: Path) -> bool:
+    """Whether ``file`` (relative to the source root) is one of the shared data's own houses."""
+    if file.parts[:1] != (PROCTHOR_HOUSES.local.as_posix(),):
+        return False
+    inside = file.parts[1:]
+    return any(
+        len(inside) == len(pattern.split("/")) and all(map(fnmatchcase, inside, pattern.split("/")))
+        for pattern in SHARED_HOUSES
+    )
+
+
 def _source_section(info: SourceInfo, files: list[Path], source: Path) -> list[str]:
-    lines = [
-        f"### `{info.local.as_posix()}`",
-        "",
-        f"- Repository: {info.repo}, {info.revision}; upstream: `{info.upstream_path}`",
-        f"- Licence: {info.licence} ({info.copyright}); full text: `{info.shown_root}/"
-        f"{info.licence_file.as_posix()}` and the upstream repository's LICENSE",
-        "- Files read (sha256):",
-    ]
-    lines += [f"  - `{f.as_posix()}` `{sha256(info.root(source) / f)}`" for f in files]
+    own = [f for f in files if info is not PROCTHOR_HOUSES or is_shared_house(f)]
+    other = [f for f in files if f not in own]
+    lines = [f"### `{info.local.as_posix()}`", ""]
+    if own:
+        lines += [
+            f"- Repository: {info.repo}, {info.revision}; upstream: `{info.upstream_path}`",
+            f"- Licence: {info.licence} ({info.copyright}); full text: `{info.shown_root}/"
+            f"{info.licence_file.as_posix()}` and the upstream repository's LICENSE",
+            "- Files read (sha256):",
+        ]
+        lines += [f"  - `{f.as_posix()}` `{sha256(info.root(source) / f)}`" for f in own]
+    if other:
+        lines += [
+            "- Other house files given with `--procthor`, not the shared data's own houses: "
+            "where they came from and under which licence is not known to this build (whoever "
+            "built this folder records it); files read (sha256):",
+        ]
+        lines += [f"  - `{f.as_posix()}` `{sha256(info.root(source) / f)}`" for f in other]
     return [*lines, ""]
 
 
