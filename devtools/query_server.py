@@ -1,13 +1,14 @@
-"""``objsearch query``'s process forked from a warm one, for the lake batteries' hundreds of queries.
+"""``objsearch query``'s process forked from a warm one, for the tests that run hundreds of queries.
 
 ``objsearch query`` runs its SQL in a process of its own (``python -P -m
 objsearch.replay.query_process``, :class:`objsearch.replay.query_process.QueryProcess`): a fresh
 interpreter that imports DuckDB, Arrow, numpy and the lake's reader before it reads the lake,
 about 0.27 s of its 0.45 s on an idle machine. The lake batteries ask the same lake questions
-over a hundred times (``tests/test_lake_log_battery.py``: 102 queries), so that start-up was most
-of their time. As :class:`devtools.killtest.KillServer` does for the kill tests, :class:`QueryServer`
-is one process that has imported what the query's process imports (and nothing it would not:
-its memory cap is taken from what it holds) and forks a child per query; the child runs the
+over a hundred times (``tests/test_lake_log_battery.py``: 102 queries), as does
+``tests/test_cli_query.py`` (96), so that start-up was most of their time. As
+:class:`devtools.killtest.KillServer` does for the kill tests, :class:`QueryServer` is one
+process that has imported what the query's process imports (and nothing it would not: its memory
+cap is taken from what it holds) and forks a child per query; the child runs the
 query process's own ``main`` on the pipes the command made, with the command's environment, in
 its working folder, and leaves as that process leaves (``os._exit`` with ``main``'s code, or 1
 with the traceback of a bug). The command (``QueryProcess``) is unchanged: :func:`forked_queries`
@@ -17,8 +18,9 @@ child gets its memory cap, time limit, spill folder and death with the server (w
 the process that started it) as the real one does; only the interpreter's start is shared.
 
 What a fresh interpreter alone can show (the command line of the process, its ``-P``, the module
-run as ``__main__``) is tested without the server: ``tests/replay/test_query_process.py`` and
-``tests/test_cli_query.py`` start the real process.
+run as ``__main__``, its memory and time limits as shipped) is tested without the server:
+``tests/replay/test_query_process.py`` and the tests of the query's limits, spill folder and
+defaults in ``tests/test_cli_query.py`` (its ``FRESH_PROCESS``) start the real process.
 
 One query at a time per server (the batteries ask one after another): a second started before the
 first one's process has ended is refused.
@@ -52,7 +54,7 @@ import objsearch.events.sql, objsearch.events.sql_limits, objsearch.replay.analy
 query_process.die_with_parent()  # the server dies with the process that started it
 channel = socket.socket(fileno=int(sys.argv[1]))
 while True:
-    message, fds, _, _ = socket.recv_fds(channel, 1 << 20, 2)
+    message, fds, _, _ = socket.recv_fds(channel, 1 << 20, 3)
     if not message:
         break
     job = json.loads(message)
@@ -61,6 +63,7 @@ while True:
         channel.close()
         os.dup2(fds[0], 0)
         os.dup2(fds[1], 1)
+        os.dup2(fds[2], 2)
         for fd in fds:
             os.close(fd)
         os.chdir(job["cwd"])
@@ -106,15 +109,17 @@ class QueryServer:
         return self._proc.poll() is None
 
     def start(self, env: Mapping[str, str], cwd: str) -> tuple[int, IO[bytes], IO[bytes]]:
-        """Fork a query's process: its pid, and the write end of its stdin and the read end of
-        its stdout (unbuffered, as ``Popen(..., bufsize=0)`` gives them)."""
+        """Fork a query's process (its stderr this process's): its pid, and the write end of its
+        stdin and the read end of its stdout (unbuffered, as ``Popen(..., bufsize=0)`` gives
+        them)."""
         if self.busy is not None and self.busy.returncode is None:
             raise RuntimeError("the query server runs one query at a time; close the first one")
         stdin_r, stdin_w = os.pipe()
         stdout_r, stdout_w = os.pipe()
         try:
             job = json.dumps({"env": dict(env), "cwd": cwd}).encode()
-            socket.send_fds(self._channel, [job], [stdin_r, stdout_w])
+            # and the stderr the command has now, which a fresh process would inherit
+            socket.send_fds(self._channel, [job], [stdin_r, stdout_w, 2])
         finally:
             os.close(stdin_r)
             os.close(stdout_w)
@@ -186,9 +191,8 @@ _server: list[QueryServer] = []
 def _the_server() -> QueryServer:
     """This process's server, started on first use (and again if it has ended)."""
     if not _server or not _server[0].alive:
-        if not _server:
-            atexit.register(close_server)
-        _server[:] = [QueryServer()]
+        close_server()
+        _server.append(QueryServer())
     return _server[0]
 
 
@@ -196,6 +200,9 @@ def close_server() -> None:
     """End this process's server, if it has one (the next query starts another)."""
     while _server:
         _server.pop().close()
+
+
+atexit.register(close_server)
 
 
 @contextlib.contextmanager

@@ -19,11 +19,47 @@ from pathlib import Path
 import pytest
 
 from devtools.killtest import tree
+from devtools.query_server import forked_queries
 from objsearch.agent.catalogue import STORE
 from objsearch.cli import main
 from objsearch.events.lake import DataFile, TableLake, is_table_lake
 from objsearch.events.sql_limits import QueryLimitError, close
 from objsearch.replay.analytics import open_analytics, run_query, stream_query
+
+#: The tests of what the query's own process does (its time and memory limits, its spill folder,
+#: its defaults, its output encoding) start it as shipped, a fresh interpreter. The rest ask the
+#: lake questions: their query's process is forked from a warm one (devtools/query_server.py: the
+#: same ``main``, pipes, environment and limits, held equal by tests/test_query_server.py), since
+#: the interpreter's start was 0.27 s of each query's 0.45 s and this module runs about a hundred.
+FRESH_PROCESS = frozenset(
+    {
+        "test_a_runaway_query_stops_at_its_time_limit",
+        "test_a_result_that_streams_stops_at_its_time_limit_and_leaves_no_file",
+        "test_a_query_past_its_memory_limit_stops_with_a_clear_error",
+        "test_a_result_past_the_memory_limit_stops_before_it_reaches_python",
+        "test_a_query_past_its_memory_limit_never_holds_more_than_the_limit_and_the_overhead",
+        "test_a_query_that_ignores_interrupts_stops_at_its_time_limit",
+        "test_a_table_counts_every_row_it_holds_csv_streams_them",
+        "test_the_limits_have_defaults_and_options_raise_them",
+        "test_a_query_cannot_read_where_duckdb_spills",
+        "test_json_is_valid_on_an_ascii_only_stdout",
+    }
+)
+
+
+@pytest.fixture(autouse=True)
+def query_process(request: pytest.FixtureRequest) -> Iterator[None]:
+    """The query's process of each test: fresh for :data:`FRESH_PROCESS`, else forked."""
+    if request.node.originalname in FRESH_PROCESS:
+        yield
+        return
+    with forked_queries():
+        yield
+
+
+def test_the_fresh_process_tests_are_this_modules() -> None:
+    """A renamed test would otherwise lose its fresh process without a word."""
+    assert {name for name in globals() if name.startswith("test_")} >= FRESH_PROCESS
 
 
 @pytest.fixture(scope="module")

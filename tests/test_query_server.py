@@ -101,3 +101,29 @@ def test_the_querys_process_is_the_servers_child_and_killable(lake: Path) -> Non
         proc.stdout.close()
     finally:
         server.close()
+
+
+def test_a_bug_in_the_querys_process_ends_it_with_its_traceback_on_the_commands_stderr(
+    tmp_path: Path,
+) -> None:
+    """As a fresh process inherits the command's stderr, so does a forked one: the stderr the
+    command has when it starts the query (not when the server started)."""
+    server = query_server.QueryServer()
+    saved = os.dup(2)
+    try:
+        with (tmp_path / "stderr").open("wb") as now:
+            os.dup2(now.fileno(), 2)
+            env = os.environ | {"OBJSEARCH_QUERY_PARENT": str(os.getpid())}
+            proc = query_server.Forked(server, ["python", "-m", query_server.QUERY_MODULE], env)
+            os.dup2(saved, 2)
+        proc.stdin.write(b"not a request")  # main cannot read it: a bug, as a fresh process says
+        proc.stdin.close()
+        assert proc.stdout.read() == b""
+        proc.stdout.close()
+        assert proc.wait(timeout=60) == 1
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        server.close()
+    said = (tmp_path / "stderr").read_text()
+    assert "Traceback" in said and "JSONDecodeError" in said, said
