@@ -83,8 +83,8 @@ def test_scopes_are_handed_out_longest_expected_first() -> None:
     handed_out, _ = _run(COLLECTION)
     assert handed_out == [
         TRANSPORT_SCOPE,
-        "tests/test_lake_log_battery.py",  # one test: most-tests-first handed it out last
         "tests/test_wheel.py",
+        "tests/test_lake_log_battery.py",  # one test: most-tests-first handed it out last
         "tests/agent/test_planner.py",  # not listed: 157 x PER_TEST_SECONDS
         DATA_BUILD_SCOPE,
         "tests/sim/test_unlisted.py",
