@@ -79,6 +79,14 @@ DRAWS: Final = ("view", "place")
 #: says the class is likelier there, not less likely (docs/perception.md, "Reports that are no
 #: sighting").
 REPORTS: Final = ("misses", "evidence")
+#: What the searcher does after an inspection of a stop that took no sighting of the target
+#: (agent/policy.py, ``SearchAgent._relook``): ``off``, it moves on to the next stop of its
+#: plan and comes back only in a revisit pass after the whole pass (every run before this
+#: option, and any run spec that names none), or ``likeliest``, it inspects the stop again from
+#: where it stands (no metres: the detector's misses are independent from look to look) while
+#: the stop's value times its per-look miss to the power of its inspections in this pass is
+#: still above every stop the pass has yet to visit.
+RELOOKS: Final = ("off", "likeliest")
 #: The search camera's focal length (px): 640×480 at a 90° horizontal field of view.
 FOCAL_PX: Final = 320.0
 #: Nearer than this the mask estimate is capped (the camera then sees the whole object anyway).
@@ -131,6 +139,8 @@ class PerceptionModel:
     draws: str = "view"
     #: What a report that is no sighting tells the agent's memory of the day (:data:`REPORTS`).
     reports: str = "misses"
+    #: Whether the searcher looks again at a stop that missed before moving on (:data:`RELOOKS`).
+    relook: str = "off"
 
     def __post_init__(self) -> None:
         if self.preset not in PRESETS:
@@ -169,6 +179,10 @@ class PerceptionModel:
         if self.reports not in REPORTS:
             raise ObjsearchError(
                 f"unknown reports {self.reports!r}; choose from {', '.join(REPORTS)}"
+            )
+        if self.relook not in RELOOKS:
+            raise ObjsearchError(
+                f"unknown relook {self.relook!r}; choose from {', '.join(RELOOKS)}"
             )
 
     @property
@@ -240,8 +254,8 @@ class PerceptionModel:
 
     def params(self) -> dict[str, Any]:
         """As the run spec records it (``params.perception``); the ``score`` confirmation,
-        ``view`` draws and ``misses`` reports are left out, so a run spec is what it was before
-        each option."""
+        ``view`` draws, ``misses`` reports and ``off`` relook are left out, so a run spec is what
+        it was before each option."""
         doc = asdict(self)
         doc["tp_score"] = list(self.tp_score)
         doc["fp_score"] = list(self.fp_score)
@@ -251,6 +265,8 @@ class PerceptionModel:
             del doc["draws"]
         if self.reports == "misses":
             del doc["reports"]
+        if self.relook == "off":
+            del doc["relook"]
         return doc
 
     @classmethod
@@ -316,7 +332,8 @@ def preset(
     :data:`PRESET_CONFIRMATION`), ``draws`` how the simulator keys its draws (:data:`DRAWS`;
     None: ``place``, but ``view`` for ``perfect``, which draws nothing), ``reports`` what a
     report that is no sighting tells the day's memory (:data:`REPORTS`; None: ``evidence``, but
-    ``misses`` for ``perfect``, whose reports are all sightings but for their masks, as before)."""
+    ``misses`` for ``perfect``, whose reports are all sightings but for their masks, as before).
+    Every preset's relook is ``off`` (:data:`RELOOKS`; ``dataclasses.replace`` sets another)."""
     if name not in PRESETS:
         raise ObjsearchError(
             f"unknown perception preset {name!r}; choose from {', '.join(PRESETS)}"

@@ -473,8 +473,11 @@ class SearchAgent:
             ordered = [stops[k] for k in ordering.order]
             run.emit(self._plan(room, rooms[i:], stops, ordering))
             result.plans.append((room, tuple(s.key for s in ordered)))
-            for stop in ordered:
+            for k, stop in enumerate(ordered):
                 found = run.go(stop.viewpoint, result) or run.inspect(stop, result)
+                if found is None:
+                    rest = [*ordered[k + 1 :], *(s for r in rooms[i + 1 :] for s in room_stops[r])]
+                    found = self._relook(run, result, stop, rest)
                 if found:
                     return found
         return None
@@ -494,8 +497,34 @@ class SearchAgent:
             for stop in plan.order[: plan.segment]:
                 stops.remove(stop)
                 found = run.go(stop.viewpoint, result) or run.inspect(stop, result)
+                if found is None:
+                    rest = [s for left in remaining.values() for s in left]
+                    found = self._relook(run, result, stop, rest)
                 if found:
                     return found
+        return None
+
+    def _relook(
+        self, run: SearchTask, result: SearchResult, stop: Stop, rest: Sequence[Stop]
+    ) -> Found | None:
+        """With relook ``likeliest`` (:data:`~objsearch.agent.detector_model.RELOOKS`), after an
+        inspection of ``stop`` that found nothing: inspect it again from where the robot stands
+        while its value times its per-look miss (:meth:`stop_miss`) to the power of its
+        inspections so far in this pass is above the value of every stop in ``rest`` (those the
+        pass has yet to visit), at most ``REVISIT_PASSES`` inspections in all. A look from where
+        the robot stands costs no metres, and the modelled detector's misses are independent
+        from look to look, so the likeliest place is looked at again before a farther, less
+        likely one; with the option off (the default) it waits for a revisit pass."""
+        if self.config.perception.relook != "likeliest" or not rest:
+            return None
+        best = max(s.rel for s in rest)
+        miss = self.stop_miss(run.target, stop)
+        looks = 1
+        while looks < REVISIT_PASSES and stop.rel * miss**looks > best:
+            found = run.go(stop.viewpoint, result) or run.inspect(stop, result)
+            if found:
+                return found
+            looks += 1
         return None
 
     def _plan(

@@ -240,7 +240,8 @@ def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
     preset, each parameter the preset does not give, and the confirmation model when it is not
     the preset's (a run spec that names none confirmed by ``score``, the runs before the option),
     the draws when they are not ``place`` (a run spec that names none drew by view), and the
-    reports when they are not ``evidence`` (a run spec that names none counted them as misses)."""
+    reports when they are not ``evidence`` (a run spec that names none counted them as misses),
+    and the relook when it is not ``off``."""
     if not perception:
         return {}
     from objsearch.agent.detector_model import OVERRIDES, PerceptionModel, preset
@@ -259,6 +260,8 @@ def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
         changed["draws"] = run.draws
     if run.reports != base.reports:
         changed["reports"] = run.reports
+    if run.relook != base.relook:
+        changed["relook"] = run.relook
     return {"perception": run.preset, **changed}
 
 

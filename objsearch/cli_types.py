@@ -156,7 +156,14 @@ def perception_option(p: argparse.ArgumentParser) -> None:
 
 
 def _add_perception_options(p: argparse.ArgumentParser) -> None:
-    from objsearch.agent.detector_model import CONFIRMATIONS, DRAWS, OVERRIDES, PRESETS, REPORTS
+    from objsearch.agent.detector_model import (
+        CONFIRMATIONS,
+        DRAWS,
+        OVERRIDES,
+        PRESETS,
+        RELOOKS,
+        REPORTS,
+    )
 
     p.add_argument(
         "--perception",
@@ -210,6 +217,15 @@ def _add_perception_options(p: argparse.ArgumentParser) -> None:
         "of the day: evidence (its likelihood ratio: the class is likelier there) or misses (a "
         "miss, as runs before 2026-12-07's second amendment counted it) (evidence)",
     )
+    p.add_argument(
+        "--relook",
+        type=text,
+        choices=RELOOKS,
+        default=None,
+        help="after an inspection that missed the target: off (move on; come back in a revisit "
+        "pass) or likeliest (look again from where the robot stands while that stop is still "
+        "likelier than every stop left in the pass) (off)",
+    )
 
 
 def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
@@ -227,6 +243,10 @@ def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
         getattr(args, "reports", None),
         **overrides,
     )
+    if (relook := getattr(args, "relook", None)) is not None:
+        from dataclasses import replace
+
+        model = replace(model, relook=relook)
     return None if model.perfect else model.params()
 
 

@@ -180,3 +180,20 @@ def test_the_confirmation_model_is_an_option_recorded_in_the_run_spec(command: l
     assert (chosen["confirmation"], chosen["fp_recurrence"]) == ("consistent", 0.3)
     with pytest.raises(SystemExit):
         parse([*command, "--confirmation", "sometimes"])
+
+
+@pytest.mark.parametrize(
+    "command", [["bench", "homes"], ["search", "Apple", "--start", "kitchen-1"]]
+)
+def test_relook_is_an_option_recorded_in_the_run_spec_only_when_on(command: list[str]) -> None:
+    from objsearch.cli import build_parser
+
+    parse = build_parser().parse_args
+    default = t.perception_params(parse([*command, "--perception", "realistic"]))
+    assert default is not None and "relook" not in default
+    on = t.perception_params(
+        parse([*command, "--perception", "realistic", "--relook", "likeliest"])
+    )
+    assert on is not None and on["relook"] == "likeliest"
+    with pytest.raises(SystemExit):
+        parse([*command, "--relook", "sometimes"])

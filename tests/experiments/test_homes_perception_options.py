@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from objsearch.agent.detector_model import preset
 from objsearch.experiments.homes import perception_options
 
@@ -29,4 +31,12 @@ def test_a_run_with_another_confirmation_than_its_presets_names_it() -> None:
         "perception": "realistic",
         "fp_per_image": 0.5,
         "fp_recurrence": 0.3,
+    }
+
+
+def test_a_run_that_looks_again_names_its_relook() -> None:
+    on = replace(preset("realistic"), relook="likeliest")
+    assert perception_options(on.params()) == {
+        "perception": "realistic",
+        "relook": "likeliest",
     }
