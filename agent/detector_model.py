@@ -81,8 +81,9 @@ DRAWS: Final = ("view", "place")
 REPORTS: Final = ("misses", "evidence")
 #: What the searcher does after an inspection of a stop that took no sighting of the target
 #: (agent/policy.py, ``SearchAgent._relook``): ``off``, it moves on to the next stop of its
-#: plan and comes back only in a revisit pass after the whole pass (every run before this
-#: option, and any run spec that names none), or ``likeliest``, it inspects the stop again from
+#: plan and comes back only in a revisit pass after the whole pass (``perfect``, every run before
+#: this option, and any run spec that names none), or ``likeliest`` (the modelled presets'
+#: default since the amendment of 21:12 UTC), it inspects the stop again from
 #: where it stands (no metres: the detector's misses are independent from look to look) while
 #: the stop's value times its per-look miss to the power of its inspections in this pass is
 #: still above every stop the pass has yet to visit.
@@ -320,6 +321,7 @@ def preset(
     confirmation: str | None = None,
     draws: str | None = None,
     reports: str | None = None,
+    relook: str | None = None,
     **overrides: float,
 ) -> PerceptionModel:
     """A preset, with some parameters overridden (:data:`OVERRIDES`).
@@ -333,7 +335,9 @@ def preset(
     None: ``place``, but ``view`` for ``perfect``, which draws nothing), ``reports`` what a
     report that is no sighting tells the day's memory (:data:`REPORTS`; None: ``evidence``, but
     ``misses`` for ``perfect``, whose reports are all sightings but for their masks, as before).
-    Every preset's relook is ``off`` (:data:`RELOOKS`; ``dataclasses.replace`` sets another)."""
+    ``relook`` what the searcher does after an inspection that missed (:data:`RELOOKS`; None:
+    ``likeliest``, chosen by the amendment of 2026-12-07 21:12 UTC of docs/protocol-perception.md,
+    but ``off`` for ``perfect``, as before)."""
     if name not in PRESETS:
         raise ObjsearchError(
             f"unknown perception preset {name!r}; choose from {', '.join(PRESETS)}"
@@ -372,4 +376,5 @@ def preset(
         # A perfect detector draws nothing: it stays the default model.
         draws=draws or ("view" if name == "perfect" else "place"),
         reports=reports or ("misses" if name == "perfect" else "evidence"),
+        relook=relook or ("off" if name == "perfect" else "likeliest"),
     )

@@ -241,7 +241,7 @@ def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
     the preset's (a run spec that names none confirmed by ``score``, the runs before the option),
     the draws when they are not ``place`` (a run spec that names none drew by view), and the
     reports when they are not ``evidence`` (a run spec that names none counted them as misses),
-    and the relook when it is not ``off``."""
+    and the relook when it is not the preset's (a run spec that names none did not relook)."""
     if not perception:
         return {}
     from objsearch.agent.detector_model import OVERRIDES, PerceptionModel, preset

@@ -224,7 +224,7 @@ def _add_perception_options(p: argparse.ArgumentParser) -> None:
         default=None,
         help="after an inspection that missed the target: off (move on; come back in a revisit "
         "pass) or likeliest (look again from where the robot stands while that stop is still "
-        "likelier than every stop left in the pass) (off)",
+        "likelier than every stop left in the pass) (likeliest; off for perfect)",
     )
 
 
@@ -241,12 +241,9 @@ def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
         getattr(args, "confirmation", None),
         getattr(args, "draws", None),
         getattr(args, "reports", None),
+        getattr(args, "relook", None),
         **overrides,
     )
-    if (relook := getattr(args, "relook", None)) is not None:
-        from dataclasses import replace
-
-        model = replace(model, relook=relook)
     return None if model.perfect else model.params()
 
 

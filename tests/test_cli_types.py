@@ -186,14 +186,18 @@ def test_the_confirmation_model_is_an_option_recorded_in_the_run_spec(command: l
     "command", [["bench", "homes"], ["search", "Apple", "--start", "kitchen-1"]]
 )
 def test_relook_is_an_option_recorded_in_the_run_spec_only_when_on(command: list[str]) -> None:
+    """The modelled presets relook (the amendment of 21:12 UTC); ``off`` is left out of the run
+    spec, so a spec that names none replays as the runs before the option."""
     from objsearch.cli import build_parser
 
     parse = build_parser().parse_args
     default = t.perception_params(parse([*command, "--perception", "realistic"]))
-    assert default is not None and "relook" not in default
-    on = t.perception_params(
-        parse([*command, "--perception", "realistic", "--relook", "likeliest"])
-    )
-    assert on is not None and on["relook"] == "likeliest"
+    assert default is not None and default["relook"] == "likeliest"
+    off = t.perception_params(parse([*command, "--perception", "realistic", "--relook", "off"]))
+    assert off is not None and "relook" not in off
+    harsh = t.perception_params(parse([*command, "--perception", "harsh"]))
+    assert harsh is not None and harsh["relook"] == "likeliest"
+    # a perfect detector records no perception model (its run spec is what it always was)
+    assert t.perception_params(parse([*command, "--relook", "likeliest"])) is None
     with pytest.raises(SystemExit):
         parse([*command, "--relook", "sometimes"])

@@ -471,10 +471,13 @@ def test_a_stop_that_missed_is_looked_at_again_while_it_is_the_likeliest(strateg
 
 
 def test_relook_off_is_left_out_of_the_run_spec() -> None:
-    assert "relook" not in preset("realistic").params()
-    on = replace(preset("realistic"), relook="likeliest")
-    assert on.params()["relook"] == "likeliest"
+    off = preset("realistic", relook="off")
+    assert "relook" not in off.params()
+    assert preset("perfect").relook == "off"
+    on = preset("realistic")  # the modelled presets relook (amendment of 21:12 UTC)
+    assert on.relook == "likeliest" and on.params()["relook"] == "likeliest"
     assert PerceptionModel.from_params(on.params()) == on
-    assert PerceptionModel.from_params(preset("realistic").params()).relook == "off"
+    # a run spec that names none replays as the runs before the option
+    assert PerceptionModel.from_params(off.params()).relook == "off"
     with pytest.raises(ObjsearchError, match="unknown relook"):
         replace(preset("realistic"), relook="sometimes")
