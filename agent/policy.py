@@ -514,7 +514,8 @@ class SearchAgent:
         pass has yet to visit), at most ``REVISIT_PASSES`` inspections in all. A look from where
         the robot stands costs no metres, and the modelled detector's misses are independent
         from look to look, so the likeliest place is looked at again before a farther, less
-        likely one; with the option off (the default) it waits for a revisit pass."""
+        likely one (the modelled presets' default since the amendment of 21:12 UTC); with the
+        option off (``perfect``, and run specs that name none) it waits for a revisit pass."""
         if self.config.perception.relook != "likeliest" or not rest:
             return None
         best = max(s.rel for s in rest)
