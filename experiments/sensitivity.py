@@ -74,13 +74,23 @@ def grid(recall_scales: Sequence[float], fp_per_image: Sequence[float]) -> list[
     return [Cell(r, f) for r in dict.fromkeys(recall_scales) for f in dict.fromkeys(fp_per_image)]
 
 
-def cell_perception(base: str, cell: Cell) -> dict[str, Any] | None:
+def cell_perception(base: str, cell: Cell, relook: str | None = None) -> dict[str, Any] | None:
     """The run spec's ``params.perception`` of a cell: the base preset with the cell's recall
-    scale and false positives; None when that is a perfect detector (the run of old)."""
+    scale and false positives, and ``relook`` (None: the preset's; ``perfect``'s is off, even
+    where the cell's recall makes it miss); None when that is a perfect detector (the run of
+    old)."""
     from objsearch.agent.detector_model import preset
 
-    model = preset(base, recall_scale=cell.recall_scale, fp_per_image=cell.fp_per_image)
+    model = preset(
+        base, relook=relook, recall_scale=cell.recall_scale, fp_per_image=cell.fp_per_image
+    )
     return None if model.perfect else model.params()
+
+
+def _preset_relook(base: str) -> str:
+    from objsearch.agent.detector_model import preset
+
+    return preset(base).relook
 
 
 def cell_jobs(
@@ -94,10 +104,11 @@ def cell_jobs(
     schedules: Sequence[str],
     starts_per_search: int | None,
     camera: str = DEFAULT_CAMERA,
+    relook: str | None = None,
 ) -> list[Job]:
     """``bench homes``' jobs for one cell: the strategies and their references, all learning
     (``bench homes``' extra ``wpl/none`` runs are not part of the grid)."""
-    perception = cell_perception(base, cell)
+    perception = cell_perception(base, cell, relook)
     with_refs = list(dict.fromkeys([*strategies, *map(reference_of, strategies)]))
     jobs = homes_jobs(
         homes,
@@ -171,6 +182,7 @@ def run_sensitivity(
     recall_scales: Sequence[float] = RECALL_SCALES,
     fp_per_image: Sequence[float] = FP_PER_IMAGE,
     base: str = "perfect",
+    relook: str | None = None,
     inspection: str = "single",
     camera: str = DEFAULT_CAMERA,
     workers: int = 1,
@@ -201,6 +213,7 @@ def run_sensitivity(
             schedules=schedules,
             starts_per_search=starts_per_search,
             camera=camera,
+            relook=relook,
         )
         t0 = time.perf_counter()
         rows = run_jobs(jobs, workers=workers, progress=bar, label=f"bench sensitivity {cell.name}")
@@ -210,7 +223,7 @@ def run_sensitivity(
         result = {
             "recall_scale": cell.recall_scale,
             "fp_per_image": cell.fp_per_image,
-            "perception": cell_perception(base, cell) or {"preset": "perfect"},
+            "perception": cell_perception(base, cell, relook) or {"preset": "perfect"},
             "searches": len(rows),
             "elapsed_s": round(time.perf_counter() - t0, 1),
             "strategies": measures(rows),
@@ -231,6 +244,7 @@ def run_sensitivity(
             "recall_scales": [f"{r:g}" for r in dict.fromkeys(recall_scales)],
             "fp_rates": [f"{f:g}" for f in dict.fromkeys(fp_per_image)],
             "perception": None if base == "perfect" else base,
+            "relook": relook,
             "camera": None if camera == DEFAULT_CAMERA else camera,
             "workers": workers,
         },
@@ -244,6 +258,7 @@ def run_sensitivity(
         "starts_per_search": starts_per_search or "every start",
         "camera": camera,
         "base_perception": base,
+        "relook": relook or _preset_relook(base),
         "strategies": strategies,
         "references": list(dict.fromkeys(map(reference_of, strategies))),
         "recall_scales": list(dict.fromkeys(recall_scales)),
@@ -313,7 +328,7 @@ def _preamble(summary: dict[str, Any]) -> str:
         f"{len(summary['seeds'])} seed(s), {', '.join(summary['schedules'])} schedules, "
         f"{summary['scenes']} scenes, {summary['starts_per_search']} start(s) per scene; "
         f"detector: the {base} preset's recall × the row's scale, the row's false positives per "
-        f"image; ÷ ref: path ÷ {', '.join(summary['references'])} (seeing with the same "
+        f"image, relook {summary.get('relook', 'off')}; ÷ ref: path ÷ {', '.join(summary['references'])} (seeing with the same "
         f"detector) on the same searches; ECE ({summary['ece_bins']} bins, top place) and Brier "
         "of where's forecast at the start of each search that found its target"
     )

@@ -36,6 +36,7 @@ def cmd_bench_sensitivity(args: argparse.Namespace) -> int:
             recall_scales=args.recall_scales,
             fp_per_image=args.fp_rates,
             base=args.perception,
+            relook=args.relook,
             inspection=args.inspection,
             camera=args.camera,
             workers=t.workers(args),
@@ -54,7 +55,7 @@ def cmd_bench_sensitivity(args: argparse.Namespace) -> int:
 
 
 def _sensitivity_options(p: argparse.ArgumentParser) -> None:
-    from objsearch.agent.detector_model import OVERRIDES, PRESETS
+    from objsearch.agent.detector_model import OVERRIDES, PRESETS, RELOOKS
     from objsearch.experiments.sensitivity import FP_PER_IMAGE, RECALL_SCALES, STRATEGIES
 
     def numbers(values: tuple[float, ...]) -> str:
@@ -84,6 +85,16 @@ def _sensitivity_options(p: argparse.ArgumentParser) -> None:
         default=PRESETS[0],
         help="the detector the grid scales: its recall times each --recall-scales value, each "
         "--fp-rates value replacing its false positives (perfect: recall 1 times the scale)",
+    )
+    p.add_argument(
+        "--relook",
+        type=t.text,
+        choices=RELOOKS,
+        default=None,
+        help="after an inspection that missed the target: off or likeliest (look again from "
+        "where the robot stands while that stop is likelier than every stop left in the pass) "
+        "(the preset's: likeliest for realistic and harsh, off for perfect, whatever its recall "
+        "scale)",
     )
     p.add_argument(
         "--strategies",

@@ -151,6 +151,24 @@ def test_the_grid_and_its_jobs() -> None:
     assert (params["recall_scale"], params["fp_per_image"], params["confusion"]) == (0.5, 1.0, 0.0)
 
 
+def test_a_cell_relooks_as_its_preset_does_unless_told() -> None:
+    """The modelled presets look again at a stop that missed; the perfect base does not, even in
+    a cell whose recall makes it miss, unless ``--relook`` says so (and ``off`` is then left out
+    of the run spec, as every run spec that names no relook)."""
+    assert cell_perception("realistic", Cell(1.0, 0.1))["relook"] == "likeliest"  # type: ignore[index]
+    assert "relook" not in (cell_perception("perfect", Cell(0.5, 0.1)) or {})
+    on = cell_perception("perfect", Cell(0.5, 0.1), "likeliest")
+    assert on is not None and on["relook"] == "likeliest"
+    off = cell_perception("realistic", Cell(1.0, 0.1), "off")
+    assert off is not None and "relook" not in off
+    assert cell_perception("perfect", Cell(1.0, 0.0), "likeliest") is None
+    jobs = cell_jobs(
+        Cell(0.5, 0.0), base="perfect", homes=["ithor-02"], strategies=list(STRATEGIES), seeds=1,
+        scenes=1, schedules=("habit",), starts_per_search=1, relook="likeliest",
+    )  # fmt: skip
+    assert all(json.loads(j.perception or "{}")["relook"] == "likeliest" for j in jobs)
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
@@ -160,6 +178,7 @@ def test_the_grid_and_its_jobs() -> None:
         (["--fp-rates", "often"], "argument --fp-rates: expected a number"),
         (["--fp-rates", ","], "argument --fp-rates: expected numbers between 0 and 20"),
         (["--perception", "blurry"], "argument --perception: invalid choice"),
+        (["--relook", "sometimes"], "argument --relook: invalid choice"),
         (["--seeds", "0"], "argument --seeds: must be between 1 and 1000"),
         (["--homes", "nowhere"], "unknown home(s) nowhere"),
         (["--homes", "ithor-02", "--strategies", "magic"], "unknown strategy 'magic'"),
