@@ -268,11 +268,16 @@ def run_sensitivity(
         "searches": sum(r["searches"] for r in results),
         "cells": results,
     }
+    _write_outputs(summary, out)
+    return summary
+
+
+def _write_outputs(summary: dict[str, Any], out: Path) -> None:
+    """The plot (its file names into ``summary``), the JSON, the text table and its Markdown."""
     summary["plot"] = [p.name for p in plot(summary, out / "sensitivity.png")]
     (out / "sensitivity.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     (out / "sensitivity.txt").write_text(render(summary) + "\n", encoding="utf-8")
     (out / "sensitivity.md").write_text(markdown(summary) + "\n", encoding="utf-8")
-    return summary
 
 
 def _fmt(value: float | None, form: str) -> str:
