@@ -27,9 +27,11 @@ demo: $(STAMP)
 # The suite in two worker processes (pytest-xdist). Idle 2-core machine: pytest 528-642 s in two
 # workers (three runs), 1040 s in one (s39's end, before the kill tests' cut; not an A/B); 681-713 s
 # in two at s52's end (2,120 tests); 616-631 s at s53's end (2,171 tests; the whole `make test`
-# 630-637 s: issue 46's 10-minute target still missed), scopes handed out longest expected
-# first (devtools/xdist_scopes.py). tests/conftest.py keeps a module's tests in one worker and
-# all of tests/runtime in one.
+# 630-637 s); 537-572 s at s54's end (2,194 tests; the whole `.ci/run` 542 s, and 601 s when a
+# pyproject change made it reinstall the package: issue 46's 10-minute target met), scopes
+# handed out longest expected first (devtools/xdist_scopes.py), the lake batteries' queries
+# forked from a warm process (devtools/query_server.py). tests/conftest.py keeps a module's
+# tests in one worker and all of tests/runtime in one.
 TEST_WORKERS ?= 2
 
 # ros2_types rebuilds only what changed (a no-op, ~0.3 s, after the install built it). The suite
