@@ -12,6 +12,7 @@ the id, never by the id alone. Nothing here knows where a checkout is, except
 
 from __future__ import annotations
 
+import functools
 import os
 import site
 import sysconfig
@@ -42,6 +43,13 @@ def data_key(data: Path | None = None) -> Path:
     """:func:`data_dir` resolved: what a cache of anything read from the data folder is keyed by,
     with the home id or file (a home id names one home per folder only, and two spellings of one
     folder are one key)."""
+    return _resolved(data, os.environ.get(DATA_ENV))
+
+
+@functools.cache
+def _resolved(data: Path | None, env: str | None) -> Path:
+    # Keyed by what decides the folder (``env``: $OBJSEARCH_DATA now), so a changed variable is a
+    # new key; the caches call data_key per placement and slot, and resolving walks the disk.
     return data_dir(data).resolve()
 
 
