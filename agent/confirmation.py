@@ -76,6 +76,7 @@ class SearchingAgent(Protocol):
         ...
 
     def stop_miss(self, target: str, stop: Stop) -> float: ...
+    def stop_miss_after(self, target: str, stop: Stop, looks: int) -> float: ...
 
     def place_probabilities(self, d: str) -> tuple[dict[str, float], float]: ...
 
@@ -139,7 +140,7 @@ class TaskOdds:
     def place_probability(self, place: str | None) -> float:
         """P(the target is at ``place`` (a static id; None: away from every mapped static))
         before this look: the model's, after this task's earlier inspections of the place's
-        stop that did not see it (each a miss of :meth:`SearchingAgent.stop_miss`), never below
+        stop that did not see it (:meth:`SearchingAgent.stop_miss_after` of them), never below
         an even share over the home's statics of elsewhere's mass (at least ``ELSEWHERE_PRIOR``):
         a model's zero is not certainty, and a pose error can put a sighting at a neighbour."""
         values, elsewhere = self.places(self.target)
@@ -150,7 +151,7 @@ class TaskOdds:
             stop = self.stop_of.get(static_id)
             if stop is not None and v > 0:
                 looks = self.looks_at(stop) - (1 if stop.key == self.current else 0)
-                v *= self.agent.stop_miss(self.target, stop) ** max(looks, 0)
+                v *= self.agent.stop_miss_after(self.target, stop, looks)
             weights[static_id] = v
         total = math.fsum(weights.values()) + elsewhere
         p = weights.get(place, 0.0) / total if total > 0 else 0.0

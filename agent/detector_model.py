@@ -88,6 +88,14 @@ REPORTS: Final = ("misses", "evidence")
 #: the stop's value times its per-look miss to the power of its inspections in this pass is
 #: still above every stop the pass has yet to visit.
 RELOOKS: Final = ("off", "likeliest")
+#: What the searcher takes to be left of a stop's chance after ``n`` inspections of it that
+#: missed (agent/policy.py, ``SearchAgent.stop_miss_after``): ``pooled``, the stop's per-look
+#: miss averaged over its statics, to the n-th power (every run before this option, and any run
+#: spec that names none), or ``per-static``, each static's own per-look miss to the n-th power,
+#: averaged: the chance n looks all miss when the target is at one of the stop's statics, equally
+#: likely. The two agree for n = 1; beyond, the mean of powers is the larger (Jensen): a static
+#: the camera sees badly keeps its chance, where the pooled miss lets repeated looks drain it.
+STOP_MISSES: Final = ("pooled", "per-static")
 #: The search camera's focal length (px): 640×480 at a 90° horizontal field of view.
 FOCAL_PX: Final = 320.0
 #: Nearer than this the mask estimate is capped (the camera then sees the whole object anyway).
@@ -142,6 +150,8 @@ class PerceptionModel:
     reports: str = "misses"
     #: Whether the searcher looks again at a stop that missed before moving on (:data:`RELOOKS`).
     relook: str = "off"
+    #: How repeated misses at one stop are counted (:data:`STOP_MISSES`).
+    stop_misses: str = "pooled"
 
     def __post_init__(self) -> None:
         if self.preset not in PRESETS:
@@ -184,6 +194,10 @@ class PerceptionModel:
         if self.relook not in RELOOKS:
             raise ObjsearchError(
                 f"unknown relook {self.relook!r}; choose from {', '.join(RELOOKS)}"
+            )
+        if self.stop_misses not in STOP_MISSES:
+            raise ObjsearchError(
+                f"unknown stop misses {self.stop_misses!r}; choose from {', '.join(STOP_MISSES)}"
             )
 
     @property
@@ -255,7 +269,7 @@ class PerceptionModel:
 
     def params(self) -> dict[str, Any]:
         """As the run spec records it (``params.perception``); the ``score`` confirmation,
-        ``view`` draws, ``misses`` reports and ``off`` relook are left out, so a run spec is what
+        ``view`` draws, ``misses`` reports, ``off`` relook and ``pooled`` stop misses are left out, so a run spec is what
         it was before each option."""
         doc = asdict(self)
         doc["tp_score"] = list(self.tp_score)
@@ -268,6 +282,8 @@ class PerceptionModel:
             del doc["reports"]
         if self.relook == "off":
             del doc["relook"]
+        if self.stop_misses == "pooled":
+            del doc["stop_misses"]
         return doc
 
     @classmethod
@@ -322,6 +338,7 @@ def preset(
     draws: str | None = None,
     reports: str | None = None,
     relook: str | None = None,
+    stop_misses: str | None = None,
     **overrides: float,
 ) -> PerceptionModel:
     """A preset, with some parameters overridden (:data:`OVERRIDES`).
@@ -337,7 +354,8 @@ def preset(
     ``misses`` for ``perfect``, whose reports are all sightings but for their masks, as before).
     ``relook`` what the searcher does after an inspection that missed (:data:`RELOOKS`; None:
     ``likeliest``, chosen by the amendment of 2026-12-07 21:12 UTC of docs/protocol-perception.md,
-    but ``off`` for ``perfect``, as before)."""
+    but ``off`` for ``perfect``, as before); ``stop_misses`` how repeated misses at a stop are
+    counted (:data:`STOP_MISSES`; None: ``pooled``)."""
     if name not in PRESETS:
         raise ObjsearchError(
             f"unknown perception preset {name!r}; choose from {', '.join(PRESETS)}"
@@ -377,4 +395,5 @@ def preset(
         draws=draws or ("view" if name == "perfect" else "place"),
         reports=reports or ("misses" if name == "perfect" else "evidence"),
         relook=relook or ("off" if name == "perfect" else "likeliest"),
+        stop_misses=stop_misses or "pooled",
     )

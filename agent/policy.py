@@ -151,7 +151,7 @@ class SearchAgent:
         #: Task ids come from the log's task ledger (objsearch.agent.state), never from a counter
         #: in the relation model: a crashed task must not hand its id to the next one.
         self._next_task_id = next_task_id
-        self._stop_miss: dict[tuple[str, str], float] = {}
+        self._recall_cache: dict[tuple[str, str], tuple[float, ...]] = {}
         #: How many movable classes there are: a false report's share of the detector's false
         #: positives (``TaskOdds.sighting_odds``).
         self.movable_classes = len(vocabulary.names(Category.SEMI_DYNAMIC))
@@ -165,13 +165,30 @@ class SearchAgent:
         (:func:`~objsearch.agent.detector_model.class_sizes`) at each static's distance and
         angle (:func:`~objsearch.agent.detector_model.expected_mask_px`), the recall averaged
         over the stop's statics; a class of unknown size shows a typical mask."""
+        recalls = self._recalls(target, stop)
+        return 1.0 - (1.0 - MISS) * math.fsum(recalls) / len(recalls)
+
+    def stop_miss_after(self, target: str, stop: Stop, looks: int) -> float:
+        """P(``looks`` inspections of ``stop`` all miss ``target`` when it is there), by the
+        run's ``stop_misses`` (:data:`~objsearch.agent.detector_model.STOP_MISSES`): ``pooled``,
+        :meth:`stop_miss` to the power of ``looks``; ``per-static``, each static's own miss to
+        that power, averaged (the target at one of them, equally likely)."""
+        if looks <= 0:
+            return 1.0
+        if self.config.perception.stop_misses == "pooled":
+            return self.stop_miss(target, stop) ** looks
+        recalls = self._recalls(target, stop)
+        return math.fsum((1.0 - (1.0 - MISS) * r) ** looks for r in recalls) / len(recalls)
+
+    def _recalls(self, target: str, stop: Stop) -> tuple[float, ...]:
+        """The detector's recall of ``target`` at each of ``stop``'s statics (:meth:`stop_miss`)."""
         key = (target, stop.key)
-        miss = self._stop_miss.get(key)
-        if miss is None:
+        recalls = self._recall_cache.get(key)
+        if recalls is None:
             model = self.config.perception
             size = class_sizes().get(target)
             vp = stop.viewpoint
-            recalls = []
+            found = []
             for s in stop.statics:
                 x, y, z = static_point(s)
                 across = math.hypot(x - vp.x, y - vp.y)
@@ -182,9 +199,9 @@ class SearchAgent:
                         math.hypot(across, CAMERA_HEIGHT_M - z),
                         max(0.0, math.atan2(CAMERA_HEIGHT_M - z, across)),
                     )
-                recalls.append(model.recall(mask))
-            miss = self._stop_miss[key] = 1.0 - (1.0 - MISS) * math.fsum(recalls) / len(recalls)
-        return miss
+                found.append(model.recall(mask))
+            recalls = self._recall_cache[key] = tuple(found)
+        return recalls
 
     def place_probabilities(self, d: str) -> tuple[dict[str, float], float]:
         """P(d at each mapped static) and P(d elsewhere) by the relation model: values that sum
@@ -416,10 +433,10 @@ class SearchAgent:
         """Search the stops again while the mass left at them says the target may still be
         there (a modelled detector misses independently from look to look; a perfect one's
         misses are geometry, which a second look repeats, so it never comes here). Each pass is
-        the first's (:meth:`_pass`), over the stops weighted by their value times
-        their per-look miss (:meth:`stop_miss`: the target's expected size there) to the power of
-        their inspections in this task (one per pass, whatever its views: the target may show in
-        only one of them);
+        the first's (:meth:`_pass`), over the stops weighted by their value times the chance
+        their inspections in this task all missed (:meth:`stop_miss_after`: the target's
+        expected size there; one inspection per pass, whatever its views: the target may show
+        in only one of them);
         a stop whose weight is below ε / (number of stops) of the total is left out (together
         they hold less than ε). Returns the sighting, or None and why the search stopped."""
         every = [s for stops in room_stops.values() for s in stops]
@@ -428,7 +445,7 @@ class SearchAgent:
         while True:
             weighted = {
                 room: [
-                    Stop(s.statics, s.rel * self.stop_miss(run.target, s) ** run.looks_at(s))
+                    Stop(s.statics, s.rel * self.stop_miss_after(run.target, s, run.looks_at(s)))
                     for s in stops
                 ]
                 for room, stops in room_stops.items()
@@ -509,8 +526,8 @@ class SearchAgent:
     ) -> Found | None:
         """With relook ``likeliest`` (:data:`~objsearch.agent.detector_model.RELOOKS`), after an
         inspection of ``stop`` that found nothing: inspect it again from where the robot stands
-        while its value times its per-look miss (:meth:`stop_miss`) to the power of its
-        inspections so far in this pass is above the value of every stop in ``rest`` (those the
+        while its value times the chance its inspections so far in this pass all missed
+        (:meth:`stop_miss_after`) is above the value of every stop in ``rest`` (those the
         pass has yet to visit), at most ``REVISIT_PASSES`` inspections in all. A look from where
         the robot stands costs no metres, and the modelled detector's misses are independent
         from look to look, so the likeliest place is looked at again before a farther, less
@@ -519,9 +536,11 @@ class SearchAgent:
         if self.config.perception.relook != "likeliest" or not rest:
             return None
         best = max(s.rel for s in rest)
-        miss = self.stop_miss(run.target, stop)
         looks = 1
-        while looks < REVISIT_PASSES and stop.rel * miss**looks > best:
+        while (
+            looks < REVISIT_PASSES
+            and stop.rel * self.stop_miss_after(run.target, stop, looks) > best
+        ):
             found = run.go(stop.viewpoint, result) or run.inspect(stop, result)
             if found:
                 return found

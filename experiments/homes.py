@@ -241,7 +241,8 @@ def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
     the preset's (a run spec that names none confirmed by ``score``, the runs before the option),
     the draws when they are not ``place`` (a run spec that names none drew by view), and the
     reports when they are not ``evidence`` (a run spec that names none counted them as misses),
-    and the relook when it is not the preset's (a run spec that names none did not relook)."""
+    the relook when it is not the preset's (a run spec that names none did not relook), and the
+    stop misses when they are not the preset's (a run spec that names none pooled them)."""
     if not perception:
         return {}
     from objsearch.agent.detector_model import OVERRIDES, PerceptionModel, preset
@@ -262,6 +263,8 @@ def perception_options(perception: dict[str, Any] | None) -> dict[str, object]:
         changed["reports"] = run.reports
     if run.relook != base.relook:
         changed["relook"] = run.relook
+    if run.stop_misses != base.stop_misses:
+        changed["stop_misses"] = run.stop_misses
     return {"perception": run.preset, **changed}
 
 

@@ -163,6 +163,7 @@ def _add_perception_options(p: argparse.ArgumentParser) -> None:
         PRESETS,
         RELOOKS,
         REPORTS,
+        STOP_MISSES,
     )
 
     p.add_argument(
@@ -226,6 +227,15 @@ def _add_perception_options(p: argparse.ArgumentParser) -> None:
         "pass) or likeliest (look again from where the robot stands while that stop is still "
         "likelier than every stop left in the pass) (likeliest; off for perfect)",
     )
+    p.add_argument(
+        "--stop-misses",
+        type=text,
+        choices=STOP_MISSES,
+        default=None,
+        help="what is left of a stop's chance after n inspections of it that missed: pooled (the "
+        "stop's miss averaged over its statics, to the n-th power) or per-static (each static's "
+        "own miss to the n-th power, averaged: a static seen badly keeps its chance) (pooled)",
+    )
 
 
 def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
@@ -242,6 +252,7 @@ def perception_params(args: argparse.Namespace) -> dict[str, Any] | None:
         getattr(args, "draws", None),
         getattr(args, "reports", None),
         getattr(args, "relook", None),
+        getattr(args, "stop_misses", None),
         **overrides,
     )
     return None if model.perfect else model.params()

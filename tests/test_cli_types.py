@@ -201,3 +201,23 @@ def test_relook_is_an_option_recorded_in_the_run_spec_only_when_on(command: list
     assert t.perception_params(parse([*command, "--relook", "likeliest"])) is None
     with pytest.raises(SystemExit):
         parse([*command, "--relook", "sometimes"])
+
+
+@pytest.mark.parametrize(
+    "command", [["bench", "homes"], ["search", "Apple", "--start", "kitchen-1"]]
+)
+def test_stop_misses_is_an_option_recorded_in_the_run_spec_only_when_per_static(
+    command: list[str],
+) -> None:
+    """``pooled`` (every run before the option) is left out of the run spec."""
+    from objsearch.cli import build_parser
+
+    parse = build_parser().parse_args
+    default = t.perception_params(parse([*command, "--perception", "realistic"]))
+    assert default is not None and "stop_misses" not in default
+    chosen = t.perception_params(
+        parse([*command, "--perception", "harsh", "--stop-misses", "per-static"])
+    )
+    assert chosen is not None and chosen["stop_misses"] == "per-static"
+    with pytest.raises(SystemExit):
+        parse([*command, "--stop-misses", "sometimes"])

@@ -43,3 +43,11 @@ def test_a_run_that_does_not_look_again_names_its_relook() -> None:
         "perception": "realistic",
         "relook": "off",
     }
+
+
+def test_a_run_that_counts_misses_per_static_names_it() -> None:
+    per_static = preset("realistic", stop_misses="per-static")
+    assert perception_options(per_static.params()) == {
+        "perception": "realistic",
+        "stop_misses": "per-static",
+    }
