@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any, ClassVar
 
@@ -344,6 +345,8 @@ class PlaceBelief:
     today: Today = field(default_factory=Today)
     #: Where each class was last seen (with its position), for ``where``.
     sightings: LastSeen = field(default_factory=LastSeen)
+    #: The data folder the run's home is read from (None: ``datapaths.data_dir()``).
+    data: Path | None = field(default=None, repr=False, compare=False)
     _cache: dict[str, dict[str, float]] = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -359,7 +362,7 @@ class PlaceBelief:
             run = decode(event, RunStarted)
             self.update_mode = UpdateMode(run.update_mode)
             if self.home is None:
-                self.use_home(load_home(run.home))
+                self.use_home(load_home(run.home, self.data))
         elif kind == "scene_graph_seeded":
             self.prior = {
                 (v.dynamic, v.static): v.rel for v in decode(event, SceneGraphSeeded).values

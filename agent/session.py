@@ -61,6 +61,10 @@ class HomeContext:
     vocabulary: Vocabulary
     navmap: NavigationMap
     semmap: SemanticMap
+    #: The data folder the home and vocabulary were read from (:func:`load_context`: resolved),
+    #: where a run on this home reads the rest of what it needs (the prior, the belief's home,
+    #: the class sizes); None: ``datapaths.data_dir()``.
+    data: Path | None = None
 
 
 def load_context(home_name: str, data: Path | None = None) -> HomeContext:
@@ -79,7 +83,7 @@ def _context(home_name: str, folder: Path) -> HomeContext:
     home = load_home(home_name, folder)
     navmap = NavigationMap.from_home(home)
     vocabulary = Vocabulary.load(data=folder)
-    return HomeContext(home, vocabulary, navmap, SemanticMap.from_home(home, navmap))
+    return HomeContext(home, vocabulary, navmap, SemanticMap.from_home(home, navmap), folder)
 
 
 def prior_file(name: str) -> str:
@@ -91,12 +95,15 @@ def prior_file(name: str) -> str:
         ) from None
 
 
-def prior_values(vocabulary: Vocabulary, name: str = DEFAULT_PRIOR) -> SceneGraphSeeded:
-    """The ``scene_graph_seeded`` record of a named prior. Its source names the reading of Eq. 2
+def prior_values(
+    vocabulary: Vocabulary, name: str = DEFAULT_PRIOR, data: Path | None = None
+) -> SceneGraphSeeded:
+    """The ``scene_graph_seeded`` record of a named prior, read from the data folder ``data``
+    (None: ``datapaths.data_dir()``). Its source names the reading of Eq. 2
     (``vg-hoz-masked: vg/VSGM/…``), except for the default, which keeps the source string older
     logs carry; the values are in the log, so nothing re-reads the file."""
     rel_path = prior_file(name)
-    prior = read_json(data_dir() / rel_path, f"the {name} prior")
+    prior = read_json(data_dir(data) / rel_path, f"the {name} prior")
     relations = seed_relations(prior, vocabulary)
     values = tuple(
         SeedValue(dynamic=d, static=s, rel=round(v, 12)) for (d, s), v in sorted(relations.items())
@@ -201,8 +208,8 @@ class Session:
         try:
             agent: Member[AgentState] = Member(
                 AGENT,
-                lambda: AgentState(models=models),
-                lambda doc, seq: AgentState.from_snapshot(doc, seq, models),
+                lambda: AgentState(models=models, data=ctx.data),
+                lambda doc, seq: AgentState.from_snapshot(doc, seq, models, ctx.data),
             )
             hub, _ = restore_hub(
                 log_dir, [agent, *projections], snapshot_dir=snapshot_dir, store=STORE
@@ -285,7 +292,11 @@ class Session:
             )
         # Everything that can fail on bad data is read before the first append: a run that
         # cannot start leaves the log as it was.
-        prior = None if self.state.seeded else prior_values(self.ctx.vocabulary, spec.prior)
+        prior = (
+            None
+            if self.state.seeded
+            else prior_values(self.ctx.vocabulary, spec.prior, self.ctx.data)
+        )
         at = self.resume_time_ns
         started = spec.record()
         if self.log.run_id is not None:

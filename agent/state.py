@@ -16,6 +16,7 @@ import dataclasses
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar
 
 from objsearch.agent.catalogue import Moved, RunStarted, SceneGraphSeeded, TaskStarted, decode
@@ -163,6 +164,9 @@ class AgentState:
     counterfactual: RelationSpec | None = None
     #: Relation models outside the agent the log's spec may name (the simulator's dist-oracle).
     models: RelationModels = field(default_factory=lambda: AGENT_MODELS, repr=False, compare=False)
+    #: The data folder a model that reads the home (the belief) reads it from (None:
+    #: ``datapaths.data_dir()``): the run's, handed down, never set in the environment.
+    data: Path | None = field(default=None, repr=False, compare=False)
     #: The map each session ran in and each class's sightings per map (agent/maps.py).
     maps: MapEvidence = field(default_factory=MapEvidence)
     last_seq: int = 0
@@ -187,7 +191,8 @@ class AgentState:
             self.run = RunSpec.from_record(decode(event, RunStarted))
             if self.model is None:
                 self.first_run = self.run
-                self.model = (self.counterfactual or self.run.relations).build(self.models)
+                relations = self.counterfactual or self.run.relations
+                self.model = relations.build(self.models, data=self.data)
         elif kind == "scene_graph_seeded":
             self.seeded = True
             self.seeded_source = decode(event, SceneGraphSeeded).source
@@ -281,14 +286,18 @@ class AgentState:
 
     @classmethod
     def from_snapshot(
-        cls, state: dict[str, Any], last_seq: int, models: RelationModels = AGENT_MODELS
+        cls,
+        state: dict[str, Any],
+        last_seq: int,
+        models: RelationModels = AGENT_MODELS,
+        data: Path | None = None,
     ) -> AgentState:
         first = None if state["first_run"] is None else RunSpec.from_payload(state["first_run"])
         cf = state.get("counterfactual")
         counterfactual = None if cf is None else RelationSpec(**cf)
         model = None
         if first is not None:
-            fresh = (counterfactual or first.relations).build(models)
+            fresh = (counterfactual or first.relations).build(models, data=data)
             restore = getattr(type(fresh), "from_snapshot", None)
             if restore is None:
                 raise ObjsearchError(f"{type(fresh).__name__} cannot be restored")
@@ -305,6 +314,7 @@ class AgentState:
             seeded_source=state.get("seeded_source"),
             counterfactual=counterfactual,
             models=models,
+            data=data,
             maps=MapEvidence.from_snapshot(state["maps"]),
             last_seq=last_seq,
             last_time_ns=int(state["last_time_ns"]),

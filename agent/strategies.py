@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Final, cast
 
@@ -119,8 +120,11 @@ class RelationSpec:
         if self.half_life_tasks is not None and self.half_life_tasks <= 0:
             raise ObjsearchError(f"half-life must be positive, got {self.half_life_tasks}")
 
-    def build(self, models: RelationModels = AGENT_MODELS) -> RelationModel:
-        """A fresh model of this spec; ``models`` builds those outside the agent."""
+    def build(
+        self, models: RelationModels = AGENT_MODELS, data: Path | None = None
+    ) -> RelationModel:
+        """A fresh model of this spec; ``models`` builds those outside the agent. A belief reads
+        the run's home from the data folder ``data`` (None: ``datapaths.data_dir()``)."""
         if self.model == "memory":
             from objsearch.agent.memory import InstanceMemory
 
@@ -135,21 +139,27 @@ class RelationSpec:
 
             assert self.prior_strength is not None and self.half_life_tasks is not None
             return PlaceBelief(
-                prior_strength=self.prior_strength, half_life_scenes=self.half_life_tasks
+                prior_strength=self.prior_strength,
+                half_life_scenes=self.half_life_tasks,
+                data=data,
             )
         if self.model == "routine-belief":
             from objsearch.agent.routine_belief import RoutineBelief
 
             assert self.prior_strength is not None and self.half_life_tasks is not None
             return RoutineBelief(
-                prior_strength=self.prior_strength, half_life_scenes=self.half_life_tasks
+                prior_strength=self.prior_strength,
+                half_life_scenes=self.half_life_tasks,
+                data=data,
             )
         if self.model == "routine-pooled":
             from objsearch.agent.routine_belief import PooledRoutineBelief
 
             assert self.prior_strength is not None and self.half_life_tasks is not None
             return PooledRoutineBelief(
-                prior_strength=self.prior_strength, half_life_scenes=self.half_life_tasks
+                prior_strength=self.prior_strength,
+                half_life_scenes=self.half_life_tasks,
+                data=data,
             )
         if self.model in models:
             return models[self.model]()

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 from objsearch.agent.belief import ELSEWHERE, PlaceBelief
 from objsearch.agent.catalogue import Detected, TaskStarted, decode
@@ -43,10 +44,13 @@ class Forecast:
     others: tuple[float, ...] = ()
 
 
-def forecasts(events: Iterable[EventView], belief: RelationSpec = BELIEF) -> dict[str, Forecast]:
+def forecasts(
+    events: Iterable[EventView], belief: RelationSpec = BELIEF, data: Path | None = None
+) -> dict[str, Forecast]:
     """Per task id that found its target, the forecast at its start of ``belief`` (the
-    time-blind belief, or the one that knows the hour)."""
-    state = AgentState(counterfactual=belief)
+    time-blind belief, or the one that knows the hour), over the home of the data folder
+    ``data`` the run was on (None: ``datapaths.data_dir()``)."""
+    state = AgentState(counterfactual=belief, data=data)
     out: dict[str, Forecast] = {}
     dist: Mapping[str, float] = {}
     target: str | None = None

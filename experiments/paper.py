@@ -58,12 +58,28 @@ LONGTERM_OURS = ("wpl-neg", "wpl-neg-decay", "epl", "epl-neg-decay")
 
 
 def table1_job(
-    home: str, name: str, seed: int, targets: Sequence[str], prior: str, camera: str
+    home: str,
+    name: str,
+    seed: int,
+    targets: Sequence[str],
+    prior: str,
+    camera: str,
+    data: Path | None = None,
 ) -> Job:
     """One Table I run: strategy ``name`` with ``seed`` on ``home``'s Table I scene (the paper's
-    removals), every target from every start, no updates."""
+    removals), every target from every start, no updates; on the data folder ``data`` (None:
+    ``datapaths.data_dir()``)."""
     return Job(
-        "table1", home, "table1", name, "none", seed, tuple(targets), prior=prior, camera=camera
+        "table1",
+        home,
+        "table1",
+        name,
+        "none",
+        seed,
+        tuple(targets),
+        prior=prior,
+        camera=camera,
+        data=data,
     )
 
 

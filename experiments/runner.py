@@ -58,6 +58,9 @@ class Job:
     new_map_day: int | None = None
     #: The new map's frame: the old one's (``same``) or moved (``params.new_map_frame``).
     new_map_frame: str = "same"
+    #: The data folder the home and everything the run reads come from (None:
+    #: ``datapaths.data_dir()``): ``bench table1``'s own build, handed to its workers.
+    data: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -107,7 +110,7 @@ class Row:
 
 def run_job(job: Job) -> list[Row]:
     """Every target from every start in every scene, in that order, on one log."""
-    ctx = load_context(job.home)
+    ctx = load_context(job.home, job.data)
     spec = RunSpec.of(
         job.home,
         ctx.home.digest,
@@ -124,7 +127,7 @@ def run_job(job: Job) -> list[Row]:
             **({"new_map_frame": job.new_map_frame} if job.new_map_frame != "same" else {}),
         },
     )
-    scenes = scenes_of(job.home, job.placements, upto=_last_scene(job))
+    scenes = scenes_of(job.home, job.placements, upto=_last_scene(job), data=job.data)
     with tempfile.TemporaryDirectory(prefix="objsearch-bench-") as tmp:
         trials = run_schedule(
             Path(job.log_dir) if job.log_dir else Path(tmp),
@@ -135,12 +138,15 @@ def run_job(job: Job) -> list[Row]:
             placements=scenes,
             skip_absent_targets=True,
             keep_routes=job.keep_routes,
+            data=job.data,
         )
         log = Path(job.log_dir) if job.log_dir else Path(tmp)
         parts = decompose(read_log(log, store=STORE), ctx.navmap)
         # The run's own belief when it has one that knows the hour, else the time-blind one.
         timed = spec.relations.model in ("routine-belief", "routine-pooled")
-        forecast = forecasts(read_log(log, store=STORE), spec.relations if timed else BELIEF)
+        forecast = forecasts(
+            read_log(log, store=STORE), spec.relations if timed else BELIEF, ctx.data
+        )
         failed = [t.task_id for t in trials if not t.success]
         causes = failure_causes(read_log(log, store=STORE), scenes, failed) if failed else {}
     return [
@@ -191,8 +197,11 @@ def _last_scene(job: Job) -> int | None:
 
 
 def _count(job: Job) -> int:
-    ctx = load_context(job.home)
-    scenes, _ = seeable_scenes(ctx.home, scenes_of(job.home, job.placements, upto=_last_scene(job)))
+    ctx = load_context(job.home, job.data)
+    upto = _last_scene(job)
+    scenes, _ = seeable_scenes(
+        ctx.home, scenes_of(job.home, job.placements, upto=upto, data=job.data), job.data
+    )
     wanted = [s for s in job.scenes or sorted(scenes) if s in scenes]  # run_job names the others
     starts = len(ctx.home.starts)
     if job.starts_per_search:
@@ -207,10 +216,11 @@ def unseeable(jobs: Sequence[Job]) -> list[dict[str, object]]:
     """The placements of the jobs' scenes no viewpoint can see, once per (home, placement
     source): ``run_schedule`` leaves them out of their scenes, and the bench reports them."""
     out: list[dict[str, object]] = []
-    for home, source, wanted in sorted({(j.home, j.placements, j.scenes) for j in jobs}, key=str):
-        ctx = load_context(home)
+    runs = {(j.home, j.placements, j.scenes, j.data) for j in jobs}
+    for home, source, wanted, data in sorted(runs, key=str):
+        ctx = load_context(home, data)
         upto = max(wanted) if wanted else None
-        _, dropped = seeable_scenes(ctx.home, scenes_of(home, source, upto=upto))
+        _, dropped = seeable_scenes(ctx.home, scenes_of(home, source, upto=upto, data=data), data)
         out += [
             {"placements": source, **asdict(u)}
             for u in dropped

@@ -13,21 +13,18 @@ from __future__ import annotations
 import itertools
 import json
 import math
-import os
 import random
 import statistics
 import sys
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from objsearch.agent.datapaths import DATA_ENV
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.session import DEFAULT_PRIOR, clear_contexts
 from objsearch.experiments.paper import PAPER_TABLE1, discovery, table1_job
@@ -141,31 +138,17 @@ def sample_order(eligible: Sequence[FloorPlanSet], seed: int) -> list[FloorPlanS
     return order
 
 
-@contextmanager
-def _data_folder(path: Path) -> Iterator[None]:
-    """Searches read ``path`` (forked workers inherit it); the home contexts made are forgotten
-    before and after (the build may have written other homes into the same folder)."""
-    before = os.environ.get(DATA_ENV)
-    os.environ[DATA_ENV] = str(path)
-    clear_contexts()
-    try:
-        yield
-    finally:
-        if before is None:
-            os.environ.pop(DATA_ENV, None)
-        else:
-            os.environ[DATA_ENV] = before
-        clear_contexts()
-
-
 def table1_jobs(
     homes: Sequence[str],
     targets: Sequence[str] = TARGETS,
     prior: str = DEFAULT_PRIOR,
     camera: str = DEFAULT_CAMERA,
+    data: Path | None = None,
 ) -> list[Job]:
+    """Every strategy and seed of Table I on each home of the data folder ``data`` (None:
+    ``datapaths.data_dir()``): the folder goes with each job to the process that runs it."""
     return [
-        table1_job(home, name, seed, targets, prior, camera)
+        table1_job(home, name, seed, targets, prior, camera, data)
         for home in homes
         for name, seeds in STRATEGY_SEEDS
         for seed in seeds
@@ -409,10 +392,16 @@ def run_table1_sets(
         raise ObjsearchError(f"the build derived no Table I scenario for {', '.join(missing)}")
     build_s = time.perf_counter() - started
     started = time.perf_counter()
-    jobs = table1_jobs(list(homes), targets, prior, camera)
-    with _data_folder(data):
+    # The searches read the build in ``data``, handed down with each job (never set as
+    # $OBJSEARCH_DATA); home contexts made before are forgotten, before and after, as the build
+    # may have written other homes under the same names into the same folder.
+    jobs = table1_jobs(list(homes), targets, prior, camera, data)
+    clear_contexts()
+    try:
         rows = run_jobs(jobs, workers=workers, progress=progress, label="bench table1")
         left_out = unseeable(jobs)
+    finally:
+        clear_contexts()
     search_s = time.perf_counter() - started
     write_rows(rows, out, "table1_trials")
     records = _set_records(homes, rows, sample, paper_name)

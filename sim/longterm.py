@@ -86,6 +86,7 @@ def run_schedule(
     on_trial: Callable[[Trial], None] | None = None,
     observer: WorldObserver | None = None,
     keep_routes: bool = False,
+    data: Path | None = None,
     **session_options: Any,
 ) -> list[Trial]:
     """Search every target from every start in every scene, in that order, on one log.
@@ -100,9 +101,10 @@ def run_schedule(
     drawn anew for each (scene, target) from the spec's seed (:func:`day_starts`); with
     ``skip_absent_targets`` a target the scene does not hold is not searched for;
     ``observer`` sees every pose and camera frame (what ``objsearch record`` writes to a bag).
-    ``session_options`` go to :meth:`Session.start` (``wall_clock``, ``stream``, ...).
+    ``session_options`` go to :meth:`Session.start` (``wall_clock``, ``stream``, ...). All that
+    the run reads is of the data folder ``data`` (None: ``datapaths.data_dir()``).
     """
-    ctx = load_context(spec.home)
+    ctx = load_context(spec.home, data)
     spec, camera = with_camera(spec)
     spec, detector = with_perception(spec, movable=ctx.vocabulary.names(Category.SEMI_DYNAMIC))
     spec, localiser = with_localisation(spec)
@@ -110,10 +112,7 @@ def run_schedule(
     # in the old map's frame or one of its own (an unknown mode fails before anything is written).
     new_map_day, frame = spec.params.get("new_map_day"), _no_frame(spec.params)
     placements, unseeable = _seeable_placements(ctx, spec, placements, scenes)
-    all_starts = ctx.home.starts
-    for name in starts or ():
-        ctx.home.start(name)  # an unknown start fails before anything is written
-    chosen = {name: all_starts[name] for name in starts} if starts else all_starts
+    chosen = _chosen_starts(ctx, starts)
     trials: list[Trial] = []
     inputs = {
         "targets": list(targets),
@@ -175,6 +174,15 @@ def run_schedule(
     return trials
 
 
+def _chosen_starts(ctx: HomeContext, starts: Sequence[str] | None) -> Mapping[str, Pose]:
+    """The named starts of the home (default: all); an unknown one fails before anything is
+    written."""
+    every = ctx.home.starts
+    for name in starts or ():
+        ctx.home.start(name)
+    return {name: every[name] for name in starts} if starts else every
+
+
 def _no_frame(params: Mapping[str, Any]) -> Rigid2D | None:
     """No frame yet: the robot starts in its first map (``new_map_frame`` validated now)."""
     frame_mode(params)
@@ -232,8 +240,8 @@ def _seeable_placements(
     if placements is None:
         if spec.schedule is None:
             raise DataFileError("a long-term run needs placements or a schedule in its spec")
-        placements = scenes_of(spec.home, spec.schedule)
-    seeable, dropped = seeable_scenes(ctx.home, placements)
+        placements = scenes_of(spec.home, spec.schedule, data=ctx.data)
+    seeable, dropped = seeable_scenes(ctx.home, placements, ctx.data)
     unseeable: dict[int, set[str]] = {n: set() for n in seeable}
     for u in dropped:
         unseeable[u.scene].add(u.cls)

@@ -17,6 +17,8 @@ from objsearch.agent.datapaths import DATA_ENV, data_dir
 from objsearch.cli import main
 from objsearch.experiments.report_data import recorded_data_folder
 
+from .env_writes import env_writes
+
 MAIN = "import sys; from objsearch.cli import main; sys.exit(main(sys.argv[1:]))"
 
 #: A tiny habit run: 12 scenes, so the usual-place table (after day 10) reads the home itself.
@@ -186,17 +188,6 @@ def test_data_must_name_a_data_folder(
     assert f"objsearch: error: {message.format(path)}" in err
 
 
-#: The names of the environment variables set or unset while recording (None: not recording).
-_ENV_WRITES: list[str] | None = None
-_HOOKED = False
-
-
-def _env_writes(event: str, args: tuple[object, ...]) -> None:
-    if _ENV_WRITES is not None and event in ("os.putenv", "os.unsetenv"):
-        name = args[0]
-        _ENV_WRITES.append(os.fsdecode(name) if isinstance(name, (str, bytes)) else repr(name))
-
-
 def test_pooling_sets_no_environment_variable(
     runs: dict[str, Path],
     tmp_path: Path,
@@ -206,18 +197,10 @@ def test_pooling_sets_no_environment_variable(
     """Each output's folder is handed to the readers, not set as $OBJSEARCH_DATA around them:
     nothing is set or unset in the environment while ``bench belief`` runs (an audit hook sees
     every write to it)."""
-    global _ENV_WRITES, _HOOKED
     monkeypatch.delenv(DATA_ENV, raising=False)
-    if not _HOOKED:
-        sys.addaudithook(_env_writes)  # stays for the process; records only in this test
-        _HOOKED = True
     before = dict(os.environ)
-    _ENV_WRITES = []
-    try:
+    with env_writes() as writes:
         code, out, err = _belief(capsys, tmp_path / "r", runs["bundled"], runs["other"])
-        writes = _ENV_WRITES
-    finally:
-        _ENV_WRITES = None
     assert code == 0, err
     assert "homes (2): alt-01, ithor-01;" in out
     assert "On days the target was at its usual place" in out

@@ -23,6 +23,8 @@ from objsearch.pipeline.build import PAPER_HOME
 from objsearch.pipeline.home import build_home
 from objsearch.pipeline.scenario import table1
 
+from .env_writes import env_writes
+
 
 @pytest.fixture(scope="module")
 def elig(shared_data: Path) -> Eligibility:
@@ -68,10 +70,19 @@ def test_orderings() -> None:
 
 
 def test_bench_table1_on_two_sets(
-    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    shared_data: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
+    """The searches read the homes (and all else) of the run's own build, ``OUT/data``, handed
+    down to them: no environment variable is set or unset while it runs (issue 47), and one
+    naming a folder that holds nothing is not read (a reader left on $OBJSEARCH_DATA fails)."""
     out = tmp_path / "t1"
-    before = os.environ.get(DATA_ENV)
+    nothing = tmp_path / "no-data"
+    nothing.mkdir()
+    monkeypatch.setenv(DATA_ENV, str(nothing))
+    before = dict(os.environ)
     argv = ["bench", "table1", "--sets", "2", "--seed", "1", "--out", str(out)]
     argv += [
         "--source",
@@ -83,8 +94,11 @@ def test_bench_table1_on_two_sets(
         "--no-progress",
     ]
     argv += ["--prior", "vg-hoz-masked"]
-    assert main(argv) == 0
-    assert os.environ.get(DATA_ENV) == before  # the temporary data folder is not left set
+    with env_writes() as writes:
+        code = main(argv)
+    assert code == 0
+    assert writes == []
+    assert dict(os.environ) == before
     printed = capsys.readouterr().out
     assert "WPL ≤ RVP < SDP" in printed
     summary = json.loads((out / "summary.json").read_text())
