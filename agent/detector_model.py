@@ -19,10 +19,11 @@ import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
 from functools import cache
+from pathlib import Path
 from typing import Any, Final
 
 from objsearch.agent.categories import read_json
-from objsearch.agent.datapaths import data_dir
+from objsearch.agent.datapaths import data_key
 from objsearch.agent.errors import DataFileError, ObjsearchError
 
 #: COCO's object size bins (mask or box area, pixels): small below 32², large above 96².
@@ -303,10 +304,15 @@ class PerceptionModel:
         return cls(**values)
 
 
+def class_sizes(data: Path | None = None) -> Mapping[str, tuple[float, float, float]]:
+    """Each movable class's typical box (m), from :data:`SIZES_FILE` of the data folder ``data``
+    (None: ``datapaths.data_dir()``); read once per resolved folder."""
+    return _class_sizes(data_key(data))
+
+
 @cache
-def class_sizes() -> Mapping[str, tuple[float, float, float]]:
-    """Each movable class's typical box (m), from :data:`SIZES_FILE`."""
-    path = data_dir() / SIZES_FILE
+def _class_sizes(folder: Path) -> Mapping[str, tuple[float, float, float]]:
+    path = folder / SIZES_FILE
     doc = read_json(path, "the AI2-THOR placement statistics")
     try:
         return {c: (float(v[0]), float(v[1]), float(v[2])) for c, v in doc["sizes"].items()}

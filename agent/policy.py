@@ -14,6 +14,7 @@ import math
 import random
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TypedDict, Unpack
 
 import numpy as np
@@ -138,6 +139,7 @@ class SearchAgent:
         config: SearchConfig,
         planner: StopPlanner | None = None,
         next_task_id: Callable[[], str] | None = None,
+        data: Path | None = None,
     ) -> None:
         self.navmap = navmap
         self.semmap = semmap
@@ -152,6 +154,8 @@ class SearchAgent:
         #: in the relation model: a crashed task must not hand its id to the next one.
         self._next_task_id = next_task_id
         self._recall_cache: dict[tuple[str, str], tuple[float, ...]] = {}
+        #: The data folder of the class sizes (the run's; None: ``datapaths.data_dir()``).
+        self.data = data
         #: How many movable classes there are: a false report's share of the detector's false
         #: positives (``TaskOdds.sighting_odds``).
         self.movable_classes = len(vocabulary.names(Category.SEMI_DYNAMIC))
@@ -186,7 +190,7 @@ class SearchAgent:
         recalls = self._recall_cache.get(key)
         if recalls is None:
             model = self.config.perception
-            size = class_sizes().get(target)
+            size = class_sizes(self.data).get(target)
             vp = stop.viewpoint
             found = []
             for s in stop.statics:

@@ -318,6 +318,7 @@ class Session:
             spec.config(),
             spec.stop_planner(),
             next_task_id=self.state.tasks.next_task_id,
+            data=ctx.data,
         )
         # The distances between the home's stops, built here, once per run (a new map id is a
         # new run), so that no search's first decision waits for them.

@@ -8,6 +8,7 @@ import math
 import shutil
 import sysconfig
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -21,12 +22,15 @@ from objsearch.agent.datapaths import (
     data_dir,
     packaged_data_dir,
 )
+from objsearch.agent.detector_model import SIZES_FILE, class_sizes, preset
 from objsearch.agent.home import load_home
-from objsearch.agent.session import load_context
+from objsearch.agent.session import DEFAULT_PRIOR, load_context
+from objsearch.experiments.paper import table1_job
 from objsearch.experiments.report_homes import failure_cause
-from objsearch.experiments.runner import Row
+from objsearch.experiments.runner import Row, run_jobs
 from objsearch.sim.habit_schedule import habit_schedule
 from objsearch.sim.placements import Schedule
+from objsearch.sim.world import DEFAULT_CAMERA
 
 REPO_DATA = Path(__file__).resolve().parents[2] / "data"
 
@@ -154,3 +158,38 @@ def test_a_failure_cause_is_each_data_folders(
     assert failure_cause(failed, "geometric") == bundled
     monkeypatch.setenv(DATA_ENV, str(other))
     assert failure_cause(failed, "geometric") == "not placed in this scene"
+
+
+def _doubled_cup(doc: Any) -> Any:
+    doc["sizes"]["Cup"] = [2 * v for v in doc["sizes"]["Cup"]]
+    return doc
+
+
+def test_the_class_sizes_are_each_data_folders(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The policy's class sizes were read once per process from whichever folder came first."""
+    monkeypatch.delenv(DATA_ENV, raising=False)
+    other = _changed_data(tmp_path / "other", SIZES_FILE, _doubled_cup)
+    bundled = class_sizes()["Cup"]
+    assert class_sizes(other)["Cup"] == tuple(2 * v for v in bundled)
+    assert class_sizes()["Cup"] == bundled
+    assert class_sizes(other)["Apple"] == class_sizes()["Apple"]
+    monkeypatch.setenv(DATA_ENV, str(other))
+    assert class_sizes()["Cup"] == tuple(2 * v for v in bundled)
+
+
+def test_a_run_on_a_named_data_folder_reads_only_that_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A job naming its data folder (``bench table1``'s) runs with $OBJSEARCH_DATA naming a
+    folder that holds nothing: its home, scene, prior, belief and, under a modelled detector,
+    the class sizes all come from the folder it names."""
+    nothing = tmp_path / "nothing"
+    nothing.mkdir()
+    monkeypatch.setenv(DATA_ENV, str(nothing))
+    named = _changed_data(tmp_path / "named", SIZES_FILE, _doubled_cup)
+    job = table1_job("paper", "wpl", 0, ("Cup",), DEFAULT_PRIOR, DEFAULT_CAMERA, named)
+    realistic = json.dumps(preset("realistic").params())
+    rows = run_jobs([replace(job, perception=realistic)], progress=False)
+    assert len(rows) == len(load_home("paper", named).starts)
