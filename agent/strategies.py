@@ -30,6 +30,7 @@ from objsearch.agent.catalogue import (
     decode_payload,
     encode,
 )
+from objsearch.agent.datapaths import DATA_ENV, data_key
 from objsearch.agent.detector_model import PerceptionModel
 from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import Home
@@ -124,7 +125,9 @@ class RelationSpec:
         self, models: RelationModels = AGENT_MODELS, data: Path | None = None
     ) -> RelationModel:
         """A fresh model of this spec; ``models`` builds those outside the agent. A belief reads
-        the run's home from the data folder ``data`` (None: ``datapaths.data_dir()``)."""
+        the run's home from the data folder ``data`` (None: ``datapaths.data_dir()``); a model of
+        ``models`` (the simulator's reference oracles) reads only ``datapaths.data_dir()``, and
+        refuses another folder."""
         if self.model == "memory":
             from objsearch.agent.memory import InstanceMemory
 
@@ -162,6 +165,15 @@ class RelationSpec:
                 data=data,
             )
         if self.model in models:
+            if data is not None and data_key(data) != data_key():
+                # Built with no folder, it would read another folder's homes and schedules
+                # (sim/distribution_oracle.py reads datapaths.data_dir()): an error, not a
+                # silently wrong reference.
+                raise ObjsearchError(
+                    f"the {self.model} relation model reads the data of ${DATA_ENV} (else the "
+                    f"bundled data), not a named data folder ({data}): run it with "
+                    f"{DATA_ENV}={data}"
+                )
             return models[self.model]()
         if self.model in REFERENCE_MODELS:
             raise ObjsearchError(

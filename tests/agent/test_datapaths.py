@@ -23,12 +23,15 @@ from objsearch.agent.datapaths import (
     packaged_data_dir,
 )
 from objsearch.agent.detector_model import SIZES_FILE, class_sizes, preset
+from objsearch.agent.errors import ObjsearchError
 from objsearch.agent.home import load_home
 from objsearch.agent.session import DEFAULT_PRIOR, load_context
+from objsearch.agent.strategies import RelationSpec
 from objsearch.experiments.paper import table1_job
 from objsearch.experiments.report_homes import failure_cause
 from objsearch.experiments.runner import Row, run_jobs
 from objsearch.sim.habit_schedule import habit_schedule
+from objsearch.sim.models import SIM_MODELS
 from objsearch.sim.placements import Schedule
 from objsearch.sim.world import DEFAULT_CAMERA
 
@@ -193,3 +196,21 @@ def test_a_run_on_a_named_data_folder_reads_only_that_folder(
     realistic = json.dumps(preset("realistic").params())
     rows = run_jobs([replace(job, perception=realistic)], progress=False)
     assert len(rows) == len(load_home("paper", named).starts)
+
+
+def test_a_reference_oracle_refuses_a_named_data_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The simulator's oracles read only $OBJSEARCH_DATA or the bundled data: on a job that
+    names another folder they would silently read another folder's homes and schedules."""
+    monkeypatch.delenv(DATA_ENV, raising=False)
+    other = _changed_data(tmp_path / "other", "homes/paper.json", lambda doc: doc)
+    oracle = RelationSpec("dist-oracle")
+    with pytest.raises(ObjsearchError, match=f"run it with {DATA_ENV}={other}"):
+        oracle.build(SIM_MODELS, data=other)
+    job = table1_job("paper", "dist-oracle", 0, ("Cup",), DEFAULT_PRIOR, DEFAULT_CAMERA, other)
+    with pytest.raises(ObjsearchError, match="dist-oracle relation model reads the data of"):
+        run_jobs([job], progress=False)
+    oracle.build(SIM_MODELS, data=REPO_DATA)  # the folder it reads
+    monkeypatch.setenv(DATA_ENV, str(other))
+    assert run_jobs([job], progress=False)  # set as the variable, it is the folder it reads
