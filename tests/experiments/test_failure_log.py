@@ -12,10 +12,11 @@ from objsearch.experiments.runner import Job, Row, read_rows, run_job, write_row
 
 
 def _search(target: str, **detector: float) -> list[str | None]:
-    # Draws by view, reports as misses and no relook: the scenarios below were found under them
-    # (each names its search).
+    # Draws by view, reports as misses, no relook, pooled stop misses: the scenarios below were
+    # found under them (each names its search).
     perception = json.dumps(
-        preset("realistic", "score", "view", "misses", "off", **detector).params(), sort_keys=True
+        preset("realistic", "score", "view", "misses", "off", "pooled", **detector).params(),
+        sort_keys=True,
     )
     job = Job(
         "homes", "ithor-02", "habit-0", "global-belief", "all", 0, targets=(target,),
