@@ -91,8 +91,9 @@ REPORTS: Final = ("misses", "evidence")
 RELOOKS: Final = ("off", "likeliest")
 #: What the searcher takes to be left of a stop's chance after ``n`` inspections of it that
 #: missed (agent/policy.py, ``SearchAgent.stop_miss_after``): ``pooled``, the stop's per-look
-#: miss averaged over its statics, to the n-th power (every run before this option, and any run
-#: spec that names none), or ``per-static``, each static's own per-look miss to the n-th power,
+#: miss averaged over its statics, to the n-th power (``perfect``, every run before this option,
+#: and any run spec that names none), or ``per-static`` (the modelled presets' default since the
+#: amendment of 23:03 UTC), each static's own per-look miss to the n-th power,
 #: averaged: the chance n looks all miss when the target is at one of the stop's statics, equally
 #: likely. The two agree for n = 1; beyond, the mean of powers is the larger (Jensen): a static
 #: the camera sees badly keeps its chance, where the pooled miss lets repeated looks drain it.
@@ -361,7 +362,8 @@ def preset(
     ``relook`` what the searcher does after an inspection that missed (:data:`RELOOKS`; None:
     ``likeliest``, chosen by the amendment of 2026-12-07 21:12 UTC of docs/protocol-perception.md,
     but ``off`` for ``perfect``, as before); ``stop_misses`` how repeated misses at a stop are
-    counted (:data:`STOP_MISSES`; None: ``pooled``)."""
+    counted (:data:`STOP_MISSES`; None: ``per-static``, by the rule of the amendment of
+    2026-12-07 23:03 UTC, but ``pooled`` for ``perfect``, which never looks again)."""
     if name not in PRESETS:
         raise ObjsearchError(
             f"unknown perception preset {name!r}; choose from {', '.join(PRESETS)}"
@@ -401,5 +403,5 @@ def preset(
         draws=draws or ("view" if name == "perfect" else "place"),
         reports=reports or ("misses" if name == "perfect" else "evidence"),
         relook=relook or ("off" if name == "perfect" else "likeliest"),
-        stop_misses=stop_misses or "pooled",
+        stop_misses=stop_misses or ("pooled" if name == "perfect" else "per-static"),
     )

@@ -234,7 +234,8 @@ def _add_perception_options(p: argparse.ArgumentParser) -> None:
         default=None,
         help="what is left of a stop's chance after n inspections of it that missed: pooled (the "
         "stop's miss averaged over its statics, to the n-th power) or per-static (each static's "
-        "own miss to the n-th power, averaged: a static seen badly keeps its chance) (pooled)",
+        "own miss to the n-th power, averaged: a static seen badly keeps its chance) (per-static; "
+        "pooled for perfect)",
     )
 
 

@@ -209,15 +209,16 @@ def test_relook_is_an_option_recorded_in_the_run_spec_only_when_on(command: list
 def test_stop_misses_is_an_option_recorded_in_the_run_spec_only_when_per_static(
     command: list[str],
 ) -> None:
-    """``pooled`` (every run before the option) is left out of the run spec."""
+    """The modelled presets count misses per static (the amendment of 23:03 UTC); ``pooled``
+    (every run before the option) is left out of the run spec."""
     from objsearch.cli import build_parser
 
     parse = build_parser().parse_args
     default = t.perception_params(parse([*command, "--perception", "realistic"]))
-    assert default is not None and "stop_misses" not in default
-    chosen = t.perception_params(
-        parse([*command, "--perception", "harsh", "--stop-misses", "per-static"])
+    assert default is not None and default["stop_misses"] == "per-static"
+    pooled = t.perception_params(
+        parse([*command, "--perception", "harsh", "--stop-misses", "pooled"])
     )
-    assert chosen is not None and chosen["stop_misses"] == "per-static"
+    assert pooled is not None and "stop_misses" not in pooled
     with pytest.raises(SystemExit):
         parse([*command, "--stop-misses", "sometimes"])

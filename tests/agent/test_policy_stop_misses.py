@@ -76,8 +76,8 @@ def _near_and_far_stop() -> Stop:
 
 def test_per_static_misses_are_the_mean_of_each_statics_powers() -> None:
     stop = _near_and_far_stop()
-    pooled = _agent(preset("realistic"))
-    per_static = _agent(preset("realistic", stop_misses="per-static"))
+    pooled = _agent(preset("realistic", stop_misses="pooled"))
+    per_static = _agent(preset("realistic"))
     recalls = pooled._recalls("Apple", stop)
     assert recalls[0] != recalls[1]  # the case the two readings differ on
     misses = [1.0 - 0.8 * r for r in recalls]
@@ -100,13 +100,15 @@ def test_per_static_misses_are_the_mean_of_each_statics_powers() -> None:
 
 
 def test_stop_misses_are_recorded_only_when_not_pooled() -> None:
-    assert preset("realistic").stop_misses == "pooled"
-    assert "stop_misses" not in preset("realistic").params()
-    on = preset("harsh", stop_misses="per-static")
-    assert on.params()["stop_misses"] == "per-static"
+    # the modelled presets count per static (the amendment of 23:03 UTC); perfect pools
+    assert preset("perfect").stop_misses == "pooled"
+    pooled = preset("realistic", stop_misses="pooled")
+    assert "stop_misses" not in pooled.params()
+    on = preset("harsh")
+    assert on.stop_misses == "per-static" and on.params()["stop_misses"] == "per-static"
     assert PerceptionModel.from_params(on.params()) == on
     # a run spec that names none replays as the runs before the option
-    assert PerceptionModel.from_params(preset("realistic").params()).stop_misses == "pooled"
+    assert PerceptionModel.from_params(pooled.params()).stop_misses == "pooled"
     assert STOP_MISSES == ("pooled", "per-static")
     with pytest.raises(ObjsearchError, match="unknown stop misses"):
         replace(preset("realistic"), stop_misses="sometimes")
