@@ -26,6 +26,8 @@ from objsearch.sim.detector_model import NoisyDetector, with_perception
 from objsearch.sim.placements import Placement, base_placements
 from objsearch.sim.world import SimWorld
 
+from .relation_stubs import NoRelations
+
 FIXED_WALL_CLOCK_NS = 1_767_225_600_000_000_000
 FRIDGE = "kitchen/Fridge|-01.76|+00.00|00.00"
 
@@ -270,27 +272,11 @@ def test_a_revisit_counts_a_small_targets_looks_as_weaker_evidence_than_a_large_
     assert "budget of 8 passes spent" in phone
 
 
-class SureOfTheFridge:
+class SureOfTheFridge(NoRelations):
     """A relation model that is all but certain the Apple is in the fridge."""
-
-    tasks_folded = 0
-    last_seq = 0
-
-    def apply(self, event: object) -> None:
-        pass
-
-    def rel(self, dynamic: str, static: str) -> float:
-        return 0.0
 
     def instance_rel(self, dynamic: str, static_id: str, static_class: str) -> float:
         return 0.99 if (dynamic, static_id) == ("Apple", FRIDGE) else 0.0
-
-    @property
-    def state(self) -> dict[tuple[str, str], float]:
-        return {}
-
-    def as_table(self) -> dict[str, dict[str, float]]:
-        return {}
 
 
 class Records:

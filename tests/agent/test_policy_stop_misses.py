@@ -20,28 +20,7 @@ from objsearch.agent.stops import Stop
 from objsearch.agent.strategies import RunSpec
 from objsearch.sim.detector_model import with_perception
 
-
-class NoRelations:
-    """A relation model with no opinion: the stops' values are set by hand here."""
-
-    tasks_folded = 0
-    last_seq = 0
-
-    def apply(self, event: object) -> None:
-        pass
-
-    def rel(self, dynamic: str, static: str) -> float:
-        return 0.0
-
-    def instance_rel(self, dynamic: str, static_id: str, static_class: str) -> float:
-        return 0.0
-
-    @property
-    def state(self) -> dict[tuple[str, str], float]:
-        return {}
-
-    def as_table(self) -> dict[str, dict[str, float]]:
-        return {}
+from .relation_stubs import NoRelations
 
 
 class Discard:
